@@ -181,10 +181,8 @@ def _levels(
     diff: np.ndarray,
     th_on: np.ndarray,
     i_lin: float,
-    cutoff_hz: float,
-    cutoff_dark: float,
+    lowpass: np.ndarray,
     leak_step: float,
-    dt_s: float,
     log_in: np.ndarray,
     level_new: np.ndarray,
     diff_new: np.ndarray,
@@ -193,20 +191,20 @@ def _levels(
 
     ``log_in`` holds ``ln(max(lum, i_lin))`` on entry (NumPy's vectorised log is
     ~10× faster than a scalar one); the linear segment below ``i_lin`` is patched in
-    here. Returns the largest change of the input log intensity.
+    here. ``lowpass`` is the per-pixel fraction of the way the photoreceptor moves
+    toward its input in this step (empty: no low-pass). Returns the largest change
+    of the input log intensity.
     """
     il = np.float32(i_lin)
     log_il = np.float32(math.log(i_lin))
     leak = np.float32(leak_step)
+    filtered = lowpass.size > 0
     max_change = np.float32(0.0)
     for i in range(lum.size):
         x = log_in[i] if lum[i] >= il else log_il + (lum[i] - il) / il
         log_in[i] = x
         max_change = max(max_change, abs(x - log_in_prev[i]))
-        lv = x
-        if cutoff_hz > 0.0:
-            fc = cutoff_hz * (lum[i] + cutoff_dark) / (1.0 + cutoff_dark)
-            lv = level[i] + (1.0 - math.exp(-2.0 * math.pi * fc * dt_s)) * (x - level[i])
+        lv = level[i] + lowpass[i] * (x - level[i]) if filtered else x
         level_new[i] = lv
         # Leak: the memorised reference drifts down by leak_step thresholds per step.
         diff_new[i] = diff[i] + (lv - level[i]) + leak * th_on[i]
@@ -349,6 +347,8 @@ class DVSEmulator:
         self._level_new = np.empty(n, np.float32)
         self._diff_new = np.empty(n, np.float32)
         self._active = np.empty(n, np.int64)
+        self._alpha = np.empty(n, np.float32)
+        self._no_lowpass = np.empty(0, np.float32)
         self._t_prev: int | None = None
         self.max_log_change = 0.0
         self._init_pixels(seed)
@@ -438,8 +438,8 @@ class DVSEmulator:
         np.log(self._log_in, out=self._log_in)
         self.max_log_change = float(
             _levels(
-                lum, self._log_in_prev, self._level, self._diff, self.th_on,
-                p.linlog_intensity, p.cutoff_hz, p.cutoff_dark, p.leak_rate_hz * dt_s, dt_s,
+                lum, self._log_in_prev, self._level, self._diff, self.th_on, p.linlog_intensity,
+                self._lowpass(lum, dt_s), p.leak_rate_hz * dt_s,
                 self._log_in, self._level_new, self._diff_new,
             )
         )  # fmt: skip
@@ -463,6 +463,17 @@ class DVSEmulator:
         crossings = (xs[:n], ys[:n], t_int, ps[:n])
         self._t_prev = t_us
         return self._deliver([self._pending, crossings, *self._noise(t0, t_us)], t_us)
+
+    def _lowpass(self, lum: np.ndarray, dt_s: float) -> np.ndarray:
+        """Per pixel ``1 - exp(-2π·fc(I)·dt)``, fc rising with intensity; empty if off."""
+        p = self.params
+        if p.cutoff_hz <= 0:
+            return self._no_lowpass
+        k = np.float32(-2 * math.pi * dt_s * p.cutoff_hz / (1 + p.cutoff_dark))
+        a = np.add(lum, np.float32(p.cutoff_dark), out=self._alpha)
+        a *= k
+        np.expm1(a, out=a)
+        return np.negative(a, out=a)
 
     def _noise(self, t0: int, t1: int) -> list[_Columns]:
         """Shot noise and hot-pixel events, uniform in (t0, t1]."""

@@ -1,0 +1,97 @@
+"""The ``wander`` command line. ``wander --help`` lists the commands."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.table import Table
+
+app = typer.Typer(
+    help="wander: a simulated active-vision laboratory for event cameras.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+bench_app = typer.Typer(help="Benchmarks that print tables (speed is measured here, not in tests).")
+app.add_typer(bench_app, name="bench")
+console = Console()
+
+
+def _progress() -> Progress:
+    return Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total}"),
+        TimeRemainingColumn(),
+        console=console,
+        transient=False,
+    )
+
+
+def print_table(title: str, rows: list, columns: dict[str, str]) -> None:
+    """Print dataclass rows; ``columns`` maps field name -> format spec."""
+    table = Table(title=title)
+    for name in columns:
+        table.add_column(name.replace("_", " "), justify="right")
+    for row in rows:
+        table.add_row(*(format(getattr(row, k), fmt) for k, fmt in columns.items()))
+    console.print(table)
+
+
+@app.command()
+def demo(
+    out: Annotated[Path, typer.Option(help="Folder for events.h5, events.png, run.json.")] = Path(
+        "runs/demo"
+    ),
+    seconds: Annotated[float, typer.Option(help="Simulated seconds of the stimulus.")] = 1.0,
+    preset: Annotated[str, typer.Option(help="DVS preset: ideal, paper or speck.")] = "paper",
+    seed: Annotated[int, typer.Option(help="Seed of the stimulus and the emulator's noise.")] = 0,
+) -> None:
+    """Drive the DVS emulator with a synthetic moving pattern; write events and a picture."""
+    from wander_env.demo import DemoConfig, run_demo
+
+    config = DemoConfig(seconds=seconds, preset=preset, seed=seed)
+    with _progress() as bar:
+        task = bar.add_task("DVS demo", total=round(seconds * config.frame_rate_hz))
+        summary = run_demo(out, config, progress=lambda i, n: bar.update(task, completed=i))
+    console.print(
+        f"{summary['events']:,} events ({summary['events_per_frame']:.0f} per frame, "
+        f"{summary['on_fraction']:.0%} ON) -> {out}/events.h5, {out}/events.png"
+    )
+
+
+@bench_app.command("dvs")
+def bench_dvs(
+    frames: Annotated[int, typer.Option(help="Frames per timed run (1 kHz).")] = 1000,
+    repeats: Annotated[int, typer.Option(help="Timed runs per row; the median is shown.")] = 3,
+) -> None:
+    """Frames/s and Mev/s of the DVS emulator at 128x128 and 346x260."""
+    from experiments.bench_dvs import NOISE_PRESET, bench_dvs
+
+    rows = bench_dvs(n_frames=frames, repeats=repeats)
+    print_table(
+        f"DVS emulator ('all on' = the {NOISE_PRESET} preset, every noise term)",
+        rows,
+        {
+            "sensor": "",
+            "scene": "",
+            "noise": "",
+            "frames_per_s": ",.0f",
+            "mev_per_s": ".2f",
+            "events_per_frame": ",.0f",
+            "on_frame_time_pct": ".1f",
+            "peak_mib": ".1f",
+        },
+    )
+
+
+def main() -> None:
+    app()
+
+
+if __name__ == "__main__":
+    main()
