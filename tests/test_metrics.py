@@ -1,0 +1,273 @@
+"""Tests for the ground-truth metrics (wander_env.metrics)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from numpy.lib.stride_tricks import sliding_window_view
+
+from wander_env.metrics import (
+    SPECK_HFOV_DEG,
+    degrees_to_pixels,
+    detection_hit,
+    focal_length_px,
+    foveation_error_px,
+    iou,
+    pixels_to_degrees,
+    precision,
+    recall,
+    ssim,
+    ssim_map,
+)
+
+
+def box_map(shape, y0, y1, x0, x1):
+    m = np.zeros(shape, dtype=bool)
+    m[y0:y1, x0:x1] = True
+    return m
+
+
+# ----------------------------------------------------------------------------------------
+# Overlap
+
+
+def test_overlap_on_hand_made_maps():
+    pred = box_map((10, 10), 0, 4, 0, 4)  # 16 px
+    mask = box_map((10, 10), 2, 6, 2, 6)  # 16 px, overlap 2×2 = 4
+    assert iou(pred, mask) == 4 / 28
+    assert precision(pred, mask) == 4 / 16
+    assert recall(pred, mask) == 4 / 16
+
+
+def test_precision_is_not_iou_for_a_small_prediction_inside_the_mask():
+    # The public code's "IoU": a tiny prediction inside a big mask scores 1.
+    mask = box_map((8, 8), 0, 8, 0, 8)
+    pred = box_map((8, 8), 3, 4, 3, 4)
+    assert precision(pred, mask) == 1.0
+    assert iou(pred, mask) == 1 / 64
+    assert recall(pred, mask) == 1 / 64
+
+
+def test_identical_and_disjoint():
+    m = box_map((5, 7), 1, 3, 2, 6)
+    assert iou(m, m) == precision(m, m) == recall(m, m) == 1.0
+    other = box_map((5, 7), 4, 5, 0, 1)
+    assert iou(m, other) == precision(m, other) == recall(m, other) == 0.0
+
+
+def test_empty_denominators_give_nan():
+    empty = np.zeros((3, 3), bool)
+    full = np.ones((3, 3), bool)
+    assert math.isnan(iou(empty, empty))
+    assert math.isnan(precision(empty, full))
+    assert recall(empty, full) == 0.0
+    assert math.isnan(recall(full, empty))
+    assert precision(full, empty) == 0.0
+    assert iou(empty, full) == 0.0
+
+
+def test_nonzero_values_count_as_true():
+    pred = np.array([[0.0, 0.7], [2.0, 0.0]])
+    mask = np.array([[0, 1], [0, 1]], dtype=np.uint8)
+    assert iou(pred, mask) == 1 / 3
+    assert precision(pred, mask) == 0.5
+
+
+@pytest.mark.parametrize("fn", [iou, precision, recall])
+def test_shape_mismatch_names_both_shapes(fn):
+    with pytest.raises(ValueError, match=r"\(4, 5\).*\(5, 4\)"):
+        fn(np.zeros((4, 5), bool), np.zeros((5, 4), bool))
+
+
+# ----------------------------------------------------------------------------------------
+# SSIM
+
+
+def naive_ssim(a, b, data_range):
+    """Direct Wang et al. (2004): explicit 11×11 Gaussian (σ = 1.5), 'valid' windows."""
+    r = np.arange(-5, 6)
+    g = np.exp(-(r**2) / (2 * 1.5**2))
+    w = np.outer(g, g)
+    w /= w.sum()
+    wa, wb = sliding_window_view(a, (11, 11)), sliding_window_view(b, (11, 11))
+
+    def mean(z):
+        return np.einsum("ijkl,kl->ij", z, w)
+
+    ma, mb = mean(wa), mean(wb)
+    va = mean(wa**2) - ma**2
+    vb = mean(wb**2) - mb**2
+    cab = mean(wa * wb) - ma * mb
+    c1, c2 = (0.01 * data_range) ** 2, (0.03 * data_range) ** 2
+    s = (2 * ma * mb + c1) * (2 * cab + c2) / ((ma**2 + mb**2 + c1) * (va + vb + c2))
+    return s
+
+
+def test_ssim_identical_is_one():
+    rng = np.random.default_rng(1)
+    img = rng.random((32, 40))
+    assert ssim(img, img) == pytest.approx(1.0, abs=1e-12)
+    assert ssim(np.zeros((11, 11)), np.zeros((11, 11))) == 1.0
+
+
+def test_ssim_constant_maps_closed_form():
+    # No variance: only the luminance term (2ab + C1) / (a² + b² + C1) remains.
+    a, b, rng_ = 0.2, 0.7, 1.0
+    c1 = (0.01 * rng_) ** 2
+    expected = (2 * a * b + c1) / (a * a + b * b + c1)
+    assert ssim(np.full((16, 16), a), np.full((16, 16), b), data_range=rng_) == pytest.approx(
+        expected, rel=1e-12
+    )
+
+
+def test_ssim_matches_a_direct_implementation():
+    rng = np.random.default_rng(2)
+    a = rng.random((24, 30))
+    b = np.clip(a + rng.normal(0, 0.1, a.shape), 0, 1)
+    expected = naive_ssim(a, b, 1.0)
+    got = ssim_map(a, b, 1.0)
+    assert got.shape == (14, 20)
+    np.testing.assert_allclose(got, expected, rtol=1e-10, atol=1e-12)
+    assert ssim(a, b) == pytest.approx(expected.mean(), rel=1e-10)
+    assert 0.0 < ssim(a, b) < 1.0
+
+
+def test_ssim_properties():
+    rng = np.random.default_rng(3)
+    a, b = rng.random((20, 20)), rng.random((20, 20))
+    assert ssim(a, b) == pytest.approx(ssim(b, a))
+    # Scaling the maps and the data range together leaves SSIM unchanged.
+    assert ssim(255 * a, 255 * b, data_range=255) == pytest.approx(ssim(a, b))
+    # An inverted image is anti-correlated in structure.
+    assert ssim(a, 1.0 - a) < 0.0
+
+
+def test_ssim_rejects_bad_input():
+    with pytest.raises(ValueError, match=r"\(12, 12\).*\(12, 13\)"):
+        ssim(np.zeros((12, 12)), np.zeros((12, 13)))
+    with pytest.raises(ValueError, match="at least 11"):
+        ssim(np.zeros((10, 20)), np.zeros((10, 20)))
+    with pytest.raises(ValueError, match="2-D"):
+        ssim(np.zeros((2, 12, 12)), np.zeros((2, 12, 12)))
+    with pytest.raises(ValueError, match="data_range"):
+        ssim(np.zeros((12, 12)), np.zeros((12, 12)), data_range=0.0)
+
+
+# ----------------------------------------------------------------------------------------
+# Detection
+
+
+def single_pixel(x, y, shape=(32, 32)):
+    m = np.zeros(shape, dtype=bool)
+    m[y, x] = True
+    return m
+
+
+@pytest.mark.parametrize(
+    ("point", "hit"),
+    [
+        ((10, 10), True),
+        ((14, 10), True),  # box x in [10, 17]: the mask pixel is its left column
+        ((15, 10), False),  # box x in [11, 18]
+        ((7, 10), True),  # box x in [3, 10]: right column
+        ((6, 10), False),  # box x in [2, 9]
+        ((10, 14), True),
+        ((10, 15), False),
+        ((10, 7), True),
+        ((10, 6), False),
+        ((14, 14), True),  # corner
+        ((6, 6), False),
+        ((14.49, 10), True),  # rounds to 14
+        ((14.5, 10), False),  # rounds (half up) to 15
+    ],
+)
+def test_detection_box_is_px_minus_4_to_px_plus_3(point, hit):
+    assert detection_hit(point, single_pixel(10, 10)) is hit
+
+
+def test_detection_uses_x_y_not_row_col():
+    m = single_pixel(20, 2)  # x = 20, y = 2
+    assert detection_hit((20, 2), m)
+    assert not detection_hit((2, 20), m)
+
+
+def test_detection_box_is_clipped_to_the_image():
+    m = single_pixel(0, 0, shape=(16, 16))
+    assert detection_hit((3, 3), m)
+    assert detection_hit((-3, -3), m)  # box [-7, 0]
+    assert not detection_hit((-4, -4), m)  # box [-8, -1]: entirely outside
+    corner = single_pixel(15, 15, shape=(16, 16))
+    assert detection_hit((19, 19), corner)  # box [15, 22]
+    assert not detection_hit((20, 20), corner)
+
+
+def test_detection_other_box_sizes():
+    m = single_pixel(10, 10)
+    assert detection_hit((10, 10), m, box=1)
+    assert not detection_hit((11, 10), m, box=1)
+    assert detection_hit((11, 10), m, box=3)  # [10, 12]
+    assert not detection_hit((12, 10), m, box=3)
+    assert not detection_hit((5, 5), np.zeros((8, 8), bool))
+
+
+def test_detection_rejects_bad_input():
+    with pytest.raises(ValueError, match="box"):
+        detection_hit((1, 1), np.ones((4, 4), bool), box=0)
+    with pytest.raises(ValueError, match="box"):
+        detection_hit((1, 1), np.ones((4, 4), bool), box=True)
+    with pytest.raises(ValueError, match="2-D"):
+        detection_hit((1, 1), np.ones(4, bool))
+
+
+# ----------------------------------------------------------------------------------------
+# Foveation and angles
+
+
+def test_foveation_error():
+    assert foveation_error_px((63.5, 63.5), (128, 128, 2)) == (0.0, 0.0, 0.0)
+    assert foveation_error_px((64, 64), (128, 128)) == (0.5, 0.5, math.sqrt(0.5))
+    assert foveation_error_px((0, 0), (128, 64)) == (-63.5, -31.5, math.hypot(63.5, 31.5))
+    with pytest.raises(ValueError, match="sensor_size"):
+        foveation_error_px((0, 0), (128,))
+    with pytest.raises(ValueError, match="sensor_size"):
+        foveation_error_px((0, 0), (0, 128))
+
+
+def test_speck_field_of_view():
+    assert SPECK_HFOV_DEG == pytest.approx(math.degrees(2 * math.atan(5.12 / 3.4)))
+    assert SPECK_HFOV_DEG == pytest.approx(112.8267, abs=1e-4)
+    # f = 1.7 mm over a 40 µm pixel pitch (5.12 mm / 128).
+    assert focal_length_px(128) == pytest.approx(42.5)
+
+
+def test_pixels_degrees_pinhole():
+    assert pixels_to_degrees(0.0, 128) == 0.0
+    assert pixels_to_degrees(64, 128) == pytest.approx(SPECK_HFOV_DEG / 2)
+    assert pixels_to_degrees(-64, 128) == pytest.approx(-SPECK_HFOV_DEG / 2)
+    assert pixels_to_degrees(1, 128) == pytest.approx(math.degrees(math.atan(1 / 42.5)))
+    assert degrees_to_pixels(45.0, 100, hfov_deg=90.0) == pytest.approx(50.0)
+    assert isinstance(pixels_to_degrees(3, 128), float)
+
+
+def test_pixels_degrees_round_trip_on_arrays():
+    px = np.linspace(-64, 64, 17)
+    deg = pixels_to_degrees(px, 128)
+    assert isinstance(deg, np.ndarray) and deg.shape == px.shape
+    np.testing.assert_allclose(degrees_to_pixels(deg, 128), px, atol=1e-9)
+
+
+def test_angle_conversions_reject_bad_geometry():
+    with pytest.raises(ValueError, match="hfov_deg"):
+        pixels_to_degrees(1, 128, hfov_deg=180.0)
+    with pytest.raises(ValueError, match="width_px"):
+        degrees_to_pixels(1.0, 0)
+
+
+def test_docstring_examples_run():
+    import doctest
+
+    import wander_env.metrics
+
+    assert doctest.testmod(wander_env.metrics).failed == 0

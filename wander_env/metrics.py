@@ -1,0 +1,218 @@
+"""Ground-truth metrics: pure functions on NumPy arrays.
+
+Maps are on the sensor grid, indexed ``[y, x]``; points are ``(x, y)`` pixels with
+origin top-left (pixel centres on integer coordinates); the fovea is the sensor
+centre ``((W - 1) / 2, (H - 1) / 2)``.
+
+Set overlap of boolean maps (nonzero counts as True):
+
+- :func:`iou` — true intersection over union, ``|P ∩ M| / |P ∪ M|``;
+- :func:`precision` — ``|P ∩ M| / |P|``. The paper's public code reports this
+  number under the name "IoU"; here it has its proper name;
+- :func:`recall` — ``|P ∩ M| / |M|``.
+
+Each returns ``nan`` when its denominator is empty (nothing to score), so that
+averages over trials can skip such trials explicitly (``np.nanmean``) instead of
+counting them as perfect or as failures.
+
+Example:
+    >>> import numpy as np
+    >>> pred = np.zeros((4, 4), bool); pred[0, :2] = True
+    >>> mask = np.zeros((4, 4), bool); mask[0, 1:4] = True
+    >>> iou(pred, mask), precision(pred, mask), recall(pred, mask)
+    (0.25, 0.5, 0.3333333333333333)
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.ndimage import gaussian_filter
+
+# Speck DVS: sensor width 5.12 mm behind a 1.7 mm lens -> 2·atan(5.12 / 3.4) ≈ 112.8°.
+SPECK_HFOV_DEG = math.degrees(2.0 * math.atan(5.12 / (2.0 * 1.7)))
+
+# SSIM (Wang et al. 2004): 11×11 Gaussian window of σ = 1.5 (radius 5 = int(3.5·1.5 + 0.5)).
+_SSIM_SIGMA = 1.5
+_SSIM_TRUNCATE = 3.5
+_SSIM_RADIUS = 5
+
+
+def _pair(pred: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    p, m = np.asarray(pred), np.asarray(mask)
+    if p.shape != m.shape:
+        raise ValueError(f"pred and mask differ in shape: pred {p.shape} vs mask {m.shape}")
+    return p.astype(bool, copy=False), m.astype(bool, copy=False)
+
+
+def _ratio(num: int, den: int) -> float:
+    return float(num) / float(den) if den else float("nan")
+
+
+def iou(pred: np.ndarray, mask: np.ndarray) -> float:
+    """Intersection over union of two boolean maps; ``nan`` when both are empty.
+
+    >>> iou(np.array([1, 1, 0, 0]), np.array([0, 1, 1, 0]))
+    0.3333333333333333
+    """
+    p, m = _pair(pred, mask)
+    return _ratio(np.count_nonzero(p & m), np.count_nonzero(p | m))
+
+
+def precision(pred: np.ndarray, mask: np.ndarray) -> float:
+    """``|pred ∩ mask| / |pred|`` (the public code's "IoU"); ``nan`` when pred is empty.
+
+    >>> precision(np.array([1, 1, 0, 0]), np.array([0, 1, 1, 1]))
+    0.5
+    """
+    p, m = _pair(pred, mask)
+    return _ratio(np.count_nonzero(p & m), np.count_nonzero(p))
+
+
+def recall(pred: np.ndarray, mask: np.ndarray) -> float:
+    """``|pred ∩ mask| / |mask|``; ``nan`` when the mask is empty.
+
+    >>> recall(np.array([1, 1, 0, 0]), np.array([0, 1, 1, 1]))
+    0.3333333333333333
+    """
+    p, m = _pair(pred, mask)
+    return _ratio(np.count_nonzero(p & m), np.count_nonzero(m))
+
+
+def ssim_map(a: np.ndarray, b: np.ndarray, data_range: float = 1.0) -> np.ndarray:
+    """Local SSIM (Wang et al. 2004) of two 2-D float maps, on the valid region.
+
+    Gaussian-weighted statistics over an 11×11 window (σ = 1.5), population
+    (not sample) covariances, ``C1 = (0.01·L)²`` and ``C2 = (0.03·L)²`` with
+    ``L = data_range``. Only window positions fully inside the image are kept,
+    so the result is ``(H − 10, W − 10)``; this is the reference MATLAB code's
+    ``'valid'`` filtering and what scikit-image's ``structural_similarity(...,
+    gaussian_weights=True, sigma=1.5, use_sample_covariance=False)`` averages.
+    """
+    x = np.asarray(a, dtype=np.float64)
+    y = np.asarray(b, dtype=np.float64)
+    if x.shape != y.shape:
+        raise ValueError(f"a and b differ in shape: a {x.shape} vs b {y.shape}")
+    if x.ndim != 2:
+        raise ValueError(f"ssim needs 2-D maps, got shape {x.shape}")
+    win = 2 * _SSIM_RADIUS + 1
+    if min(x.shape) < win:
+        raise ValueError(f"ssim needs maps at least {win}×{win}, got shape {x.shape}")
+    if not (math.isfinite(data_range) and data_range > 0):
+        raise ValueError(f"data_range must be a finite number > 0, got {data_range!r}")
+
+    def filt(z: np.ndarray) -> np.ndarray:
+        return gaussian_filter(z, _SSIM_SIGMA, truncate=_SSIM_TRUNCATE, mode="reflect")
+
+    c1 = (0.01 * data_range) ** 2
+    c2 = (0.03 * data_range) ** 2
+    mx, my = filt(x), filt(y)
+    vx = filt(x * x) - mx * mx
+    vy = filt(y * y) - my * my
+    cxy = filt(x * y) - mx * my
+    s = ((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2))
+    r = _SSIM_RADIUS
+    return s[r:-r, r:-r]
+
+
+def ssim(a: np.ndarray, b: np.ndarray, data_range: float = 1.0) -> float:
+    """Mean structural similarity of two 2-D float maps (see :func:`ssim_map`).
+
+    ``data_range`` is the span of values the maps can take (1.0 for maps in [0, 1]).
+
+    >>> rng = np.random.default_rng(0)
+    >>> img = rng.random((16, 16))
+    >>> ssim(img, img)
+    1.0
+    >>> round(ssim(np.full((16, 16), 0.5), np.full((16, 16), 0.6)), 6)  # luminance term only
+    0.983609
+    """
+    return float(np.mean(ssim_map(a, b, data_range)))
+
+
+def detection_hit(point_xy: tuple[float, float], mask: np.ndarray, box: int = 8) -> bool:
+    """Whether a ``box``×``box`` square around a point touches the mask.
+
+    The point is taken to its pixel (nearest integer coordinates, halves up) and the
+    box covers ``x`` in ``[px − box//2, px + box//2 − 1]`` and ``y`` likewise, so for
+    ``box = 8`` it is ``[px − 4, px + 3] × [py − 4, py + 3]``, clipped to the image.
+    This is the paper's detection criterion (the 8×8 box around the saliency argmax).
+
+    >>> m = np.zeros((16, 16), bool); m[10, 10] = True
+    >>> detection_hit((7, 7), m), detection_hit((6, 6), m), detection_hit((14, 14), m)
+    (True, False, True)
+    """
+    m = np.asarray(mask)
+    if m.ndim != 2:
+        raise ValueError(f"mask must be 2-D (H, W), got shape {m.shape}")
+    if isinstance(box, bool) or not isinstance(box, (int, np.integer)) or box < 1:
+        raise ValueError(f"box must be an int >= 1, got {box!r}")
+    h, w = m.shape
+    px, py = (math.floor(float(c) + 0.5) for c in point_xy)
+    half = int(box) // 2
+    x0, x1 = max(px - half, 0), min(px - half + int(box), w)
+    y0, y1 = max(py - half, 0), min(py - half + int(box), h)
+    if x0 >= x1 or y0 >= y1:
+        return False
+    return bool(np.any(m[y0:y1, x0:x1]))
+
+
+def foveation_error_px(
+    point_xy: tuple[float, float], sensor_size: tuple[int, ...]
+) -> tuple[float, float, float]:
+    """``(dx, dy, distance)`` of a point from the fovea ``((W − 1)/2, (H − 1)/2)``, px.
+
+    ``sensor_size`` is ``(W, H)`` or Tonic's ``(W, H, 2)``. Note the paper's code
+    uses (64, 64) as the centre of a 128×128 sensor; the true centre is (63.5, 63.5).
+
+    >>> foveation_error_px((66.5, 59.5), (128, 128, 2))
+    (3.0, -4.0, 5.0)
+    """
+    if len(sensor_size) < 2 or min(sensor_size[:2]) < 1:
+        raise ValueError(f"sensor_size must be (W, H[, 2]) with W, H >= 1, got {sensor_size!r}")
+    w, h = sensor_size[0], sensor_size[1]
+    dx = float(point_xy[0]) - (w - 1) / 2.0
+    dy = float(point_xy[1]) - (h - 1) / 2.0
+    return dx, dy, math.hypot(dx, dy)
+
+
+def focal_length_px(width_px: int, hfov_deg: float = SPECK_HFOV_DEG) -> float:
+    """Pinhole focal length in pixels, ``(W / 2) / tan(HFOV / 2)``.
+
+    >>> round(focal_length_px(128), 4)  # Speck: 1.7 mm / (5.12 mm / 128 px)
+    42.5
+    """
+    if width_px <= 0:
+        raise ValueError(f"width_px must be > 0, got {width_px!r}")
+    if not 0 < hfov_deg < 180:
+        raise ValueError(f"hfov_deg must be in (0, 180), got {hfov_deg!r}")
+    return (width_px / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
+
+
+def pixels_to_degrees(
+    dx_px: float | np.ndarray, width_px: int, hfov_deg: float = SPECK_HFOV_DEG
+) -> float | np.ndarray:
+    """Angle (degrees) of a pixel offset from the principal point, pinhole model.
+
+    Works on scalars and arrays: ``atan(dx / f)`` with ``f`` = :func:`focal_length_px`.
+
+    >>> round(pixels_to_degrees(64, 128), 4)  # the sensor edge: half the HFOV
+    56.4134
+    """
+    f = focal_length_px(width_px, hfov_deg)
+    out = np.degrees(np.arctan(np.asarray(dx_px, dtype=np.float64) / f))
+    return float(out) if out.ndim == 0 else out
+
+
+def degrees_to_pixels(
+    angle_deg: float | np.ndarray, width_px: int, hfov_deg: float = SPECK_HFOV_DEG
+) -> float | np.ndarray:
+    """Pixel offset from the principal point of a ray at ``angle_deg``: ``f·tan(angle)``.
+
+    >>> round(degrees_to_pixels(pixels_to_degrees(10.0, 128), 128), 9)
+    10.0
+    """
+    f = focal_length_px(width_px, hfov_deg)
+    out = f * np.tan(np.radians(np.asarray(angle_deg, dtype=np.float64)))
+    return float(out) if out.ndim == 0 else out
