@@ -49,19 +49,16 @@ def test_writing_refuses_unknown_suffix_and_invalid_events(tmp_path):
         write_events(tmp_path / "a.npz", EventRecording(rec.events, (64, 64, 2)))
 
 
-def test_truncated_npz_names_the_file(tmp_path):
-    path = tmp_path / "cut.npz"
+@pytest.mark.parametrize(
+    ("name", "keep", "message"),
+    [("cut.npz", 500, r"cut\.npz: not a readable \.npz file"),
+     ("cut.h5", 2000, r"cut\.h5: not a readable HDF5 file")],
+)  # fmt: skip
+def test_truncated_file_names_the_file(tmp_path, name, keep, message):
+    path = tmp_path / name
     write_events(path, recording())
-    path.write_bytes(path.read_bytes()[:500])
-    with pytest.raises(EventFileError, match=r"cut\.npz: not a readable \.npz file"):
-        read_events(path)
-
-
-def test_truncated_hdf5_names_the_file(tmp_path):
-    path = tmp_path / "cut.h5"
-    write_events(path, recording())
-    path.write_bytes(path.read_bytes()[:2000])
-    with pytest.raises(EventFileError, match=r"cut\.h5: not a readable HDF5 file"):
+    path.write_bytes(path.read_bytes()[:keep])
+    with pytest.raises(EventFileError, match=message):
         read_events(path)
 
 

@@ -211,6 +211,16 @@ def _levels(
     return max_change
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _crossings(d: float, th_on: float, th_off: float) -> tuple[int, int]:
+    """Whole thresholds spanned by the difference ``d`` and their polarity (-1: none)."""
+    if d >= th_on * (1.0 - _EPS):
+        return int(d / th_on + _EPS), 1
+    if d <= -th_off * (1.0 - _EPS):
+        return int(-d / th_off + _EPS), 0
+    return 0, -1
+
+
 @numba.njit(cache=True, nogil=True)
 def _crossing_pixels(
     diff: np.ndarray,
@@ -226,14 +236,11 @@ def _crossing_pixels(
     total = 0
     n_active = 0
     for i in range(diff.size):
-        d1 = diff_new[i]
-        if d1 >= th_on[i] * (1.0 - _EPS):
-            total += int(d1 / th_on[i] + _EPS)
-        elif d1 <= -th_off[i] * (1.0 - _EPS):
-            total += int(-d1 / th_off[i] + _EPS)
-        else:
-            diff[i] = d1
+        k, pol = _crossings(diff_new[i], th_on[i], th_off[i])
+        if pol < 0:
+            diff[i] = diff_new[i]
             continue
+        total += k
         active[n_active] = i
         n_active += 1
     return n_active, total
@@ -286,14 +293,8 @@ def _emit(
     for i in active:
         d0 = diff[i]
         d1 = diff_new[i]
-        if d1 > 0:
-            th = th_on[i]
-            k = int(d1 / th + _EPS)
-            pol = 1
-        else:
-            th = th_off[i]
-            k = int(-d1 / th + _EPS)
-            pol = 0
+        k, pol = _crossings(d1, th_on[i], th_off[i])
+        th = th_on[i] if pol == 1 else th_off[i]
         # Crossing j happens where the line from d0 to d1 reaches j thresholds.
         slope = abs(d1 - d0)
         start = d0 if pol == 1 else -d0
