@@ -1,0 +1,226 @@
+"""Convolution kernels of the attention pipeline and an FFT 'same' convolution.
+
+Pure functions build the kernels of the paper (``../shared/seed/paper.tex``, §Methods):
+
+* :func:`gaussian_kernel` — the centre and surround kernels of the sOMS model
+  (Gaussians centred at ``mu = (0, 0)``, 8 px, ``sigma_c = 1``, ``sigma_s = 4``).
+* :func:`von_mises_kernel` — the von Mises kernel of the proto-object model, Eq. (2).
+
+The proto-object model needs no separate edge (Gabor) stage: the paper feeds events, which
+already are an edge map, straight into the border-ownership stage.
+
+Kernel coordinates: rows are ``y`` (down), columns are ``x`` (right); the centre of a
+``size``-long axis is at index ``(size - 1) / 2`` — a pixel for odd sizes, between two
+pixels for even sizes (the 8 px sOMS kernels).
+
+:class:`FFTConv2d` computes exactly what ``torch.nn.functional.conv2d(x, w, padding='same')``
+computes (a cross-correlation with zero padding; for an even kernel torch pads
+``(k - 1) // 2`` before and ``k // 2`` after, so kernel index ``(k - 1) // 2`` sits on the
+output pixel) by multiplying precomputed spectra: large kernels cost the same as small ones.
+
+Example:
+    >>> import torch
+    >>> g = gaussian_kernel(8, 1.0)
+    >>> round(float(g.sum()), 6), g.shape
+    (1.0, (8, 8))
+    >>> conv = FFTConv2d(torch.from_numpy(g).float()[None, None], 16, 16)
+    >>> x = torch.zeros(1, 1, 16, 16); x[0, 0, 5, 5] = 1.0
+    >>> y = conv(x)
+    >>> ref = torch.nn.functional.conv2d(x, conv.weight, padding="same")
+    >>> bool(torch.allclose(y, ref, atol=1e-6))
+    True
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.fft
+import torch
+from scipy.special import i0
+
+__all__ = [
+    "FFTConv2d",
+    "gaussian_kernel",
+    "kernel_coordinates",
+    "von_mises_kernel",
+    "von_mises_radius",
+]
+
+
+def kernel_coordinates(size: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(x, y)`` grids of shape ``(size, size)``: offsets from the kernel centre
+    ``(size - 1) / 2``; ``x`` grows to the right (columns), ``y`` downwards (rows).
+
+    Example:
+        >>> x, y = kernel_coordinates(4)
+        >>> x[0].tolist(), y[:, 0].tolist()
+        ([-1.5, -0.5, 0.5, 1.5], [-1.5, -0.5, 0.5, 1.5])
+    """
+    if size < 1:
+        raise ValueError(f"size must be >= 1, got {size}")
+    c = np.arange(size, dtype=np.float64) - (size - 1) / 2.0
+    y, x = np.meshgrid(c, c, indexing="ij")
+    return x, y
+
+
+def gaussian_kernel(size: int = 8, sigma: float = 1.0) -> np.ndarray:
+    """Isotropic Gaussian ``exp(-(x² + y²) / (2 σ²))`` on a ``size × size`` grid centred at
+    ``(size - 1) / 2`` (``mu = (0, 0)`` in kernel coordinates), normalised to sum 1.
+
+    Example:
+        >>> k = gaussian_kernel(3, 1.0)
+        >>> round(float(k[1, 1] / k[0, 0]), 6) == round(float(np.exp(1.0)), 6)
+        True
+    """
+    if sigma <= 0:
+        raise ValueError(f"sigma must be > 0, got {sigma}")
+    x, y = kernel_coordinates(size)
+    k = np.exp(-(x**2 + y**2) / (2.0 * sigma**2))
+    return k / k.sum()
+
+
+def von_mises_radius(r0: float = 8.0, tol: float = 0.01) -> int:
+    """Half-width (px) of a von Mises kernel: the ring ``1 / I0(r - R0)`` has fallen below
+    ``tol`` of its peak (``I0(0) = 1``) at ``r = R0 + d``; returns ``ceil(R0 + d)``.
+
+    Example:
+        >>> von_mises_radius(8.0)
+        15
+    """
+    if not 0 < tol < 1:
+        raise ValueError(f"tol must be in (0, 1), got {tol}")
+    d = 0.0
+    while 1.0 / i0(d) > tol:
+        d += 0.05
+    return math.ceil(r0 + d - 1e-9)
+
+
+def von_mises_kernel(
+    r0: float = 8.0,
+    rho: float = 0.2,
+    theta_deg: float = 0.0,
+    size: int | None = None,
+) -> np.ndarray:
+    """Von Mises kernel of the proto-object model, paper Eq. (2) (``eq:VMeq``):
+
+    ``VM_θ(x, y) = exp(ρ · R0 · cos(atan2(-y, x) - θ)) / I0(sqrt(x² + y²) - R0)``
+
+    ``x, y`` are offsets from the kernel centre (``y`` down, so ``atan2(-y, x)`` is the
+    counter-clockwise angle seen on the image), ``I0`` the modified Bessel function of the
+    first kind, order 0. The paper typesets the Bessel argument as ``sqrt(x² + y² - R0)``,
+    which is undefined inside ``r² < R0``; it is read as ``sqrt(x² + y²) - R0`` (the form of
+    the original model and of the public code): a ring of radius ``R0`` whose weight peaks
+    at the angle ``θ``. Unnormalised, exactly the formula (peak ``exp(ρ R0)`` at
+    ``(R0 cos θ, -R0 sin θ)``). ``size`` defaults to ``2 * von_mises_radius(r0) + 1`` (odd,
+    so the centre is a pixel).
+
+    Example:
+        >>> k = von_mises_kernel(8.0, 0.2, 0.0)
+        >>> k.shape, np.unravel_index(k.argmax(), k.shape)  # peak 8 px right of the centre
+        ((31, 31), (np.int64(15), np.int64(23)))
+    """
+    if size is None:
+        size = 2 * von_mises_radius(r0) + 1
+    x, y = kernel_coordinates(size)
+    theta = math.radians(theta_deg)
+    num = np.exp(rho * r0 * np.cos(np.arctan2(-y, x) - theta))
+    den = i0(np.sqrt(x**2 + y**2) - r0)
+    return num / den
+
+
+def _fast_len(n: int) -> int:
+    return int(scipy.fft.next_fast_len(n, real=True))
+
+
+class FFTConv2d:
+    """'Same'-size 2-D convolution by FFT with precomputed kernel spectra.
+
+    ``weight`` has the layout of ``torch.nn.functional.conv2d``: ``(C_out, C_in / groups,
+    kh, kw)``; the result equals ``conv2d(x, weight, padding='same', groups=groups)`` (a
+    cross-correlation, zero padding, torch's even-kernel alignment) to float rounding, for
+    inputs ``(N, C_in, height, width)`` or ``(C_in, height, width)``. ``flip=True`` turns
+    it into a true convolution (the kernel rotated by 180° before the correlation).
+
+    Inputs may also be given as spectra (:meth:`spectrum`, :meth:`from_spectrum`) so one
+    input FFT can feed several kernel banks of the same padded size.
+
+    Example:
+        >>> import torch
+        >>> w = torch.randn(3, 1, 31, 31)
+        >>> conv = FFTConv2d(w, 128, 128)
+        >>> x = torch.rand(1, 1, 128, 128)
+        >>> ref = torch.nn.functional.conv2d(x, w, padding="same")
+        >>> bool(torch.allclose(conv(x), ref, atol=1e-3))
+        True
+    """
+
+    def __init__(
+        self,
+        weight: torch.Tensor | np.ndarray,
+        height: int,
+        width: int,
+        groups: int = 1,
+        flip: bool = False,
+        fft_shape: tuple[int, int] | None = None,
+    ) -> None:
+        w = torch.as_tensor(weight, dtype=torch.float32)
+        if w.ndim != 4:
+            raise ValueError(f"weight must be (C_out, C_in/groups, kh, kw), got {tuple(w.shape)}")
+        if flip:
+            w = torch.flip(w, dims=(-2, -1))
+        c_out, c_in_g, kh, kw = w.shape
+        if c_out % groups:
+            raise ValueError(f"C_out={c_out} is not divisible by groups={groups}")
+        self.weight = w
+        self.height, self.width = int(height), int(width)
+        self.groups = groups
+        self.in_channels = c_in_g * groups
+        self.out_channels = c_out
+        if fft_shape is None:
+            fft_shape = (_fast_len(self.height + kh - 1), _fast_len(self.width + kw - 1))
+        fh, fw = fft_shape
+        if fh < self.height + kh - 1 or fw < self.width + kw - 1:
+            raise ValueError(f"fft_shape {fft_shape} too small for kernel {kh}x{kw}")
+        self.fft_shape = (fh, fw)
+        # torch 'same': kernel index (k - 1) // 2 lies on the output pixel, i.e.
+        # y[i] = sum_j w[j] x[i + j - p] with p = (k - 1) // 2. As a circular convolution
+        # y = x (*) kp with kp[(p - j) mod F] = w[j].
+        ph, pw = (kh - 1) // 2, (kw - 1) // 2
+        rows = (ph - torch.arange(kh)) % fh
+        cols = (pw - torch.arange(kw)) % fw
+        kp = torch.zeros(c_out, c_in_g, fh, fw)
+        kp[:, :, rows[:, None], cols[None, :]] = w
+        spec = torch.fft.rfft2(kp)  # (C_out, C_in/g, fh, fw//2+1)
+        self._spec = spec.reshape(groups, c_out // groups, c_in_g, fh, fw // 2 + 1)
+
+    def spectrum(self, x: torch.Tensor) -> torch.Tensor:
+        """Zero-padded ``rfft2`` of ``x`` ``(N, C_in, H, W)`` on this convolution's grid."""
+        return torch.fft.rfft2(x, s=self.fft_shape)
+
+    def from_spectrum(self, xs: torch.Tensor) -> torch.Tensor:
+        """Convolution output ``(N, C_out, H, W)`` from an input spectrum (:meth:`spectrum`)."""
+        n = xs.shape[0]
+        g = self.groups
+        xs = xs.reshape(n, g, self.in_channels // g, *xs.shape[-2:])
+        # sum over the input channels of each group; multiply-accumulate in place
+        # (several times faster than a complex einsum on the CPU)
+        ys = torch.mul(xs[:, :, 0:1], self._spec[:, :, 0])
+        for c in range(1, xs.shape[2]):
+            ys.addcmul_(xs[:, :, c : c + 1], self._spec[:, :, c])
+        ys = ys.reshape(n, self.out_channels, *xs.shape[-2:])
+        y = torch.fft.irfft2(ys, s=self.fft_shape)
+        return y[..., : self.height, : self.width]
+
+    def __call__(self, x: torch.Tensor) -> torch.Tensor:
+        squeeze = x.ndim == 3
+        if squeeze:
+            x = x.unsqueeze(0)
+        if x.shape[1:] != (self.in_channels, self.height, self.width):
+            raise ValueError(
+                f"expected input (N, {self.in_channels}, {self.height}, {self.width}), "
+                f"got {tuple(x.shape)}"
+            )
+        y = self.from_spectrum(self.spectrum(x))
+        return y[0] if squeeze else y

@@ -1,0 +1,209 @@
+"""Proto-object saliency: kernel banks, closed contours win, state, sizes."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+from test_soms import scene_events  # the textured eye+object scene
+
+from agents.kernels import von_mises_kernel
+from agents.proto_object import (
+    ProtoObjectParams,
+    ProtoObjectSaliency,
+    border_weights,
+    grouping_weights,
+    saliency_argmax,
+    von_mises_bank,
+)
+from agents.soms import SOMS
+
+SPLIT = ProtoObjectParams(polarity_split=True)
+STREAMLINED = ProtoObjectParams(polarity_split=False)
+
+
+def square(h: int, w: int, cx: int, cy: int, half: int) -> np.ndarray:
+    """Outline of a square as a moving object leaves it: ON on top/left, OFF on
+    bottom/right; ``4 * 2 * half`` pixels."""
+    m = np.zeros((2, h, w), np.float32)
+    x0, x1, y0, y1 = cx - half, cx + half, cy - half, cy + half
+    m[1, y0, x0:x1] = 1.0
+    m[1, y0 + 1 : y1 + 1, x0] = 1.0
+    m[0, y1, x0 + 1 : x1 + 1] = 1.0
+    m[0, y0:y1, x1] = 1.0
+    return m
+
+
+def line(h: int, w: int, x0: int, y: int, n: int) -> np.ndarray:
+    m = np.zeros((2, h, w), np.float32)
+    m[1, y, x0 : x0 + n // 2] = 1.0
+    m[0, y, x0 + n // 2 : x0 + n] = 1.0
+    return m
+
+
+def clutter(h: int, w: int, n: int, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    m = np.zeros((2, h, w), np.float32)
+    idx = rng.choice(h * w, n, replace=False)
+    m[rng.integers(0, 2, n), idx // w, idx % w] = 1.0
+    return m
+
+
+def settle(po: ProtoObjectSaliency, oms: np.ndarray, steps: int = 6) -> torch.Tensor:
+    for _ in range(steps):
+        out = po.step(oms)
+    return out.saliency
+
+
+def test_paper_defaults_and_kernel_bank():
+    p = ProtoObjectParams()
+    assert (p.r0, p.rho, p.w, p.levels, p.tau_mem) == (8.0, 0.2, 3.0, 3, 0.1)
+    assert p.orientations_deg == (0.0, 45.0, 90.0, 135.0)
+    assert p.directions_deg == (0.0, 45.0, 90.0, 135.0, 180.0, 225.0, 270.0, 315.0)
+    bank = von_mises_bank(p)
+    assert tuple(bank.shape) == (8, 31, 31)
+    assert np.allclose(bank[5].numpy(), von_mises_kernel(8.0, 0.2, 225.0), rtol=1e-6)
+    po = ProtoObjectSaliency()
+    assert po.alpha_mem == pytest.approx(math.exp(-0.1))
+    assert float(po.border_lif.tau_mem) == pytest.approx(10.0)
+
+
+def test_border_and_grouping_weights_follow_the_equations():
+    bank = von_mises_bank(ProtoObjectParams())
+    s = border_weights(bank, 3.0, polarity_split=False)
+    assert tuple(s.shape) == (8, 1, 31, 31)
+    assert torch.allclose(s[1, 0], bank[1] - 3.0 * bank[5])  # VM_45 - w VM_225
+    assert torch.allclose(s[6, 0], bank[6] - 3.0 * bank[2])  # VM_270 - w VM_90
+    b = border_weights(bank, 3.0, polarity_split=True)  # inputs [V-, V+]
+    assert tuple(b.shape) == (16, 2, 31, 31)
+    assert torch.equal(b[2, 1], bank[1]) and torch.equal(b[2, 0], -3.0 * bank[5])
+    assert torch.equal(b[3, 0], bank[1]) and torch.equal(b[3, 1], -3.0 * bank[5])
+    g = grouping_weights(bank)  # [G1, G1*, G2, G2*], inputs B1_θ | B2_θ
+    assert tuple(g.shape) == (4, 4, 31, 31)
+    assert torch.equal(g[0, 2], bank[2]) and torch.equal(g[1, 2], bank[6])
+    assert torch.equal(g[2, 2], bank[6]) and torch.equal(g[3, 2], bank[2])
+
+
+def test_saliency_argmax_coordinates_and_ties():
+    s = torch.zeros(6, 9)
+    s[4, 7] = 2.0
+    assert saliency_argmax(s) == (7, 4)  # x = column, y = row
+    s[4, 7] = 0.0
+    s[1, 2:5] = 3.0
+    assert saliency_argmax(s) == (3, 1)  # the middle of a tied run
+    assert saliency_argmax(torch.zeros(3, 3)) is None
+    assert saliency_argmax(-torch.ones(3, 3)) is None
+
+
+@pytest.mark.parametrize("params", [SPLIT, STREAMLINED], ids=["split", "streamlined"])
+def test_closed_contour_peak_is_at_its_centre(params):
+    # off-centre on a non-square sensor: checks x/y order and the padding
+    h, w, cx, cy = 96, 128, 84, 38
+    po = ProtoObjectSaliency(params)
+    sal = settle(po, square(h, w, cx, cy, 6))
+    assert tuple(sal.shape) == (h, w)
+    x, y = po.argmax()
+    assert abs(x - cx) <= 2 and abs(y - cy) <= 2
+    # a circle of radius 6 elsewhere (ON on its left half, OFF on its right half).
+    # (Near r = R0 the 2nd pyramid level, where the circle is R0/2 wide, votes on a ring
+    # around the centre: the peak may then sit up to ~R0 off the centre.)
+    yy, xx = np.mgrid[0:h, 0:w]
+    oms = np.zeros((2, h, w), np.float32)
+    ring = np.abs(np.hypot(xx - 30, yy - 60) - 6.0) < 0.5
+    oms[1][ring & (xx < 30)] = 1.0
+    oms[0][ring & (xx >= 30)] = 1.0
+    po.reset()
+    settle(po, oms)
+    x, y = po.argmax()
+    assert math.hypot(x - 30, y - 60) <= 3.0
+
+
+@pytest.mark.parametrize("params", [SPLIT, STREAMLINED], ids=["split", "streamlined"])
+def test_closed_contour_beats_open_line_and_clutter(params):
+    h = w = 96
+    sq = square(h, w, 40, 40, 6)
+    n = int(sq.sum())  # 48 event pixels in each stimulus
+    peaks = {}
+    for name, oms in [
+        ("square", sq),
+        ("line", line(h, w, 20, 80, n)),
+        ("clutter", clutter(h, w, n)),
+    ]:
+        assert int(oms.sum()) == n
+        peaks[name] = float(settle(ProtoObjectSaliency(params), oms).max())
+    assert peaks["square"] >= 2.0 * peaks["line"]
+    assert peaks["square"] >= 2.0 * peaks["clutter"]
+    # all three in one scene: the square wins
+    po = ProtoObjectSaliency(params)
+    scene = np.clip(sq + line(h, w, 40, 80, n) + clutter(h, w, n, seed=1), 0.0, 1.0)
+    settle(po, scene)
+    x, y = po.argmax()
+    assert abs(x - 40) <= 3 and abs(y - 40) <= 3
+
+
+def test_lif_state_builds_up_leaks_and_resets():
+    po = ProtoObjectSaliency(SPLIT)
+    oms = square(64, 64, 30, 30, 6)
+    first = po.step(oms).saliency.clone()
+    second = po.step(oms).saliency.clone()
+    # the membranes integrate: the same input drives more grouping spikes the 2nd time
+    assert float(second.max()) > float(first.max()) > 0
+    # without input the membranes only leak by exp(-dt/tau) per step (no new spikes)
+    v = po.grouping_lif.v_mem.clone()
+    out = po.step(np.zeros_like(oms))
+    assert float(out.grouping.sum()) == 0.0
+    assert torch.allclose(po.grouping_lif.v_mem, v * math.exp(-0.1), atol=1e-6)
+    po.reset()
+    assert float(po.grouping_lif.v_mem.abs().max()) == 0.0
+    assert float(po.border_lif.v_mem.abs().max()) == 0.0
+    assert po.argmax() is None
+    assert torch.equal(po.step(oms).saliency, first)
+
+
+def test_fft_and_direct_convolutions_agree():
+    oms = square(40, 48, 20, 18, 6)
+    for split in (True, False):
+        fft = ProtoObjectSaliency(ProtoObjectParams(polarity_split=split, conv="fft"))
+        direct = ProtoObjectSaliency(ProtoObjectParams(polarity_split=split, conv="direct"))
+        for _ in range(2):
+            a, b = fft.step(oms).saliency, direct.step(oms).saliency
+        # spike counts: float rounding may move a few across a threshold
+        assert float((a - b).abs().max()) <= 0.01 * float(a.abs().max())
+        assert fft.argmax() == direct.argmax()
+
+
+def test_any_size_and_bad_input():
+    po = ProtoObjectSaliency(STREAMLINED)
+    assert po.argmax() is None
+    for h, w in [(37, 53), (128, 128), (5, 9)]:
+        out = po.step(np.zeros((2, h, w), np.float32))
+        assert tuple(out.saliency.shape) == (h, w)
+        assert tuple(out.grouping.shape) == (4, h, w)
+    with pytest.raises(ValueError):
+        po.step(np.zeros((1, 8, 8), np.float32))
+    with pytest.raises(ValueError):
+        ProtoObjectParams(levels=0)
+
+
+@pytest.mark.parametrize("params", [SPLIT, STREAMLINED], ids=["split", "streamlined"])
+def test_pipeline_attends_to_the_object_moving_against_the_background(params):
+    """sOMS -> proto-object on the textured eye+object scene of ``test_soms``: the 8x8 box
+    around P(x, y) touches the object (the paper's detection criterion) on every step
+    once settled; with the background faster than the object it never does."""
+
+    def hit_rate(v_bg: int, v_obj: int) -> float:
+        ev, mask = scene_events(30, v_bg=v_bg, v_obj=v_obj, obj=32)
+        soms, po = SOMS(), ProtoObjectSaliency(params)
+        hits = []
+        for t, e in enumerate(ev):
+            po.step(soms.step(e).oms)
+            p = po.argmax()
+            if t >= 10:
+                x, y = p if p is not None else (-100, -100)
+                hits.append(bool(mask[max(y - 4, 0) : y + 4, max(x - 4, 0) : x + 4].any()))
+        return float(np.mean(hits))
+
+    assert hit_rate(1, 3) >= 0.9
+    assert hit_rate(3, 1) <= 0.1
