@@ -7,3 +7,10 @@ default here unless the user chose another (``MUJOCO_GL=osmesa``/``glfw``).
 import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
+
+from gymnasium.envs.registration import register as _register
+from gymnasium.envs.registration import registry as _registry
+
+# Entry points are strings: registering imports neither MuJoCo nor the env module.
+if "wander/Wander-v0" not in _registry:
+    _register(id="wander/Wander-v0", entry_point="wander_env.env:WanderEnv")

@@ -37,6 +37,7 @@ Example:
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, fields
 
@@ -440,6 +441,14 @@ class PanTiltUnit:
         self._speed = [self.params.pan_speed, self.params.tilt_speed]
         self._camera = [self._motor(pan), self._motor(tilt)]
         self._time_s = 0.0
+
+    def copy(self) -> PanTiltUnit:
+        """An independent unit in the same state (for stepping ahead and rolling back)."""
+        twin = copy.copy(self)
+        twin._target, twin._speed, twin._camera = (
+            list(self._target), list(self._speed), list(self._camera)
+        )  # fmt: skip
+        return twin
 
     def set_target(self, pan_deg: float | None = None, tilt_deg: float | None = None) -> None:
         """Command an absolute target in degrees; ``None`` keeps that axis's target.

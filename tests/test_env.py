@@ -1,0 +1,169 @@
+"""The Gymnasium environment: spaces, determinism, saccades, ground truth, vector envs."""
+
+from __future__ import annotations
+
+import math
+import pickle
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import wander_env  # noqa: F401  (registers the environments)
+from wander_env.events import concatenate
+from wander_env.wrappers import EventColumns
+
+F_PX = 64 / math.tan(math.atan(5.12 / 3.4))  # focal length in pixels of the Speck optics
+
+
+def make(scene: str = "shelf", **kw) -> gym.Env:
+    return gym.make("wander/Wander-v0", scene=scene, **kw)
+
+
+def run(env: gym.Env, actions: list[np.ndarray], seed: int) -> list[dict]:
+    _, info = env.reset(seed=seed)
+    infos = [info]
+    for a in actions:
+        infos.append(env.step(a)[4])
+    return infos
+
+
+def test_reset_gives_the_documented_spaces():
+    env = make()
+    obs, info = env.reset(seed=0)
+    assert env.observation_space.contains(obs)
+    assert obs["events"].shape == (2, 128, 128)
+    assert obs["gaze"].tolist() == [0.0, 0.0]
+    assert info["t"] == 0.0 and info["moving"] is False
+    assert env.metadata["render_fps"] == 100
+    env.close()
+
+
+def test_check_env_passes():
+    # The raw env, wrapped only to give info["events"] as columns, which check_env's
+    # determinism check can compare (it cannot compare structured arrays).
+    env = EventColumns(make(episode_seconds=0.05).unwrapped)
+    check_env(env)
+    env.close()
+
+
+def test_same_seed_same_events_and_ground_truth():
+    actions = [np.array([0.3, -0.2], np.float32)] + [np.zeros(2, np.float32)] * 4
+    a, b = (run(make("office"), actions, seed=5) for _ in range(2))
+    ea = concatenate([i["events"] for i in a])
+    eb = concatenate([i["events"] for i in b])
+    assert len(ea) > 1000
+    assert np.array_equal(ea, eb)
+    assert np.array_equal(a[-1]["object_mask"], b[-1]["object_mask"])
+
+
+def test_a_step_is_one_control_period_of_renders():
+    env = make("office", control_period_s=0.02)
+    env.reset(seed=0)
+    info = env.step(np.zeros(2, np.float32))[4]
+    assert info["t"] == pytest.approx(0.02)
+    assert info["frames"] == 20 + info["extra_frames"]
+    assert env.metadata["render_fps"] == 50
+    env.close()
+
+
+@pytest.mark.parametrize(
+    ("action", "message"),
+    [
+        (np.array([np.nan, 0.0]), "finite"),
+        (np.array([1.5, 0.0]), r"\[-1, 1\]"),
+        (np.zeros(3), "shape"),
+    ],
+)
+def test_bad_actions_are_rejected(action, message):
+    env = make()
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=message):
+        env.step(action)
+    env.close()
+
+
+def test_targets_beyond_the_limits_are_clipped_and_reported():
+    env = make()
+    env.reset(seed=0)
+    # Each step adds atan(6.4 / f) = 8.56 degrees down; the third passes -907 positions.
+    act = np.array([0.0, 0.1], np.float32)
+    clipped = [env.step(act)[4]["target_clipped"] for _ in range(4)]
+    assert clipped == [False, False, True, True]
+    # tilt lower limit: -907 positions
+    assert env.unwrapped.ptu.target_positions[1] == -907
+    env.close()
+
+
+def test_saccade_of_20_degrees_lands_and_emits_events_all_along():
+    env = make("shelf")
+    env.reset(seed=0)
+    a = math.tan(math.radians(20.0)) * F_PX / 64  # 20 degrees to the right
+    infos = [env.step(np.array([a, 0.0], np.float32))[4]]
+    while infos[-1]["moving"] and len(infos) < 200:
+        infos.append(env.step(np.zeros(2, np.float32))[4])
+    gaze = env.unwrapped.ptu.camera_pan_deg
+    assert gaze == pytest.approx(-20.0, abs=0.03)  # right is negative pan; 1 position
+    events = concatenate([i["events"] for i in infos])
+    t_end = infos[-1]["t"] * 1e6
+    moving = events[events["t"] < t_end - 10_000]
+    assert len(moving) > 10_000
+    assert np.diff(moving["t"]).max() <= 2000
+    assert moving["t"][0] <= 2000
+    env.close()
+
+
+def test_ground_truth_masks_and_centres_agree():
+    env = make("office")
+    env.reset(seed=1)
+    info = env.step(np.zeros(2, np.float32))[4]
+    mask = info["object_mask"]
+    assert set(np.unique(mask).tolist()) <= {0, 1, 2}
+    for obj in info["objects"]:
+        n = int(np.count_nonzero(mask == obj["id"]))
+        assert obj["mask_pixels"] == n
+        if n > 50:
+            ys, xs = np.nonzero(mask == obj["id"])
+            cx, cy = obj["centre_px"]
+            assert xs.min() <= cx <= xs.max() and ys.min() <= cy <= ys.max()
+    assert sum(o["visible"] for o in info["objects"]) >= 1
+    env.close()
+
+
+def test_render_rgb_array_is_camera_beside_events():
+    env = make(render_mode="rgb_array")
+    env.reset(seed=0)
+    env.step(np.zeros(2, np.float32))
+    img = env.render()
+    assert img.shape == (384, 2 * 384 + 6, 3) and img.dtype == np.uint8
+    env.close()
+
+
+def test_pickle_round_trip_keeps_the_config():
+    env = make("gratings", control_period_s=0.005).unwrapped
+    twin = pickle.loads(pickle.dumps(env))
+    assert twin.config == env.config
+    obs, _ = twin.reset(seed=0)
+    assert obs["events"].shape == (2, 128, 128)
+    twin.close()
+    env.close()
+
+
+def test_async_vector_env_runs_two_in_parallel():
+    # "spawn": a forked child would inherit the parent's GL and thread-pool state and hang.
+    envs = gym.vector.AsyncVectorEnv([lambda: make("gratings") for _ in range(2)], context="spawn")
+    obs, _ = envs.reset(seed=3)
+    assert obs["events"].shape == (2, 2, 128, 128)
+    for _ in range(3):
+        obs, *_ = envs.step(np.zeros((2, 2), np.float32))
+    assert obs["gaze"].shape == (2, 2)
+    assert obs["events"].sum() > 0
+    envs.close()
+
+
+def test_unknown_scene_and_preset_name_the_problem():
+    with pytest.raises(ValueError, match="unknown DVS preset 'davis'"):
+        make(dvs="davis")
+    with pytest.raises(ValueError, match="control_period_s"):
+        make(control_period_s=0.0105)

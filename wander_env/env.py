@@ -1,0 +1,338 @@
+"""The Gymnasium environment: an event camera on a pan-tilt unit in a MuJoCo scene.
+
+One :meth:`WanderEnv.step` is one control period (10 ms by default). Inside it the
+PTU moves toward its target under its speed and acceleration limits, the scene's
+objects move along their trajectories, the camera renders at the render rate
+(1 kHz by default) plus extra frames wherever the DVS emulator reports a large
+log-intensity change (adaptive sampling: a render tick whose largest change
+exceeds ``adaptive_log_change`` is split into up to ``max_subframes`` frames),
+and the emulator turns the frames into events.
+
+Action: ``Box(-1, 1, (2,))``, a gaze offset in units of the half sensor: the
+action that brings pixel P to the fovea is ``(P - centre) / (W/2, H/2)``. It is
+converted to angles with the camera's pinhole model (offset d pixels ->
+``atan(d / f_px)``) and added to the PTU's current target, so relative commands
+are integrated (at rest the target is where the camera looks; a zero action
+lets a move under way go on). A NaN, infinite or
+out-of-range action raises ``ValueError`` (the agent clips its own actions); a
+target beyond the PTU's limits is clipped to them and ``info["target_clipped"]``
+says so.
+
+Observation: ``{"events": (2, H, W) float32 per-polarity counts of the step
+(channel 1 = ON), "gaze": (pan, tilt) in degrees}``.
+
+``info``: ``events`` (the raw event array of the step), ``t`` (simulated s),
+``ptu_positions``, ``ptu_target_positions``, ``moving``, ``target_clipped``,
+``frames`` and ``extra_frames`` rendered in the step, and, with ground truth on,
+``object_mask`` ((H, W) int32 object ids, 0 = background) and ``objects`` (per
+moving object: id, name, pixel centre of its projection, mask pixels, visible).
+
+Example:
+    >>> import gymnasium, wander_env
+    >>> env = gymnasium.make("wander/Wander-v0", scene="shelf")
+    >>> obs, info = env.reset(seed=0)
+    >>> obs["events"].shape, obs["gaze"].tolist()
+    ((2, 128, 128), [0.0, 0.0])
+    >>> env.close()
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, replace
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+from wander_env.dvs import DVSEmulator, DVSParams
+from wander_env.events import concatenate, to_frame
+from wander_env.metrics import focal_length_px
+from wander_env.mjcf import PAN_JOINT, TILT_JOINT, SceneAnimator, build_mjcf
+from wander_env.ptu import PanTiltUnit, PTUParams
+from wander_env.renderer import CameraRenderer, project_points
+from wander_env.scene_config import SceneConfig, load_scene_config
+from wander_env.viz import event_image, upscale
+
+
+@dataclass(frozen=True)
+class WanderConfig:
+    """Everything that defines an environment instance (pickled with it)."""
+
+    scene: str = "office"
+    control_period_s: float = 0.01
+    render_rate_hz: float = 1000.0
+    dvs: str = "ideal"
+    adaptive_log_change: float = 1.0
+    max_subframes: int = 8
+    ground_truth: bool = True
+    episode_seconds: float = 10.0
+    start_gaze_deg: tuple[float, float] = (0.0, 0.0)
+    ptu: PTUParams = field(default_factory=PTUParams)
+    dvs_params: DVSParams | None = None  # overrides the `dvs` preset when given
+
+    def __post_init__(self) -> None:
+        for name in (
+            "control_period_s",
+            "render_rate_hz",
+            "adaptive_log_change",
+            "episode_seconds",
+        ):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"WanderConfig.{name} must be a finite number > 0, got {v!r}")
+        ticks = self.control_period_s * self.render_rate_hz
+        if abs(ticks - round(ticks)) > 1e-9 or round(ticks) < 1:
+            raise ValueError(
+                f"control_period_s={self.control_period_s} must be a whole number (>= 1) of "
+                f"render periods (render_rate_hz={self.render_rate_hz})"
+            )
+        if round(1e6 / self.render_rate_hz / self.max_subframes) < 1:
+            raise ValueError(f"max_subframes={self.max_subframes} splits a tick below 1 µs")
+        if self.max_subframes < 1:
+            raise ValueError(f"WanderConfig.max_subframes must be >= 1, got {self.max_subframes}")
+        if self.dvs_params is None:
+            DVSParams.preset(self.dvs)  # raises for an unknown preset name
+
+    @property
+    def ticks_per_step(self) -> int:
+        return round(self.control_period_s * self.render_rate_hz)
+
+    @property
+    def tick_us(self) -> int:
+        return round(1e6 / self.render_rate_hz)
+
+
+class WanderEnv(gym.Env):
+    """See the module docstring. Build with ``gymnasium.make("wander/Wander-v0", ...)``."""
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 100}
+
+    def __init__(self, render_mode: str | None = None, **config: Any) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None")
+        self.render_mode = render_mode
+        self.config = WanderConfig(**config)
+        c = self.config
+        self.metadata = {**self.metadata, "render_fps": round(1.0 / c.control_period_s)}
+        self.scene: SceneConfig = self._scene_with_mount(load_scene_config(c.scene), c.ptu)
+        cam = self.scene.camera
+        self.width, self.height = cam.width, cam.height
+        self.f_px = focal_length_px(cam.width, cam.hfov_deg)
+        self.model = build_mjcf(self.scene).compile()
+        self.data = mujoco.MjData(self.model)
+        self._pan_adr = int(self.model.joint(PAN_JOINT).qposadr[0])
+        self._tilt_adr = int(self.model.joint(TILT_JOINT).qposadr[0])
+        self.renderer = CameraRenderer(self.model, self.width, self.height)
+        self.ptu = PanTiltUnit(c.ptu)
+        self.dvs_params = c.dvs_params if c.dvs_params is not None else DVSParams.preset(c.dvs)
+        self.dvs = DVSEmulator(self.width, self.height, self.dvs_params)
+        self.animator: SceneAnimator | None = None
+
+        lo_pan, hi_pan = c.ptu.pan_limits_deg
+        lo_tilt, hi_tilt = c.ptu.tilt_limits_deg
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
+        self.observation_space = gym.spaces.Dict(
+            {
+                "events": gym.spaces.Box(0.0, np.inf, (2, self.height, self.width), np.float32),
+                "gaze": gym.spaces.Box(
+                    np.array([lo_pan, lo_tilt], np.float32),
+                    np.array([hi_pan, hi_tilt], np.float32),
+                    dtype=np.float32,
+                ),
+            }
+        )
+        self._t_us = 0
+        self._frame: np.ndarray | None = None
+        self._last_counts = np.zeros((2, self.height, self.width), np.float32)
+
+    @staticmethod
+    def _scene_with_mount(scene: SceneConfig, ptu: PTUParams) -> SceneConfig:
+        """A hinge offset given in the PTU parameters moves the camera in the model too."""
+        if ptu.camera_forward_m == 0 and ptu.camera_up_m == 0:
+            return scene
+        mount = replace(
+            scene.ptu, camera_forward_m=ptu.camera_forward_m, camera_up_m=ptu.camera_up_m
+        )
+        return replace(scene, ptu=mount)
+
+    # -- pickling: the configuration, not the GL context --------------------------------
+    def __getstate__(self) -> dict[str, Any]:
+        return {"render_mode": self.render_mode, "config": asdict(self.config)}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        cfg = state["config"]
+        cfg["ptu"] = PTUParams(**cfg["ptu"])
+        if cfg["dvs_params"] is not None:
+            cfg["dvs_params"] = DVSParams(**cfg["dvs_params"])
+        cfg["start_gaze_deg"] = tuple(cfg["start_gaze_deg"])
+        self.__init__(render_mode=state["render_mode"], **cfg)
+
+    # -- the world at time t -----------------------------------------------------------
+    def _pose(self, t_us: int) -> None:
+        """Put the PTU's current camera angles and the objects at ``t_us`` into the model."""
+        self.data.qpos[self._pan_adr] = math.radians(self.ptu.camera_pan_deg)
+        self.data.qpos[self._tilt_adr] = math.radians(self.ptu.camera_tilt_deg)
+        self.animator.apply(self.data, t_us * 1e-6)
+        mujoco.mj_kinematics(self.model, self.data)
+        mujoco.mj_camlight(self.model, self.data)
+
+    def _render(self) -> np.ndarray:
+        return self.renderer.render(self.data)
+
+    def _tick(self, t0: int, t1: int) -> tuple[list[np.ndarray], int]:
+        """Advance one render period; returns its event chunks and the frames rendered."""
+        before = self.ptu.copy()
+        self.ptu.step((t1 - t0) * 1e-6)
+        self._pose(t1)
+        frame = self._render()
+        change = self.dvs.log_change(frame)
+        m = 1
+        if change > self.config.adaptive_log_change:
+            m = min(self.config.max_subframes, math.ceil(change / self.config.adaptive_log_change))
+        chunks = []
+        if m > 1:
+            after, self.ptu = self.ptu, before
+            t_prev = t0
+            for j in range(1, m):
+                tj = t0 + (t1 - t0) * j // m
+                self.ptu.step((tj - t_prev) * 1e-6)
+                t_prev = tj
+                self._pose(tj)
+                chunks.append(self.dvs.step(self._render(), tj))
+            self.ptu = after
+            self._pose(t1)
+        chunks.append(self.dvs.step(frame, t1))
+        self._frame = frame
+        return chunks, m
+
+    # -- gymnasium API -----------------------------------------------------------------
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        super().reset(seed=seed)
+        rng = self.np_random
+        self.animator = SceneAnimator(
+            self.model, self.scene, np.random.default_rng(rng.integers(2**63))
+        )
+        pan, tilt = (options or {}).get("gaze_deg", self.config.start_gaze_deg)
+        self.ptu.reset(*self.ptu.clip_target(pan, tilt))
+        self._t_us = 0
+        self._pose(0)
+        self._frame = self._render()
+        self.dvs.reset(self._frame, 0, seed=int(rng.integers(2**63)))
+        self._last_counts = np.zeros((2, self.height, self.width), np.float32)
+        empty = self.dvs.flush()
+        obs = {"events": self._last_counts.copy(), "gaze": self._gaze()}
+        return obs, self._info(empty, frames=1, extra=0, clipped=False)
+
+    def step(
+        self, action: np.ndarray
+    ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        if self.animator is None:
+            raise RuntimeError("call reset() before step()")
+        clipped = self._command(action)
+        c = self.config
+        chunks: list[np.ndarray] = []
+        frames = 0
+        for _ in range(c.ticks_per_step):
+            t1 = self._t_us + c.tick_us
+            tick_chunks, m = self._tick(self._t_us, t1)
+            chunks.extend(tick_chunks)
+            frames += m
+            self._t_us = t1
+        events = concatenate(chunks)
+        self._last_counts = to_frame(events, (self.width, self.height, 2))
+        obs = {"events": self._last_counts.copy(), "gaze": self._gaze()}
+        truncated = self._t_us * 1e-6 >= c.episode_seconds - 1e-9
+        info = self._info(events, frames=frames, extra=frames - c.ticks_per_step, clipped=clipped)
+        return obs, 0.0, False, truncated, info
+
+    def _command(self, action: np.ndarray) -> bool:
+        """Turn a relative gaze action into a PTU target; True when limits clipped it."""
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (2,):
+            raise ValueError(f"action must have shape (2,), got {a.shape}")
+        if not np.isfinite(a).all():
+            raise ValueError(f"action must be finite, got {a.tolist()}")
+        if np.abs(a).max() > 1.0 + 1e-6:
+            raise ValueError(
+                f"action must lie in [-1, 1] (half the field of view), got {a.tolist()}"
+            )
+        # Pixel offsets -> angles. Positive pan turns left, positive tilt looks up, while
+        # image x points right and y down: both signs flip.
+        d_pan = -math.degrees(math.atan(a[0] * (self.width / 2) / self.f_px))
+        d_tilt = -math.degrees(math.atan(a[1] * (self.height / 2) / self.f_px))
+        # Relative commands are integrated into the target (a zero action keeps the move
+        # going); at rest the target is where the camera looks.
+        pan0, tilt0 = self.ptu.target_deg
+        want = (pan0 + d_pan, tilt0 + d_tilt)
+        target = self.ptu.clip_target(*want)
+        self.ptu.set_target(*target)
+        return bool(np.abs(np.subtract(target, want)).max() > 1e-9)
+
+    def _gaze(self) -> np.ndarray:
+        return np.array([self.ptu.camera_pan_deg, self.ptu.camera_tilt_deg], np.float32)
+
+    def _info(self, events: np.ndarray, frames: int, extra: int, clipped: bool) -> dict[str, Any]:
+        info: dict[str, Any] = {
+            "events": events,
+            "t": self._t_us * 1e-6,
+            "ptu_positions": self.ptu.positions,
+            "ptu_target_positions": tuple(round(p) for p in self.ptu.target_positions),
+            "moving": self.ptu.moving,
+            "target_clipped": clipped,
+            "frames": frames,
+            "extra_frames": extra,
+        }
+        if self.config.ground_truth:
+            mask = self.renderer.segment(self.data)
+            info["object_mask"] = mask
+            info["objects"] = self._objects(mask)
+        return info
+
+    def _objects(self, mask: np.ndarray) -> list[dict[str, Any]]:
+        positions = self.animator.object_positions(self._t_us * 1e-6)
+        centres = project_points(
+            self.model, self.data, positions, width=self.width, height=self.height
+        )
+        out = []
+        for k, (obj, centre) in enumerate(zip(self.scene.moving_objects, centres, strict=True), 1):
+            pixels = int(np.count_nonzero(mask == k))
+            out.append(
+                {
+                    "id": k,
+                    "name": obj.name,
+                    "centre_px": (float(centre[0]), float(centre[1])),
+                    "mask_pixels": pixels,
+                    "visible": pixels > 0,
+                }
+            )
+        return out
+
+    def render(self) -> np.ndarray | None:
+        """Camera view | event frame of the last step, with the fovea marked (3x)."""
+        if self.render_mode != "rgb_array":
+            return None
+        if self._frame is None:
+            raise RuntimeError("call reset() before render()")
+        panels = [self._frame, event_image(self._last_counts)]
+        cx, cy = (self.width - 1) / 2, (self.height - 1) / 2
+        out = []
+        for p in panels:
+            p = p.copy()
+            for dx in range(-4, 5):
+                p[int(cy), int(cx + dx)] = (0, 200, 0)
+                p[int(cy + dx), int(cx)] = (0, 200, 0)
+            out.append(upscale(p, 3))
+        gap = np.full((out[0].shape[0], 6, 3), 128, np.uint8)
+        return np.concatenate([out[0], gap, out[1]], axis=1)
+
+    def close(self) -> None:
+        if getattr(self, "renderer", None) is not None:
+            self.renderer.close()
+        super().close()
+
+
+__all__ = ["WanderConfig", "WanderEnv"]
