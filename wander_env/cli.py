@@ -89,6 +89,31 @@ def bench_dvs(
     )
 
 
+@bench_app.command("env")
+def bench_env(
+    scene: Annotated[str, typer.Option(help="Scene to simulate.")] = "office",
+    seconds: Annotated[float, typer.Option(help="Simulated seconds per row.")] = 2.0,
+    ground_truth: Annotated[bool, typer.Option(help="Render segmentation masks too.")] = True,
+) -> None:
+    """Real-time factor of the environment (1 kHz rendering) with 1, 2 and 4 envs."""
+    from experiments.bench_env import bench_env as run
+
+    rows = run(scene=scene, seconds=seconds, ground_truth=ground_truth)
+    print_table(
+        f"Environment, scene '{scene}' (real-time factor = simulated s / wall s)",
+        rows,
+        {
+            "dvs": "",
+            "envs": "d",
+            "ground_truth": "",
+            "realtime_factor": ".2f",
+            "ms_per_step": ".1f",
+            "frames_per_s": ",.0f",
+            "events_per_s": ",.0f",
+        },
+    )
+
+
 def main() -> None:
     app()
 

@@ -1,34 +1,48 @@
-"""Small wrappers around the wander environments.
+"""Wrappers that make the env's raw event arrays travel through generic tools.
+
+``info["events"]`` is a structured array whose length changes from step to step.
+Gymnasium's vector envs batch every ``ndarray`` in ``info`` assuming a fixed
+shape, and ``check_env`` compares them with ``np.allclose``: both fail on it.
+:class:`EventPacketInfo` puts the array in an :class:`EventPacket`, which they
+treat as an opaque object (vector envs gather one per env in an object array).
 
 Example:
     >>> import gymnasium, wander_env
-    >>> from wander_env.wrappers import EventColumns
-    >>> env = EventColumns(gymnasium.make("wander/Wander-v0", scene="shelf"))
-    >>> sorted(env.reset(seed=0)[1]["events"])
-    ['p', 't', 'x', 'y']
+    >>> from wander_env.wrappers import EventPacketInfo
+    >>> env = EventPacketInfo(gymnasium.make("wander/Wander-v0", scene="shelf"))
+    >>> packet = env.reset(seed=0)[1]["events"]
+    >>> len(packet), packet.events.dtype.names
+    (0, ('x', 'y', 't', 'p'))
     >>> env.close()
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
 
-def event_columns(events: np.ndarray) -> dict[str, np.ndarray]:
-    """The event array as plain columns ``{"x", "y", "t", "p"}`` (copies)."""
-    return {name: np.array(events[name]) for name in ("x", "y", "t", "p")}
+@dataclass(frozen=True, eq=False)
+class EventPacket:
+    """One step's events (the shared structured array) as an opaque value."""
+
+    events: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.events)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, EventPacket) and np.array_equal(self.events, other.events)
+
+    def __hash__(self) -> int:
+        return hash(self.events.tobytes())
 
 
-class EventColumns(gym.Wrapper, gym.utils.RecordConstructorArgs):
-    """Replaces ``info["events"]`` (a structured array) by its columns.
-
-    Some generic tools compare or stack ``info`` values as plain numeric arrays
-    (gymnasium's ``check_env`` determinism check, for one); they cannot handle a
-    structured dtype. Nothing else changes.
-    """
+class EventPacketInfo(gym.Wrapper, gym.utils.RecordConstructorArgs):
+    """Replaces ``info["events"]`` by an :class:`EventPacket`; nothing else changes."""
 
     def __init__(self, env: gym.Env) -> None:
         gym.utils.RecordConstructorArgs.__init__(self)
@@ -44,4 +58,4 @@ class EventColumns(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     @staticmethod
     def _convert(info: dict[str, Any]) -> dict[str, Any]:
-        return {**info, "events": event_columns(info["events"])}
+        return {**info, "events": EventPacket(info["events"])}
