@@ -64,6 +64,29 @@ def demo(
     )
 
 
+@app.command()
+def record(
+    out: Annotated[Path, typer.Option(help="Folder for the recording.")] = Path("runs/record"),
+    scene: Annotated[str, typer.Option(help="office, gratings, shelf, or a YAML file.")] = "office",
+    seconds: Annotated[float, typer.Option(help="Simulated seconds.")] = 5.0,
+    policy: Annotated[str, typer.Option(help="still, fixational or saccades.")] = "fixational",
+    dvs: Annotated[str, typer.Option(help="DVS preset: ideal, paper or speck.")] = "ideal",
+    seed: Annotated[int, typer.Option(help="Seed of the env and the policy.")] = 0,
+    video: Annotated[bool, typer.Option(help="Write video.mp4 (camera | events).")] = True,
+) -> None:
+    """Record events, ground truth and a video of the env under a simple gaze policy."""
+    from experiments.record import RecordConfig
+    from experiments.record import record as run
+
+    config = RecordConfig(
+        scene=scene, seconds=seconds, policy=policy, dvs=dvs, seed=seed, video=video
+    )
+    with _progress() as bar:
+        task = bar.add_task(f"record {scene}", total=round(seconds / 0.01))
+        summary = run(out, config, progress=lambda i, n: bar.update(task, completed=i, total=n))
+    console.print(f"{summary['events']:,} events over {summary['steps']} steps -> {out}")
+
+
 @bench_app.command("dvs")
 def bench_dvs(
     frames: Annotated[int, typer.Option(help="Frames per timed run (1 kHz).")] = 1000,
