@@ -14,3 +14,5 @@ from gymnasium.envs.registration import registry as _registry
 # Entry points are strings: registering imports neither MuJoCo nor the env module.
 if "wander/Wander-v0" not in _registry:
     _register(id="wander/Wander-v0", entry_point="wander_env.env:WanderEnv")
+if "wander/Rig-v0" not in _registry:
+    _register(id="wander/Rig-v0", entry_point="hardware.rig_env:RigEnv", nondeterministic=True)

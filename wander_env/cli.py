@@ -10,6 +10,8 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
+from experiments.benchmark_cli import app as benchmark_app
+
 app = typer.Typer(
     help="wander: a simulated active-vision laboratory for event cameras.",
     no_args_is_help=True,
@@ -18,6 +20,7 @@ app = typer.Typer(
 )
 bench_app = typer.Typer(help="Benchmarks that print tables (speed is measured here, not in tests).")
 app.add_typer(bench_app, name="bench")
+app.add_typer(benchmark_app, name="benchmark")
 console = Console()
 
 
@@ -85,6 +88,47 @@ def record(
         task = bar.add_task(f"record {scene}", total=round(seconds / 0.01))
         summary = run(out, config, progress=lambda i, n: bar.update(task, completed=i, total=n))
     console.print(f"{summary['events']:,} events over {summary['steps']} steps -> {out}")
+
+
+@app.command("run")
+def run_agent(
+    out: Annotated[Path, typer.Option(help="The run folder.")] = Path("runs/run"),
+    scene: Annotated[str, typer.Option(help="office, gratings, shelf, or a YAML file.")] = "office",
+    seconds: Annotated[float, typer.Option(help="Simulated seconds.")] = 10.0,
+    seed: Annotated[int, typer.Option(help="Seed of the env, the walk and the controller.")] = 0,
+    dvs: Annotated[str, typer.Option(help="DVS preset: ideal, paper or speck.")] = "ideal",
+    window: Annotated[float, typer.Option(help="Fixation window St_w in seconds.")] = 0.124,
+    fixational: Annotated[
+        bool, typer.Option(help="Fixational eye movements during fixations.")
+    ] = True,
+    streamlined: Annotated[
+        bool, typer.Option(help="Streamlined proto-object model (no polarity split).")
+    ] = False,
+    video: Annotated[bool, typer.Option(help="Write run.mp4.")] = True,
+) -> None:
+    """Run the attention agent closed-loop in a scene; write the run folder."""
+    from experiments.run_agent import RunConfig
+    from experiments.run_agent import run as run_loop
+
+    config = RunConfig(
+        scene=scene,
+        seconds=seconds,
+        seed=seed,
+        dvs=dvs,
+        video=video,
+        window_s=window,
+        fixational=fixational,
+        streamlined=streamlined,
+    )
+    with _progress() as bar:
+        task = bar.add_task(f"agent in {scene}", total=round(seconds / 0.01))
+        result = run_loop(out, config, progress=lambda i, n: bar.update(task, completed=i, total=n))
+    m = result.metrics
+    console.print(
+        f"{m['decisions']} decisions, {m['saccades']} saccades, detection accuracy "
+        f"{m['detection_accuracy']:.0%} ({m['decisions_scored']} scored), sOMS suppression "
+        f"{m['soms_suppression']:.1%}, real-time factor {m['real_time_factor']:.2f} -> {out}"
+    )
 
 
 @bench_app.command("dvs")

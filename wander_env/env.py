@@ -22,8 +22,8 @@ Observation: ``{"events": (2, H, W) float32 per-polarity counts of the step
 (channel 1 = ON), "gaze": (pan, tilt) in degrees}``.
 
 ``info``: ``events`` (the raw event array of the step), ``t`` (simulated s),
-``ptu_positions``, ``ptu_target_positions``, ``moving``, ``target_clipped``,
-``frames`` and ``extra_frames`` rendered in the step, and, with ground truth on,
+``ptu_positions``, ``ptu_target_positions`` (and ``ptu_target_deg``), ``moving``,
+``target_clipped``, ``frames`` and ``extra_frames`` rendered in the step, and, with ground truth on,
 ``object_mask`` ((H, W) int32 object ids, 0 = background) and ``objects`` (per
 moving object: id, name, pixel centre of its projection, mask pixels, visible).
 
@@ -281,6 +281,7 @@ class WanderEnv(gym.Env):
             "t": self._t_us * 1e-6,
             "ptu_positions": self.ptu.positions,
             "ptu_target_positions": tuple(round(p) for p in self.ptu.target_positions),
+            "ptu_target_deg": tuple(float(d) for d in self.ptu.target_deg),
             "moving": self.ptu.moving,
             "target_clipped": clipped,
             "frames": frames,
@@ -310,6 +311,11 @@ class WanderEnv(gym.Env):
                 }
             )
         return out
+
+    @property
+    def camera_frame(self) -> np.ndarray | None:
+        """The last rendered camera image (H, W, 3) uint8 (None before reset), a copy."""
+        return None if self._frame is None else self._frame.copy()
 
     def render(self) -> np.ndarray | None:
         """Camera view | event frame of the last step, with the fovea marked (3x)."""

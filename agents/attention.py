@@ -1,0 +1,440 @@
+"""The bio-inspired attention agent: sOMS → proto-object saliency → sAC → saccade, then
+fixational eye movements (the paper's closed loop, §"Real-world demonstrator").
+
+The agent is a two-phase state machine, stepped once per env step (``step_s``)::
+
+    FIXATE (window_s = St_w) ──P found──► SACCADE (sAC drives the PTU) ──settled──► FIXATE
+       ▲  │ no salient point: keep fixating (walk goes on)
+       └──┘
+
+* **FIXATE.** Every step the step's event counts go through the sOMS (its LIF state
+  carried from step to step, τ converted with the real step length); the event map and
+  the OMS map of the window are the sums over the window's steps. Fixational eye
+  movements (a new random walk of N = 8 relative PTU steps per fixation,
+  :mod:`agents.fixation`) are sent on their schedule, so a static scene still produces
+  events. When the window ``window_s`` (the paper's ``t_w = St_w = 124 ms``) has passed,
+  the proto-object model runs on the window's OMS map (its LIF time step is the window)
+  and ``P(x, y)`` = argmax of the saliency decides the saccade.
+* **SACCADE.** ``P`` is held as the sAC's target (nengo, stepped in lockstep with the
+  env: ``step_s`` of controller time per env step, also while fixating). The decoded
+  ``u`` (action units, ``u ≈ (P − c)/(W/2, H/2)`` once settled) is the *total* gaze shift
+  wanted; because the env integrates relative actions, the agent sends each step the
+  change of the wanted shift **in angle** (``atan(u·W/2 / f)`` now minus before), so the
+  PTU target ends at the angle of ``P`` whatever the controller's transient. The phase
+  ends when ``saccade_settle_s`` has passed and the PTU reports it is no longer moving
+  (``info["moving"]``); the sOMS and proto-object states are then reset (the saccade's
+  event burst is not integrated, like saccadic suppression) and a new fixation starts.
+
+The saccade condition of the paper's scanpath study (``t_w = 10 ms``, no fixational
+movements) is ``AgentParams(window_s=0.01, fixational=False)``.
+
+What it exposes for plots and metrics: ``event_map``, ``oms_map`` (window sums),
+``saliency`` (the last decision's map), ``target`` (the last ``P``), ``phase``,
+``decided`` (whether the last :meth:`AttentionAgent.act` made a decision), the
+``scanpath`` (:class:`Fixation` and :class:`Saccade` records) and event counters for the
+suppression figure.
+
+Example:
+    >>> import numpy as np
+    >>> agent = AttentionAgent(AgentParams(window_s=0.02), seed=0)
+    >>> obs = {"events": np.zeros((2, 128, 128), np.float32), "gaze": np.zeros(2)}
+    >>> a = agent.act(obs, {"moving": False})
+    >>> a.shape, agent.phase.value
+    ((2,), 'fixate')
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+import torch
+
+from agents.control import AttentionController, ControlParams
+from agents.fixation import (
+    FixationalMovements,
+    FixationParams,
+    action_to_gaze_degrees,
+    gaze_degrees_to_action,
+)
+from agents.proto_object import ProtoObjectParams, ProtoObjectSaliency
+from agents.soms import SOMS, SOMSParams
+from wander_env.metrics import SPECK_HFOV_DEG
+
+__all__ = ["AgentParams", "AttentionAgent", "Fixation", "Phase", "Saccade"]
+
+_EPS = 1e-9
+
+
+@dataclass(frozen=True)
+class AgentParams:
+    """Parameters of the composed agent; the paper's values as defaults.
+
+    - ``window_s`` St_w = t_w = 0.124 s: the fixation window over which the event and
+      OMS maps are integrated before a decision (the demonstrator's latency);
+    - ``step_s`` 0.01 s: the env's control period (sOMS time step, controller lockstep);
+    - ``fixational`` True: fixational eye movements during each fixation;
+    - ``saccade_settle_s`` 0.1 s: time the sAC is given to converge on ``P`` (its decoded
+      value is within 0.1 of the target from 50 ms on, within ≈0.01 from 100 ms);
+    - ``max_saccade_s`` 3 s: a saccade that has not settled by then ends anyway
+      (a PTU that keeps reporting motion must not freeze the agent);
+    - ``min_saliency`` 0: a decision needs a saliency peak above this (else the fixation
+      goes on, its walk continuing around the same point);
+    - ``reset_after_saccade`` True: clear the sOMS and proto-object state when a new
+      fixation starts;
+    - ``torch_threads`` 1: torch intra-op threads set by the agent (``None`` leaves
+      torch's setting). At 128×128 one thread is fastest, and with two threads on a
+      busy 2-core machine the sOMS and proto-object steps were measured 20–40× slower;
+    - sensor geometry (128×128 Speck, HFOV 112.83°) and one parameter block per
+      component. The components' ``dt``, sizes and fixation interval are set from
+      these fields by :meth:`resolved` (so they cannot disagree).
+    """
+
+    window_s: float = 0.124
+    step_s: float = 0.01
+    fixational: bool = True
+    saccade_settle_s: float = 0.1
+    max_saccade_s: float = 3.0
+    min_saliency: float = 0.0
+    reset_after_saccade: bool = True
+    torch_threads: int | None = 1
+    width_px: int = 128
+    height_px: int = 128
+    hfov_deg: float = SPECK_HFOV_DEG
+    soms: SOMSParams = field(default_factory=lambda: SOMSParams(conv="fft"))
+    proto: ProtoObjectParams = field(default_factory=ProtoObjectParams)
+    control: ControlParams = field(default_factory=ControlParams)
+    fixation: FixationParams = field(default_factory=FixationParams)
+
+    def __post_init__(self) -> None:
+        for name in ("window_s", "step_s", "saccade_settle_s", "max_saccade_s", "hfov_deg"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"AgentParams.{name} must be a finite number > 0, got {v!r}")
+        if self.window_s + _EPS < self.step_s:
+            raise ValueError(
+                f"AgentParams.window_s={self.window_s} is shorter than step_s={self.step_s}"
+            )
+        for name in ("width_px", "height_px"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+                raise ValueError(f"AgentParams.{name} must be an int >= 1, got {v!r}")
+
+    @property
+    def window_steps(self) -> int:
+        """Env steps per fixation window, ``ceil(window_s / step_s)`` (13 for 124/10 ms)."""
+        return max(1, math.ceil(self.window_s / self.step_s - _EPS))
+
+    def resolved(self) -> AgentParams:
+        """These parameters with every component's time step and geometry made consistent."""
+        n = max(self.fixation.n_steps, 1)
+        return replace(
+            self,
+            soms=replace(self.soms, dt=self.step_s),
+            proto=replace(self.proto, dt=self.window_steps * self.step_s),
+            control=replace(self.control, width_px=self.width_px, height_px=self.height_px),
+            fixation=replace(
+                self.fixation,
+                width_px=self.width_px,
+                height_px=self.height_px,
+                hfov_deg=self.hfov_deg,
+                interval_s=self.window_s / n,
+            ),
+        )
+
+    @classmethod
+    def for_env(cls, env: Any, **overrides: Any) -> AgentParams:
+        """Parameters matched to an env: sensor size from its observation space, step
+        length from its ``config.control_period_s`` (``WanderEnv`` and ``RigEnv``)."""
+        h, w = env.observation_space["events"].shape[1:]
+        cfg = getattr(env.unwrapped, "config", None)
+        step = getattr(cfg, "control_period_s", cls.step_s)
+        return cls(**{"width_px": int(w), "height_px": int(h), "step_s": step, **overrides})
+
+
+class Phase(enum.Enum):
+    """The agent's state."""
+
+    FIXATE = "fixate"
+    SACCADE = "saccade"
+
+
+@dataclass(frozen=True)
+class Fixation:
+    """One fixation window: when, where the PTU pointed, and what it decided.
+
+    ``gaze_deg`` is the (pan, tilt) at the window's start, ``target_px`` the ``P`` found
+    at its end (None when nothing was salient), ``peak`` the saliency there; times are
+    the env's (``info["t"]``, s) when given, else the agent's own clock.
+    """
+
+    index: int
+    t_start: float
+    t_end: float
+    gaze_deg: tuple[float, float]
+    target_px: tuple[int, int] | None
+    peak: float
+    events: int
+    oms_events: int
+
+
+@dataclass(frozen=True)
+class Saccade:
+    """One saccade: ``target_px`` P in the image at the decision, the wanted rotation
+    ``command_deg`` (pan, tilt; PTU signs) from the PTU target ``from_target_deg``, and
+    the gaze reached ``to_gaze_deg`` when it settled (at ``t_end``)."""
+
+    index: int
+    t_start: float
+    t_end: float
+    target_px: tuple[int, int]
+    from_target_deg: tuple[float, float]
+    command_deg: tuple[float, float]
+    to_gaze_deg: tuple[float, float]
+
+    @property
+    def error_deg(self) -> tuple[float, float]:
+        """Reached minus intended gaze (pan, tilt), degrees."""
+        return (
+            self.to_gaze_deg[0] - (self.from_target_deg[0] + self.command_deg[0]),
+            self.to_gaze_deg[1] - (self.from_target_deg[1] + self.command_deg[1]),
+        )
+
+
+class AttentionAgent:
+    """The policy: ``act(observation, info) -> action`` (see the module docstring).
+
+    ``observation`` is the env's ``{"events": (2, H, W), "gaze": (pan, tilt)}``; from
+    ``info`` the agent reads ``moving`` (whether the PTU is still moving), and ``t`` and
+    ``ptu_target_positions``/``ptu_resolution_deg`` when present. The same code drives the
+    simulated env and the rig.
+    """
+
+    def __init__(self, params: AgentParams | None = None, seed: int | None = None) -> None:
+        self.params = (params if params is not None else AgentParams()).resolved()
+        p = self.params
+        if p.torch_threads is not None:
+            torch.set_num_threads(p.torch_threads)
+        self.seed = seed
+        self.soms = SOMS(p.soms, p.height_px, p.width_px)
+        self.proto = ProtoObjectSaliency(p.proto, p.height_px, p.width_px)
+        self.controller = AttentionController(replace(p.control, seed=seed))
+        self.fixation = FixationalMovements(p.fixation, np.random.default_rng(seed))
+        self._shape = (2, p.height_px, p.width_px)
+        self.reset(seed)
+
+    # -- state -------------------------------------------------------------------------
+
+    def reset(self, seed: int | None = None) -> None:
+        """Back to the start of a first fixation; ``seed`` re-seeds the fixational walk
+        and the controller (default: the constructor's seed)."""
+        if seed is not None:
+            self.seed = seed
+        self.soms.reset()
+        self.proto.reset()
+        self.controller.reset(seed=self.seed)
+        self.fixation = FixationalMovements(self.params.fixation, np.random.default_rng(self.seed))
+        self.phase = Phase.FIXATE
+        self.event_map = np.zeros(self._shape, np.float32)
+        self.oms_map = np.zeros(self._shape, np.float32)
+        self.step_event_map = np.zeros(self._shape, np.float32)
+        self.step_oms_map = np.zeros(self._shape, np.float32)
+        self.saliency: np.ndarray | None = None
+        self.target: tuple[int, int] | None = None
+        self.decided = False
+        self.fixations: list[Fixation] = []
+        self.saccades: list[Saccade] = []
+        self.events_in = 0
+        self.events_oms = 0
+        self.steps = 0
+        self._t = 0.0
+        self._started = False
+        self._begin_fixation(after_saccade=True, t=0.0, gaze=(0.0, 0.0))
+
+    def _begin_fixation(self, after_saccade: bool, t: float, gaze: tuple[float, float]) -> None:
+        if after_saccade and self.params.reset_after_saccade:
+            self.soms.reset()
+            self.proto.reset()
+        self.event_map[:] = 0.0
+        self.oms_map[:] = 0.0
+        self._window_steps = 0
+        self._window_start = t
+        self._window_gaze = gaze
+        self._elapsed = 0.0
+        if self.params.fixational:
+            self.fixation.start(after_saccade=after_saccade)
+
+    # -- the policy ----------------------------------------------------------------------
+
+    def act(self, observation: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
+        """One env step: the next action (2,) float32 in [-1, 1]."""
+        counts = np.asarray(observation["events"], dtype=np.float32)
+        if counts.shape != self._shape:
+            raise ValueError(
+                f"observation['events'] has shape {counts.shape}, the agent was built for "
+                f"{self._shape} (use AgentParams.for_env(env))"
+            )
+        gaze = tuple(float(g) for g in np.asarray(observation["gaze"]).reshape(2))
+        t = float(info["t"]) if "t" in info else self._t + self.params.step_s
+        if not self._started:  # the first window starts where the env put the camera
+            self._started = True
+            self._window_gaze = gaze
+            self._window_start = t - self.params.step_s
+        self._t = t
+        self.steps += 1
+        self.decided = False
+
+        oms = self.soms.step(counts).oms.numpy()
+        self.step_event_map = counts
+        self.step_oms_map = oms
+        n_in, n_oms = int(counts.sum()), int((counts * oms).sum())
+        self.events_in += n_in
+        self.events_oms += n_oms
+
+        if self.phase is Phase.FIXATE:
+            return self._fixate(counts, counts * oms, gaze, t, info)
+        return self._saccade(gaze, t, info)
+
+    def _fixate(
+        self,
+        counts: np.ndarray,
+        oms_counts: np.ndarray,
+        gaze: tuple[float, float],
+        t: float,
+        info: dict[str, Any],
+    ) -> np.ndarray:
+        p = self.params
+        self.event_map += counts
+        self.oms_map += oms_counts
+        self._window_steps += 1
+        action = np.zeros(2)
+        if p.fixational and self.fixation.due(self._elapsed):
+            action += self.fixation.next_offset().action
+        self._elapsed += p.step_s
+        if self._window_steps < p.window_steps:
+            self.controller.step(None, p.step_s)
+            return _clip(action)
+        # End of the window: saliency of its OMS map, then decide.
+        out = self.proto.step(self.oms_map)
+        self.saliency = out.saliency.numpy()
+        target = self.proto.argmax()
+        peak = float(self.saliency[target[1], target[0]]) if target is not None else 0.0
+        if target is not None and peak <= p.min_saliency:
+            target = None
+        self.decided = True
+        self.target = target
+        self.fixations.append(
+            Fixation(
+                index=len(self.fixations),
+                t_start=self._window_start,
+                t_end=t,
+                gaze_deg=self._window_gaze,
+                target_px=target,
+                peak=peak,
+                events=int(self.event_map.sum()),
+                oms_events=int(self.oms_map.sum()),
+            )
+        )
+        if target is None:
+            self.controller.step(None, p.step_s)
+            self._begin_fixation(after_saccade=False, t=t, gaze=gaze)
+            return _clip(action)
+        self._start_saccade(target, gaze, t, info)
+        return self._saccade(gaze, t, info, first=True)
+
+    def _start_saccade(
+        self, target: tuple[int, int], gaze: tuple[float, float], t: float, info: dict[str, Any]
+    ) -> None:
+        self.target = target
+        self.phase = Phase.SACCADE
+        self._saccade_start = t
+        self._saccade_elapsed = 0.0
+        self._sent_deg = np.zeros(2)
+        self._from_target = _target_deg(info, gaze)
+
+    def saccade_to(
+        self,
+        target_px: tuple[int, int],
+        gaze_deg: tuple[float, float] = (0.0, 0.0),
+        info: dict[str, Any] | None = None,
+    ) -> None:
+        """Start a saccade to pixel ``target_px`` now, as if a window had chosen it (for
+        saccade-accuracy experiments); the following :meth:`act` calls carry it out.
+        ``gaze_deg`` and ``info`` (its ``ptu_target_deg``) give the starting direction for
+        the saccade's record."""
+        x, y = (int(v) for v in target_px)
+        if not (0 <= x < self.params.width_px and 0 <= y < self.params.height_px):
+            raise ValueError(
+                f"target_px {target_px} is outside the {self.params.width_px}x"
+                f"{self.params.height_px} sensor"
+            )
+        gaze = (float(gaze_deg[0]), float(gaze_deg[1]))
+        self._start_saccade((x, y), gaze, self._t, info or {})
+
+    def _saccade(
+        self, gaze: tuple[float, float], t: float, info: dict[str, Any], first: bool = False
+    ) -> np.ndarray:
+        p = self.params
+        settled = self._saccade_elapsed + _EPS >= p.saccade_settle_s and not info.get(
+            "moving", False
+        )
+        if not first and (settled or self._saccade_elapsed + _EPS >= p.max_saccade_s):
+            self.saccades.append(
+                Saccade(
+                    index=len(self.saccades),
+                    t_start=self._saccade_start,
+                    t_end=t,
+                    target_px=self.target,
+                    from_target_deg=self._from_target,
+                    command_deg=(float(self._sent_deg[0]), float(self._sent_deg[1])),
+                    to_gaze_deg=gaze,
+                )
+            )
+            self.phase = Phase.FIXATE
+            self.controller.step(None, p.step_s)
+            self._begin_fixation(after_saccade=True, t=t, gaze=gaze)
+            return self._fixate_first_step()
+        u = self.controller.step(self.target, p.step_s)
+        self._saccade_elapsed += p.step_s
+        if self._saccade_elapsed > p.saccade_settle_s + _EPS:
+            return np.zeros(2, np.float32)  # the command is complete; wait for the PTU
+        want = np.array(
+            action_to_gaze_degrees(np.clip(u, -1.0, 1.0), p.width_px, p.height_px, p.hfov_deg)
+        )
+        delta = want - self._sent_deg
+        self._sent_deg = want
+        return _clip(gaze_degrees_to_action(*delta, p.width_px, p.height_px, p.hfov_deg))
+
+    def _fixate_first_step(self) -> np.ndarray:
+        """The action of the step that starts a fixation (its first walk step)."""
+        if self.params.fixational and self.fixation.due(self._elapsed):
+            return _clip(self.fixation.next_offset().action)
+        return np.zeros(2, np.float32)
+
+    # -- summaries -----------------------------------------------------------------------
+
+    @property
+    def suppression(self) -> float:
+        """Fraction of the events seen so far that the sOMS suppressed (nan before any)."""
+        if self.events_in == 0:
+            return float("nan")
+        return 1.0 - self.events_oms / self.events_in
+
+    def close(self) -> None:
+        """Release the nengo simulator."""
+        self.controller.close()
+
+
+def _clip(action: np.ndarray) -> np.ndarray:
+    return np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0).astype(np.float32)
+
+
+def _target_deg(info: dict[str, Any], gaze: tuple[float, float]) -> tuple[float, float]:
+    """Where the PTU is heading (its target, degrees) when the env says so, else the gaze."""
+    target = info.get("ptu_target_deg")
+    if target is None:
+        return gaze
+    return float(target[0]), float(target[1])

@@ -1,0 +1,397 @@
+"""``wander run``: the attention agent closed-loop in a scene, and its run folder.
+
+:func:`run_closed_loop` drives any env with the shared contract (the simulated
+``wander/Wander-v0`` or the rig's ``wander/Rig-v0``) with an :class:`AttentionAgent` and
+writes the run folder:
+
+- ``run.json``: resolved config, seed, git revision, versions;
+- ``metrics.json``: fixations, saccades, detection accuracy (the 8×8 box around each
+  ``P`` touches a moving object's mask, the mask being the union over the fixation
+  window — with ground truth only), sOMS event suppression, foveation error of the
+  saccades (reached minus intended gaze, in pixels at the fovea), scanpath statistics,
+  wall time and real-time factor;
+- ``fixations.csv``: the fixation table (pan, tilt, start, duration; degrees, seconds)
+  plus each fixation's ``P`` and hit;
+- ``scanpath.png``: cumulative saliency on the pan-tilt sphere with fixations, saccade
+  lines and the salient points; gaze over time;
+- ``run.mp4``: events | OMS | saliency | camera, with the fovea (green) and ``P``
+  (magenta 8×8 box) marked;
+- ``events.h5``: every event of the run.
+
+A fault mid-run (a device that stops answering) still leaves the folder with what was
+recorded; the exception is raised after it is written.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from agents.attention import AgentParams, AttentionAgent, Phase
+from experiments import scanpath_stats
+from experiments.scanpath_figure import pixel_to_angles, plot_scanpath
+from wander_env.event_io import EventRecording, write_events
+from wander_env.events import concatenate
+from wander_env.metrics import degrees_to_pixels, detection_hit, focal_length_px
+from wander_env.runinfo import run_record, write_json
+from wander_env.viz import event_image, upscale
+
+__all__ = ["RunConfig", "RunResult", "run", "run_closed_loop", "video_frame"]
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """What ``wander run`` runs: the scene, its length, the seed, the DVS preset and the
+    agent's main switches (the paper's defaults)."""
+
+    scene: str = "office"
+    seconds: float = 10.0
+    seed: int = 0
+    dvs: str = "ideal"
+    video: bool = True
+    window_s: float = 0.124
+    fixational: bool = True
+    streamlined: bool = False
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.seconds, (int, float)) and math.isfinite(self.seconds)):
+            raise ValueError(f"RunConfig.seconds must be a finite number, got {self.seconds!r}")
+        if self.seconds <= 0:
+            raise ValueError(f"RunConfig.seconds must be > 0, got {self.seconds}")
+
+    def agent_params(self, env: Any) -> AgentParams:
+        from dataclasses import replace
+
+        from agents.proto_object import ProtoObjectParams
+
+        return AgentParams.for_env(
+            env,
+            window_s=self.window_s,
+            fixational=self.fixational,
+            proto=replace(ProtoObjectParams(), polarity_split=not self.streamlined),
+        )
+
+
+@dataclass
+class RunResult:
+    """What a run produced: the metrics and the files written."""
+
+    metrics: dict[str, Any]
+    files: list[str] = field(default_factory=list)
+    error: str | None = None
+
+
+# ----------------------------------------------------------------------------------------
+# Pictures
+
+
+def _colour_map(values: np.ndarray) -> np.ndarray:
+    """(H, W) non-negative values -> RGB (black → magenta → yellow), scaled to the peak."""
+    v = np.clip(np.asarray(values, dtype=np.float64), 0.0, None)
+    peak = v.max()
+    v = v / peak if peak > 0 else v
+    rgb = np.stack([np.clip(2 * v, 0, 1), np.clip(2 * v - 1, 0, 1), np.clip(1 - 2 * v, 0, 1) * v])
+    return (255 * rgb.transpose(1, 2, 0)).astype(np.uint8)
+
+
+def _mark(img: np.ndarray, scale: int, target: tuple[int, int] | None) -> np.ndarray:
+    import cv2
+
+    h, w = img.shape[:2]
+    c = (
+        round((w / scale - 1) / 2 * scale + scale / 2),
+        round((h / scale - 1) / 2 * scale + scale / 2),
+    )
+    cv2.drawMarker(img, c, (0, 200, 0), cv2.MARKER_CROSS, 4 * scale, 1)
+    if target is not None:
+        x0, y0 = (target[0] - 4) * scale, (target[1] - 4) * scale
+        cv2.rectangle(img, (x0, y0), (x0 + 8 * scale - 1, y0 + 8 * scale - 1), (255, 0, 255), 1)
+    return img
+
+
+def video_frame(
+    events: np.ndarray,
+    oms: np.ndarray,
+    saliency: np.ndarray | None,
+    camera: np.ndarray | None,
+    target: tuple[int, int] | None,
+    caption: str = "",
+    scale: int = 2,
+) -> np.ndarray:
+    """One video frame: events | OMS | saliency | camera (uint8 RGB)."""
+    import cv2
+
+    h, w = events.shape[1:]
+    panels = [event_image(events), event_image(oms)]
+    panels.append(_colour_map(saliency) if saliency is not None else np.zeros((h, w, 3), np.uint8))
+    if camera is not None:
+        panels.append(np.asarray(camera, dtype=np.uint8))
+    names = ["events", "OMS", "saliency", "camera"]
+    out = []
+    for name, p in zip(names, panels, strict=False):
+        big = np.ascontiguousarray(upscale(p, scale))
+        _mark(big, scale, target)
+        cv2.putText(big, name, (3, 12), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 160, 0), 1)
+        out.append(big)
+    gap = np.full((out[0].shape[0], 4, 3), 128, np.uint8)
+    row = np.concatenate([x for p in out for x in (p, gap)][:-1], axis=1)
+    bar = np.full((16, row.shape[1], 3), 255, np.uint8)
+    cv2.putText(bar, caption, (3, 12), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1)
+    return np.concatenate([row, bar], axis=0)
+
+
+# ----------------------------------------------------------------------------------------
+# The loop
+
+
+@dataclass
+class _Log:
+    """Everything gathered step by step (kept to write the folder even after a fault)."""
+
+    chunks: list[np.ndarray] = field(default_factory=list)
+    gaze: list[tuple[float, float, float]] = field(default_factory=list)
+    maps: list[np.ndarray] = field(default_factory=list)  # saliency per decision
+    hits: list[bool | None] = field(default_factory=list)  # per decision
+    clipped: list[bool] = field(default_factory=list)  # per saccade
+    steps: int = 0
+
+
+def run_closed_loop(
+    env: Any,
+    agent: AttentionAgent,
+    seconds: float,
+    out_dir: Path,
+    record: dict[str, Any],
+    video: bool = True,
+    progress: Callable[[int, int], None] | None = None,
+    seed: int | None = None,
+) -> RunResult:
+    """Run ``agent`` on ``env`` for ``seconds`` and write the run folder (module doc)."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    base = env.unwrapped
+    dt = float(getattr(getattr(base, "config", None), "control_period_s", agent.params.step_s))
+    n_steps = max(1, round(seconds / dt))
+    log = _Log()
+    writer = None
+    if video:
+        import imageio.v2 as imageio
+
+        writer = imageio.get_writer(out_dir / "run.mp4", fps=round(1 / dt), macro_block_size=1)
+    error: BaseException | None = None
+    t_wall = time.perf_counter()
+    window_mask: np.ndarray | None = None
+    saccade_clipped = False
+    try:
+        obs, info = env.reset(seed=seed)
+        agent.reset()
+        for k in range(n_steps):
+            phase_before = agent.phase
+            n_sacc = len(agent.saccades)
+            action = agent.act(obs, info)
+            mask = info.get("object_mask")
+            if mask is not None and phase_before is Phase.FIXATE:  # step went into the window
+                window_mask = mask > 0 if window_mask is None else window_mask | (mask > 0)
+            if len(agent.saccades) > n_sacc:  # a saccade ended at this step
+                log.clipped.append(saccade_clipped)
+            if agent.decided:
+                log.maps.append(agent.saliency.copy())
+                hit = None
+                if window_mask is not None and window_mask.any() and agent.target is not None:
+                    hit = detection_hit(agent.target, window_mask)
+                log.hits.append(hit)
+                window_mask = None
+                saccade_clipped = False
+            obs, _, terminated, truncated, info = env.step(action)
+            if agent.phase is Phase.SACCADE:
+                saccade_clipped |= bool(info.get("target_clipped", False))
+            log.chunks.append(info["events"])
+            log.gaze.append((float(info.get("t", (k + 1) * dt)), *map(float, obs["gaze"])))
+            log.steps = k + 1
+            if writer is not None:
+                writer.append_data(_frame_for(agent, obs, base, info))
+            if progress is not None:
+                progress(k + 1, n_steps)
+            if terminated or truncated:
+                break
+    except BaseException as exc:
+        error = exc
+    finally:
+        if writer is not None:
+            writer.close()
+    wall = time.perf_counter() - t_wall
+    result = _write_folder(out_dir, env, agent, log, record, dt, wall, error)
+    if error is not None:
+        raise error
+    return result
+
+
+def _frame_for(agent: AttentionAgent, obs: dict, base: Any, info: dict) -> np.ndarray:
+    camera = getattr(base, "camera_frame", None)
+    t = info.get("t", math.nan)
+    caption = f"t={t:6.2f}s  {agent.phase.value}  P={agent.target}"
+    return video_frame(obs["events"], agent.oms_map, agent.saliency, camera, agent.target, caption)
+
+
+def _saccade_metrics(agent: AttentionAgent, clipped: list[bool]) -> dict[str, Any]:
+    p = agent.params
+    f = focal_length_px(p.width_px, p.hfov_deg)
+    errs = []
+    for s, c in zip(agent.saccades, clipped, strict=False):
+        if c:
+            continue
+        e = s.error_deg
+        # Pixels at the fovea; x right is −pan, y down is −tilt.
+        errs.append(
+            (
+                degrees_to_pixels(-e[0], p.width_px, p.hfov_deg),
+                degrees_to_pixels(-e[1], p.width_px, p.hfov_deg),
+            )
+        )
+    out: dict[str, Any] = {
+        "saccades": len(agent.saccades),
+        "saccades_clipped_by_ptu_limits": int(sum(clipped)),
+        "saccade_duration_mean_s": _mean([s.t_end - s.t_start for s in agent.saccades]),
+        "focal_length_px": f,
+    }
+    if errs:
+        e = np.abs(np.asarray(errs))
+        out |= {
+            "foveation_error_x_px_mean": float(e[:, 0].mean()),
+            "foveation_error_x_px_std": float(e[:, 0].std()),
+            "foveation_error_y_px_mean": float(e[:, 1].mean()),
+            "foveation_error_y_px_std": float(e[:, 1].std()),
+        }
+    return out
+
+
+def _mean(values: list[float]) -> float:
+    return float(np.mean(values)) if values else math.nan
+
+
+def _write_folder(
+    out_dir: Path,
+    env: Any,
+    agent: AttentionAgent,
+    log: _Log,
+    record: dict[str, Any],
+    dt: float,
+    wall: float,
+    error: BaseException | None,
+) -> RunResult:
+    p = agent.params
+    f = focal_length_px(p.width_px, p.hfov_deg)
+    centre = ((p.width_px - 1) / 2.0, (p.height_px - 1) / 2.0)
+    fix_rows = []
+    for k, fx in enumerate(agent.fixations):
+        target_deg = pixel_to_angles(fx.target_px, fx.gaze_deg, f, centre) if fx.target_px else None
+        hit = log.hits[k] if k < len(log.hits) else None
+        fix_rows.append(
+            {
+                "pan_deg": fx.gaze_deg[0],
+                "tilt_deg": fx.gaze_deg[1],
+                "start_s": fx.t_start,
+                "duration_s": fx.t_end - fx.t_start,
+                "target_x_px": fx.target_px[0] if fx.target_px else "",
+                "target_y_px": fx.target_px[1] if fx.target_px else "",
+                "target_pan_deg": target_deg[0] if target_deg else "",
+                "target_tilt_deg": target_deg[1] if target_deg else "",
+                "hit": "" if hit is None else int(hit),
+                "events": fx.events,
+                "oms_events": fx.oms_events,
+            }
+        )
+    if fix_rows:
+        with open(out_dir / "fixations.csv", "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=list(fix_rows[0]))
+            w.writeheader()
+            w.writerows(fix_rows)
+    table = np.array(
+        [[r["pan_deg"], r["tilt_deg"], r["start_s"], r["duration_s"]] for r in fix_rows]
+    ).reshape(-1, 4)
+    scored = [h for h in log.hits if h is not None]
+    sim_s = log.steps * dt
+    metrics: dict[str, Any] = {
+        "steps": log.steps,
+        "simulated_s": sim_s,
+        "wall_s": wall,
+        "real_time_factor": sim_s / wall if wall > 0 else math.nan,
+        "decisions": len(agent.fixations),
+        "decisions_with_target": sum(fx.target_px is not None for fx in agent.fixations),
+        "decisions_scored": len(scored),
+        "detection_accuracy": float(np.mean(scored)) if scored else math.nan,
+        "events": int(sum(len(c) for c in log.chunks)),
+        "events_into_agent": agent.events_in,
+        "events_kept_by_soms": agent.events_oms,
+        "soms_suppression": agent.suppression,
+        **_saccade_metrics(agent, log.clipped),
+        "scanpath": scanpath_stats.summary(table) if len(table) else {},
+    }
+    if error is not None:
+        metrics["error"] = f"{type(error).__name__}: {error}"
+    write_json(out_dir / "metrics.json", metrics)
+    if agent.fixations and log.maps:
+        n = min(len(log.maps), len(agent.fixations))
+        plot_scanpath(
+            out_dir / "scanpath.png",
+            log.maps[:n],
+            [
+                {
+                    "gaze_deg": fx.gaze_deg,
+                    "duration_s": fx.t_end - fx.t_start,
+                    "target_deg": pixel_to_angles(fx.target_px, fx.gaze_deg, f, centre)
+                    if fx.target_px
+                    else None,
+                }
+                for fx in agent.fixations[:n]
+            ],
+            f,
+            gaze_trace=np.asarray(log.gaze),
+            title=f"scanpath ({len(agent.fixations)} fixations, {len(agent.saccades)} saccades)",
+        )
+    events = concatenate(log.chunks) if log.chunks else concatenate([])
+    h, w = p.height_px, p.width_px
+    rec = record | {"agent": asdict(p), "summary": {k: metrics[k] for k in ("steps", "events")}}
+    write_events(out_dir / "events.h5", EventRecording(events, (w, h, 2), rec))
+    write_json(out_dir / "run.json", rec)
+    files = sorted(x.name for x in out_dir.iterdir())
+    return RunResult(metrics=metrics, files=files, error=metrics.get("error"))
+
+
+def run(
+    out_dir: Path, config: RunConfig, progress: Callable[[int, int], None] | None = None
+) -> RunResult:
+    """``wander run``: the agent in the simulated scene."""
+    import gymnasium as gym
+
+    import wander_env  # noqa: F401  (registers the environments)
+
+    env = gym.make(
+        "wander/Wander-v0",
+        scene=config.scene,
+        dvs=config.dvs,
+        episode_seconds=config.seconds,
+    )
+    agent = AttentionAgent(config.agent_params(env), seed=config.seed)
+    record = run_record("wander run", asdict(config), config.seed)
+    try:
+        return run_closed_loop(
+            env,
+            agent,
+            config.seconds,
+            out_dir,
+            record,
+            video=config.video,
+            progress=progress,
+            seed=config.seed,
+        )
+    finally:
+        agent.close()
+        env.close()

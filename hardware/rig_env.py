@@ -1,0 +1,620 @@
+"""The rig environment: a real (or replayed) event camera on a real (or emulated) FLIR PTU.
+
+:class:`RigEnv` has the observation and action spaces of the simulated
+:class:`~wander_env.env.WanderEnv`, so one agent runs on both unchanged:
+
+* action ``Box(-1, 1, (2,))``: a gaze offset in half-sensor units, turned into
+  angles with the pinhole model (:func:`agents.fixation.action_to_gaze_degrees`,
+  focal length from the sensor width and ``hfov_deg``) and *added* to the PTU's
+  current target (clipped to the unit's limits; ``info["target_clipped"]`` says
+  so). A NaN, infinite or out-of-range action raises ``ValueError``;
+* observation ``{"events": (2, H, W) float32 per-polarity counts of the step
+  (channel 1 = ON), "gaze": (pan, tilt) degrees}`` (the last polled PTU position);
+* ``info``: ``events`` (the step's raw event array, ``t`` in µs since ``reset``),
+  ``t`` (s since ``reset``, the end of the step window), ``ptu_positions``,
+  ``ptu_target_positions``, ``moving``, ``target_clipped``, and, rig only,
+  ``command_latency_s`` (seconds from handing the latest acknowledged command to
+  the PTU thread until the unit's ``*``; NaN before the first), ``dropped_events``
+  (events the camera lost since ``reset``) and ``lag_s`` (how far the end of the
+  step window trails the camera's clock; 0 for a fast replay).
+
+Nothing about the devices is a constant here: the sensor size comes from the
+source, the PTU's resolution and limits from the driver's queries.
+
+One step is one window of ``control_period_s`` of the camera's clock. The PTU
+command is handed to a background thread that owns the serial line, so the event
+stream is never held up by the (slow: 9600 baud) PTU exchange; a command not yet
+sent when the next one comes is replaced by it (the targets are integrated, so
+nothing is lost). The same thread polls the position (``PP``/``TP``) every
+``ptu_poll_s``. With ``camera="speck"`` or a real-time replay a step returns when
+the camera's clock has passed the window's end; with ``replay="fast"`` at once,
+the windows advancing in stream time, so the events of every step are fixed by
+the file (the PTU side stays real-time, hence ``nondeterministic=True``).
+
+Faults: a PTU that stops answering, answers ``!`` or loses its port mid-run
+makes the PTU thread try a halt (``H``) and stop; the next :meth:`RigEnv.step`
+(or :meth:`RigEnv.settle`, :meth:`RigEnv.reset`) raises the driver's error type
+(:class:`~hardware.ptu_driver.PTUTimeout`, :class:`~hardware.ptu_driver.PTUError`
+keeping the unit's ``message`` and ``command``) saying what happened and whether
+the halt was acknowledged. A camera failure halts the PTU before it propagates.
+:meth:`RigEnv.close` (idempotent) halts the PTU, closes its port and the camera;
+opening failures (port missing or busy, samna missing, no Speck) close what was
+already open before raising.
+
+Example (the PTU emulator and a replayed recording):
+    >>> import tempfile, gymnasium, wander_env
+    >>> from wander_env.event_io import EventRecording, write_events
+    >>> from wander_env.events import make_events
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = f"{tmp.name}/two.npz"
+    >>> ev = make_events(x=[1, 2], y=[3, 4], t=[0, 15_000], p=[1, 0])
+    >>> write_events(path, EventRecording(ev, (128, 128, 2)))
+    >>> env = gymnasium.make("wander/Rig-v0", ptu="emulate", camera=f"replay:{path}",
+    ...                      replay="fast", driver=FlirPTUParams(banner_quiet_s=0.02))
+    >>> obs, info = env.reset()
+    >>> obs, reward, terminated, truncated, info = env.step(np.zeros(2, np.float32))
+    >>> obs["events"].shape, int(obs["events"][1].sum()), info["t"], obs["gaze"].tolist()
+    ((2, 128, 128), 1, 0.01, [0.0, 0.0])
+    >>> env.close(); tmp.cleanup()
+"""
+
+from __future__ import annotations
+
+import atexit
+import logging
+import math
+import threading
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+
+from agents.fixation import action_to_gaze_degrees
+from hardware.event_source import EventSource
+from hardware.ptu_driver import FlirPTU, FlirPTUParams, PTUError, PTUTimeout
+from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
+from hardware.replay import ReplaySource
+from hardware.speck import SpeckParams, SpeckSource
+from wander_env.events import empty_events, to_frame
+from wander_env.metrics import SPECK_HFOV_DEG
+from wander_env.ptu import degrees_to_positions, positions_to_degrees, round_position
+from wander_env.viz import event_image, upscale
+
+_REPLAY_MODES = ("realtime", "fast")
+
+
+@dataclass(frozen=True)
+class RigConfig:
+    """What a :class:`RigEnv` opens and how it runs.
+
+    ``ptu``: a pyserial URL of the FLIR PTU (``"/dev/ttyUSB0"``, ``"socket://host:4000"``)
+    or ``"emulate"`` (a :class:`~hardware.ptu_emulator.PTUEmulator` with ``emulator``
+    parameters); ``camera``: ``"speck"`` (``"speck:<serial>"`` for one board) or
+    ``"replay:<event file>"``; ``replay``: ``"realtime"`` (paced by the wall clock) or
+    ``"fast"`` (windows advance in stream time); ``replay_loop`` repeats the file.
+    ``control_period_s``: the step window; ``episode_seconds``: truncation;
+    ``start_gaze_deg``: where :meth:`RigEnv.reset` points the PTU (``None``: leave it);
+    ``hfov_deg``: the lens's horizontal field of view (not queryable; Speck's by
+    default); ``ptu_poll_s``: position polling period; ``driver``, ``emulator``,
+    ``speck``: the parameters of those parts.
+
+    >>> RigConfig(ptu="emulate", camera="replay:walk.npz").control_period_us
+    10000
+    """
+
+    ptu: str = ""
+    camera: str = ""
+    replay: str = "realtime"
+    replay_loop: bool = False
+    control_period_s: float = 0.01
+    episode_seconds: float = 10.0
+    start_gaze_deg: tuple[float, float] | None = (0.0, 0.0)
+    hfov_deg: float = SPECK_HFOV_DEG
+    ptu_poll_s: float = 0.01
+    driver: FlirPTUParams = field(default_factory=FlirPTUParams)
+    emulator: PTUEmulatorParams = field(default_factory=PTUEmulatorParams)
+    speck: SpeckParams = field(default_factory=SpeckParams)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.ptu, str) or not self.ptu.strip():
+            raise ValueError(
+                "RigConfig.ptu is required: the PTU's serial URL ('/dev/ttyUSB0', "
+                f"'socket://host:4000') or 'emulate'; got {self.ptu!r}"
+            )
+        self.camera_kind()  # raises for a malformed camera
+        if self.replay not in _REPLAY_MODES:
+            raise ValueError(
+                f"RigConfig.replay must be one of {_REPLAY_MODES}, got {self.replay!r}"
+            )
+        for name in ("control_period_s", "episode_seconds", "ptu_poll_s", "hfov_deg"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"RigConfig.{name} must be a finite number, got {v!r}")
+            if v <= 0:
+                raise ValueError(f"RigConfig.{name} must be > 0, got {v!r}")
+        if not self.hfov_deg < 180:
+            raise ValueError(f"RigConfig.hfov_deg must be < 180, got {self.hfov_deg!r}")
+        if abs(self.control_period_s * 1e6 - self.control_period_us) > 1e-6:
+            raise ValueError(
+                f"RigConfig.control_period_s must be a whole number of µs, got "
+                f"{self.control_period_s!r}"
+            )
+        if self.start_gaze_deg is not None:
+            gaze = tuple(float(v) for v in self.start_gaze_deg)
+            if len(gaze) != 2 or not all(math.isfinite(v) for v in gaze):
+                raise ValueError(
+                    f"RigConfig.start_gaze_deg must be (pan, tilt) finite degrees or None, "
+                    f"got {self.start_gaze_deg!r}"
+                )
+            object.__setattr__(self, "start_gaze_deg", gaze)
+
+    @property
+    def control_period_us(self) -> int:
+        """The step window in µs."""
+        return round(self.control_period_s * 1e6)
+
+    def camera_kind(self) -> tuple[str, str]:
+        """``("speck", serial or "")`` or ``("replay", path)``, from ``camera``.
+
+        >>> RigConfig(ptu="emulate", camera="speck:sf-1").camera_kind()
+        ('speck', 'sf-1')
+        """
+        kind, _, arg = str(self.camera).partition(":")
+        if kind == "speck":
+            return "speck", arg
+        if kind == "replay" and arg:
+            return "replay", arg
+        raise ValueError(
+            "RigConfig.camera must be 'speck', 'speck:<serial number>' or "
+            f"'replay:<event file>', got {self.camera!r}"
+        )
+
+
+def _fault(err: PTUError, text: str) -> PTUError:
+    """A copy of ``err`` (same type, ``message`` and ``command``) that reads ``text``."""
+    out = type(err)(err.message, err.command)
+    out.args = (text,)
+    return out
+
+
+class _PTULink:
+    """The PTU driver behind one thread: targets go in, polled positions come out.
+
+    All serial traffic after start-up happens in the thread, so a caller never
+    waits on the line. Positions are whole PTU positions (ints).
+    """
+
+    def __init__(self, ptu: FlirPTU, poll_s: float) -> None:
+        self.ptu = ptu
+        self.poll_s = poll_s
+        self._res = ptu.resolution_arcsec
+        self._cond = threading.Condition()
+        self._stop = False
+        self._want: tuple[int, int] | None = None  # newest target not yet sent
+        self._want_at = 0.0
+        target, positions = ptu.target(), ptu.position()  # the unit's own state at start
+        self._acked = self.to_positions(target)  # the last target the unit acknowledged
+        self._positions = self.to_positions(positions)  # the last poll
+        self._poll_target = self._acked  # the acknowledged target when that poll started
+        self._next_poll = time.monotonic() + poll_s  # just polled above
+        self.error: PTUError | None = None
+        self.halt_result = "not needed"
+        self.latency_s = float("nan")
+        self.counts = {"commands_sent": 0, "commands_replaced": 0, "polls": 0}
+        self._thread = threading.Thread(target=self._run, name=f"rig-ptu-{ptu.url}", daemon=True)
+        self._thread.start()
+
+    # -- conversions --------------------------------------------------------------------
+
+    def to_positions(self, deg: tuple[float, float]) -> tuple[int, int]:
+        """(pan, tilt) degrees -> whole positions at the unit's resolution."""
+        return (
+            round_position(degrees_to_positions(deg[0], self._res[0])),
+            round_position(degrees_to_positions(deg[1], self._res[1])),
+        )
+
+    def to_degrees(self, pos: tuple[int, int]) -> tuple[float, float]:
+        """(pan, tilt) positions -> degrees."""
+        pan = positions_to_degrees(pos[0], self._res[0])
+        return pan, positions_to_degrees(pos[1], self._res[1])
+
+    # -- caller side ----------------------------------------------------------------------
+
+    def command(self, target: tuple[int, int]) -> None:
+        """Queue ``target`` (positions); replaces a queued one not yet sent."""
+        with self._cond:
+            if self._want is not None:
+                self.counts["commands_replaced"] += 1
+            self._want, self._want_at = target, time.monotonic()
+            self._cond.notify_all()
+
+    def snapshot(self) -> dict[str, Any]:
+        """Positions of the last poll, the acknowledged target and the poll's target."""
+        with self._cond:
+            return {
+                "positions": self._positions,
+                "acked": self._acked,
+                "poll_target": self._poll_target,
+                "queued": self._want is not None,
+                "latency_s": self.latency_s,
+            }
+
+    def moving(self, target: tuple[int, int]) -> bool:
+        """False once a poll made after ``target`` was acknowledged found the unit on it."""
+        s = self.snapshot()
+        return s["queued"] or s["poll_target"] != target or s["positions"] != target
+
+    def wait(self, target: tuple[int, int], timeout_s: float) -> bool:
+        """Block until the unit rests on ``target`` (True), a fault, or the timeout (False)."""
+        deadline = time.monotonic() + timeout_s
+        with self._cond:
+            while self.error is None and not self._stop:
+                if self._want is None and self._poll_target == target == self._positions:
+                    return True
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return False
+                self._cond.wait(remaining)
+        return self.error is None
+
+    def close(self) -> None:
+        """Stop the thread (after the exchange in progress); the driver stays open."""
+        with self._cond:
+            self._stop = True
+            self._cond.notify_all()
+        if self._thread is not threading.current_thread():
+            self._thread.join(self.ptu.params.timeout_s + self.ptu.params.halt_timeout_s + 1.0)
+
+    def halt_now(self) -> str:
+        """Discard any queued target and halt (``H``) from the calling thread."""
+        with self._cond:
+            self._want = None
+        return self._halt()
+
+    # -- the thread -----------------------------------------------------------------------
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                while not self._stop and self._want is None:
+                    wait = self._next_poll - time.monotonic()
+                    if wait <= 0:
+                        break
+                    self._cond.wait(wait)
+                if self._stop:
+                    return
+                job, submitted = self._want, self._want_at
+                self._want = None
+                acked = self._acked
+            try:
+                if job is not None and job != acked:
+                    self._send(job, acked, submitted)
+                else:
+                    self._poll(acked)
+            except Exception as err:  # any failure ends the thread; the env raises it
+                self._fail(err if isinstance(err, PTUError) else PTUError(f"{err!r}"))
+                return
+            finally:
+                with self._cond:
+                    self._cond.notify_all()
+
+    def _send(self, job: tuple[int, int], acked: tuple[int, int], submitted: float) -> None:
+        pan, tilt = self.to_degrees(job)
+        self.ptu.move_to(
+            pan_deg=pan if job[0] != acked[0] else None,
+            tilt_deg=tilt if job[1] != acked[1] else None,
+        )
+        done = time.monotonic()
+        with self._cond:
+            self._acked = job
+            self.latency_s = done - submitted
+            self.counts["commands_sent"] += 1
+            self._next_poll = done  # poll right after a command
+
+    def _poll(self, acked: tuple[int, int]) -> None:
+        positions = self.to_positions(self.ptu.position())
+        with self._cond:
+            self._positions, self._poll_target = positions, acked
+            self.counts["polls"] += 1
+            self._next_poll = time.monotonic() + self.poll_s
+
+    def _fail(self, err: PTUError) -> None:
+        halt = self._halt()
+        with self._cond:
+            self.error = err
+            self.halt_result = halt
+            self._cond.notify_all()
+
+    def _halt(self) -> str:
+        """Send ``H`` with the driver's halt timeout; says how it went (never raises)."""
+        try:
+            self.ptu.send("H", timeout_s=self.ptu.params.halt_timeout_s)
+        except (PTUError, OSError) as err:
+            logging.getLogger(__name__).warning("PTU %s: halt failed: %s", self.ptu.url, err)
+            return f"halt (H) sent, not acknowledged: {err}"
+        return "halt (H) acknowledged"
+
+
+class RigEnv(gym.Env):
+    """See the module docstring. Build with ``gymnasium.make("wander/Rig-v0", ...)``."""
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 100}
+
+    def __init__(self, render_mode: str | None = None, **config: Any) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None")
+        self.render_mode = render_mode
+        self.config = RigConfig(**config)
+        c = self.config
+        self.metadata = {**self.metadata, "render_fps": round(1.0 / c.control_period_s)}
+        self.emulator: PTUEmulator | None = None
+        self.ptu: FlirPTU | None = None
+        self.camera: EventSource | None = None
+        self._link: _PTULink | None = None
+        self._closed = False
+        try:
+            self._open()
+        except BaseException:
+            self.close()
+            raise
+        atexit.register(self.close)  # an env left open still halts the PTU at exit
+        w, h = self.sensor_size[0], self.sensor_size[1]
+        self.width, self.height = w, h
+        lo_pan, hi_pan = self.ptu.pan_limits_deg
+        lo_tilt, hi_tilt = self.ptu.tilt_limits_deg
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
+        self.observation_space = gym.spaces.Dict(
+            {
+                "events": gym.spaces.Box(0.0, np.inf, (2, h, w), np.float32),
+                "gaze": gym.spaces.Box(
+                    np.array([lo_pan, lo_tilt], np.float32),
+                    np.array([hi_pan, hi_tilt], np.float32),
+                    dtype=np.float32,
+                ),
+            }
+        )
+        self._target: tuple[int, int] = self._link.snapshot()["acked"]
+        self._t0_us = 0
+        self._dropped_at_reset = 0
+        self._discarded_at_reset = 0
+        self._steps = 0
+        self._ready = False
+        self._last_counts = np.zeros((2, h, w), np.float32)
+
+    # -- opening and closing --------------------------------------------------------------
+
+    def _open(self) -> None:
+        """PTU first (a camera stream should not run while the PTU is found faulty)."""
+        c = self.config
+        url = c.ptu
+        if url == "emulate":
+            self.emulator = PTUEmulator(c.emulator)
+            url = self.emulator.port
+        self.ptu = FlirPTU(url, c.driver)
+        self._link = _PTULink(self.ptu, c.ptu_poll_s)
+        kind, arg = c.camera_kind()
+        if kind == "speck":
+            params = replace(c.speck, serial_number=arg) if arg else c.speck
+            self.camera = SpeckSource(params)
+        else:
+            self.camera = ReplaySource(arg, realtime=c.replay == "realtime", loop=c.replay_loop)
+        self.camera.start()
+
+    def close(self) -> None:
+        """Halt the PTU and close its port, close the camera and the emulator; idempotent.
+
+        Never raises for a device that no longer answers (the driver logs it).
+        """
+        if getattr(self, "_closed", True):
+            return
+        self._closed = True
+        atexit.unregister(self.close)
+        try:
+            if self._link is not None:
+                self._link.close()
+        finally:
+            try:
+                if self.ptu is not None:
+                    self.ptu.close()  # halts (H), homes with driver.home_on_close
+            finally:
+                try:
+                    if self.camera is not None:
+                        self.camera.close()
+                finally:
+                    if self.emulator is not None:
+                        self.emulator.close()
+        super().close()
+
+    # -- devices ----------------------------------------------------------------------------
+
+    @property
+    def sensor_size(self) -> tuple[int, int, int]:
+        """``(W, H, 2)`` as the camera reports it."""
+        return tuple(int(v) for v in self.camera.sensor_size)  # type: ignore[return-value]
+
+    @property
+    def target_deg(self) -> tuple[float, float]:
+        """The commanded (pan, tilt) target in degrees."""
+        return self._link.to_degrees(self._target)
+
+    @property
+    def stats(self) -> dict[str, Any]:
+        """Counters: steps, PTU commands sent/replaced and polls, the episode's start in the
+        camera's clock (``t0_us``), events discarded by ``reset`` and lost before it.
+        """
+        link = self._link
+        return {
+            "steps": self._steps,
+            **(link.counts if link is not None else {}),
+            "t0_us": self._t0_us,
+            "discarded_at_reset": self._discarded_at_reset,
+            "dropped_at_reset": self._dropped_at_reset,
+            "ptu_halt": link.halt_result if link is not None else None,
+            "ptu_error": repr(link.error) if link is not None and link.error else None,
+            "camera": self.camera.stats if self.camera is not None else None,
+        }
+
+    def settle(self, timeout_s: float | None = None) -> None:
+        """Block until the PTU rests on the commanded target.
+
+        Raises the PTU fault if one happened, ``TimeoutError`` after ``timeout_s``
+        (default: the driver's ``await_timeout_s``).
+        """
+        self._check_open()
+        limit = self.config.driver.await_timeout_s if timeout_s is None else timeout_s
+        try:
+            ok = self._link.wait(self._target, limit)
+        except BaseException:  # KeyboardInterrupt while waiting: stop the unit too
+            self._halt_after_failure()
+            raise
+        self._raise_if_faulted()
+        if not ok:
+            halt = self._link.halt_now()
+            raise TimeoutError(
+                f"the PTU did not reach its target {self._target} (positions) within {limit} s; "
+                f"last polled at {self._link.snapshot()['positions']}; {halt}"
+            )
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError("RigEnv is closed; create a new one")
+
+    def _raise_if_faulted(self) -> None:
+        link = self._link
+        if link is not None and link.error is not None:
+            err = link.error
+            what = "stopped answering" if isinstance(err, PTUTimeout) else "failed"
+            raise _fault(
+                err,
+                f"PTU {self.ptu.url!r} {what} mid-run (after {self._steps} steps): {err}. "
+                f"Then {link.halt_result}. The env can only be closed now (if the halt was not "
+                "acknowledged the unit may still be moving: switch it off).",
+            ) from err
+
+    def _halt_after_failure(self) -> None:
+        """Leave the PTU halted when something else fails (camera, interrupt)."""
+        if self._link is not None and self._link.error is None:
+            self._link.halt_now()
+
+    # -- gymnasium API ----------------------------------------------------------------------
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """Point the PTU at the start gaze and wait for it, then drop the events until now.
+
+        ``options={"gaze_deg": (pan, tilt)}`` overrides ``start_gaze_deg``.
+        """
+        super().reset(seed=seed)
+        self._check_open()
+        self._raise_if_faulted()
+        gaze = (options or {}).get("gaze_deg", self.config.start_gaze_deg)
+        clipped = False
+        if gaze is not None:
+            target, clipped = self._clip(*(float(v) for v in gaze))
+            self._target = target
+            self._link.command(target)
+            self.settle()
+        cam = self.camera
+        try:
+            now = max(cam.cursor_us, int(getattr(cam, "now_us", lambda: cam.cursor_us)()))
+            self._discarded_at_reset = len(cam.read(until_t_us=now))
+        except BaseException:
+            self._halt_after_failure()
+            raise
+        self._t0_us = cam.cursor_us
+        self._dropped_at_reset = cam.dropped
+        self._steps = 0
+        self._ready = True
+        self._last_counts = np.zeros((2, self.height, self.width), np.float32)
+        obs = {"events": self._last_counts.copy(), "gaze": self._gaze()}
+        return obs, self._info(empty_events(), clipped, lag_s=0.0)
+
+    def step(
+        self, action: np.ndarray
+    ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        """Hand the new target to the PTU thread, then collect the step window's events."""
+        self._check_open()
+        if not self._ready:
+            raise RuntimeError("call reset() before step()")
+        d_pan, d_tilt = self._action_to_degrees(action)
+        self._raise_if_faulted()
+        pan0, tilt0 = self.target_deg
+        want = (pan0 + d_pan, tilt0 + d_tilt)
+        target, clipped = self._clip(*want)
+        if target != self._target:
+            self._target = target
+            self._link.command(target)
+        cam = self.camera
+        try:
+            events = cam.read(duration_us=self.config.control_period_us)
+        except BaseException:
+            self._halt_after_failure()
+            raise
+        self._steps += 1
+        self._raise_if_faulted()
+        now = getattr(cam, "now_us", None)
+        lag_s = max(0.0, (now() - cam.cursor_us) * 1e-6) if now is not None else 0.0
+        self._last_counts = to_frame(events, self.sensor_size)
+        obs = {"events": self._last_counts.copy(), "gaze": self._gaze()}
+        info = self._info(events, clipped, lag_s)
+        truncated = info["t"] >= self.config.episode_seconds - 1e-9 or bool(
+            getattr(cam, "finished", False)
+        )
+        return obs, 0.0, False, truncated, info
+
+    # -- helpers ----------------------------------------------------------------------------
+
+    def _action_to_degrees(self, action: np.ndarray) -> tuple[float, float]:
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (2,):
+            raise ValueError(f"action must have shape (2,), got {a.shape}")
+        if not np.isfinite(a).all():
+            raise ValueError(f"action must be finite, got {a.tolist()}")
+        if np.abs(a).max() > 1.0 + 1e-6:
+            raise ValueError(
+                f"action must lie in [-1, 1] (half the field of view), got {a.tolist()}"
+            )
+        return action_to_gaze_degrees(a, self.width, self.height, self.config.hfov_deg)
+
+    def _clip(self, pan_deg: float, tilt_deg: float) -> tuple[tuple[int, int], bool]:
+        """A (pan, tilt) target in degrees as whole positions inside the unit's limits.
+
+        Also says whether the limits clipped it (as the simulated env does).
+        """
+        (plo, phi), (tlo, thi) = self.ptu.pan_limits_deg, self.ptu.tilt_limits_deg
+        pan = min(max(pan_deg, plo), phi)
+        tilt = min(max(tilt_deg, tlo), thi)
+        clipped = max(abs(pan - pan_deg), abs(tilt - tilt_deg)) > 1e-9
+        return self._link.to_positions((pan, tilt)), clipped
+
+    def _gaze(self) -> np.ndarray:
+        pan, tilt = self._link.to_degrees(self._link.snapshot()["positions"])
+        return np.array([pan, tilt], np.float32)
+
+    def _info(self, events: np.ndarray, clipped: bool, lag_s: float) -> dict[str, Any]:
+        events["t"] -= self._t0_us
+        snap = self._link.snapshot()
+        return {
+            "events": events,
+            "t": (self.camera.cursor_us - self._t0_us) / 1e6,
+            "ptu_positions": snap["positions"],
+            "ptu_target_positions": self._target,
+            "ptu_target_deg": self._link.to_degrees(self._target),
+            "moving": self._link.moving(self._target),
+            "target_clipped": clipped,
+            "command_latency_s": snap["latency_s"],
+            "dropped_events": self.camera.dropped - self._dropped_at_reset,
+            "lag_s": lag_s,
+        }
+
+    def render(self) -> np.ndarray | None:
+        """The event frame of the last step (3x), for ``render_mode="rgb_array"``."""
+        if self.render_mode != "rgb_array":
+            return None
+        return upscale(event_image(self._last_counts), 3)
+
+
+__all__ = ["RigConfig", "RigEnv"]
