@@ -183,24 +183,27 @@ class Fixation:
 
 @dataclass(frozen=True)
 class Saccade:
-    """One saccade: ``target_px`` P in the image at the decision, the wanted rotation
-    ``command_deg`` (pan, tilt; PTU signs) from the PTU target ``from_target_deg``, and
-    the gaze reached ``to_gaze_deg`` when it settled (at ``t_end``)."""
+    """One saccade: ``target_px`` P in the image at the decision; ``ideal_deg`` the
+    rotation (pan, tilt; PTU signs) that brings P to the fovea (pinhole model);
+    ``command_deg`` the rotation the sAC actually commanded, from the PTU target
+    ``from_target_deg``; the gaze reached ``to_gaze_deg`` when it settled (at ``t_end``)."""
 
     index: int
     t_start: float
     t_end: float
     target_px: tuple[int, int]
     from_target_deg: tuple[float, float]
+    ideal_deg: tuple[float, float]
     command_deg: tuple[float, float]
     to_gaze_deg: tuple[float, float]
 
     @property
     def error_deg(self) -> tuple[float, float]:
-        """Reached minus intended gaze (pan, tilt), degrees."""
+        """Reached minus ideal gaze (pan, tilt), degrees: the sAC's decoding error plus
+        the PTU's (quantisation, backlash, limits)."""
         return (
-            self.to_gaze_deg[0] - (self.from_target_deg[0] + self.command_deg[0]),
-            self.to_gaze_deg[1] - (self.from_target_deg[1] + self.command_deg[1]),
+            self.to_gaze_deg[0] - (self.from_target_deg[0] + self.ideal_deg[0]),
+            self.to_gaze_deg[1] - (self.from_target_deg[1] + self.ideal_deg[1]),
         )
 
 
@@ -389,6 +392,7 @@ class AttentionAgent:
                     t_end=t,
                     target_px=self.target,
                     from_target_deg=self._from_target,
+                    ideal_deg=self._ideal_deg(),
                     command_deg=(float(self._sent_deg[0]), float(self._sent_deg[1])),
                     to_gaze_deg=gaze,
                 )
@@ -407,6 +411,15 @@ class AttentionAgent:
         delta = want - self._sent_deg
         self._sent_deg = want
         return _clip(gaze_degrees_to_action(*delta, p.width_px, p.height_px, p.hfov_deg))
+
+    def _ideal_deg(self) -> tuple[float, float]:
+        p = self.params
+        x, y = self.target
+        err = (
+            (x - (p.width_px - 1) / 2) / (p.width_px / 2),
+            (y - (p.height_px - 1) / 2) / (p.height_px / 2),
+        )
+        return action_to_gaze_degrees(err, p.width_px, p.height_px, p.hfov_deg)
 
     def _fixate_first_step(self) -> np.ndarray:
         """The action of the step that starts a fixation (its first walk step)."""

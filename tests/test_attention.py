@@ -111,7 +111,7 @@ def test_window_fixational_steps_decision_and_saccade(agent: AttentionAgent) -> 
     assert agent.phase is Phase.FIXATE and len(agent.saccades) == 1
     s = agent.saccades[0]
     assert s.target_px == (x, y) and s.to_gaze_deg == (-30.0, 20.0)
-    assert np.allclose(s.command_deg, total)
+    assert np.allclose(s.command_deg, total) and np.allclose(s.ideal_deg, want)
     assert np.any(a != 0)  # the first step of the new walk
 
 

@@ -131,6 +131,52 @@ def run_agent(
     )
 
 
+@app.command()
+def evaluate(
+    out: Annotated[Path, typer.Option(help="Folder for one run folder per seed.")] = Path(
+        "runs/evaluate"
+    ),
+    scene: Annotated[str, typer.Option(help="Scene to evaluate in.")] = "office",
+    seconds: Annotated[float, typer.Option(help="Simulated seconds per seed.")] = 20.0,
+    seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
+    dvs: Annotated[str, typer.Option(help="DVS preset: ideal, paper or speck.")] = "ideal",
+) -> None:
+    """The agent's quality in simulation: detection accuracy, suppression, foveation error."""
+    from experiments.evaluate_agent import evaluate as run_eval
+    from experiments.run_agent import RunConfig
+
+    try:
+        seed_list = [int(s) for s in seeds.split(",") if s.strip()]
+    except ValueError as err:
+        msg = f"--seeds must be integers separated by commas, got {seeds!r}"
+        raise typer.BadParameter(msg) from err
+    config = RunConfig(scene=scene, seconds=seconds, dvs=dvs, video=False)
+    with _progress() as bar:
+        task = bar.add_task("evaluate", total=round(seconds / 0.01) * len(seed_list))
+        done = {s: 0 for s in seed_list}
+
+        def tick(seed: int, i: int, n: int) -> None:
+            done[seed] = i
+            bar.update(task, completed=sum(done.values()))
+
+        rows = run_eval(out, config, seed_list, progress=tick)
+    print_table(
+        f"Agent quality in '{scene}' ({seconds:g} s per seed; seed -1 = all seeds pooled)",
+        rows,
+        {
+            "seed": "d",
+            "decisions": "d",
+            "scored": "d",
+            "hits": "d",
+            "detection_accuracy": ".1%",
+            "soms_suppression": ".2%",
+            "foveation_error_x_px": ".2f",
+            "foveation_error_y_px": ".2f",
+            "saccades": "d",
+        },
+    )
+
+
 @bench_app.command("dvs")
 def bench_dvs(
     frames: Annotated[int, typer.Option(help="Frames per timed run (1 kHz).")] = 1000,
@@ -177,6 +223,32 @@ def bench_env(
             "ms_per_step": ".1f",
             "frames_per_s": ",.0f",
             "events_per_s": ",.0f",
+        },
+    )
+
+
+@bench_app.command("agent")
+def bench_agent(
+    scene: Annotated[str, typer.Option(help="Scene to run the agent in.")] = "office",
+    seconds: Annotated[float, typer.Option(help="Simulated seconds of closed loop.")] = 5.0,
+    seed: Annotated[int, typer.Option(help="Seed of the env and the agent.")] = 0,
+) -> None:
+    """Per-step latency of sOMS, proto-object, sAC and the whole agent; closed-loop RTF."""
+    from experiments.bench_agent import bench_agent as run
+
+    rows, loop = run(seconds=seconds, scene=scene, seed=seed)
+    ms = {"calls": "d", "median_ms": ".2f", "p95_ms": ".2f", "max_ms": ".2f"}
+    print_table("Agent latency at 128x128 (ms per call)", rows, {"stage": "", **ms})
+    print_table(
+        "Closed loop (env + agent; real-time factor = simulated s / wall s)",
+        [loop],
+        {
+            "scene": "",
+            "simulated_s": ".1f",
+            "wall_s": ".1f",
+            "env_ms_per_step": ".1f",
+            "agent_ms_per_step": ".2f",
+            "realtime_factor": ".2f",
         },
     )
 

@@ -1,0 +1,142 @@
+"""``wander bench agent``: per-step latency of the agent's stages and the closed loop's
+real-time factor, measured on the observations of a real closed-loop run.
+
+The agent runs closed-loop in a scene; every call of each stage is timed in place
+(``time.perf_counter`` around the stage's ``step``): the sOMS and the sAC every env step,
+the proto-object model once per fixation window (at the decision), the whole
+:meth:`AttentionAgent.act` every step (split into ordinary and decision steps), and the
+env's step. The streamlined proto-object model (no polarity split) is timed afterwards
+on the same OMS maps.
+
+Example:
+    >>> rows, loop = bench_agent(seconds=0.3, scene="shelf")  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from agents.attention import AgentParams, AttentionAgent
+from agents.proto_object import ProtoObjectSaliency
+
+
+@dataclass(frozen=True)
+class LatencyRow:
+    """One stage: number of calls and the median / 95th percentile / max, in ms."""
+
+    stage: str
+    calls: int
+    median_ms: float
+    p95_ms: float
+    max_ms: float
+
+
+@dataclass(frozen=True)
+class LoopRow:
+    """The closed loop: simulated seconds per wall second of env + agent."""
+
+    scene: str
+    simulated_s: float
+    wall_s: float
+    env_ms_per_step: float
+    agent_ms_per_step: float
+    realtime_factor: float
+
+
+def latency_row(stage: str, seconds: list[float]) -> LatencyRow:
+    """Summarise call durations (s) as a row in milliseconds."""
+    ms = np.asarray(seconds, dtype=np.float64) * 1e3
+    if ms.size == 0:
+        return LatencyRow(stage, 0, float("nan"), float("nan"), float("nan"))
+    return LatencyRow(
+        stage, int(ms.size), float(np.median(ms)), float(np.percentile(ms, 95)), float(ms.max())
+    )
+
+
+def _timed(obj: Any, name: str, bucket: list[float]) -> None:
+    """Replace ``obj.name`` by a wrapper that appends each call's duration to ``bucket``."""
+    fn: Callable[..., Any] = getattr(obj, name)
+
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        t0 = time.perf_counter()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            bucket.append(time.perf_counter() - t0)
+
+    setattr(obj, name, wrapper)
+
+
+def bench_agent(
+    seconds: float = 5.0, scene: str = "office", seed: int = 0, dvs: str = "ideal"
+) -> tuple[list[LatencyRow], LoopRow]:
+    """Run the agent closed-loop for ``seconds`` and time every stage (module doc)."""
+    import gymnasium as gym
+
+    import wander_env  # noqa: F401  (registers the environments)
+
+    env = gym.make(
+        "wander/Wander-v0", scene=scene, dvs=dvs, ground_truth=False, episode_seconds=seconds
+    )
+    agent = AttentionAgent(AgentParams.for_env(env), seed=seed)
+    t_soms: list[float] = []
+    t_proto: list[float] = []
+    t_ctrl: list[float] = []
+    _timed(agent.soms, "step", t_soms)
+    _timed(agent.proto, "step", t_proto)
+    _timed(agent.controller, "step", t_ctrl)
+    t_act: list[float] = []
+    t_decide: list[float] = []
+    t_env: list[float] = []
+    oms_maps: list[np.ndarray] = []
+    obs, info = env.reset(seed=seed)
+    steps = round(seconds / agent.params.step_s)
+    wall0 = time.perf_counter()
+    for _ in range(steps):
+        t0 = time.perf_counter()
+        action = agent.act(obs, info)
+        t1 = time.perf_counter()
+        (t_decide if agent.decided else t_act).append(t1 - t0)
+        if agent.decided:
+            oms_maps.append(agent.oms_map.copy())
+        obs, _, terminated, truncated, info = env.step(action)
+        t_env.append(time.perf_counter() - t1)
+        if terminated or truncated:
+            break
+    wall = time.perf_counter() - wall0
+    n = len(t_env)
+    streamlined = ProtoObjectSaliency(
+        replace(agent.params.proto, polarity_split=False),
+        agent.params.height_px,
+        agent.params.width_px,
+    )
+    t_stream: list[float] = []
+    for m in oms_maps:
+        t0 = time.perf_counter()
+        streamlined.step(m)
+        t_stream.append(time.perf_counter() - t0)
+    agent.close()
+    env.close()
+    rows = [
+        latency_row("sOMS (every step)", t_soms),
+        latency_row("proto-object, split (per decision)", t_proto),
+        latency_row("proto-object, streamlined (same maps)", t_stream),
+        latency_row("sAC nengo (every step)", t_ctrl),
+        latency_row("agent act, all steps", t_act + t_decide),
+        latency_row("agent act, decision steps", t_decide),
+        latency_row("env step", t_env),
+    ]
+    loop = LoopRow(
+        scene=scene,
+        simulated_s=n * agent.params.step_s,
+        wall_s=wall,
+        env_ms_per_step=1e3 * float(np.mean(t_env)),
+        agent_ms_per_step=1e3 * float(np.mean(t_act + t_decide)),
+        realtime_factor=n * agent.params.step_s / wall,
+    )
+    return rows, loop

@@ -1,0 +1,58 @@
+"""``wander bench agent`` and ``wander evaluate``: counts and pooling are exact."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from experiments.bench_agent import bench_agent, latency_row
+from experiments.evaluate_agent import QualityRow, pooled
+from wander_env.cli import app
+
+
+def test_latency_row_percentiles() -> None:
+    row = latency_row("x", [0.001 * k for k in range(1, 101)])
+    assert row.calls == 100 and row.median_ms == pytest.approx(50.5)
+    assert row.p95_ms == pytest.approx(95.05) and row.max_ms == pytest.approx(100.0)
+    assert math.isnan(latency_row("empty", []).median_ms)
+
+
+def test_bench_agent_times_every_stage_call() -> None:
+    rows, loop = bench_agent(seconds=0.3, scene="shelf")
+    by = {r.stage: r for r in rows}
+    assert by["sOMS (every step)"].calls == 30
+    assert by["sAC nengo (every step)"].calls == 30
+    assert by["agent act, all steps"].calls == 30 and by["env step"].calls == 30
+    # One decision per 13-step window while fixating: steps 13 and 26 (no saccade in a
+    # static scene before the first decision ends its window).
+    decisions = by["agent act, decision steps"].calls
+    assert by["proto-object, split (per decision)"].calls == decisions >= 1
+    assert by["proto-object, streamlined (same maps)"].calls == decisions
+    assert loop.simulated_s == pytest.approx(0.3) and loop.realtime_factor > 0
+
+
+def test_pooled_quality() -> None:
+    a = QualityRow(0, 10, 8, 6, 0.75, 0.9, 1.0, 2.0, 4)
+    b = QualityRow(1, 5, 2, 2, 1.0, 0.8, 3.0, 4.0, 1)
+    p = pooled([a, b], kept=[10, 30], seen=[100, 100])
+    assert (p.decisions, p.scored, p.hits, p.saccades) == (15, 10, 8, 5)
+    assert p.detection_accuracy == pytest.approx(0.8) and p.soms_suppression == pytest.approx(0.8)
+    assert p.foveation_error_x_px == pytest.approx((4 * 1.0 + 3.0) / 5)
+
+
+def test_evaluate_cli_two_seeds(tmp_path: Path) -> None:
+    res = CliRunner().invoke(
+        app, ["evaluate", "--out", str(tmp_path), "--scene", "shelf", "--seconds", "0.3",
+              "--seeds", "0,1"],
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    q = json.loads((tmp_path / "quality.json").read_text())
+    assert [r["seed"] for r in q["rows"]] == [0, 1] and q["pooled"]["seed"] == -1
+    assert q["pooled"]["decisions"] == sum(r["decisions"] for r in q["rows"])
+    assert (tmp_path / "seed-0" / "metrics.json").exists()
+    bad = CliRunner().invoke(app, ["evaluate", "--seeds", "a,b"])
+    assert bad.exit_code == 2 and "--seeds must be integers" in bad.output
