@@ -227,7 +227,13 @@ def run_closed_loop(
         if writer is not None:
             writer.close()
     wall = time.perf_counter() - t_wall
-    result = _write_folder(out_dir, env, agent, log, record, dt, wall, error)
+    try:
+        result = _write_folder(out_dir, env, agent, log, record, dt, wall, error)
+    except Exception as write_error:
+        if error is None:
+            raise
+        error.add_note(f"writing the run folder {out_dir} also failed: {write_error!r}")
+        raise error from write_error
     if error is not None:
         raise error
     return result

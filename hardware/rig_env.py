@@ -241,9 +241,10 @@ class _PTULink:
                 "latency_s": self.latency_s,
             }
 
-    def moving(self, target: tuple[int, int]) -> bool:
-        """False once a poll made after ``target`` was acknowledged found the unit on it."""
-        s = self.snapshot()
+    def moving(self, target: tuple[int, int], snap: dict[str, Any] | None = None) -> bool:
+        """False once a poll made after ``target`` was acknowledged found the unit on it
+        (judged on ``snap`` when given, so that gaze and motion come from one poll)."""
+        s = snap if snap is not None else self.snapshot()
         return s["queued"] or s["poll_target"] != target or s["positions"] != target
 
     def wait(self, target: tuple[int, int], timeout_s: float) -> bool:
@@ -558,8 +559,9 @@ class RigEnv(gym.Env):
         now = getattr(cam, "now_us", None)
         lag_s = max(0.0, (now() - cam.cursor_us) * 1e-6) if now is not None else 0.0
         self._last_counts = to_frame(events, self.sensor_size)
-        obs = {"events": self._last_counts.copy(), "gaze": self._gaze()}
-        info = self._info(events, clipped, lag_s)
+        info = self._info(events, clipped, lag_s)  # one snapshot: gaze and `moving` agree
+        pan, tilt = self._link.to_degrees(info["ptu_positions"])
+        obs = {"events": self._last_counts.copy(), "gaze": np.array([pan, tilt], np.float32)}
         truncated = info["t"] >= self.config.episode_seconds - 1e-9 or bool(
             getattr(cam, "finished", False)
         )
@@ -603,7 +605,7 @@ class RigEnv(gym.Env):
             "ptu_positions": snap["positions"],
             "ptu_target_positions": self._target,
             "ptu_target_deg": self._link.to_degrees(self._target),
-            "moving": self._link.moving(self._target),
+            "moving": self._link.moving(self._target, snap),
             "target_clipped": clipped,
             "command_latency_s": snap["latency_s"],
             "dropped_events": self.camera.dropped - self._dropped_at_reset,

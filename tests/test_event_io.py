@@ -35,6 +35,15 @@ def test_round_trip_keeps_events_size_and_metadata(tmp_path, suffix):
     assert back.metadata == {"seed": 0, "preset": "ideal"}
 
 
+@pytest.mark.parametrize("suffix", [".npz", ".h5"])
+def test_empty_recording_round_trips(tmp_path, suffix):
+    rec = EventRecording(make_events([], [], [], []), (128, 128, 2), {"note": "failed at step 1"})
+    write_events(tmp_path / f"e{suffix}", rec)
+    back = read_events(tmp_path / f"e{suffix}")
+    assert len(back.events) == 0 and back.events.dtype == rec.events.dtype
+    assert back.sensor_size == (128, 128, 2) and back.metadata == {"note": "failed at step 1"}
+
+
 def test_hdf5_is_compressed(tmp_path):
     rec = recording()
     write_events(tmp_path / "a.h5", rec)

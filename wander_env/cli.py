@@ -11,6 +11,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
 from experiments.benchmark_cli import app as benchmark_app
+from hardware.rig_cli import register as register_rig
 
 app = typer.Typer(
     help="wander: a simulated active-vision laboratory for event cameras.",
@@ -251,6 +252,9 @@ def bench_agent(
             "realtime_factor": ".2f",
         },
     )
+
+
+register_rig(app)
 
 
 def main() -> None:

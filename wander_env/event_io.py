@@ -272,16 +272,17 @@ def write_events(path: str | os.PathLike, recording: EventRecording) -> None:
 
         with h5py.File(path, "w") as f:
             g = f.create_group("events")
-            chunk = max(1, min(len(recording.events), 1 << 16))
+            n = len(recording.events)
+            # An empty recording (e.g. a run that failed at its first step) is stored
+            # uncompressed: HDF5 cannot chunk a zero-length dataset.
+            packing = (
+                {"compression": "gzip", "compression_opts": 4, "shuffle": True,
+                 "chunks": (min(n, 1 << 16),)}
+                if n
+                else {}
+            )  # fmt: skip
             for name in ("x", "y", "t", "p"):
-                g.create_dataset(
-                    name,
-                    data=recording.events[name],
-                    compression="gzip",
-                    compression_opts=4,
-                    shuffle=True,
-                    chunks=(chunk,),
-                )
+                g.create_dataset(name, data=recording.events[name], **packing)
             f.attrs["sensor_size"] = size
             f.attrs["metadata"] = meta
             f.attrs["format"] = FORMAT_TAG

@@ -1,0 +1,142 @@
+"""The ``wander rig`` command: the attention agent on the rig (camera on a pan-tilt unit).
+
+:func:`register` adds it to the main ``wander`` app. It runs
+:func:`experiments.rig.run_rig` and writes the same run folder as ``wander run``. A
+device failure prints one line on stderr (what failed, the port or device, the unit's
+message; the run folder when the run had started) and exits with code 1; a bad option
+exits with code 2; Ctrl-C leaves the folder with what was recorded and exits with 130.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+
+def summary_line(metrics: dict[str, Any], out: Path) -> str:
+    """The line printed after a run: decisions, saccades, events, drops, PTU latency."""
+    rig = metrics.get("rig", {})
+    mean_ms = rig.get("command_latency_mean_s", math.nan) * 1e3
+    max_ms = rig.get("command_latency_max_s", math.nan) * 1e3
+    return (
+        f"{metrics['decisions']} decisions, {metrics['saccades']} saccades, "
+        f"{metrics['steps']} steps, {metrics['events']:,} events "
+        f"({rig.get('dropped_events', 0):,} dropped), PTU command latency "
+        f"mean {mean_ms:.1f} ms / max {max_ms:.1f} ms, real-time factor "
+        f"{metrics['real_time_factor']:.2f} -> {out}"
+    )
+
+
+def dropped_warning(metrics: dict[str, Any]) -> str | None:
+    """A warning when the camera lost events (queue overflow, late or off-sensor events)."""
+    rig = metrics.get("rig", {})
+    n = int(rig.get("dropped_events", 0))
+    if n <= 0:
+        return None
+    camera = rig.get("camera") or {}
+    parts = [
+        f"{k.replace('_', ' ')} {camera[k]:,}"
+        for k in ("dropped_overflow", "late", "out_of_range")
+        if camera.get(k)
+    ]
+    detail = f" ({', '.join(parts)})" if parts else ""
+    return (
+        f"warning: the camera dropped {n:,} events{detail}; the agent did not see them "
+        "(see metrics.json 'rig')"
+    )
+
+
+def rig(
+    ptu: Annotated[
+        str,
+        typer.Option(
+            help="The PTU's serial port or pyserial URL (/dev/ttyUSB0, socket://host:4000), "
+            "or 'emulate' for the protocol emulator."
+        ),
+    ],
+    camera: Annotated[
+        str,
+        typer.Option(
+            help="'speck', 'speck:<serial number>', or 'replay:<event file>' "
+            "(.npz, .h5, .npy, .aedat4, .aedat)."
+        ),
+    ],
+    replay: Annotated[
+        str,
+        typer.Option(
+            help="Replay pacing: 'fast' (windows advance in stream time, so every step's "
+            "events are fixed by the file) or 'realtime' (paced by the wall clock, like a "
+            "live camera). Ignored for a Speck."
+        ),
+    ] = "fast",
+    seconds: Annotated[float, typer.Option(help="Run length in seconds of camera time.")] = 10.0,
+    seed: Annotated[int, typer.Option(help="Seed of the agent (walk, controller).")] = 0,
+    out: Annotated[Path, typer.Option(help="The run folder.")] = Path("runs/rig"),
+    window: Annotated[float, typer.Option(help="Fixation window St_w in seconds.")] = 0.124,
+    fixational: Annotated[
+        bool, typer.Option(help="Fixational eye movements during fixations.")
+    ] = True,
+    streamlined: Annotated[
+        bool, typer.Option(help="Streamlined proto-object model (no polarity split).")
+    ] = False,
+    video: Annotated[bool, typer.Option(help="Write run.mp4.")] = True,
+) -> None:
+    """Run the attention agent closed-loop on the rig; write the run folder of `wander run`."""
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from experiments.rig import RigRunConfig, RigRunError, run_rig
+
+    try:
+        config = RigRunConfig(
+            ptu=ptu,
+            camera=camera,
+            replay=replay,
+            seconds=seconds,
+            seed=seed,
+            window_s=window,
+            fixational=fixational,
+            streamlined=streamlined,
+            video=video,
+        )
+    except ValueError as err:
+        raise typer.BadParameter(str(err)) from err
+    console = Console()
+    bar = Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total}"),
+        TimeRemainingColumn(),
+        console=console,
+    )
+    try:
+        with bar:
+            task = bar.add_task(f"agent on the rig ({camera})", total=round(seconds / 0.01))
+            result = run_rig(
+                out, config, progress=lambda i, n: bar.update(task, completed=i, total=n)
+            )
+    except RigRunError as err:
+        typer.echo(f"wander rig: {err}", err=True)
+        raise typer.Exit(1) from err
+    except KeyboardInterrupt:
+        typer.echo(
+            "wander rig: interrupted; the PTU was halted; if the run had started, "
+            f"{str(out)!r} holds what was recorded",
+            err=True,
+        )
+        raise typer.Exit(130) from None
+    console.print(summary_line(result.metrics, out), soft_wrap=True)
+    warning = dropped_warning(result.metrics)
+    if warning is not None:
+        console.print(f"[yellow]{warning}[/yellow]", soft_wrap=True)
+
+
+def register(app: typer.Typer) -> None:
+    """Add the ``rig`` command to ``app`` (the main ``wander`` app)."""
+    app.command("rig")(rig)
+
+
+__all__ = ["dropped_warning", "register", "rig", "summary_line"]
