@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -11,6 +12,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
 from experiments.benchmark_cli import app as benchmark_app
+from experiments.cli_experiments import register as register_experiments
 from hardware.rig_cli import register as register_rig
 
 app = typer.Typer(
@@ -22,7 +24,8 @@ app = typer.Typer(
 bench_app = typer.Typer(help="Benchmarks that print tables (speed is measured here, not in tests).")
 app.add_typer(bench_app, name="bench")
 app.add_typer(benchmark_app, name="benchmark")
-console = Console()
+# Tables keep their full column names when the output is a file or a pipe.
+console = Console(width=None if sys.stdout.isatty() else 160)
 
 
 def _progress() -> Progress:
@@ -255,6 +258,7 @@ def bench_agent(
 
 
 register_rig(app)
+register_experiments(app)
 
 
 def main() -> None:

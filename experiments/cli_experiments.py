@@ -1,0 +1,152 @@
+"""The ``wander experiment``, ``wander sweep`` and ``wander report`` commands.
+
+``register(app)`` adds them to the main Typer app (``wander_env/cli.py``).
+"""
+
+from __future__ import annotations
+
+import shlex
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from experiments.framework import EXPERIMENT_NAMES, ConfigError
+
+__all__ = ["register"]
+
+
+def _fail(message: str) -> typer.Exit:
+    from wander_env.cli import console
+
+    console.print(f"[red]error:[/red] {message}", markup=True, highlight=False, soft_wrap=True)
+    return typer.Exit(code=2)
+
+
+def _command_line() -> str:
+    return "wander " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+
+
+def experiment(
+    name: Annotated[str, typer.Argument(help=f"One of: {', '.join(EXPERIMENT_NAMES)}.")],
+    set_: Annotated[
+        list[str] | None,
+        typer.Option("--set", help="Override a config key: --set key=value (repeatable)."),
+    ] = None,
+    config: Annotated[
+        Path | None,
+        typer.Option(help="Config file (default: experiments/configs/NAME.yaml)."),
+    ] = None,
+    seed: Annotated[int, typer.Option(help="Base seed (repeat r uses seed + r).")] = 0,
+    out: Annotated[
+        Path | None, typer.Option(help="Result folder (default: results/NAME/<time>-seedN).")
+    ] = None,
+    workers: Annotated[int, typer.Option(help="Worker processes (1 = this process).")] = 1,
+    show_config: Annotated[
+        bool, typer.Option("--show-config", help="Print the resolved config and stop.")
+    ] = False,
+) -> None:
+    """Run one experiment: a results table, plots, config, seed and git revision."""
+    import json
+
+    from experiments.framework import (
+        config_to_dict,
+        default_out_dir,
+        get_experiment,
+        make_trials,
+        resolve_config,
+        run_experiment,
+    )
+    from experiments.sweep import local_executor
+    from wander_env.cli import _progress, console
+
+    try:
+        exp = get_experiment(name)
+        cfg = resolve_config(exp, config, set_ or [])
+    except ConfigError as e:
+        raise _fail(str(e)) from None
+    if show_config:
+        console.print_json(json.dumps(config_to_dict(cfg)))
+        return
+    folder = out or default_out_dir(name, seed)
+    n = len(make_trials(exp, cfg, seed))
+
+    def executor(specs):  # type: ignore[no-untyped-def]
+        return local_executor(specs, workers)
+
+    with _progress() as bar:
+        task = bar.add_task(name, total=n)
+        rows, files = run_experiment(
+            name,
+            cfg,
+            seed,
+            folder,
+            command=_command_line(),
+            executor=executor if workers > 1 else None,
+            progress=lambda i, total: bar.update(task, completed=i, total=total),
+        )
+    console.print(f"{len(rows)} trials -> {folder}/results.csv ({len(files)} files)")
+    console.print((folder / "summary.md").read_text(), markup=False, highlight=False)
+
+
+def sweep(
+    config: Annotated[Path, typer.Argument(help="Sweep file (see experiments/configs/).")],
+    backend: Annotated[str, typer.Option(help="serial, local or ray.")] = "local",
+    workers: Annotated[
+        int | None, typer.Option(help="Processes (local) or CPUs of a local Ray instance.")
+    ] = None,
+    address: Annotated[
+        str | None, typer.Option(help="Ray cluster address (default: start a local Ray).")
+    ] = None,
+    out: Annotated[
+        Path | None, typer.Option(help="Sweep folder (default: results/sweeps/NAME).")
+    ] = None,
+) -> None:
+    """Run a grid of (experiment, parameters, seeds); reruns skip finished trials."""
+    from experiments.sweep import expand, load_sweep, run_sweep
+    from wander_env.cli import _progress, console
+
+    try:
+        sw = load_sweep(config)
+        n = len(expand(sw))
+    except (ConfigError, FileNotFoundError) as e:
+        raise _fail(str(e)) from None
+    folder = out or Path("results") / "sweeps" / sw.name
+    with _progress() as bar:
+        task = bar.add_task(f"sweep {sw.name}", total=n)
+        try:
+            res = run_sweep(
+                sw,
+                folder,
+                backend=backend,
+                workers=workers,
+                address=address,
+                progress=lambda i, total: bar.update(task, completed=i, total=total),
+                command=_command_line(),
+            )
+        except ConfigError as e:
+            raise _fail(str(e)) from None
+    console.print(
+        f"{len(res.rows)} trials ({res.ran} run, {res.skipped} already done) -> "
+        f"{folder}/results.csv"
+    )
+
+
+def report(
+    results: Annotated[Path, typer.Option(help="Folder of result folders.")] = Path("results"),
+    out: Annotated[Path, typer.Option(help="Report file.")] = Path("REPORT.md"),
+) -> None:
+    """Build REPORT.md (and its figures) from the latest results of each experiment."""
+    from experiments.report import build_report
+    from wander_env.cli import console
+
+    path = build_report(results, out)
+    console.print(f"-> {path}")
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``experiment``, ``sweep`` and ``report`` to ``app``."""
+    app.command("experiment")(experiment)
+    app.command("sweep")(sweep)
+    app.command("report")(report)

@@ -1,0 +1,530 @@
+"""Experiments: a registry, typed configs with ``--set`` overrides, trials, result folders.
+
+An experiment is one module ``experiments/NAME.py`` that defines ``EXPERIMENT``, an
+:class:`Experiment`: its config dataclass (the paper's values as defaults), a ``grid``
+function (config -> list of trial parameter dicts), ``run_trial`` (config, trial -> one
+row of metrics), and optionally ``plot`` (rows -> PNG files) and ``compare`` (rows -> the
+paper's numbers beside ours). Its default config file is ``experiments/configs/NAME.yaml``.
+``run_trial`` may also return arrays under keys that start with ``_`` (time series,
+example maps): they are kept out of the table and saved as ``artifacts/<trial_id>.npz``
+in the result folder, where ``plot(config, rows, results_dir, fig_dir)`` can load them
+(:func:`load_artifacts`).
+To add an experiment: write the module, add its name to :data:`EXPERIMENT_NAMES`, add
+the YAML.
+
+Trials: every parameter dict of the grid is run ``config.repeats`` times (1 when the
+config has no ``repeats``); repeat ``r`` has seed ``seed + r``. A trial's identity is a
+hash of (experiment, resolved config, parameters, seed): :func:`trial_id`.
+
+A result folder holds ``results.csv`` (one row per trial, in grid order; same seed ->
+same bytes), ``config.json`` (the resolved config), ``run.json`` (command, seed, git
+revision, versions, timings), ``summary.md`` (paper vs ours) and the plots.
+
+Example:
+    >>> exp = get_experiment("event_suppression")
+    >>> cfg = resolve_config(exp, sets=["repeats=2"])
+    >>> cfg.repeats
+    2
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import hashlib
+import importlib
+import io
+import json
+import math
+import time
+import types
+import typing
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+
+from wander_env.runinfo import run_record, write_json
+
+__all__ = [
+    "EXPERIMENT_NAMES",
+    "Comparison",
+    "ConfigError",
+    "Experiment",
+    "TrialSpec",
+    "coerce",
+    "config_from_dict",
+    "config_to_dict",
+    "configs_dir",
+    "get_experiment",
+    "load_artifacts",
+    "make_trials",
+    "parse_sets",
+    "read_csv",
+    "render_summary",
+    "resolve_config",
+    "run_experiment",
+    "run_spec",
+    "trial_id",
+    "write_csv",
+    "write_result_folder",
+]
+
+# The registry: experiment names, each the module experiments/<name>.py with EXPERIMENT.
+EXPERIMENT_NAMES: tuple[str, ...] = ("oms_characterisation", "event_suppression", "detection")
+
+Scalar = int | float | str | bool
+Row = dict[str, Scalar]
+ID_COLUMNS = ("trial", "trial_id", "repeat", "seed")
+
+
+class ConfigError(ValueError):
+    """A bad experiment name, config key or value; the message names it."""
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """One line of the report: a result of the paper, its number, ours."""
+
+    result: str
+    paper: str
+    ours: str
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """An experiment's parts (see the module docstring)."""
+
+    name: str
+    description: str
+    config_type: type
+    grid: Callable[[Any], list[dict[str, Scalar]]]
+    run_trial: Callable[[Any, TrialSpec], dict[str, Scalar]]
+    plot: Callable[[Any, list[Row], Path, Path], list[Path]] | None = None
+    compare: Callable[[Any, list[Row]], list[Comparison]] | None = None
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """One trial, picklable: what a worker process needs to run it."""
+
+    experiment: str
+    config: Mapping[str, Any]
+    params: Mapping[str, Scalar]
+    seed: int
+    repeat: int = 0
+    index: int = 0
+    extra: Mapping[str, Scalar] = field(default_factory=dict)  # sweep columns
+
+    @property
+    def id(self) -> str:
+        return trial_id(self.experiment, self.config, self.params, self.seed)
+
+
+# ----------------------------------------------------------------------------------------
+# Registry
+
+
+def get_experiment(name: str) -> Experiment:
+    """The :class:`Experiment` called ``name`` (ConfigError listing the known ones)."""
+    if name not in EXPERIMENT_NAMES:
+        raise ConfigError(f"unknown experiment {name!r}; available: {', '.join(EXPERIMENT_NAMES)}")
+    exp = importlib.import_module(f"experiments.{name}").EXPERIMENT
+    if not isinstance(exp, Experiment) or exp.name != name:
+        raise ConfigError(f"experiments.{name}.EXPERIMENT must be an Experiment named {name!r}")
+    return exp
+
+
+def configs_dir() -> Path:
+    """``experiments/configs`` (default configs and example sweeps)."""
+    return Path(__file__).resolve().parent / "configs"
+
+
+# ----------------------------------------------------------------------------------------
+# Typed config values (pure)
+
+
+def _type_name(tp: Any) -> str:
+    origin = typing.get_origin(tp)
+    if origin is Literal:
+        return "one of " + ", ".join(repr(a) for a in typing.get_args(tp))
+    if origin in (typing.Union, types.UnionType):
+        return " or ".join(_type_name(a) for a in typing.get_args(tp))
+    if origin is tuple:
+        args = typing.get_args(tp)
+        if len(args) == 2 and args[1] is Ellipsis:
+            return f"list of {_type_name(args[0])}"
+        return "list [" + ", ".join(_type_name(a) for a in args) + "]"
+    if tp is type(None):
+        return "null"
+    return getattr(tp, "__name__", str(tp))
+
+
+def coerce(value: Any, tp: Any) -> Any:
+    """``value`` as type ``tp`` (int, float, str, bool, Literal, tuples, unions); raises
+    TypeError when it is not one.
+
+    >>> coerce([1, 2.5], tuple[float, ...]), coerce(3, float), coerce("a", Literal["a", "b"])
+    ((1.0, 2.5), 3.0, 'a')
+    """
+    origin = typing.get_origin(tp)
+    if tp is Any:
+        return value
+    if origin is Literal:
+        if value in typing.get_args(tp) and not isinstance(value, bool):
+            return value
+    elif origin in (typing.Union, types.UnionType):
+        for arm in typing.get_args(tp):
+            try:
+                return coerce(value, arm)
+            except TypeError:
+                continue
+    elif origin is tuple and isinstance(value, (list, tuple)):
+        args = typing.get_args(tp)
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(coerce(v, args[0]) for v in value)
+        if len(args) == len(value):
+            return tuple(coerce(v, a) for v, a in zip(value, args, strict=True))
+    elif tp is type(None):
+        if value is None:
+            return None
+    elif tp is bool:
+        if isinstance(value, bool):
+            return value
+    elif tp is int:
+        if isinstance(value, int) and not isinstance(value, bool):
+            return value
+    elif tp is float:
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            return float(value)
+        if isinstance(value, str):
+            try:
+                return float(value)  # YAML 1.1 reads "1e-3" as a string
+            except ValueError:
+                pass
+    elif tp is str:
+        if isinstance(value, str):
+            return value
+    raise TypeError(f"expected {_type_name(tp)}")
+
+
+def _field_types(cls: type) -> dict[str, Any]:
+    hints = typing.get_type_hints(cls)
+    return {f.name: hints[f.name] for f in fields(cls) if f.init}
+
+
+def allowed_keys(cls: type) -> str:
+    """``key (type), ...`` for error messages and ``--help``."""
+    return ", ".join(f"{k} ({_type_name(t)})" for k, t in _field_types(cls).items())
+
+
+def config_from_dict(
+    cls: type, values: Mapping[str, Any], base: Any = None, where: str = "config"
+) -> Any:
+    """A ``cls`` instance: ``base`` (or the defaults) with ``values`` typed and applied."""
+    types_ = _field_types(cls)
+    kwargs: dict[str, Any] = {}
+    for key, value in values.items():
+        if key not in types_:
+            raise ConfigError(
+                f"{where}: unknown key {key!r} for {cls.__name__}; allowed keys: "
+                f"{allowed_keys(cls)}"
+            )
+        try:
+            kwargs[key] = coerce(value, types_[key])
+        except TypeError as e:
+            raise ConfigError(f"{where}: bad value for key {key!r}: {e}, got {value!r}") from None
+    try:
+        return dataclasses.replace(base, **kwargs) if base is not None else cls(**kwargs)
+    except (ValueError, TypeError) as e:
+        raise ConfigError(f"{where}: {e}") from None
+
+
+def config_to_dict(config: Any) -> dict[str, Any]:
+    """JSON-able dict of a config (tuples become lists)."""
+    return json.loads(json.dumps(asdict(config)))
+
+
+def parse_sets(sets: Iterable[str], cls: type) -> dict[str, Any]:
+    """``["key=value", ...]`` -> ``{key: value}``; values read as YAML (``[1, 2]``,
+    ``true``, ``0.5``) except for plain string fields, which take the text as it is."""
+    types_ = _field_types(cls)
+    out: dict[str, Any] = {}
+    for item in sets:
+        key, sep, text = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise ConfigError(
+                f"--set {item!r}: expected key=value; allowed keys: {allowed_keys(cls)}"
+            )
+        if types_.get(key) is str:
+            out[key] = text
+            continue
+        try:
+            out[key] = yaml.safe_load(text) if text.strip() else text
+        except yaml.YAMLError:
+            out[key] = text
+    return out
+
+
+def load_yaml_mapping(path: Path) -> dict[str, Any]:
+    """A YAML file holding a mapping (empty file -> {})."""
+    data = yaml.safe_load(Path(path).read_text()) or {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: expected a mapping of key: value, got {type(data).__name__}")
+    return data
+
+
+def resolve_config(
+    experiment: Experiment,
+    config_file: Path | None = None,
+    sets: Sequence[str] = (),
+    use_default_file: bool = True,
+) -> Any:
+    """Defaults <- config file (``configs/NAME.yaml`` unless given) <- ``--set`` items."""
+    cls = experiment.config_type
+    path = config_file
+    if path is None and use_default_file:
+        default = configs_dir() / f"{experiment.name}.yaml"
+        path = default if default.is_file() else None
+    cfg = cls()
+    if path is not None:
+        cfg = config_from_dict(cls, load_yaml_mapping(path), cfg, where=str(path))
+    if sets:
+        cfg = config_from_dict(cls, parse_sets(sets, cls), cfg, where="--set")
+    return cfg
+
+
+# ----------------------------------------------------------------------------------------
+# Trials
+
+
+def _canonical(obj: Any) -> str:
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str)
+
+
+def trial_id(
+    experiment: str, config: Mapping[str, Any], params: Mapping[str, Any], seed: int
+) -> str:
+    """16 hex digits of SHA-256 over (experiment, config, params, seed) in canonical JSON.
+
+    >>> trial_id("x", {"a": 1}, {"b": 2}, 0) == trial_id("x", {"a": 1}, {"b": 2}, 0)
+    True
+    """
+    text = _canonical({"experiment": experiment, "config": config, "params": params, "seed": seed})
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def make_trials(
+    experiment: Experiment, config: Any, seed: int, extra: Mapping[str, Scalar] | None = None
+) -> list[TrialSpec]:
+    """The grid times ``config.repeats`` (seed + r), in grid order."""
+    cfg = config_to_dict(config)
+    repeats = int(getattr(config, "repeats", 1))
+    specs = []
+    for params in experiment.grid(config):
+        for r in range(repeats):
+            specs.append(
+                TrialSpec(
+                    experiment.name, cfg, dict(params), seed + r, r, len(specs), dict(extra or {})
+                )
+            )
+    return specs
+
+
+def run_spec(spec: TrialSpec) -> Row:
+    """Run one trial (in any process) and return its full row: id columns, the sweep's
+    extra columns, the trial parameters, then the metrics."""
+    import torch
+
+    # One thread per trial: on 2 cores torch's 2-thread small convolutions were measured
+    # ~40x slower than 1 thread, and trials run in parallel processes anyway.
+    torch.set_num_threads(1)
+    exp = get_experiment(spec.experiment)
+    config = config_from_dict(exp.config_type, spec.config)
+    metrics = exp.run_trial(config, spec)
+    row: Row = {"trial": spec.index, "trial_id": spec.id, "repeat": spec.repeat, "seed": spec.seed}
+    for part in (spec.extra, spec.params, metrics):
+        for k, v in part.items():
+            if k in row:
+                raise ValueError(f"{spec.experiment}: column {k!r} appears twice in a row")
+            row[k] = v
+    return row
+
+
+Executor = Callable[[Sequence[TrialSpec]], Iterator[tuple[TrialSpec, Row, float]]]
+
+
+def serial_executor(
+    specs: Sequence[TrialSpec], runner: Callable[[TrialSpec], Row] = run_spec
+) -> Iterator[tuple[TrialSpec, Row, float]]:
+    """Run trials one after another in this process: (spec, row, seconds)."""
+    for spec in specs:
+        t0 = time.perf_counter()
+        row = runner(spec)
+        yield spec, row, time.perf_counter() - t0
+
+
+# ----------------------------------------------------------------------------------------
+# Tables
+
+
+def _cell(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return "" if math.isnan(v) else repr(v)
+    return str(v)
+
+
+def _parse_cell(text: str) -> Scalar:
+    if text == "":
+        return math.nan
+    if text in ("true", "false"):
+        return text == "true"
+    for conv in (int, float):
+        try:
+            return conv(text)
+        except ValueError:
+            continue
+    return text
+
+
+def columns_of(rows: Sequence[Mapping[str, Any]]) -> list[str]:
+    """Union of the rows' keys (artifact keys ``_*`` left out), in order of first appearance."""
+    return list(dict.fromkeys(k for r in rows for k in r if not k.startswith("_")))
+
+
+def split_artifacts(row: Mapping[str, Any]) -> tuple[Row, dict[str, Any]]:
+    """(the row without ``_*`` keys, the artifacts with the ``_`` stripped from their names)."""
+    plain = {k: v for k, v in row.items() if not k.startswith("_")}
+    arts = {k[1:]: v for k, v in row.items() if k.startswith("_")}
+    return plain, arts
+
+
+def save_artifacts(folder: Path, tid: str, artifacts: Mapping[str, Any]) -> Path | None:
+    """``folder/artifacts/<tid>.npz`` (nothing when there are none)."""
+    if not artifacts:
+        return None
+    import numpy as np
+
+    path = folder / "artifacts" / f"{tid}.npz"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(path, **{k: np.asarray(v) for k, v in artifacts.items()})
+    return path
+
+
+def load_artifacts(folder: Path, row: Mapping[str, Any]) -> dict[str, Any]:
+    """The artifacts saved for ``row`` in the result folder ({} when none)."""
+    import numpy as np
+
+    path = Path(folder) / "artifacts" / f"{row['trial_id']}.npz"
+    if not path.is_file():
+        return {}
+    with np.load(path) as data:
+        return {k: data[k] for k in data.files}
+
+
+def write_csv(rows: Sequence[Mapping[str, Any]], path: Path) -> Path:
+    """Tidy CSV; floats as ``repr`` (exact), NaN as an empty cell, bools as true/false."""
+    cols = columns_of(rows)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(cols)
+    for r in rows:
+        w.writerow([_cell(r.get(c, math.nan)) for c in cols])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(buf.getvalue())
+    return path
+
+
+def read_csv(path: Path) -> list[Row]:
+    """Rows of :func:`write_csv` with their types back (int, float, bool, str)."""
+    with Path(path).open(newline="") as f:
+        return [{k: _parse_cell(v) for k, v in rec.items()} for rec in csv.DictReader(f)]
+
+
+# ----------------------------------------------------------------------------------------
+# Running and writing
+
+
+def render_summary(experiment: Experiment, config: Any, rows: list[Row], command: str = "") -> str:
+    """Markdown: the paper's results beside ours (``experiment.compare``)."""
+    lines = [f"# {experiment.name}", "", experiment.description, ""]
+    if command:
+        lines += [f"Produced by: `{command}`", ""]
+    comps = experiment.compare(config, rows) if experiment.compare else []
+    if comps:
+        lines += ["| result | paper | ours | note |", "|---|---|---|---|"]
+        lines += [f"| {c.result} | {c.paper} | {c.ours} | {c.note} |" for c in comps]
+    return "\n".join(lines) + "\n"
+
+
+def write_result_folder(
+    out_dir: Path,
+    experiment: Experiment,
+    config: Any,
+    rows: list[Row],
+    seed: int,
+    command: str,
+    timings: Mapping[str, Any],
+) -> list[Path]:
+    """results.csv, config.json, run.json, summary.md, artifacts and the plots; returns
+    the files. ``rows`` may carry artifacts (``_*`` keys)."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    plain = []
+    for row in rows:
+        p, arts = split_artifacts(row)
+        save_artifacts(out_dir, str(row["trial_id"]), arts)
+        plain.append(p)
+    rows = plain
+    files = [write_csv(rows, out_dir / "results.csv")]
+    write_json(out_dir / "config.json", {"experiment": experiment.name, **config_to_dict(config)})
+    rec = run_record(command, config_to_dict(config), seed)
+    write_json(out_dir / "run.json", {"experiment": experiment.name, **rec, "timing": timings})
+    files += [out_dir / "config.json", out_dir / "run.json"]
+    summary = out_dir / "summary.md"
+    summary.write_text(render_summary(experiment, config, rows, command))
+    files.append(summary)
+    if experiment.plot is not None:
+        files += experiment.plot(config, rows, out_dir, out_dir)
+    return files
+
+
+def run_experiment(
+    name: str,
+    config: Any,
+    seed: int,
+    out_dir: Path,
+    command: str = "",
+    executor: Executor | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> tuple[list[Row], list[Path]]:
+    """Run every trial, write the result folder; returns (rows, files)."""
+    exp = get_experiment(name)
+    specs = make_trials(exp, config, seed)
+    by_index: dict[int, Row] = {}
+    seconds: dict[int, float] = {}
+    t0 = time.perf_counter()
+    for done, (spec, row, secs) in enumerate((executor or serial_executor)(specs), 1):
+        by_index[spec.index] = row
+        seconds[spec.index] = round(secs, 3)
+        if progress is not None:
+            progress(done, len(specs))
+    rows = [by_index[i] for i in range(len(specs))]
+    timings = {
+        "total_s": round(time.perf_counter() - t0, 3),
+        "trials": len(specs),
+        "trial_s": [seconds[i] for i in range(len(specs))],
+    }
+    cmd = command or f"wander experiment {name} --seed {seed}"
+    files = write_result_folder(out_dir, exp, config, rows, seed, cmd, timings)
+    return [split_artifacts(r)[0] for r in rows], files
+
+
+def default_out_dir(name: str, seed: int, root: Path = Path("results")) -> Path:
+    """``results/NAME/YYYYmmdd-HHMMSS-seedN`` (local time)."""
+    return root / name / f"{time.strftime('%Y%m%d-%H%M%S')}-seed{seed}"

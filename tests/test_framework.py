@@ -1,0 +1,256 @@
+"""The experiment framework: typed --set overrides, trials, tables, result folders, CLI."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import pytest
+import typer
+from typer.testing import CliRunner
+
+from experiments.cli_experiments import register
+from experiments.framework import (
+    EXPERIMENT_NAMES,
+    Comparison,
+    ConfigError,
+    Experiment,
+    TrialSpec,
+    coerce,
+    config_from_dict,
+    configs_dir,
+    get_experiment,
+    load_artifacts,
+    make_trials,
+    parse_sets,
+    read_csv,
+    resolve_config,
+    run_experiment,
+    trial_id,
+    write_csv,
+    write_result_folder,
+)
+
+# A tiny event_suppression run: 20 windows of 2 ms, one sOMS step of 20 ms.
+TINY = ["duration_s=0.04", "repeats=2", "active_s=0.02", "pause_s=0.01"]
+
+
+@dataclass(frozen=True)
+class ToyConfig:
+    """A config with one field of each supported kind."""
+
+    n: int = 3
+    x: float = 0.5
+    name: str = "a"
+    flag: bool = False
+    mode: Literal["p", "q"] = "p"
+    pairs: tuple[tuple[float, float], ...] = ((1.0, 2.0),)
+    repeats: int = 2
+
+    def __post_init__(self) -> None:
+        if self.n < 0:
+            raise ValueError(f"n must be >= 0, got {self.n}")
+
+
+def toy_experiment() -> Experiment:
+    def grid(cfg: ToyConfig) -> list[dict]:
+        return [{"k": k} for k in range(cfg.n)]
+
+    def run_trial(cfg: ToyConfig, spec: TrialSpec) -> dict:
+        return {"value": spec.params["k"] * cfg.x + spec.seed, "_series": [1, 2, 3]}
+
+    def compare(cfg: ToyConfig, rows: list) -> list[Comparison]:
+        return [Comparison("sum", "6", str(sum(r["value"] for r in rows)))]
+
+    return Experiment("toy", "A toy.", ToyConfig, grid, run_trial, compare=compare)
+
+
+# ----------------------------------------------------------------------------------------
+# Typed values and config resolution
+
+
+def test_coerce_accepts_the_declared_types_and_refuses_others():
+    assert coerce(2, float) == 2.0 and isinstance(coerce(2, float), float)
+    assert coerce("1e-3", float) == 0.001
+    assert coerce([[1, 2]], tuple[tuple[float, float], ...]) == ((1.0, 2.0),)
+    assert coerce("q", Literal["p", "q"]) == "q"
+    assert coerce(None, int | None) is None
+    for value, tp in [(True, int), (1.5, int), ("x", float), ("r", Literal["p", "q"]), (1, bool)]:
+        with pytest.raises(TypeError):
+            coerce(value, tp)
+    with pytest.raises(TypeError, match=r"expected list \[float, float\]"):
+        coerce([1, 2, 3], tuple[float, float])
+
+
+def test_parse_sets_reads_yaml_except_for_string_fields():
+    got = parse_sets(["n=4", "pairs=[[0.5, 1]]", "flag=true", "name=on", "x=1e-3"], ToyConfig)
+    assert got == {"n": 4, "pairs": [[0.5, 1]], "flag": True, "name": "on", "x": "1e-3"}
+    cfg = config_from_dict(ToyConfig, got)
+    assert cfg == ToyConfig(n=4, x=0.001, name="on", flag=True, pairs=((0.5, 1.0),))
+
+
+def test_unknown_key_is_named_with_the_allowed_keys_and_types():
+    with pytest.raises(ConfigError) as e:
+        config_from_dict(ToyConfig, parse_sets(["nn=4"], ToyConfig), where="--set")
+    msg = str(e.value)
+    assert "unknown key 'nn'" in msg and msg.startswith("--set")
+    assert (
+        "allowed keys: n (int), x (float), name (str), flag (bool), mode (one of 'p', 'q')" in msg
+    )
+    assert "pairs (list of list [float, float])" in msg
+
+
+def test_bad_value_names_the_key_the_type_and_the_value():
+    with pytest.raises(ConfigError, match=r"bad value for key 'x': expected float, got 'abc'"):
+        config_from_dict(ToyConfig, parse_sets(["x=abc"], ToyConfig))
+    with pytest.raises(ConfigError, match=r"bad value for key 'mode': expected one of 'p', 'q'"):
+        config_from_dict(ToyConfig, {"mode": "r"})
+    with pytest.raises(ConfigError, match=r"n must be >= 0, got -1"):  # the dataclass's own check
+        config_from_dict(ToyConfig, {"n": -1})
+    with pytest.raises(ConfigError, match="expected key=value"):
+        parse_sets(["n"], ToyConfig)
+
+
+def test_every_registered_experiment_has_a_default_config_file_equal_to_its_defaults():
+    for name in EXPERIMENT_NAMES:
+        exp = get_experiment(name)
+        assert (configs_dir() / f"{name}.yaml").is_file()
+        assert resolve_config(exp) == exp.config_type()
+        assert exp.name == name and exp.compare is not None and exp.plot is not None
+
+
+def test_config_file_then_set_override_the_defaults(tmp_path):
+    exp = get_experiment("event_suppression")
+    path = tmp_path / "c.yaml"
+    path.write_text("alpha: 0.5\nrepeats: 3\n")
+    cfg = resolve_config(exp, path, ["repeats=4"])
+    assert (cfg.alpha, cfg.repeats, cfg.window_s) == (0.5, 4, 0.002)
+    path.write_text("alpah: 0.5\n")
+    with pytest.raises(ConfigError, match=rf"{path}: unknown key 'alpah'"):
+        resolve_config(exp, path)
+
+
+def test_unknown_experiment_lists_the_known_ones():
+    with pytest.raises(ConfigError, match="unknown experiment 'nope'; available: oms_char"):
+        get_experiment("nope")
+
+
+# ----------------------------------------------------------------------------------------
+# Trials and tables
+
+
+def test_trials_repeat_the_grid_with_consecutive_seeds_and_stable_ids():
+    specs = make_trials(toy_experiment(), ToyConfig(n=2, repeats=2), seed=10)
+    assert [(s.params["k"], s.repeat, s.seed, s.index) for s in specs] == [
+        (0, 0, 10, 0),
+        (0, 1, 11, 1),
+        (1, 0, 10, 2),
+        (1, 1, 11, 3),
+    ]
+    assert len({s.id for s in specs}) == 4
+    assert specs[0].id == trial_id("toy", specs[0].config, {"k": 0}, 10)
+    assert specs[0].id != trial_id("toy", {**specs[0].config, "x": 0.6}, {"k": 0}, 10)
+    assert len(specs[0].id) == 16
+
+
+def test_csv_round_trip_keeps_types_and_exact_floats(tmp_path):
+    rows = [
+        {"a": 1, "b": 0.1 + 0.2, "c": "eye+object", "d": True, "e": math.nan},
+        {"a": 2, "b": 1e-17, "c": "x,y", "d": False, "e": 3.0},
+    ]
+    path = write_csv(rows, tmp_path / "t.csv")
+    assert path.read_text().splitlines()[1] == "1,0.30000000000000004,eye+object,true,"
+    back = read_csv(path)
+    assert back[1] == rows[1]
+    assert back[0]["b"] == 0.1 + 0.2 and math.isnan(back[0]["e"]) and back[0]["d"] is True
+
+
+def test_result_folder_has_table_config_run_record_summary_and_artifacts(tmp_path):
+    exp = toy_experiment()
+    cfg = ToyConfig(n=3, repeats=1)
+    rows = [
+        {"trial": s.index, "trial_id": s.id, **s.params, **exp.run_trial(cfg, s)}
+        for s in make_trials(exp, cfg, 0)
+    ]
+    write_result_folder(tmp_path, exp, cfg, rows, 0, "wander experiment toy", {"total_s": 1.0})
+    assert read_csv(tmp_path / "results.csv") == [
+        {"trial": i, "trial_id": rows[i]["trial_id"], "k": i, "value": 0.5 * i} for i in range(3)
+    ]
+    assert json.loads((tmp_path / "config.json").read_text())["pairs"] == [[1.0, 2.0]]
+    run = json.loads((tmp_path / "run.json").read_text())
+    assert run["seed"] == 0 and run["git_revision"] and run["command"] == "wander experiment toy"
+    assert run["experiment"] == "toy" and run["timing"] == {"total_s": 1.0}
+    assert "| sum | 6 | 1.5 |" in (tmp_path / "summary.md").read_text()
+    assert load_artifacts(tmp_path, rows[2])["series"].tolist() == [1, 2, 3]
+
+
+def test_same_seed_gives_identical_csv_bytes_and_another_seed_does_not(tmp_path):
+    exp = get_experiment("event_suppression")
+    cfg = resolve_config(exp, sets=TINY)
+    run_experiment("event_suppression", cfg, 3, tmp_path / "a")
+    run_experiment("event_suppression", cfg, 3, tmp_path / "b")
+    assert (tmp_path / "a" / "results.csv").read_bytes() == (
+        tmp_path / "b" / "results.csv"
+    ).read_bytes()
+    rows = read_csv(tmp_path / "a" / "results.csv")
+    assert [(r["trial"], r["repeat"], r["seed"], r["windows"]) for r in rows] == [
+        (0, 0, 3, 20),
+        (1, 1, 4, 20),
+    ]
+    assert rows[0]["events_in_mean"] != rows[1]["events_in_mean"]  # seeds 3 and 4 differ
+    assert sorted(p.name for p in (tmp_path / "a").iterdir()) == [
+        "artifacts",
+        "config.json",
+        "event_suppression.png",
+        "results.csv",
+        "run.json",
+        "summary.md",
+    ]
+
+
+# ----------------------------------------------------------------------------------------
+# Command line
+
+
+def _app() -> typer.Typer:
+    app = typer.Typer(pretty_exceptions_enable=False)
+    register(app)
+    return app
+
+
+def test_cli_experiment_writes_the_folder_and_report_reads_it(tmp_path):
+    runner = CliRunner()
+    out = tmp_path / "results" / "event_suppression" / "run1"
+    args = ["experiment", "event_suppression", "--seed", "5", "--out", str(out)]
+    for s in [*TINY, "repeats=1"]:
+        args += ["--set", s]
+    res = runner.invoke(_app(), args)
+    assert res.exit_code == 0, res.output
+    assert json.loads((out / "run.json").read_text())["seed"] == 5
+    assert json.loads((out / "config.json").read_text())["repeats"] == 1
+    report = tmp_path / "REPORT.md"
+    res = runner.invoke(
+        _app(), ["report", "--results", str(tmp_path / "results"), "--out", str(report)]
+    )
+    assert res.exit_code == 0, res.output
+    text = report.read_text()
+    assert "## event_suppression" in text and "| events suppressed | 85.16 % |" in text
+    assert "Not run yet: `wander experiment detection`." in text
+    assert (tmp_path / "report_figures" / "event_suppression" / "event_suppression.png").is_file()
+
+
+def test_cli_rejects_unknown_keys_and_bad_values_by_name():
+    runner = CliRunner()
+    res = runner.invoke(_app(), ["experiment", "detection", "--set", "alph=1"])
+    assert res.exit_code == 2
+    assert "unknown key 'alph'" in res.output and "alpha (float)" in res.output
+    res = runner.invoke(_app(), ["experiment", "detection", "--set", "alpha=abc"])
+    assert (
+        res.exit_code == 2 and "bad value for key 'alpha': expected float, got 'abc'" in res.output
+    )
+    res = runner.invoke(_app(), ["experiment", "detection", "--set", "alpha=2"])
+    assert res.exit_code == 2 and "alpha must be in [0, 1], got 2.0" in res.output
+    res = runner.invoke(_app(), ["experiment", "detection", "--show-config", "--set", "repeats=1"])
+    assert res.exit_code == 0 and '"repeats": 1' in res.output
