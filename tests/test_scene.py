@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 import yaml
 
+from wander_env.metrics import focal_length_px
 from wander_env.mjcf import (
     CAMERA_NAME,
     PAN_JOINT,
@@ -23,7 +24,6 @@ from wander_env.mjcf import (
     SceneAnimator,
     build_mjcf,
     compile_scene,
-    focal_length_px,
 )
 from wander_env.renderer import CameraRenderer, project_points
 from wander_env.scene_config import (
@@ -99,7 +99,7 @@ def test_camera_fov_matches_the_speck():
     _, model, _, _ = _state("shelf")
     assert math.isclose(SPECK_HFOV_DEG, 112.83, abs_tol=0.01)
     assert math.isclose(model.cam_fovy[model.camera(CAMERA_NAME).id], SPECK_HFOV_DEG, rel_tol=1e-5)
-    assert math.isclose(focal_length_px(SPECK_HFOV_DEG, 128), 42.5, rel_tol=1e-12)
+    assert math.isclose(focal_length_px(128, SPECK_HFOV_DEG), 42.5, rel_tol=1e-12)
 
 
 def test_office_moving_objects_are_segmented_at_25_to_50_px(office):
@@ -122,7 +122,7 @@ def test_office_moving_objects_are_segmented_at_25_to_50_px(office):
     c = animator.object_positions(0.0)[1] - np.array([0.0, 0.0, 1.0])
     a = math.atan2(math.hypot(c[1], c[2]), c[0])
     r = math.asin(0.28 / np.linalg.norm(c))
-    f = focal_length_px(SPECK_HFOV_DEG, 128)
+    f = focal_length_px(128, SPECK_HFOV_DEG)
     radial = f * (math.tan(a + r) + math.tan(a - r)) / 2.0
     direction = (centres[1] - 63.5) / np.linalg.norm(centres[1] - 63.5)
     ys, xs = np.nonzero(mask == 2)
@@ -157,7 +157,7 @@ def test_pan_and_tilt_turn_the_camera_as_the_ptu_model_says():
     mujoco.mj_kinematics(model, data)
     mujoco.mj_camlight(model, data)
     x, y = project_points(model, data, ahead)[0]
-    f = focal_length_px(SPECK_HFOV_DEG, 128)
+    f = focal_length_px(128, SPECK_HFOV_DEG)
     assert x > 63.5 and y > 63.5  # the scene moves right and down in the image
     assert math.isclose(x - 63.5, f * math.tan(math.radians(10.0)), rel_tol=0.02)
 

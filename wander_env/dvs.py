@@ -211,6 +211,26 @@ def _levels(
     return max_change
 
 
+@numba.njit(cache=True, nogil=True, fastmath=True)
+def _patch_linlog(lum: np.ndarray, log_in: np.ndarray, i_lin: float) -> None:
+    """Patch the linear segment below ``i_lin`` into ``log_in`` (``ln(max(lum, i_lin))``
+    on entry), exactly as :func:`_levels` does."""
+    il = np.float32(i_lin)
+    log_il = np.float32(math.log(i_lin))
+    for i in range(lum.size):
+        if lum[i] < il:
+            log_in[i] = log_il + (lum[i] - il) / il
+
+
+@numba.njit(cache=True, nogil=True)
+def _max_change(a: np.ndarray, b: np.ndarray) -> float:
+    """``max |a - b|`` of two float32 arrays."""
+    m = np.float32(0.0)
+    for i in range(a.size):
+        m = max(m, abs(a[i] - b[i]))
+    return m
+
+
 @numba.njit(cache=True, nogil=True, inline="always")
 def _crossings(d: float, th_on: float, th_off: float) -> tuple[int, int]:
     """Whole thresholds spanned by the difference ``d`` and their polarity (-1: none)."""
@@ -325,6 +345,20 @@ _NO_EVENTS: _Columns = (
 )
 
 
+@dataclass(frozen=True, eq=False)
+class LogFrame:
+    """A frame's input to the pixels, computed once (:meth:`DVSEmulator.prepare`).
+
+    ``lum`` is the flat linear luminance and ``log_in`` its log with the linear segment
+    near black, both float32: what :meth:`DVSEmulator.step` derives from a frame. Pass it
+    to :meth:`~DVSEmulator.log_change` and then :meth:`~DVSEmulator.step` to convert the
+    frame once; the arrays are read, never written.
+    """
+
+    lum: np.ndarray
+    log_in: np.ndarray
+
+
 class DVSEmulator:
     """Streaming emulator for a ``width`` × ``height`` sensor.
 
@@ -390,8 +424,13 @@ class DVSEmulator:
         self.max_log_change = 0.0
 
     # -- checks ---------------------------------------------------------------------------
-    def _luminance(self, frame: np.ndarray) -> np.ndarray:
-        """Validate ``frame``; fill ``self._lum`` and ``self._log_in = max(lum, floor)``."""
+    def _luminance(
+        self, frame: np.ndarray, lum: np.ndarray | None = None, arg: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Validate ``frame``; fill ``lum`` and ``arg = max(lum, floor)`` (by default
+        ``self._lum`` and ``self._log_in``); returns ``lum``."""
+        lum = self._lum if lum is None else lum
+        arg = self._log_in if arg is None else arg
         if not isinstance(frame, np.ndarray):
             raise ValueError(f"frame must be a numpy array, got {type(frame).__name__}")
         h, w = self.height, self.width
@@ -402,8 +441,8 @@ class DVSEmulator:
                     f"uint8 frame must have shape ({h}, {w}, 3) or ({h}, {w}), got {frame.shape}"
                 )
             frame3 = frame if frame.ndim == 3 else frame[:, :, None]
-            _luminance(np.ascontiguousarray(frame3), self._lut, floor, self._lum, self._log_in)
-            return self._lum
+            _luminance(np.ascontiguousarray(frame3), self._lut, floor, lum, arg)
+            return lum
         if frame.dtype.kind == "f":
             if frame.shape != (h, w):
                 raise ValueError(f"float frame must have shape ({h}, {w}), got {frame.shape}")
@@ -411,9 +450,9 @@ class DVSEmulator:
                 raise ValueError("frame contains NaN or infinite values")
             if frame.min() < 0:
                 raise ValueError(f"frame intensity must be >= 0, got min {frame.min()}")
-            self._lum[:] = frame.reshape(-1)
-            np.maximum(self._lum, floor, out=self._log_in)
-            return self._lum
+            lum[:] = frame.reshape(-1)
+            np.maximum(lum, floor, out=arg)
+            return lum
         raise ValueError(f"frame dtype must be uint8 (sRGB) or float (linear), got {frame.dtype}")
 
     def _check_time(self, t_us: int) -> int:
@@ -424,19 +463,48 @@ class DVSEmulator:
             raise ValueError(f"time must increase: t_us={t_us} <= previous {self._t_prev}")
         return t_us
 
-    def log_change(self, frame: np.ndarray) -> float:
-        """Largest input log-intensity change ``frame`` would bring; changes no state."""
-        lum = self._luminance(frame)
-        return float(np.abs(linlog(lum, self.params.linlog_intensity) - self._log_in_prev).max())
+    def prepare(self, frame: np.ndarray) -> LogFrame:
+        """Validate ``frame`` and convert it to the pixels' input (see :class:`LogFrame`)."""
+        n = self.width * self.height
+        lum, log_in = np.empty(n, np.float32), np.empty(n, np.float32)
+        self._luminance(frame, lum, log_in)
+        np.log(log_in, out=log_in)
+        _patch_linlog(lum, log_in, self.params.linlog_intensity)
+        return LogFrame(lum, log_in)
+
+    def log_change(self, frame: np.ndarray | LogFrame) -> float:
+        """Largest input log-intensity change ``frame`` would bring; changes no state.
+
+        The value :attr:`max_log_change` takes when ``frame`` is the next :meth:`step`.
+        """
+        if self._t_prev is None:
+            raise RuntimeError("call reset(frame, t_us) before log_change()")
+        return float(_max_change(self._prepared(frame).log_in, self._log_in_prev))
+
+    def _prepared(self, frame: np.ndarray | LogFrame) -> LogFrame:
+        if not isinstance(frame, LogFrame):
+            return self.prepare(frame)
+        n = self.width * self.height
+        if frame.lum.shape != (n,) or frame.log_in.shape != (n,):
+            raise ValueError(f"LogFrame is for another sensor size: {frame.lum.shape} != ({n},)")
+        return frame
 
     # -- the step -----------------------------------------------------------------------
-    def step(self, frame: np.ndarray, t_us: int) -> np.ndarray:
-        """Events in ``(t_prev, t_us]`` caused by moving to ``frame`` at ``t_us``."""
+    def step(self, frame: np.ndarray | LogFrame, t_us: int) -> np.ndarray:
+        """Events in ``(t_prev, t_us]`` caused by moving to ``frame`` at ``t_us``.
+
+        ``frame`` may be a :class:`LogFrame` from :meth:`prepare` (same events, one
+        conversion fewer).
+        """
         t_us = self._check_time(t_us)
-        lum = self._luminance(frame)
+        if isinstance(frame, LogFrame):
+            lum = self._prepared(frame).lum
+            np.copyto(self._log_in, frame.log_in)
+        else:
+            lum = self._luminance(frame)
+            np.log(self._log_in, out=self._log_in)
         p, t0 = self.params, self._t_prev
         dt_s = (t_us - t0) * 1e-6
-        np.log(self._log_in, out=self._log_in)
         self.max_log_change = float(
             _levels(
                 lum, self._log_in_prev, self._level, self._diff, self.th_on, p.linlog_intensity,

@@ -128,15 +128,6 @@ def vertical_fov_deg(hfov_deg: float, width: int, height: int) -> float:
     return math.degrees(2.0 * math.atan(math.tan(half) * height / width))
 
 
-def focal_length_px(hfov_deg: float, width: int) -> float:
-    """Focal length in pixels: (W/2) / tan(HFOV/2) (42.5 px = 1.7 mm / 40 µm for the Speck).
-
-    >>> round(focal_length_px(2 * math.degrees(math.atan(5.12 / 3.4)), 128), 6)
-    42.5
-    """
-    return (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
-
-
 def _fmt(values: float | Iterable[float]) -> str:
     if isinstance(values, (int, float)):
         values = (values,)
