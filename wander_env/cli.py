@@ -144,6 +144,9 @@ def evaluate(
     seconds: Annotated[float, typer.Option(help="Simulated seconds per seed.")] = 20.0,
     seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
     dvs: Annotated[str, typer.Option(help="DVS preset: ideal, paper or speck.")] = "ideal",
+    streamlined: Annotated[
+        bool, typer.Option(help="Streamlined proto-object model (no polarity split).")
+    ] = False,
 ) -> None:
     """The agent's quality in simulation: detection accuracy, suppression, foveation error."""
     from experiments.evaluate_agent import evaluate as run_eval
@@ -154,7 +157,7 @@ def evaluate(
     except ValueError as err:
         msg = f"--seeds must be integers separated by commas, got {seeds!r}"
         raise typer.BadParameter(msg) from err
-    config = RunConfig(scene=scene, seconds=seconds, dvs=dvs, video=False)
+    config = RunConfig(scene=scene, seconds=seconds, dvs=dvs, video=False, streamlined=streamlined)
     with _progress() as bar:
         task = bar.add_task("evaluate", total=round(seconds / 0.01) * len(seed_list))
         done = {s: 0 for s in seed_list}
@@ -211,11 +214,37 @@ def bench_env(
     scene: Annotated[str, typer.Option(help="Scene to simulate.")] = "office",
     seconds: Annotated[float, typer.Option(help="Simulated seconds per row.")] = 2.0,
     ground_truth: Annotated[bool, typer.Option(help="Render segmentation masks too.")] = True,
+    antialias: Annotated[
+        int | None, typer.Option(help="MSAA samples (overrides the scene's; 0 = off).")
+    ] = None,
+    breakdown: Annotated[bool, typer.Option(help="Also time the parts of one env's step.")] = True,
 ) -> None:
     """Real-time factor of the environment (1 kHz rendering) with 1, 2 and 4 envs."""
     from experiments.bench_env import bench_env as run
+    from experiments.bench_env import step_breakdown
 
-    rows = run(scene=scene, seconds=seconds, ground_truth=ground_truth)
+    if breakdown:
+        parts = [
+            step_breakdown(scene=scene, dvs=d, seconds=seconds, antialias_samples=antialias)
+            for d in ("ideal", "speck")
+        ]
+        print_table(
+            f"One env's step, scene '{scene}' (ms per step unless named)",
+            parts,
+            {
+                "dvs": "",
+                "antialias_samples": "d",
+                "ms_per_step": ".2f",
+                "frames_per_step": ".1f",
+                "ms_per_render": ".2f",
+                "render_ms": ".2f",
+                "dvs_ms": ".2f",
+                "segment_ms": ".2f",
+                "pose_ms": ".2f",
+                "other_ms": ".2f",
+            },
+        )
+    rows = run(scene=scene, seconds=seconds, ground_truth=ground_truth, antialias_samples=antialias)
     print_table(
         f"Environment, scene '{scene}' (real-time factor = simulated s / wall s)",
         rows,
