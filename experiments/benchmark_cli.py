@@ -389,6 +389,43 @@ def _check_std_over(std_over: str) -> None:
         raise typer.BadParameter(f"--std-over must be 'sequences' or 'windows', got {std_over!r}")
 
 
+def _score_dataset(
+    label: str,
+    load: Callable[[], tuple[Iterable[Any], int]],
+    config: dict[str, Any],
+    out: Path | None,
+    max_windows: int | None,
+    std_over: str,
+    progress: bool,
+    started: float,
+) -> None:
+    """Score a dataset's sequences (``load`` finds them) and write its results folder."""
+    from experiments.benchmark_protocol import ProtocolConfig
+
+    dataset = config["dataset"]
+    out = out or Path(f"runs/benchmark-{dataset}")
+    streamlined = bool(config["streamlined"])
+    try:
+        seqs, n = load()
+        rows, notes, dts = run_sequences(
+            seqs, n, label, streamlined, ProtocolConfig(), max_windows, progress
+        )
+    except (ValueError, OSError) as err:
+        raise _fail(err) from None
+    md = write_benchmark_outputs(
+        out,
+        rows,
+        dataset,
+        f"Benchmark: {label}",
+        f"wander benchmark {dataset}",
+        {**config, "model_dt_s": dts},
+        notes,
+        extra_record={"elapsed_s": time.monotonic() - started},
+        std_over=std_over,
+    )
+    _finish(out, md, started)
+
+
 # ----------------------------------------------------------------------------------------
 # Commands
 
@@ -424,23 +461,18 @@ def evimo(
     progress: ProgressOpt = True,
 ) -> None:
     """EVIMO: per-subset accuracy, IoU, precision, SSIM beside the paper's Table."""
-    from experiments.benchmark_protocol import ProtocolConfig
     from experiments.datasets.evimo import find_evimo_sequences, load_evimo_sequence
 
     _check_std_over(std_over)
     started = time.monotonic()
-    out = out or Path("runs/benchmark-evimo")
     _set_threads(threads)
-    try:
+
+    def load() -> tuple[Iterable[Any], int]:
         sources = find_evimo_sequences(path, subset)
         if max_sequences is not None:
             sources = sources[:max_sequences]
-        seqs = (load_evimo_sequence(s, window_mode, window_us) for s in sources)
-        rows, notes, dts = run_sequences(
-            seqs, len(sources), "EVIMO", streamlined, ProtocolConfig(), max_windows, progress
-        )
-    except (ValueError, OSError) as err:
-        raise _fail(err) from None
+        return (load_evimo_sequence(s, window_mode, window_us) for s in sources), len(sources)
+
     config = {
         "dataset": "evimo",
         "path": str(path),
@@ -451,20 +483,8 @@ def evimo(
         "max_windows": max_windows,
         "streamlined": streamlined,
         "std_over": std_over,
-        "model_dt_s": dts,
     }
-    md = write_benchmark_outputs(
-        out,
-        rows,
-        "evimo",
-        "Benchmark: EVIMO",
-        "wander benchmark evimo",
-        config,
-        notes,
-        extra_record={"elapsed_s": time.monotonic() - started},
-        std_over=std_over,
-    )
-    _finish(out, md, started)
+    _score_dataset("EVIMO", load, config, out, max_windows, std_over, progress, started)
 
 
 @app.command("llevos")
@@ -492,7 +512,6 @@ def llevos(
     progress: ProgressOpt = True,
 ) -> None:
     """LLE-VOS: accuracy mean ± std over sequences beside the paper's 53.3 % ± 25.56."""
-    from experiments.benchmark_protocol import ProtocolConfig
     from experiments.datasets.llevos import (
         LLEVOSConfig,
         find_llevos_root,
@@ -502,18 +521,14 @@ def llevos(
 
     _check_std_over(std_over)
     started = time.monotonic()
-    out = out or Path("runs/benchmark-llevos")
     _set_threads(threads)
-    try:
+
+    def load() -> tuple[Iterable[Any], int]:
         cfg = LLEVOSConfig(time_unit=time_unit, npy_columns=npy_columns)
         names = sequence or list_llevos_sequences(find_llevos_root(path))
         n = len(names) if max_sequences is None else min(len(names), max_sequences)
-        seqs = itertools.islice(load_llevos(path, sequence, cfg), n)
-        rows, notes, dts = run_sequences(
-            seqs, n, "LLE-VOS", streamlined, ProtocolConfig(), max_windows, progress
-        )
-    except (ValueError, OSError) as err:
-        raise _fail(err) from None
+        return itertools.islice(load_llevos(path, sequence, cfg), n), n
+
     config = {
         "dataset": "llevos",
         "path": str(path),
@@ -524,20 +539,8 @@ def llevos(
         "max_windows": max_windows,
         "streamlined": streamlined,
         "std_over": std_over,
-        "model_dt_s": dts,
     }
-    md = write_benchmark_outputs(
-        out,
-        rows,
-        "llevos",
-        "Benchmark: LLE-VOS",
-        "wander benchmark llevos",
-        config,
-        notes,
-        extra_record={"elapsed_s": time.monotonic() - started},
-        std_over=std_over,
-    )
-    _finish(out, md, started)
+    _score_dataset("LLE-VOS", load, config, out, max_windows, std_over, progress, started)
 
 
 @app.command("events")
