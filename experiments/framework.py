@@ -73,7 +73,14 @@ __all__ = [
 ]
 
 # The registry: experiment names, each the module experiments/<name>.py with EXPERIMENT.
-EXPERIMENT_NAMES: tuple[str, ...] = ("oms_characterisation", "event_suppression", "detection")
+EXPERIMENT_NAMES: tuple[str, ...] = (
+    "oms_characterisation",
+    "event_suppression",
+    "detection",
+    "sac_accuracy",
+    "scanpath",
+    "saccade_speed",
+)
 
 Scalar = int | float | str | bool
 Row = dict[str, Scalar]

@@ -1,0 +1,464 @@
+"""Saccade and fixational speeds: what the PTU's limits and the eye movements cost.
+
+The paper leaves this as future work ("the investigation of saccades and fixational eye
+speeds, exploring the limits of the system and the PTU"); its numbers are the FLIR
+defaults and the fixational walk (N = 8 steps of up to ±60 positions in St_w = 124 ms).
+
+One factor at a time around that baseline (:func:`grid`): the PTU's slew speed and
+acceleration (positions/s, /s²; 0.025714° each), the fixational step amplitude
+(``max_step_pos``) and count (``n_steps``), and the speed of the scene's moving objects
+(their trajectories run ``object_speed_scale`` times faster, :class:`ScaledTrajectory`).
+Each trial:
+
+- runs the agent closed-loop in the ``office`` scene for ``duration_s``
+  (:func:`experiments.run_agent.run_closed_loop`) and measures the **time to foveate**
+  (decision to settled gaze: the saccades' mean duration), the **foveation error**
+  (reached minus ideal gaze for ``P``, px at the fovea), the **detection accuracy** (the
+  8×8 box around ``P`` touches a moving object) and the **events per second**;
+- for the baseline and the PTU settings, measures the **main sequence**: forced saccades
+  (:meth:`agents.attention.AttentionAgent.saccade_to`) of ``main_sequence_amplitudes_deg``
+  along the pan axis, alternating in direction, in the static ``shelf`` scene rendered at
+  100 Hz (events play no part): pan amplitude reached, peak pan speed (the tilt moves
+  only the half pixel between the fovea and a pixel row) and movement duration (command
+  to standstill, to the 10 ms step) — beside the PTU's rest-to-rest trapezoid
+  (:func:`wander_env.ptu.move_duration`, :func:`wander_env.ptu.peak_speed`).
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
+from agents.attention import AgentParams, AttentionAgent
+from agents.fixation import FixationParams
+from experiments.benchmark_protocol import mean_std
+from experiments.framework import Comparison, Experiment, Row, TrialSpec, load_artifacts
+from experiments.run_agent import run_closed_loop
+from wander_env.metrics import SPECK_HFOV_DEG, focal_length_px
+from wander_env.ptu import PTUParams, degrees_to_positions, move_duration, peak_speed
+
+__all__ = [
+    "EXPERIMENT",
+    "FACTORS",
+    "ObjectSpeed",
+    "SaccadeSpeedConfig",
+    "ScaledTrajectory",
+    "baseline",
+    "main_sequence_targets",
+    "ptu_for",
+    "theory_main_sequence",
+]
+
+# factor name -> (the grid column it sets, the config field holding its values)
+FACTORS = {
+    "ptu_speed": ("speed_pos_s", "speeds_pos_s"),
+    "ptu_accel": ("accel_pos_s2", "accels_pos_s2"),
+    "fixational_amplitude": ("fixational_step_pos", "fixational_steps_pos"),
+    "fixational_count": ("fixational_n_steps", "fixational_counts"),
+    "object_speed": ("object_speed_scale", "object_speed_scales"),
+}
+PTU_FACTORS = ("baseline", "ptu_speed", "ptu_accel")
+
+
+@dataclass(frozen=True)
+class SaccadeSpeedConfig:
+    """Defaults: the baseline is the paper's (FLIR defaults, N = 8 steps of ±60 positions,
+    St_w = 124 ms); the swept values, the scene and the trial length are ours."""
+
+    scene: str = "office"
+    duration_s: float = 3.0
+    window_s: float = 0.124
+    speeds_pos_s: tuple[float, ...] = (1000.0, 2000.0, 2902.0)
+    accels_pos_s2: tuple[float, ...] = (1000.0, 2000.0, 8000.0)
+    fixational_steps_pos: tuple[int, ...] = (20, 60, 120)
+    fixational_counts: tuple[int, ...] = (4, 8, 16)
+    object_speed_scales: tuple[float, ...] = (0.5, 1.0, 2.0)
+    main_sequence_amplitudes_deg: tuple[float, ...] = (2.0, 5.0, 10.0, 20.0, 40.0)
+    main_sequence_scene: str = "shelf"
+    repeats: int = 1
+    dvs: str = "ideal"
+
+    def __post_init__(self) -> None:
+        if not self.duration_s > 0:
+            raise ValueError(f"duration_s must be > 0, got {self.duration_s}")
+        if not self.window_s >= 0.01 - 1e-12:
+            raise ValueError(f"window_s must be >= the 10 ms env step, got {self.window_s}")
+        if self.repeats < 1:
+            raise ValueError(f"repeats must be >= 1, got {self.repeats}")
+        upper = PTUParams().pan_upper_speed
+        if any(not 0 < v <= upper for v in self.speeds_pos_s):
+            raise ValueError(f"speeds_pos_s must be in (0, {upper}] (PU), got {self.speeds_pos_s}")
+        if any(not v > 0 for v in self.accels_pos_s2):
+            raise ValueError(f"accels_pos_s2 must be > 0, got {self.accels_pos_s2}")
+        if any(v < 0 for v in self.fixational_steps_pos):
+            raise ValueError(f"fixational_steps_pos must be >= 0, got {self.fixational_steps_pos}")
+        if any(v < 1 for v in self.fixational_counts):
+            raise ValueError(f"fixational_counts must be >= 1, got {self.fixational_counts}")
+        if any(v < 0 for v in self.object_speed_scales):
+            raise ValueError(f"object_speed_scales must be >= 0, got {self.object_speed_scales}")
+        half = math.degrees(math.atan(63.0 / focal_length_px(128, SPECK_HFOV_DEG)))
+        if any(not 0 < a <= half for a in self.main_sequence_amplitudes_deg):
+            raise ValueError(
+                f"main_sequence_amplitudes_deg must be in (0, {half:.1f}] (a pixel on the "
+                f"sensor), got {self.main_sequence_amplitudes_deg}"
+            )
+
+
+# ----------------------------------------------------------------------------------------
+# Pure helpers
+
+
+def baseline() -> dict[str, float | int]:
+    """The grid columns at the paper's values (FLIR defaults, the paper's walk).
+
+    >>> baseline()["speed_pos_s"], baseline()["fixational_n_steps"]
+    (2000.0, 8)
+    """
+    ptu, fix = PTUParams(), FixationParams()
+    return {
+        "speed_pos_s": float(ptu.pan_speed),
+        "accel_pos_s2": float(ptu.pan_accel),
+        "fixational_step_pos": int(fix.max_step_pos),
+        "fixational_n_steps": int(fix.n_steps),
+        "object_speed_scale": 1.0,
+    }
+
+
+def ptu_for(speed_pos_s: float, accel_pos_s2: float) -> PTUParams:
+    """FLIR defaults with both axes' speed and acceleration set (base speed capped to the
+    speed).
+
+    >>> p = ptu_for(500.0, 4000.0)
+    >>> p.tilt_speed, p.pan_base_speed, p.tilt_accel
+    (500.0, 500.0, 4000.0)
+    """
+    d = PTUParams()
+    return PTUParams(
+        pan_speed=speed_pos_s,
+        tilt_speed=speed_pos_s,
+        pan_base_speed=min(d.pan_base_speed, speed_pos_s),
+        tilt_base_speed=min(d.tilt_base_speed, speed_pos_s),
+        pan_accel=accel_pos_s2,
+        tilt_accel=accel_pos_s2,
+    )
+
+
+def theory_main_sequence(
+    amplitudes_deg: np.ndarray, ptu: PTUParams
+) -> tuple[np.ndarray, np.ndarray]:
+    """(peak speed °/s, duration s) of rest-to-rest pan moves of the PTU's trapezoid.
+
+    >>> v, t = theory_main_sequence(np.array([25.714]), PTUParams())
+    >>> round(float(v[0]), 1), round(float(t[0]), 3)
+    (44.5, 0.732)
+    """
+    r = ptu.pan_resolution_arcsec
+    speeds, durations = [], []
+    for a in np.asarray(amplitudes_deg, float):
+        d = degrees_to_positions(float(a), r)
+        speeds.append(peak_speed(d, ptu.pan_speed, ptu.pan_accel, ptu.pan_base_speed))
+        durations.append(move_duration(d, ptu.pan_speed, ptu.pan_accel, ptu.pan_base_speed))
+    return np.asarray(speeds) * ptu.pan_deg_per_pos, np.asarray(durations)
+
+
+def main_sequence_targets(
+    amplitudes_deg: tuple[float, ...],
+    width: int = 128,
+    height: int = 128,
+    hfov_deg: float = SPECK_HFOV_DEG,
+) -> list[tuple[int, int]]:
+    """Target pixels for pan saccades of the given amplitudes, alternating right and left
+    (rows alternating 63 and 64 so the half-pixel tilt offsets cancel).
+
+    >>> main_sequence_targets((10.0, 10.0))
+    [(71, 63), (56, 64)]
+    """
+    f = focal_length_px(width, hfov_deg)
+    cx = (width - 1) / 2.0
+    out = []
+    for k, a in enumerate(amplitudes_deg):
+        sign = 1.0 if k % 2 == 0 else -1.0
+        x = min(max(round(cx + sign * f * math.tan(math.radians(a))), 0), width - 1)
+        out.append((int(x), height // 2 - 1 + k % 2))
+    return out
+
+
+class ScaledTrajectory:
+    """A trajectory run ``scale`` times faster: ``position(t) = inner.position(scale·t)``."""
+
+    def __init__(self, inner: Any, scale: float) -> None:
+        self.inner, self.scale = inner, scale
+
+    def position(self, t: float) -> np.ndarray:
+        return self.inner.position(self.scale * t)
+
+
+class ObjectSpeed(gym.Wrapper):
+    """The env with its moving objects' trajectories sped up by ``scale`` (after every
+    reset, which builds them anew)."""
+
+    def __init__(self, env: gym.Env, scale: float) -> None:
+        super().__init__(env)
+        self.scale = scale
+
+    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
+        obs, info = self.env.reset(**kwargs)
+        anim = self.env.unwrapped.animator
+        anim.trajectories = tuple(ScaledTrajectory(tr, self.scale) for tr in anim.trajectories)
+        return obs, info
+
+
+# ----------------------------------------------------------------------------------------
+# The trial
+
+
+def _closed_loop(cfg: SaccadeSpeedConfig, p: dict[str, Any], seed: int) -> dict[str, Any]:
+    env = ObjectSpeed(
+        gym.make(
+            "wander/Wander-v0",
+            scene=cfg.scene,
+            dvs=cfg.dvs,
+            ptu=ptu_for(float(p["speed_pos_s"]), float(p["accel_pos_s2"])),
+            episode_seconds=cfg.duration_s + 1.0,
+        ),
+        float(p["object_speed_scale"]),
+    )
+    fixation = FixationParams(
+        n_steps=int(p["fixational_n_steps"]), max_step_pos=int(p["fixational_step_pos"])
+    )
+    agent = AttentionAgent(
+        AgentParams.for_env(env, window_s=cfg.window_s, fixational=True, fixation=fixation),
+        seed=seed,
+    )
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            record = {"experiment": "saccade_speed", "params": p, "seed": seed}
+            run = run_closed_loop(env, agent, cfg.duration_s, Path(tmp), record, False, seed=seed)
+    finally:
+        agent.close()
+        env.close()
+    m = run.metrics
+    durations = [s.t_end - s.t_start for s in agent.saccades]
+    return {
+        "saccades": len(agent.saccades),
+        "time_to_foveate_s": mean_std(durations)[0],
+        "foveation_error_x_px": m.get("foveation_error_x_px_mean", math.nan),
+        "foveation_error_y_px": m.get("foveation_error_y_px_mean", math.nan),
+        "detection_accuracy": m["detection_accuracy"],
+        "decisions_scored": m["decisions_scored"],
+        "events_per_s": m["events"] / m["simulated_s"],
+        "soms_suppression": m["soms_suppression"],
+    }
+
+
+def _main_sequence(cfg: SaccadeSpeedConfig, ptu: PTUParams, seed: int) -> dict[str, Any]:
+    env = gym.make(
+        "wander/Wander-v0",
+        scene=cfg.main_sequence_scene,
+        dvs=cfg.dvs,
+        ptu=ptu,
+        render_rate_hz=100.0,
+        max_subframes=1,
+        ground_truth=False,
+        episode_seconds=1000.0,
+    )
+    base = env.unwrapped
+    agent = AttentionAgent(AgentParams.for_env(env, fixational=False), seed=seed)
+    amp, vpeak, dur = [], [], []
+    try:
+        obs, info = env.reset(seed=seed)
+        agent.reset()
+        for target in main_sequence_targets(cfg.main_sequence_amplitudes_deg):
+            start = np.asarray(obs["gaze"], float)
+            t0 = float(info["t"])
+            n = len(agent.saccades)
+            agent.saccade_to(target, (float(start[0]), float(start[1])), info)
+            peak, t_stop = 0.0, t0
+            while len(agent.saccades) == n:
+                obs, _, _, _, info = env.step(agent.act(obs, info))
+                peak = max(peak, abs(base.ptu.pan_velocity_deg_s))
+                if info["moving"]:
+                    t_stop = float(info["t"]) + 0.0  # still moving at this step's end
+            amp.append(abs(float(obs["gaze"][0]) - float(start[0])))
+            vpeak.append(peak)
+            # Standstill is reached within the step after the last moving one.
+            dur.append(t_stop + agent.params.step_s - t0)
+    finally:
+        agent.close()
+        env.close()
+    return {
+        "_ms_amplitude_deg": np.asarray(amp),
+        "_ms_peak_velocity_deg_s": np.asarray(vpeak),
+        "_ms_duration_s": np.asarray(dur),
+        "ms_peak_velocity_max_deg_s": max(vpeak) if vpeak else math.nan,
+        "ms_duration_max_s": max(dur) if dur else math.nan,
+    }
+
+
+def run_trial(cfg: SaccadeSpeedConfig, spec: TrialSpec) -> dict[str, Any]:
+    """The closed loop at one setting; with a PTU setting, its main sequence too."""
+    p = dict(spec.params)
+    out = _closed_loop(cfg, p, spec.seed)
+    if p["factor"] in PTU_FACTORS:
+        ptu = ptu_for(float(p["speed_pos_s"]), float(p["accel_pos_s2"]))
+        out |= _main_sequence(cfg, ptu, spec.seed)
+    return out
+
+
+def grid(cfg: SaccadeSpeedConfig) -> list[dict[str, Any]]:
+    """The baseline, then each factor's other values with the rest at the baseline."""
+    base = baseline()
+    rows: list[dict[str, Any]] = [{"factor": "baseline", **base}]
+    for factor, (column, field_name) in FACTORS.items():
+        for v in getattr(cfg, field_name):
+            if v != base[column]:
+                rows.append({**{"factor": factor}, **base, column: v})
+    return rows
+
+
+# ----------------------------------------------------------------------------------------
+# Summary and plots
+
+
+def _value(row: Row) -> tuple[str, Any]:
+    factor = str(row["factor"])
+    if factor == "baseline":
+        return "baseline", ""
+    return factor, row[FACTORS[factor][0]]
+
+
+def _fmt(v: float, spec: str) -> str:
+    return "—" if math.isnan(v) else format(v, spec)
+
+
+def compare(cfg: SaccadeSpeedConfig, rows: list[Row]) -> list[Comparison]:
+    """Each setting's measures (the paper gives none: future work), and the paper's
+    124 ms decision latency beside ours."""
+    out = [
+        Comparison(
+            "latency to the salient point",
+            "0.124 s (St_w), then the saccade",
+            f"{cfg.window_s:g} s window + time to foveate "
+            f"{_fmt(mean_std(float(r['time_to_foveate_s']) for r in rows)[0], '.2f')} s "
+            "(mean over settings)",
+        )
+    ]
+    for r in rows:
+        factor, v = _value(r)
+        label = "baseline (paper's values)" if factor == "baseline" else f"{factor} = {v}"
+        ours = (
+            f"foveate {_fmt(float(r['time_to_foveate_s']), '.2f')} s, error "
+            f"{_fmt(float(r['foveation_error_x_px']), '.2f')}/"
+            f"{_fmt(float(r['foveation_error_y_px']), '.2f')} px (x/y), detection "
+            f"{_fmt(100 * float(r['detection_accuracy']), '.0f')} %, "
+            f"{float(r['events_per_s']) / 1e6:.2f} M events/s"
+        )
+        if not math.isnan(float(r.get("ms_peak_velocity_max_deg_s", math.nan))):
+            ours += (
+                f"; main sequence: peak {float(r['ms_peak_velocity_max_deg_s']):.1f} °/s, "
+                f"largest saccade {float(r['ms_duration_max_s']):.2f} s"
+            )
+        out.append(Comparison(label, "— (future work)" if not out[1:] else "″", ours))
+    return out
+
+
+def plot(cfg: SaccadeSpeedConfig, rows: list[Row], results_dir: Path, fig_dir: Path) -> list[Path]:
+    """The main sequence (amplitude vs peak velocity and duration) per PTU setting, with
+    the PTU's trapezoid; and each measure against each factor."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    amps = np.linspace(0.5, max(cfg.main_sequence_amplitudes_deg), 100)
+    k = 0
+    for r in rows:
+        if str(r["factor"]) not in PTU_FACTORS or r["repeat"] != 0:
+            continue
+        arts = load_artifacts(results_dir, r)
+        if "ms_amplitude_deg" not in arts:
+            continue
+        ptu = ptu_for(float(r["speed_pos_s"]), float(r["accel_pos_s2"]))
+        label = (
+            f"{ptu.pan_speed * ptu.pan_deg_per_pos:.0f} °/s, "
+            f"{ptu.pan_accel * ptu.pan_deg_per_pos:.0f} °/s²"
+        )
+        v, t = theory_main_sequence(amps, ptu)
+        c = f"C{k}"
+        ms_amp = arts["ms_amplitude_deg"]
+        mk = dict(color=c, marker="osD^v<>p"[k % 8], ls="none", mfc="none" if k == 0 else c)
+        axes[0].plot(ms_amp, arts["ms_peak_velocity_deg_s"], label=label, **mk)
+        axes[0].plot(amps, v, "--", color=c, lw=0.8)
+        axes[1].plot(ms_amp, arts["ms_duration_s"], label=label, **mk)
+        axes[1].plot(amps, t, "--", color=c, lw=0.8)
+        k += 1
+    axes[0].set(xlabel="saccade amplitude (°)", ylabel="peak velocity (°/s)")
+    axes[0].set_title("main sequence (dashed: the PTU's trapezoid)")
+    axes[1].set(xlabel="saccade amplitude (°)", ylabel="duration (s)", title="saccade duration")
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    ms_path = fig_dir / "main_sequence.png"
+    fig.savefig(ms_path, dpi=110)
+    plt.close(fig)
+
+    metrics = [
+        ("time_to_foveate_s", "time to foveate (s)"),
+        ("foveation_error_x_px", "foveation error (px): x, y"),
+        ("detection_accuracy", "detection accuracy"),
+        ("events_per_s", "events / s"),
+    ]
+    base = [r for r in rows if r["factor"] == "baseline"]
+    fig, axes = plt.subplots(
+        len(metrics), len(FACTORS), figsize=(3.0 * len(FACTORS), 2.4 * len(metrics)), squeeze=False
+    )
+    for j, (factor, (column, _)) in enumerate(FACTORS.items()):
+        sel = base + [r for r in rows if r["factor"] == factor]
+        xs = sorted({float(r[column]) for r in sel})
+        for i, (key, label) in enumerate(metrics):
+            ys = [mean_std(float(r[key]) for r in sel if float(r[column]) == x)[0] for x in xs]
+            ax = axes[i, j]
+            ax.plot(xs, ys, "o-")
+            if key == "foveation_error_x_px":
+                y2 = [
+                    mean_std(
+                        float(r["foveation_error_y_px"]) for r in sel if float(r[column]) == x
+                    )[0]
+                    for x in xs
+                ]
+                ax.plot(xs, y2, "s--")
+            if i == len(metrics) - 1:
+                ax.set_xlabel(column)
+            if j == 0:
+                ax.set_ylabel(label, fontsize=8)
+            if i == 0:
+                ax.set_title(factor, fontsize=9)
+    fig.tight_layout()
+    sweep_path = fig_dir / "saccade_speed.png"
+    fig.savefig(sweep_path, dpi=110)
+    plt.close(fig)
+    return [ms_path, sweep_path]
+
+
+EXPERIMENT = Experiment(
+    name="saccade_speed",
+    description=(
+        "One factor at a time around the paper's values: PTU speed and acceleration, "
+        "fixational step amplitude and count, object speed; time to foveate, foveation "
+        "error, detection accuracy and events per second in the office scene, and the "
+        "main sequence (saccade amplitude vs peak velocity and duration)."
+    ),
+    config_type=SaccadeSpeedConfig,
+    grid=grid,
+    run_trial=run_trial,
+    plot=plot,
+    compare=compare,
+)
