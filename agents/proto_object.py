@@ -94,6 +94,18 @@ class ProtoObjectParams:
     ``orientations_deg`` are the ``θ`` (their opposites ``θ + 180°`` are added);
     ``dt`` is the step length in seconds; ``vm_tol`` truncates the von Mises kernels
     where ``1/I0`` has fallen below that fraction of its peak.
+
+    ``border`` says what lies beyond the sensor's edge in Eq. (3). ``"zero"`` (zero
+    padding) reads it as "no events", so the image frame itself becomes a contour that
+    owns the whole image: on spatially uniform noise the saliency then peaks
+    ≈ R0·2^s px from the image corners (s the coarsest level) instead of anywhere.
+    ``"unknown"`` (default) reads it as unobserved: the excitatory and the inhibitory
+    sums of Eq. (3) are each divided by the fraction of their kernel that lies on the
+    sensor (normalised convolution), and a border-ownership cell whose excitatory or
+    inhibitory field has less than ``min_coverage`` of its mass on the sensor gets no
+    drive (it cannot tell which side owns the border). Where a kernel lies wholly on
+    the sensor both are identical (for the coarsest level of a 128-px sensor that is
+    only its middle).
     """
 
     r0: float = 8.0
@@ -107,8 +119,14 @@ class ProtoObjectParams:
     spike_threshold: float = 1.0
     vm_tol: float = 0.01
     conv: Literal["fft", "direct"] = "fft"
+    border: Literal["unknown", "zero"] = "unknown"
+    min_coverage: float = 0.75
 
     def __post_init__(self) -> None:
+        if self.border not in ("unknown", "zero"):
+            raise ValueError(f"border must be 'unknown' or 'zero', got {self.border!r}")
+        if not 0.0 < self.min_coverage <= 1.0:
+            raise ValueError(f"min_coverage must be in (0, 1], got {self.min_coverage}")
         if self.levels < 1:
             raise ValueError(f"levels must be >= 1, got {self.levels}")
         if not self.orientations_deg:
@@ -190,6 +208,26 @@ def saliency_argmax(saliency: torch.Tensor) -> tuple[int, int] | None:
     return int(xs[i]), int(ys[i])
 
 
+def _conv(
+    weight: torch.Tensor, h: int, w: int, kind: str, groups: int = 1, flip: bool = False
+) -> FFTConv2d | _DirectConv2d:
+    """A 'same' convolution of ``weight`` on an ``h``×``w`` grid, by FFT or directly."""
+    if kind == "fft":
+        return FFTConv2d(weight, h, w, groups=groups, flip=flip)
+    return _DirectConv2d(weight, groups=groups, flip=flip)
+
+
+def _coverage_gain(
+    weight: torch.Tensor, valid: torch.Tensor, min_coverage: float, kind: str
+) -> torch.Tensor:
+    """Per output channel and pixel: 1 / (fraction of the kernel's absolute mass lying on
+    ``valid`` sensor pixels), or 0 where that fraction is below ``min_coverage``."""
+    mag = weight.abs()
+    mass = mag.sum(dim=(1, 2, 3)).clamp_min(1e-12).view(1, -1, 1, 1)
+    cover = _conv(mag, *valid.shape[-2:], kind)(valid) / mass
+    return torch.where(cover >= min_coverage, 1.0 / cover.clamp_min(min_coverage), 0.0)
+
+
 class _DirectConv2d:
     """``conv2d(padding='same')`` with the call signature of :class:`FFTConv2d`."""
 
@@ -223,6 +261,9 @@ class ProtoObjectSaliency:
         p = self.params
         self.bank = von_mises_bank(p)
         self._bo_weight = border_weights(self.bank, p.w, p.polarity_split)
+        # Eq. (3) split into its excitatory and inhibitory halves (border "unknown").
+        self._exc_weight = border_weights(self.bank, 0.0, p.polarity_split)
+        self._inh_weight = self._bo_weight - self._exc_weight
         self._g_weight = grouping_weights(self.bank)
         self.border_lif = lif_layer(p.tau_mem, p.dt, p.spike_threshold)
         self.grouping_lif = lif_layer(p.tau_mem, p.dt, p.spike_threshold)
@@ -250,14 +291,24 @@ class ProtoObjectSaliency:
             (self._padded[0] // 2**s, self._padded[1] // 2**s) for s in range(p.levels)
         ]
         self._bo_conv: list[FFTConv2d | _DirectConv2d] = []
+        self._exc_conv: list[FFTConv2d | _DirectConv2d] = []
+        self._inh_conv: list[FFTConv2d | _DirectConv2d] = []
         self._g_conv: list[FFTConv2d | _DirectConv2d] = []
         for hs, ws in self._level_shapes:
-            if p.conv == "fft":
-                self._bo_conv.append(FFTConv2d(self._bo_weight, hs, ws))
-                self._g_conv.append(FFTConv2d(self._g_weight, hs, ws, groups=2, flip=True))
+            if p.border == "zero":
+                self._bo_conv.append(_conv(self._bo_weight, hs, ws, p.conv))
             else:
-                self._bo_conv.append(_DirectConv2d(self._bo_weight))
-                self._g_conv.append(_DirectConv2d(self._g_weight, groups=2, flip=True))
+                self._exc_conv.append(_conv(self._exc_weight, hs, ws, p.conv))
+                self._inh_conv.append(_conv(self._inh_weight, hs, ws, p.conv))
+            self._g_conv.append(_conv(self._g_weight, hs, ws, p.conv, groups=2, flip=True))
+        # Per level: the gains of the excitatory and inhibitory sums (border "unknown").
+        self._gain: list[tuple[torch.Tensor, torch.Tensor]] = []
+        if p.border == "unknown":
+            for valid in self._levels(torch.ones(2, h, w)):
+                g_exc = _coverage_gain(self._exc_weight, valid, p.min_coverage, p.conv)
+                g_inh = _coverage_gain(self._inh_weight, valid, p.min_coverage, p.conv)
+                known = (g_exc > 0) & (g_inh > 0)
+                self._gain.append((g_exc * known, g_inh * known))
         n_bo = self._bo_weight.shape[0]
         self._bo_sizes = [n_bo * hs * ws for hs, ws in self._level_shapes]
         self.border_lif.init_state_with_shape((1, sum(self._bo_sizes)))
@@ -299,7 +350,12 @@ class ProtoObjectSaliency:
         currents = []
         for s, v in enumerate(levels):
             gate = v.amax(dim=1, keepdim=True)
-            currents.append((gate * self._bo_conv[s](v)).reshape(-1))
+            if self.params.border == "zero":
+                drive = self._bo_conv[s](v)
+            else:
+                g_exc, g_inh = self._gain[s]
+                drive = self._exc_conv[s](v) * g_exc + self._inh_conv[s](v) * g_inh
+            currents.append((gate * drive).reshape(-1))
         spikes = self.border_lif(torch.cat(currents)[None, None])[0, 0]
         # Grouping currents, Eq. (4), pooled over orientations and levels.
         group = torch.zeros(1, 4, *self._padded)

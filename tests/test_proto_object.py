@@ -207,3 +207,49 @@ def test_pipeline_attends_to_the_object_moving_against_the_background(params):
 
     assert hit_rate(1, 3) >= 0.9
     assert hit_rate(3, 1) <= 0.1
+
+
+def test_unknown_border_removes_the_corner_bias_on_uniform_noise():
+    """Zero padding makes the sensor's frame a contour: on uniform noise the argmax sits
+    ≈ R0·4 px from a corner; with the border 'unknown' it lands anywhere."""
+    spots = np.array([(34, 34), (34, 93), (93, 34), (93, 93)])
+    rng = np.random.default_rng(0)
+    maps = [(rng.random((2, 128, 128)) < 0.05).astype(np.float32) for _ in range(10)]
+
+    def near_spots(border: str) -> int:
+        po = ProtoObjectSaliency(ProtoObjectParams(dt=0.13, border=border))
+        n = 0
+        for m in maps:
+            po.reset()
+            po.step(m)
+            d = np.hypot(*(spots - np.array(po.argmax())).T).min()
+            n += bool(d <= 6)
+        return n
+
+    assert near_spots("zero") >= 9
+    assert near_spots("unknown") <= 2
+
+
+def test_border_handling_changes_nothing_where_kernels_lie_on_the_sensor():
+    """One level: every kernel (radius 15) around a square in the middle lies on the
+    sensor, so both borders give the same map; with 3 levels the coarse kernels reach
+    the edge and the maps differ, but the peak stays where it was, inside the square."""
+    oms = square(128, 128, 64, 64, 12)
+    for levels in (1, 3):
+        maps, peaks = [], []
+        for border in ("zero", "unknown"):
+            po = ProtoObjectSaliency(ProtoObjectParams(border=border, levels=levels))
+            for _ in range(3):
+                out = po.step(oms)
+            maps.append(out.saliency)
+            peaks.append(np.array(po.argmax()))
+        if levels == 1:
+            assert torch.allclose(maps[0], maps[1], atol=1e-3)
+        assert np.array_equal(peaks[0], peaks[1]) and np.abs(peaks[0] - 64).max() < 12, peaks
+
+
+def test_border_parameters_are_validated():
+    with pytest.raises(ValueError, match="border must be 'unknown' or 'zero'"):
+        ProtoObjectParams(border="reflect")
+    with pytest.raises(ValueError, match="min_coverage"):
+        ProtoObjectParams(min_coverage=0.0)
