@@ -18,9 +18,11 @@ The agent is a two-phase state machine, stepped once per env step (``step_s``)::
 * **SACCADE.** ``P`` is held as the sAC's target (nengo, stepped in lockstep with the
   env: ``step_s`` of controller time per env step, also while fixating). The decoded
   ``u`` (action units, ``u ≈ (P − c)/(W/2, H/2)`` once settled) is the *total* gaze shift
-  wanted; because the env integrates relative actions, the agent sends each step the
-  change of the wanted shift **in angle** (``atan(u·W/2 / f)`` now minus before), so the
-  PTU target ends at the angle of ``P`` whatever the controller's transient. The phase
+  wanted, turned into the exact pan-tilt rotation that centres that pixel offset
+  (:func:`agents.fixation.pixel_to_rotation`, at the tilt the saccade starts from);
+  because the env integrates relative actions, the agent sends each step the change of
+  that rotation, so the PTU target ends on ``P``'s ray whatever the controller's
+  transient. The phase
   ends when ``saccade_settle_s`` has passed and the PTU reports it is no longer moving
   (``info["moving"]``); the sOMS and proto-object states are then reset (the saccade's
   event burst is not integrated, like saccadic suppression) and a new fixation starts.
@@ -57,8 +59,8 @@ from agents.control import AttentionController, ControlParams
 from agents.fixation import (
     FixationalMovements,
     FixationParams,
-    action_to_gaze_degrees,
     gaze_degrees_to_action,
+    pixel_to_rotation,
 )
 from agents.proto_object import ProtoObjectParams, ProtoObjectSaliency
 from agents.soms import SOMS, SOMSParams
@@ -405,9 +407,13 @@ class AttentionAgent:
         self._saccade_elapsed += p.step_s
         if self._saccade_elapsed > p.saccade_settle_s + _EPS:
             return np.zeros(2, np.float32)  # the command is complete; wait for the PTU
+        u = np.clip(u, -1.0, 1.0)
         want = np.array(
-            action_to_gaze_degrees(np.clip(u, -1.0, 1.0), p.width_px, p.height_px, p.hfov_deg)
-        )
+            pixel_to_rotation(
+                u[0] * p.width_px / 2, u[1] * p.height_px / 2, self._from_target[1],
+                p.width_px, p.hfov_deg,
+            )
+        )  # fmt: skip
         delta = want - self._sent_deg
         self._sent_deg = want
         return _clip(gaze_degrees_to_action(*delta, p.width_px, p.height_px, p.hfov_deg))
@@ -415,11 +421,8 @@ class AttentionAgent:
     def _ideal_deg(self) -> tuple[float, float]:
         p = self.params
         x, y = self.target
-        err = (
-            (x - (p.width_px - 1) / 2) / (p.width_px / 2),
-            (y - (p.height_px - 1) / 2) / (p.height_px / 2),
-        )
-        return action_to_gaze_degrees(err, p.width_px, p.height_px, p.hfov_deg)
+        dx, dy = x - (p.width_px - 1) / 2, y - (p.height_px - 1) / 2
+        return pixel_to_rotation(dx, dy, self._from_target[1], p.width_px, p.hfov_deg)
 
     def _fixate_first_step(self) -> np.ndarray:
         """The action of the step that starts a fixation (its first walk step)."""

@@ -50,6 +50,7 @@ __all__ = [
     "draw_perturbations",
     "fold_into_bound",
     "gaze_degrees_to_action",
+    "pixel_to_rotation",
     "positions_to_action",
 ]
 
@@ -100,6 +101,37 @@ def action_to_gaze_degrees(
     pan = -math.degrees(math.atan(ax * (width_px / 2.0) / f)) + 0.0  # no -0.0
     tilt = -math.degrees(math.atan(ay * (height_px / 2.0) / f)) + 0.0
     return pan, tilt
+
+
+def pixel_to_rotation(
+    dx_px: float,
+    dy_px: float,
+    tilt_deg: float,
+    width_px: int = 128,
+    hfov_deg: float = SPECK_HFOV_DEG,
+) -> tuple[float, float]:
+    """The pan-tilt rotation (degrees, PTU signs) that brings the ray through the pixel
+    offset ``(dx, dy)`` from the principal point (x right, y down) onto the optical axis,
+    for a camera at tilt ``tilt_deg`` (pan does not matter: it is about the vertical).
+
+    Exact for a camera rotating about its optical centre: the ray
+    ``f·forward + dx·right − dy·up`` gets pan ``atan2(−dx, f cos φ + dy sin φ)`` and
+    elevation ``atan2(f sin φ − dy cos φ, ‖horizontal part‖)``. Converting each axis on
+    its own (``atan(dx/f)``, ``atan(dy/f)``) is only right near the centre: for a corner
+    pixel of the 113° Speck view it overshoots the tilt by ≈ 14°.
+
+    >>> pan, tilt = pixel_to_rotation(56.0, -43.0, 0.0)  # right and up, camera level
+    >>> round(pan, 1), round(tilt, 1)
+    (-52.8, 31.5)
+    """
+    f = focal_length_px(width_px, hfov_deg)
+    phi = math.radians(tilt_deg)
+    x = f * math.cos(phi) + dy_px * math.sin(phi)
+    y = -dx_px
+    z = f * math.sin(phi) - dy_px * math.cos(phi)
+    pan = math.degrees(math.atan2(y, x))
+    tilt = math.degrees(math.atan2(z, math.hypot(x, y)))
+    return pan + 0.0, tilt - tilt_deg + 0.0
 
 
 def positions_to_action(

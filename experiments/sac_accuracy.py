@@ -13,11 +13,12 @@ to saccade to the pixel (:meth:`agents.attention.AttentionAgent.saccade_to`: the
 sAC drives the PTU) and, once the saccade has settled, the world point is projected back
 into the image (:func:`wander_env.renderer.project_points`): its offset from the fovea
 ``((W − 1)/2, (H − 1)/2)`` is the displacement ``(dx, dy)`` in pixels — the paper's
-measure, with the sAC's decoding error, the PTU's quantisation, its backlash, the
-parallax of a camera that sits off the rotation axes and the per-axis pinhole conversion
-(:func:`per_axis_tilt_error_px`: up to ≈1.2 px of vertical error at the corners of the
-target range, none horizontally) all in it. The row also gives the part the reached
-camera angles explain (``angle_error_*_px``) and the per-axis conversion's part.
+measure, with the sAC's decoding error, the PTU's quantisation, its backlash and the
+parallax of a camera that sits off the rotation axes all in it. The row also gives the
+part the reached camera angles explain (``angle_error_*_px``). (The agent turns the
+pixel offset into the exact pan-tilt rotation, :func:`agents.fixation.pixel_to_rotation`;
+converting each axis on its own would add up to ≈1.2 px of vertical error at the corners
+of the target range.)
 
 Two PTU conditions on the same targets (repeat r has seed + r in both):
 
@@ -59,7 +60,6 @@ __all__ = [
     "SacAccuracyConfig",
     "cast_pixel",
     "draw_target",
-    "per_axis_tilt_error_px",
     "pixel_ray",
     "ptu_for_condition",
 ]
@@ -143,23 +143,6 @@ def draw_target(
     x = int(rng.integers(math.ceil(cx - range_x_px), math.floor(cx + range_x_px) + 1))
     y = int(rng.integers(math.ceil(cy - range_y_px), math.floor(cy + range_y_px) + 1))
     return x, y
-
-
-def per_axis_tilt_error_px(
-    xy: tuple[float, float], f_px: float, width: int = 128, height: int = 128
-) -> float:
-    """Vertical displacement (px, + = down) that the per-axis pinhole conversion leaves
-    with a perfect PTU starting level: the env and the sAC turn a pixel offset
-    ``(dx, dy)`` into pan ``atan(dx/f)`` and tilt ``atan(dy/f)``, but once panned the tilt
-    that centres the point is ``atan(dy/√(f² + dx²))``, so off the vertical midline the
-    tilt overshoots and the point lands beyond the fovea's row (pan is exact).
-
-    >>> round(per_axis_tilt_error_px((80, 66), 42.5), 3)
-    -0.169
-    """
-    dx, dy = xy[0] - (width - 1) / 2.0, xy[1] - (height - 1) / 2.0
-    over = math.atan(dy / f_px) - math.atan(dy / math.hypot(f_px, dx))
-    return -f_px * math.tan(over)
 
 
 def pixel_ray(
@@ -264,7 +247,6 @@ def run_trial(cfg: SacAccuracyConfig, spec: TrialSpec) -> dict[str, Any]:
         # parallax in it): the point moves opposite to the gaze's overshoot.
         "angle_error_x_px": float(degrees_to_pixels(err[0], w, hfov)),
         "angle_error_y_px": float(degrees_to_pixels(err[1], w, hfov)),
-        "per_axis_tilt_error_px": per_axis_tilt_error_px(target, base.f_px, w, h),
         "clipped": clipped,
     }
 
@@ -312,8 +294,7 @@ def compare(cfg: SacAccuracyConfig, rows: list[Row]) -> list[Comparison]:
                 f"sources of the error, {c} PTU",
                 "tilt play/backlash and the camera's offset from the tilt hinge" if i == 0 else "″",
                 f"camera angles reached vs ideal {mean_abs('angle_error_x_px'):.2f} / "
-                f"{mean_abs('angle_error_y_px'):.2f} px (x / y: sAC decoding, PTU steps, play); "
-                f"per-axis pinhole conversion {mean_abs('per_axis_tilt_error_px'):.2f} px (y only)",
+                f"{mean_abs('angle_error_y_px'):.2f} px (x / y: sAC decoding, PTU steps, play)",
                 "means of absolute values",
             )
         )

@@ -55,12 +55,10 @@ def test_ideal_ptu_foveates_within_two_pixels():
     row = run_spec(spec)
     assert (row["target_x_px"], row["target_y_px"]) == (80, 66)
     assert row["displacement_px"] < 2.0 and not row["clipped"]
-    # With the camera on the rotation axes the reached angles explain x; y adds the
-    # per-axis conversion's tilt overshoot (the target is 16.5 px right of the midline).
+    # With the camera on the rotation axes and the exact pan-tilt rotation, the reached
+    # angles explain the whole displacement, in x and in y.
     assert row["dx_px"] == pytest.approx(row["angle_error_x_px"], abs=0.01)
-    assert row["per_axis_tilt_error_px"] == pytest.approx(-0.169, abs=1e-3)
-    expected_dy = row["angle_error_y_px"] + row["per_axis_tilt_error_px"]
-    assert row["dy_px"] == pytest.approx(expected_dy, abs=0.01)
+    assert row["dy_px"] == pytest.approx(row["angle_error_y_px"], abs=0.01)
 
 
 def test_tilt_backlash_shifts_the_target_vertically_by_half_the_play():
