@@ -128,9 +128,13 @@ def run_agent(
         task = bar.add_task(f"agent in {scene}", total=round(seconds / 0.01))
         result = run_loop(out, config, progress=lambda i, n: bar.update(task, completed=i, total=n))
     m = result.metrics
+    detection = (
+        f"detection accuracy {m['detection_accuracy']:.0%} ({m['decisions_scored']} scored)"
+        if m["decisions_scored"]
+        else "no moving object in view to score"
+    )
     console.print(
-        f"{m['decisions']} decisions, {m['saccades']} saccades, detection accuracy "
-        f"{m['detection_accuracy']:.0%} ({m['decisions_scored']} scored), sOMS suppression "
+        f"{m['decisions']} decisions, {m['saccades']} saccades, {detection}, sOMS suppression "
         f"{m['soms_suppression']:.1%}, real-time factor {m['real_time_factor']:.2f} -> {out}"
     )
 
