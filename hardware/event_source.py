@@ -58,6 +58,11 @@ class EventSource(Protocol):
         """End of the last window read (source time, µs)."""
         ...
 
+    def now_us(self) -> int:
+        """Source time the source has reached now (µs; a file played as fast as possible:
+        the cursor). ``read(until_t_us=now_us())`` drains what is there without waiting."""
+        ...
+
     def start(self) -> None:
         """Open the device or file and set the source clock to 0."""
         ...
@@ -99,6 +104,9 @@ class EventSourceBase(ABC):
     @property
     def closed(self) -> bool:
         return self._closed
+
+    @abstractmethod
+    def now_us(self) -> int: ...
 
     @abstractmethod
     def start(self) -> None: ...

@@ -520,7 +520,7 @@ class RigEnv(gym.Env):
             self.settle()
         cam = self.camera
         try:
-            now = max(cam.cursor_us, int(getattr(cam, "now_us", lambda: cam.cursor_us)()))
+            now = max(cam.cursor_us, cam.now_us())
             self._discarded_at_reset = len(cam.read(until_t_us=now))
         except BaseException:
             self._halt_after_failure()
@@ -556,8 +556,7 @@ class RigEnv(gym.Env):
             raise
         self._steps += 1
         self._raise_if_faulted()
-        now = getattr(cam, "now_us", None)
-        lag_s = max(0.0, (now() - cam.cursor_us) * 1e-6) if now is not None else 0.0
+        lag_s = max(0.0, (cam.now_us() - cam.cursor_us) * 1e-6)
         self._last_counts = to_frame(events, self.sensor_size)
         info = self._info(events, clipped, lag_s)  # one snapshot: gaze and `moving` agree
         pan, tilt = self._link.to_degrees(info["ptu_positions"])
