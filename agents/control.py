@@ -50,6 +50,7 @@ import nengo
 import numpy as np
 
 from agents.fixation import action_to_gaze_degrees
+from wander_env.closing import Closing
 from wander_env.metrics import SPECK_HFOV_DEG
 from wander_env.ptu import FLIR_RESOLUTION_ARCSEC, positions_to_degrees
 
@@ -207,7 +208,7 @@ class ControlParams:
 # Controller
 
 
-class AttentionController:
+class AttentionController(Closing):
     """The sAC network (2 × ``n_neurons`` LIF), stepped in lockstep with the env.
 
     ``step(P, duration_s)`` sets the target pixel ``P`` (held constant over the step),
@@ -328,9 +329,3 @@ class AttentionController:
     def close(self) -> None:
         """Release the simulator."""
         self.sim.close()
-
-    def __enter__(self) -> AttentionController:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

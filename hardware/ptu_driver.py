@@ -38,11 +38,11 @@ import re
 import threading
 import time
 from dataclasses import dataclass
-from types import TracebackType
 from typing import Any
 
 import serial
 
+from wander_env.closing import Closing
 from wander_env.ptu import degrees_to_positions, positions_to_degrees, round_position
 
 # A standalone number: not glued to a letter, ``^`` or ``.`` (so "sec^2" or "v2.14" don't count).
@@ -272,7 +272,7 @@ def open_port(url: str, params: FlirPTUParams | None = None) -> serial.SerialBas
         raise PTUPortError(f"PTU port {url!r} could not be opened ({exc})") from exc
 
 
-class FlirPTU:
+class FlirPTU(Closing):
     """A FLIR PTU on a serial port; angles in degrees, speeds in °/s, accelerations in °/s².
 
     Opening initialises the unit (terse, no echo, independent speed control, immediate
@@ -614,17 +614,6 @@ class FlirPTU:
             finally:
                 self._closed = True
                 self._port.close()
-
-    def __enter__(self) -> FlirPTU:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     def __repr__(self) -> str:
         state = "open" if self.is_open else "closed"

@@ -34,11 +34,11 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import contextlib
 import math
 from dataclasses import dataclass
-from types import TracebackType
 
 import mujoco
 import numpy as np
 
+from wander_env.closing import Closing
 from wander_env.mjcf import CAMERA_NAME, geom_object_ids
 
 
@@ -58,7 +58,7 @@ class RenderParams:
     visible_geom_groups: tuple[int, ...] = (0, 1, 2)  # the PTU's own geoms are group 3
 
 
-class CameraRenderer:
+class CameraRenderer(Closing):
     """RGB and segmentation frames from one camera of a model; close() when done.
 
     It drives MuJoCo's renderer directly (one GL context, ``mjv_updateScene``,
@@ -214,17 +214,6 @@ class CameraRenderer:
                 con.free()
             self._gl.free()
             self._gl = None
-
-    def __enter__(self) -> CameraRenderer:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     def __del__(self) -> None:
         with contextlib.suppress(Exception):  # interpreter shutdown: nothing to report to
