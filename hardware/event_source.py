@@ -31,6 +31,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from wander_env.closing import Closing
 from wander_env.events import SensorSize
 
 
@@ -85,7 +86,7 @@ class EventSource(Protocol):
     ) -> None: ...
 
 
-class EventSourceBase(ABC):
+class EventSourceBase(Closing, ABC):
     """Context manager, state checks and window arithmetic shared by the sources."""
 
     def __init__(self) -> None:
@@ -121,14 +122,6 @@ class EventSourceBase(ABC):
             self.close()
             raise
         return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     def _check_running(self) -> None:
         name = type(self).__name__
