@@ -39,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wander_env.actions import action_to_gaze_degrees, gaze_degrees_to_action
 from wander_env.metrics import SPECK_HFOV_DEG, focal_length_px
 from wander_env.ptu import FLIR_RESOLUTION_ARCSEC, positions_to_degrees
 
@@ -57,50 +58,6 @@ __all__ = [
 
 # ----------------------------------------------------------------------------------------
 # Pure maths
-
-
-def gaze_degrees_to_action(
-    pan_deg: float,
-    tilt_deg: float,
-    width_px: int = 128,
-    height_px: int = 128,
-    hfov_deg: float = SPECK_HFOV_DEG,
-) -> np.ndarray:
-    """Relative PTU rotation (degrees, PTU signs) -> env action units ``(x, y)``.
-
-    ``x = f·tan(−pan) / (W/2)``, ``y = f·tan(−tilt) / (H/2)`` with ``f`` the pinhole
-    focal length in pixels (square pixels: the same ``f`` on both axes). Not clipped.
-
-    >>> a = gaze_degrees_to_action(-1.0, 0.0)  # pan right by 1° -> look right
-    >>> round(float(a[0]), 6), float(a[1])
-    (0.011591, 0.0)
-    """
-    f = focal_length_px(width_px, hfov_deg)
-    dx = f * math.tan(math.radians(-pan_deg))
-    dy = f * math.tan(math.radians(-tilt_deg))
-    return np.array([dx / (width_px / 2.0), dy / (height_px / 2.0)]) + 0.0  # no -0.0
-
-
-def action_to_gaze_degrees(
-    action: np.ndarray | tuple[float, float],
-    width_px: int = 128,
-    height_px: int = 128,
-    hfov_deg: float = SPECK_HFOV_DEG,
-) -> tuple[float, float]:
-    """Env action units ``(x, y)`` -> relative ``(pan_deg, tilt_deg)`` in PTU signs.
-
-    The pixel offset ``d = a·(W/2, H/2)`` is the angle ``atan(d / f)``; look right
-    (x > 0) is a negative pan, look down (y > 0) a negative tilt.
-
-    >>> pan, tilt = action_to_gaze_degrees((1.0, 0.0))  # to the right edge: half the HFOV
-    >>> round(pan, 4), tilt
-    (-56.4134, 0.0)
-    """
-    ax, ay = (float(v) for v in np.asarray(action, dtype=np.float64).reshape(2))
-    f = focal_length_px(width_px, hfov_deg)
-    pan = -math.degrees(math.atan(ax * (width_px / 2.0) / f)) + 0.0  # no -0.0
-    tilt = -math.degrees(math.atan(ay * (height_px / 2.0) / f)) + 0.0
-    return pan, tilt
 
 
 def pixel_to_rotation(

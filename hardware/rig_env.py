@@ -4,7 +4,7 @@
 :class:`~wander_env.env.WanderEnv`, so one agent runs on both unchanged:
 
 * action ``Box(-1, 1, (2,))``: a gaze offset in half-sensor units, turned into
-  angles with the pinhole model (:func:`agents.fixation.action_to_gaze_degrees`,
+  angles with the pinhole model (:func:`wander_env.actions.action_to_gaze_degrees`,
   focal length from the sensor width and ``hfov_deg``) and *added* to the PTU's
   current target (clipped to the unit's limits; ``info["target_clipped"]`` says
   so). A NaN, infinite or out-of-range action raises ``ValueError``;
@@ -71,12 +71,12 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 
-from agents.fixation import action_to_gaze_degrees
 from hardware.event_source import EventSource
 from hardware.ptu_driver import FlirPTU, FlirPTUParams, PTUError, PTUTimeout
 from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from hardware.replay import ReplaySource
 from hardware.speck import SpeckParams, SpeckSource
+from wander_env.actions import action_to_gaze_degrees, check_action
 from wander_env.events import empty_events, to_frame
 from wander_env.metrics import SPECK_HFOV_DEG
 from wander_env.ptu import degrees_to_positions, positions_to_degrees, round_position
@@ -569,15 +569,7 @@ class RigEnv(gym.Env):
     # -- helpers ----------------------------------------------------------------------------
 
     def _action_to_degrees(self, action: np.ndarray) -> tuple[float, float]:
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != (2,):
-            raise ValueError(f"action must have shape (2,), got {a.shape}")
-        if not np.isfinite(a).all():
-            raise ValueError(f"action must be finite, got {a.tolist()}")
-        if np.abs(a).max() > 1.0 + 1e-6:
-            raise ValueError(
-                f"action must lie in [-1, 1] (half the field of view), got {a.tolist()}"
-            )
+        a = check_action(action)
         return action_to_gaze_degrees(a, self.width, self.height, self.config.hfov_deg)
 
     def _clip(self, pan_deg: float, tilt_deg: float) -> tuple[tuple[int, int], bool]:

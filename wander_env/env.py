@@ -46,6 +46,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
+from wander_env.actions import action_to_gaze_degrees, check_action
 from wander_env.dvs import DVSEmulator, DVSParams
 from wander_env.events import concatenate, to_frame
 from wander_env.metrics import focal_length_px
@@ -264,19 +265,10 @@ class WanderEnv(gym.Env):
 
     def _command(self, action: np.ndarray) -> bool:
         """Turn a relative gaze action into a PTU target; True when limits clipped it."""
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != (2,):
-            raise ValueError(f"action must have shape (2,), got {a.shape}")
-        if not np.isfinite(a).all():
-            raise ValueError(f"action must be finite, got {a.tolist()}")
-        if np.abs(a).max() > 1.0 + 1e-6:
-            raise ValueError(
-                f"action must lie in [-1, 1] (half the field of view), got {a.tolist()}"
-            )
-        # Pixel offsets -> angles. Positive pan turns left, positive tilt looks up, while
-        # image x points right and y down: both signs flip.
-        d_pan = -math.degrees(math.atan(a[0] * (self.width / 2) / self.f_px))
-        d_tilt = -math.degrees(math.atan(a[1] * (self.height / 2) / self.f_px))
+        # Pixel offsets -> angles (positive pan turns left, positive tilt looks up).
+        d_pan, d_tilt = action_to_gaze_degrees(
+            check_action(action), self.width, self.height, self.scene.camera.hfov_deg
+        )
         # Relative commands are integrated into the target (a zero action keeps the move
         # going); at rest the target is where the camera looks.
         pan0, tilt0 = self.ptu.target_deg
