@@ -245,8 +245,6 @@ class AttentionAgent:
         self.phase = Phase.FIXATE
         self.event_map = np.zeros(self._shape, np.float32)
         self.oms_map = np.zeros(self._shape, np.float32)
-        self.step_event_map = np.zeros(self._shape, np.float32)
-        self.step_oms_map = np.zeros(self._shape, np.float32)
         self.saliency: np.ndarray | None = None
         self.target: tuple[int, int] | None = None
         self.decided = False
@@ -292,15 +290,12 @@ class AttentionAgent:
         self.steps += 1
         self.decided = False
 
-        oms = self.soms.step(counts).oms.numpy()
-        self.step_event_map = counts
-        self.step_oms_map = oms
-        n_in, n_oms = int(counts.sum()), int((counts * oms).sum())
-        self.events_in += n_in
-        self.events_oms += n_oms
+        oms_counts = counts * self.soms.step(counts).oms.numpy()  # the events the sOMS keeps
+        self.events_in += int(counts.sum())
+        self.events_oms += int(oms_counts.sum())
 
         if self.phase is Phase.FIXATE:
-            return self._fixate(counts, counts * oms, gaze, t, info)
+            return self._fixate(counts, oms_counts, gaze, t, info)
         return self._saccade(gaze, t, info)
 
     def _fixate(

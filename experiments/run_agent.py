@@ -28,13 +28,14 @@ import csv
 import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from agents.attention import AgentParams, AttentionAgent, Phase
+from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
 from experiments.scanpath_figure import pixel_to_angles, plot_scanpath
 from wander_env.event_io import EventRecording, write_events
@@ -67,10 +68,6 @@ class RunConfig:
             raise ValueError(f"RunConfig.seconds must be > 0, got {self.seconds}")
 
     def agent_params(self, env: Any) -> AgentParams:
-        from dataclasses import replace
-
-        from agents.proto_object import ProtoObjectParams
-
         return AgentParams.for_env(
             env,
             window_s=self.window_s,
@@ -295,9 +292,12 @@ def _write_folder(
     p = agent.params
     f = focal_length_px(p.width_px, p.hfov_deg)
     centre = ((p.width_px - 1) / 2.0, (p.height_px - 1) / 2.0)
+    targets_deg = [
+        pixel_to_angles(fx.target_px, fx.gaze_deg, f, centre) if fx.target_px else None
+        for fx in agent.fixations
+    ]
     fix_rows = []
-    for k, fx in enumerate(agent.fixations):
-        target_deg = pixel_to_angles(fx.target_px, fx.gaze_deg, f, centre) if fx.target_px else None
+    for k, (fx, target_deg) in enumerate(zip(agent.fixations, targets_deg, strict=True)):
         hit = log.hits[k] if k < len(log.hits) else None
         fix_rows.append(
             {
@@ -349,14 +349,8 @@ def _write_folder(
             out_dir / "scanpath.png",
             log.maps[:n],
             [
-                {
-                    "gaze_deg": fx.gaze_deg,
-                    "duration_s": fx.t_end - fx.t_start,
-                    "target_deg": pixel_to_angles(fx.target_px, fx.gaze_deg, f, centre)
-                    if fx.target_px
-                    else None,
-                }
-                for fx in agent.fixations[:n]
+                {"gaze_deg": fx.gaze_deg, "duration_s": fx.t_end - fx.t_start, "target_deg": tg}
+                for fx, tg in zip(agent.fixations[:n], targets_deg, strict=False)
             ],
             f,
             gaze_trace=np.asarray(log.gaze),

@@ -85,10 +85,8 @@ def rig(
     video: Annotated[bool, typer.Option(help="Write run.mp4.")] = True,
 ) -> None:
     """Run the attention agent closed-loop on the rig; write the run folder of `wander run`."""
-    from rich.console import Console
-    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-
     from experiments.rig import RigRunConfig, RigRunError, run_rig
+    from wander_env.cli import _progress, console
 
     try:
         config = RigRunConfig(
@@ -104,14 +102,7 @@ def rig(
         )
     except ValueError as err:
         raise typer.BadParameter(str(err)) from err
-    console = Console()
-    bar = Progress(
-        TextColumn("[bold]{task.description}"),
-        BarColumn(),
-        TextColumn("{task.completed}/{task.total}"),
-        TimeRemainingColumn(),
-        console=console,
-    )
+    bar = _progress()
     try:
         with bar:
             task = bar.add_task(f"agent on the rig ({camera})", total=round(seconds / 0.01))
