@@ -15,14 +15,13 @@ Example:
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any
 
 import numpy as np
 
 from agents.attention import AgentParams, AttentionAgent
 from agents.proto_object import ProtoObjectSaliency
+from experiments.bench_env import timed
 
 
 @dataclass(frozen=True)
@@ -58,20 +57,6 @@ def latency_row(stage: str, seconds: list[float]) -> LatencyRow:
     )
 
 
-def _timed(obj: Any, name: str, bucket: list[float]) -> None:
-    """Replace ``obj.name`` by a wrapper that appends each call's duration to ``bucket``."""
-    fn: Callable[..., Any] = getattr(obj, name)
-
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        t0 = time.perf_counter()
-        try:
-            return fn(*args, **kwargs)
-        finally:
-            bucket.append(time.perf_counter() - t0)
-
-    setattr(obj, name, wrapper)
-
-
 def bench_agent(
     seconds: float = 5.0, scene: str = "office", seed: int = 0, dvs: str = "ideal"
 ) -> tuple[list[LatencyRow], LoopRow]:
@@ -84,12 +69,11 @@ def bench_agent(
         "wander/Wander-v0", scene=scene, dvs=dvs, ground_truth=False, episode_seconds=seconds
     )
     agent = AttentionAgent(AgentParams.for_env(env), seed=seed)
-    t_soms: list[float] = []
-    t_proto: list[float] = []
-    t_ctrl: list[float] = []
-    _timed(agent.soms, "step", t_soms)
-    _timed(agent.proto, "step", t_proto)
-    _timed(agent.controller, "step", t_ctrl)
+    acc: dict[str, list[float]] = {"soms": [], "proto": [], "control": []}
+    agent.soms.step = timed(agent.soms.step, acc, "soms")
+    agent.proto.step = timed(agent.proto.step, acc, "proto")
+    agent.controller.step = timed(agent.controller.step, acc, "control")
+    t_soms, t_proto, t_ctrl = acc["soms"], acc["proto"], acc["control"]
     t_act: list[float] = []
     t_decide: list[float] = []
     t_env: list[float] = []

@@ -105,7 +105,9 @@ class StepBreakdown:
     other_ms: float  # the rest: PTU model, events to counts, info
 
 
-def _timed(fn: Callable[..., Any], acc: dict[str, list[float]], key: str) -> Callable[..., Any]:
+def timed(fn: Callable[..., Any], acc: dict[str, list[float]], key: str) -> Callable[..., Any]:
+    """``fn`` wrapped so that each call's duration (s) is appended to ``acc[key]``."""
+
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         t = time.perf_counter()
         try:
@@ -127,12 +129,12 @@ def step_breakdown(
     env = _make(scene, dvs, True, antialias_samples)()
     u = env.unwrapped
     acc: dict[str, list[float]] = {k: [] for k in ("render", "dvs", "segment", "pose")}
-    u.renderer.render = _timed(u.renderer.render, acc, "render")
-    u.renderer.segment = _timed(u.renderer.segment, acc, "segment")
+    u.renderer.render = timed(u.renderer.render, acc, "render")
+    u.renderer.segment = timed(u.renderer.segment, acc, "segment")
     for name in ("prepare", "log_change", "step"):
         if hasattr(u.dvs, name):  # prepare: since the fused log input
-            setattr(u.dvs, name, _timed(getattr(u.dvs, name), acc, "dvs"))
-    u._pose = _timed(u._pose, acc, "pose")
+            setattr(u.dvs, name, timed(getattr(u.dvs, name), acc, "dvs"))
+    u._pose = timed(u._pose, acc, "pose")
     env.reset(seed=seed)
     action = np.zeros(2, np.float32)
     env.step(action)  # warm-up
