@@ -188,7 +188,7 @@ def run_sequences(
                 continue
             dt = nominal_dt_s(seq.windows)
             dts[key] = dt
-            model = SOMSSaliencyModel(ModelConfig(dt=dt, streamlined=streamlined))
+            model = SOMSSaliencyModel.from_config(ModelConfig(dt=dt, streamlined=streamlined))
             rows.extend(evaluate_sequence(seq, model, protocol, bars, k, n_sequences))
             if bars is not None:
                 bars.sequence_done()
@@ -293,7 +293,9 @@ def run_suppression(
             if progress is not None:
                 task = progress.add_task(f"suppression {name}", total=None)
                 cb = _suppression_callback(progress, task)
-            model = SOMSSaliencyModel(ModelConfig(dt=window_us / 1e6, streamlined=streamlined))
+            model = SOMSSaliencyModel.from_config(
+                ModelConfig(dt=window_us / 1e6, streamlined=streamlined)
+            )
             results.append(event_suppression(events, sensor, model, window_us, cb, name))
     return results
 

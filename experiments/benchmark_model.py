@@ -1,17 +1,28 @@
-"""The model the benchmark streams: sOMS → proto-object saliency, as one :class:`BenchmarkModel`.
+"""The model the benchmarks stream: sOMS → saliency, as one :class:`BenchmarkModel`.
 
-Each call of :meth:`SOMSSaliencyModel.process` takes the per-polarity event counts of
-one step ``(2, H, W)`` and its length ``dt_s``, runs one step of
-:class:`agents.soms.SOMS` and feeds its OMS map (both polarities) to one step of
-:class:`agents.proto_object.ProtoObjectSaliency`. It returns, on the sensor grid:
+Both the real-data benchmarks (``wander benchmark``) and the simulated detection
+experiment (:mod:`experiments.detection`) score this one model. Each call of
+:meth:`SOMSSaliencyModel.process` takes the per-polarity event counts of one step
+``(2, H, W)`` and its length ``dt_s`` and runs one step of :class:`agents.soms.SOMS`;
+its OMS map (both polarities) then makes the saliency map, by one of two routes:
+
+- ``saliency="proto"`` (the paper's pipeline): one step of
+  :class:`agents.proto_object.ProtoObjectSaliency`, ``(G1 − G1*) + (G2 − G2*)`` in
+  spike counts;
+- ``saliency="oms_density"`` (the paper's "need for proto-object" baseline): the OMS
+  map's local density, the sum over polarities smoothed by a Gaussian of
+  ``density_sigma_px`` (zero outside the sensor).
+
+It returns, on the sensor grid:
 
 - ``oms`` — bool ``(H, W)``: pixels where the OMS map fired in either polarity;
 - ``oms_polarity`` — bool ``(2, H, W)``: the OMS map per polarity (0 = OFF, 1 = ON);
-- ``saliency`` — float ``(H, W)``: ``(G1 − G1*) + (G2 − G2*)`` in spike counts;
+- ``saliency`` — float ``(H, W)``;
 - ``point_xy`` — the saliency argmax ``P(x, y)`` (``None`` when nothing is salient).
 
 **Step length.** The LIF time constants are given to sinabs in steps (``tau / dt``).
-The nominal ``dt`` is the dataset's window (:func:`nominal_dt_s`); a call whose
+The nominal ``dt`` is the parameters' ``dt`` (for the real data, the dataset's window:
+:func:`nominal_dt_s`); a call whose
 ``dt_s`` differs (a shorter gap-filling step, an uneven EVIMO window) sets every LIF
 layer's ``tau_mem`` to ``tau / dt_s`` for that step, keeping the membranes, so the decay
 per call is always ``exp(−dt_s / tau)`` (``follow_dt=False`` keeps the nominal one).
@@ -28,12 +39,15 @@ from typing import Literal
 
 import numpy as np
 import torch
+from scipy.ndimage import gaussian_filter
 
-from agents.proto_object import ProtoObjectParams, ProtoObjectSaliency
+from agents.proto_object import ProtoObjectParams, ProtoObjectSaliency, saliency_argmax
 from agents.soms import SOMS, SOMSParams, tau_steps
 from experiments.datasets.base import MaskWindow
 
-__all__ = ["ModelConfig", "OMSSaliencyMaps", "SOMSSaliencyModel", "nominal_dt_s"]
+__all__ = ["ModelConfig", "OMSSaliencyMaps", "SOMSSaliencyModel", "Saliency", "nominal_dt_s"]
+
+Saliency = Literal["proto", "oms_density"]
 
 
 def nominal_dt_s(windows: Sequence[MaskWindow]) -> float:
@@ -103,27 +117,61 @@ def _set_tau_steps(layer: torch.nn.Module, steps: float) -> None:
 
 
 class SOMSSaliencyModel:
-    """sOMS → proto-object saliency behind the benchmark's ``reset``/``process`` interface.
+    """sOMS → saliency behind the benchmark's ``reset``/``process`` interface.
+
+    ``soms`` and ``proto`` are the components' full parameter blocks (their ``dt`` is
+    the nominal step and must agree); ``saliency`` picks the proto-object stage or the
+    OMS-density baseline (module docstring); ``follow_dt`` lets each call's ``dt_s`` set
+    the LIF decay. :meth:`from_config` builds it from a :class:`ModelConfig`.
 
     Example:
-        >>> model = SOMSSaliencyModel(ModelConfig(dt=0.01))
+        >>> model = SOMSSaliencyModel.from_config(ModelConfig(dt=0.01))
         >>> maps = model.process(np.zeros((2, 32, 32), np.float32), 0.01)
         >>> maps.oms.shape, maps.saliency.shape, maps.point_xy
         ((32, 32), (32, 32), None)
     """
 
-    def __init__(self, config: ModelConfig | None = None) -> None:
-        self.config = config or ModelConfig()
-        self.soms = SOMS(self.config.soms_params())
-        self.proto = ProtoObjectSaliency(self.config.proto_params())
-        self._dt = self.config.dt
+    def __init__(
+        self,
+        soms: SOMSParams | None = None,
+        proto: ProtoObjectParams | None = None,
+        *,
+        saliency: Saliency = "proto",
+        density_sigma_px: float = 2.0,
+        follow_dt: bool = True,
+    ) -> None:
+        soms = soms if soms is not None else SOMSParams()
+        proto = proto if proto is not None else ProtoObjectParams(dt=soms.dt)
+        if saliency not in ("proto", "oms_density"):
+            raise ValueError(f"saliency must be 'proto' or 'oms_density', got {saliency!r}")
+        if saliency == "proto" and not math.isclose(soms.dt, proto.dt, rel_tol=1e-9):
+            raise ValueError(
+                f"the sOMS and proto-object steps differ: SOMSParams.dt={soms.dt}, "
+                f"ProtoObjectParams.dt={proto.dt}; the model steps both together"
+            )
+        if not (density_sigma_px > 0 and math.isfinite(density_sigma_px)):
+            raise ValueError(f"density_sigma_px must be a number > 0, got {density_sigma_px}")
+        self.saliency = saliency
+        self.density_sigma_px = float(density_sigma_px)
+        self.follow_dt = follow_dt
+        self.nominal_dt = soms.dt
+        self.soms = SOMS(soms)
+        self.proto = ProtoObjectSaliency(proto) if saliency == "proto" else None
+        self._dt = self.nominal_dt
+
+    @classmethod
+    def from_config(cls, config: ModelConfig | None = None) -> SOMSSaliencyModel:
+        """The model of a :class:`ModelConfig` (the paper's pipeline, as ``wander benchmark``
+        runs it)."""
+        config = config or ModelConfig()
+        return cls(config.soms_params(), config.proto_params(), follow_dt=config.follow_dt)
 
     def _layers(self) -> tuple[tuple[torch.nn.Module, float], ...]:
-        return (
-            (self.soms.lif, self.soms.params.tau_mem),
-            (self.proto.border_lif, self.proto.params.tau_mem),
-            (self.proto.grouping_lif, self.proto.params.tau_mem),
-        )
+        layers = [(self.soms.lif, self.soms.params.tau_mem)]
+        if self.proto is not None:
+            tau = self.proto.params.tau_mem
+            layers += [(self.proto.border_lif, tau), (self.proto.grouping_lif, tau)]
+        return tuple(layers)
 
     def _use_dt(self, dt_s: float) -> None:
         if math.isclose(dt_s, self._dt, rel_tol=1e-9, abs_tol=0.0):
@@ -140,8 +188,9 @@ class SOMSSaliencyModel:
     def reset(self) -> None:
         """Zero every membrane and go back to the nominal step."""
         self.soms.reset()
-        self.proto.reset()
-        self._use_dt(self.config.dt)
+        if self.proto is not None:
+            self.proto.reset()
+        self._use_dt(self.nominal_dt)
 
     def process(self, event_counts: np.ndarray, dt_s: float) -> OMSSaliencyMaps:
         """One step on the event counts ``(2, H, W)`` of ``dt_s`` seconds."""
@@ -150,15 +199,19 @@ class SOMSSaliencyModel:
             raise ValueError(f"event_counts must be (2, H, W), got shape {counts.shape}")
         if not (dt_s > 0 and math.isfinite(dt_s)):
             raise ValueError(f"dt_s must be a positive number of seconds, got {dt_s}")
-        if self.config.follow_dt:
+        if self.follow_dt:
             self._use_dt(float(dt_s))
-        out = self.soms.step(counts)
-        sal = self.proto.step(out.oms)
-        point = self.proto.argmax()
-        oms_pol = out.oms.numpy() > 0
+        oms = self.soms.step(counts).oms
+        if self.proto is not None:
+            sal = self.proto.step(oms).saliency
+        else:
+            dens = gaussian_filter(oms.numpy().sum(axis=0), self.density_sigma_px, mode="constant")
+            sal = torch.from_numpy(np.asarray(dens, np.float32))
+        point = saliency_argmax(sal)
+        oms_pol = oms.numpy() > 0
         return OMSSaliencyMaps(
             oms=oms_pol.any(axis=0),
             oms_polarity=oms_pol,
-            saliency=sal.saliency.numpy().astype(np.float32),
+            saliency=sal.numpy().astype(np.float32),
             point_xy=None if point is None else (float(point[0]), float(point[1])),
         )

@@ -25,15 +25,13 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-import torch
-from scipy.ndimage import gaussian_filter
 
 import wander_env  # noqa: F401  (registers the environments)
 from agents.fixation import gaze_degrees_to_action
-from agents.proto_object import ProtoObjectParams, ProtoObjectSaliency, saliency_argmax
-from agents.soms import SOMS, SOMSParams
+from agents.proto_object import ProtoObjectParams
+from agents.soms import SOMSParams
+from experiments.benchmark_model import SOMSSaliencyModel
 from experiments.benchmark_protocol import (
-    Maps,
     ProtocolConfig,
     WindowRow,
     evaluate_sequence,
@@ -48,7 +46,6 @@ from wander_env.ptu import FLIR_RESOLUTION_ARCSEC, PTUParams
 __all__ = [
     "EXPERIMENT",
     "DetectionConfig",
-    "PipelineModel",
     "SweepPolicy",
     "ptu_for_speed",
 ]
@@ -142,38 +139,6 @@ class SweepPolicy:
 # The model
 
 
-class PipelineModel:
-    """sOMS, then the proto-object saliency argmax (``proto`` given) or the argmax of the
-    OMS map's smoothed density: a :class:`experiments.benchmark_protocol.BenchmarkModel`."""
-
-    def __init__(
-        self,
-        soms: SOMSParams,
-        proto: ProtoObjectParams | None = None,
-        baseline_sigma_px: float = 2.0,
-    ) -> None:
-        self.soms = SOMS(soms)
-        self.proto = ProtoObjectSaliency(proto) if proto is not None else None
-        self.sigma = baseline_sigma_px
-
-    def reset(self) -> None:
-        self.soms.reset()
-        if self.proto is not None:
-            self.proto.reset()
-
-    def process(self, event_counts: np.ndarray, dt_s: float) -> Maps:
-        oms = self.soms.step(event_counts).oms
-        if self.proto is not None:
-            sal = self.proto.step(oms).saliency
-            point = saliency_argmax(sal)
-        else:
-            dens = gaussian_filter(oms.numpy().sum(axis=0), self.sigma, mode="constant")
-            sal = torch.from_numpy(np.asarray(dens, np.float32))
-            point = saliency_argmax(sal)
-        pt = None if point is None else (float(point[0]), float(point[1]))
-        return Maps(oms.numpy().any(axis=0), sal.numpy(), pt)
-
-
 def _params(cfg: DetectionConfig) -> tuple[SOMSParams, ProtoObjectParams]:
     soms = SOMSParams(
         kernel_size=cfg.kernel_size,
@@ -251,10 +216,11 @@ def run_trial(cfg: DetectionConfig, spec: TrialSpec) -> dict[str, Any]:
     soms, proto = _params(cfg)
     protocol = ProtocolConfig(box=cfg.box)
     warm = round(cfg.warmup_s * 1e6)
-    with_proto = _means(evaluate_sequence(seq, PipelineModel(soms, proto), protocol), warm)
-    without = _means(
-        evaluate_sequence(seq, PipelineModel(soms, None, cfg.baseline_sigma_px), protocol), warm
+    baseline = SOMSSaliencyModel(
+        soms, saliency="oms_density", density_sigma_px=cfg.baseline_sigma_px
     )
+    with_proto = _means(evaluate_sequence(seq, SOMSSaliencyModel(soms, proto), protocol), warm)
+    without = _means(evaluate_sequence(seq, baseline, protocol), warm)
     n_windows = len(seq.windows)
     return {
         "camera_speed_measured_deg_s": speed_meas,

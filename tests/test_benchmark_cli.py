@@ -13,6 +13,8 @@ import typer
 from PIL import Image
 from typer.testing import CliRunner
 
+from agents.proto_object import ProtoObjectParams
+from agents.soms import SOMSParams
 from experiments.benchmark_cli import app, default_name, parse_offset, parse_sensor
 from experiments.benchmark_model import ModelConfig, SOMSSaliencyModel, nominal_dt_s
 from experiments.datasets.base import MaskWindow
@@ -141,7 +143,7 @@ def assert_square_scored(out: Path) -> None:
 
 
 def test_model_maps_on_the_sensor_grid_and_dt_follows_the_call():
-    model = SOMSSaliencyModel(ModelConfig(dt=0.01))
+    model = SOMSSaliencyModel.from_config(ModelConfig(dt=0.01))
     events, _ = square_scene(1)
     counts = np.zeros((2, H, W), np.float32)
     np.add.at(counts, (events["p"].astype(int), events["y"], events["x"]), 1)
@@ -170,6 +172,12 @@ def test_model_bad_input_is_named():
     with pytest.raises(ValueError, match=r"ModelConfig\.dt"):
         ModelConfig(dt=-1.0)
     assert ModelConfig(streamlined=True).proto_params().polarity_split is False
+    with pytest.raises(ValueError, match=r"SOMSParams\.dt=0\.01, ProtoObjectParams\.dt=0\.02"):
+        SOMSSaliencyModel(SOMSParams(dt=0.01), ProtoObjectParams(dt=0.02))
+    with pytest.raises(ValueError, match="saliency must be 'proto' or 'oms_density', got 'oms'"):
+        SOMSSaliencyModel(saliency="oms")
+    with pytest.raises(ValueError, match="density_sigma_px must be a number > 0, got 0"):
+        SOMSSaliencyModel(saliency="oms_density", density_sigma_px=0)
     with pytest.raises(ValueError, match="no windows"):
         nominal_dt_s([])
     m = np.ones((2, 2), np.uint8)

@@ -10,10 +10,10 @@ import pytest
 from agents.fixation import action_to_gaze_degrees
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
+from experiments.benchmark_model import SOMSSaliencyModel
 from experiments.detection import (
     EXPERIMENT,
     DetectionConfig,
-    PipelineModel,
     SweepPolicy,
     compare,
     grid,
@@ -73,7 +73,8 @@ def _blob_events(step: int) -> np.ndarray:
 def test_pipeline_points_at_the_dense_moving_blob_with_and_without_proto_objects():
     soms = SOMSParams(alpha=0.5, dt=0.02)
     proto = ProtoObjectParams(dt=0.02)
-    for model in (PipelineModel(soms, proto), PipelineModel(soms, None, 2.0)):
+    baseline = SOMSSaliencyModel(soms, saliency="oms_density", density_sigma_px=2.0)
+    for model in (SOMSSaliencyModel(soms, proto), baseline):
         model.reset()
         for k in range(8):
             maps = model.process(_blob_events(k), 0.02)
