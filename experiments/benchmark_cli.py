@@ -162,16 +162,17 @@ def run_sequences(
     sequences: Iterable[Any],
     n_sequences: int | None,
     what: str,
-    streamlined: bool,
+    model_config: Any,
     protocol: Any,
     max_windows: int | None,
     show_progress: bool = True,
 ) -> tuple[list[Any], dict[str, list[str]], dict[str, float]]:
-    """Stream each sequence through a fresh model whose ``dt`` is the sequence's window.
+    """Stream each sequence through a fresh model (``model_config``, a
+    :class:`experiments.benchmark_model.ModelConfig`) whose ``dt`` is the sequence's window.
 
     Returns the window rows, each sequence's notes and each sequence's model ``dt``.
     """
-    from experiments.benchmark_model import ModelConfig, SOMSSaliencyModel, nominal_dt_s
+    from experiments.benchmark_model import SOMSSaliencyModel, nominal_dt_s
     from experiments.benchmark_protocol import evaluate_sequence
 
     rows: list[Any] = []
@@ -188,7 +189,7 @@ def run_sequences(
                 continue
             dt = nominal_dt_s(seq.windows)
             dts[key] = dt
-            model = SOMSSaliencyModel.from_config(ModelConfig(dt=dt, streamlined=streamlined))
+            model = SOMSSaliencyModel.from_config(dataclasses.replace(model_config, dt=dt))
             rows.extend(evaluate_sequence(seq, model, protocol, bars, k, n_sequences))
             if bars is not None:
                 bars.sequence_done()
@@ -279,11 +280,12 @@ def _suppression_rows(name: str, result: Any, t0: int) -> Iterator[list[Any]]:
 def run_suppression(
     recordings: Sequence[tuple[str, Any, tuple[int, int, int]]],
     window_us: int,
-    streamlined: bool,
+    model_config: Any,
     show_progress: bool = True,
 ) -> list[Any]:
-    """:func:`event_suppression` on each ``(name, events, sensor)`` with a fresh model."""
-    from experiments.benchmark_model import ModelConfig, SOMSSaliencyModel
+    """:func:`event_suppression` on each ``(name, events, sensor)`` with a fresh model
+    (``model_config`` with the step ``window_us``)."""
+    from experiments.benchmark_model import SOMSSaliencyModel
     from experiments.benchmark_protocol import event_suppression
 
     results = []
@@ -294,7 +296,7 @@ def run_suppression(
                 task = progress.add_task(f"suppression {name}", total=None)
                 cb = _suppression_callback(progress, task)
             model = SOMSSaliencyModel.from_config(
-                ModelConfig(dt=window_us / 1e6, streamlined=streamlined)
+                dataclasses.replace(model_config, dt=window_us / 1e6)
             )
             results.append(event_suppression(events, sensor, model, window_us, cb, name))
     return results
@@ -373,6 +375,15 @@ StreamlinedOpt = Annotated[
         "one population per polarity line.",
     ),
 ]
+AlphaOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--alpha",
+        min=0.0,
+        max=1.0,
+        help="sOMS threshold α of Eq. (1) (default: the paper's table, 0.80).",
+    ),
+]
 ThreadsOpt = Annotated[
     int | None, typer.Option("--threads", min=1, help="torch CPU threads (default: torch's).")
 ]
@@ -384,6 +395,13 @@ StdOverOpt = Annotated[
         help="Subset/overall std over 'sequences' (the paper's tables) or pooled 'windows'.",
     ),
 ]
+
+
+def _model_config(streamlined: bool, alpha: float | None) -> Any:
+    """The benchmark model's :class:`ModelConfig` (``alpha`` None: the paper's 0.80)."""
+    from experiments.benchmark_model import ModelConfig
+
+    return ModelConfig(streamlined=streamlined, **({} if alpha is None else {"alpha": alpha}))
 
 
 def _check_std_over(std_over: str) -> None:
@@ -406,11 +424,11 @@ def _score_dataset(
 
     dataset = config["dataset"]
     out = out or Path(f"runs/benchmark-{dataset}")
-    streamlined = bool(config["streamlined"])
+    model = _model_config(bool(config["streamlined"]), config["alpha"])
     try:
         seqs, n = load()
         rows, notes, dts = run_sequences(
-            seqs, n, label, streamlined, ProtocolConfig(), max_windows, progress
+            seqs, n, label, model, ProtocolConfig(), max_windows, progress
         )
     except (ValueError, OSError) as err:
         raise _fail(err) from None
@@ -458,6 +476,7 @@ def evimo(
     ] = None,
     max_windows: MaxWindowsOpt = None,
     streamlined: StreamlinedOpt = False,
+    alpha: AlphaOpt = None,
     std_over: StdOverOpt = "sequences",
     threads: ThreadsOpt = None,
     progress: ProgressOpt = True,
@@ -484,6 +503,7 @@ def evimo(
         "max_sequences": max_sequences,
         "max_windows": max_windows,
         "streamlined": streamlined,
+        "alpha": _model_config(streamlined, alpha).alpha,
         "std_over": std_over,
     }
     _score_dataset("EVIMO", load, config, out, max_windows, std_over, progress, started)
@@ -509,6 +529,7 @@ def llevos(
     ] = None,
     max_windows: MaxWindowsOpt = None,
     streamlined: StreamlinedOpt = False,
+    alpha: AlphaOpt = None,
     std_over: StdOverOpt = "sequences",
     threads: ThreadsOpt = None,
     progress: ProgressOpt = True,
@@ -540,6 +561,7 @@ def llevos(
         "max_sequences": max_sequences,
         "max_windows": max_windows,
         "streamlined": streamlined,
+        "alpha": _model_config(streamlined, alpha).alpha,
         "std_over": std_over,
     }
     _score_dataset("LLE-VOS", load, config, out, max_windows, std_over, progress, started)
@@ -577,6 +599,7 @@ def events(
     ] = None,
     max_windows: MaxWindowsOpt = None,
     streamlined: StreamlinedOpt = False,
+    alpha: AlphaOpt = None,
     suppression: Annotated[
         bool,
         typer.Option(
@@ -601,8 +624,9 @@ def events(
     try:
         seq = load_generic(file, masks, sensor_size, window_us, name=seq_name, subset="events")
         seq = limit_windows(seq, max_windows)
+        model = _model_config(streamlined, alpha)
         rows, notes, dts = run_sequences(
-            [seq], 1, "events", streamlined, ProtocolConfig(mask_offset_xy=offset), None, progress
+            [seq], 1, "events", model, ProtocolConfig(mask_offset_xy=offset), None, progress
         )
         extra_md, extra_rec = "", {}
         if suppression and seq.windows:
@@ -610,7 +634,7 @@ def events(
             ev = seq.events
             if max_windows is not None:
                 ev = time_window(ev, int(ev["t"][0]) if len(ev) else 0, seq.windows[-1].t_end_us)
-            (res,) = run_suppression([(seq.name, ev, seq.sensor_size)], win, streamlined, progress)
+            (res,) = run_suppression([(seq.name, ev, seq.sensor_size)], win, model, progress)
             t0 = int(ev["t"][0]) if len(ev) else 0
             write_suppression_csv(out / "suppression.csv", [(seq.name, res, t0)])
             extra_md = suppression_markdown([seq.name], [res])
@@ -627,6 +651,7 @@ def events(
         "mask_offset_xy": offset,
         "max_windows": max_windows,
         "streamlined": streamlined,
+        "alpha": model.alpha,
         "suppression": suppression,
         "model_dt_s": dts,
     }
@@ -663,6 +688,7 @@ def suppression(
         typer.Option("--max-windows", "--limit", min=1, help="Only the first N steps of each."),
     ] = None,
     streamlined: StreamlinedOpt = False,
+    alpha: AlphaOpt = None,
     threads: ThreadsOpt = None,
     progress: ProgressOpt = True,
 ) -> None:
@@ -693,7 +719,8 @@ def suppression(
                 ev = time_window(ev, t0, t0 + max_windows * window_us)
                 notes[f.stem].append(f"limited to the first {max_windows} windows")
             recs.append((f.stem, ev, rec.sensor_size))
-        results = run_suppression(recs, window_us, streamlined, progress)
+        model = _model_config(streamlined, alpha)
+        results = run_suppression(recs, window_us, model, progress)
     except (ValueError, OSError) as err:
         raise _fail(err) from None
     names = [n for n, _, _ in recs]
@@ -707,6 +734,7 @@ def suppression(
         "window_us": window_us,
         "max_windows": max_windows,
         "streamlined": streamlined,
+        "alpha": model.alpha,
     }
     md += "\n" + _config_markdown(config)
     notes_md = _notes_markdown(notes)

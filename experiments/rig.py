@@ -32,7 +32,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from agents.attention import AgentParams, AttentionAgent
+from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent
 from experiments.run_agent import RunConfig, RunResult, run_closed_loop
 from hardware.ptu_driver import FlirPTUParams, PTUError, PTUPortError, PTUTimeout
 from hardware.ptu_emulator import PTUEmulatorParams
@@ -68,6 +68,7 @@ class RigRunConfig:
     window_s: float = 0.124
     fixational: bool = True
     streamlined: bool = False
+    alpha: float = AGENT_SOMS_ALPHA
     video: bool = True
     driver: FlirPTUParams = field(default_factory=FlirPTUParams)
     emulator: PTUEmulatorParams = field(default_factory=PTUEmulatorParams)
@@ -101,6 +102,7 @@ class RigRunConfig:
             window_s=self.window_s,
             fixational=self.fixational,
             streamlined=self.streamlined,
+            alpha=self.alpha,
         )
         return run.agent_params(env)
 

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.attention import AgentParams, AttentionAgent, Phase
+from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent, Phase
 from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
 from experiments.scanpath_figure import pixel_to_angles, plot_scanpath
@@ -50,7 +50,8 @@ __all__ = ["RunConfig", "RunResult", "run", "run_closed_loop", "video_frame"]
 @dataclass(frozen=True)
 class RunConfig:
     """What ``wander run`` runs: the scene, its length, the seed, the DVS preset and the
-    agent's main switches (the paper's defaults)."""
+    agent's main switches (the paper's defaults; ``alpha`` is the agent's calibrated sOMS
+    threshold, :data:`agents.attention.AGENT_SOMS_ALPHA`)."""
 
     scene: str = "office"
     seconds: float = 10.0
@@ -60,18 +61,22 @@ class RunConfig:
     window_s: float = 0.124
     fixational: bool = True
     streamlined: bool = False
+    alpha: float = AGENT_SOMS_ALPHA
 
     def __post_init__(self) -> None:
         if not (isinstance(self.seconds, (int, float)) and math.isfinite(self.seconds)):
             raise ValueError(f"RunConfig.seconds must be a finite number, got {self.seconds!r}")
         if self.seconds <= 0:
             raise ValueError(f"RunConfig.seconds must be > 0, got {self.seconds}")
+        if not (isinstance(self.alpha, (int, float)) and 0.0 <= self.alpha <= 1.0):
+            raise ValueError(f"RunConfig.alpha must be in [0, 1], got {self.alpha!r}")
 
     def agent_params(self, env: Any) -> AgentParams:
         return AgentParams.for_env(
             env,
             window_s=self.window_s,
             fixational=self.fixational,
+            soms=replace(AgentParams().soms, alpha=self.alpha),
             proto=replace(ProtoObjectParams(), polarity_split=not self.streamlined),
         )
 

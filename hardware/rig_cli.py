@@ -15,6 +15,14 @@ from typing import Annotated, Any
 
 import typer
 
+from wander_env.cli_options import (
+    AgentAlphaOpt,
+    FixationalOpt,
+    StreamlinedOpt,
+    WindowOpt,
+    agent_alpha,
+)
+
 
 def summary_line(metrics: dict[str, Any], out: Path) -> str:
     """The line printed after a run: decisions, saccades, events, drops, PTU latency."""
@@ -75,13 +83,10 @@ def rig(
     seconds: Annotated[float, typer.Option(help="Run length in seconds of camera time.")] = 10.0,
     seed: Annotated[int, typer.Option(help="Seed of the agent (walk, controller).")] = 0,
     out: Annotated[Path, typer.Option(help="The run folder.")] = Path("runs/rig"),
-    window: Annotated[float, typer.Option(help="Fixation window St_w in seconds.")] = 0.124,
-    fixational: Annotated[
-        bool, typer.Option(help="Fixational eye movements during fixations.")
-    ] = True,
-    streamlined: Annotated[
-        bool, typer.Option(help="Streamlined proto-object model (no polarity split).")
-    ] = False,
+    window: WindowOpt = 0.124,
+    fixational: FixationalOpt = True,
+    streamlined: StreamlinedOpt = False,
+    alpha: AgentAlphaOpt = None,
     video: Annotated[bool, typer.Option(help="Write run.mp4.")] = True,
 ) -> None:
     """Run the attention agent closed-loop on the rig; write the run folder of `wander run`."""
@@ -99,6 +104,7 @@ def rig(
             fixational=fixational,
             streamlined=streamlined,
             video=video,
+            **agent_alpha(alpha),
         )
     except ValueError as err:
         raise typer.BadParameter(str(err)) from err

@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 import wander_env  # noqa: F401
-from agents.attention import AgentParams, AttentionAgent, Phase
+from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent, Phase
 from agents.fixation import action_to_gaze_degrees, pixel_to_rotation
+from agents.soms import SOMSParams
 from wander_env.metrics import focal_length_px
 from wander_env.renderer import project_points
 
@@ -44,7 +45,9 @@ def agent() -> AttentionAgent:
 def test_params_defaults_and_resolution() -> None:
     p = AgentParams().resolved()
     assert p.window_s == 0.124 and p.window_steps == 13  # ceil(124 / 10)
-    assert p.soms.dt == 0.01 and p.soms.alpha == 0.80 and p.soms.tau_mem == 0.02
+    assert p.soms.dt == 0.01 and p.soms.tau_mem == 0.02
+    # The agent's calibrated threshold; the component keeps the paper's table value.
+    assert p.soms.alpha == AGENT_SOMS_ALPHA == 0.5 and SOMSParams().alpha == 0.80
     assert p.proto.dt == pytest.approx(0.13) and p.proto.tau_mem == 0.1
     assert p.fixation.n_steps == 8 and p.fixation.max_step_pos == 60
     assert p.fixation.interval_s == pytest.approx(0.124 / 8)

@@ -115,13 +115,13 @@ def test_export_table_uses_screen_axes_in_degrees(tmp_path):
 
 
 def test_scanpath_trial_exports_one_row_per_fixation(tmp_path):
-    sets = ["scenes=[shelf]", "conditions=[fixational]", "duration_s=0.8"]
+    sets = ["scenes=[shelf]", "conditions=[fixational]", "duration_s=1.2"]
     cfg = resolve_config(scanpath.EXPERIMENT, sets=sets)
     (row,), files = run_experiment("scanpath", cfg, 0, tmp_path)
-    # 13-step (130 ms) windows: one, a saccade, then a second window.
+    # 13-step (130 ms) windows: one, a 31° saccade (≈1 s), then a second window.
     assert (row["decisions"], row["fixations"], row["saccades"]) == (2, 2, 1)
     assert row["fixation_duration_mean_s"] == pytest.approx(0.13)
-    assert row["object_hit_rate"] == 1.0 and row["objects_visited"] == 1
+    assert row["object_hit_rate"] == 1.0 and row["objects_visited"] == 2
     with (tmp_path / "fixations" / "shelf_fixational_seed0.csv").open() as fh:
         table = list(csv.DictReader(fh))
     assert list(table[0]) == list(scanpath.EXPORT_COLUMNS)

@@ -42,6 +42,7 @@ def test_run_folder_contents(run_dir: Path) -> None:
     run_json = json.loads((run_dir / "run.json").read_text())
     assert run_json["seed"] == 4 and run_json["config"]["scene"] == "office"
     assert run_json["git_revision"] and run_json["agent"]["window_s"] == 0.124
+    assert run_json["config"]["alpha"] == run_json["agent"]["soms"]["alpha"] == 0.5
     frames = imageio.mimread(run_dir / "run.mp4", memtest=False)
     assert len(frames) == 150 and frames[0].shape == (2 * 128 + 16, 4 * 2 * 128 + 3 * 4, 3)
     # One decision per window: the first after 13 steps, then after each saccade.
@@ -50,6 +51,13 @@ def test_run_folder_contents(run_dir: Path) -> None:
         rows = list(csv.DictReader(fh))
     assert len(rows) == m["decisions"]
     assert float(rows[0]["duration_s"]) == pytest.approx(0.13)
+
+
+def test_alpha_is_checked_and_reaches_the_agent() -> None:
+    with pytest.raises(ValueError, match=r"RunConfig\.alpha must be in \[0, 1\], got 1\.5"):
+        RunConfig(alpha=1.5)
+    result = CliRunner().invoke(app, ["run", "--alpha", "1.5", "--seconds", "0.1"])
+    assert result.exit_code == 2 and "--alpha" in result.output
 
 
 def test_same_seed_same_scanpath(run_dir: Path, tmp_path: Path) -> None:

@@ -14,6 +14,13 @@ from rich.table import Table
 from experiments.benchmark_cli import app as benchmark_app
 from experiments.cli_experiments import register as register_experiments
 from hardware.rig_cli import register as register_rig
+from wander_env.cli_options import (
+    AgentAlphaOpt,
+    FixationalOpt,
+    StreamlinedOpt,
+    WindowOpt,
+    agent_alpha,
+)
 
 app = typer.Typer(
     help="wander: a simulated active-vision laboratory for event cameras.",
@@ -101,13 +108,10 @@ def run_agent(
     seconds: Annotated[float, typer.Option(help="Simulated seconds.")] = 10.0,
     seed: Annotated[int, typer.Option(help="Seed of the env, the walk and the controller.")] = 0,
     dvs: Annotated[str, typer.Option(help="DVS preset: ideal, paper or speck.")] = "ideal",
-    window: Annotated[float, typer.Option(help="Fixation window St_w in seconds.")] = 0.124,
-    fixational: Annotated[
-        bool, typer.Option(help="Fixational eye movements during fixations.")
-    ] = True,
-    streamlined: Annotated[
-        bool, typer.Option(help="Streamlined proto-object model (no polarity split).")
-    ] = False,
+    window: WindowOpt = 0.124,
+    fixational: FixationalOpt = True,
+    streamlined: StreamlinedOpt = False,
+    alpha: AgentAlphaOpt = None,
     video: Annotated[bool, typer.Option(help="Write run.mp4.")] = True,
 ) -> None:
     """Run the attention agent closed-loop in a scene; write the run folder."""
@@ -123,6 +127,7 @@ def run_agent(
         window_s=window,
         fixational=fixational,
         streamlined=streamlined,
+        **agent_alpha(alpha),
     )
     with _progress() as bar:
         task = bar.add_task(f"agent in {scene}", total=round(seconds / 0.01))
@@ -148,9 +153,8 @@ def evaluate(
     seconds: Annotated[float, typer.Option(help="Simulated seconds per seed.")] = 20.0,
     seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
     dvs: Annotated[str, typer.Option(help="DVS preset: ideal, paper or speck.")] = "ideal",
-    streamlined: Annotated[
-        bool, typer.Option(help="Streamlined proto-object model (no polarity split).")
-    ] = False,
+    streamlined: StreamlinedOpt = False,
+    alpha: AgentAlphaOpt = None,
 ) -> None:
     """The agent's quality in simulation: detection accuracy, suppression, foveation error."""
     from experiments.evaluate_agent import evaluate as run_eval
@@ -161,7 +165,14 @@ def evaluate(
     except ValueError as err:
         msg = f"--seeds must be integers separated by commas, got {seeds!r}"
         raise typer.BadParameter(msg) from err
-    config = RunConfig(scene=scene, seconds=seconds, dvs=dvs, video=False, streamlined=streamlined)
+    config = RunConfig(
+        scene=scene,
+        seconds=seconds,
+        dvs=dvs,
+        video=False,
+        streamlined=streamlined,
+        **agent_alpha(alpha),
+    )
     with _progress() as bar:
         task = bar.add_task("evaluate", total=round(seconds / 0.01) * len(seed_list))
         done = {s: 0 for s in seed_list}

@@ -1,0 +1,35 @@
+"""Command-line options shared by the commands that run the agent (``wander run``,
+``wander evaluate``, ``wander rig``): one definition of each flag and its help.
+
+Example:
+    >>> agent_alpha(None), agent_alpha(0.8)
+    ({}, {'alpha': 0.8})
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+__all__ = ["AgentAlphaOpt", "FixationalOpt", "StreamlinedOpt", "WindowOpt", "agent_alpha"]
+
+WindowOpt = Annotated[float, typer.Option(help="Fixation window St_w in seconds.")]
+FixationalOpt = Annotated[bool, typer.Option(help="Fixational eye movements during fixations.")]
+StreamlinedOpt = Annotated[
+    bool, typer.Option(help="Streamlined proto-object model (no polarity split).")
+]
+AgentAlphaOpt = Annotated[
+    float | None,
+    typer.Option(
+        min=0.0,
+        max=1.0,
+        help="sOMS threshold α (default: the agent's calibrated 0.5; the paper's table: 0.8).",
+    ),
+]
+
+
+def agent_alpha(alpha: float | None) -> dict[str, float]:
+    """The config keyword for an ``--alpha`` given on the command line (None: the
+    config's own default, :data:`agents.attention.AGENT_SOMS_ALPHA`)."""
+    return {} if alpha is None else {"alpha": alpha}
