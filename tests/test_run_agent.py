@@ -11,10 +11,12 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from agents.attention import AGENT_SOMS_ALPHA
 from experiments import scanpath_stats
 from experiments.run_agent import RunConfig, run, run_closed_loop, video_frame
 from experiments.scanpath_figure import pixel_to_angles, saliency_mosaic
 from wander_env.cli import app
+from wander_env.cli_options import AgentAlphaOpt
 from wander_env.event_io import read_events
 
 
@@ -58,6 +60,9 @@ def test_alpha_is_checked_and_reaches_the_agent() -> None:
         RunConfig(alpha=1.5)
     result = CliRunner().invoke(app, ["run", "--alpha", "1.5", "--seconds", "0.1"])
     assert result.exit_code == 2 and "--alpha" in result.output
+    # The flag's help (written without importing torch) names the agent's default.
+    assert RunConfig().alpha == AGENT_SOMS_ALPHA
+    assert f"calibrated {AGENT_SOMS_ALPHA:g};" in AgentAlphaOpt.__metadata__[0].help
 
 
 def test_same_seed_same_scanpath(run_dir: Path, tmp_path: Path) -> None:
