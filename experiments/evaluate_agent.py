@@ -5,7 +5,8 @@ Runs :func:`experiments.run_agent.run` once per seed (each a full run folder und
 
 - detection accuracy: the 8×8 box around each decision's ``P`` touches a moving
   object's mask (union of the masks over the fixation window); pooled over all
-  scored decisions of all seeds (the paper: 68–89 % on EVIMO; our aim ≥ 90 %);
+  scored decisions of all seeds (the paper: 68–89 % on EVIMO; our aim ≥ 90 %), with
+  its 95 % Wilson interval (:func:`detection_interval`);
 - sOMS event suppression (the paper: ≈ 85 %);
 - foveation error after a saccade, x and y, pixels at the fovea (reached minus intended
   gaze; the paper's real PTU: 4.64 ± 1.49 px and 11.76 ± 2.58 px).
@@ -15,18 +16,35 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import binomtest
 
 from experiments.run_agent import RunConfig, run
 from wander_env.runinfo import run_record, write_json
 
 
+def detection_interval(hits: int, scored: int, confidence: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval of a hit rate ``hits / scored`` (nan, nan when nothing was
+    scored): how far the detection accuracy of a few dozen decisions can be trusted.
+
+    Example:
+        >>> low, high = detection_interval(124, 140)
+        >>> round(low, 3), round(high, 3)
+        (0.822, 0.928)
+    """
+    if scored == 0:
+        return math.nan, math.nan
+    ci = binomtest(hits, scored).proportion_ci(confidence_level=confidence, method="wilson")
+    return float(ci.low), float(ci.high)
+
+
 @dataclass(frozen=True)
 class QualityRow:
-    """One seed's figures (or the pooled ones, ``seed = -1``)."""
+    """One seed's figures (or the pooled ones, ``seed = -1``); the 95 % interval of the
+    detection accuracy is derived from ``hits`` and ``scored``."""
 
     seed: int
     decisions: int
@@ -37,6 +55,13 @@ class QualityRow:
     foveation_error_x_px: float
     foveation_error_y_px: float
     saccades: int
+    detection_ci_low: float = field(init=False)
+    detection_ci_high: float = field(init=False)
+
+    def __post_init__(self) -> None:
+        low, high = detection_interval(self.hits, self.scored)
+        object.__setattr__(self, "detection_ci_low", low)
+        object.__setattr__(self, "detection_ci_high", high)
 
 
 def _row(seed: int, m: dict) -> QualityRow:

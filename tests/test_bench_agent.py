@@ -10,7 +10,7 @@ import pytest
 from typer.testing import CliRunner
 
 from experiments.bench_agent import bench_agent, latency_row
-from experiments.evaluate_agent import QualityRow, pooled
+from experiments.evaluate_agent import QualityRow, detection_interval, pooled
 from wander_env.cli import app
 
 
@@ -42,6 +42,9 @@ def test_pooled_quality() -> None:
     assert (p.decisions, p.scored, p.hits, p.saccades) == (15, 10, 8, 5)
     assert p.detection_accuracy == pytest.approx(0.8) and p.soms_suppression == pytest.approx(0.8)
     assert p.foveation_error_x_px == pytest.approx((4 * 1.0 + 3.0) / 5)
+    # 95 % Wilson interval of 8 / 10: (0.490, 0.943); none without scored decisions.
+    assert (p.detection_ci_low, p.detection_ci_high) == pytest.approx((0.4902, 0.9433), abs=1e-4)
+    assert all(math.isnan(v) for v in detection_interval(0, 0))
 
 
 def test_evaluate_cli_two_seeds(tmp_path: Path) -> None:

@@ -191,6 +191,8 @@ def evaluate(
             "scored": "d",
             "hits": "d",
             "detection_accuracy": ".1%",
+            "detection_ci_low": ".1%",
+            "detection_ci_high": ".1%",
             "soms_suppression": ".2%",
             "foveation_error_x_px": ".2f",
             "foveation_error_y_px": ".2f",
