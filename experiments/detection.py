@@ -39,7 +39,7 @@ from experiments.benchmark_protocol import (
     paper_reference,
 )
 from experiments.datasets.base import MaskWindow, SequenceData
-from experiments.framework import Comparison, Experiment, Row, TrialSpec
+from experiments.framework import Comparison, Experiment, Row, TrialSpec, save_figure
 from wander_env.events import concatenate
 from wander_env.ptu import FLIR_RESOLUTION_ARCSEC, PTUParams
 
@@ -324,10 +324,7 @@ def plot(cfg: DetectionConfig, rows: list[Row], results_dir: Path, fig_dir: Path
     axes[1].set(xlabel="camera speed (°/s)", ylabel="OMS map vs mask", ylim=(0, 1))
     for ax in axes:
         ax.legend(fontsize=7)
-    fig.tight_layout()
-    path = fig_dir / "detection.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    path = save_figure(fig, fig_dir / "detection.png")
     return [path]
 
 

@@ -31,7 +31,14 @@ import numpy as np
 import wander_env  # noqa: F401  (registers the environments)
 from agents.soms import SOMS, SOMSParams
 from experiments.benchmark_protocol import PAPER_SUPPRESSION
-from experiments.framework import Comparison, Experiment, Row, TrialSpec, load_artifacts
+from experiments.framework import (
+    Comparison,
+    Experiment,
+    Row,
+    TrialSpec,
+    load_artifacts,
+    save_figure,
+)
 from experiments.record import GazePolicy
 
 __all__ = [
@@ -304,10 +311,7 @@ def plot(
     axes[1].set(xlabel="trial", ylabel="suppressed (%)", ylim=(0, 100))
     axes[1].set_xticks(range(len(rows)))
     axes[1].legend(loc="lower right")
-    fig.tight_layout()
-    path = fig_dir / "event_suppression.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    path = save_figure(fig, fig_dir / "event_suppression.png")
     return [path]
 
 

@@ -42,7 +42,14 @@ import yaml
 
 import wander_env  # noqa: F401  (registers the environments)
 from agents.soms import SOMS, SOMSParams
-from experiments.framework import Comparison, Experiment, Row, TrialSpec, load_artifacts
+from experiments.framework import (
+    Comparison,
+    Experiment,
+    Row,
+    TrialSpec,
+    load_artifacts,
+    save_figure,
+)
 from wander_env.metrics import iou, precision
 from wander_env.scene_config import GRATING_MODES, assets_dir
 
@@ -446,10 +453,7 @@ def plot(
     fig.suptitle(
         "sOMS characterisation (blue: modes, green: spatial freq., red: speed, grey: kernels)"
     )
-    fig.tight_layout()
-    paths.append(fig_dir / "oms_characterisation_rates.png")
-    fig.savefig(paths[-1], dpi=100)
-    plt.close(fig)
+    paths.append(save_figure(fig, fig_dir / "oms_characterisation_rates.png", dpi=100))
 
     examples = [r for r in rows if r["group"] in ("mode", "speed")]
     arts = [load_artifacts(results_dir, r) for r in examples]
@@ -470,10 +474,7 @@ def plot(
                 ax.set_yticks([])
         axes[0, 0].set_ylabel("events")
         axes[1, 0].set_ylabel("OMS map")
-        fig.tight_layout()
-        paths.append(fig_dir / "oms_characterisation_maps.png")
-        fig.savefig(paths[-1], dpi=100)
-        plt.close(fig)
+        paths.append(save_figure(fig, fig_dir / "oms_characterisation_maps.png", dpi=100))
     return paths
 
 

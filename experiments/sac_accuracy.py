@@ -49,7 +49,7 @@ import numpy as np
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
 from experiments.benchmark_protocol import mean_std
-from experiments.framework import Comparison, Experiment, Row, TrialSpec
+from experiments.framework import Comparison, Experiment, Row, TrialSpec, save_figure
 from wander_env.metrics import degrees_to_pixels, foveation_error_px
 from wander_env.ptu import PTUParams
 from wander_env.renderer import project_points
@@ -343,10 +343,7 @@ def plot(cfg: SacAccuracyConfig, rows: list[Row], results_dir: Path, fig_dir: Pa
     axes[1].set_xticks(x, names, fontsize=8)
     axes[1].set(ylabel="displacement (px, mean ± std)", title="saccade accuracy")
     axes[1].legend(fontsize=8)
-    fig.tight_layout()
-    path = fig_dir / "sac_accuracy.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    path = save_figure(fig, fig_dir / "sac_accuracy.png")
     return [path]
 
 

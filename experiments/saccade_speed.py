@@ -39,7 +39,14 @@ import wander_env  # noqa: F401  (registers the environments, picks the GL backe
 from agents.attention import AgentParams, AttentionAgent
 from agents.fixation import FixationParams
 from experiments.benchmark_protocol import mean_std
-from experiments.framework import Comparison, Experiment, Row, TrialSpec, load_artifacts
+from experiments.framework import (
+    Comparison,
+    Experiment,
+    Row,
+    TrialSpec,
+    load_artifacts,
+    save_figure,
+)
 from experiments.run_agent import run_closed_loop
 from wander_env.metrics import SPECK_HFOV_DEG, focal_length_px
 from wander_env.ptu import PTUParams, degrees_to_positions, move_duration, peak_speed
@@ -405,10 +412,7 @@ def plot(cfg: SaccadeSpeedConfig, rows: list[Row], results_dir: Path, fig_dir: P
     axes[0].set_title("main sequence (dashed: the PTU's trapezoid)")
     axes[1].set(xlabel="saccade amplitude (°)", ylabel="duration (s)", title="saccade duration")
     axes[0].legend(fontsize=7)
-    fig.tight_layout()
-    ms_path = fig_dir / "main_sequence.png"
-    fig.savefig(ms_path, dpi=110)
-    plt.close(fig)
+    ms_path = save_figure(fig, fig_dir / "main_sequence.png")
 
     metrics = [
         ("time_to_foveate_s", "time to foveate (s)"),
@@ -441,10 +445,7 @@ def plot(cfg: SaccadeSpeedConfig, rows: list[Row], results_dir: Path, fig_dir: P
                 ax.set_ylabel(label, fontsize=8)
             if i == 0:
                 ax.set_title(factor, fontsize=9)
-    fig.tight_layout()
-    sweep_path = fig_dir / "saccade_speed.png"
-    fig.savefig(sweep_path, dpi=110)
-    plt.close(fig)
+    sweep_path = save_figure(fig, fig_dir / "saccade_speed.png")
     return [ms_path, sweep_path]
 
 

@@ -54,7 +54,14 @@ import wander_env  # noqa: F401  (registers the environments, picks the GL backe
 from agents.attention import AgentParams, AttentionAgent
 from experiments import scanpath_stats
 from experiments.benchmark_protocol import mean_std
-from experiments.framework import Comparison, Experiment, Row, TrialSpec, load_artifacts
+from experiments.framework import (
+    Comparison,
+    Experiment,
+    Row,
+    TrialSpec,
+    load_artifacts,
+    save_figure,
+)
 from experiments.run_agent import run_closed_loop
 from experiments.sac_accuracy import cast_pixel
 from experiments.scanpath_figure import pixel_to_angles, saliency_mosaic
@@ -393,10 +400,7 @@ def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path)
             if r is not None:
                 title += f" (seed {r['seed']}): hit rate {float(r['object_hit_rate']):.0%}"
             ax.set_title(title, fontsize=9)
-    fig.tight_layout()
-    path = fig_dir / "scanpath.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    path = save_figure(fig, fig_dir / "scanpath.png")
 
     keys = [
         ("object_hit_rate", "object hit rate"),
@@ -416,10 +420,7 @@ def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path)
         ax.set_xticks(x, scenes)
         ax.set_title(label, fontsize=9)
     axes[0].legend(fontsize=8)
-    fig.tight_layout()
-    stats_path = fig_dir / "scanpath_stats.png"
-    fig.savefig(stats_path, dpi=110)
-    plt.close(fig)
+    stats_path = save_figure(fig, fig_dir / "scanpath_stats.png")
     return [path, stats_path]
 
 

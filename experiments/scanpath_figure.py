@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from experiments.framework import save_figure
+
 
 @dataclass(frozen=True)
 class AngularGrid:
@@ -144,8 +146,5 @@ def plot_scanpath(
         ax2.set_ylabel("gaze (°)")
         ax2.set_title("gaze over time")
         ax2.legend(fontsize=7)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
     return path
