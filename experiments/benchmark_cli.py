@@ -412,6 +412,7 @@ def _check_std_over(std_over: str) -> None:
 def _score_dataset(
     label: str,
     load: Callable[[], tuple[Iterable[Any], int]],
+    model: Any,
     config: dict[str, Any],
     out: Path | None,
     max_windows: int | None,
@@ -419,12 +420,12 @@ def _score_dataset(
     progress: bool,
     started: float,
 ) -> None:
-    """Score a dataset's sequences (``load`` finds them) and write its results folder."""
+    """Score a dataset's sequences (``load`` finds them) with ``model`` (a ``ModelConfig``)
+    and write its results folder."""
     from experiments.benchmark_protocol import ProtocolConfig
 
     dataset = config["dataset"]
     out = out or Path(f"runs/benchmark-{dataset}")
-    model = _model_config(bool(config["streamlined"]), config["alpha"])
     try:
         seqs, n = load()
         rows, notes, dts = run_sequences(
@@ -494,6 +495,7 @@ def evimo(
             sources = sources[:max_sequences]
         return (load_evimo_sequence(s, window_mode, window_us) for s in sources), len(sources)
 
+    model = _model_config(streamlined, alpha)
     config = {
         "dataset": "evimo",
         "path": str(path),
@@ -503,10 +505,10 @@ def evimo(
         "max_sequences": max_sequences,
         "max_windows": max_windows,
         "streamlined": streamlined,
-        "alpha": _model_config(streamlined, alpha).alpha,
+        "alpha": model.alpha,
         "std_over": std_over,
     }
-    _score_dataset("EVIMO", load, config, out, max_windows, std_over, progress, started)
+    _score_dataset("EVIMO", load, model, config, out, max_windows, std_over, progress, started)
 
 
 @app.command("llevos")
@@ -552,6 +554,7 @@ def llevos(
         n = len(names) if max_sequences is None else min(len(names), max_sequences)
         return itertools.islice(load_llevos(path, sequence, cfg), n), n
 
+    model = _model_config(streamlined, alpha)
     config = {
         "dataset": "llevos",
         "path": str(path),
@@ -561,10 +564,10 @@ def llevos(
         "max_sequences": max_sequences,
         "max_windows": max_windows,
         "streamlined": streamlined,
-        "alpha": _model_config(streamlined, alpha).alpha,
+        "alpha": model.alpha,
         "std_over": std_over,
     }
-    _score_dataset("LLE-VOS", load, config, out, max_windows, std_over, progress, started)
+    _score_dataset("LLE-VOS", load, model, config, out, max_windows, std_over, progress, started)
 
 
 @app.command("events")
