@@ -19,6 +19,7 @@ from wander_env.cli_options import (
     AgentAlphaOpt,
     FixationalOpt,
     StreamlinedOpt,
+    VideoOpt,
     WindowOpt,
     agent_alpha,
 )
@@ -87,7 +88,7 @@ def rig(
     fixational: FixationalOpt = True,
     streamlined: StreamlinedOpt = False,
     alpha: AgentAlphaOpt = None,
-    video: Annotated[bool, typer.Option(help="Write run.mp4.")] = True,
+    video: VideoOpt = True,
 ) -> None:
     """Run the attention agent closed-loop on the rig; write the run folder of `wander run`."""
     from experiments.rig import RigRunConfig, RigRunError, run_rig

@@ -18,6 +18,7 @@ from wander_env.cli_options import (
     AgentAlphaOpt,
     FixationalOpt,
     StreamlinedOpt,
+    VideoOpt,
     WindowOpt,
     agent_alpha,
 )
@@ -112,7 +113,7 @@ def run_agent(
     fixational: FixationalOpt = True,
     streamlined: StreamlinedOpt = False,
     alpha: AgentAlphaOpt = None,
-    video: Annotated[bool, typer.Option(help="Write run.mp4.")] = True,
+    video: VideoOpt = True,
 ) -> None:
     """Run the attention agent closed-loop in a scene; write the run folder."""
     from experiments.run_agent import RunConfig

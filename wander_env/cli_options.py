@@ -12,13 +12,21 @@ from typing import Annotated
 
 import typer
 
-__all__ = ["AgentAlphaOpt", "FixationalOpt", "StreamlinedOpt", "WindowOpt", "agent_alpha"]
+__all__ = [
+    "AgentAlphaOpt",
+    "FixationalOpt",
+    "StreamlinedOpt",
+    "VideoOpt",
+    "WindowOpt",
+    "agent_alpha",
+]
 
 WindowOpt = Annotated[float, typer.Option(help="Fixation window St_w in seconds.")]
 FixationalOpt = Annotated[bool, typer.Option(help="Fixational eye movements during fixations.")]
 StreamlinedOpt = Annotated[
     bool, typer.Option(help="Streamlined proto-object model (no polarity split).")
 ]
+VideoOpt = Annotated[bool, typer.Option(help="Write run.mp4.")]
 AgentAlphaOpt = Annotated[
     float | None,
     typer.Option(
