@@ -53,7 +53,6 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
-import torch
 
 from agents.control import AttentionController, ControlParams
 from agents.fixation import (
@@ -64,6 +63,7 @@ from agents.fixation import (
 )
 from agents.proto_object import ProtoObjectParams, ProtoObjectSaliency
 from agents.soms import SOMS, SOMSParams
+from agents.torch_fork import set_torch_threads
 from wander_env.metrics import SPECK_HFOV_DEG
 
 __all__ = ["AGENT_SOMS_ALPHA", "AgentParams", "AttentionAgent", "Fixation", "Phase", "Saccade"]
@@ -234,7 +234,7 @@ class AttentionAgent:
         self.params = (params if params is not None else AgentParams()).resolved()
         p = self.params
         if p.torch_threads is not None:
-            torch.set_num_threads(p.torch_threads)
+            set_torch_threads(p.torch_threads)  # one only in a forked child
         self.seed = seed
         self.soms = SOMS(p.soms, p.height_px, p.width_px)
         self.proto = ProtoObjectSaliency(p.proto, p.height_px, p.width_px)

@@ -187,7 +187,7 @@ def record_sequence(
         step_us = round(cfg.step_s * 1e6)
         for k in range(n):
             obs, _, _, _, info = env.step(policy.act(info))
-            chunks.append(info["events"])
+            chunks.append(info["events"].events)
             windows.append(MaskWindow(k * step_us, (k + 1) * step_us, info["object_mask"]))
             gaze[k + 1] = obs["gaze"]
         sensor = (base.width, base.height, 2)

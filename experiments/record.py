@@ -114,7 +114,7 @@ def record(
     try:
         for k in range(steps):
             obs, _, _, _, info = env.step(policy.act(info))
-            chunks.append(info["events"])
+            chunks.append(info["events"].events)
             truth["t"][k] = info["t"]
             truth["gaze_deg"][k] = obs["gaze"]
             truth["ptu_positions"][k] = info["ptu_positions"]

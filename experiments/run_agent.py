@@ -214,7 +214,7 @@ def run_closed_loop(
             obs, _, terminated, truncated, info = env.step(action)
             if agent.phase is Phase.SACCADE:
                 saccade_clipped |= bool(info.get("target_clipped", False))
-            log.chunks.append(info["events"])
+            log.chunks.append(info["events"].events)
             log.gaze.append((float(info.get("t", (k + 1) * dt)), *map(float, obs["gaze"])))
             log.steps = k + 1
             if writer is not None:

@@ -10,7 +10,8 @@
   so). A NaN, infinite or out-of-range action raises ``ValueError``;
 * observation ``{"events": (2, H, W) float32 per-polarity counts of the step
   (channel 1 = ON), "gaze": (pan, tilt) degrees}`` (the last polled PTU position);
-* ``info``: ``events`` (the step's raw event array, ``t`` in µs since ``reset``),
+* ``info``: ``events`` (the step's raw events, ``t`` in µs since ``reset``, as a
+  :class:`~wander_env.event_packet.EventPacket` like the sim's: ``.events`` is the array),
   ``t`` (s since ``reset``, the end of the step window), ``ptu_positions``,
   ``ptu_target_positions``, ``moving``, ``target_clipped``, and, rig only,
   ``command_latency_s`` (seconds from handing the latest acknowledged command to
@@ -77,6 +78,7 @@ from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from hardware.replay import ReplaySource
 from hardware.speck import SpeckParams, SpeckSource
 from wander_env.actions import action_to_gaze_degrees, check_action
+from wander_env.event_packet import EventPacket
 from wander_env.events import empty_events, to_frame
 from wander_env.metrics import SPECK_HFOV_DEG
 from wander_env.ptu import degrees_to_positions, positions_to_degrees, round_position
@@ -591,7 +593,7 @@ class RigEnv(gym.Env):
         events["t"] -= self._t0_us
         snap = self._link.snapshot()
         return {
-            "events": events,
+            "events": EventPacket(events),
             "t": (self.camera.cursor_us - self._t0_us) / 1e6,
             "ptu_positions": snap["positions"],
             "ptu_target_positions": self._target,

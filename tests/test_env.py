@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import pickle
+import warnings
 
 import gymnasium as gym
 import numpy as np
@@ -11,8 +12,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import wander_env  # noqa: F401  (registers the environments)
+from wander_env.event_packet import EventPacket
 from wander_env.events import concatenate
-from wander_env.wrappers import EventPacketInfo
 
 F_PX = 64 / math.tan(math.atan(5.12 / 3.4))  # focal length in pixels of the Speck optics
 
@@ -40,19 +41,45 @@ def test_reset_gives_the_documented_spaces():
     env.close()
 
 
-def test_check_env_passes():
-    # The raw env, wrapped only to box info["events"], which check_env's determinism
-    # check cannot compare as a structured array.
-    env = EventPacketInfo(make(episode_seconds=0.05).unwrapped)
-    check_env(env)
+def test_check_env_passes_on_the_unwrapped_env():
+    env = gym.make("wander/Wander-v0").unwrapped  # the default scene, no wrapper at all
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env)
+    # The one remark: event counts have no finite upper bound (the space says so).
+    remarks = [str(w.message) for w in caught]
+    assert len(remarks) == 1 and "maximum value is infinity" in remarks[0], remarks
     env.close()
+
+
+def test_info_events_are_a_packet_of_every_event_of_the_step():
+    env = make("office")
+    _, info = env.reset(seed=2)
+    assert isinstance(info["events"], EventPacket) and len(info["events"]) == 0
+    for _ in range(3):
+        obs, _, _, _, info = env.step(np.zeros(2, np.float32))
+        packet = info["events"]
+        assert isinstance(packet, EventPacket) and len(packet) > 0
+        assert len(packet) == obs["events"].sum()  # nothing dropped
+        ev = packet.events
+        assert np.all(np.diff(ev["t"]) >= 0) and ev["t"][-1] <= round(info["t"] * 1e6)
+    env.close()
+
+
+def test_constructing_the_env_creates_no_renderer():
+    env = make()
+    assert env.unwrapped._renderer is None  # what AsyncVectorEnv's parent builds: no GL
+    env.reset(seed=0)
+    assert env.unwrapped._renderer is not None
+    env.close()
+    assert env.unwrapped._renderer is None
 
 
 def test_same_seed_same_events_and_ground_truth():
     actions = [np.array([0.3, -0.2], np.float32)] + [np.zeros(2, np.float32)] * 4
     a, b = (run(make("office"), actions, seed=5) for _ in range(2))
-    ea = concatenate([i["events"] for i in a])
-    eb = concatenate([i["events"] for i in b])
+    ea = concatenate([i["events"].events for i in a])
+    eb = concatenate([i["events"].events for i in b])
     assert len(ea) > 1000
     assert np.array_equal(ea, eb)
     assert np.array_equal(a[-1]["object_mask"], b[-1]["object_mask"])
@@ -105,7 +132,7 @@ def test_saccade_of_20_degrees_lands_and_emits_events_all_along():
         infos.append(env.step(np.zeros(2, np.float32))[4])
     gaze = env.unwrapped.ptu.camera_pan_deg
     assert gaze == pytest.approx(-20.0, abs=0.03)  # right is negative pan; 1 position
-    events = concatenate([i["events"] for i in infos])
+    events = concatenate([i["events"].events for i in infos])
     t_end = infos[-1]["t"] * 1e6
     moving = events[events["t"] < t_end - 10_000]
     assert len(moving) > 10_000
@@ -148,22 +175,6 @@ def test_pickle_round_trip_keeps_the_config():
     assert obs["events"].shape == (2, 128, 128)
     twin.close()
     env.close()
-
-
-def test_async_vector_env_runs_two_in_parallel():
-    # "spawn": a forked child would inherit the parent's GL and thread-pool state and hang.
-    envs = gym.vector.AsyncVectorEnv(
-        [lambda: EventPacketInfo(make("office")) for _ in range(2)], context="spawn"
-    )
-    obs, _ = envs.reset(seed=3)
-    assert obs["events"].shape == (2, 2, 128, 128)
-    for _ in range(3):
-        obs, _, _, _, infos = envs.step(np.zeros((2, 2), np.float32))
-    assert obs["gaze"].shape == (2, 2)
-    # Each env's raw events arrive intact, and they sum to its observation.
-    for i in range(2):
-        assert len(infos["events"][i]) == obs["events"][i].sum() > 0
-    envs.close()
 
 
 def test_unknown_scene_and_preset_name_the_problem():

@@ -153,7 +153,7 @@ def check_windows(env: RigEnv, expected: np.ndarray, period_us: int) -> None:
         obs, reward, terminated, truncated, info = env.step(np.zeros(2, np.float32))
         lo, hi = np.searchsorted(expected["t"], [k * period_us, (k + 1) * period_us])
         want = expected[lo:hi]
-        got = info["events"]
+        got = info["events"].events
         assert got.dtype == EVENT_DTYPE
         assert len(got) == hi - lo
         for f in ("x", "y", "t", "p"):
@@ -386,7 +386,7 @@ def test_queue_overflow_is_counted_in_info(monkeypatch, emu):
         assert info["dropped_events"] == env.camera.dropped - stats["dropped_at_reset"]
         assert stats["discarded_at_reset"] == stats["dropped_at_reset"] == 0
         assert info["dropped_events"] == n - capacity  # the oldest went
-        got, kept = info["events"], ev[-capacity:]  # the newest are delivered, exactly
+        got, kept = info["events"].events, ev[-capacity:]  # the newest are delivered, exactly
         np.testing.assert_array_equal(got["t"] + stats["t0_us"], kept["t"])
         np.testing.assert_array_equal(got["x"], kept["x"])
         assert cam["buffered"] == 0 and cam["dropped_overflow"] == n - capacity

@@ -21,11 +21,19 @@ says so.
 Observation: ``{"events": (2, H, W) float32 per-polarity counts of the step
 (channel 1 = ON), "gaze": (pan, tilt) in degrees}``.
 
-``info``: ``events`` (the raw event array of the step), ``t`` (simulated s),
+``info``: ``events`` (the step's raw events, every one of them: an
+:class:`~wander_env.event_packet.EventPacket`, whose ``.events`` is the structured array;
+as a packet it passes through vector envs, ``check_env`` and pickling), ``t`` (simulated s),
 ``ptu_positions``, ``ptu_target_positions`` (and ``ptu_target_deg``), ``moving``,
 ``target_clipped``, ``frames`` and ``extra_frames`` rendered in the step, and, with ground truth on,
 ``object_mask`` ((H, W) int32 object ids, 0 = background) and ``objects`` (per
 moving object: id, name, pixel centre of its projection, mask pixels, visible).
+
+Processes: the renderer (an OpenGL context) is created at the first ``reset``, in the
+process that renders; constructing an env touches no GL, so ``AsyncVectorEnv`` with the
+default ("fork") start method works. A process forked after its parent rendered cannot
+render: there ``reset`` raises :class:`~wander_env.gl_fork.ForkedGLError`, which says to
+use ``context="spawn"`` (see :mod:`wander_env.gl_fork`).
 
 Example:
     >>> import gymnasium, wander_env
@@ -39,6 +47,7 @@ Example:
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any, ClassVar
 
@@ -48,7 +57,9 @@ import numpy as np
 
 from wander_env.actions import action_to_gaze_degrees, check_action
 from wander_env.dvs import DVSEmulator, DVSParams
+from wander_env.event_packet import EventPacket
 from wander_env.events import concatenate, to_frame
+from wander_env.gl_fork import ForkedGLError, fork_error_message
 from wander_env.metrics import focal_length_px
 from wander_env.mjcf import PAN_JOINT, TILT_JOINT, SceneAnimator, build_mjcf
 from wander_env.ptu import PanTiltUnit, PTUParams
@@ -137,7 +148,8 @@ class WanderEnv(gym.Env):
         self.data = mujoco.MjData(self.model)
         self._pan_adr = int(self.model.joint(PAN_JOINT).qposadr[0])
         self._tilt_adr = int(self.model.joint(TILT_JOINT).qposadr[0])
-        self.renderer = CameraRenderer(self.model, self.width, self.height)
+        self._renderer: CameraRenderer | None = None  # created where it renders: .renderer
+        self._renderer_pid: int | None = None
         self.ptu = PanTiltUnit(c.ptu)
         self.dvs_params = c.dvs_params if c.dvs_params is not None else DVSParams.preset(c.dvs)
         self.dvs = DVSEmulator(self.width, self.height, self.dvs_params)
@@ -169,6 +181,17 @@ class WanderEnv(gym.Env):
             scene.ptu, camera_forward_m=ptu.camera_forward_m, camera_up_m=ptu.camera_up_m
         )
         return replace(scene, ptu=mount)
+
+    @property
+    def renderer(self) -> CameraRenderer:
+        """The camera's renderer, created on first use in this process (see the module doc)."""
+        r = self._renderer
+        if r is None:
+            r = self._renderer = CameraRenderer(self.model, self.width, self.height)
+            self._renderer_pid = os.getpid()
+        elif self._renderer_pid != os.getpid():
+            raise ForkedGLError(fork_error_message(self._renderer_pid, os.getpid()))
+        return r
 
     # -- pickling: the configuration, not the GL context --------------------------------
     def __getstate__(self) -> dict[str, Any]:
@@ -282,7 +305,7 @@ class WanderEnv(gym.Env):
 
     def _info(self, events: np.ndarray, frames: int, extra: int, clipped: bool) -> dict[str, Any]:
         info: dict[str, Any] = {
-            "events": events,
+            "events": EventPacket(events),
             "t": self._t_us * 1e-6,
             "ptu_positions": self.ptu.positions,
             "ptu_target_positions": tuple(round(p) for p in self.ptu.target_positions),
@@ -341,8 +364,10 @@ class WanderEnv(gym.Env):
         return np.concatenate([out[0], gap, out[1]], axis=1)
 
     def close(self) -> None:
-        if getattr(self, "renderer", None) is not None:
-            self.renderer.close()
+        # Freeing is safe in a forked child too (only creating and drawing hang there).
+        if getattr(self, "_renderer", None) is not None:
+            self._renderer.close()
+            self._renderer = None
         super().close()
 
 

@@ -39,6 +39,7 @@ import mujoco
 import numpy as np
 
 from wander_env.closing import Closing
+from wander_env.gl_fork import claim_gl
 from wander_env.mjcf import CAMERA_NAME, geom_object_ids
 
 
@@ -60,6 +61,9 @@ class RenderParams:
 
 class CameraRenderer(Closing):
     """RGB and segmentation frames from one camera of a model; close() when done.
+
+    Create it in the process that renders: a process forked after GL was initialised
+    cannot render, and this raises :class:`~wander_env.gl_fork.ForkedGLError` there.
 
     It drives MuJoCo's renderer directly (one GL context, ``mjv_updateScene``,
     ``mjr_render``, ``mjr_readPixels`` into a reused buffer): the same pixels as
@@ -98,6 +102,7 @@ class CameraRenderer(Closing):
         self._gl: mujoco.GLContext | None = None
         self._con: mujoco.MjrContext | None = None
         self._seg_con: mujoco.MjrContext | None = None
+        claim_gl()  # in a child forked after GL was initialised: ForkedGLError, not a hang
         try:
             self._gl = mujoco.GLContext(width, height)
             self._gl.make_current()

@@ -10,19 +10,23 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+GIT_TIMEOUT_S = 30.0  # a git that hangs (a lock, a network file system) must not hang a run
+
 
 def git_revision(path: Path | None = None) -> str:
-    """The current commit (with ``-dirty`` if the tree has changes), or ``"unknown"``."""
+    """The current commit (with ``-dirty`` if the tree has changes), or ``"unknown"``
+    (no git, not a checkout, or git took longer than ``GIT_TIMEOUT_S``)."""
     cwd = path or Path(__file__).resolve().parent
     try:
         rev = subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=cwd, capture_output=True, text=True, check=True
-        ).stdout.strip()
+            ["git", "rev-parse", "HEAD"],
+            cwd=cwd, capture_output=True, text=True, check=True, timeout=GIT_TIMEOUT_S,
+        ).stdout.strip()  # fmt: skip
         dirty = subprocess.run(
             ["git", "status", "--porcelain", "--untracked-files=no"],
-            cwd=cwd, capture_output=True, text=True, check=True,
+            cwd=cwd, capture_output=True, text=True, check=True, timeout=GIT_TIMEOUT_S,
         ).stdout.strip()  # fmt: skip
-    except (OSError, subprocess.CalledProcessError):
+    except (OSError, subprocess.CalledProcessError, subprocess.TimeoutExpired):
         return "unknown"
     return rev + ("-dirty" if dirty else "")
 

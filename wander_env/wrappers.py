@@ -1,10 +1,10 @@
-"""Wrappers that make the env's raw event arrays travel through generic tools.
+"""Compatibility wrapper from before the env put its events in an :class:`EventPacket`.
 
-``info["events"]`` is a structured array whose length changes from step to step.
-Gymnasium's vector envs batch every ``ndarray`` in ``info`` assuming a fixed
-shape, and ``check_env`` compares them with ``np.allclose``: both fail on it.
-:class:`EventPacketInfo` puts the array in an :class:`EventPacket`, which they
-treat as an opaque object (vector envs gather one per env in an object array).
+``info["events"]`` of ``wander/Wander-v0`` and ``wander/Rig-v0`` is an
+:class:`~wander_env.event_packet.EventPacket` as returned, so vector envs, ``check_env``
+and pickling need no wrapper. :class:`EventPacketInfo` is kept for code that still adds
+it: it boxes a bare structured array (an env of one's own that returns one) and leaves a
+packet as it is.
 
 Example:
     >>> import gymnasium, wander_env
@@ -18,31 +18,15 @@ Example:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
-import numpy as np
 
-
-@dataclass(frozen=True, eq=False)
-class EventPacket:
-    """One step's events (the shared structured array) as an opaque value."""
-
-    events: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.events)
-
-    def __eq__(self, other: object) -> bool:
-        return isinstance(other, EventPacket) and np.array_equal(self.events, other.events)
-
-    def __hash__(self) -> int:
-        return hash(self.events.tobytes())
+from wander_env.event_packet import EventPacket
 
 
 class EventPacketInfo(gym.Wrapper, gym.utils.RecordConstructorArgs):
-    """Replaces ``info["events"]`` by an :class:`EventPacket`; nothing else changes."""
+    """Makes ``info["events"]`` an :class:`EventPacket` (already one: unchanged)."""
 
     def __init__(self, env: gym.Env) -> None:
         gym.utils.RecordConstructorArgs.__init__(self)
@@ -58,4 +42,8 @@ class EventPacketInfo(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     @staticmethod
     def _convert(info: dict[str, Any]) -> dict[str, Any]:
-        return {**info, "events": EventPacket(info["events"])}
+        events = info["events"]
+        return info if isinstance(events, EventPacket) else {**info, "events": EventPacket(events)}
+
+
+__all__ = ["EventPacket", "EventPacketInfo"]
