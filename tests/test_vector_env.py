@@ -17,7 +17,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from vector_drive import NUM_ENVS, STEPS, WAIT_S, drive, make_env
+from vector_drive import NUM_ENVS, STEPS, WAIT_S, drive_and_close, make_env
 
 import wander_env  # noqa: F401  (registers the environments)
 from wander_env import gl_fork
@@ -34,11 +34,9 @@ def child_env() -> dict[str, str]:
 
 @pytest.fixture(scope="module")
 def sync_run() -> dict:
-    venv = gym.make_vec("wander/Wander-v0", num_envs=NUM_ENVS, vectorization_mode="sync")
-    try:
-        return drive(venv)
-    finally:
-        venv.close()
+    return drive_and_close(
+        gym.make_vec("wander/Wander-v0", num_envs=NUM_ENVS, vectorization_mode="sync")
+    )
 
 
 @pytest.mark.slow
@@ -59,11 +57,7 @@ def test_make_vec_sync_runs_diverging_envs_with_every_event(sync_run):
 @pytest.mark.slow
 def test_async_vector_env_with_spawn_gives_the_same_events(sync_run):
     venv = gym.vector.AsyncVectorEnv([make_env] * NUM_ENVS, context="spawn")
-    try:
-        got = drive(venv)
-    finally:
-        venv.close()
-    assert got == sync_run
+    assert drive_and_close(venv) == sync_run
 
 
 @pytest.mark.slow

@@ -63,16 +63,26 @@ def drive(venv: gym.vector.VectorEnv) -> dict[str, Any]:
     return {"rows": rows, "gaze": obs["gaze"].tolist()}
 
 
+def drive_and_close(venv: gym.vector.VectorEnv) -> dict[str, Any]:
+    """:func:`drive`, then close; after a failure (a timeout) the workers are terminated,
+    since a plain ``close`` would wait for an answer from a stuck worker."""
+    try:
+        out = drive(venv)
+    except BaseException:
+        venv.close(terminate=True)
+        raise
+    venv.close()
+    return out
+
+
 def main() -> None:
     out: dict[str, Any] = {"start_method": multiprocessing.get_start_method()}
     t0 = time.perf_counter()
     venv = gym.vector.AsyncVectorEnv([lambda: gym.make("wander/Wander-v0") for _ in range(2)])
-    out["async_default"] = drive(venv)
-    venv.close()
+    out["async_default"] = drive_and_close(venv)
     out["async_default_s"] = time.perf_counter() - t0
     venv = gym.make_vec("wander/Wander-v0", num_envs=NUM_ENVS, vectorization_mode="async")
-    out["make_vec_async"] = drive(venv)
-    venv.close()
+    out["make_vec_async"] = drive_and_close(venv)
     print(json.dumps(out))
 
 
