@@ -47,9 +47,12 @@ class EventPacket:
         return len(self.events)
 
     def __array__(self, dtype: np.dtype | None = None, copy: bool | None = None) -> np.ndarray:
+        same = dtype is None or np.dtype(dtype) == self.events.dtype
+        if copy is False and not same:
+            raise ValueError(f"EventPacket: a {dtype} view of {self.events.dtype} needs a copy")
         if copy:
             return self.events.astype(dtype or self.events.dtype, copy=True)
-        return self.events if dtype is None else self.events.astype(dtype, copy=False)
+        return self.events if same else self.events.astype(dtype)
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, EventPacket) and np.array_equal(self.events, other.events)
