@@ -133,7 +133,7 @@ def test_importing_and_constructing_creates_no_gl_and_no_thread():
         "def n(): return len(os.listdir('/proc/self/task'))\n"
         "import numpy, cv2, scipy.ndimage, torch\n"  # the libraries' own import-time threads
         "before = n()\n"
-        "import gymnasium as gym, wander_env, wander_env.env, agents, experiments.run_agent\n"
+        "import gymnasium as gym, wander_env, wander_env.env, agents\n"
         "env = gym.make('wander/Wander-v0')\n"
         "egl = sys.modules.get('mujoco.egl')\n"
         "print(n() - before, getattr(egl, 'EGL_DISPLAY', None) is None, env.unwrapped._renderer)\n"
