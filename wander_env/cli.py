@@ -304,6 +304,43 @@ def bench_agent(
     )
 
 
+@bench_app.command("formats")
+def bench_formats(
+    files: Annotated[
+        list[Path] | None,
+        typer.Argument(help="Event files (.aedat4 .raw .dat .es); default: ../shared/realdata."),
+    ] = None,
+    repeats: Annotated[int, typer.Option(min=1, help="Timed decodes per row (median).")] = 3,
+) -> None:
+    """Decode real event files with every installed library: speed and agreement."""
+    from experiments.bench_formats import bench_formats as run
+    from experiments.bench_formats import default_files
+
+    paths = files or default_files(Path(__file__).resolve().parents[2] / "shared" / "realdata")
+    try:
+        rows, skipped = run(paths, repeats)
+    except (ValueError, OSError) as err:
+        console.print(f"wander bench formats: {err}", markup=False)
+        raise typer.Exit(2) from None
+    print_table(
+        "Event-file decoders (differ: events that disagree with the reference"
+        + (f"; not installed: {', '.join(skipped)}" if skipped else "")
+        + ")",
+        rows,
+        {
+            "file": "",
+            "decoder": "",
+            "events": ",d",
+            "ms": ".1f",
+            "mev_per_s": ".1f",
+            "reference": "",
+            "xyp_differ": ",d",
+            "t_differ": ",d",
+            "max_abs_dt_us": ",d",
+        },
+    )
+
+
 register_rig(app)
 register_experiments(app)
 
