@@ -68,6 +68,7 @@ PLUGIN_GEOMETRY = {
 }
 ES_HEADER = b"Event Stream"
 EVT3_MAX_COORD = 2048  # 11-bit addresses
+EVT3_CLOCK_US = 1 << 24  # TIME_HIGH + TIME_LOW: 24 bits of µs before the first wrap
 # HDF5 index: t_offset stays 0 (DSEC-compatible) unless the clock starts later than this.
 MS_TO_IDX_ZERO_OFFSET_LIMIT_US = 60_000_000
 
@@ -84,7 +85,7 @@ def prophesee_header(data: bytes) -> tuple[dict[str, str], int]:
     """The ``% key value`` header lines of a Prophesee ``.raw``/``.dat`` and its length.
 
     >>> prophesee_header(b"% evt 3.0\\n% geometry 640x480\\n% end\\n\\x00\\x80")
-    ({'evt': '3.0', 'geometry': '640x480', 'end': ''}, 37)
+    ({'evt': '3.0', 'geometry': '640x480', 'end': ''}, 35)
     """
     fields: dict[str, str] = {}
     pos = 0
@@ -164,11 +165,23 @@ def read_prophesee_raw(path: Path, sensor_size: SensorSize | None = None) -> Eve
     if version == "evt3":
         import evt3
 
+        # Events before the first TIME_HIGH have no time: OpenEB (and evt3) skip them.
+        words = np.frombuffer(data, dtype="<u2", offset=start) >> 12
+        first_th = np.flatnonzero(words == 0x8)
+        before = words[: first_th[0] if first_th.size else words.size]
+        meta["event_words_before_first_time_high"] = int(np.isin(before, (2, 3, 4, 5)).sum())
         try:
             dec = evt3.decode_file(str(path))
         except (OSError, RuntimeError, ValueError) as err:
             raise _fail(path, "EVT 3.0 decoding", err) from None
-        columns = {"x": dec.x, "y": dec.y, "t": dec.t, "p": dec.p}
+        t = np.asarray(dec.t, dtype=np.int64)
+        if "t0" in fields:  # faery's header line for streams written relative to t0
+            try:
+                t = t + int(fields["t0"])
+            except ValueError:
+                problem = f"header t0 {fields['t0']!r} is not an integer"
+                raise EventFileError(path, problem) from None
+        columns = {"x": dec.x, "y": dec.y, "t": t, "p": dec.p}
     else:
         import faery
 
@@ -243,7 +256,7 @@ def es_expected_bytes(t: np.ndarray) -> int:
     (``0xFF``), because one event byte carries at most 126 µs.
 
     >>> es_expected_bytes(np.array([1, 500, 9000]))
-    86
+    84
     """
     t = np.asarray(t, dtype=np.int64)
     if t.size == 0:
@@ -358,15 +371,20 @@ def write_aedat4(path: Path, recording: EventRecording) -> None:
 
 
 def write_evt3(path: Path, recording: EventRecording) -> None:
-    """Prophesee EVT 3.0 ``.raw`` through ``faery``, absolute timestamps.
+    """Prophesee EVT 3.0 ``.raw`` through ``faery``.
 
-    The header gives the geometry; wander's metadata is not stored.
+    Times are written as they are when the clock starts within EVT3's 24-bit range
+    (16.7 s; every simulated recording): any EVT3 reader then sees them exactly. A later
+    clock (e.g. UNIX µs) is written from the first event, with faery's ``% t0`` header
+    line, which :func:`read_prophesee_raw` (and faery) add back. The header gives the
+    geometry; wander's metadata is not stored.
     """
     import faery
 
     events = _for_faery(path, recording, EVT3_MAX_COORD)
     size = (int(recording.sensor_size[0]), int(recording.sensor_size[1]))
-    with faery.evt.Encoder(path, "evt3", False, size, True) as enc:
+    relative = bool(len(events)) and int(events["t"][0]) >= EVT3_CLOCK_US
+    with faery.evt.Encoder(path, "evt3", relative, size, True) as enc:
         for i in range(0, len(events), 1 << 16):
             enc.write({"events": events[i : i + (1 << 16)]})
 
