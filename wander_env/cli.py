@@ -88,13 +88,21 @@ def record(
     dvs: Annotated[str, typer.Option(help="DVS preset: ideal, paper or speck.")] = "ideal",
     seed: Annotated[int, typer.Option(help="Seed of the env and the policy.")] = 0,
     video: Annotated[bool, typer.Option(help="Write video.mp4 (camera | events).")] = True,
+    format: Annotated[
+        str,
+        typer.Option(
+            "--format",
+            help="Events as h5, aedat4 or evt3 (.raw); or evimo2: the EVIMO2v2 layout "
+            "(events + per-step masks) that `wander benchmark evimo` scores.",
+        ),
+    ] = "h5",
 ) -> None:
     """Record events, ground truth and a video of the env under a simple gaze policy."""
     from experiments.record import RecordConfig
     from experiments.record import record as run
 
     config = RecordConfig(
-        scene=scene, seconds=seconds, policy=policy, dvs=dvs, seed=seed, video=video
+        scene=scene, seconds=seconds, policy=policy, dvs=dvs, seed=seed, video=video, format=format
     )
     with _progress() as bar:
         task = bar.add_task(f"record {scene}", total=round(seconds / 0.01))
