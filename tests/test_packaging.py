@@ -87,5 +87,35 @@ def test_a_wheel_built_from_the_checkout_contains_the_scene_files(tmp_path):
             assert py.relative_to(ROOT).as_posix() in names
     for cfg in (ROOT / "experiments" / "configs").glob("*.yaml"):
         assert cfg.relative_to(ROOT).as_posix() in names
+    assert any(n.endswith("/LICENSE") for n in names)
     entry = next(n for n in names if n.endswith("entry_points.txt"))
     assert "wander = wander_env.cli:app" in zipfile.ZipFile(wheel).read(entry).decode()
+
+
+def test_license_is_mit_as_pyproject_says():
+    assert _pyproject()["project"]["license"] == {"text": "MIT"}
+    text = (ROOT / "LICENSE").read_text(encoding="utf-8")
+    assert text.startswith("MIT License\n")
+    assert 'THE SOFTWARE IS PROVIDED "AS IS", WITHOUT WARRANTY OF ANY KIND' in text
+
+
+PAPER = ROOT.parent / "shared" / "seed" / "paper.tex"
+
+
+def test_citation_file_cites_us_and_the_paper():
+    import yaml
+
+    cff = yaml.safe_load((ROOT / "CITATION.cff").read_text(encoding="utf-8"))
+    assert cff["cff-version"] == "1.2.0" and cff["type"] == "software"
+    assert cff["license"] == "MIT" and cff["version"] == _pyproject()["project"]["version"]
+    (paper,) = cff["references"]
+    assert paper["title"].startswith("Wandering around: A bioinspired approach")
+    names = [f"{a['given-names']} {a['family-names']}" for a in paper["authors"]]
+    assert names[0] == "Giulia D'Angelo" and len(names) == 6
+    if PAPER.is_file():  # the names exactly as the paper's source gives them, in order
+        import re
+
+        tex = PAPER.read_text(encoding="utf-8")
+        assert names == re.findall(r"\\author\[[^\]]*\]\{([^}]*)\}", tex)
+        title = re.search(r"\\title\{([^}]*)\}", tex)
+        assert title is not None and paper["title"] == title[1]
