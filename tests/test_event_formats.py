@@ -158,6 +158,10 @@ def test_evt2_reader_on_spec_bytes(tmp_path):
     assert rec.sensor_size == (32, 16, 2)
     assert rec.metadata["source_format"] == "evt2"
     assert rec.events.tolist() == [(5, 2, 1000, 1), (31, 15, 1010, 0), (0, 0, 70_000, 1)]
+    # No geometry in the header: the size is inferred from the events, and said.
+    path.write_bytes(b"% evt 2.0\n" + struct.pack("<5I", *words))
+    rec = read_events(path)
+    assert rec.sensor_size == (32, 16, 2) and rec.metadata["sensor_size_inferred"] is True
 
 
 def dat_bytes(events: list[tuple[int, int, int, int]]) -> bytes:
@@ -171,6 +175,10 @@ def test_dat_reader_on_spec_bytes(tmp_path):
     rec = read_events(path)
     assert rec.sensor_size == (20, 10, 2)
     assert rec.events.tolist() == [(1, 2, 3, 1), (19, 9, 9, 0), (0, 0, 9, 1)]
+    data = dat_bytes([(3, 1, 2, 1), (9, 19, 9, 0)]).replace(b"% Width 20\n% Height 10\n", b"")
+    path.write_bytes(data)  # no geometry: inferred from the events, and said
+    rec = read_events(path)
+    assert rec.sensor_size == (20, 10, 2) and rec.metadata["sensor_size_inferred"] is True
 
 
 def es_bytes(events: list[tuple[int, int, int, int]], w: int = 8, h: int = 6) -> bytes:

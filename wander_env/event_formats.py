@@ -67,7 +67,8 @@ PLUGIN_GEOMETRY = {
     "hal_plugin_imx636_evk4": (1280, 720),
 }
 ES_HEADER = b"Event Stream"
-EVT3_MAX_COORD = 2048  # 11-bit addresses
+EVT3_MAX_COORD = 2048  # 11-bit addresses (EVT 2 too)
+DAT_MAX_COORD = 1 << 14  # 14-bit addresses
 EVT3_CLOCK_US = 1 << 24  # TIME_HIGH + TIME_LOW: 24 bits of µs before the first wrap
 # HDF5 index: t_offset stays 0 (DSEC-compatible) unless the clock starts later than this.
 MS_TO_IDX_ZERO_OFFSET_LIMIT_US = 60_000_000
@@ -185,7 +186,8 @@ def read_prophesee_raw(path: Path, sensor_size: SensorSize | None = None) -> Eve
     else:
         import faery
 
-        fallback = (size[0], size[1]) if size else (1, 1)
+        # Without a known geometry: decode the full 11-bit range; _finish infers the size.
+        fallback = (size[0], size[1]) if size else (EVT3_MAX_COORD, EVT3_MAX_COORD)
         chunks, triggers = [], 0
         try:
             with faery.evt.Decoder(path, fallback, version) as dec:
@@ -233,7 +235,8 @@ def read_dat(path: Path, sensor_size: SensorSize | None = None) -> EventRecordin
         )
     meta: dict[str, Any] = {"source_format": "dat", "header": fields}
     size = _sensor(path, sensor_size, fields, meta)
-    fallback = (size[0], size[1]) if size else None
+    # Without a known geometry: decode the full 14-bit range; _finish infers the size.
+    fallback = (size[0], size[1]) if size else (DAT_MAX_COORD, DAT_MAX_COORD)
     try:
         with faery.dat.Decoder(path, fallback, "dat2") as dec:
             chunks = list(dec)
