@@ -531,6 +531,10 @@ def write_evimo2_sequence(
     ``gt_frame``; ``meta`` with the pinhole intrinsics and ``res_x``/``res_y`` — and
     ``K``, ``D``, ``index``, ``discretization``). ``masks`` is ``(F, H, W)`` with object
     ids 1..K (0 = background) at ``mask_times_s``.
+
+    NB ``wander record`` gives one mask per step, at the step's end; the emulator's events
+    of a step lie in ``(t_prev, t]``, so under EVIMO's half-open windows ``[ts − w, ts)``
+    an event exactly at a mask time counts in the next window, as it would in the release.
     """
     folder = Path(folder)
     ev = recording.events
