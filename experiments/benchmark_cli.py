@@ -36,7 +36,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
-EVENT_SUFFIXES = (".npz", ".h5", ".hdf5", ".npy", ".aedat4", ".aedat")
+EVENT_SUFFIXES = (".npz", ".h5", ".hdf5", ".npy", ".aedat4", ".aedat", ".raw", ".dat", ".es")
 SUPPRESSION_COLUMNS = ("recording", "window", "t_start_us", "t_end_us", "events_in", "events_out")
 
 

@@ -1,6 +1,8 @@
 """``wander record``: run the environment under a simple gaze policy and keep everything.
 
-Writes ``events.h5`` (all events, config and seed in its metadata),
+Writes ``events.h5`` (all events, config and seed in its metadata; ``--format aedat4`` /
+``evt3`` write ``events.aedat4`` / ``events.raw`` instead, ``evimo2`` the EVIMO2v2
+``dataset_*`` files of :func:`wander_env.event_formats.write_evimo2_sequence`),
 ``ground_truth.h5`` (per step: time, gaze, PTU positions, object-id mask, each
 moving object's pixel centre, mask size and visibility), ``video.mp4`` (camera |
 events, with the fovea marked) and ``run.json``.
@@ -27,11 +29,16 @@ import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
 from agents.fixation import FixationalMovements, FixationParams
+from wander_env.event_formats import write_evimo2_sequence
 from wander_env.event_io import EventRecording, write_events
 from wander_env.events import concatenate
+from wander_env.metrics import focal_length_px
 from wander_env.runinfo import run_record, write_json
 
 POLICIES = ("still", "fixational", "saccades")
+# --format: the events file (events.h5 / .aedat4 / .raw) beside ground_truth.h5, or the
+# EVIMO2v2 layout (events + per-step masks) that `wander benchmark evimo` scores.
+FORMATS = {"h5": "events.h5", "aedat4": "events.aedat4", "evt3": "events.raw", "evimo2": None}
 
 
 @dataclass(frozen=True)
@@ -43,10 +50,13 @@ class RecordConfig:
     seed: int = 0
     saccade_interval_s: float = 0.5
     video: bool = True
+    format: str = "h5"
 
     def __post_init__(self) -> None:
         if self.policy not in POLICIES:
             raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
+        if self.format not in FORMATS:
+            raise ValueError(f"format must be one of {tuple(FORMATS)}, got {self.format!r}")
         if not self.seconds > 0:
             raise ValueError(f"seconds must be > 0, got {self.seconds}")
 
@@ -133,7 +143,12 @@ def record(
     events = concatenate(chunks)
     rec = run_record("wander record", asdict(config), config.seed)
     rec["env"] = {"control_period_s": dt, "dvs": base.dvs_params.to_dict()}
-    write_events(out_dir / "events.h5", EventRecording(events, (w, h, 2), rec))
+    recording = EventRecording(events, (w, h, 2), rec)
+    if config.format == "evimo2":
+        f_px = focal_length_px(w, base.scene.camera.hfov_deg)
+        write_evimo2_sequence(out_dir, recording, truth["t"], truth["object_mask"], f_px, dt)
+    else:
+        write_events(out_dir / FORMATS[config.format], recording)
     with h5py.File(out_dir / "ground_truth.h5", "w") as f:
         for name, arr in truth.items():
             f.create_dataset(name, data=arr, compression="gzip" if arr.ndim > 2 else None)

@@ -88,13 +88,21 @@ def record(
     dvs: Annotated[str, typer.Option(help="DVS preset: ideal, paper or speck.")] = "ideal",
     seed: Annotated[int, typer.Option(help="Seed of the env and the policy.")] = 0,
     video: Annotated[bool, typer.Option(help="Write video.mp4 (camera | events).")] = True,
+    format: Annotated[
+        str,
+        typer.Option(
+            "--format",
+            help="Events as h5, aedat4 or evt3 (.raw); or evimo2: the EVIMO2v2 layout "
+            "(events + per-step masks) that `wander benchmark evimo` scores.",
+        ),
+    ] = "h5",
 ) -> None:
     """Record events, ground truth and a video of the env under a simple gaze policy."""
     from experiments.record import RecordConfig
     from experiments.record import record as run
 
     config = RecordConfig(
-        scene=scene, seconds=seconds, policy=policy, dvs=dvs, seed=seed, video=video
+        scene=scene, seconds=seconds, policy=policy, dvs=dvs, seed=seed, video=video, format=format
     )
     with _progress() as bar:
         task = bar.add_task(f"record {scene}", total=round(seconds / 0.01))
@@ -300,6 +308,43 @@ def bench_agent(
             "env_ms_per_step": ".1f",
             "agent_ms_per_step": ".2f",
             "realtime_factor": ".2f",
+        },
+    )
+
+
+@bench_app.command("formats")
+def bench_formats(
+    files: Annotated[
+        list[Path] | None,
+        typer.Argument(help="Event files (.aedat4 .raw .dat .es); default: ../shared/realdata."),
+    ] = None,
+    repeats: Annotated[int, typer.Option(min=1, help="Timed decodes per row (median).")] = 3,
+) -> None:
+    """Decode real event files with every installed library: speed and agreement."""
+    from experiments.bench_formats import bench_formats as run
+    from experiments.bench_formats import default_files
+
+    paths = files or default_files(Path(__file__).resolve().parents[2] / "shared" / "realdata")
+    try:
+        rows, skipped = run(paths, repeats)
+    except (ValueError, OSError) as err:
+        console.print(f"wander bench formats: {err}", markup=False)
+        raise typer.Exit(2) from None
+    print_table(
+        "Event-file decoders (differ: events that disagree with the reference"
+        + (f"; not installed: {', '.join(skipped)}" if skipped else "")
+        + ")",
+        rows,
+        {
+            "file": "",
+            "decoder": "",
+            "events": ",d",
+            "ms": ".1f",
+            "mev_per_s": ".1f",
+            "reference": "",
+            "xyp_differ": ",d",
+            "t_differ": ",d",
+            "max_abs_dt_us": ",d",
         },
     )
 

@@ -15,6 +15,10 @@ suffix                    read   write  notes
 ``.aedat``                yes    no     jAER AEDAT 2.0 from a DVS128
 ========================  =====  =====  ==============================================
 
+plus the formats of :mod:`wander_env.event_formats`: Prophesee ``.raw`` (EVT 2/3, EVT3
+written too), ``.dat``, Event Stream ``.es``, and AEDAT 4.0 writing; ``.h5`` files also
+get the DSEC ``ms_to_idx`` index.
+
 Every reader returns an :class:`EventRecording` whose events are in the shared
 format of :mod:`wander_env.events`, validated against the sensor size. A file that
 is truncated, of the wrong format, or has unsorted timestamps raises
@@ -243,17 +247,22 @@ def read_events(path: str | os.PathLike, sensor_size: SensorSize | None = None) 
     is inferred from the largest coordinates and ``metadata["sensor_size_inferred"]``
     is set.
     """
+    from wander_env import event_formats  # the field's formats (EVT2/3, DAT, ES)
+
     path = Path(path)
-    reader = _READERS.get(path.suffix.lower())
+    readers = {**_READERS, **event_formats.READERS}
+    reader = readers.get(path.suffix.lower())
     if reader is None:
-        raise EventFileError(path, f"unknown suffix {path.suffix!r}; readable: {sorted(_READERS)}")
+        raise EventFileError(path, f"unknown suffix {path.suffix!r}; readable: {sorted(readers)}")
     if not path.is_file():
         raise EventFileError(path, "no such file")
     return reader(path, sensor_size)
 
 
 def write_events(path: str | os.PathLike, recording: EventRecording) -> None:
-    """Write ``.npz`` or ``.h5``/``.hdf5``; validates the events first."""
+    """Write ``.npz``, ``.h5``/``.hdf5``, ``.aedat4`` or ``.raw`` (EVT3); validates first."""
+    from wander_env import event_formats  # AEDAT4/EVT3 writers, the HDF5 ms_to_idx index
+
     path = Path(path)
     validate_events(recording.events, recording.sensor_size, where=str(path))
     meta = json.dumps(recording.metadata, default=str)
@@ -286,7 +295,11 @@ def write_events(path: str | os.PathLike, recording: EventRecording) -> None:
             f.attrs["sensor_size"] = size
             f.attrs["metadata"] = meta
             f.attrs["format"] = FORMAT_TAG
+            event_formats.write_ms_to_idx(f, recording.events)
+    elif suffix in event_formats.WRITERS:
+        event_formats.WRITERS[suffix](path, recording)
     else:
+        writable = [".npz", ".h5", ".hdf5", *event_formats.WRITERS]
         raise EventFileError(
-            path, f"cannot write suffix {path.suffix!r}; writable: .npz, .h5, .hdf5"
+            path, f"cannot write suffix {path.suffix!r}; writable: {', '.join(writable)}"
         )

@@ -22,6 +22,7 @@ Example:
 
 from __future__ import annotations
 
+import importlib.resources
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -299,13 +300,16 @@ class SceneConfig:
 
 
 def assets_dir() -> Path:
-    """The ``assets/`` directory (next to the ``wander_env`` package, at the repo root)."""
-    path = Path(__file__).resolve().parents[1] / "assets"
-    if not path.is_dir():
-        raise FileNotFoundError(
-            f"assets directory not found at {path}; wander expects assets/ next to wander_env/"
-        )
-    return path
+    """The scene assets: ``wander_env/assets`` of an installed wheel (package data), else
+    the checkout's top-level ``assets/`` (a source tree or an editable install)."""
+    installed = Path(str(importlib.resources.files("wander_env").joinpath("assets")))
+    source = Path(__file__).resolve().parents[1] / "assets"
+    for path in (installed, source):
+        if (path / "scenes").is_dir():
+            return path
+    raise FileNotFoundError(
+        f"scene assets not found at {installed} (installed package) or {source} (checkout)"
+    )
 
 
 def available_scenes() -> tuple[str, ...]:
