@@ -120,7 +120,12 @@ def event_files(paths: Sequence[Path]) -> list[Path]:
 
 
 def _fail(err: BaseException) -> typer.Exit:
-    typer.echo(f"error: {err}", err=True)
+    """One line on stderr (``wander benchmark NAME: error: ...``) and exit code 2."""
+    from typer._click.globals import get_current_context
+
+    ctx = get_current_context(silent=True)
+    where = ctx.command_path if ctx is not None else "wander benchmark"
+    typer.echo(f"{where}: error: {' '.join(str(err).split())}", err=True)
     return typer.Exit(code=2)
 
 

@@ -37,6 +37,7 @@ import numpy as np
 from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent, Phase
 from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
+from experiments.run_viewer import open_run_log
 from experiments.scanpath_figure import pixel_to_angles, plot_scanpath
 from wander_env.event_io import EventRecording, write_events
 from wander_env.events import concatenate
@@ -187,6 +188,7 @@ def run_closed_loop(
         import imageio.v2 as imageio
 
         writer = imageio.get_writer(out_dir / "run.mp4", fps=round(1 / dt), macro_block_size=1)
+    rrlog = open_run_log(out_dir, env, str(record.get("command", "wander run")))  # run.rrd
     error: BaseException | None = None
     t_wall = time.perf_counter()
     window_mask: np.ndarray | None = None
@@ -217,6 +219,7 @@ def run_closed_loop(
             log.chunks.append(info["events"])
             log.gaze.append((float(info.get("t", (k + 1) * dt)), *map(float, obs["gaze"])))
             log.steps = k + 1
+            rrlog.step(obs, info, agent)
             if writer is not None:
                 writer.append_data(_frame_for(agent, obs, base, info))
             if progress is not None:
@@ -226,6 +229,7 @@ def run_closed_loop(
     except BaseException as exc:
         error = exc
     finally:
+        rrlog.close()
         if writer is not None:
             writer.close()
     wall = time.perf_counter() - t_wall
