@@ -9,6 +9,7 @@ saccades): the run-folder writers call :func:`open_run_log` once and
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +26,9 @@ class StepLogger:
         self.base = env.unwrapped
         self._fixations = 0
         self._saccades = 0
+        #: Ground truth seen at each step: (object name, t, gaze pan, gaze tilt, centre x,
+        #: centre y), the object's pixel centre where it is in front of the camera.
+        self.sightings: list[tuple[str, float, float, float, float, float]] = []
 
     def step(self, obs: dict, info: dict, agent: Any = None) -> None:
         """Log the step just taken (``obs``, ``info`` from ``env.step``) and what the
@@ -39,6 +43,11 @@ class StepLogger:
             ptu_target_deg=info.get("ptu_target_deg"),
             object_mask=info.get("object_mask"),
         )
+        gaze = obs.get("gaze")
+        for o in info.get("objects", ()) if gaze is not None else ():
+            cx, cy = o["centre_px"]
+            if math.isfinite(cx) and math.isfinite(cy):
+                self.sightings.append((o["name"], t, float(gaze[0]), float(gaze[1]), cx, cy))
         if agent is None:
             return
         if agent.decided and agent.saliency is not None:

@@ -45,7 +45,7 @@ QUICK = PTUEmulatorParams(
     )
 )  # fmt: skip
 MOVE = re.compile(r"([PT])P(-?\d+)")  # an absolute move (a bare "PP"/"TP" is a poll)
-FILES = {"events.h5", "fixations.csv", "metrics.json", "run.json", "scanpath.png"}
+FILES = {"events.h5", "fixations.csv", "metrics.json", "run.json", "run.rrd", "scanpath.png"}
 
 
 def write_square(path: Path, seconds: float, every_us: int = 2000) -> np.ndarray:

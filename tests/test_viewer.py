@@ -3,37 +3,18 @@
 from __future__ import annotations
 
 import io
-from collections import defaultdict
 from pathlib import Path
 
 import h5py
 import numpy as np
-import pyarrow as pa
 import pytest
 from PIL import Image
-from rerun.chunk import RrdReader
 
 from experiments.record import RecordConfig, record
 from wander_env.event_io import read_events
 from wander_env.events import time_window, to_frame
-from wander_env.viewer import TIMELINE, RunLog, polarity_labels, view
-
-
-def read_rrd(path: Path) -> dict[tuple[str, str], list[tuple[int, object]]]:
-    """(entity, component) -> [(sim_time ns, value)] of the timed rows, sorted by time."""
-    out: dict[tuple[str, str], list[tuple[int, object]]] = defaultdict(list)
-    for chunk in RrdReader(path).stream():
-        if chunk.is_static or TIMELINE not in chunk.timeline_names:
-            continue
-        batch = chunk.to_record_batch()
-        times = batch.column(TIMELINE).cast(pa.int64()).to_pylist()
-        for name in batch.schema.names:
-            if ":" not in name:
-                continue
-            for t, v in zip(times, batch.column(name).to_pylist(), strict=True):
-                if v is not None:
-                    out[(chunk.entity_path, name)].append((t, v))
-    return {k: sorted(v, key=lambda tv: tv[0]) for k, v in out.items()}
+from wander_env.viewer import RunLog, polarity_labels, view
+from wander_env.viewer import read_recording as read_rrd
 
 
 def labels(value: object) -> np.ndarray:

@@ -48,6 +48,7 @@ __all__ = [
     "command_text",
     "open_command",
     "polarity_labels",
+    "read_recording",
     "view",
 ]
 
@@ -193,6 +194,28 @@ class RunLog:
             )
         self.rec.flush()
         self.rec.disconnect()
+
+
+def read_recording(path: Path) -> dict[tuple[str, str], list[tuple[int, list]]]:
+    """A ``run.rrd`` read back with Rerun's own chunk reader: ``(entity, component)`` ->
+    ``[(sim_time in ns, value)]`` of the rows on the ``sim_time`` timeline, in time order
+    (entities as Rerun names them, ``"/gaze/pan"``; components ``"Scalars:scalars"``…)."""
+    import pyarrow as pa
+    from rerun.chunk import RrdReader
+
+    out: dict[tuple[str, str], list[tuple[int, list]]] = {}
+    for chunk in RrdReader(path).stream():
+        if chunk.is_static or TIMELINE not in chunk.timeline_names:
+            continue
+        batch = chunk.to_record_batch()
+        times = batch.column(TIMELINE).cast(pa.int64()).to_pylist()
+        for name in batch.schema.names:
+            if ":" not in name:
+                continue
+            rows = out.setdefault((chunk.entity_path, name), [])
+            rows += [(t, v) for t, v in zip(times, batch.column(name).to_pylist(), strict=True)
+                     if v is not None]  # fmt: skip
+    return {k: sorted(v, key=lambda tv: tv[0]) for k, v in out.items()}
 
 
 # ----------------------------------------------------------------------------------------
