@@ -272,11 +272,10 @@ def _object_paths(
 def _ptu_limits(env: Any) -> tuple[tuple[float, float], tuple[float, float]] | None:
     """The PTU's (pan, tilt) limits in degrees (simulated unit or the rig's driver)."""
     ptu = getattr(env.unwrapped, "ptu", None)
-    src = getattr(ptu, "params", ptu)
-    try:
-        return tuple(src.pan_limits_deg), tuple(src.tilt_limits_deg)  # type: ignore[return-value]
-    except AttributeError:
-        return None
+    for src in (ptu, getattr(ptu, "params", None)):  # the rig's driver, the simulated unit
+        if hasattr(src, "pan_limits_deg") and hasattr(src, "tilt_limits_deg"):
+            return tuple(src.pan_limits_deg), tuple(src.tilt_limits_deg)  # type: ignore[return-value]
+    return None
 
 
 def _mean(values: list[float]) -> float:
