@@ -52,7 +52,6 @@ def experiment(
     ] = False,
 ) -> None:
     """Run one experiment: a results table, plots, config, seed and git revision."""
-    import json
 
     from experiments.framework import (
         config_to_dict,
@@ -64,6 +63,7 @@ def experiment(
     )
     from experiments.sweep import local_executor
     from wander_env.cli import _progress, console
+    from wander_env.runinfo import dumps_strict
 
     try:
         exp = get_experiment(name)
@@ -71,7 +71,7 @@ def experiment(
     except ConfigError as e:
         raise _fail(str(e)) from None
     if show_config:
-        console.print_json(json.dumps(config_to_dict(cfg)))
+        console.print_json(dumps_strict(config_to_dict(cfg)))
         return
     folder = out or default_out_dir(name, seed)
     n = len(make_trials(exp, cfg, seed))
