@@ -28,6 +28,8 @@ from typing import Annotated, Any
 
 import typer
 
+from experiments.benchmark_figure import WindowSampler
+
 app = typer.Typer(
     help="Benchmarks on real event datasets: sOMS maps against masks (IoU, precision, SSIM), "
     "saliency argmax hit rate (8x8 box), sOMS event suppression.",
@@ -120,7 +122,12 @@ def event_files(paths: Sequence[Path]) -> list[Path]:
 
 
 def _fail(err: BaseException) -> typer.Exit:
-    typer.echo(f"error: {err}", err=True)
+    """One line on stderr (``wander benchmark NAME: error: ...``) and exit code 2."""
+    from typer._click.globals import get_current_context
+
+    ctx = get_current_context(silent=True)
+    where = ctx.command_path if ctx is not None else "wander benchmark"
+    typer.echo(f"{where}: error: {' '.join(str(err).split())}", err=True)
     return typer.Exit(code=2)
 
 
@@ -166,11 +173,14 @@ def run_sequences(
     protocol: Any,
     max_windows: int | None,
     show_progress: bool = True,
+    sampler: Any = None,
 ) -> tuple[list[Any], dict[str, list[str]], dict[str, float]]:
     """Stream each sequence through a fresh model (``model_config``, a
     :class:`experiments.benchmark_model.ModelConfig`) whose ``dt`` is the sequence's window.
 
-    Returns the window rows, each sequence's notes and each sequence's model ``dt``.
+    Returns the window rows, each sequence's notes and each sequence's model ``dt``;
+    ``sampler`` (a :class:`experiments.benchmark_figure.WindowSampler`) keeps a few
+    windows' maps for ``maps_vs_masks.png``.
     """
     from experiments.benchmark_model import SOMSSaliencyModel, nominal_dt_s
     from experiments.benchmark_protocol import evaluate_sequence
@@ -190,7 +200,9 @@ def run_sequences(
             dt = nominal_dt_s(seq.windows)
             dts[key] = dt
             model = SOMSSaliencyModel.from_config(dataclasses.replace(model_config, dt=dt))
-            rows.extend(evaluate_sequence(seq, model, protocol, bars, k, n_sequences))
+            if sampler is not None:
+                sampler.start_sequence(len(seq.windows))
+            rows.extend(evaluate_sequence(seq, model, protocol, bars, k, n_sequences, sampler))
             if bars is not None:
                 bars.sequence_done()
     return rows, notes, dts
@@ -229,8 +241,10 @@ def write_benchmark_outputs(
     extra_markdown: str = "",
     extra_record: dict[str, Any] | None = None,
     std_over: str = "sequences",
+    views: Sequence[Any] = (),
 ) -> str:
-    """``results.csv`` (one row per window), ``summary.csv``, ``results.md``, ``run.json``.
+    """``results.csv`` (one row per window), ``summary.csv``, ``results.md``, ``run.json``
+    and, with ``views`` (sampled windows), ``maps_vs_masks.png``.
 
     Returns the Markdown written to ``results.md``.
     """
@@ -260,13 +274,19 @@ def write_benchmark_outputs(
     record["sequence_notes"] = notes
     record.update(extra_record or {})
     write_json(out / "run.json", record)
+    if views:
+        from experiments.benchmark_figure import plot_maps_vs_masks
+
+        plot_maps_vs_masks(out / "maps_vs_masks.png", list(views), f"{title}: maps vs masks")
     return md
 
 
 def _finish(out: Path, md: str, started: float) -> None:
     typer.echo(md)
     typer.echo(
-        f"wrote {out}/results.csv, {out}/results.md, {out}/run.json "
+        f"wrote {out}/results.csv, {out}/results.md, {out}/run.json"
+        + (f", {out}/maps_vs_masks.png" if (out / "maps_vs_masks.png").is_file() else "")
+        + " "
         f"({time.monotonic() - started:.1f} s)"
     )
 
@@ -426,10 +446,11 @@ def _score_dataset(
 
     dataset = config["dataset"]
     out = out or Path(f"runs/benchmark-{dataset}")
+    sampler = WindowSampler()
     try:
         seqs, n = load()
         rows, notes, dts = run_sequences(
-            seqs, n, label, model, ProtocolConfig(), max_windows, progress
+            seqs, n, label, model, ProtocolConfig(), max_windows, progress, sampler
         )
     except (ValueError, OSError) as err:
         raise _fail(err) from None
@@ -443,6 +464,7 @@ def _score_dataset(
         notes,
         extra_record={"elapsed_s": time.monotonic() - started},
         std_over=std_over,
+        views=sampler.views,
     )
     _finish(out, md, started)
 
@@ -628,9 +650,11 @@ def events(
         seq = load_generic(file, masks, sensor_size, window_us, name=seq_name, subset="events")
         seq = limit_windows(seq, max_windows)
         model = _model_config(streamlined, alpha)
+        sampler = WindowSampler()
         rows, notes, dts = run_sequences(
-            [seq], 1, "events", model, ProtocolConfig(mask_offset_xy=offset), None, progress
-        )
+            [seq], 1, "events", model, ProtocolConfig(mask_offset_xy=offset), None, progress,
+            sampler,
+        )  # fmt: skip
         extra_md, extra_rec = "", {}
         if suppression and seq.windows:
             win = round(dts[f"{seq.subset}/{seq.name}"] * 1e6)
@@ -668,6 +692,7 @@ def events(
         notes,
         extra_markdown=extra_md,
         extra_record={**extra_rec, "elapsed_s": time.monotonic() - started},
+        views=sampler.views,
     )
     _finish(out, md, started)
 

@@ -55,7 +55,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from types import MappingProxyType
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -243,8 +243,13 @@ def evaluate_sequence(
     progress: ProgressFn | None = None,
     sequence_index: int = 0,
     n_sequences: int | None = None,
+    observe: Callable[[WindowRow, np.ndarray, Any, np.ndarray], None] | None = None,
 ) -> list[WindowRow]:
-    """Stream one sequence through ``model`` and score every window (module docstring)."""
+    """Stream one sequence through ``model`` and score every window (module docstring).
+
+    ``observe(row, counts, maps, mask)``, when given, sees every scored window: its
+    row, the per-polarity event counts ``(2, H, W)``, the model's maps and the mask.
+    """
     config = config or ProtocolConfig()
     where = f"{seq.dataset}/{seq.subset}/{seq.name}"
     check_windows_ordered(seq.windows, where)
@@ -274,7 +279,8 @@ def evaluate_sequence(
         else:
             if config.feed_gaps and cursor is not None and t0 > cursor:
                 _feed(model, events, sensor, cursor, t0, t1 - t0)
-            maps = model.process(to_frame(wev, sensor), (t1 - t0) / 1e6)
+            counts = to_frame(wev, sensor)
+            maps = model.process(counts, (t1 - t0) / 1e6)
             cursor = t1
             _check_maps(maps, hw, f"{where} window {i}")
             if n_ev == 0:
@@ -303,6 +309,8 @@ def evaluate_sequence(
                         ";".join([*notes, *s.notes]),
                     )
                 )
+                if observe is not None:
+                    observe(rows[-1], counts, maps, mask)
         if progress is not None:
             progress(ProgressEvent(seq.name, seq.subset, sequence_index, n_sequences, i, n_win))
     return rows

@@ -11,16 +11,20 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from typer._click.globals import get_current_context
 
 from experiments.framework import EXPERIMENT_NAMES, ConfigError
+from experiments.sweep import BACKENDS
+from wander_env.cli_options import one_of
 
 __all__ = ["register"]
 
 
 def _fail(message: str) -> typer.Exit:
-    from wander_env.cli import console
-
-    console.print(f"[red]error:[/red] {message}", markup=True, highlight=False, soft_wrap=True)
+    """One line on stderr (``wander <command>: error: ...``) and exit code 2."""
+    ctx = get_current_context(silent=True)
+    where = ctx.command_path if ctx is not None else "wander"
+    typer.echo(f"{where}: error: {' '.join(str(message).split())}", err=True)
     return typer.Exit(code=2)
 
 
@@ -42,13 +46,12 @@ def experiment(
     out: Annotated[
         Path | None, typer.Option(help="Result folder (default: results/NAME/<time>-seedN).")
     ] = None,
-    workers: Annotated[int, typer.Option(help="Worker processes (1 = this process).")] = 1,
+    workers: Annotated[int, typer.Option(min=1, help="Worker processes (1 = this process).")] = 1,
     show_config: Annotated[
         bool, typer.Option("--show-config", help="Print the resolved config and stop.")
     ] = False,
 ) -> None:
     """Run one experiment: a results table, plots, config, seed and git revision."""
-    import json
 
     from experiments.framework import (
         config_to_dict,
@@ -60,6 +63,7 @@ def experiment(
     )
     from experiments.sweep import local_executor
     from wander_env.cli import _progress, console
+    from wander_env.runinfo import dumps_strict
 
     try:
         exp = get_experiment(name)
@@ -67,7 +71,7 @@ def experiment(
     except ConfigError as e:
         raise _fail(str(e)) from None
     if show_config:
-        console.print_json(json.dumps(config_to_dict(cfg)))
+        console.print_json(dumps_strict(config_to_dict(cfg)))
         return
     folder = out or default_out_dir(name, seed)
     n = len(make_trials(exp, cfg, seed))
@@ -92,9 +96,12 @@ def experiment(
 
 def sweep(
     config: Annotated[Path, typer.Argument(help="Sweep file (see experiments/configs/).")],
-    backend: Annotated[str, typer.Option(help="serial, local or ray.")] = "local",
+    backend: Annotated[
+        str, typer.Option(callback=one_of(BACKENDS), help="serial, local or ray.")
+    ] = "local",
     workers: Annotated[
-        int | None, typer.Option(help="Processes (local) or CPUs of a local Ray instance.")
+        int | None,
+        typer.Option(min=1, help="Processes (local) or CPUs of a local Ray instance."),
     ] = None,
     address: Annotated[
         str | None, typer.Option(help="Ray cluster address (default: start a local Ray).")
@@ -135,12 +142,23 @@ def sweep(
 
 def report(
     results: Annotated[Path, typer.Option(help="Folder of result folders.")] = Path("results"),
-    out: Annotated[Path, typer.Option(help="Report file.")] = Path("REPORT.md"),
+    out: Annotated[
+        Path, typer.Option(help="Report file (its figures go to report_figures/ beside it).")
+    ] = Path("REPORT.md"),
+    force: Annotated[bool, typer.Option("--force", help="Overwrite an existing report.")] = False,
 ) -> None:
-    """Build REPORT.md (and its figures) from the latest results of each experiment."""
+    """Build REPORT.md (and its figures) from the latest results of each experiment.
+
+    An existing report file is never overwritten without ``--force``.
+    """
     from experiments.report import build_report
     from wander_env.cli import console
 
+    if out.exists() and not force:
+        raise typer.BadParameter(
+            f"{str(out)!r} exists: pass --force to overwrite it, or --out another file",
+            param_hint="'--out'",
+        )
     path = build_report(results, out)
     console.print(f"-> {path}")
 

@@ -322,8 +322,15 @@ def plot(cfg: DetectionConfig, rows: list[Row], results_dir: Path, fig_dir: Path
             axes[1].plot(v, [g[(s, x)] for x in v], ls, color=c, marker=".", label=f"{s}: {m}")
     axes[0].set(xlabel="camera speed (°/s)", ylabel="detection accuracy (8×8 box)", ylim=(0, 1))
     axes[1].set(xlabel="camera speed (°/s)", ylabel="OMS map vs mask", ylim=(0, 1))
+    axes[0].set_title("salient point P on a moving object (8×8 box)", fontsize=9)
+    axes[1].set_title("OMS map against the ground-truth mask", fontsize=9)
     for ax in axes:
         ax.legend(fontsize=7)
+    fig.suptitle(
+        f"Detection against camera speed (α = {cfg.alpha:g}, {cfg.duration_s:g} s per trial, "
+        "means over windows and repeats)",
+        fontsize=10,
+    )
     path = save_figure(fig, fig_dir / "detection.png")
     return [path]
 

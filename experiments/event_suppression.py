@@ -311,6 +311,12 @@ def plot(
     axes[1].set(xlabel="trial", ylabel="suppressed (%)", ylim=(0, 100))
     axes[1].set_xticks(range(len(rows)))
     axes[1].legend(loc="lower right")
+    axes[1].set_title("events suppressed per trial", fontsize=9)
+    fig.suptitle(
+        f"Event suppression by the sOMS (α = {cfg.alpha:g}): events in and out per "
+        f"{cfg.window_s * 1000:g} ms",
+        fontsize=10,
+    )
     path = save_figure(fig, fig_dir / "event_suppression.png")
     return [path]
 

@@ -47,6 +47,7 @@ from typing import Any, Literal
 import yaml
 
 from wander_env.runinfo import run_record, write_json
+from wander_env.viz import save_figure
 
 __all__ = [
     "EXPERIMENT_NAMES",
@@ -536,15 +537,3 @@ def run_experiment(
 def default_out_dir(name: str, seed: int, root: Path = Path("results")) -> Path:
     """``results/NAME/YYYYmmdd-HHMMSS-seedN`` (local time)."""
     return root / name / f"{time.strftime('%Y%m%d-%H%M%S')}-seed{seed}"
-
-
-def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:
-    """Lay out a matplotlib figure, write it to ``path`` (its folder made if missing) and
-    close it; returns ``path``. Every experiment's plots go through here."""
-    import matplotlib.pyplot as plt
-
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
-    return path

@@ -474,6 +474,11 @@ def plot(
                 ax.set_yticks([])
         axes[0, 0].set_ylabel("events")
         axes[1, 0].set_ylabel("OMS map")
+        fig.suptitle(
+            "Event maps (white ON, black OFF, grey none) and OMS maps (white: kept; red "
+            "contour: the object patch), modes and speed pairs",
+            fontsize=9,
+        )
         paths.append(save_figure(fig, fig_dir / "oms_characterisation_maps.png", dpi=100))
     return paths
 

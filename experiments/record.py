@@ -29,6 +29,7 @@ import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
 from agents.fixation import FixationalMovements, FixationParams
+from experiments.run_viewer import open_run_log
 from wander_env.event_formats import write_evimo2_sequence
 from wander_env.event_io import EventRecording, write_events
 from wander_env.events import concatenate
@@ -121,9 +122,11 @@ def record(
         if config.video
         else None
     )
+    rrlog = open_run_log(out_dir, env, "wander record")  # run.rrd
     try:
         for k in range(steps):
             obs, _, _, _, info = env.step(policy.act(info))
+            rrlog.step(obs, info)
             chunks.append(info["events"].events)
             truth["t"][k] = info["t"]
             truth["gaze_deg"][k] = obs["gaze"]
@@ -137,6 +140,7 @@ def record(
             if progress is not None:
                 progress(k + 1, steps)
     finally:
+        rrlog.close()
         if writer is not None:
             writer.close()
         env.close()

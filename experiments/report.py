@@ -22,7 +22,14 @@ from experiments.framework import (
     read_csv,
 )
 
-__all__ = ["build_report", "latest_result", "render_report"]
+__all__ = ["PAPER_REFERENCE", "build_report", "latest_result", "render_report"]
+
+#: The paper whose results the report sets ours beside (title and authors as published).
+PAPER_REFERENCE = (
+    "G. D'Angelo, V. Clerico, C. Bartolozzi, M. Hoffmann, P. M. Furlong and "
+    'A. Hadjiivanov, "Wandering around: A bioinspired approach to visual attention '
+    'through object motion sensitivity"'
+)
 
 
 def _created(folder: Path) -> tuple[str, str]:
@@ -48,6 +55,11 @@ def _rel(path: Path, start: Path) -> str:
     return Path(os.path.relpath(path.resolve(), start.resolve())).as_posix()
 
 
+def _seconds(value: Any) -> str:
+    """``"12 s"``, or ``"? s"`` for a missing figure (``null`` in strict JSON)."""
+    return "? s" if value is None else f"{float(value):.0f} s"
+
+
 def _section(name: str, folder: Path | None, report_dir: Path) -> list[str]:
     exp = get_experiment(name)
     lines = [f"## {name}", "", exp.description, ""]
@@ -63,7 +75,7 @@ def _section(name: str, folder: Path | None, report_dir: Path) -> list[str]:
         f"- command: `{run.get('command', '')}`",
         f"- seed {run.get('seed')}, git revision `{run.get('git_revision', 'unknown')}`, "
         f"created {run.get('created', '?')}",
-        f"- {len(rows)} trials in {timing.get('total_s', float('nan')):.0f} s; table: "
+        f"- {len(rows)} trials in {_seconds(timing.get('total_s'))}; table: "
         f"[{_rel(folder / 'results.csv', report_dir)}]({_rel(folder / 'results.csv', report_dir)})",
         "",
     ]
@@ -108,9 +120,9 @@ def render_report(root: Path = Path("results"), report_dir: Path = Path(".")) ->
         "# wander: the paper's results and ours",
         "",
         "Each section comes from the newest result folder of one experiment "
-        f"(`{root}/NAME/...`); rerun it with the command shown. The paper is D'Angelo et al., "
-        "the bio-inspired attention system (`../shared/seed/paper.tex`); its numbers come "
-        "from real recordings (Speck, EVIMO, LLE-VOS), ours from the simulator.",
+        f"(`{root}/NAME/...`); rerun it with the command shown. The paper: {PAPER_REFERENCE}. "
+        "Its numbers come from real recordings (Speck, EVIMO, LLE-VOS), ours from the "
+        "simulator.",
         "",
     ]
     for name in EXPERIMENT_NAMES:

@@ -38,7 +38,7 @@ from hardware.ptu_driver import FlirPTUParams, PTUError, PTUPortError, PTUTimeou
 from hardware.ptu_emulator import PTUEmulatorParams
 from hardware.rig_env import RigConfig
 from hardware.speck import SpeckParams
-from wander_env.runinfo import run_record, write_json
+from wander_env.runinfo import run_record, to_strict_json, write_json
 
 __all__ = ["RigRunConfig", "RigRunError", "run_rig"]
 
@@ -240,7 +240,7 @@ def _add_metrics(out_dir: Path, rig: dict[str, Any]) -> dict[str, Any]:
     metrics = json.loads(path.read_text()) if path.is_file() else {}
     metrics["rig"] = rig
     write_json(path, metrics)
-    return metrics
+    return to_strict_json(metrics)  # as written: a missing figure is None (null)
 
 
 def run_rig(

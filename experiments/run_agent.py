@@ -37,12 +37,13 @@ import numpy as np
 from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent, Phase
 from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
+from experiments.run_viewer import open_run_log
 from experiments.scanpath_figure import pixel_to_angles, plot_scanpath
 from wander_env.event_io import EventRecording, write_events
 from wander_env.events import concatenate
 from wander_env.metrics import degrees_to_pixels, detection_hit, focal_length_px
 from wander_env.runinfo import run_record, write_json
-from wander_env.viz import event_image, upscale
+from wander_env.viz import event_image, labelled_frame, saliency_rgb
 
 __all__ = ["RunConfig", "RunResult", "run", "run_closed_loop", "video_frame"]
 
@@ -94,30 +95,6 @@ class RunResult:
 # Pictures
 
 
-def _colour_map(values: np.ndarray) -> np.ndarray:
-    """(H, W) non-negative values -> RGB (black → magenta → yellow), scaled to the peak."""
-    v = np.clip(np.asarray(values, dtype=np.float64), 0.0, None)
-    peak = v.max()
-    v = v / peak if peak > 0 else v
-    rgb = np.stack([np.clip(2 * v, 0, 1), np.clip(2 * v - 1, 0, 1), np.clip(1 - 2 * v, 0, 1) * v])
-    return (255 * rgb.transpose(1, 2, 0)).astype(np.uint8)
-
-
-def _mark(img: np.ndarray, scale: int, target: tuple[int, int] | None) -> np.ndarray:
-    import cv2
-
-    h, w = img.shape[:2]
-    c = (
-        round((w / scale - 1) / 2 * scale + scale / 2),
-        round((h / scale - 1) / 2 * scale + scale / 2),
-    )
-    cv2.drawMarker(img, c, (0, 200, 0), cv2.MARKER_CROSS, 4 * scale, 1)
-    if target is not None:
-        x0, y0 = (target[0] - 4) * scale, (target[1] - 4) * scale
-        cv2.rectangle(img, (x0, y0), (x0 + 8 * scale - 1, y0 + 8 * scale - 1), (255, 0, 255), 1)
-    return img
-
-
 def video_frame(
     events: np.ndarray,
     oms: np.ndarray,
@@ -127,26 +104,20 @@ def video_frame(
     caption: str = "",
     scale: int = 2,
 ) -> np.ndarray:
-    """One video frame: events | OMS | saliency | camera (uint8 RGB)."""
-    import cv2
-
+    """One video frame (uint8 RGB): events | OMS | saliency | camera, each named, the
+    fovea and P marked, and a footer with ``caption`` (the time stamp) and the colour
+    keys (ON/OFF, the saliency scale, fovea, P)."""
     h, w = events.shape[1:]
-    panels = [event_image(events), event_image(oms)]
-    panels.append(_colour_map(saliency) if saliency is not None else np.zeros((h, w, 3), np.uint8))
+    sal = saliency_rgb(saliency) if saliency is not None else np.zeros((h, w, 3), np.uint8)
+    panels = [
+        ("events (this step)", event_image(events)),
+        ("OMS (fixation window)", event_image(oms)),
+        ("saliency (last decision)", sal),
+    ]
     if camera is not None:
-        panels.append(np.asarray(camera, dtype=np.uint8))
-    names = ["events", "OMS", "saliency", "camera"]
-    out = []
-    for name, p in zip(names, panels, strict=False):
-        big = np.ascontiguousarray(upscale(p, scale))
-        _mark(big, scale, target)
-        cv2.putText(big, name, (3, 12), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 160, 0), 1)
-        out.append(big)
-    gap = np.full((out[0].shape[0], 4, 3), 128, np.uint8)
-    row = np.concatenate([x for p in out for x in (p, gap)][:-1], axis=1)
-    bar = np.full((16, row.shape[1], 3), 255, np.uint8)
-    cv2.putText(bar, caption, (3, 12), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1)
-    return np.concatenate([row, bar], axis=0)
+        panels.append(("camera", np.asarray(camera, dtype=np.uint8)))
+    keys = ("polarity", "saliency", "fovea", "P")
+    return labelled_frame(panels, scale, caption, keys=keys, target=target)
 
 
 # ----------------------------------------------------------------------------------------
@@ -163,6 +134,7 @@ class _Log:
     hits: list[bool | None] = field(default_factory=list)  # per decision
     clipped: list[bool] = field(default_factory=list)  # per saccade
     steps: int = 0
+    sightings: list[tuple] = field(default_factory=list)  # ground truth (run_viewer)
 
 
 def run_closed_loop(
@@ -187,6 +159,7 @@ def run_closed_loop(
         import imageio.v2 as imageio
 
         writer = imageio.get_writer(out_dir / "run.mp4", fps=round(1 / dt), macro_block_size=1)
+    rrlog = open_run_log(out_dir, env, str(record.get("command", "wander run")))  # run.rrd
     error: BaseException | None = None
     t_wall = time.perf_counter()
     window_mask: np.ndarray | None = None
@@ -217,6 +190,7 @@ def run_closed_loop(
             log.chunks.append(info["events"].events)
             log.gaze.append((float(info.get("t", (k + 1) * dt)), *map(float, obs["gaze"])))
             log.steps = k + 1
+            rrlog.step(obs, info, agent)
             if writer is not None:
                 writer.append_data(_frame_for(agent, obs, base, info))
             if progress is not None:
@@ -226,6 +200,8 @@ def run_closed_loop(
     except BaseException as exc:
         error = exc
     finally:
+        rrlog.close()
+        log.sightings = rrlog.sightings
         if writer is not None:
             writer.close()
     wall = time.perf_counter() - t_wall
@@ -244,7 +220,8 @@ def run_closed_loop(
 def _frame_for(agent: AttentionAgent, obs: dict, base: Any, info: dict) -> np.ndarray:
     camera = getattr(base, "camera_frame", None)
     t = info.get("t", math.nan)
-    caption = f"t={t:6.2f}s  {agent.phase.value}  P={agent.target}"
+    target = "none" if agent.target is None else f"({agent.target[0]}, {agent.target[1]})"
+    caption = f"t = {t:5.2f} s   {agent.phase.value}   P = {target}"
     return video_frame(obs["events"], agent.oms_map, agent.saliency, camera, agent.target, caption)
 
 
@@ -278,6 +255,27 @@ def _saccade_metrics(agent: AttentionAgent, clipped: list[bool]) -> dict[str, An
             "foveation_error_y_px_std": float(e[:, 1].std()),
         }
     return out
+
+
+def _object_paths(
+    sightings: list[tuple], focal_px: float, centre: tuple[float, float]
+) -> dict[str, np.ndarray]:
+    """Each moving object's world (t, pan, tilt) from its pixel centres and the gaze."""
+    paths: dict[str, list[tuple[float, float, float]]] = {}
+    for name, t, pan, tilt, x, y in sightings:
+        paths.setdefault(name, []).append(
+            (t, *pixel_to_angles((x, y), (pan, tilt), focal_px, centre))
+        )
+    return {k: np.asarray(v) for k, v in paths.items()}
+
+
+def _ptu_limits(env: Any) -> tuple[tuple[float, float], tuple[float, float]] | None:
+    """The PTU's (pan, tilt) limits in degrees (simulated unit or the rig's driver)."""
+    ptu = getattr(env.unwrapped, "ptu", None)
+    for src in (ptu, getattr(ptu, "params", None)):  # the rig's driver, the simulated unit
+        if hasattr(src, "pan_limits_deg") and hasattr(src, "tilt_limits_deg"):
+            return tuple(src.pan_limits_deg), tuple(src.tilt_limits_deg)  # type: ignore[return-value]
+    return None
 
 
 def _mean(values: list[float]) -> float:
@@ -360,6 +358,8 @@ def _write_folder(
             f,
             gaze_trace=np.asarray(log.gaze),
             title=f"scanpath ({len(agent.fixations)} fixations, {len(agent.saccades)} saccades)",
+            object_paths=_object_paths(log.sightings, f, centre),
+            limits_deg=_ptu_limits(env),
         )
     events = concatenate(log.chunks) if log.chunks else concatenate([])
     h, w = p.height_px, p.width_px

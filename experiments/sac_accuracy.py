@@ -343,6 +343,11 @@ def plot(cfg: SacAccuracyConfig, rows: list[Row], results_dir: Path, fig_dir: Pa
     axes[1].set_xticks(x, names, fontsize=8)
     axes[1].set(ylabel="displacement (px, mean ± std)", title="saccade accuracy")
     axes[1].legend(fontsize=8)
+    fig.suptitle(
+        "Saccade accuracy of the sAC: the target's displacement from the fovea after the "
+        f"saccade ({len(rows)} trials)",
+        fontsize=10,
+    )
     path = save_figure(fig, fig_dir / "sac_accuracy.png")
     return [path]
 

@@ -412,6 +412,7 @@ def plot(cfg: SaccadeSpeedConfig, rows: list[Row], results_dir: Path, fig_dir: P
     axes[0].set_title("main sequence (dashed: the PTU's trapezoid)")
     axes[1].set(xlabel="saccade amplitude (°)", ylabel="duration (s)", title="saccade duration")
     axes[0].legend(fontsize=7)
+    fig.suptitle(f"Main sequence of the closed-loop saccades ({len(rows)} trials)", fontsize=10)
     ms_path = save_figure(fig, fig_dir / "main_sequence.png")
 
     metrics = [
@@ -445,6 +446,11 @@ def plot(cfg: SaccadeSpeedConfig, rows: list[Row], results_dir: Path, fig_dir: P
                 ax.set_ylabel(label, fontsize=8)
             if i == 0:
                 ax.set_title(factor, fontsize=9)
+    fig.suptitle(
+        "One factor at a time around the paper's values (PTU speed and acceleration, "
+        "fixational steps, object speed)",
+        fontsize=10,
+    )
     sweep_path = save_figure(fig, fig_dir / "saccade_speed.png")
     return [ms_path, sweep_path]
 

@@ -400,6 +400,11 @@ def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path)
             if r is not None:
                 title += f" (seed {r['seed']}): hit rate {float(r['object_hit_rate']):.0%}"
             ax.set_title(title, fontsize=9)
+    fig.suptitle(
+        "Scanpaths on the pan-tilt sphere: saliency mosaic (max over fixations, each map / "
+        "its peak, 0 black … 1 bright), fixations sized by duration",
+        fontsize=10,
+    )
     path = save_figure(fig, fig_dir / "scanpath.png")
 
     keys = [
@@ -420,6 +425,7 @@ def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path)
         ax.set_xticks(x, scenes)
         ax.set_title(label, fontsize=9)
     axes[0].legend(fontsize=8)
+    fig.suptitle(f"Scanpath statistics per scene and condition ({len(rows)} trials)", fontsize=10)
     stats_path = save_figure(fig, fig_dir / "scanpath_stats.png")
     return [path, stats_path]
 
@@ -427,14 +433,18 @@ def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path)
 def _draw_scanpath(ax: Any, arts: dict[str, Any]) -> None:
     if "mosaic" in arts:
         pan, tilt = arts["mosaic_pan"], arts["mosaic_tilt"]
-        ax.imshow(
+        image = ax.imshow(
             arts["mosaic"],
             extent=(pan[0], pan[-1], tilt[-1], tilt[0]),
             cmap="magma",
             origin="upper",
             aspect="equal",
             interpolation="nearest",
+            vmin=0.0,
+            vmax=1.0,
         )
+        bar = ax.figure.colorbar(image, ax=ax, fraction=0.046, pad=0.02)
+        bar.set_label("saliency (normalised)", fontsize=7)
         ax.set_ylim(tilt[0], tilt[-1])
     fx = arts.get("fixations", np.zeros((0, 4)))
     if len(fx):

@@ -1,12 +1,14 @@
 """Scanpath pictures: fixations and saccades over the cumulative saliency of a run.
 
 A pan-tilt camera's fixations live in world angles, not in one image, so the figure
-puts every fixation's saliency map on a common angular grid (pan, tilt in degrees,
-pinhole model: pixel ``x`` of a fixation at ``pan_i`` sees ``pan_i − atan((x − cx)/f)``),
-keeps the maximum of the per-map normalised saliency, and draws the fixation points
-(gaze at each window, marker size ∝ duration), the saccade lines between them and the
-salient points ``P`` that triggered the saccades — the paper's scanpath figure on the
-pan-tilt unit's sphere.
+puts every fixation's saliency map on a common angular grid (pan, tilt in degrees; a
+pixel's world direction is the gaze plus the exact pan-tilt rotation that brings it to
+the fovea, :func:`agents.fixation.pixel_to_rotation`, not ``atan`` per axis), keeps the
+maximum of the per-map normalised saliency (colour bar), and draws the fixation points
+(gaze at each window, marker size ∝ duration), the saccade lines between them, the
+salient points ``P`` that triggered the saccades (those beyond the PTU's reach marked
+and counted), the PTU's limits and, from ground truth, the moving objects' paths — the
+paper's scanpath figure on the pan-tilt unit's sphere.
 
 Example:
     >>> import numpy as np
@@ -24,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.fixation import pixel_to_rotation
 from experiments.framework import save_figure
 
 
@@ -36,20 +39,64 @@ class AngularGrid:
     values: np.ndarray
 
 
+def _camera_geometry(focal_px: float, centre: tuple[float, float]) -> tuple[int, float]:
+    """The sensor width and horizontal FOV (degrees) of focal length ``focal_px`` and
+    principal point ``centre`` (``cx = (W − 1)/2``)."""
+    width = round(2 * centre[0] + 1)
+    return width, 2.0 * math.degrees(math.atan((width / 2.0) / focal_px))
+
+
 def pixel_to_angles(
     xy: tuple[float, float],
     gaze_deg: tuple[float, float],
     focal_px: float,
     centre: tuple[float, float],
 ) -> tuple[float, float]:
-    """World (pan, tilt) in degrees of pixel ``xy`` seen with the camera at ``gaze_deg``.
+    """World (pan, tilt) in degrees of pixel ``xy`` seen with the camera at ``gaze_deg``:
+    the gaze plus the exact rotation that brings the pixel to the fovea
+    (:func:`agents.fixation.pixel_to_rotation`; at the tilt of the gaze).
 
-    >>> pixel_to_angles((63.5, 63.5), (10.0, -5.0), 42.5, (63.5, 63.5))
-    (10.0, -5.0)
+    >>> [round(a, 9) for a in pixel_to_angles((63.5, 63.5), (10.0, -5.0), 42.5, (63.5, 63.5))]
+    [10.0, -5.0]
+    >>> pan, tilt = pixel_to_angles((127.0, 0.0), (0.0, 0.0), 42.5, (63.5, 63.5))
+    >>> round(pan, 2), round(tilt, 2)  # a corner: atan per axis would say (-56.21, 56.21)
+    (-56.21, 39.73)
     """
-    pan = gaze_deg[0] - math.degrees(math.atan((xy[0] - centre[0]) / focal_px))
-    tilt = gaze_deg[1] - math.degrees(math.atan((xy[1] - centre[1]) / focal_px))
-    return pan, tilt
+    width, hfov = _camera_geometry(focal_px, centre)
+    rot = pixel_to_rotation(
+        xy[0] - centre[0], xy[1] - centre[1], gaze_deg[1], width_px=width, hfov_deg=hfov
+    )
+    return gaze_deg[0] + rot[0], gaze_deg[1] + rot[1]
+
+
+def angles_to_pixels(
+    pan_deg: np.ndarray,
+    tilt_deg: np.ndarray,
+    gaze_deg: tuple[float, float],
+    focal_px: float,
+    centre: tuple[float, float],
+) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel (x, y) where the world directions (``pan``, ``tilt``, degrees; arrays of one
+    shape) appear to a camera at ``gaze_deg`` — the inverse of :func:`pixel_to_angles`;
+    NaN behind the camera.
+
+    >>> pan, tilt = pixel_to_angles((100.0, 10.0), (5.0, -10.0), 42.5, (63.5, 63.5))
+    >>> x, y = angles_to_pixels(np.array(pan), np.array(tilt), (5.0, -10.0), 42.5, (63.5, 63.5))
+    >>> round(float(x), 9), round(float(y), 9)
+    (100.0, 10.0)
+    """
+    p, t = np.radians(pan_deg), np.radians(tilt_deg)
+    gp, gt = math.radians(gaze_deg[0]), math.radians(gaze_deg[1])
+    d = np.stack([np.cos(t) * np.cos(p), np.cos(t) * np.sin(p), np.sin(t)])
+    fwd = np.array([math.cos(gt) * math.cos(gp), math.cos(gt) * math.sin(gp), math.sin(gt)])
+    left = np.array([-math.sin(gp), math.cos(gp), 0.0])
+    up = np.array([-math.sin(gt) * math.cos(gp), -math.sin(gt) * math.sin(gp), math.cos(gt)])
+    depth = np.tensordot(fwd, d, axes=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = centre[0] - focal_px * np.tensordot(left, d, axes=1) / depth
+        y = centre[1] - focal_px * np.tensordot(up, d, axes=1) / depth
+    behind = depth <= 1e-9
+    return np.where(behind, np.nan, x), np.where(behind, np.nan, y)
 
 
 def saliency_mosaic(
@@ -58,32 +105,47 @@ def saliency_mosaic(
     focal_px: float,
     step_deg: float = 0.5,
 ) -> AngularGrid:
-    """Max over fixations of each map normalised to its own peak, on an angular grid."""
+    """Max over fixations of each map normalised to its own peak, on an angular grid
+    (each cell sampled from the pixel that sees it, :func:`angles_to_pixels`)."""
     if len(maps) != len(gazes_deg):
         raise ValueError(f"{len(maps)} maps but {len(gazes_deg)} gaze directions")
     if not maps:
         raise ValueError("no saliency maps")
     h, w = maps[0].shape
-    cx, cy = (w - 1) / 2.0, (h - 1) / 2.0
+    centre = ((w - 1) / 2.0, (h - 1) / 2.0)
     half_w = math.degrees(math.atan((w / 2.0) / focal_px))
     half_h = math.degrees(math.atan((h / 2.0) / focal_px))
     g = np.asarray(gazes_deg, dtype=np.float64)
     pan = np.arange(g[:, 0].min() - half_w, g[:, 0].max() + half_w + step_deg, step_deg)
     tilt = np.arange(g[:, 1].min() - half_h, g[:, 1].max() + half_h + step_deg, step_deg)
+    pan_grid, tilt_grid = np.meshgrid(pan, tilt)
     values = np.zeros((len(tilt), len(pan)))
     for m, (gp, gt) in zip(maps, g, strict=True):
         m = np.asarray(m, dtype=np.float64)
         peak = m.max()
         if not peak > 0:
             continue
-        x = np.rint(cx + focal_px * np.tan(np.radians(gp - pan))).astype(int)
-        y = np.rint(cy + focal_px * np.tan(np.radians(gt - tilt))).astype(int)
-        ok_x = (np.abs(gp - pan) < 89.0) & (x >= 0) & (x < w)
-        ok_y = (np.abs(gt - tilt) < 89.0) & (y >= 0) & (y < h)
-        iy, ix = np.nonzero(ok_y)[0], np.nonzero(ok_x)[0]
-        patch = np.clip(m[np.ix_(y[iy], x[ix])] / peak, 0.0, None)
-        values[np.ix_(iy, ix)] = np.maximum(values[np.ix_(iy, ix)], patch)
+        x, y = angles_to_pixels(pan_grid, tilt_grid, (gp, gt), focal_px, centre)
+        ok = np.isfinite(x) & np.isfinite(y)
+        xi = np.rint(np.where(ok, x, -1)).astype(int)
+        yi = np.rint(np.where(ok, y, -1)).astype(int)
+        ok &= (xi >= 0) & (xi < w) & (yi >= 0) & (yi < h)
+        patch = np.clip(m[yi[ok], xi[ok]] / peak, 0.0, None)
+        values[ok] = np.maximum(values[ok], patch)
     return AngularGrid(pan=pan, tilt=tilt, values=values)
+
+
+def beyond_limits(
+    angles_deg: np.ndarray, limits_deg: tuple[tuple[float, float], tuple[float, float]]
+) -> np.ndarray:
+    """Which (pan, tilt) rows lie outside the PTU's pan or tilt range (bool per row).
+
+    >>> beyond_limits(np.array([[0.0, 0.0], [0.0, 30.0]]), ((-79.5, 79.5), (-23.3, 15.5)))
+    array([False,  True])
+    """
+    a = np.asarray(angles_deg, dtype=np.float64).reshape(-1, 2)
+    (plo, phi), (tlo, thi) = limits_deg
+    return (a[:, 0] < plo) | (a[:, 0] > phi) | (a[:, 1] < tlo) | (a[:, 1] > thi)
 
 
 def plot_scanpath(
@@ -93,57 +155,122 @@ def plot_scanpath(
     focal_px: float,
     gaze_trace: np.ndarray | None = None,
     title: str = "scanpath",
+    object_paths: dict[str, np.ndarray] | None = None,
+    limits_deg: tuple[tuple[float, float], tuple[float, float]] | None = None,
 ) -> Path:
     """Write the scanpath figure (PNG).
 
     ``fixations``: dicts with ``gaze_deg`` (pan, tilt at the window), ``duration_s``
     and ``target_deg`` (the salient point's world angles or None); ``maps`` the
     saliency map of each fixation (same order). ``gaze_trace`` (n, 3) = t, pan, tilt
-    adds a panel with the gaze over time.
+    adds a panel with the gaze over time. ``object_paths``: name -> (n, 3) t, pan, tilt
+    of each moving object from ground truth (drawn as its path). ``limits_deg``: the
+    PTU's (pan, tilt) ranges of the gaze; salient points beyond them are marked, counted
+    and said in a note.
     """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.patches import Rectangle
 
     panels = 2 if gaze_trace is not None and len(gaze_trace) else 1
-    fig, axes = plt.subplots(1, panels, figsize=(6.5 * panels, 5.2), squeeze=False)
+    fig, axes = plt.subplots(1, panels, figsize=(7.2 * panels, 5.8), squeeze=False)
     ax = axes[0, 0]
     gazes = [f["gaze_deg"] for f in fixations]
     if maps:
         grid = saliency_mosaic(maps, gazes, focal_px)
-        ax.imshow(
+        image = ax.imshow(
             grid.values,
             extent=(grid.pan[0], grid.pan[-1], grid.tilt[-1], grid.tilt[0]),
             cmap="magma",
             origin="upper",
             aspect="equal",
             interpolation="nearest",
+            vmin=0.0,
+            vmax=1.0,
         )
+        bar = fig.colorbar(image, ax=ax, fraction=0.046, pad=0.02)
+        bar.set_label("saliency (max over fixations, each map / its peak)", fontsize=8)
         ax.set_ylim(grid.tilt[0], grid.tilt[-1])
+    for k, (name, track) in enumerate((object_paths or {}).items()):
+        track = np.asarray(track, dtype=np.float64).reshape(-1, 3)
+        if len(track):
+            colour = f"C{k + 2}"
+            ax.plot(track[:, 1], track[:, 2], "-", color=colour, lw=1.2, alpha=0.9,
+                    label=f"{name} (ground truth path)")  # fmt: skip
+            ax.plot(track[-1, 1], track[-1, 2], "o", color=colour, ms=4)
+    if limits_deg is not None:
+        (plo, phi), (tlo, thi) = limits_deg
+        ax.add_patch(Rectangle((plo, tlo), phi - plo, thi - tlo, fill=False, ls="--",
+                               ec="0.7", lw=1.0, label="PTU limits of the gaze"))  # fmt: skip
+    note = ""
     if gazes:
         g = np.asarray(gazes)
         ax.plot(g[:, 0], g[:, 1], "-", color="gold", lw=1.5, label="saccades")
         sizes = [20 + 200 * f["duration_s"] for f in fixations]
-        ax.scatter(g[:, 0], g[:, 1], s=sizes, c="cyan", edgecolors="k", zorder=3, label="fixations")
+        ax.scatter(g[:, 0], g[:, 1], s=sizes, c="cyan", edgecolors="k", zorder=3,
+                   label="fixations (size ∝ duration)")  # fmt: skip
         for k, (p, t) in enumerate(g):
             ax.annotate(str(k), (p, t), color="white", fontsize=7, xytext=(3, 3),
                         textcoords="offset points")  # fmt: skip
         targets = [f["target_deg"] for f in fixations if f.get("target_deg") is not None]
         if targets:
-            tg = np.asarray(targets)
-            ax.scatter(tg[:, 0], tg[:, 1], marker="x", c="lime", s=30, zorder=4, label="P(x, y)")
-    ax.invert_xaxis()  # positive pan turns left: left of the plot is left of the world
+            tg = np.asarray(targets, dtype=np.float64)
+            out = (
+                beyond_limits(tg, limits_deg) if limits_deg is not None else np.zeros(len(tg), bool)
+            )
+            ax.scatter(tg[~out, 0], tg[~out, 1], marker="x", c="lime", s=30, zorder=4,
+                       label="P(x, y), salient point")  # fmt: skip
+            if out.any():
+                ax.scatter(tg[out, 0], tg[out, 1], marker="X", c="red", s=45, zorder=4,
+                           edgecolors="white", linewidths=0.5,
+                           label=f"P beyond the PTU's reach ({int(out.sum())})")  # fmt: skip
+                (plo, phi), (tlo, thi) = limits_deg  # type: ignore[misc]
+                note = (
+                    f"{int(out.sum())} of {len(tg)} salient points lie beyond the PTU's range "
+                    f"(pan {plo:.1f}…{phi:.1f}°, tilt {tlo:.1f}…{thi:.1f}°):\n"
+                    "the saccades to them stop at the limit"
+                )
+    # Show everything drawn: the mosaic, the paths, every P (also those out of reach) and
+    # the tilt limits; pan grows to the left (positive pan turns left).
+    xs, ys = [], []
+    if maps:
+        xs += [grid.pan[0], grid.pan[-1]]
+        ys += [grid.tilt[0], grid.tilt[-1]]
+    for track in (object_paths or {}).values():
+        track = np.asarray(track, dtype=np.float64).reshape(-1, 3)
+        xs += track[:, 1].tolist()
+        ys += track[:, 2].tolist()
+    for f in fixations:
+        for key in ("gaze_deg", "target_deg"):
+            if f.get(key) is not None:
+                xs.append(f[key][0])
+                ys.append(f[key][1])
+    if limits_deg is not None:
+        ys += list(limits_deg[1])
+    if xs:
+        ax.set_xlim(max(xs) + 2.0, min(xs) - 2.0)
+        ax.set_ylim(min(ys) - 2.0, max(ys) + 2.0)
+    else:
+        ax.invert_xaxis()
     ax.set_xlabel("pan (°, + = left)")
     ax.set_ylabel("tilt (°, + = up)")
-    ax.set_title(title)
-    ax.legend(loc="lower right", fontsize=7)
+    ax.set_title(title, fontsize=10)
+    ax.legend(loc="lower right", fontsize=6.5, framealpha=0.8)
+    if note:
+        ax.text(0.01, 0.99, note, transform=ax.transAxes, va="top", fontsize=7, color="white",
+                bbox={"facecolor": "black", "alpha": 0.6, "edgecolor": "red"})  # fmt: skip
     if panels == 2:
         ax2 = axes[0, 1]
         ax2.plot(gaze_trace[:, 0], gaze_trace[:, 1], label="pan")
         ax2.plot(gaze_trace[:, 0], gaze_trace[:, 2], label="tilt")
-        ax2.set_xlabel("time (s)")
-        ax2.set_ylabel("gaze (°)")
+        if limits_deg is not None:
+            for lim in limits_deg[1]:
+                ax2.axhline(lim, color="C1", ls=":", lw=0.8)
+            ax2.plot([], [], color="C1", ls=":", lw=0.8, label="tilt limits")
+        ax2.set_xlabel("simulated time (s)")
+        ax2.set_ylabel("gaze (°; + pan = left, + tilt = up)")
         ax2.set_title("gaze over time")
         ax2.legend(fontsize=7)
     save_figure(fig, path)

@@ -28,6 +28,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import itertools
 import json
+import math
 import multiprocessing
 import os
 import time
@@ -50,7 +51,7 @@ from experiments.framework import (
     split_artifacts,
     write_csv,
 )
-from wander_env.runinfo import run_record, write_json
+from wander_env.runinfo import dumps_strict, run_record, write_json
 
 __all__ = [
     "BACKENDS",
@@ -261,12 +262,13 @@ def _store(out_dir: Path, spec: TrialSpec, row: Row, secs: float) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")
     rec = {"spec": asdict(spec), "row": plain, "seconds": round(secs, 3)}
-    tmp.write_text(json.dumps(rec, default=str) + "\n")
+    tmp.write_text(dumps_strict(rec) + "\n")  # NaN as null: strict JSON
     os.replace(tmp, path)
 
 
 def _load_row(out_dir: Path, spec: TrialSpec) -> Row:
     row = json.loads(_trial_file(out_dir, spec).read_text())["row"]
+    row = {k: math.nan if v is None else v for k, v in row.items()}  # null: a missing figure
     # ids and sweep columns from the current sweep file (indices shift when it is edited)
     row.update({"trial": spec.index, "repeat": spec.repeat, "seed": spec.seed})
     row.update(spec.extra)

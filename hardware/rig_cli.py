@@ -10,6 +10,7 @@ exits with code 2; Ctrl-C leaves the folder with what was recorded and exits wit
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -18,24 +19,33 @@ import typer
 from wander_env.cli_options import (
     AgentAlphaOpt,
     FixationalOpt,
+    ForceOpt,
+    RunDirOpt,
     StreamlinedOpt,
     VideoOpt,
     WindowOpt,
     agent_alpha,
+    check_seconds,
+    resolve_out,
 )
+
+
+def _or_nan(value: Any) -> float:
+    return math.nan if value is None else float(value)
 
 
 def summary_line(metrics: dict[str, Any], out: Path) -> str:
     """The line printed after a run: decisions, saccades, events, drops, PTU latency."""
     rig = metrics.get("rig", {})
-    mean_ms = rig.get("command_latency_mean_s", math.nan) * 1e3
-    max_ms = rig.get("command_latency_max_s", math.nan) * 1e3
+    # metrics.json is strict JSON: a latency never measured is null (None here).
+    mean_ms = _or_nan(rig.get("command_latency_mean_s")) * 1e3
+    max_ms = _or_nan(rig.get("command_latency_max_s")) * 1e3
     return (
         f"{metrics['decisions']} decisions, {metrics['saccades']} saccades, "
         f"{metrics['steps']} steps, {metrics['events']:,} events "
         f"({rig.get('dropped_events', 0):,} dropped), PTU command latency "
         f"mean {mean_ms:.1f} ms / max {max_ms:.1f} ms, real-time factor "
-        f"{metrics['real_time_factor']:.2f} -> {out}"
+        f"{_or_nan(metrics['real_time_factor']):.2f} -> {out}"
     )
 
 
@@ -81,14 +91,17 @@ def rig(
             "live camera). Ignored for a Speck."
         ),
     ] = "fast",
-    seconds: Annotated[float, typer.Option(help="Run length in seconds of camera time.")] = 10.0,
+    seconds: Annotated[
+        float, typer.Option(callback=check_seconds, help="Run length in seconds of camera time.")
+    ] = 10.0,
     seed: Annotated[int, typer.Option(help="Seed of the agent (walk, controller).")] = 0,
-    out: Annotated[Path, typer.Option(help="The run folder.")] = Path("runs/rig"),
+    out: RunDirOpt = None,
     window: WindowOpt = 0.124,
     fixational: FixationalOpt = True,
     streamlined: StreamlinedOpt = False,
     alpha: AgentAlphaOpt = None,
     video: VideoOpt = True,
+    force: ForceOpt = False,
 ) -> None:
     """Run the attention agent closed-loop on the rig; write the run folder of `wander run`."""
     from experiments.rig import RigRunConfig, RigRunError, run_rig
@@ -108,7 +121,15 @@ def rig(
             **agent_alpha(alpha),
         )
     except ValueError as err:
-        raise typer.BadParameter(str(err)) from err
+        field = re.match(r"Rig(?:Run)?Config\.(\w+)", str(err))
+        hint = f"'--{field.group(1)}'" if field else None
+        raise typer.BadParameter(str(err), param_hint=hint) from None
+    replay_file = Path(camera[len("replay:") :]) if camera.startswith("replay:") else None
+    if replay_file is not None and not replay_file.is_file():
+        raise typer.BadParameter(
+            f"no such event file: {str(replay_file)!r}", param_hint="'--camera'"
+        )
+    out = resolve_out(out, "rig", force)
     bar = _progress()
     try:
         with bar:

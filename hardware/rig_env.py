@@ -82,7 +82,7 @@ from wander_env.event_packet import EventPacket
 from wander_env.events import empty_events, to_frame
 from wander_env.metrics import SPECK_HFOV_DEG
 from wander_env.ptu import degrees_to_positions, positions_to_degrees, round_position
-from wander_env.viz import event_image, upscale
+from wander_env.viz import event_image, labelled_frame
 
 _REPLAY_MODES = ("realtime", "fast")
 
@@ -606,10 +606,13 @@ class RigEnv(gym.Env):
         }
 
     def render(self) -> np.ndarray | None:
-        """The event frame of the last step (3x), for ``render_mode="rgb_array"``."""
+        """The event frame of the last step (3x), named, with the time stamp and the
+        ON/OFF key, for ``render_mode="rgb_array"``."""
         if self.render_mode != "rgb_array":
             return None
-        return upscale(event_image(self._last_counts), 3)
+        t = (self.camera.cursor_us - self._t0_us) / 1e6
+        panel = [("events (last step)", event_image(self._last_counts))]
+        return labelled_frame(panel, 3, f"t = {t:5.2f} s", keys=("polarity", "fovea"))
 
 
 __all__ = ["RigConfig", "RigEnv"]

@@ -409,3 +409,22 @@ def test_agent_alpha_reproduces_the_papers_suppression_on_real_ego_motion(tmp_pa
         pooled[alpha] = 1 - n_out / n_in
     assert pooled[0.5] == pytest.approx(0.8544, abs=5e-5)
     assert pooled[0.8] == pytest.approx(0.9941, abs=5e-5)
+
+
+def test_maps_vs_masks_figure_samples_scored_windows(tmp_path):
+    """``maps_vs_masks.png``: up to 4 scored windows spread over the sequence, their
+    maps beside their masks (the window with an empty mask is never drawn)."""
+    from experiments.benchmark_figure import WindowSampler
+
+    file, masks = write_events_and_masks(tmp_path / "data")
+    out = tmp_path / "out"
+    result = invoke("events", file, "--masks", masks, "--out", out, "--no-progress")
+    assert result.exit_code == 0, result.output
+    assert f"{out}/maps_vs_masks.png" in result.output
+    picture = Image.open(out / "maps_vs_masks.png")
+    sampler = WindowSampler()
+    sampler.start_sequence(N_WIN)
+    rows = len(sampler.wanted)
+    assert rows == 4
+    # 12 x (3 rows of inches per window + 0.9) inches at 110 dpi.
+    assert picture.size == (1320, round((3.0 * rows + 0.9) * 110))

@@ -34,7 +34,12 @@ def test_demo_writes_events_picture_and_record(tmp_path):
     assert run["config"]["dvs"]["latency_us"] == 100.0
     assert run["git_revision"]
     picture = cv2.imread(str(out / "events.png"))
-    assert picture.shape == (2 * 256 + 2, 4 * 256 + 3 * 2, 3)  # 2 rows of 4 panels at 2x
+    # 2 rows of 4 titled panels and a legend: a 12 x 6.8 inch figure at 110 dpi.
+    assert picture.shape == (748, 1320, 3)
+    # The legend's ON and OFF swatches are in the picture, in the event colours.
+    rgb = cv2.cvtColor(picture, cv2.COLOR_BGR2RGB).reshape(-1, 3)
+    colours = {tuple(c) for c in rgb[-60 * 1320 :].tolist()}
+    assert (220, 30, 30) in colours and (30, 60, 220) in colours
 
 
 def test_demo_is_reproducible(tmp_path):
@@ -45,9 +50,14 @@ def test_demo_is_reproducible(tmp_path):
 
 
 def test_demo_rejects_a_bad_preset(tmp_path):
-    result = runner.invoke(app, ["demo", "--out", str(tmp_path), "--preset", "davis"])
-    assert result.exit_code != 0
-    assert "unknown DVS preset 'davis'" in str(result.exception)
+    result = runner.invoke(
+        app, ["demo", "--out", str(tmp_path), "--preset", "davis"], prog_name="wander"
+    )
+    assert result.exit_code == 2
+    assert result.stderr.strip().splitlines() == [
+        "wander demo: Invalid value for '--preset': unknown DVS preset 'davis'; "
+        "choose one of ['ideal', 'paper', 'speck']"
+    ]
 
 
 def test_bench_dvs_prints_every_row():

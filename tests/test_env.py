@@ -163,7 +163,12 @@ def test_render_rgb_array_is_camera_beside_events():
     env.reset(seed=0)
     env.step(np.zeros(2, np.float32))
     img = env.render()
-    assert img.shape == (384, 2 * 384 + 6, 3) and img.dtype == np.uint8
+    # A 24-px header naming the panels, the 3x panels, a 24-px footer (time, key).
+    assert img.shape == (24 + 384 + 24, 2 * 384 + 6, 3) and img.dtype == np.uint8
+    camera = env.unwrapped.camera_frame
+    assert np.array_equal(img[24 + 1, 1], camera[0, 0])  # the camera panel, upscaled 3x
+    footer = img[24 + 384 :].reshape(-1, 3).tolist()
+    assert [220, 30, 30] in footer and [30, 60, 220] in footer  # the ON/OFF key
     env.close()
 
 

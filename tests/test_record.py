@@ -15,7 +15,13 @@ from wander_env.event_io import read_events
 
 def test_record_writes_events_truth_and_video(tmp_path):
     summary = record(tmp_path, RecordConfig(scene="office", seconds=0.2, policy="fixational"))
-    assert sorted(summary["files"]) == ["events.h5", "ground_truth.h5", "run.json", "video.mp4"]
+    assert sorted(summary["files"]) == [
+        "events.h5",
+        "ground_truth.h5",
+        "run.json",
+        "run.rrd",
+        "video.mp4",
+    ]
     rec = read_events(tmp_path / "events.h5")
     assert len(rec.events) == summary["events"] > 0
     assert rec.events["t"].max() <= 200_000

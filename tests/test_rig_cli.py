@@ -45,7 +45,7 @@ QUICK = PTUEmulatorParams(
     )
 )  # fmt: skip
 MOVE = re.compile(r"([PT])P(-?\d+)")  # an absolute move (a bare "PP"/"TP" is a poll)
-FILES = {"events.h5", "fixations.csv", "metrics.json", "run.json", "scanpath.png"}
+FILES = {"events.h5", "fixations.csv", "metrics.json", "run.json", "run.rrd", "scanpath.png"}
 
 
 def write_square(path: Path, seconds: float, every_us: int = 2000) -> np.ndarray:
@@ -243,7 +243,7 @@ def test_a_saccade_moves_the_ptu_to_the_chosen_point(app, square, emu, tmp_path)
         (["--ptu", "emulate", "--camera", "davis"], "'replay:<event file>', got 'davis'"),
         (["--ptu", "emulate", "--camera", "speck", "--replay", "slow"], "replay must be one of"),
         (["--ptu", " ", "--camera", "speck"], "ptu is required"),
-        (["--ptu", "emulate", "--camera", "speck", "--seconds", "0"], "seconds must be > 0"),
+        (["--ptu", "emulate", "--camera", "speck", "--seconds", "0"], "seconds > 0, got 0.0"),
     ],
 )
 def test_bad_options_exit_2_before_opening_anything(app, tmp_path, args, message):

@@ -46,7 +46,7 @@ def test_run_folder_contents(run_dir: Path) -> None:
     assert run_json["git_revision"] and run_json["agent"]["window_s"] == 0.124
     assert run_json["config"]["alpha"] == run_json["agent"]["soms"]["alpha"] == 0.5
     frames = imageio.mimread(run_dir / "run.mp4", memtest=False)
-    assert len(frames) == 150 and frames[0].shape == (2 * 128 + 16, 4 * 2 * 128 + 3 * 4, 3)
+    assert len(frames) == 150 and frames[0].shape == (24 + 2 * 128 + 24, 4 * 2 * 128 + 3 * 4, 3)
     # One decision per window: the first after 13 steps, then after each saccade.
     assert m["decisions"] >= 1
     with open(run_dir / "fixations.csv") as fh:
@@ -107,9 +107,9 @@ def test_fault_mid_run_still_writes_the_folder(tmp_path: Path) -> None:
 
 def test_video_frame_marks_fovea_and_target() -> None:
     ev = np.zeros((2, 128, 128), np.float32)
-    frame = video_frame(ev, ev, np.zeros((128, 128)), None, (100, 20), "x", scale=2)
-    assert frame.shape == (2 * 128 + 16, 3 * 256 + 2 * 4, 3)
-    events_panel = frame[:256, :256]
+    frame = video_frame(ev, ev, np.zeros((128, 128)), None, (100, 20), "t = 0.01 s", scale=2)
+    assert frame.shape == (24 + 2 * 128 + 24, 3 * 256 + 2 * 4, 3)
+    events_panel = frame[24 : 24 + 256, :256]  # below the 24-px header of panel names
     assert tuple(events_panel[128, 128]) == (0, 200, 0)  # fovea cross
     assert tuple(events_panel[(20 - 4) * 2, (100 - 4) * 2 + 5]) == (255, 0, 255)  # P box
 
@@ -151,3 +151,36 @@ def test_saliency_mosaic_places_maps_by_gaze() -> None:
         assert d < 1.5 * np.sqrt(2)
     pan, tilt = pixel_to_angles((63.5 + f, 63.5), (0.0, 0.0), f, (63.5, 63.5))
     assert pan == pytest.approx(-45.0) and tilt == 0.0
+
+
+def test_run_rrd_logs_every_decision_and_movement(run_dir: Path) -> None:
+    """run.rrd read back with Rerun's reader: one saliency map and P per decision, one
+    annotation per fixation and per saccade, a gaze value per step."""
+    from wander_env.viewer import read_recording as read_rrd
+
+    m = json.loads((run_dir / "metrics.json").read_text())
+    data = read_rrd(run_dir / "run.rrd")
+    assert len(data[("/events", "SegmentationImage:buffer")]) == m["steps"] == 150
+    assert len(data[("/oms", "SegmentationImage:buffer")]) == 150
+    assert len(data[("/gaze/pan", "Scalars:scalars")]) == 150
+    assert len(data[("/saliency", "Image:buffer")]) == m["decisions"]
+    texts = [v[0] for _, v in data[("/annotations", "TextLog:text")]]
+    assert sum(t.startswith("fixation ") for t in texts) == m["decisions"]
+    assert sum(t.startswith("saccade ") for t in texts) == m["saccades"]
+    with open(run_dir / "fixations.csv") as fh:
+        rows = [r for r in csv.DictReader(fh) if r["target_x_px"] != ""]
+    centres = [v[0] for _, v in data[("/saliency/P", "Boxes2D:centers")]]
+    assert centres == [[float(r["target_x_px"]), float(r["target_y_px"])] for r in rows]
+
+
+def test_metrics_and_run_json_are_strict_json_with_versions(run_dir: Path) -> None:
+    def refuse(name: str) -> None:
+        raise ValueError(f"non-standard JSON constant {name}")
+
+    for name in ("metrics.json", "run.json"):
+        json.loads((run_dir / name).read_text(), parse_constant=refuse)
+    versions = json.loads((run_dir / "run.json").read_text())["versions"]
+    assert set(versions) == {
+        "python", "numpy", "mujoco", "torch", "sinabs", "nengo", "gymnasium", "wander"
+    }  # fmt: skip
+    assert all(versions[k] for k in versions if k != "wander")

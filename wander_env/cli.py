@@ -14,13 +14,22 @@ from rich.table import Table
 from experiments.benchmark_cli import app as benchmark_app
 from experiments.cli_experiments import register as register_experiments
 from hardware.rig_cli import register as register_rig
+from wander_env.cli_errors import OneLineErrors
 from wander_env.cli_options import (
     AgentAlphaOpt,
+    DvsOpt,
     FixationalOpt,
+    ForceOpt,
+    RunDirOpt,
+    SceneOpt,
+    SecondsOpt,
     StreamlinedOpt,
     VideoOpt,
     WindowOpt,
     agent_alpha,
+    check_seconds,
+    one_of,
+    resolve_out,
 )
 
 app = typer.Typer(
@@ -28,6 +37,7 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    cls=OneLineErrors,
 )
 bench_app = typer.Typer(help="Benchmarks that print tables (speed is measured here, not in tests).")
 app.add_typer(bench_app, name="bench")
@@ -59,17 +69,22 @@ def print_table(title: str, rows: list, columns: dict[str, str]) -> None:
 
 @app.command()
 def demo(
-    out: Annotated[Path, typer.Option(help="Folder for events.h5, events.png, run.json.")] = Path(
-        "runs/demo"
-    ),
-    seconds: Annotated[float, typer.Option(help="Simulated seconds of the stimulus.")] = 1.0,
-    preset: Annotated[str, typer.Option(help="DVS preset: ideal, paper or speck.")] = "paper",
+    out: RunDirOpt = None,
+    seconds: Annotated[
+        float, typer.Option(callback=check_seconds, help="Simulated seconds of the stimulus.")
+    ] = 1.0,
+    preset: DvsOpt = "paper",
     seed: Annotated[int, typer.Option(help="Seed of the stimulus and the emulator's noise.")] = 0,
+    force: ForceOpt = False,
 ) -> None:
     """Drive the DVS emulator with a synthetic moving pattern; write events and a picture."""
     from wander_env.demo import DemoConfig, run_demo
 
-    config = DemoConfig(seconds=seconds, preset=preset, seed=seed)
+    try:
+        config = DemoConfig(seconds=seconds, preset=preset, seed=seed)
+    except ValueError as err:
+        raise typer.BadParameter(str(err), param_hint="'--seconds'") from None
+    out = resolve_out(out, "demo", force)
     with _progress() as bar:
         task = bar.add_task("DVS demo", total=round(seconds * config.frame_rate_hz))
         summary = run_demo(out, config, progress=lambda i, n: bar.update(task, completed=i))
@@ -81,21 +96,29 @@ def demo(
 
 @app.command()
 def record(
-    out: Annotated[Path, typer.Option(help="Folder for the recording.")] = Path("runs/record"),
-    scene: Annotated[str, typer.Option(help="office, gratings, shelf, or a YAML file.")] = "office",
-    seconds: Annotated[float, typer.Option(help="Simulated seconds.")] = 5.0,
-    policy: Annotated[str, typer.Option(help="still, fixational or saccades.")] = "fixational",
-    dvs: Annotated[str, typer.Option(help="DVS preset: ideal, paper or speck.")] = "ideal",
+    out: RunDirOpt = None,
+    scene: SceneOpt = "office",
+    seconds: SecondsOpt = 5.0,
+    policy: Annotated[
+        str,
+        typer.Option(
+            callback=one_of(("still", "fixational", "saccades")),
+            help="still, fixational or saccades.",
+        ),
+    ] = "fixational",
+    dvs: DvsOpt = "ideal",
     seed: Annotated[int, typer.Option(help="Seed of the env and the policy.")] = 0,
     video: Annotated[bool, typer.Option(help="Write video.mp4 (camera | events).")] = True,
     format: Annotated[
         str,
         typer.Option(
             "--format",
+            callback=one_of(("h5", "aedat4", "evt3", "evimo2")),
             help="Events as h5, aedat4 or evt3 (.raw); or evimo2: the EVIMO2v2 layout "
             "(events + per-step masks) that `wander benchmark evimo` scores.",
         ),
     ] = "h5",
+    force: ForceOpt = False,
 ) -> None:
     """Record events, ground truth and a video of the env under a simple gaze policy."""
     from experiments.record import RecordConfig
@@ -104,6 +127,7 @@ def record(
     config = RecordConfig(
         scene=scene, seconds=seconds, policy=policy, dvs=dvs, seed=seed, video=video, format=format
     )
+    out = resolve_out(out, "record", force)
     with _progress() as bar:
         task = bar.add_task(f"record {scene}", total=round(seconds / 0.01))
         summary = run(out, config, progress=lambda i, n: bar.update(task, completed=i, total=n))
@@ -112,16 +136,17 @@ def record(
 
 @app.command("run")
 def run_agent(
-    out: Annotated[Path, typer.Option(help="The run folder.")] = Path("runs/run"),
-    scene: Annotated[str, typer.Option(help="office, gratings, shelf, or a YAML file.")] = "office",
-    seconds: Annotated[float, typer.Option(help="Simulated seconds.")] = 10.0,
+    out: RunDirOpt = None,
+    scene: SceneOpt = "office",
+    seconds: SecondsOpt = 10.0,
     seed: Annotated[int, typer.Option(help="Seed of the env, the walk and the controller.")] = 0,
-    dvs: Annotated[str, typer.Option(help="DVS preset: ideal, paper or speck.")] = "ideal",
+    dvs: DvsOpt = "ideal",
     window: WindowOpt = 0.124,
     fixational: FixationalOpt = True,
     streamlined: StreamlinedOpt = False,
     alpha: AgentAlphaOpt = None,
     video: VideoOpt = True,
+    force: ForceOpt = False,
 ) -> None:
     """Run the attention agent closed-loop in a scene; write the run folder."""
     from experiments.run_agent import RunConfig
@@ -138,6 +163,7 @@ def run_agent(
         streamlined=streamlined,
         **agent_alpha(alpha),
     )
+    out = resolve_out(out, "run", force)
     with _progress() as bar:
         task = bar.add_task(f"agent in {scene}", total=round(seconds / 0.01))
         result = run_loop(out, config, progress=lambda i, n: bar.update(task, completed=i, total=n))
@@ -155,15 +181,22 @@ def run_agent(
 
 @app.command()
 def evaluate(
-    out: Annotated[Path, typer.Option(help="Folder for one run folder per seed.")] = Path(
-        "runs/evaluate"
-    ),
-    scene: Annotated[str, typer.Option(help="Scene to evaluate in.")] = "office",
-    seconds: Annotated[float, typer.Option(help="Simulated seconds per seed.")] = 20.0,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            help="Folder for one run folder per seed (default: a new time-stamped "
+            "runs/evaluate-DATE-TIME/; an existing non-empty folder needs --force)."
+        ),
+    ] = None,
+    scene: SceneOpt = "office",
+    seconds: Annotated[
+        float, typer.Option(callback=check_seconds, help="Simulated seconds per seed.")
+    ] = 20.0,
     seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
-    dvs: Annotated[str, typer.Option(help="DVS preset: ideal, paper or speck.")] = "ideal",
+    dvs: DvsOpt = "ideal",
     streamlined: StreamlinedOpt = False,
     alpha: AgentAlphaOpt = None,
+    force: ForceOpt = False,
 ) -> None:
     """The agent's quality in simulation: detection accuracy, suppression, foveation error."""
     from experiments.evaluate_agent import evaluate as run_eval
@@ -172,8 +205,11 @@ def evaluate(
     try:
         seed_list = [int(s) for s in seeds.split(",") if s.strip()]
     except ValueError as err:
-        msg = f"--seeds must be integers separated by commas, got {seeds!r}"
-        raise typer.BadParameter(msg) from err
+        msg = f"must be integers separated by commas, e.g. 0,1,2, got {seeds!r}"
+        raise typer.BadParameter(msg, param_hint="'--seeds'") from err
+    if not seed_list:
+        raise typer.BadParameter("needs at least one seed, e.g. 0,1,2", param_hint="'--seeds'")
+    out = resolve_out(out, "evaluate", force)
     config = RunConfig(
         scene=scene,
         seconds=seconds,
@@ -210,10 +246,31 @@ def evaluate(
     )
 
 
+@app.command()
+def view(
+    run_dir: Annotated[Path, typer.Argument(help="A run folder holding run.rrd.")],
+) -> None:
+    """Open a run folder's run.rrd in the Rerun viewer (headless: print the command)."""
+    from wander_env.viewer import command_text
+    from wander_env.viewer import view as open_view
+
+    try:
+        what, command = open_view(run_dir)
+    except FileNotFoundError as err:
+        raise typer.BadParameter(str(err), param_hint="'RUN_DIR'") from None
+    if what == "spawned":
+        typer.echo(f"opened {run_dir / 'run.rrd'} in the Rerun viewer", err=True)
+    else:
+        typer.echo("no display (DISPLAY unset); open the recording with:", err=True)
+        typer.echo(command_text(command))
+
+
 @bench_app.command("dvs")
 def bench_dvs(
-    frames: Annotated[int, typer.Option(help="Frames per timed run (1 kHz).")] = 1000,
-    repeats: Annotated[int, typer.Option(help="Timed runs per row; the median is shown.")] = 3,
+    frames: Annotated[int, typer.Option(min=1, help="Frames per timed run (1 kHz).")] = 1000,
+    repeats: Annotated[
+        int, typer.Option(min=1, help="Timed runs per row; the median is shown.")
+    ] = 3,
 ) -> None:
     """Frames/s and Mev/s of the DVS emulator at 128x128 and 346x260."""
     from experiments.bench_dvs import NOISE_PRESET, bench_dvs
@@ -237,11 +294,13 @@ def bench_dvs(
 
 @bench_app.command("env")
 def bench_env(
-    scene: Annotated[str, typer.Option(help="Scene to simulate.")] = "office",
-    seconds: Annotated[float, typer.Option(help="Simulated seconds per row.")] = 2.0,
+    scene: SceneOpt = "office",
+    seconds: Annotated[
+        float, typer.Option(callback=check_seconds, help="Simulated seconds per row.")
+    ] = 2.0,
     ground_truth: Annotated[bool, typer.Option(help="Render segmentation masks too.")] = True,
     antialias: Annotated[
-        int | None, typer.Option(help="MSAA samples (overrides the scene's; 0 = off).")
+        int | None, typer.Option(min=0, help="MSAA samples (overrides the scene's; 0 = off).")
     ] = None,
     breakdown: Annotated[bool, typer.Option(help="Also time the parts of one env's step.")] = True,
 ) -> None:
@@ -288,8 +347,10 @@ def bench_env(
 
 @bench_app.command("agent")
 def bench_agent(
-    scene: Annotated[str, typer.Option(help="Scene to run the agent in.")] = "office",
-    seconds: Annotated[float, typer.Option(help="Simulated seconds of closed loop.")] = 5.0,
+    scene: SceneOpt = "office",
+    seconds: Annotated[
+        float, typer.Option(callback=check_seconds, help="Simulated seconds of closed loop.")
+    ] = 5.0,
     seed: Annotated[int, typer.Option(help="Seed of the env and the agent.")] = 0,
 ) -> None:
     """Per-step latency of sOMS, proto-object, sAC and the whole agent; closed-loop RTF."""
@@ -354,7 +415,7 @@ register_experiments(app)
 
 
 def main() -> None:
-    app()
+    app(prog_name="wander")
 
 
 if __name__ == "__main__":

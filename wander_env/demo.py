@@ -2,8 +2,8 @@
 
 No renderer is involved: a textured background drifts (as if the camera moved)
 while a textured disc circles the centre. The events go to an HDF5 file and a
-PNG of event frames (red ON, blue OFF); ``run.json`` records config, seed and
-git revision.
+PNG of titled, time-stamped event frames (red ON, blue OFF, axes in pixels);
+``run.json`` records config, seed and git revision.
 """
 
 from __future__ import annotations
@@ -12,14 +12,14 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-import cv2
+import numpy as np
 
 from wander_env.dvs import DVSEmulator, DVSParams
 from wander_env.event_io import EventRecording, write_events
 from wander_env.events import concatenate, time_window, to_frame
 from wander_env.runinfo import run_record, write_json
 from wander_env.synthetic import disc_over_texture
-from wander_env.viz import event_image, tile, upscale
+from wander_env.viz import OFF_RGB, ON_RGB, event_image, save_figure
 
 
 @dataclass(frozen=True)
@@ -42,6 +42,55 @@ class DemoConfig:
             raise ValueError(
                 f"{self.panels} panels of {self.panel_ms} ms do not fit in {self.seconds} s"
             )
+
+
+def plot_event_panels(
+    path: Path, events: np.ndarray, size: tuple[int, int, int], config: DemoConfig, step_us: int
+) -> Path:
+    """``events.png``: ``config.panels`` event frames of ``config.panel_ms`` each (red ON,
+    blue OFF), every panel titled with its time span, axes in pixels, an ON/OFF legend."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
+
+    w, h = size[0], size[1]
+    columns = min(4, config.panels)
+    rows = -(-config.panels // columns)
+    fig, axes = plt.subplots(rows, columns, figsize=(3.0 * columns, 3.1 * rows + 0.6))
+    axes = np.atleast_1d(axes).ravel()
+    span_us = round(config.panel_ms * 1000)
+    for k, ax in enumerate(axes):
+        if k >= config.panels:
+            ax.axis("off")
+            continue
+        t0 = k * step_us
+        window = time_window(events, t0, t0 + span_us)
+        ax.imshow(event_image(to_frame(window, size)), interpolation="nearest",
+                  extent=(-0.5, w - 0.5, h - 0.5, -0.5))  # fmt: skip
+        ax.set_title(f"t = {t0 / 1e3:.0f}–{(t0 + span_us) / 1e3:.0f} ms ({len(window):,} ev)",
+                     fontsize=9)  # fmt: skip
+        ax.tick_params(labelsize=7)
+        if k % columns == 0:
+            ax.set_ylabel("y (px)", fontsize=8)
+        if k // columns == rows - 1:
+            ax.set_xlabel("x (px)", fontsize=8)
+    fig.suptitle(
+        f"DVS emulator demo: a textured disc orbiting over a drifting texture, "
+        f"{w}×{h} px, preset '{config.preset}', seed {config.seed}\n"
+        f"events of {config.panel_ms:g} ms windows every {step_us / 1e3:g} ms",
+        fontsize=10,
+    )
+    fig.legend(
+        handles=[
+            Patch(color=np.asarray(ON_RGB) / 255, label="ON (brighter)"),
+            Patch(color=np.asarray(OFF_RGB) / 255, label="OFF (darker)"),
+            Patch(facecolor="white", edgecolor="0.5", label="no event"),
+        ],
+        loc="lower center", ncol=3, fontsize=8, frameon=False,
+    )  # fmt: skip
+    return save_figure(fig, path, rect=(0, 0.04, 1, 1))
 
 
 def run_demo(
@@ -70,14 +119,9 @@ def run_demo(
     record = run_record("wander demo", asdict(config) | {"dvs": params.to_dict()}, config.seed)
     write_events(out_dir / "events.h5", EventRecording(events, size, record))
 
-    panels = []
-    step_us = (n * dt_us) // config.panels
-    for k in range(config.panels):
-        t0 = k * step_us
-        window = time_window(events, t0, t0 + round(config.panel_ms * 1000))
-        panels.append(upscale(event_image(to_frame(window, size)), 2))
-    picture = tile(panels, columns=min(4, config.panels))
-    cv2.imwrite(str(out_dir / "events.png"), cv2.cvtColor(picture, cv2.COLOR_RGB2BGR))
+    plot_event_panels(
+        out_dir / "events.png", events, size, config, step_us=(n * dt_us) // config.panels
+    )
 
     summary = {
         "events": len(events),

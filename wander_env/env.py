@@ -65,7 +65,7 @@ from wander_env.mjcf import PAN_JOINT, TILT_JOINT, SceneAnimator, build_mjcf
 from wander_env.ptu import PanTiltUnit, PTUParams
 from wander_env.renderer import CameraRenderer, project_points
 from wander_env.scene_config import SceneConfig, load_scene_config
-from wander_env.viz import event_image, upscale
+from wander_env.viz import event_image, labelled_frame
 
 
 @dataclass(frozen=True)
@@ -346,22 +346,18 @@ class WanderEnv(gym.Env):
         return None if self._frame is None else self._frame.copy()
 
     def render(self) -> np.ndarray | None:
-        """Camera view | event frame of the last step, with the fovea marked (3x)."""
+        """Camera view | event frame of the last step (3x), named, the fovea marked, with
+        the time stamp, the gaze and the ON/OFF key (:func:`wander_env.viz.labelled_frame`)."""
         if self.render_mode != "rgb_array":
             return None
         if self._frame is None:
             raise RuntimeError("call reset() before render()")
-        panels = [self._frame, event_image(self._last_counts)]
-        cx, cy = (self.width - 1) / 2, (self.height - 1) / 2
-        out = []
-        for p in panels:
-            p = p.copy()
-            for dx in range(-4, 5):
-                p[int(cy), int(cx + dx)] = (0, 200, 0)
-                p[int(cy + dx), int(cx)] = (0, 200, 0)
-            out.append(upscale(p, 3))
-        gap = np.full((out[0].shape[0], 6, 3), 128, np.uint8)
-        return np.concatenate([out[0], gap, out[1]], axis=1)
+        pan, tilt = self._gaze()
+        caption = (
+            f"t = {self._t_us * 1e-6:5.2f} s   gaze pan {pan:+6.2f} deg, tilt {tilt:+6.2f} deg"
+        )
+        panels = [("camera", self._frame), ("events (last step)", event_image(self._last_counts))]
+        return labelled_frame(panels, 3, caption, keys=("polarity", "fovea"), gap=6)
 
     def close(self) -> None:
         # Freeing is safe in a forked child too (only creating and drawing hang there).

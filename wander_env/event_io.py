@@ -47,6 +47,7 @@ from typing import Any
 import numpy as np
 
 from wander_env.events import EVENT_DTYPE, SensorSize, validate_events
+from wander_env.runinfo import dumps_strict
 
 FORMAT_TAG = "wander-events/1"
 
@@ -265,7 +266,7 @@ def write_events(path: str | os.PathLike, recording: EventRecording) -> None:
 
     path = Path(path)
     validate_events(recording.events, recording.sensor_size, where=str(path))
-    meta = json.dumps(recording.metadata, default=str)
+    meta = dumps_strict(recording.metadata)
     size = np.asarray(recording.sensor_size, dtype=np.int64)
     suffix = path.suffix.lower()
     if suffix == ".npz":

@@ -10,11 +10,29 @@ Example:
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import Any
+
 import numpy as np
 
 ON_RGB = (220, 30, 30)
 OFF_RGB = (30, 60, 220)
 BACKGROUND_RGB = (255, 255, 255)
+
+
+def save_figure(
+    fig: Any, path: Path, dpi: int = 110, rect: tuple[float, float, float, float] | None = None
+) -> Path:
+    """Lay out a matplotlib figure (``rect``: the area the axes fill, leaving room for a
+    figure legend), write it to ``path`` (its folder made if missing) and close it;
+    returns ``path``. Every plot of wander goes through here."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout(rect=rect)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
 
 
 def event_image(counts: np.ndarray) -> np.ndarray:
@@ -48,3 +66,118 @@ def tile(images: list[np.ndarray], columns: int, gap: int = 2) -> np.ndarray:
 def upscale(image: np.ndarray, factor: int) -> np.ndarray:
     """Nearest-neighbour enlargement, so single pixels stay visible."""
     return np.repeat(np.repeat(image, factor, axis=0), factor, axis=1)
+
+
+# ----------------------------------------------------------------------------------------
+# Labelled video frames: panel names, colour keys and a time stamp, drawn on the
+# upscaled image (text on a 128-pixel panel is unreadable) with OpenCV.
+
+TEXT_RGB = (20, 20, 20)
+FOVEA_RGB = (0, 200, 0)
+TARGET_RGB = (255, 0, 255)
+BAR_PX = 24  # height of the header and footer strips
+
+
+def saliency_rgb(values: np.ndarray) -> np.ndarray:
+    """``(H, W)`` non-negative values -> RGB with the magma colour map, 0 black and the
+    map's peak the brightest (the scale of the key :func:`labelled_frame` draws).
+
+    >>> saliency_rgb(np.array([[0.0, 2.0]])).tolist()
+    [[[0, 0, 4], [252, 253, 191]]]
+    """
+    import cv2
+
+    v = np.clip(np.nan_to_num(np.asarray(values, dtype=np.float64)), 0.0, None)
+    peak = v.max() if v.size else 0.0
+    grey = np.rint(255 * (v / peak if peak > 0 else v)).astype(np.uint8)
+    bgr = cv2.applyColorMap(grey, cv2.COLORMAP_MAGMA)
+    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB).reshape(*v.shape, 3)
+
+
+def _text(img: np.ndarray, text: str, x: int, y: int, scale: float = 0.5) -> int:
+    """Draw ``text`` with its baseline at ``y``; returns the x after it."""
+    import cv2
+
+    cv2.putText(img, text, (x, y), cv2.FONT_HERSHEY_SIMPLEX, scale, TEXT_RGB, 1, cv2.LINE_AA)
+    (w, _), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, 1)
+    return x + w
+
+
+def _swatch(img: np.ndarray, x: int, rgb: tuple[int, int, int], label: str) -> int:
+    import cv2
+
+    cv2.rectangle(img, (x, 6), (x + 11, 17), rgb, -1)
+    cv2.rectangle(img, (x, 6), (x + 11, 17), TEXT_RGB, 1)
+    return _text(img, label, x + 15, 17) + 12
+
+
+def draw_keys(strip: np.ndarray, x: int, keys: tuple[str, ...]) -> int:
+    """Draw the colour keys named in ``keys`` on a footer strip from ``x``:
+    ``"polarity"`` (ON red, OFF blue), ``"saliency"`` (the magma bar from 0 to the
+    map's peak), ``"fovea"`` (green cross), ``"P"`` (magenta 8×8 box)."""
+    import cv2
+
+    for key in keys:
+        if key == "polarity":
+            x = _swatch(strip, x, ON_RGB, "ON")
+            x = _swatch(strip, x, OFF_RGB, "OFF")
+        elif key == "saliency":
+            x = _text(strip, "saliency 0", x, 17) + 4
+            ramp = saliency_rgb(np.tile(np.linspace(0.0, 1.0, 80), (11, 1)))
+            strip[6:17, x : x + 80] = ramp
+            cv2.rectangle(strip, (x, 6), (x + 79, 16), TEXT_RGB, 1)
+            x = _text(strip, "peak", x + 84, 17) + 12
+        elif key == "fovea":
+            cv2.drawMarker(strip, (x + 6, 12), FOVEA_RGB, cv2.MARKER_CROSS, 12, 2)
+            x = _text(strip, "fovea", x + 15, 17) + 12
+        elif key == "P":
+            cv2.rectangle(strip, (x, 6), (x + 11, 17), TARGET_RGB, 1)
+            x = _text(strip, "P (8x8 box)", x + 15, 17) + 12
+        else:
+            raise ValueError(f"unknown key {key!r}; known: polarity, saliency, fovea, P")
+    return x
+
+
+def labelled_frame(
+    panels: list[tuple[str, np.ndarray]],
+    scale: int,
+    caption: str,
+    keys: tuple[str, ...] = ("polarity",),
+    target: tuple[int, int] | None = None,
+    gap: int = 4,
+) -> np.ndarray:
+    """Panels side by side, each upscaled ``scale``× and named in a header strip, the
+    fovea (and ``target`` P, a pixel of the sensor) marked on every panel, and a footer
+    strip with ``caption`` (the time stamp first) and the colour ``keys``.
+
+    >>> img = labelled_frame([("events", np.zeros((8, 8, 3), np.uint8))], 4, "t = 0.01 s")
+    >>> img.shape
+    (80, 32, 3)
+    """
+    import cv2
+
+    if not panels:
+        raise ValueError("no panels")
+    h, w = panels[0][1].shape[:2]
+    big = []
+    for _, p in panels:
+        if p.shape[:2] != (h, w):
+            raise ValueError(f"panels differ in size: {p.shape[:2]} and {(h, w)}")
+        img = np.ascontiguousarray(upscale(np.asarray(p, np.uint8), scale))
+        centre = (round((w - 1) / 2 * scale + scale / 2), round((h - 1) / 2 * scale + scale / 2))
+        cv2.drawMarker(img, centre, FOVEA_RGB, cv2.MARKER_CROSS, 4 * scale, 1)
+        if target is not None:
+            x0, y0 = (target[0] - 4) * scale, (target[1] - 4) * scale
+            cv2.rectangle(img, (x0, y0), (x0 + 8 * scale - 1, y0 + 8 * scale - 1), TARGET_RGB, 1)
+        big.append(img)
+    pw = w * scale
+    width = len(big) * pw + (len(big) - 1) * gap
+    header = np.full((BAR_PX, width, 3), 255, np.uint8)
+    for k, (name, _) in enumerate(panels):
+        _text(header, name, k * (pw + gap) + 4, 17)
+    sep = np.full((h * scale, gap, 3), 128, np.uint8)
+    row = np.concatenate([x for p in big for x in (p, sep)][:-1], axis=1)
+    footer = np.full((BAR_PX, width, 3), 255, np.uint8)
+    x = _text(footer, caption, 4, 17) + 16
+    draw_keys(footer, x, keys)
+    return np.concatenate([header, row, footer], axis=0)

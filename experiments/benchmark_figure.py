@@ -1,0 +1,140 @@
+"""``maps_vs_masks.png`` of ``wander benchmark``: the model's maps beside the masks.
+
+:class:`WindowSampler` keeps a few scored windows while a benchmark streams (spread over
+each sequence, from the first sequences); :func:`plot_maps_vs_masks` draws one row per
+window: the window's events (ON/OFF), the sOMS output, the saliency map with P and its
+8×8 box, and the mask with the same box — hit or miss, IoU and precision in the titles.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from wander_env.viz import OFF_RGB, ON_RGB, event_image, save_figure
+
+__all__ = ["WindowSampler", "WindowView", "plot_maps_vs_masks"]
+
+
+@dataclass(frozen=True)
+class WindowView:
+    """What the figure shows of one window."""
+
+    sequence: str
+    window: int
+    t_start_us: int
+    t_end_us: int
+    counts: np.ndarray  # (2, H, W)
+    oms: np.ndarray  # (H, W) bool
+    saliency: np.ndarray  # (H, W)
+    point_xy: tuple[float, float] | None
+    mask: np.ndarray  # (H, W) bool
+    hit: float
+    iou: float
+    precision: float
+
+
+@dataclass
+class WindowSampler:
+    """Keeps up to ``n`` scored windows, spread evenly over each sequence in turn.
+
+    >>> s = WindowSampler(n=2)
+    >>> s.start_sequence(10)
+    >>> s.wanted
+    [3, 6]
+    """
+
+    n: int = 4
+    views: list[WindowView] = field(default_factory=list)
+    wanted: list[int] = field(default_factory=list)
+
+    def start_sequence(self, n_windows: int) -> None:
+        """A new sequence of ``n_windows``: the window indices still wanted from it."""
+        need = self.n - len(self.views)
+        if need <= 0 or n_windows <= 0:
+            self.wanted = []
+            return
+        spots = np.linspace(0, n_windows - 1, need + 2)[1:-1]
+        self.wanted = sorted({round(float(x)) for x in spots})
+
+    def __call__(self, row: Any, counts: np.ndarray, maps: Any, mask: np.ndarray) -> None:
+        if not self.wanted or row.window < self.wanted[0] or len(self.views) >= self.n:
+            return
+        self.wanted.pop(0)
+        point = None if maps.point_xy is None else tuple(map(float, maps.point_xy))
+        self.views.append(
+            WindowView(
+                f"{row.subset}/{row.sequence}" if row.subset else row.sequence,
+                row.window, row.t_start_us, row.t_end_us,
+                np.asarray(counts).copy(), np.asarray(maps.oms, bool).copy(),
+                np.asarray(maps.saliency, np.float64).copy(), point,
+                np.asarray(mask, bool).copy(), row.hit, row.iou, row.precision,
+            )
+        )  # fmt: skip
+
+
+def _box(ax: Any, point: tuple[float, float] | None, box: int, colour: str) -> None:
+    from matplotlib.patches import Rectangle
+
+    if point is None:
+        return
+    x, y = point
+    ax.add_patch(Rectangle((x - box / 2 - 0.5, y - box / 2 - 0.5), box, box, fill=False,
+                           ec=colour, lw=1.2))  # fmt: skip
+    ax.plot(x, y, "+", color=colour, ms=6)
+
+
+def plot_maps_vs_masks(path: Path, views: list[WindowView], title: str, box: int = 8) -> Path:
+    """Write the figure (one row per window) to ``path``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
+
+    if not views:
+        raise ValueError("no windows to draw")
+    fig, axes = plt.subplots(len(views), 4, figsize=(12, 3.0 * len(views) + 0.9), squeeze=False)
+    for r, v in enumerate(views):
+        h, w = v.mask.shape
+        ext = (-0.5, w - 0.5, h - 0.5, -0.5)
+        span = f"{v.t_start_us / 1e3:.1f}–{v.t_end_us / 1e3:.1f} ms"
+        a0, a1, a2, a3 = axes[r]
+        a0.imshow(event_image(v.counts), extent=ext, interpolation="nearest")
+        a0.set_title(f"{v.sequence} window {v.window}\nevents {span} ({int(v.counts.sum()):,})",
+                     fontsize=8)  # fmt: skip
+        a1.imshow(v.oms, cmap="gray_r", extent=ext, interpolation="nearest", vmin=0, vmax=1)
+        a1.set_title(f"sOMS output ({int(v.oms.sum()):,} px kept)", fontsize=8)
+        im = a2.imshow(v.saliency, cmap="magma", extent=ext, interpolation="nearest")
+        bar = fig.colorbar(im, ax=a2, fraction=0.046, pad=0.02)
+        bar.ax.tick_params(labelsize=6)
+        bar.set_label("saliency", fontsize=7)
+        _box(a2, v.point_xy, box, "lime")
+        a2.set_title("saliency, P and its 8×8 box", fontsize=8)
+        a3.imshow(v.mask, cmap="Greens", extent=ext, interpolation="nearest", vmin=0, vmax=1.6)
+        a3.imshow(np.ma.masked_where(~v.oms, v.oms), cmap="autumn", extent=ext, alpha=0.6,
+                  interpolation="nearest")  # fmt: skip
+        _box(a3, v.point_xy, box, "magenta")
+        verdict = "hit" if v.hit == 1.0 else "miss" if v.hit == 0.0 else "not scored"
+        a3.set_title(f"mask: {verdict}, IoU {v.iou:.1%}, precision {v.precision:.1%}",
+                     fontsize=8)  # fmt: skip
+        for a in (a0, a1, a2, a3):
+            a.tick_params(labelsize=6)
+            a.set_xlabel("x (px)", fontsize=7)
+        a0.set_ylabel("y (px)", fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    fig.legend(
+        handles=[
+            Patch(color=np.asarray(ON_RGB) / 255, label="ON event"),
+            Patch(color=np.asarray(OFF_RGB) / 255, label="OFF event"),
+            Patch(color="black", label="sOMS kept"),
+            Patch(color=plt.get_cmap("Greens")(0.6), label="object mask"),
+            Patch(color=plt.get_cmap("autumn")(0.0), alpha=0.6, label="sOMS on the mask panel"),
+            Patch(facecolor="none", edgecolor="magenta", label="P's 8×8 box (hit: touches mask)"),
+        ],
+        loc="lower center", ncol=6, fontsize=7, frameon=False,
+    )  # fmt: skip
+    return save_figure(fig, path, rect=(0, 0.03, 1, 1))

@@ -1,0 +1,255 @@
+"""A run as a Rerun recording (``run.rrd``), and the viewer that opens it (``wander view``).
+
+:class:`RunLog` writes one `Rerun <https://rerun.io>`_ recording per run folder, every
+entity on the simulated-time timeline ``sim_time`` (seconds of the env's clock,
+``info["t"]``), so a run can be scrubbed through in the Rerun viewer:
+
+==========================  ==============================================================
+entity                      what (logged at each step where it exists)
+==========================  ==============================================================
+``camera``                  the camera image, RGB as JPEG (simulated env only)
+``events``                  the step's events: labels 0 none, 1 OFF, 2 ON (more events wins)
+``oms``                     the sOMS output summed over the fixation window, same labels
+``object_mask``             ground-truth object ids (0 background, k moving object k)
+``saliency``                the proto-object saliency map (float), at each decision
+``saliency/P``              the salient point P(x, y) chosen there (8×8 box)
+``gaze/pan``, ``gaze/tilt`` the PTU's gaze, degrees (PTU signs: + pan left, + tilt up)
+``ptu_target/pan``, …tilt   the PTU's commanded target, degrees
+``annotations``             one text line per fixation and per saccade
+==========================  ==============================================================
+
+The polarity and object labels carry their names and colours (an ``AnnotationContext``,
+red ON, blue OFF as in :mod:`wander_env.viz`), so the viewer shows its own key.
+
+Example:
+    >>> import numpy as np
+    >>> counts = np.zeros((2, 2, 2)); counts[1, 0, 0] = 2; counts[0, 0, 0] = 1; counts[0, 1, 1] = 1
+    >>> polarity_labels(counts).tolist()
+    [[2, 0], [0, 1]]
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from wander_env.viz import OFF_RGB, ON_RGB
+
+__all__ = [
+    "RRD_NAME",
+    "TIMELINE",
+    "RunLog",
+    "command_text",
+    "open_command",
+    "polarity_labels",
+    "read_recording",
+    "view",
+]
+
+RRD_NAME = "run.rrd"
+TIMELINE = "sim_time"
+NO_EVENT, OFF_LABEL, ON_LABEL = 0, 1, 2
+#: Distinct colours for the object ids of ``object_mask`` (cycled).
+OBJECT_RGB = ((255, 160, 0), (0, 190, 90), (200, 0, 200), (0, 170, 220), (140, 90, 40))
+
+
+def polarity_labels(counts: np.ndarray) -> np.ndarray:
+    """``(2, H, W)`` per-polarity counts -> ``(H, W)`` uint8: 0 none, 1 OFF, 2 ON (the
+    polarity with more events; ON on a tie), the rule of :func:`wander_env.viz.event_image`."""
+    counts = np.asarray(counts)
+    if counts.ndim != 3 or counts.shape[0] != 2:
+        raise ValueError(f"expected per-polarity counts of shape (2, H, W), got {counts.shape}")
+    off, on = counts[0], counts[1]
+    out = np.zeros(on.shape, np.uint8)
+    out[(on > 0) & (on >= off)] = ON_LABEL
+    out[(off > 0) & (off > on)] = OFF_LABEL
+    return out
+
+
+class RunLog:
+    """Write a run to ``path`` (``run.rrd``) as it goes; :meth:`close` finishes the file.
+
+    ``object_names``: the moving objects, in the order of the mask ids 1, 2, …;
+    ``camera_jpeg_quality``: the camera images are stored as JPEG of this quality (a
+    128×128 frame ≈ 5 kB instead of 29 kB; ``None`` keeps the exact pixels).
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        title: str = "wander run",
+        object_names: Sequence[str] = (),
+        camera_jpeg_quality: int | None = 90,
+    ) -> None:
+        import rerun as rr
+
+        self._rr = rr
+        self.path = Path(path)
+        self.rec = rr.RecordingStream("wander", send_properties=True)
+        self.rec.save(self.path)
+        self.rec.send_recording_name(title)
+        polarity = rr.AnnotationContext(
+            [
+                rr.AnnotationInfo(id=NO_EVENT, label="no event", color=(255, 255, 255, 0)),
+                rr.AnnotationInfo(id=OFF_LABEL, label="OFF", color=OFF_RGB),
+                rr.AnnotationInfo(id=ON_LABEL, label="ON", color=ON_RGB),
+            ]
+        )
+        self.rec.log("events", polarity, static=True)
+        self.rec.log("oms", polarity, static=True)
+        objects = [rr.AnnotationInfo(id=0, label="background", color=(0, 0, 0, 0))]
+        objects += [
+            rr.AnnotationInfo(id=k, label=name, color=OBJECT_RGB[(k - 1) % len(OBJECT_RGB)])
+            for k, name in enumerate(object_names, 1)
+        ]
+        self.rec.log("object_mask", rr.AnnotationContext(objects), static=True)
+        for name in ("gaze", "ptu_target"):
+            for axis in ("pan", "tilt"):
+                label = f"{name.replace('_', ' ')} {axis} (°)"
+                self.rec.log(f"{name}/{axis}", rr.SeriesLines(names=label), static=True)
+        self.camera_jpeg_quality = camera_jpeg_quality
+        # Time series are kept and sent as one column each at close (a row per scalar
+        # costs ≈ 250 bytes in the file; a column ≈ 16 bytes per value).
+        self._series: dict[str, tuple[list[float], list[float]]] = {}
+        self.closed = False
+
+    def _at(self, t_s: float) -> None:
+        self.rec.set_time(TIMELINE, duration=float(t_s))
+
+    def step(
+        self,
+        t_s: float,
+        *,
+        camera: np.ndarray | None = None,
+        events: np.ndarray | None = None,
+        oms: np.ndarray | None = None,
+        gaze_deg: Sequence[float] | None = None,
+        ptu_target_deg: Sequence[float] | None = None,
+        object_mask: np.ndarray | None = None,
+    ) -> None:
+        """Log what one step has (``None``: not logged): the camera image ``(H, W, 3)``
+        uint8, per-polarity ``events`` and ``oms`` counts ``(2, H, W)``, the gaze and PTU
+        target (pan, tilt) in degrees, the object-id mask ``(H, W)``."""
+        rr = self._rr
+        self._at(t_s)
+        if camera is not None:
+            image = rr.Image(np.ascontiguousarray(camera, dtype=np.uint8))
+            if self.camera_jpeg_quality is not None:
+                image = image.compress(jpeg_quality=self.camera_jpeg_quality)
+            self.rec.log("camera", image)
+        if events is not None:
+            self.rec.log("events", rr.SegmentationImage(polarity_labels(events)))
+        if oms is not None:
+            self.rec.log("oms", rr.SegmentationImage(polarity_labels(oms)))
+        if object_mask is not None:
+            self.rec.log("object_mask", rr.SegmentationImage(np.asarray(object_mask, np.uint8)))
+        for name, value in (("gaze", gaze_deg), ("ptu_target", ptu_target_deg)):
+            if value is not None:
+                self._scalar(f"{name}/pan", t_s, float(value[0]))
+                self._scalar(f"{name}/tilt", t_s, float(value[1]))
+
+    def _scalar(self, entity: str, t_s: float, value: float) -> None:
+        times, values = self._series.setdefault(entity, ([], []))
+        times.append(float(t_s))
+        values.append(value)
+
+    def decision(
+        self, t_s: float, saliency: np.ndarray, target_px: tuple[int, int] | None, box: int = 8
+    ) -> None:
+        """Log a decision: the saliency map and the salient point P (with its box)."""
+        rr = self._rr
+        self._at(t_s)
+        self.rec.log("saliency", rr.Image(np.asarray(saliency, dtype=np.float32)))
+        if target_px is None:
+            self.rec.log("saliency/P", rr.Clear(recursive=False))
+            return
+        x, y = float(target_px[0]), float(target_px[1])
+        self.rec.log(
+            "saliency/P",
+            rr.Boxes2D(centers=[[x, y]], sizes=[[box, box]], labels=["P"], colors=[(0, 255, 0)]),
+        )
+
+    def annotate(self, t_s: float, text: str, level: str = "INFO") -> None:
+        """One line of the run's story (a fixation, a saccade) at time ``t_s``."""
+        self._at(t_s)
+        self.rec.log("annotations", self._rr.TextLog(text, level=level))
+
+    def close(self) -> None:
+        """Flush and finish ``run.rrd`` (idempotent)."""
+        if self.closed:
+            return
+        self.closed = True
+        rr = self._rr
+        for entity, (times, values) in self._series.items():
+            self.rec.send_columns(
+                entity,
+                indexes=[rr.TimeColumn(TIMELINE, duration=times)],
+                columns=rr.Scalars.columns(scalars=values),
+            )
+        self.rec.flush()
+        self.rec.disconnect()
+
+
+def read_recording(path: Path) -> dict[tuple[str, str], list[tuple[int, list]]]:
+    """A ``run.rrd`` read back with Rerun's own chunk reader: ``(entity, component)`` ->
+    ``[(sim_time in ns, value)]`` of the rows on the ``sim_time`` timeline, in time order
+    (entities as Rerun names them, ``"/gaze/pan"``; components ``"Scalars:scalars"``…)."""
+    import pyarrow as pa
+    from rerun.chunk import RrdReader
+
+    out: dict[tuple[str, str], list[tuple[int, list]]] = {}
+    for chunk in RrdReader(path).stream():
+        if chunk.is_static or TIMELINE not in chunk.timeline_names:
+            continue
+        batch = chunk.to_record_batch()
+        times = batch.column(TIMELINE).cast(pa.int64()).to_pylist()
+        for name in batch.schema.names:
+            if ":" not in name:
+                continue
+            rows = out.setdefault((chunk.entity_path, name), [])
+            rows += [(t, v) for t, v in zip(times, batch.column(name).to_pylist(), strict=True)
+                     if v is not None]  # fmt: skip
+    return {k: sorted(v, key=lambda tv: tv[0]) for k, v in out.items()}
+
+
+# ----------------------------------------------------------------------------------------
+# Opening a recording
+
+
+def open_command(rrd: Path) -> list[str]:
+    """The command that opens ``rrd`` in the Rerun viewer (the ``rerun`` executable that
+    rerun-sdk installs, or ``python -m rerun``)."""
+    exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    if Path(exe).is_file():
+        return [exe, str(rrd)]
+    return [sys.executable, "-m", "rerun", str(rrd)]
+
+
+def view(run_dir: Path, env: dict[str, str] | None = None) -> tuple[str, list[str]]:
+    """Open ``run_dir/run.rrd`` in the viewer when there is a display; headless, only say
+    how. Returns ``("spawned" | "headless", command)``; raises FileNotFoundError when the
+    folder has no recording."""
+    env = dict(os.environ if env is None else env)
+    rrd = Path(run_dir) / RRD_NAME
+    if not rrd.is_file():
+        raise FileNotFoundError(
+            f"no {RRD_NAME} in {str(run_dir)!r} (a run folder of wander run, record or rig)"
+        )
+    command = open_command(rrd.resolve())
+    if not (env.get("DISPLAY") or env.get("WAYLAND_DISPLAY")):
+        return "headless", command
+    subprocess.Popen(command, start_new_session=True, env=env)  # the viewer outlives us
+    return "spawned", command
+
+
+def command_text(command: list[str]) -> str:
+    """``command`` as one shell line."""
+    import shlex
+
+    return " ".join(shlex.quote(c) for c in command)
