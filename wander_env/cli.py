@@ -22,6 +22,7 @@ from wander_env.cli_options import (
     WindowOpt,
     agent_alpha,
 )
+from wander_env.shutdown import long_command
 
 app = typer.Typer(
     help="wander: a simulated active-vision laboratory for event cameras.",
@@ -80,6 +81,7 @@ def demo(
 
 
 @app.command()
+@long_command("wander record")
 def record(
     out: Annotated[Path, typer.Option(help="Folder for the recording.")] = Path("runs/record"),
     scene: Annotated[str, typer.Option(help="office, gratings, shelf, or a YAML file.")] = "office",
@@ -103,6 +105,7 @@ def record(
 
 
 @app.command("run")
+@long_command("wander run")
 def run_agent(
     out: Annotated[Path, typer.Option(help="The run folder.")] = Path("runs/run"),
     scene: Annotated[str, typer.Option(help="office, gratings, shelf, or a YAML file.")] = "office",
@@ -146,6 +149,7 @@ def run_agent(
 
 
 @app.command()
+@long_command("wander evaluate")
 def evaluate(
     out: Annotated[Path, typer.Option(help="Folder for one run folder per seed.")] = Path(
         "runs/evaluate"
