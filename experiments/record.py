@@ -1,6 +1,6 @@
 """``wander record``: run the environment under a simple gaze policy and keep everything.
 
-Writes ``events.h5`` (all events, config and seed in its metadata),
+Writes, as the run goes, ``events.h5`` (all events, config and seed in its metadata),
 ``ground_truth.h5`` (per step: time, gaze, PTU positions, object-id mask, each
 moving object's pixel centre, mask size and visibility), ``video.mp4`` (camera |
 events, with the fovea marked) and ``run.json``.
@@ -21,14 +21,12 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
-import h5py
 import imageio.v2 as imageio
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
 from agents.fixation import FixationalMovements, FixationParams
-from wander_env.event_io import EventRecording, write_events
-from wander_env.events import concatenate
+from wander_env.event_stream import EventStreamWriter, H5Appender, OutputError, check_space
 from wander_env.runinfo import run_record, write_json
 
 POLICIES = ("still", "fixational", "saccades")
@@ -81,7 +79,12 @@ class GazePolicy:
 def record(
     out_dir: Path, config: RecordConfig, progress: Callable[[int, int], None] | None = None
 ) -> dict[str, Any]:
-    """Run and write the recording folder; returns a summary."""
+    """Run and write the recording folder; returns a summary.
+
+    Events and ground truth go to disk as they are made (memory does not grow with
+    ``seconds``). A failure or a signal mid-way still closes both files with what was
+    recorded, writes ``run.json`` and ``metrics.json`` with the error, then raises it.
+    """
     out_dir.mkdir(parents=True, exist_ok=True)
     env = gym.make(
         "wander/Wander-v0",
@@ -90,6 +93,15 @@ def record(
         render_mode="rgb_array" if config.video else None,
         episode_seconds=config.seconds,
     )
+    try:
+        return _record(out_dir, config, env, progress)
+    finally:
+        env.close()
+
+
+def _record(
+    out_dir: Path, config: RecordConfig, env: Any, progress: Callable[[int, int], None] | None
+) -> dict[str, Any]:
     base = env.unwrapped
     dt = base.config.control_period_s
     policy = GazePolicy(config.policy, config.seed + 1, dt, config.saccade_interval_s)
@@ -97,52 +109,74 @@ def record(
     steps = round(config.seconds / dt)
     n_obj = len(base.scene.moving_objects)
     h, w = base.height, base.width
-    truth = {
-        "t": np.zeros(steps),
-        "gaze_deg": np.zeros((steps, 2), np.float32),
-        "ptu_positions": np.zeros((steps, 2), np.int32),
-        "object_mask": np.zeros((steps, h, w), np.uint8),
-        "object_centre_px": np.full((steps, n_obj, 2), np.nan, np.float32),
-        "object_mask_pixels": np.zeros((steps, n_obj), np.int32),
-    }
-    chunks = []
-    writer = (
-        imageio.get_writer(out_dir / "video.mp4", fps=round(1 / dt), macro_block_size=1)
-        if config.video
-        else None
-    )
-    try:
-        for k in range(steps):
-            obs, _, _, _, info = env.step(policy.act(info))
-            chunks.append(info["events"])
-            truth["t"][k] = info["t"]
-            truth["gaze_deg"][k] = obs["gaze"]
-            truth["ptu_positions"][k] = info["ptu_positions"]
-            truth["object_mask"][k] = info["object_mask"]
-            for j, o in enumerate(info["objects"]):
-                truth["object_centre_px"][k, j] = o["centre_px"]
-                truth["object_mask_pixels"][k, j] = o["mask_pixels"]
-            if writer is not None:
-                writer.append_data(env.render())
-            if progress is not None:
-                progress(k + 1, steps)
-    finally:
-        if writer is not None:
-            writer.close()
-        env.close()
-    events = concatenate(chunks)
     rec = run_record("wander record", asdict(config), config.seed)
     rec["env"] = {"control_period_s": dt, "dvs": base.dvs_params.to_dict()}
-    write_events(out_dir / "events.h5", EventRecording(events, (w, h, 2), rec))
-    with h5py.File(out_dir / "ground_truth.h5", "w") as f:
-        for name, arr in truth.items():
-            f.create_dataset(name, data=arr, compression="gzip" if arr.ndim > 2 else None)
-        f.attrs["object_names"] = [o.name for o in base.scene.moving_objects]
-        f.attrs["mask_ids"] = "0 = background, k = moving object k (1-based)"
-    summary = {
-        "events": len(events),
-        "steps": steps,
-        "files": sorted({p.name for p in out_dir.iterdir()} | {"run.json"}),
+    fields = {
+        "t": (np.float64, ()),
+        "gaze_deg": (np.float32, (2,)),
+        "ptu_positions": (np.int32, (2,)),
+        "object_mask": (np.uint8, (h, w)),
+        "object_centre_px": (np.float32, (n_obj, 2)),
+        "object_mask_pixels": (np.int32, (n_obj,)),
     }
+    attrs = {
+        "object_names": [o.name for o in base.scene.moving_objects],
+        "mask_ids": "0 = background, k = moving object k (1-based)",
+    }
+    video_path = out_dir / "video.mp4"
+    done, error = 0, None
+    with (
+        EventStreamWriter(out_dir / "events.h5", (w, h, 2), rec) as events,
+        H5Appender(out_dir / "ground_truth.h5", fields, attrs, chunk_rows=100) as truth,
+    ):
+        writer = (
+            imageio.get_writer(video_path, fps=round(1 / dt), macro_block_size=1)
+            if config.video
+            else None
+        )
+        try:
+            for k in range(steps):
+                obs, _, _, _, info = env.step(policy.act(info))
+                events.append(info["events"])
+                centre = np.full((n_obj, 2), np.nan, np.float32)
+                pixels = np.zeros(n_obj, np.int32)
+                for j, o in enumerate(info["objects"]):
+                    centre[j], pixels[j] = o["centre_px"], o["mask_pixels"]
+                truth.append(
+                    t=info["t"],
+                    gaze_deg=obs["gaze"],
+                    ptu_positions=info["ptu_positions"],
+                    object_mask=info["object_mask"],
+                    object_centre_px=centre,
+                    object_mask_pixels=pixels,
+                )
+                if writer is not None:
+                    frame = env.render()
+                    try:
+                        writer.append_data(frame)
+                    except Exception as err:  # ffmpeg's pipe: a full disk is a broken pipe
+                        check_space(video_path, frame.nbytes)
+                        raise OutputError(video_path, err) from err
+                done = k + 1
+                if progress is not None:
+                    progress(k + 1, steps)
+        except BaseException as exc:
+            error = exc
+        finally:
+            if writer is not None:
+                try:
+                    writer.close()
+                except Exception as err:
+                    error = error or OutputError(video_path, err)
+        n_events = events.events_written
+        summary = {"events": n_events, "steps": done}
+        events.close({**rec, "summary": summary})
+        truth.close()
+    summary["files"] = sorted({p.name for p in out_dir.iterdir()} | {"run.json"})
+    if error is not None:
+        message = f"{type(error).__name__}: {error}"
+        write_json(out_dir / "metrics.json", {**summary, "error": message})
+        write_json(out_dir / "run.json", rec | {"summary": summary, "error": message})
+        raise error
     write_json(out_dir / "run.json", rec | {"summary": summary})
     return summary

@@ -133,6 +133,8 @@ class H5Appender(_StreamFile):
         self._open(path)
         try:
             for name, (dtype, shape) in self.fields.items():
+                if 0 in shape:  # nothing to store per row (no moving objects): made at close
+                    continue
                 self._file.create_dataset(
                     name,
                     shape=(0, *shape),
@@ -173,6 +175,9 @@ class H5Appender(_StreamFile):
         n, self._buffered = self._buffered, 0
         try:
             for name, rows in self._buffer.items():
+                if name not in self._file:
+                    rows.clear()
+                    continue
                 ds = self._file[name]
                 ds.resize(self.rows + n, axis=0)
                 ds[self.rows :] = np.stack(rows)
@@ -189,6 +194,9 @@ class H5Appender(_StreamFile):
             return
         try:
             self.flush()
+            for name, (dtype, shape) in self.fields.items():
+                if name not in self._file:
+                    self._file.create_dataset(name, shape=(self.rows, *shape), dtype=dtype)
             for k, v in (attrs or {}).items():
                 self._file.attrs[k] = v
             self._file.attrs["complete"] = True

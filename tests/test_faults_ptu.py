@@ -1,0 +1,88 @@
+"""Fault injection, PTU: an emulated unit that fails on cue (error replies, silence,
+garbage, a closed pty), at the driver and through ``wander rig``."""
+
+from __future__ import annotations
+
+import pytest
+from test_rig_cli import (  # noqa: F401  (fixtures: app, square)
+    QUICK,
+    app,
+    assert_events_of_steps,
+    assert_one_line_failure,
+    invoke,
+    on_first_move,
+    read_folder,
+    square,
+)
+
+from hardware.ptu_driver import FlirPTU, FlirPTUParams, PTUPortError, PTUTimeout
+from hardware.ptu_emulator import PTUEmulator
+
+DRIVER = FlirPTUParams(timeout_s=0.5, halt_timeout_s=0.2, banner_quiet_s=0.02)
+
+
+@pytest.fixture
+def emu():
+    with PTUEmulator(QUICK) as e:
+        yield e
+
+
+def test_closed_pty_is_a_port_error_and_close_does_not_raise(emu):
+    ptu = FlirPTU(emu.port, DRIVER)
+    assert ptu.pan_deg == 0.0
+    emu.hang_up()
+    with pytest.raises(PTUPortError) as info:
+        _ = ptu.pan_deg
+    assert info.value.command == "PP"
+    assert "Input/output error" in str(info.value)  # termios.error(EIO) underneath
+    ptu.close()  # halt attempted, fails, logged; the port is closed
+    assert not ptu.is_open
+    ptu.close()
+
+
+def test_garbage_reply_is_a_timeout_that_shows_it(emu):
+    with FlirPTU(emu.port, DRIVER) as ptu:
+        emu.inject_garbage("#$%&noise")
+        with pytest.raises(PTUTimeout, match=r"lines that are no reply: \['#\$%&noise'\]"):
+            _ = ptu.pan_deg
+        assert ptu.pan_deg == 0.0  # the exchange is back in step
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fault", ["hang_up", "garbage", "silence"])
+def test_rig_mid_run_fault_is_one_line_exit_1_with_the_halt_recorded(
+    app,  # noqa: F811
+    square,  # noqa: F811
+    emu,
+    tmp_path,
+    fault,
+):
+    camera, expected = square
+    action = {
+        "hang_up": emu.hang_up,
+        "garbage": lambda: emu.inject_garbage("#$%&noise", count=1000),
+        "silence": emu.stop_answering,
+    }[fault]
+    watcher = on_first_move(emu, action)
+    out = tmp_path / "run"
+    result = invoke(app, "--ptu", emu.port, "--camera", camera, "--replay", "realtime",
+                    "--seconds", "2", "--no-fixational", "--no-video",
+                    "--out", str(out))  # fmt: skip
+    watcher.join()
+    metrics, run, _ = read_folder(out)
+    steps = metrics["steps"]
+    line = assert_one_line_failure(
+        result,
+        f"wander rig: PTU '{emu.port}'",
+        f"The run folder '{out}' holds what was recorded ({steps} steps completed).",
+    )
+    assert steps < 200 and metrics["error"].startswith("PTU")
+    halt = metrics["rig"]["ptu_halt"]
+    if fault == "hang_up":
+        assert "Input/output error" in line
+        assert halt.startswith("halt (H) sent, not acknowledged")
+        assert "PTUPortError" in metrics["rig"]["ptu_error"]
+    else:
+        assert halt.startswith("halt (H) sent, not acknowledged")
+        assert "PTUTimeout" in metrics["rig"]["ptu_error"]
+    assert_events_of_steps(out, expected, metrics)
