@@ -176,8 +176,7 @@ class PTUProtocol:
                 pending = self._rx.decode("ascii", errors="replace")
                 noise = f"; lines that are no reply: {skipped[-3:]!r}" if skipped else ""
                 raise PTUTimeout(
-                    f"no reply from the PTU within {timeout_s:.3g} s (received {pending!r}"
-                    f"{noise})",
+                    f"no reply from the PTU within {timeout_s:.3g} s (received {pending!r}{noise})",
                     command,
                 )
             self._rx += self.port.read(max(1, self.port.in_waiting))

@@ -69,7 +69,7 @@ def test_rig_mid_run_fault_is_one_line_exit_1_with_the_halt_recorded(
                     "--seconds", "2", "--no-fixational", "--no-video",
                     "--out", str(out))  # fmt: skip
     watcher.join()
-    metrics, run, _ = read_folder(out)
+    metrics, _, _ = read_folder(out)
     steps = metrics["steps"]
     line = assert_one_line_failure(
         result,

@@ -74,7 +74,8 @@ def check_space(path: str | os.PathLike, need_bytes: int) -> None:
             path,
             OSError(
                 errno.ENOSPC,
-                f"No space left on device ({free:,} bytes free, {need_bytes:,} needed)",
+                f"No space left on device ({free:,} bytes free; {need_bytes:,} needed plus "
+                f"a reserve of {SPACE_MARGIN:,})",
             ),
         )
 
@@ -114,7 +115,8 @@ class H5Appender(_StreamFile):
     """Resizable HDF5 datasets, appended row by row and flushed in chunks.
 
     ``fields`` maps a dataset name to ``(dtype, row_shape)``; ``attrs`` are set at
-    creation. The file carries ``complete`` (False until :meth:`close`) and ``rows``.
+    creation. Rows are written every ``chunk_rows`` rows or ``flush_s`` seconds. The file
+    carries ``complete`` (False until :meth:`close`) and ``rows`` (flushed so far).
     """
 
     def __init__(
@@ -124,9 +126,12 @@ class H5Appender(_StreamFile):
         attrs: Mapping[str, Any] | None = None,
         chunk_rows: int = 256,
         compression: bool = True,
+        flush_s: float = 1.0,
     ) -> None:
         self.fields = {k: (np.dtype(d), tuple(s)) for k, (d, s) in fields.items()}
         self.chunk_rows = int(chunk_rows)
+        self.flush_s = float(flush_s)
+        self._last_flush = time.monotonic()
         self.rows = 0
         self._buffer: dict[str, list[np.ndarray]] = {k: [] for k in self.fields}
         self._buffered = 0
@@ -160,11 +165,13 @@ class H5Appender(_StreamFile):
                 raise ValueError(f"{self.path}: {name} row has shape {value.shape}, not {shape}")
             self._buffer[name].append(value)
         self._buffered += 1
-        if self._buffered >= self.chunk_rows:
+        due = time.monotonic() - self._last_flush >= self.flush_s
+        if self._buffered >= self.chunk_rows or due:
             self.flush()
 
     def flush(self) -> None:
         """Append the buffered rows and flush the file."""
+        self._last_flush = time.monotonic()
         if self._closed or not self._buffered:
             return
         need = sum(
