@@ -86,3 +86,47 @@ def test_rig_mid_run_fault_is_one_line_exit_1_with_the_halt_recorded(
         assert halt.startswith("halt (H) sent, not acknowledged")
         assert "PTUTimeout" in metrics["rig"]["ptu_error"]
     assert_events_of_steps(out, expected, metrics)
+
+
+def test_speck_unplugged_mid_run_is_one_line_exit_1_with_the_halt_recorded(
+    app,  # noqa: F811
+    tmp_path,
+    monkeypatch,
+):
+    import numpy as np
+    from fake_samna import FakeSamna, FakeSpeck, install
+
+    from agents.attention import AttentionAgent
+    from wander_env.events import make_events
+
+    rng = np.random.default_rng(1)
+    n = 30_000
+    ev = make_events(rng.integers(0, 128, n), rng.integers(0, 128, n),
+                     np.sort(rng.integers(0, 3_000_000, n)), rng.integers(0, 2, n))  # fmt: skip
+    fake = install(monkeypatch, FakeSamna([("Speck2fDevKit", "sf", FakeSpeck(ev))]))
+    act, calls = AttentionAgent.act, []
+
+    def unplug_at_step_6(self, observation, info):
+        calls.append(1)
+        if len(calls) == 6:
+
+            def gone(timeout):
+                raise OSError(5, "USB device gone")
+
+            fake.handles[-1]._sinks[0].get_events_blocking = gone
+        return act(self, observation, info)
+
+    monkeypatch.setattr(AttentionAgent, "act", unplug_at_step_6)
+    out = tmp_path / "run"
+    result = invoke(app, "--ptu", "emulate", "--camera", "speck", "--seconds", "2",
+                    "--no-video", "--out", str(out))  # fmt: skip
+    metrics, _, _ = read_folder(out)
+    assert_one_line_failure(
+        result,
+        "wander rig: camera 'speck' failed mid-run: Speck reader thread failed",
+        "USB device gone",
+        f"The run folder '{out}' holds what was recorded ({metrics['steps']} steps completed).",
+    )
+    assert 5 <= metrics["steps"] < 200  # unplugged during the 6th step
+    assert metrics["rig"]["ptu_halt"] == "halt (H) acknowledged"
+    assert fake.handles[-1].closed

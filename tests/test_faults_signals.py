@@ -49,6 +49,27 @@ def test_each_signal_raises_signal_exit_and_handlers_come_back(sig, code):
     assert signal.getsignal(sig) is before
 
 
+def test_a_signal_dropped_in_a_weakref_callback_is_delivered_again():
+    import weakref
+
+    class Thing:
+        pass
+
+    def callback(_ref) -> None:
+        os.kill(os.getpid(), signal.SIGTERM)
+        for _ in range(100):  # the handler raises in here, where Python drops exceptions
+            time.sleep(0.001)
+
+    with pytest.raises(SignalExit) as info:
+        with handle_signals():
+            thing = Thing()
+            ref = weakref.ref(thing, callback)
+            del thing
+            for _ in range(1000):
+                time.sleep(0.01)
+    assert info.value.name == "SIGTERM" and ref() is None
+
+
 def test_a_second_signal_during_clean_up_is_ignored(capfd):
     done = []
     with pytest.raises(SignalExit):
@@ -91,12 +112,19 @@ def start(args: list[str], out: Path) -> subprocess.Popen:
     )
 
 
-def after_start(proc: subprocess.Popen, out: Path, seconds: float, limit_s: float = 240.0):
-    """Wait until the run's events.h5 exists (the loop runs), then ``seconds`` more."""
+def after_start(proc: subprocess.Popen, out: Path, seconds: float, limit_s: float = 300.0):
+    """Wait until the run's events.h5 has grown (a chunk of steps was flushed: the loop
+    runs), then ``seconds`` more."""
     deadline = time.monotonic() + limit_s
-    while not (out / "events.h5").exists():
+    path = out / "events.h5"
+    while not path.exists():
         assert proc.poll() is None, proc.communicate()
         assert time.monotonic() < deadline, "the run did not start"
+        time.sleep(0.1)
+    size = path.stat().st_size
+    while path.stat().st_size == size:
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline, "the run made no events"
         time.sleep(0.1)
     time.sleep(seconds)
 

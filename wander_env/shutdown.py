@@ -6,7 +6,8 @@ SIGHUP, Ctrl-C SIGINT. Inside :func:`handle_signals` each of them raises
 already cleans up after Ctrl-C (halting the PTU, closing the camera, flushing and
 closing the run's files, writing ``metrics.json`` with the error) runs for all three.
 Further signals while that clean-up runs are reported and ignored (it is bounded by
-the devices' timeouts); a third ends the process at once.
+the devices' timeouts); a third ends the process at once. A signal that lands where
+Python drops exceptions (a ``__del__``, a weakref callback) is delivered again.
 
 :func:`long_command` wraps a Typer command in it and turns the ways a long run ends
 badly into one line on stderr and an exit code: a signal → ``128 + signal`` (130
@@ -34,6 +35,7 @@ import json
 import math
 import os
 import signal
+import sys
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -79,12 +81,27 @@ def handle_signals(signals: tuple[int, ...] = SIGNALS) -> Iterator[None]:
             os._exit(128 + signum)
         os.write(2, f"{name}: already shutting down (a third signal exits at once)\n".encode())
 
+    hook = sys.unraisablehook
+
+    def unraisable(info: Any) -> None:
+        # The signal landed in a __del__ or weakref callback, where Python drops
+        # exceptions: deliver it once more, so it reaches the command.
+        if isinstance(info.exc_value, SignalExit) and len(seen) == 1:
+            seen.clear()
+            again = threading.Timer(0.02, os.kill, (os.getpid(), info.exc_value.signum))
+            again.daemon = True  # from another thread: it lands after this callback
+            again.start()
+            return
+        hook(info)
+
     previous = {s: signal.getsignal(s) for s in signals}
     for s in signals:
         signal.signal(s, handler)
+    sys.unraisablehook = unraisable
     try:
         yield
     finally:
+        sys.unraisablehook = hook
         for s, h in previous.items():
             signal.signal(s, h if h is not None else signal.SIG_DFL)
 
@@ -192,7 +209,8 @@ def long_command(name: str, folder_arg: str | None = "out") -> Callable[[_F], _F
                 if write_failure(err) is None:
                     raise
                 record_failure(folder, err)
-                mark = f"; {str(folder)!r} is marked INCOMPLETE" if folder else ""
+                marked = folder is not None and (Path(folder) / "INCOMPLETE").exists()
+                mark = f"; {str(folder)!r} is marked INCOMPLETE" if marked else ""
                 typer.echo(f"{name}: {describe(err)}{mark}", err=True)
                 raise typer.Exit(1) from None
 
