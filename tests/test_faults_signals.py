@@ -147,7 +147,7 @@ def test_sigterm_mid_run_exits_143_and_keeps_the_folder(tmp_path):
     assert "incomplete" not in rec.metadata  # closed cleanly
     assert len(rec.events) == m["events"] == rec.metadata["summary"]["events"]
     assert rec.events["t"][-1] <= m["steps"] * 10_000
-    assert {"fixations.csv", "run.json"} <= {p.name for p in out.iterdir()}
+    assert "run.json" in {p.name for p in out.iterdir()}
 
 
 @pytest.fixture
