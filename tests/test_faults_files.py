@@ -196,3 +196,23 @@ def test_header_bombs_are_refused_fast_with_little_memory(tmp_path, real, bomb):
     got = json.loads(out.stdout.strip().splitlines()[-1])
     assert "bomb.h5" in got["outcome"] and got["outcome"] != "read"
     assert got["rss_mb"] < 400  # generous under load; the report gives the measured figure
+
+
+def test_an_inferred_sensor_size_is_checked_too(tmp_path, real):
+    ev = real.copy()
+    ev["x"][11] = 30000  # fits int16, but a 30001-pixel-wide sensor is implausible
+    path = tmp_path / "wide.npy"
+    np.save(path, ev)
+    refused(path, "x", "x[11]=30000 is outside the sensor (0..8191)")  # before inferring
+    rec = read_events(path, max_sensor_side=32768)
+    assert rec.sensor_size == (30001, 128, 2) and rec.metadata["sensor_size_inferred"]
+
+
+def test_the_real_aedat2_cut_mid_event(tmp_path):
+    data = (REALDATA / "dvs128_people" / "alex_walking_for_10secs.aedat").read_bytes()
+    path = tmp_path / "cut.aedat"
+    path.write_bytes(data[:-3])
+    with pytest.raises(EventFileError, match=r"cut\.aedat: truncated: \d+ bytes of events"):
+        read_events(path)
+    path.write_bytes(data[:-8])  # one whole event less: reads, one event short
+    assert len(read_events(path).events) == 125_027
