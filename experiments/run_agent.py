@@ -404,14 +404,21 @@ def run(
 
     import wander_env  # noqa: F401  (registers the environments)
 
-    env = gym.make(
-        "wander/Wander-v0",
-        scene=config.scene,
-        dvs=config.dvs,
-        episode_seconds=config.seconds,
-    )
-    agent = AttentionAgent(config.agent_params(env), seed=config.seed)
     record = run_record("wander run", asdict(config), config.seed)
+    env = None
+    try:
+        env = gym.make(
+            "wander/Wander-v0",
+            scene=config.scene,
+            dvs=config.dvs,
+            episode_seconds=config.seconds,
+        )
+        agent = AttentionAgent(config.agent_params(env), seed=config.seed)
+    except KeyboardInterrupt as stop:  # Ctrl-C or a signal while setting up
+        _stopped_in_setup(Path(out_dir), config, record, stop)
+        if env is not None:
+            env.close()
+        raise
     try:
         return run_closed_loop(
             env,
@@ -426,3 +433,22 @@ def run(
     finally:
         agent.close()
         env.close()
+
+
+def _stopped_in_setup(
+    out_dir: Path, config: RunConfig, record: dict[str, Any], stop: KeyboardInterrupt
+) -> None:
+    """The run folder of a run stopped before its first step: no events, the signal named."""
+    from wander_env.scene_config import load_scene_config
+
+    camera = load_scene_config(config.scene).camera
+    out_dir.mkdir(parents=True, exist_ok=True)
+    summary = {"steps": 0, "events": 0}
+    rec = record | {"summary": summary}
+    EventStreamWriter(out_dir / "events.h5", (camera.width, camera.height, 2)).close(rec)
+    metrics: dict[str, Any] = {**summary, "stage": "set-up"}
+    metrics["error"] = f"{type(stop).__name__}: {stop} (while setting up)"
+    if isinstance(stop, SignalExit):
+        metrics["signal"] = stop.name
+    write_json(out_dir / "metrics.json", metrics)
+    write_json(out_dir / "run.json", rec)

@@ -189,3 +189,26 @@ def test_sigkill_leaves_a_readable_stream_that_says_where_it_stops(tmp_path):
     stop = rec.metadata["incomplete"]
     assert stop["events"] == len(rec.events) > 0
     assert stop["last_t_us"] == rec.events["t"][-1] < 30_000_000
+
+
+def test_a_signal_while_setting_up_still_leaves_a_folder(tmp_path, monkeypatch):
+    import experiments.run_agent as run_agent
+
+    def stopped(*args, **kwargs):
+        raise SignalExit(signal.SIGTERM)  # as if it came while the agent was being built
+
+    monkeypatch.setattr(run_agent, "AttentionAgent", stopped)
+    out = tmp_path / "run"
+    with pytest.raises(SignalExit):
+        run_agent.run(out, run_agent.RunConfig(seconds=1.0, video=False))
+    m = strict_json(out / "metrics.json")
+    assert m == {
+        "steps": 0,
+        "events": 0,
+        "stage": "set-up",
+        "error": "SignalExit: stopped by SIGTERM (signal 15) (while setting up)",
+        "signal": "SIGTERM",
+    }
+    rec = read_events(out / "events.h5")
+    assert len(rec.events) == 0 and rec.sensor_size == (128, 128, 2)
+    assert rec.metadata["summary"] == {"steps": 0, "events": 0}
