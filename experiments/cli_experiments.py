@@ -74,8 +74,11 @@ def experiment(
     folder = out or default_out_dir(name, seed)
     n = len(make_trials(exp, cfg, seed))
 
+    streams: list = []
+
     def executor(specs):  # type: ignore[no-untyped-def]
-        return local_executor(specs, workers)
+        streams.append(local_executor(specs, workers))
+        return streams[-1]
 
     with _progress() as bar:
         task = bar.add_task(name, total=n)
@@ -92,6 +95,9 @@ def experiment(
         except BaseException as e:  # a signal, a full disk: the result folder says so
             record_failure(folder, e)
             raise
+        finally:
+            for stream in streams:
+                stream.close()  # the workers end now, not when their trials do
     console.print(f"{len(rows)} trials -> {folder}/results.csv ({len(files)} files)")
     console.print((folder / "summary.md").read_text(), markup=False, highlight=False)
 
