@@ -27,6 +27,19 @@ def emu():
         yield e
 
 
+@pytest.fixture
+def patient_driver(monkeypatch):
+    """`wander rig` with PTU reply timeouts a loaded machine cannot starve (5 s, not 1 s),
+    for tests whose fault is not the PTU's."""
+    from experiments.rig import RigRunConfig
+
+    env_kwargs = RigRunConfig.env_kwargs
+    patient = FlirPTUParams(timeout_s=5.0, halt_timeout_s=2.0, banner_quiet_s=0.02)
+    monkeypatch.setattr(
+        RigRunConfig, "env_kwargs", lambda self: {**env_kwargs(self), "driver": patient}
+    )
+
+
 def test_closed_pty_is_a_port_error_and_close_does_not_raise(emu):
     ptu = FlirPTU(emu.port, DRIVER)
     assert ptu.pan_deg == 0.0
@@ -92,6 +105,7 @@ def test_speck_unplugged_mid_run_is_one_line_exit_1_with_the_halt_recorded(
     app,  # noqa: F811
     tmp_path,
     monkeypatch,
+    patient_driver,
 ):
     import numpy as np
     from fake_samna import FakeSamna, FakeSpeck, install
