@@ -16,6 +16,7 @@ from typer._click.globals import get_current_context
 from experiments.framework import EXPERIMENT_NAMES, ConfigError
 from experiments.sweep import BACKENDS
 from wander_env.cli_options import one_of
+from wander_env.shutdown import long_command, record_failure
 
 __all__ = ["register"]
 
@@ -32,6 +33,7 @@ def _command_line() -> str:
     return "wander " + " ".join(shlex.quote(a) for a in sys.argv[1:])
 
 
+@long_command("wander experiment")
 def experiment(
     name: Annotated[str, typer.Argument(help=f"One of: {', '.join(EXPERIMENT_NAMES)}.")],
     set_: Annotated[
@@ -76,24 +78,35 @@ def experiment(
     folder = out or default_out_dir(name, seed)
     n = len(make_trials(exp, cfg, seed))
 
+    streams: list = []
+
     def executor(specs):  # type: ignore[no-untyped-def]
-        return local_executor(specs, workers)
+        streams.append(local_executor(specs, workers))
+        return streams[-1]
 
     with _progress() as bar:
         task = bar.add_task(name, total=n)
-        rows, files = run_experiment(
-            name,
-            cfg,
-            seed,
-            folder,
-            command=_command_line(),
-            executor=executor if workers > 1 else None,
-            progress=lambda i, total: bar.update(task, completed=i, total=total),
-        )
+        try:
+            rows, files = run_experiment(
+                name,
+                cfg,
+                seed,
+                folder,
+                command=_command_line(),
+                executor=executor if workers > 1 else None,
+                progress=lambda i, total: bar.update(task, completed=i, total=total),
+            )
+        except BaseException as e:  # a signal, a full disk: the result folder says so
+            record_failure(folder, e)
+            raise
+        finally:
+            for stream in streams:
+                stream.close()  # the workers end now, not when their trials do
     console.print(f"{len(rows)} trials -> {folder}/results.csv ({len(files)} files)")
     console.print((folder / "summary.md").read_text(), markup=False, highlight=False)
 
 
+@long_command("wander sweep")
 def sweep(
     config: Annotated[Path, typer.Argument(help="Sweep file (see experiments/configs/).")],
     backend: Annotated[
@@ -109,6 +122,10 @@ def sweep(
     out: Annotated[
         Path | None, typer.Option(help="Sweep folder (default: results/sweeps/NAME).")
     ] = None,
+    timeout: Annotated[
+        float,
+        typer.Option(help="Seconds to wait for the next trial to finish before giving up."),
+    ] = 6 * 3600.0,
 ) -> None:
     """Run a grid of (experiment, parameters, seeds); reruns skip finished trials."""
     from experiments.sweep import expand, load_sweep, run_sweep
@@ -131,9 +148,16 @@ def sweep(
                 address=address,
                 progress=lambda i, total: bar.update(task, completed=i, total=total),
                 command=_command_line(),
+                timeout_s=timeout,
             )
         except ConfigError as e:
             raise _fail(str(e)) from None
+        except TimeoutError as e:
+            record_failure(folder, e)
+            raise _fail(f"{e} ({folder}: rerun to resume)") from None
+        except BaseException as e:  # a signal: the folder says so; the workers are ended
+            record_failure(folder, e)
+            raise
     console.print(
         f"{len(res.rows)} trials ({res.ran} run, {res.skipped} already done) -> "
         f"{folder}/results.csv"

@@ -1,8 +1,9 @@
 """``wander record``: run the environment under a simple gaze policy and keep everything.
 
-Writes ``events.h5`` (all events, config and seed in its metadata; ``--format aedat4`` /
-``evt3`` write ``events.aedat4`` / ``events.raw`` instead, ``evimo2`` the EVIMO2v2
-``dataset_*`` files of :func:`wander_env.event_formats.write_evimo2_sequence`),
+Writes, as the run goes, ``events.h5`` (all events, config and seed in its metadata;
+``--format aedat4`` / ``evt3`` convert it to ``events.aedat4`` / ``events.raw`` at the
+end, ``evimo2`` to the EVIMO2v2 ``dataset_*`` files of
+:func:`wander_env.event_formats.write_evimo2_sequence`),
 ``ground_truth.h5`` (per step: time, gaze, PTU positions, object-id mask, each
 moving object's pixel centre, mask size and visibility), ``video.mp4`` (camera |
 events, with the fovea marked) and ``run.json``.
@@ -31,8 +32,8 @@ import wander_env  # noqa: F401  (registers the environments)
 from agents.fixation import FixationalMovements, FixationParams
 from experiments.run_viewer import open_run_log
 from wander_env.event_formats import write_evimo2_sequence
-from wander_env.event_io import EventRecording, write_events
-from wander_env.events import concatenate
+from wander_env.event_io import read_events, write_events
+from wander_env.event_stream import EventStreamWriter, H5Appender, OutputError, check_space
 from wander_env.metrics import focal_length_px
 from wander_env.runinfo import run_record, write_json
 
@@ -92,7 +93,12 @@ class GazePolicy:
 def record(
     out_dir: Path, config: RecordConfig, progress: Callable[[int, int], None] | None = None
 ) -> dict[str, Any]:
-    """Run and write the recording folder; returns a summary."""
+    """Run and write the recording folder; returns a summary.
+
+    Events and ground truth go to disk as they are made (memory does not grow with
+    ``seconds``). A failure or a signal mid-way still closes both files with what was
+    recorded, writes ``run.json`` and ``metrics.json`` with the error, then raises it.
+    """
     out_dir.mkdir(parents=True, exist_ok=True)
     env = gym.make(
         "wander/Wander-v0",
@@ -101,6 +107,15 @@ def record(
         render_mode="rgb_array" if config.video else None,
         episode_seconds=config.seconds,
     )
+    try:
+        return _record(out_dir, config, env, progress)
+    finally:
+        env.close()
+
+
+def _record(
+    out_dir: Path, config: RecordConfig, env: Any, progress: Callable[[int, int], None] | None
+) -> dict[str, Any]:
     base = env.unwrapped
     dt = base.config.control_period_s
     policy = GazePolicy(config.policy, config.seed + 1, dt, config.saccade_interval_s)
@@ -108,60 +123,92 @@ def record(
     steps = round(config.seconds / dt)
     n_obj = len(base.scene.moving_objects)
     h, w = base.height, base.width
-    truth = {
-        "t": np.zeros(steps),
-        "gaze_deg": np.zeros((steps, 2), np.float32),
-        "ptu_positions": np.zeros((steps, 2), np.int32),
-        "object_mask": np.zeros((steps, h, w), np.uint8),
-        "object_centre_px": np.full((steps, n_obj, 2), np.nan, np.float32),
-        "object_mask_pixels": np.zeros((steps, n_obj), np.int32),
-    }
-    chunks = []
-    writer = (
-        imageio.get_writer(out_dir / "video.mp4", fps=round(1 / dt), macro_block_size=1)
-        if config.video
-        else None
-    )
-    rrlog = open_run_log(out_dir, env, "wander record")  # run.rrd
-    try:
-        for k in range(steps):
-            obs, _, _, _, info = env.step(policy.act(info))
-            rrlog.step(obs, info)
-            chunks.append(info["events"].events)
-            truth["t"][k] = info["t"]
-            truth["gaze_deg"][k] = obs["gaze"]
-            truth["ptu_positions"][k] = info["ptu_positions"]
-            truth["object_mask"][k] = info["object_mask"]
-            for j, o in enumerate(info["objects"]):
-                truth["object_centre_px"][k, j] = o["centre_px"]
-                truth["object_mask_pixels"][k, j] = o["mask_pixels"]
-            if writer is not None:
-                writer.append_data(env.render())
-            if progress is not None:
-                progress(k + 1, steps)
-    finally:
-        rrlog.close()
-        if writer is not None:
-            writer.close()
-        env.close()
-    events = concatenate(chunks)
     rec = run_record("wander record", asdict(config), config.seed)
     rec["env"] = {"control_period_s": dt, "dvs": base.dvs_params.to_dict()}
-    recording = EventRecording(events, (w, h, 2), rec)
-    if config.format == "evimo2":
-        f_px = focal_length_px(w, base.scene.camera.hfov_deg)
-        write_evimo2_sequence(out_dir, recording, truth["t"], truth["object_mask"], f_px, dt)
-    else:
-        write_events(out_dir / FORMATS[config.format], recording)
-    with h5py.File(out_dir / "ground_truth.h5", "w") as f:
-        for name, arr in truth.items():
-            f.create_dataset(name, data=arr, compression="gzip" if arr.ndim > 2 else None)
-        f.attrs["object_names"] = [o.name for o in base.scene.moving_objects]
-        f.attrs["mask_ids"] = "0 = background, k = moving object k (1-based)"
-    summary = {
-        "events": len(events),
-        "steps": steps,
-        "files": sorted({p.name for p in out_dir.iterdir()} | {"run.json"}),
+    fields = {
+        "t": (np.float64, ()),
+        "gaze_deg": (np.float32, (2,)),
+        "ptu_positions": (np.int32, (2,)),
+        "object_mask": (np.uint8, (h, w)),
+        "object_centre_px": (np.float32, (n_obj, 2)),
+        "object_mask_pixels": (np.int32, (n_obj,)),
     }
+    attrs = {
+        "object_names": [o.name for o in base.scene.moving_objects],
+        "mask_ids": "0 = background, k = moving object k (1-based)",
+    }
+    video_path = out_dir / "video.mp4"
+    done, error = 0, None
+    with (
+        EventStreamWriter(out_dir / "events.h5", (w, h, 2), rec) as events,
+        H5Appender(out_dir / "ground_truth.h5", fields, attrs, chunk_rows=100) as truth,
+    ):
+        writer = (
+            imageio.get_writer(video_path, fps=round(1 / dt), macro_block_size=1)
+            if config.video
+            else None
+        )
+        rrlog = open_run_log(out_dir, env, "wander record")  # run.rrd
+        try:
+            for k in range(steps):
+                obs, _, _, _, info = env.step(policy.act(info))
+                rrlog.step(obs, info)
+                events.append(info["events"].events)
+                centre = np.full((n_obj, 2), np.nan, np.float32)
+                pixels = np.zeros(n_obj, np.int32)
+                for j, o in enumerate(info["objects"]):
+                    centre[j], pixels[j] = o["centre_px"], o["mask_pixels"]
+                truth.append(
+                    t=info["t"],
+                    gaze_deg=obs["gaze"],
+                    ptu_positions=info["ptu_positions"],
+                    object_mask=info["object_mask"],
+                    object_centre_px=centre,
+                    object_mask_pixels=pixels,
+                )
+                if writer is not None:
+                    frame = env.render()
+                    try:
+                        writer.append_data(frame)
+                    except Exception as err:  # ffmpeg's pipe: a full disk is a broken pipe
+                        check_space(video_path, frame.nbytes)
+                        raise OutputError(video_path, err) from err
+                done = k + 1
+                if progress is not None:
+                    progress(k + 1, steps)
+        except BaseException as exc:
+            error = exc
+        finally:
+            rrlog.close()
+            if writer is not None:
+                try:
+                    writer.close()
+                except Exception as err:
+                    error = error or OutputError(video_path, err)
+        n_events = events.events_written
+        summary = {"events": n_events, "steps": done}
+        events.close({**rec, "summary": summary})
+        truth.close()
+    if error is None and config.format != "h5":
+        _convert(out_dir, config.format, base, dt)
+    summary["files"] = sorted({p.name for p in out_dir.iterdir()} | {"run.json"})
+    if error is not None:
+        message = f"{type(error).__name__}: {error}"
+        write_json(out_dir / "metrics.json", {**summary, "error": message})
+        write_json(out_dir / "run.json", rec | {"summary": summary, "error": message})
+        raise error
     write_json(out_dir / "run.json", rec | {"summary": summary})
     return summary
+
+
+def _convert(out_dir: Path, fmt: str, base: Any, dt: float) -> None:
+    """Rewrite the streamed ``events.h5`` as ``fmt`` (the recording is read back whole)."""
+    recording = read_events(out_dir / "events.h5")
+    if fmt == "evimo2":
+        with h5py.File(out_dir / "ground_truth.h5", "r") as f:
+            t, masks = f["t"][()], f["object_mask"][()]
+        f_px = focal_length_px(base.width, base.scene.camera.hfov_deg)
+        write_evimo2_sequence(out_dir, recording, t, masks, f_px, dt)
+    else:
+        write_events(out_dir / FORMATS[fmt], recording)
+    (out_dir / "events.h5").unlink()

@@ -277,6 +277,7 @@ def run_rig(
                 seed=config.seed,
             )
         except BaseException as err:
+            base.halt_after_failure()  # a signal, a camera fault: halt, and record it
             metrics = _add_metrics(out_dir, counters.summary())
             is_device = _device(err, config) is not None or (
                 isinstance(err, (RuntimeError, OSError)) and _camera_failed(base)

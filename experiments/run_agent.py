@@ -16,10 +16,13 @@ writes the run folder:
   lines and the salient points; gaze over time;
 - ``run.mp4``: events | OMS | saliency | camera, with the fovea (green) and ``P``
   (magenta 8×8 box) marked;
-- ``events.h5``: every event of the run.
+- ``events.h5``: every event of the run, written as the run goes
+  (:class:`~wander_env.event_stream.EventStreamWriter`: memory does not grow with the
+  run's length, and a killed run leaves the file readable up to its last flushed chunk).
 
-A fault mid-run (a device that stops answering) still leaves the folder with what was
-recorded; the exception is raised after it is written.
+A fault mid-run (a device that stops answering, a signal: :mod:`wander_env.shutdown`)
+still leaves the folder with what was recorded, ``metrics.json`` naming the error (and
+the signal); the exception is raised after it is written.
 """
 
 from __future__ import annotations
@@ -39,10 +42,10 @@ from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
 from experiments.run_viewer import open_run_log
 from experiments.scanpath_figure import pixel_to_angles, plot_scanpath
-from wander_env.event_io import EventRecording, write_events
-from wander_env.events import concatenate
+from wander_env.event_stream import EventStreamWriter, OutputError, check_space
 from wander_env.metrics import degrees_to_pixels, detection_hit, focal_length_px
 from wander_env.runinfo import run_record, write_json
+from wander_env.shutdown import SignalExit
 from wander_env.viz import event_image, labelled_frame, saliency_rgb
 
 __all__ = ["RunConfig", "RunResult", "run", "run_closed_loop", "video_frame"]
@@ -128,7 +131,7 @@ def video_frame(
 class _Log:
     """Everything gathered step by step (kept to write the folder even after a fault)."""
 
-    chunks: list[np.ndarray] = field(default_factory=list)
+    events: int = 0
     gaze: list[tuple[float, float, float]] = field(default_factory=list)
     maps: list[np.ndarray] = field(default_factory=list)  # saliency per decision
     hits: list[bool | None] = field(default_factory=list)  # per decision
@@ -154,11 +157,18 @@ def run_closed_loop(
     dt = float(getattr(getattr(base, "config", None), "control_period_s", agent.params.step_s))
     n_steps = max(1, round(seconds / dt))
     log = _Log()
+    p = agent.params
+    stream = EventStreamWriter(out_dir / "events.h5", (p.width_px, p.height_px, 2), record)
     writer = None
+    video_path = out_dir / "run.mp4"
     if video:
         import imageio.v2 as imageio
 
-        writer = imageio.get_writer(out_dir / "run.mp4", fps=round(1 / dt), macro_block_size=1)
+        try:
+            writer = imageio.get_writer(video_path, fps=round(1 / dt), macro_block_size=1)
+        except BaseException:
+            stream.close()
+            raise
     rrlog = open_run_log(out_dir, env, str(record.get("command", "wander run")))  # run.rrd
     error: BaseException | None = None
     t_wall = time.perf_counter()
@@ -187,12 +197,19 @@ def run_closed_loop(
             obs, _, terminated, truncated, info = env.step(action)
             if agent.phase is Phase.SACCADE:
                 saccade_clipped |= bool(info.get("target_clipped", False))
-            log.chunks.append(info["events"].events)
+            step_events = info["events"].events
+            stream.append(step_events)
+            log.events += len(step_events)
             log.gaze.append((float(info.get("t", (k + 1) * dt)), *map(float, obs["gaze"])))
             log.steps = k + 1
             rrlog.step(obs, info, agent)
             if writer is not None:
-                writer.append_data(_frame_for(agent, obs, base, info))
+                frame = _frame_for(agent, obs, base, info)
+                try:
+                    writer.append_data(frame)
+                except Exception as err:  # ffmpeg's pipe: a full disk shows as a broken pipe
+                    check_space(video_path, frame.nbytes)
+                    raise OutputError(video_path, err) from err
             if progress is not None:
                 progress(k + 1, n_steps)
             if terminated or truncated:
@@ -203,15 +220,24 @@ def run_closed_loop(
         rrlog.close()
         log.sightings = rrlog.sightings
         if writer is not None:
-            writer.close()
+            try:
+                writer.close()
+            except Exception as err:
+                if error is None:
+                    error = OutputError(video_path, err)
     wall = time.perf_counter() - t_wall
     try:
-        result = _write_folder(out_dir, env, agent, log, record, dt, wall, error)
+        result = _write_folder(out_dir, env, agent, log, stream, record, dt, wall, error)
     except Exception as write_error:
         if error is None:
             raise
         error.add_note(f"writing the run folder {out_dir} also failed: {write_error!r}")
         raise error from write_error
+    finally:
+        try:
+            stream.close()  # already closed by _write_folder unless that failed
+        except OutputError:
+            pass
     if error is not None:
         raise error
     return result
@@ -287,6 +313,7 @@ def _write_folder(
     env: Any,
     agent: AttentionAgent,
     log: _Log,
+    stream: EventStreamWriter,
     record: dict[str, Any],
     dt: float,
     wall: float,
@@ -336,7 +363,7 @@ def _write_folder(
         "decisions_with_target": sum(fx.target_px is not None for fx in agent.fixations),
         "decisions_scored": len(scored),
         "detection_accuracy": float(np.mean(scored)) if scored else math.nan,
-        "events": int(sum(len(c) for c in log.chunks)),
+        "events": log.events,
         "events_into_agent": agent.events_in,
         "events_kept_by_soms": agent.events_oms,
         "soms_suppression": agent.suppression,
@@ -345,6 +372,8 @@ def _write_folder(
     }
     if error is not None:
         metrics["error"] = f"{type(error).__name__}: {error}"
+        if isinstance(error, SignalExit):
+            metrics["signal"] = error.name
     write_json(out_dir / "metrics.json", metrics)
     if agent.fixations and log.maps:
         n = min(len(log.maps), len(agent.fixations))
@@ -361,10 +390,8 @@ def _write_folder(
             object_paths=_object_paths(log.sightings, f, centre),
             limits_deg=_ptu_limits(env),
         )
-    events = concatenate(log.chunks) if log.chunks else concatenate([])
-    h, w = p.height_px, p.width_px
     rec = record | {"agent": asdict(p), "summary": {k: metrics[k] for k in ("steps", "events")}}
-    write_events(out_dir / "events.h5", EventRecording(events, (w, h, 2), rec))
+    stream.close(rec)
     write_json(out_dir / "run.json", rec)
     files = sorted(x.name for x in out_dir.iterdir())
     return RunResult(metrics=metrics, files=files, error=metrics.get("error"))
@@ -378,14 +405,21 @@ def run(
 
     import wander_env  # noqa: F401  (registers the environments)
 
-    env = gym.make(
-        "wander/Wander-v0",
-        scene=config.scene,
-        dvs=config.dvs,
-        episode_seconds=config.seconds,
-    )
-    agent = AttentionAgent(config.agent_params(env), seed=config.seed)
     record = run_record("wander run", asdict(config), config.seed)
+    env = None
+    try:
+        env = gym.make(
+            "wander/Wander-v0",
+            scene=config.scene,
+            dvs=config.dvs,
+            episode_seconds=config.seconds,
+        )
+        agent = AttentionAgent(config.agent_params(env), seed=config.seed)
+    except KeyboardInterrupt as stop:  # Ctrl-C or a signal while setting up
+        _stopped_in_setup(Path(out_dir), config, record, stop)
+        if env is not None:
+            env.close()
+        raise
     try:
         return run_closed_loop(
             env,
@@ -400,3 +434,22 @@ def run(
     finally:
         agent.close()
         env.close()
+
+
+def _stopped_in_setup(
+    out_dir: Path, config: RunConfig, record: dict[str, Any], stop: KeyboardInterrupt
+) -> None:
+    """The run folder of a run stopped before its first step: no events, the signal named."""
+    from wander_env.scene_config import load_scene_config
+
+    camera = load_scene_config(config.scene).camera
+    out_dir.mkdir(parents=True, exist_ok=True)
+    summary = {"steps": 0, "events": 0}
+    rec = record | {"summary": summary}
+    EventStreamWriter(out_dir / "events.h5", (camera.width, camera.height, 2)).close(rec)
+    metrics: dict[str, Any] = {**summary, "stage": "set-up"}
+    metrics["error"] = f"{type(stop).__name__}: {stop} (while setting up)"
+    if isinstance(stop, SignalExit):
+        metrics["signal"] = stop.name
+    write_json(out_dir / "metrics.json", metrics)
+    write_json(out_dir / "run.json", rec)

@@ -21,6 +21,15 @@ for the grid keys, then the experiment's columns) and ``sweep.json`` (provenance
 Backends: ``serial`` (this process), ``local`` (worker processes, spawn context), ``ray``
 (one task per trial; ``ray.init(address=...)`` joins a cluster — wander must be
 importable on its nodes — or, without an address, starts a local Ray instance).
+
+Nothing is left behind: local workers run in their own process groups (a Ctrl-C at the
+terminal reaches only the sweep, which then ends them) and are ended — SIGTERM, then
+SIGKILL — whenever the sweep stops (finished, failed, signalled); if the sweep itself is
+killed with SIGKILL they die with it (``PR_SET_PDEATHSIG`` on Linux, and a thread that
+watches the parent elsewhere). Every wait on a worker or a Ray task is bounded by
+``timeout_s`` (no trial finishing for that long is an error saying so). A trial file that
+is empty, truncated or garbled is named in a warning, set aside (``*.json.corrupt``) and
+its trial is run again.
 """
 
 from __future__ import annotations
@@ -31,7 +40,11 @@ import json
 import math
 import multiprocessing
 import os
+import signal
+import sys
+import threading
 import time
+import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -187,24 +200,88 @@ def _timed(runner: Runner, spec: TrialSpec) -> tuple[Row, float]:
     return row, time.perf_counter() - t0
 
 
+#: Default bound on any wait for the next trial to finish (seconds).
+WAIT_TIMEOUT_S = 6 * 3600.0
+
+
+def _watch_parent(parent: int) -> None:
+    while True:
+        time.sleep(1.0)
+        if os.getppid() != parent:
+            os._exit(1)
+
+
+def _worker_init(parent: int) -> None:
+    """In each worker: its own process group, and death with the parent."""
+    os.setpgid(0, 0)  # terminal signals go to the sweep only; it ends the workers itself
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG: killed with the parent
+    if os.getppid() != parent:  # the parent died before prctl took effect
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+
+
+def end_workers(processes: Sequence[Any], grace_s: float = 5.0) -> None:
+    """SIGTERM each worker's process group, wait up to ``grace_s``, then SIGKILL.
+
+    ``processes``: ``multiprocessing`` processes (``pid``, ``is_alive()``).
+    """
+    alive = [p for p in processes if p.pid is not None]
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        for p in alive:
+            try:
+                os.killpg(p.pid, sig)  # the worker and anything it started
+            except (ProcessLookupError, PermissionError):
+                try:
+                    os.kill(p.pid, sig)
+                except (ProcessLookupError, PermissionError):
+                    pass
+        deadline = time.monotonic() + grace_s
+        while alive and time.monotonic() < deadline:
+            alive = [p for p in alive if p.is_alive()]
+            if alive:
+                time.sleep(0.05)
+        if not alive:
+            return
+
+
 def local_executor(
-    specs: Sequence[TrialSpec], workers: int | None = None, runner: Runner = run_spec
+    specs: Sequence[TrialSpec],
+    workers: int | None = None,
+    runner: Runner = run_spec,
+    timeout_s: float = WAIT_TIMEOUT_S,
 ) -> Iterator[tuple[TrialSpec, Row, float]]:
     """Worker processes (spawn: no forked GL or torch state); ``runner`` must be a
-    module-level function."""
+    module-level function. The workers are ended on any exit (module docstring)."""
     if not specs:
         return
     n = max(1, min(workers or os.cpu_count() or 1, len(specs)))
     ctx = multiprocessing.get_context("spawn")
-    with cf.ProcessPoolExecutor(max_workers=n, mp_context=ctx) as pool:
+    pool = cf.ProcessPoolExecutor(
+        max_workers=n, mp_context=ctx, initializer=_worker_init, initargs=(os.getpid(),)
+    )
+    futures: dict[cf.Future, TrialSpec] = {}
+    try:
         futures = {pool.submit(_timed, runner, s): s for s in specs}
-        try:
-            for fut in cf.as_completed(futures):
+        pending = set(futures)
+        while pending:
+            done, pending = cf.wait(pending, timeout=timeout_s, return_when=cf.FIRST_COMPLETED)
+            if not done:
+                raise TimeoutError(
+                    f"no trial finished within {timeout_s:g} s ({len(pending)} not done); "
+                    "the workers were ended"
+                )
+            for fut in done:
                 row, secs = fut.result()
                 yield futures[fut], row, secs
-        finally:
-            for fut in futures:
-                fut.cancel()
+    finally:
+        for fut in futures:
+            fut.cancel()
+        end_workers(list((getattr(pool, "_processes", None) or {}).values()))
+        pool.shutdown(wait=False, cancel_futures=True)
 
 
 def _repo_root() -> str:
@@ -216,13 +293,16 @@ def ray_executor(
     address: str | None = None,
     workers: int | None = None,
     runner: Runner = run_spec,
+    timeout_s: float = WAIT_TIMEOUT_S,
 ) -> Iterator[tuple[TrialSpec, Row, float]]:
     """One Ray task per trial. ``address`` (e.g. ``"auto"`` or ``"ray://host:10001"``)
     joins a running cluster; None starts a local instance with ``workers`` CPUs (and the
-    repository on the workers' ``PYTHONPATH``). A Ray already initialised is reused."""
+    repository on the workers' ``PYTHONPATH``). A Ray already initialised is reused.
+    Waits are bounded by ``timeout_s``; unfinished tasks are cancelled on any exit."""
     import ray
 
     own = not ray.is_initialized()
+    pending: dict[Any, TrialSpec] = {}
     if own:
         opts: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
         if address:
@@ -238,12 +318,21 @@ def ray_executor(
         task = ray.remote(num_cpus=1)(_timed)
         pending = {task.remote(runner, s): s for s in specs}
         while pending:
-            done, _ = ray.wait(list(pending), num_returns=1)
+            done, _ = ray.wait(list(pending), num_returns=1, timeout=timeout_s)
+            if not done:
+                raise TimeoutError(
+                    f"no Ray task finished within {timeout_s:g} s ({len(pending)} not done)"
+                )
             for ref in done:
                 spec = pending.pop(ref)
-                row, secs = ray.get(ref)
+                row, secs = ray.get(ref, timeout=timeout_s)
                 yield spec, row, secs
     finally:
+        for ref in list(pending):
+            try:
+                ray.cancel(ref, force=True)
+            except Exception:  # already finished or gone with its worker
+                pass
         if own:
             ray.shutdown()
 
@@ -266,6 +355,32 @@ def _store(out_dir: Path, spec: TrialSpec, row: Row, secs: float) -> None:
     os.replace(tmp, path)
 
 
+def _stored(out_dir: Path, spec: TrialSpec) -> bool:
+    """True if ``spec``'s trial file holds a row; a damaged one is set aside (warned)."""
+    path = _trial_file(out_dir, spec)
+    if not path.exists():
+        return False
+    try:
+        rec = json.loads(path.read_text())
+        if not isinstance(rec, dict) or not isinstance(rec.get("row"), dict):
+            raise ValueError("no 'row' object")
+        return True
+    except (OSError, ValueError, UnicodeDecodeError) as err:
+        aside = path.with_name(path.name + ".corrupt")
+        k = 1
+        while aside.exists():
+            k += 1
+            aside = path.with_name(f"{path.name}.corrupt{k}")
+        os.replace(path, aside)
+        why = " ".join(str(err).split()) or type(err).__name__
+        warnings.warn(
+            f"{path}: damaged trial file ({why}); set aside as {aside.name}, the trial is rerun",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+        return False
+
+
 def _load_row(out_dir: Path, spec: TrialSpec) -> Row:
     row = json.loads(_trial_file(out_dir, spec).read_text())["row"]
     row = {k: math.nan if v is None else v for k, v in row.items()}  # null: a missing figure
@@ -285,29 +400,33 @@ def run_sweep(
     progress: Callable[[int, int], None] | None = None,
     runner: Runner = run_spec,
     command: str = "",
+    timeout_s: float = WAIT_TIMEOUT_S,
 ) -> SweepResult:
     """Run the trials not yet stored, then gather every row into ``results.csv``."""
     if backend not in BACKENDS:
         raise ConfigError(f"backend must be one of {BACKENDS}, got {backend!r}")
     specs = expand(sweep)
-    todo = [s for s in specs if not _trial_file(out_dir, s).is_file()]
+    todo = [s for s in specs if not _stored(out_dir, s)]
     skipped = len(specs) - len(todo)
     out_dir.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     if backend == "serial":
         stream = serial_executor(todo, runner)
     elif backend == "local":
-        stream = local_executor(todo, workers, runner)
+        stream = local_executor(todo, workers, runner, timeout_s)
     else:
-        stream = ray_executor(todo, address, workers, runner)
+        stream = ray_executor(todo, address, workers, runner, timeout_s)
     done = skipped
     if progress is not None:
         progress(done, len(specs))
-    for spec, row, secs in stream:
-        _store(out_dir, spec, row, secs)
-        done += 1
-        if progress is not None:
-            progress(done, len(specs))
+    try:
+        for spec, row, secs in stream:
+            _store(out_dir, spec, row, secs)
+            done += 1
+            if progress is not None:
+                progress(done, len(specs))
+    finally:
+        stream.close()  # ends the workers at once, whatever stopped the loop
     rows = [_load_row(out_dir, s) for s in specs]
     write_csv(rows, out_dir / "results.csv")
     rec = run_record(command or f"wander sweep (backend {backend})", asdict(sweep), None)

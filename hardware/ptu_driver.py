@@ -43,6 +43,17 @@ from typing import Any
 import serial
 
 from wander_env.closing import Closing
+
+try:  # the serial layer's own errors: termios.error (EIO of an unplugged adapter) is no OSError
+    import termios
+
+    SERIAL_ERRORS: tuple[type[BaseException], ...] = (
+        serial.SerialException,
+        OSError,
+        termios.error,
+    )
+except ImportError:  # pragma: no cover - not POSIX
+    SERIAL_ERRORS = (serial.SerialException, OSError)
 from wander_env.ptu import degrees_to_positions, positions_to_degrees, round_position
 
 # A standalone number: not glued to a letter, ``^`` or ``.`` (so "sec^2" or "v2.14" don't count).
@@ -147,12 +158,15 @@ class PTUProtocol:
     def read_reply(self, command: str, timeout_s: float) -> str:
         """Read until ``command``'s reply; its text on ``*``, :class:`PTUError` on ``!``."""
         deadline = time.monotonic() + timeout_s
+        skipped: list[str] = []
         while True:
             line = self._pop_line()
             if line is not None:
                 reply = parse_reply(line, command)
                 if reply is None:
                     logging.getLogger(__name__).debug("PTU: skipped %r", line)
+                    if line.strip():
+                        skipped.append(line)
                     continue
                 self.last_latency_s = time.monotonic() - self._sent_at
                 if not reply.ok:
@@ -160,8 +174,9 @@ class PTUProtocol:
                 return reply.text
             if time.monotonic() >= deadline:
                 pending = self._rx.decode("ascii", errors="replace")
+                noise = f"; lines that are no reply: {skipped[-3:]!r}" if skipped else ""
                 raise PTUTimeout(
-                    f"no reply from the PTU within {timeout_s:.3g} s (received {pending!r})",
+                    f"no reply from the PTU within {timeout_s:.3g} s (received {pending!r}{noise})",
                     command,
                 )
             self._rx += self.port.read(max(1, self.port.in_waiting))
@@ -290,9 +305,11 @@ class FlirPTU(Closing):
         self._proto = PTUProtocol(self._port, self.params.delimiter)
         try:
             self._initialise()
+        except SERIAL_ERRORS as exc:
+            self._close_port()
+            raise PTUPortError(f"PTU port {url!r} failed while opening: {exc!r}") from exc
         except BaseException:
-            self._port.close()
-            self._closed = True
+            self._close_port()
             raise
 
     # -- set-up -----------------------------------------------------------------------
@@ -345,8 +362,8 @@ class FlirPTU(Closing):
                 raise PTUPortError(f"PTU port {self.url!r} is closed", command)
             try:
                 return self._proto.transact(command, timeout_s or self.params.timeout_s)
-            except serial.SerialException as exc:
-                raise PTUPortError(f"PTU port {self.url!r} failed: {exc}", command) from exc
+            except SERIAL_ERRORS as exc:  # unplugged, hung up, I/O error: a device failure
+                raise PTUPortError(f"PTU port {self.url!r} failed: {exc!r}", command) from exc
 
     def _number(self, command: str) -> float:
         return reply_number(self._command(command), command)
@@ -479,7 +496,7 @@ class FlirPTU(Closing):
             self._proto.send("H")
             for command in ("H", "A"):
                 self._proto.read_reply(command, self.params.timeout_s)
-        except (PTUError, OSError) as exc:  # the next command discards stale input anyway
+        except (PTUError, *SERIAL_ERRORS) as exc:  # the next command discards stale input
             logging.getLogger(__name__).warning("PTU %s: halt after await: %s", self.url, exc)
 
     def halt(self, axis: str | None = None) -> None:
@@ -612,8 +629,15 @@ class FlirPTU(Closing):
                         except (PTUError, OSError) as exc:
                             log.warning("PTU %s: return home on close failed: %s", self.url, exc)
             finally:
-                self._closed = True
-                self._port.close()
+                self._close_port()
+
+    def _close_port(self) -> None:
+        """Close the serial port; a port that already failed is logged, not raised."""
+        self._closed = True
+        try:
+            self._port.close()
+        except SERIAL_ERRORS as exc:
+            logging.getLogger(__name__).warning("PTU %s: closing the port: %r", self.url, exc)
 
     def __repr__(self) -> str:
         state = "open" if self.is_open else "closed"

@@ -228,6 +228,7 @@ class PTUEmulator:
         self._n_commands = 0
         self._silent_after = self.params.silent_after
         self._errors: list[tuple[str | None, str]] = []
+        self._garbage: list[str] = []
         self._banner_sent = threading.Event()
         self._master, self._slave = os.openpty()
         try:
@@ -253,6 +254,8 @@ class PTUEmulator:
         self._stop.set()
         self._thread.join(timeout=5.0)
         for fd in (self._master, self._slave):
+            if fd < 0:
+                continue
             try:
                 os.close(fd)
             except OSError:
@@ -275,6 +278,24 @@ class PTUEmulator:
         """Answer commands again."""
         with self._lock:
             self._silent_after = None
+
+    def inject_garbage(self, text: str = "\x00\xff#garbage", count: int = 1) -> None:
+        """Answer ``text`` (no ``*`` or ``!``; a line noise burst) instead of executing the
+        next ``count`` commands."""
+        with self._lock:
+            self._garbage.extend([text] * count)
+
+    def hang_up(self) -> None:
+        """Unplug the unit: the thread stops and the pty's master side is closed, so the
+        host's next read or flush of the port fails with EIO (as a pulled USB adapter)."""
+        with self._lock:
+            self._stop.set()
+        self._thread.join(timeout=5.0)
+        try:
+            os.close(self._master)
+        except OSError:
+            pass
+        self._master = -1
 
     def inject_error(self, message: str, command: str | None = None, count: int = 1) -> None:
         """Answer ``! <message>`` instead of executing the next ``count`` commands.
@@ -445,6 +466,9 @@ class PTUEmulator:
             self._write(token + " ")
         m = _TOKEN.fullmatch(cmd)
         name = m.group(1) if m else cmd
+        if self._garbage:
+            self._write(self._garbage.pop(0) + self.params.eol)
+            return
         for i, (key, message) in enumerate(self._errors):
             if key is None or key == name:
                 del self._errors[i]

@@ -4,7 +4,8 @@
 :func:`experiments.rig.run_rig` and writes the same run folder as ``wander run``. A
 device failure prints one line on stderr (what failed, the port or device, the unit's
 message; the run folder when the run had started) and exits with code 1; a bad option
-exits with code 2; Ctrl-C leaves the folder with what was recorded and exits with 130.
+exits with code 2; Ctrl-C, SIGTERM or SIGHUP halt the PTU, leave the folder with what was
+recorded (``metrics.json`` names the signal) and exit with 128 + the signal (130, 143, 129).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from wander_env.cli_options import (
     check_seconds,
     resolve_out,
 )
+from wander_env.shutdown import SignalExit, exit_code, long_command, record_failure
 
 
 def _or_nan(value: Any) -> float:
@@ -68,6 +70,7 @@ def dropped_warning(metrics: dict[str, Any]) -> str | None:
     )
 
 
+@long_command("wander rig")
 def rig(
     ptu: Annotated[
         str,
@@ -140,13 +143,15 @@ def rig(
     except RigRunError as err:
         typer.echo(f"wander rig: {err}", err=True)
         raise typer.Exit(1) from err
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as err:  # Ctrl-C, SIGTERM, SIGHUP (wander_env.shutdown)
+        record_failure(out, err)
+        what = str(err) if isinstance(err, SignalExit) else "interrupted"
         typer.echo(
-            "wander rig: interrupted; the PTU was halted; if the run had started, "
+            f"wander rig: {what}; the PTU was halted; if the run had started, "
             f"{str(out)!r} holds what was recorded",
             err=True,
         )
-        raise typer.Exit(130) from None
+        raise typer.Exit(exit_code(err)) from None
     console.print(summary_line(result.metrics, out), soft_wrap=True)
     warning = dropped_warning(result.metrics)
     if warning is not None:

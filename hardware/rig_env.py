@@ -32,8 +32,9 @@ the camera's clock has passed the window's end; with ``replay="fast"`` at once,
 the windows advancing in stream time, so the events of every step are fixed by
 the file (the PTU side stays real-time, hence ``nondeterministic=True``).
 
-Faults: a PTU that stops answering, answers ``!`` or loses its port mid-run
-makes the PTU thread try a halt (``H``) and stop; the next :meth:`RigEnv.step`
+Faults: a PTU that stops answering, answers ``!`` or garbage, or loses its port
+mid-run (any error of the serial layer, ``termios.error`` included) makes the PTU
+thread try a halt (``H``) and stop; the next :meth:`RigEnv.step`
 (or :meth:`RigEnv.settle`, :meth:`RigEnv.reset`) raises the driver's error type
 (:class:`~hardware.ptu_driver.PTUTimeout`, :class:`~hardware.ptu_driver.PTUError`
 keeping the unit's ``message`` and ``command``) saying what happened and whether
@@ -271,10 +272,14 @@ class _PTULink:
             self._thread.join(self.ptu.params.timeout_s + self.ptu.params.halt_timeout_s + 1.0)
 
     def halt_now(self) -> str:
-        """Discard any queued target and halt (``H``) from the calling thread."""
+        """Discard any queued target and halt (``H``) from the calling thread; the result
+        is kept in ``halt_result`` (for ``metrics.json``)."""
         with self._cond:
             self._want = None
-        return self._halt()
+        result = self._halt()
+        with self._cond:
+            self.halt_result = result
+        return result
 
     # -- the thread -----------------------------------------------------------------------
 
@@ -334,7 +339,7 @@ class _PTULink:
         """Send ``H`` with the driver's halt timeout; says how it went (never raises)."""
         try:
             self.ptu.send("H", timeout_s=self.ptu.params.halt_timeout_s)
-        except (PTUError, OSError) as err:
+        except Exception as err:  # whatever the line does, the fault handler goes on
             logging.getLogger(__name__).warning("PTU %s: halt failed: %s", self.ptu.url, err)
             return f"halt (H) sent, not acknowledged: {err}"
         return "halt (H) acknowledged"
@@ -470,7 +475,7 @@ class RigEnv(gym.Env):
         try:
             ok = self._link.wait(self._target, limit)
         except BaseException:  # KeyboardInterrupt while waiting: stop the unit too
-            self._halt_after_failure()
+            self.halt_after_failure()
             raise
         self._raise_if_faulted()
         if not ok:
@@ -496,7 +501,7 @@ class RigEnv(gym.Env):
                 "acknowledged the unit may still be moving: switch it off).",
             ) from err
 
-    def _halt_after_failure(self) -> None:
+    def halt_after_failure(self) -> None:
         """Leave the PTU halted when something else fails (camera, interrupt)."""
         if self._link is not None and self._link.error is None:
             self._link.halt_now()
@@ -525,7 +530,7 @@ class RigEnv(gym.Env):
             now = max(cam.cursor_us, cam.now_us())
             self._discarded_at_reset = len(cam.read(until_t_us=now))
         except BaseException:
-            self._halt_after_failure()
+            self.halt_after_failure()
             raise
         self._t0_us = cam.cursor_us
         self._dropped_at_reset = cam.dropped
@@ -554,7 +559,7 @@ class RigEnv(gym.Env):
         try:
             events = cam.read(duration_us=self.config.control_period_us)
         except BaseException:
-            self._halt_after_failure()
+            self.halt_after_failure()
             raise
         self._steps += 1
         self._raise_if_faulted()

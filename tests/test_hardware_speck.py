@@ -66,13 +66,13 @@ def fake(monkeypatch, events) -> FakeSamna:
     )
 
 
-def wait_received(src: SpeckSource, n: int, limit_s: float = 5.0) -> None:
+def wait_received(src: SpeckSource, n: int, limit_s: float = 30.0) -> None:
     t_end = time.monotonic() + limit_s
     while src.stats["received"] < n and time.monotonic() < t_end:
         time.sleep(0.01)
 
 
-def read_all(src: SpeckSource, n_expected: int, window_us: int = 50_000, limit_s: float = 5.0):
+def read_all(src: SpeckSource, n_expected: int, window_us: int = 50_000, limit_s: float = 30.0):
     chunks, total, t_end = [], 0, time.monotonic() + limit_s
     while total < n_expected and time.monotonic() < t_end:
         chunk = src.read(duration_us=window_us)
@@ -292,7 +292,7 @@ def test_queue_overflow_drops_oldest_and_never_blocks_the_reader(monkeypatch, ev
         # the reader kept polling the device while nobody read: short gaps between calls
         calls = [c for c in sink.calls if t_sleep <= c[0] <= t_wake]
         gaps = [b[0] - a[1] for a, b in itertools.pairwise(calls)]
-        assert len(calls) >= 5 and max(gaps) < 0.25
+        assert len(calls) >= 5 and max(gaps) < 2.0  # generous: a loaded machine stalls threads
 
 
 def test_late_events_are_counted_not_delivered(monkeypatch, events):
@@ -381,7 +381,9 @@ def test_reader_failure_is_raised_by_read(monkeypatch, events):
             raise OSError("USB gone")
 
         sink.get_events_blocking = broken
-        time.sleep(0.15)
+        deadline = time.monotonic() + 30.0  # the reader's next poll fails (no fixed sleep)
+        while not src.stats["reader_error"] and time.monotonic() < deadline:
+            time.sleep(0.01)
         with pytest.raises(RuntimeError, match="USB gone"):
             src.read(duration_us=200_000)
     assert fake.handles[-1].closed

@@ -28,7 +28,8 @@ from wander_env.ptu import PTUParams
 
 REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
 WALK = REALDATA / "dvs128_people" / "alex_walking_for_10secs_txyp.npy"
-DRIVER = FlirPTUParams(timeout_s=0.3, await_timeout_s=5.0, halt_timeout_s=0.2, banner_quiet_s=0.02)
+# Generous reply timeouts: a loaded CI machine can starve the emulator thread for a while.
+DRIVER = FlirPTUParams(timeout_s=2.0, await_timeout_s=10.0, halt_timeout_s=0.5, banner_quiet_s=0.02)
 # The default unit (so the spaces match the simulated env's), with quick axes.
 FAST = PTUEmulatorParams(
     motion=PTUParams(pan_speed=2900.0, tilt_speed=2900.0, pan_accel=50000.0, tilt_accel=50000.0)
@@ -213,7 +214,7 @@ def test_actions_move_the_ptu_by_the_expected_positions(recording, emu):
         obs, _, _, _, info = env.step(np.zeros(2, np.float32))  # a zero action sends nothing
         assert (info["ptu_positions"], info["moving"]) == (d1, False)
         np.testing.assert_array_equal(obs["gaze"], np.float32([d * RES / 3600 for d in d1]))
-        assert 0.0 < info["command_latency_s"] < 1.0
+        assert 0.0 < info["command_latency_s"] < 5.0
         assert moves(emu) == [f"PP{d1[0]}", f"TP{d1[1]}"]
         a2 = (-0.5, 0.0)  # relative: added to the current target, pan only
         d2 = expected_offset_pos(a2)
@@ -340,8 +341,8 @@ def test_ptu_going_silent_mid_run_times_out_after_a_halt_attempt(recording, emu)
         with pytest.raises(PTUTimeout):  # every later step says so too
             env.step(np.zeros(2, np.float32))
         t0 = time.monotonic()
-        env.close()  # halts once more, does not hang
-        assert time.monotonic() - t0 < 2.0
+        env.close()  # halts once more, does not hang (bounded by the driver's timeouts)
+        assert time.monotonic() - t0 < 15.0
         assert emu.commands[-1] == "H"
     finally:
         env.close()

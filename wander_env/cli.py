@@ -31,6 +31,7 @@ from wander_env.cli_options import (
     one_of,
     resolve_out,
 )
+from wander_env.shutdown import long_command
 
 app = typer.Typer(
     help="wander: a simulated active-vision laboratory for event cameras.",
@@ -95,6 +96,7 @@ def demo(
 
 
 @app.command()
+@long_command("wander record")
 def record(
     out: RunDirOpt = None,
     scene: SceneOpt = "office",
@@ -135,6 +137,7 @@ def record(
 
 
 @app.command("run")
+@long_command("wander run")
 def run_agent(
     out: RunDirOpt = None,
     scene: SceneOpt = "office",
@@ -180,6 +183,7 @@ def run_agent(
 
 
 @app.command()
+@long_command("wander evaluate")
 def evaluate(
     out: Annotated[
         Path | None,

@@ -105,10 +105,10 @@ class WanderConfig:
                 f"control_period_s={self.control_period_s} must be a whole number (>= 1) of "
                 f"render periods (render_rate_hz={self.render_rate_hz})"
             )
+        if self.max_subframes < 1:  # before the division below (0 would divide by zero)
+            raise ValueError(f"WanderConfig.max_subframes must be >= 1, got {self.max_subframes}")
         if round(1e6 / self.render_rate_hz / self.max_subframes) < 1:
             raise ValueError(f"max_subframes={self.max_subframes} splits a tick below 1 µs")
-        if self.max_subframes < 1:
-            raise ValueError(f"WanderConfig.max_subframes must be >= 1, got {self.max_subframes}")
         if self.dvs_params is None:
             DVSParams.preset(self.dvs)  # raises for an unknown preset name
         aa = self.antialias_samples

@@ -53,7 +53,8 @@ from typing import Any
 
 import numpy as np
 
-from wander_env.event_io import EventFileError, EventRecording, _as_events, _finish
+from wander_env.event_checks import MAX_SENSOR_SIDE
+from wander_env.event_io import EventFileError, EventRecording, _finish
 from wander_env.events import SensorSize, time_window
 
 # Prophesee sensors whose headers omit the geometry (older plugins), by plugin name.
@@ -142,7 +143,9 @@ def _sensor(
 # Readers
 
 
-def read_prophesee_raw(path: Path, sensor_size: SensorSize | None = None) -> EventRecording:
+def read_prophesee_raw(
+    path: Path, sensor_size: SensorSize | None = None, max_side: int = MAX_SENSOR_SIDE
+) -> EventRecording:
     """Prophesee ``.raw``: EVT 3.0 through ``evt3``, EVT 2.0/2.1 through ``faery``."""
     data = path.read_bytes()
     fields, start = prophesee_header(data)
@@ -200,18 +203,21 @@ def read_prophesee_raw(path: Path, sensor_size: SensorSize | None = None) -> Eve
         raw = np.concatenate(chunks) if chunks else np.zeros(0, faery.EVENTS_DTYPE)
         columns = {"x": raw["x"], "y": raw["y"], "t": raw["t"], "p": raw["on"]}
         meta["trigger_events"] = triggers
-    return _finish(path, _checked(path, columns), size, meta)
+    return _finish(path, _checked(path, columns), size, meta, max_side)
 
 
-def _checked(path: Path, columns: dict[str, np.ndarray]) -> np.ndarray:
-    """Columns to events, refusing timestamps the int64 µs clock cannot hold."""
+def _checked(path: Path, columns: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The columns, refusing timestamps the int64 µs clock cannot hold (``_finish`` checks
+    every value as it copies)."""
     t = np.asarray(columns["t"])
     if t.dtype.kind == "u" and len(t) and int(t.max()) > np.iinfo(np.int64).max:
         raise EventFileError(path, f"timestamp {int(t.max())} µs overflows int64")
-    return _as_events({k: np.asarray(v) for k, v in columns.items()}, path)
+    return {k: np.asarray(v) for k, v in columns.items()}
 
 
-def read_dat(path: Path, sensor_size: SensorSize | None = None) -> EventRecording:
+def read_dat(
+    path: Path, sensor_size: SensorSize | None = None, max_side: int = MAX_SENSOR_SIDE
+) -> EventRecording:
     """Prophesee DAT 2 (CD events) through ``faery``."""
     import faery
 
@@ -249,7 +255,7 @@ def read_dat(path: Path, sensor_size: SensorSize | None = None) -> EventRecordin
         "t": raw["t"],
         "p": raw["payload"],
     }
-    return _finish(path, _checked(path, columns), size, meta)
+    return _finish(path, _checked(path, columns), size, meta, max_side)
 
 
 def es_expected_bytes(t: np.ndarray) -> int:
@@ -269,7 +275,11 @@ def es_expected_bytes(t: np.ndarray) -> int:
 
 
 def read_es(
-    path: Path, sensor_size: SensorSize | None = None, flip_y: bool = True
+    path: Path,
+    sensor_size: SensorSize | None = None,
+    max_side: int = MAX_SENSOR_SIDE,
+    *,
+    flip_y: bool = True,
 ) -> EventRecording:
     """Event Stream 2.0 (DVS type) through ``faery``.
 
@@ -310,7 +320,7 @@ def read_es(
     y = raw["y"].astype(np.int64)
     columns = {"x": raw["x"], "y": height - 1 - y if flip_y else y, "t": raw["t"], "p": raw["on"]}
     meta = {"source_format": "es", "es_version": ".".join(map(str, version)), "flip_y": flip_y}
-    return _finish(path, _checked(path, columns), sensor_size or (width, height, 2), meta)
+    return _finish(path, _checked(path, columns), sensor_size or (width, height, 2), meta, max_side)
 
 
 # ----------------------------------------------------------------------------------------
@@ -392,7 +402,7 @@ def write_evt3(path: Path, recording: EventRecording) -> None:
             enc.write({"events": events[i : i + (1 << 16)]})
 
 
-READERS: dict[str, Callable[[Path, SensorSize | None], EventRecording]] = {
+READERS: dict[str, Callable[[Path, SensorSize | None, int], EventRecording]] = {
     ".raw": read_prophesee_raw,
     ".dat": read_dat,
     ".es": read_es,

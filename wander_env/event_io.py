@@ -37,7 +37,6 @@ Example:
 
 from __future__ import annotations
 
-import json
 import os
 import zipfile
 from dataclasses import dataclass, field
@@ -46,19 +45,20 @@ from typing import Any
 
 import numpy as np
 
+from wander_env.event_checks import (
+    MAX_SENSOR_SIDE,
+    EventFileError,
+    check_claim,
+    check_sensor_size,
+    column_max,
+    fill_events,
+    n_rows,
+    parse_metadata,
+)
 from wander_env.events import EVENT_DTYPE, SensorSize, validate_events
 from wander_env.runinfo import dumps_strict
 
 FORMAT_TAG = "wander-events/1"
-
-
-class EventFileError(ValueError):
-    """An event file could not be read: names the file and what was wrong."""
-
-    def __init__(self, path: str | os.PathLike, problem: str):
-        self.path = str(path)
-        self.problem = problem
-        super().__init__(f"{self.path}: {problem}")
 
 
 @dataclass
@@ -76,69 +76,122 @@ class EventRecording:
         return int(self.events["t"][-1] - self.events["t"][0])
 
 
-def _as_events(columns: dict[str, np.ndarray], path: Path) -> np.ndarray:
-    missing = [f for f in ("x", "y", "t", "p") if f not in columns]
-    if missing:
-        raise EventFileError(path, f"missing event fields {missing}")
-    n = len(columns["t"])
-    if any(len(columns[f]) != n for f in ("x", "y", "p")):
-        lengths = {f: len(columns[f]) for f in ("x", "y", "t", "p")}
-        raise EventFileError(path, f"event columns differ in length: {lengths}")
-    ev = np.empty(n, dtype=EVENT_DTYPE)
-    for f in ("x", "y", "t", "p"):
-        ev[f] = columns[f]
-    return ev
-
-
 def _finish(
-    path: Path, events: np.ndarray, sensor_size: SensorSize | None, metadata: dict[str, Any]
+    path: Path,
+    columns: dict[str, Any],
+    sensor_size: SensorSize | None,
+    metadata: dict[str, Any],
+    max_side: int,
+    n: int | None = None,
 ) -> EventRecording:
+    """Check the sensor size, then copy the columns in checked chunks (event_checks)."""
+    count = n_rows(path, columns) if n is None else n
     if sensor_size is None:
-        if len(events) == 0:
+        if count == 0:
             raise EventFileError(path, "no events and no sensor size: pass sensor_size")
-        sensor_size = (int(events["x"].max()) + 1, int(events["y"].max()) + 1, 2)
+        chunk = 1 << 20
+        w = column_max(path, "x", columns["x"], count, max_side, chunk) + 1
+        h = column_max(path, "y", columns["y"], count, max_side, chunk) + 1
+        sensor_size = check_sensor_size(path, (w, h, 2), max_side, "sensor_size (inferred)")
         metadata = {**metadata, "sensor_size_inferred": True}
-    sensor_size = (int(sensor_size[0]), int(sensor_size[1]), 2)
-    try:
-        validate_events(events, sensor_size, where="events")
-    except ValueError as err:
-        raise EventFileError(path, str(err)) from None
+    else:
+        sensor_size = check_sensor_size(path, sensor_size, max_side)
+    events = fill_events(path, columns, sensor_size, max_side, n=count)
     return EventRecording(events, sensor_size, metadata)
 
 
-def _read_npz(path: Path, sensor_size: SensorSize | None) -> EventRecording:
+def _npy_header(path: Path, fh: Any, available: int, what: str) -> tuple[tuple, np.dtype]:
+    """Shape and dtype of an ``.npy`` stream, checked against the bytes that follow."""
     try:
+        version = np.lib.format.read_magic(fh)
+        read = (
+            np.lib.format.read_array_header_1_0
+            if version == (1, 0)
+            else np.lib.format.read_array_header_2_0
+        )
+        shape, _, dtype = read(fh, max_header_size=1 << 16)
+    except (ValueError, OSError, EOFError) as err:
+        raise EventFileError(path, f"not a readable .npy header ({err})", what) from None
+    if dtype.hasobject:
+        raise EventFileError(path, f"dtype {dtype} holds Python objects", what, str(dtype))
+    count = int(np.prod(shape, dtype=np.int64)) if shape else 1
+    check_claim(path, what, count, dtype.itemsize, available - fh.tell())
+    return shape, dtype
+
+
+def _read_npz(path: Path, sensor_size: SensorSize | None, max_side: int) -> EventRecording:
+    try:
+        with zipfile.ZipFile(path) as zf:
+            for info in zf.infolist():  # headers against the stored sizes, before np.load
+                with zf.open(info) as fh:
+                    _npy_header(path, fh, info.file_size, info.filename.removesuffix(".npy"))
         with np.load(path, allow_pickle=False) as data:
             keys = set(data.files)
             if "events" in keys:
                 arr = data["events"]
                 if arr.dtype.names is None:
-                    raise EventFileError(path, "'events' is not a structured array")
+                    raise EventFileError(path, "not a structured array", "events", str(arr.dtype))
                 columns = {f: arr[f] for f in arr.dtype.names}
             else:
                 columns = {f: data[f] for f in ("x", "y", "t", "p") if f in keys}
             if sensor_size is None and "sensor_size" in keys:
-                sensor_size = tuple(int(v) for v in data["sensor_size"])
-            metadata = json.loads(str(data["metadata"])) if "metadata" in keys else {}
+                sensor_size = check_sensor_size(path, data["sensor_size"], max_side)
+            metadata = parse_metadata(path, data["metadata"]) if "metadata" in keys else {}
     except EventFileError:
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as err:
         raise EventFileError(path, f"not a readable .npz file ({err})") from None
-    return _finish(path, _as_events(columns, path), sensor_size, metadata)
+    return _finish(path, columns, sensor_size, metadata, max_side)
 
 
-def _read_npy(path: Path, sensor_size: SensorSize | None) -> EventRecording:
+def _read_npy(path: Path, sensor_size: SensorSize | None, max_side: int) -> EventRecording:
+    with open(path, "rb") as fh:
+        _npy_header(path, fh, path.stat().st_size, "array")
     try:
-        arr = np.load(path, allow_pickle=False)
+        arr = np.load(path, mmap_mode="r", allow_pickle=False)  # read in chunks below
     except (OSError, ValueError, EOFError) as err:
         raise EventFileError(path, f"not a readable .npy file ({err})") from None
     if arr.dtype.names is None:
         raise EventFileError(path, f"expected a structured array with x, y, t, p; got {arr.dtype}")
     columns = {f: arr[f] for f in arr.dtype.names}
-    return _finish(path, _as_events(columns, path), sensor_size, {})
+    return _finish(path, columns, sensor_size, {}, max_side)
 
 
-def _read_h5(path: Path, sensor_size: SensorSize | None) -> EventRecording:
+def _h5_column(path: Path, group: Any, name: str) -> Any:
+    """An HDF5 event column, its claimed length checked against what is stored."""
+    import h5py
+
+    ds = group[name]
+    if not isinstance(ds, h5py.Dataset):
+        raise EventFileError(path, f"is a {type(ds).__name__}, not a dataset", f"events/{name}")
+    field = f"events/{name}"
+    if ds.ndim != 1:
+        raise EventFileError(path, f"expected a 1-D column, got shape {ds.shape}", field, ds.shape)
+    if ds.dtype.kind not in "biuf":
+        raise EventFileError(path, f"dtype {ds.dtype} is not a number type", field, str(ds.dtype))
+    if ds.is_virtual or ds.external:
+        raise EventFileError(path, "stored outside the file (virtual/external): refused", field)
+    n = ds.shape[0]
+    if n == 0:
+        return ds
+    if ds.chunks is None:
+        stored = ds.id.get_storage_size()
+        check_claim(path, field, n, ds.dtype.itemsize, stored)
+    else:
+        want = -(-n // ds.chunks[0])
+        have = ds.id.get_num_chunks()
+        if have < want:
+            raise EventFileError(
+                path,
+                f"claims {n:,} events in {want:,} chunks but the file stores {have:,} of them "
+                "(sparse, truncated or forged)",
+                field,
+                n,
+            )
+    return ds
+
+
+def _read_h5(path: Path, sensor_size: SensorSize | None, max_side: int) -> EventRecording:
     import h5py
 
     try:
@@ -146,18 +199,37 @@ def _read_h5(path: Path, sensor_size: SensorSize | None) -> EventRecording:
             if "events" not in f:
                 raise EventFileError(path, f"no 'events' group (found {sorted(f.keys())})")
             g = f["events"]
-            columns = {k: g[k][()] for k in ("x", "y", "t", "p") if k in g}
+            if not isinstance(g, h5py.Group):
+                raise EventFileError(
+                    path, f"is a {type(g).__name__}, expected a group of x, y, t, p", "events"
+                )
+            columns = {k: _h5_column(path, g, k) for k in ("x", "y", "t", "p") if k in g}
             if sensor_size is None and "sensor_size" in f.attrs:
-                sensor_size = tuple(int(v) for v in f.attrs["sensor_size"])
-            metadata = json.loads(f.attrs["metadata"]) if "metadata" in f.attrs else {}
+                sensor_size = check_sensor_size(path, f.attrs["sensor_size"], max_side)
+            metadata = parse_metadata(path, f.attrs["metadata"]) if "metadata" in f.attrs else {}
+            n, metadata = stream_state(path, f.attrs, n_rows(path, columns), metadata)
+            return _finish(path, columns, sensor_size, metadata, max_side, n=n)
     except EventFileError:
         raise
-    except OSError as err:
+    except (OSError, KeyError, TypeError, ValueError) as err:
         raise EventFileError(path, f"not a readable HDF5 file ({err})") from None
-    return _finish(path, _as_events(columns, path), sensor_size, metadata)
 
 
-def _read_aedat4(path: Path, sensor_size: SensorSize | None) -> EventRecording:
+def stream_state(
+    path: Path, attrs: Any, stored: int, metadata: dict[str, Any]
+) -> tuple[int, dict[str, Any]]:
+    """Events to read from a file that :class:`~wander_env.event_stream.EventStreamWriter`
+    wrote, and its metadata; one it did not finish says where it stops."""
+    if "complete" not in attrs or bool(attrs["complete"]):
+        return stored, metadata
+    flushed = int(attrs.get("events_flushed", stored))
+    n = min(stored, max(flushed, 0))
+    t_end = int(attrs.get("t_flushed_us", -1))
+    incomplete = {"events": n, "last_t_us": t_end if n else None}
+    return n, {**metadata, "incomplete": incomplete}
+
+
+def _read_aedat4(path: Path, sensor_size: SensorSize | None, max_side: int) -> EventRecording:
     import aedat
 
     with open(path, "rb") as fh:
@@ -183,52 +255,68 @@ def _read_aedat4(path: Path, sensor_size: SensorSize | None) -> EventRecording:
     if not event_streams:
         raise EventFileError(path, f"no event stream (streams: {streams})")
     if sensor_size is None:
-        sensor_size = (int(event_streams[0]["width"]), int(event_streams[0]["height"]), 2)
+        stream = event_streams[0]
+        size = (stream.get("width"), stream.get("height"))
+        sensor_size = check_sensor_size(path, size, max_side, "event stream width/height")
     raw = np.concatenate(chunks) if chunks else np.zeros(0, dtype=[("t", "<u8")])
+    empty = np.zeros(0, np.int64)
     columns = {
-        "x": raw["x"] if len(raw) else np.zeros(0),
-        "y": raw["y"] if len(raw) else np.zeros(0),
-        "t": raw["t"].astype(np.int64),
-        "p": raw["on"].astype(np.int8) if len(raw) else np.zeros(0),
+        "x": raw["x"] if len(raw) else empty,
+        "y": raw["y"] if len(raw) else empty,
+        "t": raw["t"],
+        "p": raw["on"] if len(raw) else empty,
     }
     metadata = {"source_format": "aedat4", "other_stream_packets": other}
-    return _finish(path, _as_events(columns, path), sensor_size, metadata)
+    return _finish(path, columns, sensor_size, metadata, max_side)
 
 
-def _read_aedat2(path: Path, sensor_size: SensorSize | None) -> EventRecording:
+def _read_aedat2(path: Path, sensor_size: SensorSize | None, max_side: int) -> EventRecording:
     """jAER AEDAT 2.0, DVS128 addresses (big-endian int32 address, int32 timestamp)."""
-    data = path.read_bytes()
-    if not data.startswith(b"#!AER-DAT"):
-        raise EventFileError(path, f"not a jAER AEDAT file (starts with {data[:12]!r})")
-    version = data[9:12]
-    if version != b"2.0":
-        raise EventFileError(
-            path, f"AEDAT version {version.decode(errors='replace')} found; 2.0 is read"
-        )
-    pos = 0
-    while pos < len(data) and data[pos : pos + 1] == b"#":
-        end = data.find(b"\n", pos)
-        if end < 0:
-            raise EventFileError(path, "truncated inside the ASCII header")
-        pos = end + 1
-    body = len(data) - pos
+    size = path.stat().st_size
+    with open(path, "rb") as fh:
+        first = fh.read(12)
+        if not first.startswith(b"#!AER-DAT"):
+            raise EventFileError(path, f"not a jAER AEDAT file (starts with {first!r})")
+        version = first[9:12]
+        if version != b"2.0":
+            raise EventFileError(
+                path, f"AEDAT version {version.decode(errors='replace')} found; 2.0 is read"
+            )
+        fh.seek(0)
+        pos = 0
+        while fh.peek(1)[:1] == b"#":
+            line = fh.readline(1 << 16)
+            if not line.endswith(b"\n"):
+                raise EventFileError(path, "truncated inside the ASCII header (or a line > 64 KiB)")
+            pos += len(line)
+    body = size - pos
     if body % 8:
         raise EventFileError(
             path, f"truncated: {body} bytes of events is not a whole number of 8-byte events"
         )
-    words = np.frombuffer(data, dtype=">i4", offset=pos).reshape(-1, 2)
-    addr, ts = words[:, 0].astype(np.int64), words[:, 1].astype(np.int64)
-    special = (addr >> 15) & 1 == 1
-    addr, ts = addr[~special], ts[~special]
-    # jAER stores the DVS128 mirrored in both axes; flip so that row 0 is the top.
-    columns = {
-        "x": 127 - ((addr >> 1) & 0x7F),
-        "y": 127 - ((addr >> 8) & 0x7F),
-        "t": ts,
-        "p": (addr & 1).astype(np.int8),
-    }
-    metadata = {"source_format": "aedat2", "special_events": int(special.sum())}
-    return _finish(path, _as_events(columns, path), sensor_size or (128, 128, 2), metadata)
+    n = body // 8
+    words = (
+        np.memmap(path, dtype=">i4", mode="r", offset=pos, shape=(n, 2))
+        if n
+        else np.zeros((0, 2), ">i4")
+    )
+    parts: dict[str, list[np.ndarray]] = {f: [] for f in ("x", "y", "t", "p")}
+    special_n = 0
+    for a in range(0, n, 1 << 20):  # decoded in chunks: the file is never held twice
+        block = np.asarray(words[a : a + (1 << 20)])
+        addr, ts = block[:, 0].astype(np.int64), block[:, 1].astype(np.int64)
+        special = (addr >> 15) & 1 == 1
+        special_n += int(special.sum())
+        addr, ts = addr[~special], ts[~special]
+        # jAER stores the DVS128 mirrored in both axes; flip so that row 0 is the top.
+        parts["x"].append((127 - ((addr >> 1) & 0x7F)).astype(np.int16))
+        parts["y"].append((127 - ((addr >> 8) & 0x7F)).astype(np.int16))
+        parts["t"].append(ts)
+        parts["p"].append((addr & 1).astype(np.int8))
+    del words
+    columns = {f: np.concatenate(v) if v else np.zeros(0, np.int64) for f, v in parts.items()}
+    metadata = {"source_format": "aedat2", "special_events": special_n}
+    return _finish(path, columns, sensor_size or (128, 128, 2), metadata, max_side)
 
 
 _READERS = {
@@ -241,12 +329,20 @@ _READERS = {
 }
 
 
-def read_events(path: str | os.PathLike, sensor_size: SensorSize | None = None) -> EventRecording:
+def read_events(
+    path: str | os.PathLike,
+    sensor_size: SensorSize | None = None,
+    max_sensor_side: int = MAX_SENSOR_SIDE,
+) -> EventRecording:
     """Read an event file of any supported format (see the module docstring).
 
     ``sensor_size`` overrides what the file says; for ``.npy`` without it the size
     is inferred from the largest coordinates and ``metadata["sensor_size_inferred"]``
-    is set.
+    is set. The file is untrusted (:mod:`wander_env.event_checks`): a sensor side above
+    ``max_sensor_side``, a count the file cannot hold, a value that does not fit its
+    field are :class:`EventFileError` before anything large is allocated. A file that
+    :class:`~wander_env.event_stream.EventStreamWriter` did not finish (a killed run) is
+    read up to its last flushed chunk; ``metadata["incomplete"]`` says where it stops.
     """
     from wander_env import event_formats  # the field's formats (EVT2/3, DAT, ES)
 
@@ -257,7 +353,7 @@ def read_events(path: str | os.PathLike, sensor_size: SensorSize | None = None) 
         raise EventFileError(path, f"unknown suffix {path.suffix!r}; readable: {sorted(readers)}")
     if not path.is_file():
         raise EventFileError(path, "no such file")
-    return reader(path, sensor_size)
+    return reader(path, sensor_size, max_sensor_side)
 
 
 def write_events(path: str | os.PathLike, recording: EventRecording) -> None:

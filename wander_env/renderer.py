@@ -110,10 +110,22 @@ class CameraRenderer(Closing):
             self._seg_con = self._context(0) if model.vis.quality.offsamples > 0 else self._con
         except mujoco.FatalError as e:
             self.close()
+            backend = os.environ.get("MUJOCO_GL", "")
+            in_use = getattr(mujoco.GLContext, "__module__", "").rpartition(".")[2]
+            if backend and in_use == backend:  # the right backend: the context itself failed
+                hint = (
+                    f"MUJOCO_GL={backend} is set; a {width}x{height} image may exceed what the "
+                    "GL driver can allocate (try a smaller camera)"
+                )
+            else:
+                hint = (
+                    f"MuJoCo uses the {in_use or 'unknown'} GL backend, picked when it was "
+                    "first imported: set MUJOCO_GL=egl "
+                    "in the environment, or import wander_env.renderer (or wander_env.mjcf) "
+                    "before mujoco"
+                )
             raise RuntimeError(
-                f"could not create an OpenGL context ({e}); MuJoCo picks its GL backend when "
-                "it is first imported: set MUJOCO_GL=egl in the environment, or import "
-                "wander_env.renderer (or wander_env.mjcf) before mujoco"
+                f"could not create a {width}x{height} OpenGL context ({e}); {hint}"
             ) from e
         self._scene = mujoco.MjvScene(model, maxgeom=10000)
         flags = self._scene.flags

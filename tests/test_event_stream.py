@@ -1,0 +1,94 @@
+"""The streaming writers (wander_env.event_stream) and the one-line failures of long commands."""
+
+from __future__ import annotations
+
+import errno
+import json
+
+import h5py
+import numpy as np
+import pytest
+import typer
+from typer.testing import CliRunner
+
+from wander_env.event_io import read_events
+from wander_env.event_stream import EventStreamWriter, H5Appender, OutputError
+from wander_env.events import make_events
+from wander_env.shutdown import long_command
+
+
+def step(k: int, n: int = 100) -> np.ndarray:
+    t = np.arange(n) + k * 1000
+    return make_events(np.arange(n) % 8, np.arange(n) % 4, t, np.arange(n) % 2)
+
+
+def test_chunks_are_flushed_as_they_fill_and_an_unfinished_file_says_where_it_stops(tmp_path):
+    path = tmp_path / "events.h5"
+    writer = EventStreamWriter(path, (8, 4, 2), {"seed": 3}, chunk_events=250, flush_s=1e9)
+    for k in range(7):
+        writer.append(step(k))
+    assert (writer.flushed, writer.events_written) == (600, 700)  # 3 flushes of >= 250
+    writer._abandon()  # as if the process died here: the buffered 100 are lost
+    rec = read_events(path)
+    assert len(rec.events) == 600 and rec.events["t"][-1] == 5099
+    assert rec.metadata == {"seed": 3, "incomplete": {"events": 600, "last_t_us": 5099}}
+
+
+def test_a_finished_stream_equals_the_events_and_takes_the_final_metadata(tmp_path):
+    path = tmp_path / "events.h5"
+    with EventStreamWriter(path, (8, 4, 2), {"seed": 3}, chunk_events=64) as writer:
+        for k in range(5):
+            writer.append(step(k))
+        writer.append(step(5)[:0])  # an empty step is fine
+    with EventStreamWriter(tmp_path / "b.h5", (8, 4, 2), chunk_events=64) as other:
+        other.append(step(0))
+    other.close({"summary": 1})  # idempotent; already complete
+    rec = read_events(path)
+    assert np.array_equal(rec.events, np.concatenate([step(k) for k in range(5)]))
+    assert rec.metadata == {"seed": 3}
+    with h5py.File(path) as f:
+        assert bool(f.attrs["complete"]) and f["events/x"].maxshape == (None,)
+
+
+def test_out_of_order_or_off_sensor_steps_are_refused_naming_the_file(tmp_path):
+    path = tmp_path / "events.h5"
+    with EventStreamWriter(path, (8, 4, 2)) as writer:
+        writer.append(step(1))
+        with pytest.raises(ValueError, match=r"events\.h5: events start at t=0 before"):
+            writer.append(step(0))
+        with pytest.raises(ValueError, match=r"x\[0\]=9 is outside the sensor"):
+            writer.append(make_events([9], [0], [5000], [1]))
+
+
+def test_h5_appender_rows_and_a_field_with_nothing_per_row(tmp_path):
+    path = tmp_path / "truth.h5"
+    fields = {"t": (np.float64, ()), "mask": (np.uint8, (2, 3)), "centres": (np.float32, (0, 2))}
+    with H5Appender(path, fields, {"names": "none"}, chunk_rows=2) as truth:
+        for k in range(5):
+            truth.append(t=k / 10, mask=np.full((2, 3), k), centres=np.zeros((0, 2)))
+    with h5py.File(path) as f:
+        assert f["t"][()].tolist() == [0.0, 0.1, 0.2, 0.3, 0.4]
+        assert f["mask"][:, 0, 0].tolist() == [0, 1, 2, 3, 4]
+        assert f["centres"].shape == (5, 0, 2)
+        assert bool(f.attrs["complete"]) and f.attrs["rows"] == 5 and f.attrs["names"] == "none"
+
+
+def test_long_command_turns_a_write_failure_into_one_line_and_marks_the_folder(tmp_path):
+    app = typer.Typer()
+
+    @app.command()
+    @long_command("wander demo")
+    def demo(out: str = "x") -> None:
+        (tmp_path / "run").mkdir()
+        cause = OSError(errno.ENOSPC, "No space left on device")
+        raise OutputError(tmp_path / "run" / "events.h5", cause)
+
+    result = CliRunner().invoke(app, ["--out", str(tmp_path / "run")])
+    assert result.exit_code == 1
+    assert result.stderr.strip() == (
+        f"wander demo: cannot write {tmp_path / 'run' / 'events.h5'}: No space left on device; "
+        f"'{tmp_path / 'run'}' is marked INCOMPLETE"
+    )
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert metrics["incomplete"] is True and metrics["error"].startswith("OutputError: ")
+    assert (tmp_path / "run" / "INCOMPLETE").read_text().startswith("cannot write ")

@@ -1,0 +1,147 @@
+"""Fault injection, PTU: an emulated unit that fails on cue (error replies, silence,
+garbage, a closed pty), at the driver and through ``wander rig``."""
+
+from __future__ import annotations
+
+import pytest
+from test_rig_cli import (  # noqa: F401  (fixtures: app, square)
+    QUICK,
+    app,
+    assert_events_of_steps,
+    assert_one_line_failure,
+    invoke,
+    on_first_move,
+    read_folder,
+    square,
+)
+
+from hardware.ptu_driver import FlirPTU, FlirPTUParams, PTUPortError, PTUTimeout
+from hardware.ptu_emulator import PTUEmulator
+
+DRIVER = FlirPTUParams(timeout_s=0.5, halt_timeout_s=0.2, banner_quiet_s=0.02)
+
+
+@pytest.fixture
+def emu():
+    with PTUEmulator(QUICK) as e:
+        yield e
+
+
+@pytest.fixture
+def patient_driver(monkeypatch):
+    """`wander rig` with PTU reply timeouts a loaded machine cannot starve (5 s, not 1 s),
+    for tests whose fault is not the PTU's."""
+    from experiments.rig import RigRunConfig
+
+    env_kwargs = RigRunConfig.env_kwargs
+    patient = FlirPTUParams(timeout_s=5.0, halt_timeout_s=2.0, banner_quiet_s=0.02)
+    monkeypatch.setattr(
+        RigRunConfig, "env_kwargs", lambda self: {**env_kwargs(self), "driver": patient}
+    )
+
+
+def test_closed_pty_is_a_port_error_and_close_does_not_raise(emu):
+    ptu = FlirPTU(emu.port, DRIVER)
+    assert ptu.pan_deg == 0.0
+    emu.hang_up()
+    with pytest.raises(PTUPortError) as info:
+        _ = ptu.pan_deg
+    assert info.value.command == "PP"
+    assert "Input/output error" in str(info.value)  # termios.error(EIO) underneath
+    ptu.close()  # halt attempted, fails, logged; the port is closed
+    assert not ptu.is_open
+    ptu.close()
+
+
+def test_garbage_reply_is_a_timeout_that_shows_it(emu):
+    with FlirPTU(emu.port, DRIVER) as ptu:
+        emu.inject_garbage("#$%&noise")
+        with pytest.raises(PTUTimeout, match=r"lines that are no reply: \['#\$%&noise'\]"):
+            _ = ptu.pan_deg
+        assert ptu.pan_deg == 0.0  # the exchange is back in step
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fault", ["hang_up", "garbage", "silence"])
+def test_rig_mid_run_fault_is_one_line_exit_1_with_the_halt_recorded(
+    app,  # noqa: F811
+    square,  # noqa: F811
+    emu,
+    tmp_path,
+    fault,
+):
+    camera, expected = square
+    action = {
+        "hang_up": emu.hang_up,
+        "garbage": lambda: emu.inject_garbage("#$%&noise", count=1000),
+        "silence": emu.stop_answering,
+    }[fault]
+    watcher = on_first_move(emu, action)
+    out = tmp_path / "run"
+    result = invoke(app, "--ptu", emu.port, "--camera", camera, "--replay", "realtime",
+                    "--seconds", "2", "--no-fixational", "--no-video",
+                    "--out", str(out))  # fmt: skip
+    watcher.join()
+    metrics, _, _ = read_folder(out)
+    steps = metrics["steps"]
+    line = assert_one_line_failure(
+        result,
+        f"wander rig: PTU '{emu.port}'",
+        f"The run folder '{out}' holds what was recorded ({steps} steps completed).",
+    )
+    assert steps < 200 and metrics["error"].startswith("PTU")
+    halt = metrics["rig"]["ptu_halt"]
+    if fault == "hang_up":
+        assert "Input/output error" in line
+        assert halt.startswith("halt (H) sent, not acknowledged")
+        assert "PTUPortError" in metrics["rig"]["ptu_error"]
+    else:
+        assert halt.startswith("halt (H) sent, not acknowledged")
+        assert "PTUTimeout" in metrics["rig"]["ptu_error"]
+    assert_events_of_steps(out, expected, metrics)
+
+
+def test_speck_unplugged_mid_run_is_one_line_exit_1_with_the_halt_recorded(
+    app,  # noqa: F811
+    tmp_path,
+    monkeypatch,
+    patient_driver,
+):
+    import numpy as np
+    from fake_samna import FakeSamna, FakeSpeck, install
+
+    from agents.attention import AttentionAgent
+    from wander_env.events import make_events
+
+    rng = np.random.default_rng(1)
+    n = 30_000
+    ev = make_events(rng.integers(0, 128, n), rng.integers(0, 128, n),
+                     np.sort(rng.integers(0, 3_000_000, n)), rng.integers(0, 2, n))  # fmt: skip
+    fake = install(monkeypatch, FakeSamna([("Speck2fDevKit", "sf", FakeSpeck(ev))]))
+    act, calls = AttentionAgent.act, []
+
+    def unplug_at_step_6(self, observation, info):
+        calls.append(1)
+        if len(calls) == 6:
+
+            def gone(timeout):
+                raise OSError(5, "USB device gone")
+
+            fake.handles[-1]._sinks[0].get_events_blocking = gone
+        return act(self, observation, info)
+
+    monkeypatch.setattr(AttentionAgent, "act", unplug_at_step_6)
+    out = tmp_path / "run"
+    result = invoke(app, "--ptu", "emulate", "--camera", "speck", "--seconds", "2",
+                    "--no-video", "--out", str(out))  # fmt: skip
+    metrics, _, _ = read_folder(out)
+    assert_one_line_failure(
+        result,
+        "wander rig: camera 'speck' failed mid-run: Speck reader thread failed",
+        "USB device gone",
+        f"The run folder '{out}' holds what was recorded ({metrics['steps']} steps completed).",
+    )
+    assert 5 <= metrics["steps"] < 200  # unplugged during the 6th step
+    # attempted and recorded (acknowledged unless a loaded machine starved the emulator)
+    assert metrics["rig"]["ptu_halt"].startswith("halt (H) ")
+    assert fake.handles[-1].closed

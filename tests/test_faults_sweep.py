@@ -1,0 +1,117 @@
+"""Fault injection, sweeps: damaged trial files are set aside and rerun; a sweep that is
+stopped (SIGTERM) or killed (SIGKILL) leaves no worker process behind; waits are bounded."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+from test_sweep import TOY_SWEEP, CountingRunner
+
+from experiments.framework import TrialSpec
+from experiments.sweep import local_executor, run_sweep, sweep_from_dict
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+
+
+@pytest.mark.parametrize(
+    ("damage", "why"),
+    [
+        (b"", "Expecting value"),
+        (b'{"spec": {"experiment": "event_suppr', "Unterminated string"),
+        (b"\x00\xff garbage \xfe", "utf-8"),
+        (b'{"spec": {}, "row": 3}', "no 'row' object"),
+    ],
+)
+def test_a_damaged_trial_file_is_named_set_aside_and_rerun(tmp_path, damage, why):
+    sweep = sweep_from_dict(TOY_SWEEP)
+    runner = CountingRunner()
+    first = run_sweep(sweep, tmp_path, backend="serial", runner=runner)
+    table = (tmp_path / "results.csv").read_bytes()
+    victim = first.rows[4]["trial_id"]
+    path = tmp_path / "trials" / f"{victim}.json"
+    path.write_bytes(damage)
+    runner.calls.clear()
+    with pytest.warns(RuntimeWarning) as warned:
+        res = run_sweep(sweep, tmp_path, backend="serial", runner=runner)
+    (message,) = [str(w.message) for w in warned]
+    assert message.startswith(f"{path}: damaged trial file (")
+    assert why in message and f"set aside as {victim}.json.corrupt" in message
+    assert runner.calls == [victim] and (res.ran, res.skipped) == (1, len(first.rows) - 1)
+    assert (tmp_path / "trials" / f"{victim}.json.corrupt").read_bytes() == damage
+    assert (tmp_path / "results.csv").read_bytes() == table  # the rerun row is the same
+
+
+def test_no_trial_finishing_within_the_timeout_is_an_error_and_ends_the_workers(
+    tmp_path, monkeypatch
+):
+    monkeypatch.setenv("SWEEP_PIDS", str(tmp_path))
+    from sweep_workers import sleepy
+
+    spec = TrialSpec("event_suppression", {}, {}, 0)
+    stream = local_executor([spec], workers=1, runner=sleepy, timeout_s=3.0)
+    with pytest.raises(TimeoutError, match=r"no trial finished within 3 s \(1 not done\)"):
+        next(stream)
+    pids = wait_for_pids(tmp_path, 1, limit_s=1.0)
+    assert not any(alive(p) for p in pids)
+
+
+def wait_for_pids(folder: Path, n: int, limit_s: float = 120.0) -> list[int]:
+    deadline = time.monotonic() + limit_s
+    while len(pids := [int(p.stem) for p in folder.glob("*.pid")]) < n:
+        if time.monotonic() > deadline:
+            break
+        time.sleep(0.1)
+    return pids
+
+
+def alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().split(") ")[-1][0] != "Z"  # a zombie is gone but not reaped
+    except FileNotFoundError:
+        return False
+
+
+SCRIPT = textwrap.dedent(
+    """
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, {here!r})
+    from sweep_workers import sleepy
+    from experiments.sweep import run_sweep, sweep_from_dict
+    from wander_env.shutdown import SignalExit, handle_signals
+    sweep = sweep_from_dict({sweep!r})
+    try:
+        with handle_signals():
+            run_sweep(sweep, Path({out!r}), backend="local", workers=2, runner=sleepy)
+    except SignalExit as stop:
+        sys.exit(stop.exit_code)
+    """
+)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
+def test_a_stopped_or_killed_sweep_leaves_no_worker(tmp_path, sig):
+    pids_dir = tmp_path / "pids"
+    pids_dir.mkdir()
+    code = SCRIPT.format(here=str(HERE), sweep=TOY_SWEEP, out=str(tmp_path / "sweep"))
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "SWEEP_PIDS": str(pids_dir)}
+    proc = subprocess.Popen([sys.executable, "-c", code], env=env, stderr=subprocess.PIPE)
+    pids = wait_for_pids(pids_dir, 2)
+    assert len(pids) == 2 and all(alive(p) for p in pids)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == (143 if sig == signal.SIGTERM else -9), err
+    deadline = time.monotonic() + 30.0
+    while any(alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert [p for p in pids if alive(p)] == []

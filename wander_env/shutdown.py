@@ -1,0 +1,238 @@
+"""One shutdown path for every long command: SIGINT, SIGTERM and SIGHUP alike.
+
+Schedulers (Slurm, systemd, Ray, ``docker stop``) send SIGTERM, a closed terminal
+SIGHUP, Ctrl-C SIGINT. Inside :func:`handle_signals` each of them raises
+:class:`SignalExit` in the main thread, a ``KeyboardInterrupt``, so the code that
+already cleans up after Ctrl-C (halting the PTU, closing the camera, flushing and
+closing the run's files, writing ``metrics.json`` with the error) runs for all three.
+Further signals while that clean-up runs are reported and ignored (it is bounded by
+the devices' timeouts); a third ends the process at once. A signal that lands where
+Python drops exceptions (a ``__del__``, a weakref callback) is delivered again.
+
+:func:`long_command` wraps a Typer command in it and turns the ways a long run ends
+badly into one line on stderr and an exit code: a signal → ``128 + signal`` (130
+SIGINT, 143 SIGTERM, 129 SIGHUP), a result file that cannot be written (disk full,
+read-only or unwritable folder) → 1, after :func:`record_failure` has added the error
+to the folder's ``metrics.json`` (strict JSON) and, for a write failure, marked the
+folder with an ``INCOMPLETE`` file.
+
+Example:
+    >>> import os, signal
+    >>> try:
+    ...     with handle_signals():
+    ...         os.kill(os.getpid(), signal.SIGTERM)
+    ...         import time; time.sleep(5)
+    ... except SignalExit as stop:
+    ...     print(stop.name, stop.exit_code)
+    SIGTERM 143
+"""
+
+from __future__ import annotations
+
+import errno
+import functools
+import json
+import math
+import os
+import signal
+import sys
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, TypeVar
+
+SIGNALS: tuple[signal.Signals, ...] = tuple(
+    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+)
+#: errno values that mean "the result cannot be written here".
+WRITE_ERRNOS = frozenset(
+    getattr(errno, n) for n in ("ENOSPC", "EDQUOT", "EACCES", "EPERM", "EROFS") if hasattr(errno, n)
+)
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+class SignalExit(KeyboardInterrupt):
+    """A termination signal arrived: ``signum``, ``name``, ``exit_code`` (128 + signum)."""
+
+    def __init__(self, signum: int) -> None:
+        self.signum = int(signum)
+        self.name = signal.Signals(signum).name
+        self.exit_code = 128 + self.signum
+        super().__init__(f"stopped by {self.name} (signal {self.signum})")
+
+
+@contextmanager
+def handle_signals(signals: tuple[int, ...] = SIGNALS) -> Iterator[None]:
+    """Raise :class:`SignalExit` for ``signals`` inside the block (main thread only;
+    elsewhere the block runs with the handlers as they are)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    seen: list[int] = []
+
+    def handler(signum: int, frame: Any) -> None:
+        seen.append(signum)
+        if len(seen) == 1:
+            raise SignalExit(signum)
+        name = signal.Signals(signum).name
+        if len(seen) >= 3:
+            os.write(2, f"{name} again: exiting without finishing the clean-up\n".encode())
+            os._exit(128 + signum)
+        os.write(2, f"{name}: already shutting down (a third signal exits at once)\n".encode())
+
+    hook = sys.unraisablehook
+
+    def unraisable(info: Any) -> None:
+        # The signal landed in a __del__ or weakref callback, where Python drops
+        # exceptions: deliver it once more, so it reaches the command.
+        if isinstance(info.exc_value, SignalExit) and len(seen) == 1:
+            seen.clear()
+            again = threading.Timer(0.02, os.kill, (os.getpid(), info.exc_value.signum))
+            again.daemon = True  # from another thread: it lands after this callback
+            again.start()
+            return
+        hook(info)
+
+    previous = {s: signal.getsignal(s) for s in signals}
+    for s in signals:
+        signal.signal(s, handler)
+    sys.unraisablehook = unraisable
+    try:
+        yield
+    finally:
+        sys.unraisablehook = hook
+        for s, h in previous.items():
+            signal.signal(s, h if h is not None else signal.SIG_DFL)
+
+
+def write_failure(err: BaseException) -> OSError | None:
+    """The write failure (disk full, not writable) in ``err`` or its causes, if any."""
+    seen: set[int] = set()
+    e: BaseException | None = err
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        if isinstance(e, OSError) and (
+            e.errno in WRITE_ERRNOS
+            or type(e).__name__ == "OutputError"
+            or "No space left on device" in str(e)
+        ):
+            return e
+        e = e.__cause__ or e.__context__
+    return None
+
+
+def _strict(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _strict(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_strict(v) for v in value]
+    return value
+
+
+def record_failure(folder: str | os.PathLike | None, err: BaseException) -> None:
+    """Add ``err`` (and the signal) to ``folder/metrics.json``; mark a write failure
+    with ``folder/INCOMPLETE``. A signal that came before the folder existed (during
+    set-up) creates it. Never raises (the disk may be full)."""
+    if folder is None:
+        return
+    folder = Path(folder)
+    if isinstance(err, SignalExit):  # stopped before the run made its folder: say so there
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError:
+            return
+    if not folder.is_dir():
+        return
+    failed_write = write_failure(err)
+    if failed_write is not None:
+        try:
+            (folder / "INCOMPLETE").touch()  # an empty file needs no free blocks
+            (folder / "INCOMPLETE").write_text(f"{describe(err)}\n")
+        except OSError:
+            pass
+    path = folder / "metrics.json"
+    try:
+        metrics = json.loads(path.read_text()) if path.is_file() else {}
+        if not isinstance(metrics, dict):
+            metrics = {}
+    except (OSError, ValueError):
+        metrics = {}
+    metrics.setdefault("error", f"{type(err).__name__}: {err}")
+    if isinstance(err, SignalExit):
+        metrics["signal"] = err.name
+    if failed_write is not None:
+        metrics["incomplete"] = True
+    try:
+        text = json.dumps(_strict(metrics), indent=2, default=str, allow_nan=False) + "\n"
+        tmp = path.with_suffix(".json.tmp")
+        tmp.write_text(text)
+        os.replace(tmp, path)
+    except (OSError, ValueError):
+        pass
+
+
+def describe(err: BaseException) -> str:
+    """One line for a failure of a long command."""
+    if isinstance(err, SignalExit):
+        return str(err)
+    failed = write_failure(err)
+    if failed is not None:
+        where = failed.filename or getattr(err, "filename", None) or "the output folder"
+        what = failed.strerror or os.strerror(failed.errno or errno.EIO)
+        return f"cannot write {where}: {what}"
+    return " ".join(f"{type(err).__name__}: {err}".split())
+
+
+def long_command(name: str, folder_arg: str | None = "out") -> Callable[[_F], _F]:
+    """Decorate a Typer command: signals handled, failures as one line and an exit code.
+
+    ``folder_arg`` names the keyword holding the result folder (gets the error).
+    """
+    import typer
+
+    def deco(fn: _F) -> _F:
+        @functools.wraps(fn)
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            folder = kwargs.get(folder_arg) if folder_arg else None
+            try:
+                with handle_signals():
+                    return fn(*args, **kwargs)
+            except SignalExit as stop:
+                record_failure(folder, stop)
+                where = f"; {str(folder)!r} holds what was recorded" if folder else ""
+                typer.echo(f"{name}: {stop}{where}", err=True)
+                raise typer.Exit(stop.exit_code) from None
+            except OSError as err:
+                if write_failure(err) is None:
+                    raise
+                record_failure(folder, err)
+                marked = folder is not None and (Path(folder) / "INCOMPLETE").exists()
+                mark = f"; {str(folder)!r} is marked INCOMPLETE" if marked else ""
+                typer.echo(f"{name}: {describe(err)}{mark}", err=True)
+                raise typer.Exit(1) from None
+
+        return wrapper  # type: ignore[return-value]
+
+    return deco
+
+
+def exit_code(err: BaseException) -> int:
+    """128 + signal for a :class:`SignalExit`, 130 for a plain ``KeyboardInterrupt``, else 1."""
+    if isinstance(err, SignalExit):
+        return err.exit_code
+    return 130 if isinstance(err, KeyboardInterrupt) else 1
+
+
+__all__ = [
+    "SIGNALS",
+    "SignalExit",
+    "describe",
+    "exit_code",
+    "handle_signals",
+    "long_command",
+    "record_failure",
+    "write_failure",
+]
