@@ -50,6 +50,33 @@ def test_a_finished_stream_equals_the_events_and_takes_the_final_metadata(tmp_pa
         assert bool(f.attrs["complete"]) and f["events/x"].maxshape == (None,)
 
 
+def test_a_finished_stream_has_the_dsec_index_of_its_events(tmp_path):
+    """ms_to_idx built chunk by chunk equals the index of the whole recording, and seeks."""
+    from wander_env.event_formats import ms_to_idx, read_h5_window
+
+    path = tmp_path / "events.h5"
+    rng = np.random.default_rng(4)
+    steps = []
+    t0 = 0
+    for _ in range(40):  # steps of 0-300 events spread over 0.5-3.5 ms, gaps included
+        n = int(rng.integers(0, 300))
+        t = t0 + np.sort(rng.integers(0, int(rng.integers(500, 3500)), n))
+        t0 = (int(t[-1]) if n else t0) + int(rng.integers(0, 2500))
+        steps.append(make_events(t % 8, t % 4, t, t % 2))
+    with EventStreamWriter(path, (8, 4, 2), chunk_events=97) as writer:
+        for ev in steps:
+            writer.append(ev)
+    events = np.concatenate(steps)
+    with h5py.File(path) as f:
+        index, offset = f["ms_to_idx"][()], int(f["t_offset"][()])
+    assert offset == 0 and index.dtype == np.uint64
+    assert np.array_equal(index, ms_to_idx(events["t"]))
+    assert len(index) == int(events["t"][-1]) // 1000 + 1
+    window = read_h5_window(path, 20_000, 31_000)
+    keep = (events["t"] >= 20_000) & (events["t"] < 31_000)
+    assert np.array_equal(window, events[keep])
+
+
 def test_out_of_order_or_off_sensor_steps_are_refused_naming_the_file(tmp_path):
     path = tmp_path / "events.h5"
     with EventStreamWriter(path, (8, 4, 2)) as writer:

@@ -235,6 +235,10 @@ class EventStreamWriter(_StreamFile):
         self._buffer: list[np.ndarray] = []
         self._buffered = 0
         self._last_flush = time.monotonic()
+        # DSEC's ms_to_idx, built chunk by chunk (equal to event_formats.ms_to_idx of all t)
+        self._ms_offset: int | None = None
+        self._ms_idx: list[np.ndarray] = []
+        self._ms_next = 0
         self._open(path)
         try:
             g = self._file.create_group("events")
@@ -305,6 +309,20 @@ class EventStreamWriter(_StreamFile):
         except OSError as err:
             raise OutputError(self.path, err) from err
         self.flushed = b
+        self._index_chunk(chunk["t"], a)
+
+    def _index_chunk(self, t: np.ndarray, start: int) -> None:
+        """Extend ``ms_to_idx`` by the millisecond boundaries up to this chunk's last event."""
+        from wander_env.event_formats import index_offset_us
+
+        if self._ms_offset is None:
+            self._ms_offset = index_offset_us(t)
+        last = (int(t[-1]) - self._ms_offset) // 1000
+        if last < self._ms_next:
+            return
+        bounds = self._ms_offset + 1000 * np.arange(self._ms_next, last + 1, dtype=np.int64)
+        self._ms_idx.append((start + np.searchsorted(t, bounds, side="left")).astype(np.uint64))
+        self._ms_next = last + 1
 
     def close(self, metadata: Mapping[str, Any] | None = None) -> None:
         """Flush the rest, store ``metadata`` (if given), mark the file complete; idempotent."""
@@ -314,6 +332,10 @@ class EventStreamWriter(_StreamFile):
             self.flush()
             if metadata is not None:
                 self._file.attrs["metadata"] = json.dumps(dict(metadata), default=str)
+            if self._ms_offset is not None:  # the DSEC index of a finished file
+                idx = np.concatenate(self._ms_idx) if self._ms_idx else np.zeros(0, np.uint64)
+                self._file.create_dataset("ms_to_idx", data=idx)
+                self._file.create_dataset("t_offset", data=np.int64(self._ms_offset))
             self._file.attrs["complete"] = True
         finally:
             self._abandon()
