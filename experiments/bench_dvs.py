@@ -4,9 +4,10 @@ the same frames.
 
 Run it as ``wander bench dvs [--peers]``. Frames are made before timing starts; the
 first call compiles the kernels and is not timed. Each row is the median of ``repeats``
-runs over ``n_frames`` frames at 1 kHz. Rows compared by a ratio are timed in turns
-(repeat 1 of every row, then repeat 2, ...), so a change in the machine's load falls on
-all of them alike.
+runs over ``n_frames`` frames at 1 kHz. Rows compared by a ratio are timed in turns,
+frame by frame (frame i through every emulator, then frame i + 1), and a row's time is
+the sum over frames of the median over the repeats: a stall of this shared machine
+falls on one sample of one row, not on its total.
 
 Input paths (:func:`bench_inputs`): the moving pattern as uint8 sRGB, as its grey
 channel (uint8) and as float32 linear luminance — the emulator's own luminance of the
@@ -138,21 +139,39 @@ def linear_frames(frames: np.ndarray) -> np.ndarray:
     return np.stack([emu.prepare(f).lum.reshape(h, w) for f in frames])
 
 
-def _timer(emu: DVSEmulator, frames: np.ndarray) -> Callable[[], tuple[float, int]]:
-    """A timed run of ``frames`` through ``emu`` -> (seconds, events); compiled first."""
+# A stepper: ``start(frames)`` resets an emulator on ``frames[0]`` and returns
+# ``step(i) -> events`` for frame i >= 1.
+Stepper = Callable[[], Callable[[int], int]]
+
+
+def _wander_stepper(emu: DVSEmulator, frames: np.ndarray) -> Stepper:
+    """Steps of ``emu`` through ``frames`` (1 kHz); the kernels are compiled first."""
     _run(emu, frames[:3])
-    return lambda: _run(emu, frames)[:2]
+
+    def start() -> Callable[[int], int]:
+        emu.reset(frames[0], 0)
+        return lambda i: len(emu.step(frames[i], i * 1000))
+
+    return start
 
 
-def _interleaved(runs: dict[str, Callable[[], tuple[float, int]]], repeats: int):
-    """Median seconds and the events of each run, timed in turns."""
-    times: dict[str, list[float]] = {k: [] for k in runs}
+def _interleaved(steppers: dict[str, Stepper], n_frames: int, repeats: int):
+    """Seconds per run of ``n_frames`` frames and the events of each stepper, timed frame
+    by frame in turns (frame i of every stepper, then frame i + 1): a run's time is the
+    sum over frames of the median over ``repeats`` of that frame's time, so a stall of
+    the machine lands on one sample of one stepper, not on its total."""
+    times = {k: np.empty((repeats, n_frames)) for k in steppers}
     events: dict[str, int] = {}
-    for _ in range(repeats):
-        for k, run in runs.items():
-            dt, events[k] = run()
-            times[k].append(dt)
-    return {k: statistics.median(v) for k, v in times.items()}, events
+    for r in range(repeats):
+        steps = {k: start() for k, start in steppers.items()}
+        counts = dict.fromkeys(steppers, 0)
+        for i in range(1, n_frames + 1):
+            for k, step in steps.items():
+                t = time.perf_counter()
+                counts[k] += step(i)
+                times[k][r, i - 1] = time.perf_counter() - t
+        events = counts
+    return {k: float(np.median(v, axis=0).sum()) for k, v in times.items()}, events
 
 
 def bench_inputs(n_frames: int = 1000, repeats: int = 3, seed: int = 0) -> list[InputPathRow]:
@@ -165,8 +184,11 @@ def bench_inputs(n_frames: int = 1000, repeats: int = 3, seed: int = 0) -> list[
             "uint8 grey": np.ascontiguousarray(srgb[..., 1]),
             "float32 linear": linear_frames(srgb),
         }
-        runs = {k: _timer(DVSEmulator(w, h, DVSParams(), seed=seed), f) for k, f in inputs.items()}
-        med, events = _interleaved(runs, repeats)
+        steppers = {
+            k: _wander_stepper(DVSEmulator(w, h, DVSParams(), seed=seed), f)
+            for k, f in inputs.items()
+        }
+        med, events = _interleaved(steppers, n_frames, repeats)
         for k in inputs:
             rows.append(
                 InputPathRow(
@@ -183,13 +205,14 @@ def bench_inputs(n_frames: int = 1000, repeats: int = 3, seed: int = 0) -> list[
 # -- peers ---------------------------------------------------------------------------------
 
 
-def _wander_peer(frames: np.ndarray, seed: int) -> Callable[[], tuple[float, int]]:
+def _wander_peer(frames: np.ndarray, seed: int) -> Stepper:
     h, w = frames.shape[1:]
     p = PEER_THRESHOLD
-    return _timer(DVSEmulator(w, h, DVSParams(threshold_on=p, threshold_off=p), seed=seed), frames)
+    emu = DVSEmulator(w, h, DVSParams(threshold_on=p, threshold_off=p), seed=seed)
+    return _wander_stepper(emu, frames)
 
 
-def _evlib_peer(frames: np.ndarray, seed: int) -> Callable[[], tuple[float, int]]:
+def _evlib_peer(frames: np.ndarray, seed: int) -> Stepper:
     from evlib.simulation import ESIMConfig, ESIMSimulator
 
     # ESIM reads a frame as intensity / 255; its log floor is our linear segment's knee.
@@ -203,25 +226,21 @@ def _evlib_peer(frames: np.ndarray, seed: int) -> Callable[[], tuple[float, int]
         dtype="float32",
     )
 
-    def run() -> tuple[float, int]:
+    def start() -> Callable[[int], int]:
         sim = ESIMSimulator(cfg)
         sim.process_frame(dn[0], 0.0)
-        n = 0
-        t = time.perf_counter()
-        for i in range(1, len(dn)):
-            n += len(sim.process_frame(dn[i], i * 1e-3)[0])
-        return time.perf_counter() - t, n
+        return lambda i: len(sim.process_frame(dn[i], i * 1e-3)[0])
 
-    return run
+    return start
 
 
-def _v2e_peer(frames: np.ndarray, seed: int) -> Callable[[], tuple[float, int]]:
+def _v2e_peer(frames: np.ndarray, seed: int) -> Stepper:
     from v2ecore.emulator import EventEmulator
 
     logging.getLogger("v2ecore.emulator").setLevel(logging.ERROR)  # "no events" per frame
     dn = [f.astype(np.float64) * 255.0 for f in frames]  # v2e takes linear 8-bit DN
 
-    def run() -> tuple[float, int]:
+    def start() -> Callable[[int], int]:
         emu = EventEmulator(
             pos_thres=PEER_THRESHOLD,
             neg_thres=PEER_THRESHOLD,
@@ -234,17 +253,17 @@ def _v2e_peer(frames: np.ndarray, seed: int) -> Callable[[], tuple[float, int]]:
             device="cpu",
         )
         emu.generate_events(dn[0], 0.0)
-        n = 0
-        t = time.perf_counter()
-        for i in range(1, len(dn)):
+
+        def step(i: int) -> int:
             ev = emu.generate_events(dn[i], i * 1e-3)
-            n += 0 if ev is None else len(ev)
-        return time.perf_counter() - t, n
+            return 0 if ev is None else len(ev)
 
-    return run
+        return step
+
+    return start
 
 
-PEERS: dict[str, Callable[[np.ndarray, int], Callable[[], tuple[float, int]]]] = {
+PEERS: dict[str, Callable[[np.ndarray, int], Stepper]] = {
     "wander": _wander_peer,
     "evlib ESIM": _evlib_peer,
     "v2e EventEmulator": _v2e_peer,
@@ -278,7 +297,7 @@ def bench_peers(n_frames: int = 1000, repeats: int = 3, seed: int = 0) -> list[P
                     notes[name] = _version(name)
                 except ImportError as e:
                     notes[name] = f"not installed ({e})"
-            med, events = _interleaved(runs, repeats)
+            med, events = _interleaved(runs, n_frames, repeats)
             base_t, base_n = med["wander"], events["wander"]
             for name in PEERS:
                 if name not in runs:
