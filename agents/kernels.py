@@ -44,6 +44,7 @@ __all__ = [
     "FFTConv2d",
     "gaussian_kernel",
     "kernel_coordinates",
+    "same_fft_shape",
     "von_mises_kernel",
     "von_mises_radius",
 ]
@@ -134,6 +135,27 @@ def _fast_len(n: int) -> int:
     return int(scipy.fft.next_fast_len(n, real=True))
 
 
+def _same_margin(k: int) -> int:
+    """Zeros a 'same' convolution needs past the input along an axis of kernel length
+    ``k``: ``max(p, k - 1 - p)`` with ``p = (k - 1) // 2`` (torch's alignment)."""
+    p = (k - 1) // 2
+    return max(p, k - 1 - p)
+
+
+def same_fft_shape(height: int, width: int, kh: int, kw: int) -> tuple[int, int]:
+    """The smallest fast (real) FFT grid for a 'same' convolution of a ``height`` ×
+    ``width`` input with a ``kh`` × ``kw`` kernel: ``height + max(p, kh - 1 - p)`` (and
+    likewise for the width), rounded up to a fast length. The circular wrap-around then
+    lands only on rows and columns that are cropped away, so the result is the same as
+    on the full ``height + kh - 1`` grid (to float rounding) at less cost.
+
+    Example:
+        >>> same_fft_shape(128, 128, 31, 31), same_fft_shape(32, 32, 31, 31)
+        ((144, 144), (48, 48))
+    """
+    return _fast_len(height + _same_margin(kh)), _fast_len(width + _same_margin(kw))
+
+
 class FFTConv2d:
     """'Same'-size 2-D convolution by FFT with precomputed kernel spectra.
 
@@ -181,7 +203,7 @@ class FFTConv2d:
         if fft_shape is None:
             fft_shape = (_fast_len(self.height + kh - 1), _fast_len(self.width + kw - 1))
         fh, fw = fft_shape
-        if fh < self.height + kh - 1 or fw < self.width + kw - 1:
+        if fh < self.height + _same_margin(kh) or fw < self.width + _same_margin(kw):
             raise ValueError(f"fft_shape {fft_shape} too small for kernel {kh}x{kw}")
         self.fft_shape = (fh, fw)
         # torch 'same': kernel index (k - 1) // 2 lies on the output pixel, i.e.

@@ -46,8 +46,13 @@ Design decisions:
   ``[i 2^s, (i + 1) 2^s)``), then the padding is cropped — never a resize to another size.
 * **Speed.** The von Mises kernels are 31 × 31 (ring of ``R0 = 8`` until ``1/I0`` falls
   under 1 % of its peak), so convolutions run by FFT on precomputed kernel spectra
-  (:class:`agents.kernels.FFTConv2d`); ``conv="direct"`` uses ``conv2d`` (same result,
-  much slower).
+  (:class:`agents.kernels.FFTConv2d`), on the smallest grid without wrap-around
+  (:func:`agents.kernels.same_fft_shape`); ``conv="direct"`` uses ``conv2d`` (same
+  result, much slower). Eq. (3) needs only the 2 × 2n distinct convolutions
+  ``V± * VM_j`` (2n with the streamlined model), one input transform per level: each
+  line of Eq. (3) takes one of them as excitation and, scaled by ``−w``, the opposite
+  direction's of the other polarity as inhibition (instead of convolving every one of
+  the 2 · 2n lines with its own two-channel kernel).
 
 Example:
     >>> import numpy as np
@@ -73,7 +78,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from agents.kernels import FFTConv2d, von_mises_kernel, von_mises_radius
+from agents.kernels import FFTConv2d, same_fft_shape, von_mises_kernel, von_mises_radius
 from agents.soms import lif_layer, tau_steps
 
 __all__ = [
@@ -209,11 +214,17 @@ def saliency_argmax(saliency: torch.Tensor) -> tuple[int, int] | None:
 
 
 def _conv(
-    weight: torch.Tensor, h: int, w: int, kind: str, groups: int = 1, flip: bool = False
+    weight: torch.Tensor,
+    h: int,
+    w: int,
+    kind: str,
+    groups: int = 1,
+    flip: bool = False,
+    fft_shape: tuple[int, int] | None = None,
 ) -> FFTConv2d | _DirectConv2d:
     """A 'same' convolution of ``weight`` on an ``h``×``w`` grid, by FFT or directly."""
     if kind == "fft":
-        return FFTConv2d(weight, h, w, groups=groups, flip=flip)
+        return FFTConv2d(weight, h, w, groups=groups, flip=flip, fft_shape=fft_shape)
     return _DirectConv2d(weight, groups=groups, flip=flip)
 
 
@@ -260,10 +271,16 @@ class ProtoObjectSaliency:
         self.params = params or ProtoObjectParams()
         p = self.params
         self.bank = von_mises_bank(p)
-        self._bo_weight = border_weights(self.bank, p.w, p.polarity_split)
-        # Eq. (3) split into its excitatory and inhibitory halves (border "unknown").
-        self._exc_weight = border_weights(self.bank, 0.0, p.polarity_split)
-        self._inh_weight = self._bo_weight - self._exc_weight
+        m = self.bank.shape[0]
+        self._opp = [(j + m // 2) % m for j in range(m)]
+        # Border-ownership cell (c, j), c = 0..C-1 (C = 2 polarities, or 1 streamlined):
+        # excitation V_c * VM_j, inhibition -w V_c' * VM_opp(j) with c' = C-1-c, so
+        # (1, j) is line 1 of Eq. (3) for θ_j (V+ excites) and (0, j) line 2 (V− excites).
+        # _swap gathers the inhibiting convolution of every cell from the (c, j) stack.
+        n_c = 2 if p.polarity_split else 1
+        self._swap = torch.tensor(
+            [(n_c - 1 - c) * m + self._opp[j] for c in range(n_c) for j in range(m)]
+        )
         self._g_weight = grouping_weights(self.bank)
         self.border_lif = lif_layer(p.tau_mem, p.dt, p.spike_threshold)
         self.grouping_lif = lif_layer(p.tau_mem, p.dt, p.spike_threshold)
@@ -290,26 +307,28 @@ class ProtoObjectSaliency:
         self._level_shapes = [
             (self._padded[0] // 2**s, self._padded[1] // 2**s) for s in range(p.levels)
         ]
-        self._bo_conv: list[FFTConv2d | _DirectConv2d] = []
-        self._exc_conv: list[FFTConv2d | _DirectConv2d] = []
-        self._inh_conv: list[FFTConv2d | _DirectConv2d] = []
+        k = p.kernel_size
+        vm = self.bank.unsqueeze(1)  # (2n, 1, k, k): one input channel -> every V * VM_j
+        self._vm_conv: list[FFTConv2d | _DirectConv2d] = []
         self._g_conv: list[FFTConv2d | _DirectConv2d] = []
         for hs, ws in self._level_shapes:
+            fft = same_fft_shape(hs, ws, k, k)
+            self._vm_conv.append(_conv(vm, hs, ws, p.conv, fft_shape=fft))
+            self._g_conv.append(
+                _conv(self._g_weight, hs, ws, p.conv, groups=2, flip=True, fft_shape=fft)
+            )
+        # Per level: the gains (1, 2n, h_s, w_s) of the excitation and of the inhibition
+        # (-w folded in) of the cells of direction j; border "zero": 1 and -w.
+        self._gain: list[tuple[torch.Tensor | float, torch.Tensor | float]] = []
+        for valid in self._levels(torch.ones(2, h, w)):
             if p.border == "zero":
-                self._bo_conv.append(_conv(self._bo_weight, hs, ws, p.conv))
-            else:
-                self._exc_conv.append(_conv(self._exc_weight, hs, ws, p.conv))
-                self._inh_conv.append(_conv(self._inh_weight, hs, ws, p.conv))
-            self._g_conv.append(_conv(self._g_weight, hs, ws, p.conv, groups=2, flip=True))
-        # Per level: the gains of the excitatory and inhibitory sums (border "unknown").
-        self._gain: list[tuple[torch.Tensor, torch.Tensor]] = []
-        if p.border == "unknown":
-            for valid in self._levels(torch.ones(2, h, w)):
-                g_exc = _coverage_gain(self._exc_weight, valid, p.min_coverage, p.conv)
-                g_inh = _coverage_gain(self._inh_weight, valid, p.min_coverage, p.conv)
-                known = (g_exc > 0) & (g_inh > 0)
-                self._gain.append((g_exc * known, g_inh * known))
-        n_bo = self._bo_weight.shape[0]
+                self._gain.append((1.0, -p.w))
+                continue
+            g = _coverage_gain(vm, valid[:, :1], p.min_coverage, p.conv)
+            g_inh = g[:, self._opp]
+            known = (g > 0) & (g_inh > 0)
+            self._gain.append((g * known, -p.w * g_inh * known))
+        n_bo = self._swap.numel()
         self._bo_sizes = [n_bo * hs * ws for hs, ws in self._level_shapes]
         self.border_lif.init_state_with_shape((1, sum(self._bo_sizes)))
         self.grouping_lif.init_state_with_shape((1, 4, h, w))
@@ -336,6 +355,19 @@ class ProtoObjectSaliency:
             out.append(F.max_pool2d(out[-1], 2))
         return out
 
+    def _border_currents(self, levels: list[torch.Tensor]) -> list[torch.Tensor]:
+        """Border-ownership currents of Eq. (3), ``V ⊙ (excitation − w · inhibition)``,
+        per level ``(C, 2n, h_s, w_s)`` (cell ``(c, j)``, see ``_swap``), from the
+        distinct convolutions ``V_c * VM_j`` of each level (one input transform)."""
+        out = []
+        for s, v in enumerate(levels):
+            gate = v.amax(dim=1, keepdim=True)
+            conv = self._vm_conv[s](v.transpose(0, 1))  # (C, 2n, h_s, w_s)
+            g_exc, g_inh = self._gain[s]
+            inh = conv.flatten(0, 1)[self._swap].view_as(conv)
+            out.append(gate * (conv * g_exc + inh * g_inh))
+        return out
+
     @torch.no_grad()
     def step(self, oms_map: np.ndarray | torch.Tensor) -> ProtoObjectOutput:
         """Advance one step with the OMS map ``(2, H, W)``; returns the saliency."""
@@ -345,25 +377,14 @@ class ProtoObjectSaliency:
         h, w = int(x.shape[1]), int(x.shape[2])
         if self._shape != (h, w):
             self._build(h, w)
-        levels = self._levels(x)
-        # Border ownership currents, Eq. (3): V ⊙ (excitation − w · inhibition).
-        currents = []
-        for s, v in enumerate(levels):
-            gate = v.amax(dim=1, keepdim=True)
-            if self.params.border == "zero":
-                drive = self._bo_conv[s](v)
-            else:
-                g_exc, g_inh = self._gain[s]
-                drive = self._exc_conv[s](v) * g_exc + self._inh_conv[s](v) * g_inh
-            currents.append((gate * drive).reshape(-1))
+        currents = [c.reshape(-1) for c in self._border_currents(self._levels(x))]
         spikes = self.border_lif(torch.cat(currents)[None, None])[0, 0]
         # Grouping currents, Eq. (4), pooled over orientations and levels.
         group = torch.zeros(1, 4, *self._padded)
         for s, b in enumerate(torch.split(spikes, self._bo_sizes)):
             hs, ws = self._level_shapes[s]
-            b = b.reshape(1, -1, hs, ws)
-            if self.params.polarity_split:  # B_j = spikes of both lines of Eq. (3)
-                b = b.reshape(1, -1, 2, hs, ws).sum(dim=2)
+            # B_j = the spikes of both lines of Eq. (3) (one line when streamlined)
+            b = b.reshape(-1, self.bank.shape[0], hs, ws).sum(dim=0, keepdim=True)
             g = self._g_conv[s](b)
             if s:
                 g = F.interpolate(g, scale_factor=2**s, mode="bilinear", align_corners=False)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import cv2
+import pytest
 from typer.testing import CliRunner
 
 from wander_env.cli import app
@@ -63,5 +64,16 @@ def test_demo_rejects_a_bad_preset(tmp_path):
 def test_bench_dvs_prints_every_row():
     result = runner.invoke(app, ["bench", "dvs", "--frames", "20", "--repeats", "1"])
     assert result.exit_code == 0, result.output
-    assert result.output.count("128x128") == 4
-    assert result.output.count("346x260") == 4
+    # 4 scene/noise rows and 3 input paths per sensor
+    assert result.output.count("128x128") == 7
+    assert result.output.count("346x260") == 7
+    assert result.output.count("uint8 sRGB") == 2
+
+
+@pytest.mark.slow
+def test_bench_dvs_peers_prints_a_row_per_peer_and_sensor():
+    # a peer that is not installed still gets its rows ("–" and a note)
+    result = runner.invoke(app, ["bench", "dvs", "--frames", "5", "--repeats", "1", "--peers"])
+    assert result.exit_code == 0, result.output
+    assert result.output.count("ESIM") == 2
+    assert result.output.count("EventEmulator") == 2

@@ -134,6 +134,63 @@ def test_grey_uint8_frame_equals_rgb_grey():
         assert np.array_equal(ea, eb)
 
 
+def _code_to_linear() -> np.ndarray:
+    """The linear light of each 8-bit code, float32 (what the emulator's tables hold)."""
+    return srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
+
+
+def _reference_luminance(rgb: np.ndarray) -> np.ndarray:
+    """Per-pixel Rec. 709 luminance of uint8 sRGB, float32, summed R + G + B: the
+    emulator's conversion written out with NumPy (no lookup of weighted shares)."""
+    lin = _code_to_linear()
+    w = np.float32([0.2126, 0.7152, 0.0722])
+    return w[0] * lin[rgb[..., 0]] + w[1] * lin[rgb[..., 1]] + w[2] * lin[rgb[..., 2]]
+
+
+def _events_and_changes(emu: DVSEmulator, frames) -> tuple[np.ndarray, list[float]]:
+    """All events (every third frame through prepare/log_change) and max_log_change."""
+    emu.reset(frames[0], 0)
+    out, changes = [], []
+    for i in range(1, len(frames)):
+        f = emu.prepare(frames[i]) if i % 3 == 0 else frames[i]
+        out.append(emu.step(f, i * 1000))
+        changes.append(emu.max_log_change)
+    out.append(emu.flush())
+    return np.concatenate(out), changes
+
+
+@pytest.mark.parametrize("preset", ["ideal", "paper", "speck"])
+def test_uint8_srgb_gives_exactly_the_events_of_its_linear_luminance(preset):
+    # Colour noise over every code: the lookup tables must reproduce the per-pixel
+    # conversion bit for bit, so the events (noise included, same seed) are identical.
+    rng = np.random.default_rng(2)
+    rgb = rng.integers(0, 256, (12, 24, 32, 3), dtype=np.uint8)
+    linear = _reference_luminance(rgb)
+    assert linear.dtype == np.float32
+    params = DVSParams.preset(preset)
+    ea, ca = _events_and_changes(DVSEmulator(32, 24, params, seed=4), rgb)
+    eb, cb = _events_and_changes(DVSEmulator(32, 24, params, seed=4), linear)
+    assert len(ea) > 1000
+    assert np.array_equal(ea, eb)
+    assert ca == cb
+
+
+def test_uint8_grey_gives_exactly_the_events_and_log_of_its_linear_light():
+    # Every code, both below and above the linear segment's knee (code 25 ≈ 0.0097).
+    rng = np.random.default_rng(3)
+    grey = rng.integers(0, 256, (12, 16, 16), dtype=np.uint8)
+    grey[0] = np.arange(256, dtype=np.uint8).reshape(16, 16)
+    linear = _code_to_linear()[grey]
+    emu = DVSEmulator(16, 16, DVSParams.preset("paper"), seed=1)
+    a, b = emu.prepare(grey[0]), emu.prepare(linear[0])
+    assert np.array_equal(a.lum, b.lum) and np.array_equal(a.log_in, b.log_in)
+    ea, ca = _events_and_changes(DVSEmulator(16, 16, DVSParams(), seed=1), grey)
+    eb, cb = _events_and_changes(DVSEmulator(16, 16, DVSParams(), seed=1), linear)
+    assert len(ea) > 1000
+    assert np.array_equal(ea, eb)
+    assert ca == cb
+
+
 def test_photoreceptor_lowpass_is_faster_for_brighter_pixels():
     params = DVSParams(threshold_on=0.01, threshold_off=0.01, cutoff_hz=100.0, cutoff_dark=0.0)
     emu = DVSEmulator(2, 1, params)

@@ -13,6 +13,7 @@ from agents.kernels import (
     FFTConv2d,
     gaussian_kernel,
     kernel_coordinates,
+    same_fft_shape,
     von_mises_kernel,
     von_mises_radius,
 )
@@ -144,3 +145,21 @@ def test_fft_conv_rejects_wrong_input():
         conv(torch.zeros(1, 1, 10, 11))
     with pytest.raises(ValueError):
         FFTConv2d(torch.ones(3, 3), 10, 10)
+
+
+@pytest.mark.parametrize("k", [31, 8, 5])
+def test_the_smallest_same_fft_grid_has_no_wrap_around(k):
+    # 'same' needs height + max(p, k - 1 - p) rows (p = (k - 1) // 2), not height + k - 1:
+    # on that grid the result is conv2d's, at the edges too (an input of ones).
+    h, w = 37, 50
+    shape = same_fft_shape(h, w, k, k)
+    assert shape[0] >= h + k // 2 and shape[1] >= w + k // 2
+    if k == 31:  # the von Mises kernels: 54 x 72 instead of the full 72 x 80
+        assert shape == (54, 72)
+    wt = torch.rand(3, 2, k, k)
+    conv = FFTConv2d(wt, h, w, fft_shape=shape)
+    for x in (torch.ones(1, 2, h, w), torch.rand(1, 2, h, w)):
+        ref = F.conv2d(x, wt, padding="same")
+        assert torch.allclose(conv(x), ref, atol=1e-4 * float(ref.abs().max()))
+    with pytest.raises(ValueError, match="too small"):
+        FFTConv2d(wt, h, w, fft_shape=(h + k // 2 - 1, shape[1]))

@@ -64,7 +64,12 @@ def print_table(title: str, rows: list, columns: dict[str, str]) -> None:
     for name in columns:
         table.add_column(name.replace("_", " "), justify="right")
     for row in rows:
-        table.add_row(*(format(getattr(row, k), fmt) for k, fmt in columns.items()))
+        table.add_row(
+            *(
+                "–" if (v := getattr(row, k)) is None else format(v, fmt)
+                for k, fmt in columns.items()
+            )
+        )
     console.print(table)
 
 
@@ -275,9 +280,18 @@ def bench_dvs(
     repeats: Annotated[
         int, typer.Option(min=1, help="Timed runs per row; the median is shown.")
     ] = 3,
+    peers: Annotated[
+        bool, typer.Option(help="Also run evlib's ESIM and v2e on the same frames.")
+    ] = False,
 ) -> None:
     """Frames/s and Mev/s of the DVS emulator at 128x128 and 346x260."""
-    from experiments.bench_dvs import NOISE_PRESET, bench_dvs
+    from experiments.bench_dvs import (
+        NOISE_PRESET,
+        PEER_THRESHOLD,
+        bench_dvs,
+        bench_inputs,
+        bench_peers,
+    )
 
     rows = bench_dvs(n_frames=frames, repeats=repeats)
     print_table(
@@ -294,6 +308,26 @@ def bench_dvs(
             "peak_mib": ".1f",
         },
     )
+    print_table(
+        "Input paths, moving pattern, ideal (time ratio = time per frame / float32 linear's)",
+        bench_inputs(n_frames=frames, repeats=repeats),
+        {"sensor": "", "input": "", "frames_per_s": ",.0f", "events": ",d", "time_ratio": ".2f"},
+    )
+    if peers:
+        print_table(
+            f"Peers on the same linear frames (moving pattern, threshold {PEER_THRESHOLD}, "
+            "no noise, one torch thread; wander speedup = their time / wander's)",
+            bench_peers(n_frames=frames, repeats=repeats),
+            {
+                "sensor": "",
+                "emulator": "",
+                "frames_per_s": ",.0f",
+                "wander_speedup": ".2f",
+                "events": ",d",
+                "events_diff_pct": "+.2f",
+                "note": "",
+            },
+        )
 
 
 @bench_app.command("env")

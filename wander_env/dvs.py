@@ -154,23 +154,32 @@ class DVSParams:
 
 
 @numba.njit(cache=True, nogil=True)
-def _luminance(frame: np.ndarray, lut: np.ndarray, i_lin: float, lum: np.ndarray, arg: np.ndarray):
-    """uint8 (H, W, 3) sRGB or (H, W, 1) grey -> flat linear luminance ``lum``.
+def _luminance_rgb(
+    rgb: np.ndarray, wlut: np.ndarray, i_lin: float, lum: np.ndarray, arg: np.ndarray
+):
+    """Flat uint8 sRGB ``(H·W·3,)`` -> flat linear luminance ``lum``.
 
-    Also writes ``max(lum, i_lin)`` to ``arg``, ready for an in-place ``np.log``.
+    ``wlut`` ``(3, 256)`` holds each channel's Rec. 709 weight times the linear light of
+    each code (float32), so a pixel costs three look-ups and two additions, summed in
+    the order ``R + G + B``. Also writes ``max(lum, i_lin)`` to ``arg``, ready for an
+    in-place ``np.log``.
     """
-    h, w = frame.shape[0], frame.shape[1]
     floor = np.float32(i_lin)
-    wr, wg, wb = np.float32(0.2126), np.float32(0.7152), np.float32(0.0722)
-    rgb = frame.shape[2] == 3
-    for r in range(h):
-        for c in range(w):
-            if rgb:
-                v = wr * lut[frame[r, c, 0]] + wg * lut[frame[r, c, 1]] + wb * lut[frame[r, c, 2]]
-            else:
-                v = lut[frame[r, c, 0]]
-            lum[r * w + c] = v
-            arg[r * w + c] = max(v, floor)
+    lr, lg, lb = wlut[0], wlut[1], wlut[2]
+    for i in range(lum.size):
+        v = lr[rgb[3 * i]] + lg[rgb[3 * i + 1]] + lb[rgb[3 * i + 2]]
+        lum[i] = v
+        arg[i] = max(v, floor)
+
+
+@numba.njit(cache=True, nogil=True)
+def _luminance_grey(grey: np.ndarray, lut: np.ndarray, log_lut: np.ndarray, lum, log_in):
+    """Flat uint8 grey ``(H·W,)`` -> ``lum`` (linear light) and ``log_in``
+    (``ln(max(lum, i_lin))``), both straight from per-code tables: no log per pixel."""
+    for i in range(lum.size):
+        c = grey[i]
+        lum[i] = lut[c]
+        log_in[i] = log_lut[c]
 
 
 @numba.njit(cache=True, nogil=True, fastmath=True)
@@ -375,7 +384,13 @@ class DVSEmulator:
         self.width, self.height = int(width), int(height)
         self.params = params if params is not None else DVSParams()
         self.seed = seed
+        # Per 8-bit code: linear light, each channel's weighted share of the luminance
+        # and (for grey frames) ln(max(light, linlog_intensity)), all float32 and
+        # computed by the same operations the per-pixel path used, so events are
+        # bit-for-bit those of converting every pixel.
         self._lut = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
+        self._wlut = _LUMA.astype(np.float32)[:, None] * self._lut[None, :]
+        self._log_lut = np.log(np.maximum(self._lut, np.float32(self.params.linlog_intensity)))
         n = self.width * self.height
         self._lum = np.empty(n, np.float32)
         self._log_in = np.empty(n, np.float32)
@@ -425,25 +440,27 @@ class DVSEmulator:
 
     # -- checks ---------------------------------------------------------------------------
     def _luminance(
-        self, frame: np.ndarray, lum: np.ndarray | None = None, arg: np.ndarray | None = None
+        self, frame: np.ndarray, lum: np.ndarray | None = None, log_in: np.ndarray | None = None
     ) -> np.ndarray:
-        """Validate ``frame``; fill ``lum`` and ``arg = max(lum, floor)`` (by default
-        ``self._lum`` and ``self._log_in``); returns ``lum``."""
+        """Validate ``frame``; fill ``lum`` (linear luminance) and ``log_in`` =
+        ``ln(max(lum, floor))`` (by default ``self._lum`` and ``self._log_in``); returns
+        ``lum``. The linear segment below the floor is patched in later."""
         lum = self._lum if lum is None else lum
-        arg = self._log_in if arg is None else arg
+        log_in = self._log_in if log_in is None else log_in
         if not isinstance(frame, np.ndarray):
             raise ValueError(f"frame must be a numpy array, got {type(frame).__name__}")
         h, w = self.height, self.width
         floor = self.params.linlog_intensity
         if frame.dtype == np.uint8:
-            if frame.shape not in ((h, w, 3), (h, w)):
+            if frame.shape == (h, w):
+                _luminance_grey(frame.reshape(-1), self._lut, self._log_lut, lum, log_in)
+                return lum
+            if frame.shape != (h, w, 3):
                 raise ValueError(
                     f"uint8 frame must have shape ({h}, {w}, 3) or ({h}, {w}), got {frame.shape}"
                 )
-            frame3 = frame if frame.ndim == 3 else frame[:, :, None]
-            _luminance(np.ascontiguousarray(frame3), self._lut, floor, lum, arg)
-            return lum
-        if frame.dtype.kind == "f":
+            _luminance_rgb(frame.reshape(-1), self._wlut, floor, lum, log_in)
+        elif frame.dtype.kind == "f":
             if frame.shape != (h, w):
                 raise ValueError(f"float frame must have shape ({h}, {w}), got {frame.shape}")
             if not np.isfinite(frame).all():
@@ -451,9 +468,13 @@ class DVSEmulator:
             if frame.min() < 0:
                 raise ValueError(f"frame intensity must be >= 0, got min {frame.min()}")
             lum[:] = frame.reshape(-1)
-            np.maximum(lum, floor, out=arg)
-            return lum
-        raise ValueError(f"frame dtype must be uint8 (sRGB) or float (linear), got {frame.dtype}")
+            np.maximum(lum, floor, out=log_in)
+        else:
+            raise ValueError(
+                f"frame dtype must be uint8 (sRGB) or float (linear), got {frame.dtype}"
+            )
+        np.log(log_in, out=log_in)
+        return lum
 
     def _check_time(self, t_us: int) -> int:
         if self._t_prev is None:
@@ -468,7 +489,6 @@ class DVSEmulator:
         n = self.width * self.height
         lum, log_in = np.empty(n, np.float32), np.empty(n, np.float32)
         self._luminance(frame, lum, log_in)
-        np.log(log_in, out=log_in)
         _patch_linlog(lum, log_in, self.params.linlog_intensity)
         return LogFrame(lum, log_in)
 
@@ -502,7 +522,6 @@ class DVSEmulator:
             np.copyto(self._log_in, frame.log_in)
         else:
             lum = self._luminance(frame)
-            np.log(self._log_in, out=self._log_in)
         p, t0 = self.params, self._t_prev
         dt_s = (t_us - t0) * 1e-6
         self.max_log_change = float(

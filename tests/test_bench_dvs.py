@@ -1,0 +1,60 @@
+"""The DVS benchmark's input paths and peer comparison (speed is not asserted)."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import numpy as np
+import pytest
+
+from experiments.bench_dvs import PEERS, bench_inputs, bench_peers, linear_frames
+from wander_env.dvs import DVSEmulator
+from wander_env.synthetic import drifting_texture
+
+
+def test_linear_frames_give_the_events_of_their_srgb_frames():
+    srgb = drifting_texture(32, 24, 8, 0.5, seed=0)
+    lin = linear_frames(srgb)
+    assert lin.shape == (8, 24, 32) and lin.dtype == np.float32
+    a, b = DVSEmulator(32, 24), DVSEmulator(32, 24)
+    a.reset(srgb[0], 0)
+    b.reset(lin[0], 0)
+    for i in range(1, 8):
+        assert np.array_equal(a.step(srgb[i], i * 1000), b.step(lin[i], i * 1000))
+
+
+def test_input_rows_share_the_events_and_the_linear_row_is_the_unit():
+    rows = bench_inputs(n_frames=6, repeats=1)
+    assert [(r.sensor, r.input) for r in rows] == [
+        (s, k)
+        for s in ("128x128", "346x260")
+        for k in ("uint8 sRGB", "uint8 grey", "float32 linear")
+    ]
+    for i in (0, 3):
+        srgb, grey, lin = rows[i : i + 3]
+        assert srgb.events == lin.events > 0  # the same luminance, bit for bit
+        assert lin.time_ratio == 1.0
+        assert srgb.frames_per_s > 0 and grey.frames_per_s > 0
+
+
+def test_peer_rows_wander_first_and_missing_peers_say_so():
+    rows = bench_peers(n_frames=6, repeats=1)
+    assert [r.emulator for r in rows] == list(PEERS) * 2
+    for r in rows:
+        if r.emulator == "wander":
+            assert r.wander_speedup == 1.0 and r.events_diff_pct == 0.0 and r.events > 0
+        elif r.frames_per_s is None:
+            assert r.note.startswith("not installed")
+            assert r.events is None and r.wander_speedup is None
+        else:
+            assert r.events > 0 and r.wander_speedup > 0
+
+
+@pytest.mark.skipif(importlib.util.find_spec("evlib") is None, reason="evlib not installed")
+def test_esim_on_the_same_frames_counts_the_same_events_within_a_tenth_of_a_percent():
+    # Same log model above the knee and the same threshold: only float rounding and the
+    # treatment of the darkest pixels differ (measured: -0.01 %).
+    rows = [r for r in bench_peers(n_frames=20, repeats=1) if r.emulator == "evlib ESIM"]
+    assert len(rows) == 2
+    for r in rows:
+        assert abs(r.events_diff_pct) < 0.1
