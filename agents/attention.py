@@ -66,12 +66,28 @@ from agents.proto_object import ProtoObjectParams, ProtoObjectSaliency
 from agents.soms import SOMS, SOMSParams
 from wander_env.metrics import SPECK_HFOV_DEG
 
-__all__ = ["AGENT_SOMS_ALPHA", "AgentParams", "AttentionAgent", "Fixation", "Phase", "Saccade"]
+__all__ = [
+    "AGENT_SOMS",
+    "AGENT_SOMS_ALPHA",
+    "AgentParams", "AttentionAgent", "Fixation", "Phase", "Saccade"]
 
 _EPS = 1e-9
 
-#: The agent's sOMS threshold α, calibrated (the paper's table says 0.80, see AgentParams).
-AGENT_SOMS_ALPHA = 0.5
+#: The agent's sOMS threshold α: the paper's table value, applied to the input-dependent
+#: ``"quantile"`` norm of :data:`AGENT_SOMS` (see AgentParams).
+AGENT_SOMS_ALPHA = 0.80
+
+#: The agent's sOMS: the paper's kernels, τ and α with the ``"quantile"`` norm whose
+#: parameters were chosen on the even-seed half of the stimulus family
+#: (``wander experiment oms_scorecard``; README "The sOMS threshold").
+AGENT_SOMS = SOMSParams(
+    conv="fft",
+    alpha=AGENT_SOMS_ALPHA,
+    norm="quantile",
+    pool_sigma=6.0,
+    quantile=0.9,
+    gain=2.5,
+)
 
 
 @dataclass(frozen=True)
@@ -118,7 +134,7 @@ class AgentParams:
     width_px: int = 128
     height_px: int = 128
     hfov_deg: float = SPECK_HFOV_DEG
-    soms: SOMSParams = field(default_factory=lambda: SOMSParams(conv="fft", alpha=AGENT_SOMS_ALPHA))
+    soms: SOMSParams = field(default_factory=lambda: AGENT_SOMS)
     proto: ProtoObjectParams = field(default_factory=ProtoObjectParams)
     control: ControlParams = field(default_factory=ControlParams)
     fixation: FixationParams = field(default_factory=FixationParams)
