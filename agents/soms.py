@@ -32,6 +32,13 @@ Design decisions (each checked against the paper and its public code):
   the background stands out (≈30× the background's OMS density), one moving the other way
   at the *same* speed does not, and a perfectly uniform stimulus (an ideal grating over the
   whole field) is not suppressed, as the threshold is relative to the map's own range.
+* **Input-dependent threshold** (``norm="quantile"``, the agent's default): min-max
+  normalisation lets a fixed share of events through whatever the stimulus, so no α
+  suppresses ego-motion on textured scenes and keeps the object's events too (the
+  stimulus family of :mod:`experiments.oms_stimuli`). The quantile norm compares the
+  pooled surround excess with its own 90th percentile over the map: ego-motion is
+  suppressed, denser (faster) objects and objects on a still background kept
+  (``wander experiment oms_scorecard``).
 * **Signed difference** kept (``diff``), as the paper stresses.
 * **Sensor grid.** 'same' convolution with zero padding (torch's alignment: for the
   even 8 px kernel the centre sits half a pixel down-right of the output pixel); the
@@ -110,10 +117,15 @@ class SOMSParams:
     """sOMS parameters; defaults are the paper's (table "params").
 
     ``dt`` is the length of one step (one event map) in seconds; ``conv`` picks direct
-    ``conv2d`` or the FFT convolution (same result). ``alpha`` 0.80 is the table's value;
-    on this implementation it suppresses far more than the paper measured (99.4 % of a
-    real ego-motion recording against 85 %), so the agent runs with a calibrated 0.5
-    (:data:`agents.attention.AGENT_SOMS_ALPHA`).
+    ``conv2d`` or the FFT convolution (same result). ``alpha`` 0.80 is the table's value.
+
+    ``norm`` is Eq. (1)'s ``norm``: ``"minmax"`` (the paper-literal default) scales the
+    map to its own range; ``"quantile"`` (the agent's, :data:`agents.attention.AGENT_SOMS`)
+    makes the threshold depend on the input's statistics: ``surround − centre`` pooled by
+    a unit-sum Gaussian of ``pool_sigma`` px, divided by ``gain`` × its ``quantile`` over
+    the whole map (at least ``floor_spikes``) and clipped to [0, 1]; an event is kept
+    where that is ``>= alpha`` (:func:`quantile_score`). ``pool_sigma``, ``quantile``,
+    ``gain`` and ``floor_spikes`` are unused by ``"minmax"``.
     """
 
     kernel_size: int = 8

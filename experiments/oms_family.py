@@ -99,9 +99,7 @@ def _lif_key(p: SOMSParams) -> tuple:
     return (p.kernel_size, p.sigma_c, p.sigma_s, p.tau_mem, p.dt, p.spike_threshold, p.kernel_norm)
 
 
-def measure_recording(
-    rec: Recording, variants: Mapping[str, SOMSParams]
-) -> dict[str, Measure]:
+def measure_recording(rec: Recording, variants: Mapping[str, SOMSParams]) -> dict[str, Measure]:
     """Step every variant (``dt`` set to the recording's bin) over the recording's
     counts. Variants sharing the LIF stage share one run of it."""
     mask = torch.from_numpy(rec.mask)
@@ -202,10 +200,11 @@ def claims_passed(claims: Mapping[str, Mapping[str, float | bool | int]]) -> int
 
 def margin(claims: Mapping[str, Mapping[str, float | bool | int]]) -> float:
     """The smallest relative margin over the three bars (negative: a bar missed)."""
+    groups = ("eye+object", "object-only")
     parts = [
         float(claims["eye-only"]["suppressed"]) / SUPPRESS_BAR - 1.0,
-        *(float(claims[g]["precision"]) / PRECISION_BAR - 1.0 for g in ("eye+object", "object-only")),
-        *(float(claims[g]["object_kept"]) / OBJECT_KEPT_BAR - 1.0 for g in ("eye+object", "object-only")),
+        *(float(claims[g]["precision"]) / PRECISION_BAR - 1.0 for g in groups),
+        *(float(claims[g]["object_kept"]) / OBJECT_KEPT_BAR - 1.0 for g in groups),
     ]
     return min(p if math.isfinite(p) else -1.0 for p in parts)
 

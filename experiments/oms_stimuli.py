@@ -207,7 +207,9 @@ def velocities(s: Stimulus) -> tuple[np.ndarray, np.ndarray]:
     return v * d, ratio * v * d
 
 
-def texture(kind: str, period_px: int, seed: int, angle: float, contrast: float = 0.8) -> np.ndarray:
+def texture(
+    kind: str, period_px: int, seed: int, angle: float, contrast: float = 0.8
+) -> np.ndarray:
     """A periodic ``256 × 256`` tile of linear intensity, mean grey 0.5, values in
     ``0.5 ± contrast / 2``. Gratings have their bars across ``angle`` (drift direction)
     and a random phase; they are periodic on the tile only approximately (the tile is

@@ -50,8 +50,8 @@ __all__ = ["RunConfig", "RunResult", "run", "run_closed_loop", "video_frame"]
 @dataclass(frozen=True)
 class RunConfig:
     """What ``wander run`` runs: the scene, its length, the seed, the DVS preset and the
-    agent's main switches (the paper's defaults; ``alpha`` is the agent's calibrated sOMS
-    threshold, :data:`agents.attention.AGENT_SOMS_ALPHA`)."""
+    agent's main switches (the paper's defaults; ``alpha`` is the sOMS threshold on the
+    agent's quantile norm, :data:`agents.attention.AGENT_SOMS_ALPHA`)."""
 
     scene: str = "office"
     seconds: float = 10.0

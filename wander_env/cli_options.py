@@ -32,7 +32,7 @@ AgentAlphaOpt = Annotated[
     typer.Option(
         min=0.0,
         max=1.0,
-        help="sOMS threshold α (default: the agent's calibrated 0.5; the paper's table: 0.8).",
+        help="sOMS threshold α (default: the paper's table 0.8, on the agent's quantile norm).",
     ),
 ]
 
