@@ -356,7 +356,7 @@ def plot(cfg: OMSScorecardConfig, rows: list[Row], results_dir: Path, fig_dir: P
         "dashed: the bars",
         fontsize=9,
     )
-    ax.legend(fontsize=8, loc="lower left")
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2)
     fig_dir.mkdir(parents=True, exist_ok=True)
     return [save_figure(fig, fig_dir / "oms_scorecard.png")]
 
