@@ -17,6 +17,7 @@ from hardware.rig_cli import register as register_rig
 from wander_env.cli_options import (
     AgentAlphaOpt,
     FixationalOpt,
+    SomsNormOpt,
     StreamlinedOpt,
     VideoOpt,
     WindowOpt,
@@ -113,6 +114,7 @@ def run_agent(
     fixational: FixationalOpt = True,
     streamlined: StreamlinedOpt = False,
     alpha: AgentAlphaOpt = None,
+    soms_norm: SomsNormOpt = "quantile",
     video: VideoOpt = True,
 ) -> None:
     """Run the attention agent closed-loop in a scene; write the run folder."""
@@ -128,6 +130,7 @@ def run_agent(
         window_s=window,
         fixational=fixational,
         streamlined=streamlined,
+        soms_norm=soms_norm,
         **agent_alpha(alpha),
     )
     with _progress() as bar:
@@ -156,6 +159,7 @@ def evaluate(
     dvs: Annotated[str, typer.Option(help="DVS preset: ideal, paper or speck.")] = "ideal",
     streamlined: StreamlinedOpt = False,
     alpha: AgentAlphaOpt = None,
+    soms_norm: SomsNormOpt = "quantile",
 ) -> None:
     """The agent's quality in simulation: detection accuracy, suppression, foveation error."""
     from experiments.evaluate_agent import evaluate as run_eval
@@ -172,6 +176,7 @@ def evaluate(
         dvs=dvs,
         video=False,
         streamlined=streamlined,
+        soms_norm=soms_norm,
         **agent_alpha(alpha),
     )
     with _progress() as bar:

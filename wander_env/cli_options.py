@@ -15,6 +15,7 @@ import typer
 __all__ = [
     "AgentAlphaOpt",
     "FixationalOpt",
+    "SomsNormOpt",
     "StreamlinedOpt",
     "VideoOpt",
     "WindowOpt",
@@ -33,6 +34,22 @@ AgentAlphaOpt = Annotated[
         min=0.0,
         max=1.0,
         help="sOMS threshold α (default: the paper's table 0.8, on the agent's quantile norm).",
+    ),
+]
+
+
+def _choice(flag: str, value: str, allowed: tuple[str, ...]) -> str:
+    if value not in allowed:
+        raise typer.BadParameter(f"{flag} must be one of {', '.join(allowed)}, got {value!r}")
+    return value
+
+
+SomsNormOpt = Annotated[
+    str,
+    typer.Option(
+        "--soms-norm",
+        callback=lambda v: _choice("--soms-norm", v, ("quantile", "minmax")),
+        help="sOMS norm: quantile (the agent's) or minmax (the paper-literal sOMS).",
     ),
 ]
 
