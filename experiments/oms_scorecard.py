@@ -25,6 +25,11 @@ Parts (``parts``), one trial each (both variants in the same trial):
   ``office_results_paper`` (paper-literal, ``--alpha``-style runs with ``norm=minmax``);
   ≥ 90 % on each file's pooled decisions, with the 95 % interval.
 
+``reuse`` names earlier ``oms_scorecard`` result folders: a part found there (same
+family, bins and hand settings, same seed) is copied from its ``results.csv`` instead of
+being run again, so the parts can run as separate processes and be gathered into one
+scorecard (each copied row says where it came from, ``reused_from``).
+
 The experiment's ``--seed`` offsets every stimulus seed by an even number (the halves
 stay the halves); the same seed gives the same scorecard.
 """
@@ -75,6 +80,7 @@ class OMSScorecardConfig:
     hand_duration_s: float = 3.0
     office_results: tuple[str, ...] = ()
     office_results_paper: tuple[str, ...] = ()
+    reuse: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         bad = [p for p in self.parts if p not in PARTS]
@@ -200,8 +206,52 @@ def _office_row(cfg: OMSScorecardConfig) -> dict[str, Any]:
     return row
 
 
+#: config fields a reused part must share with this run
+_SHARED = (
+    "textures",
+    "objects",
+    "periods",
+    "motions",
+    "presets",
+    "replicates",
+    "duration_s",
+    "real_dir",
+    "real_bins_ms",
+    "hand_repeats",
+    "hand_duration_s",
+)
+
+
+def reused_row(cfg: OMSScorecardConfig, part: str, seed: int) -> dict[str, Any] | None:
+    """The metrics of ``part`` from the first ``cfg.reuse`` folder holding it (None when
+    none does); a folder whose config or seed differs is refused (ValueError)."""
+    from experiments.framework import ID_COLUMNS, read_csv
+
+    for folder in map(Path, cfg.reuse):
+        conf = json.loads((folder / "config.json").read_text())
+        run = json.loads((folder / "run.json").read_text())
+        rows = [r for r in read_csv(folder / "results.csv") if r.get("part") == part]
+        if not rows:
+            continue
+        mine = {k: v for k, v in json.loads(json.dumps(cfg.__dict__)).items() if k in _SHARED}
+        theirs = {k: conf.get(k) for k in _SHARED}
+        if conf.get("experiment") != "oms_scorecard" or mine != theirs:
+            diff = sorted(k for k in _SHARED if mine[k] != theirs[k])
+            raise ValueError(f"reuse: {folder} was run with another config ({', '.join(diff)})")
+        if run.get("seed") != seed:
+            raise ValueError(f"reuse: {folder} has seed {run.get('seed')}, this run {seed}")
+        out = {k: v for k, v in rows[0].items() if k not in (*ID_COLUMNS, "part")}
+        out["reused_from"] = str(folder)
+        return out
+    return None
+
+
 def run_trial(cfg: OMSScorecardConfig, spec: TrialSpec) -> dict[str, Any]:
     part = str(spec.params["part"])
+    if part != "office":
+        row = reused_row(cfg, part, spec.seed)
+        if row is not None:
+            return row
     if part.startswith("family-"):
         return _family_row(cfg, spec.seed, part.removeprefix("family-"))
     if part == "real":

@@ -44,7 +44,8 @@ def test_run_folder_contents(run_dir: Path) -> None:
     run_json = json.loads((run_dir / "run.json").read_text())
     assert run_json["seed"] == 4 and run_json["config"]["scene"] == "office"
     assert run_json["git_revision"] and run_json["agent"]["window_s"] == 0.124
-    assert run_json["config"]["alpha"] == run_json["agent"]["soms"]["alpha"] == 0.5
+    assert run_json["config"]["alpha"] == run_json["agent"]["soms"]["alpha"] == 0.8
+    assert run_json["config"]["soms_norm"] == run_json["agent"]["soms"]["norm"] == "quantile"
     frames = imageio.mimread(run_dir / "run.mp4", memtest=False)
     assert len(frames) == 150 and frames[0].shape == (2 * 128 + 16, 4 * 2 * 128 + 3 * 4, 3)
     # One decision per window: the first after 13 steps, then after each saccade.
