@@ -32,6 +32,13 @@ Design decisions (each checked against the paper and its public code):
   the background stands out (≈30× the background's OMS density), one moving the other way
   at the *same* speed does not, and a perfectly uniform stimulus (an ideal grating over the
   whole field) is not suppressed, as the threshold is relative to the map's own range.
+* **Input-dependent threshold** (``norm="quantile"``, the agent's default): min-max
+  normalisation lets a fixed share of events through whatever the stimulus, so no α
+  suppresses ego-motion on textured scenes and keeps the object's events too (the
+  stimulus family of :mod:`experiments.oms_stimuli`). The quantile norm compares the
+  pooled surround excess with its own 90th percentile over the map: ego-motion is
+  suppressed, denser (faster) objects and objects on a still background kept
+  (``wander experiment oms_scorecard``).
 * **Signed difference** kept (``diff``), as the paper stresses.
 * **Sensor grid.** 'same' convolution with zero padding (torch's alignment: for the
   even 8 px kernel the centre sits half a pixel down-right of the output pixel); the
@@ -63,7 +70,16 @@ import torch.nn.functional as F
 
 from agents.kernels import FFTConv2d, gaussian_kernel
 
-__all__ = ["SOMS", "SOMSOutput", "SOMSParams", "lif_layer", "tau_steps"]
+__all__ = [
+    "SOMS",
+    "SOMSOutput",
+    "SOMSParams",
+    "lif_layer",
+    "oms_score",
+    "pooling_weights",
+    "quantile_score",
+    "tau_steps",
+]
 
 
 def tau_steps(tau_s: float, dt_s: float) -> float:
@@ -101,10 +117,15 @@ class SOMSParams:
     """sOMS parameters; defaults are the paper's (table "params").
 
     ``dt`` is the length of one step (one event map) in seconds; ``conv`` picks direct
-    ``conv2d`` or the FFT convolution (same result). ``alpha`` 0.80 is the table's value;
-    on this implementation it suppresses far more than the paper measured (99.4 % of a
-    real ego-motion recording against 85 %), so the agent runs with a calibrated 0.5
-    (:data:`agents.attention.AGENT_SOMS_ALPHA`).
+    ``conv2d`` or the FFT convolution (same result). ``alpha`` 0.80 is the table's value.
+
+    ``norm`` is Eq. (1)'s ``norm``: ``"minmax"`` (the paper-literal default) scales the
+    map to its own range; ``"quantile"`` (the agent's, :data:`agents.attention.AGENT_SOMS`)
+    makes the threshold depend on the input's statistics: ``surround − centre`` pooled by
+    a unit-sum Gaussian of ``pool_sigma`` px, divided by ``gain`` × its ``quantile`` over
+    the whole map (at least ``floor_spikes``) and clipped to [0, 1]; an event is kept
+    where that is ``>= alpha`` (:func:`quantile_score`). ``pool_sigma``, ``quantile``,
+    ``gain`` and ``floor_spikes`` are unused by ``"minmax"``.
     """
 
     kernel_size: int = 8
@@ -116,10 +137,23 @@ class SOMSParams:
     spike_threshold: float = 1.0
     kernel_norm: Literal["peak", "sum"] = "peak"
     conv: Literal["direct", "fft"] = "direct"
+    norm: Literal["minmax", "quantile"] = "minmax"
+    pool_sigma: float = 6.0
+    quantile: float = 0.9
+    gain: float = 2.0
+    floor_spikes: float = 1.0
 
     def __post_init__(self) -> None:
         if self.kernel_size < 1:
             raise ValueError(f"kernel_size must be >= 1, got {self.kernel_size}")
+        if self.norm not in ("minmax", "quantile"):
+            raise ValueError(f"norm must be 'minmax' or 'quantile', got {self.norm!r}")
+        for name in ("pool_sigma", "gain", "floor_spikes"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"SOMSParams.{name} must be a finite number > 0, got {v!r}")
+        if not 0.0 <= self.quantile <= 1.0:
+            raise ValueError(f"SOMSParams.quantile must be in [0, 1], got {self.quantile}")
         if not 0.0 <= self.alpha <= 1.0:
             raise ValueError(f"alpha must be in [0, 1], got {self.alpha}")
         if self.kernel_norm not in ("peak", "sum"):
@@ -158,6 +192,37 @@ def oms_score(diff: torch.Tensor) -> torch.Tensor:
     return (hi - diff) / rng
 
 
+def pooling_weights(sigma: float) -> torch.Tensor:
+    """Unit-sum Gaussian ``(1, 1, k, k)``, ``k = 2 ceil(3 sigma) + 1``: the pooling of
+    the ``"quantile"`` norm.
+
+    Example:
+        >>> w = pooling_weights(1.0)
+        >>> tuple(w.shape), round(float(w.sum()), 6)
+        ((1, 1, 7, 7), 1.0)
+    """
+    k = 2 * math.ceil(3.0 * sigma) + 1
+    return torch.from_numpy(gaussian_kernel(k, sigma)).float()[None, None]
+
+
+def quantile_score(
+    pooled: torch.Tensor, quantile: float, gain: float, floor_spikes: float
+) -> torch.Tensor:
+    """``1 - norm(OMS)`` of the ``"quantile"`` norm: the pooled surround excess
+    ``pooled = G * (surround - centre)`` over ``gain`` times its ``quantile`` over the
+    whole map (at least ``floor_spikes``), clipped to [0, 1].
+
+    Example:
+        >>> d = torch.zeros(1, 10, 10); d[0, 0, :5] = 4.0; d[0, 1:, :] = 1.0
+        >>> s = quantile_score(d, 0.9, 2.0, 1.0)   # 90th percentile 1 -> scale 2
+        >>> float(s[0, 0, 0]), float(s[0, 5, 5]), float(s[0, 0, 9])
+        (1.0, 0.5, 0.0)
+    """
+    q = float(torch.quantile(pooled.flatten(), quantile))
+    scale = max(gain * q, floor_spikes)
+    return torch.clamp(pooled / scale, 0.0, 1.0)
+
+
 class SOMS:
     """Stateful sOMS: call :meth:`step` once per event map ``(2, H, W)`` (counts in one
     step of ``params.dt`` seconds); LIF membranes carry over between calls until
@@ -184,6 +249,8 @@ class SOMS:
         k = self.params.kernel_size
         self._pad = ((k - 1) // 2, k // 2, (k - 1) // 2, k // 2)  # torch 'same' alignment
         self._fft: FFTConv2d | None = None
+        self.pool_weight = pooling_weights(self.params.pool_sigma)
+        self._pool_fft: FFTConv2d | None = None
         if height is not None and width is not None:
             self._build(int(height), int(width))
 
@@ -203,6 +270,8 @@ class SOMS:
         self._shape = (h, w)
         if self.params.conv == "fft":
             self._fft = FFTConv2d(self.weight, h, w)
+            if self.params.norm == "quantile":
+                self._pool_fft = FFTConv2d(self.pool_weight, h, w)
         self.lif.init_state_with_shape((1, 2, 2, h, w))
 
     def reset(self) -> None:
@@ -216,6 +285,20 @@ class SOMS:
             return self._fft(x)
         return F.conv2d(F.pad(x, self._pad), self.weight)
 
+    def pool(self, x: torch.Tensor) -> torch.Tensor:
+        """The pooling Gaussian applied to each polarity of ``x (2, H, W)`` (zero padding)."""
+        x = x.unsqueeze(1)
+        if self._pool_fft is not None:
+            return self._pool_fft(x)[:, 0]
+        return F.conv2d(x, self.pool_weight, padding="same")[:, 0]
+
+    def score(self, diff: torch.Tensor) -> torch.Tensor:
+        """``1 - norm(diff)`` of ``params.norm`` (Eq. 1's left side before ``>= alpha``)."""
+        p = self.params
+        if p.norm == "minmax":
+            return oms_score(diff)
+        return quantile_score(self.pool(-diff), p.quantile, p.gain, p.floor_spikes)
+
     @torch.no_grad()
     def step(self, event_map: np.ndarray | torch.Tensor) -> SOMSOutput:
         """Advance one step with the event counts ``(2, H, W)``; returns the OMS map."""
@@ -227,6 +310,6 @@ class SOMS:
             self._build(h, w)
         spikes = self.lif(self.filter(x)[None, None])[0, 0]  # (2, 2, H, W)
         diff = spikes[:, 0] - spikes[:, 1]
-        score = oms_score(diff)
+        score = self.score(diff)
         oms = ((x > 0) & (score >= self.params.alpha)).float()
         return SOMSOutput(oms=oms, diff=diff, score=score)

@@ -21,14 +21,17 @@ events kept and of the background's events kept.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import gymnasium as gym
 import numpy as np
+import torch
+from scipy.ndimage import gaussian_filter
 
 import wander_env  # noqa: F401  (registers the environments)
+from agents.proto_object import saliency_argmax
 from agents.soms import SOMS, SOMSParams
 from experiments.benchmark_protocol import PAPER_SUPPRESSION
 from experiments.framework import (
@@ -40,6 +43,7 @@ from experiments.framework import (
     save_figure,
 )
 from experiments.record import GazePolicy
+from wander_env.metrics import detection_hit
 
 __all__ = [
     "EXPERIMENT",
@@ -70,9 +74,13 @@ class EventSuppressionConfig:
     sigma_s: float = 4.0
     tau_mem: float = 0.02
     alpha: float = 0.80
+    soms: Literal["table", "agent"] = "table"
+    hit_sigma_px: float = 2.0
 
     def __post_init__(self) -> None:
-        for name in ("duration_s", "window_s", "active_s"):
+        if self.soms not in ("table", "agent"):
+            raise ValueError(f"soms must be 'table' or 'agent', got {self.soms!r}")
+        for name in ("duration_s", "window_s", "active_s", "hit_sigma_px"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if self.pause_s < 0:
@@ -149,7 +157,26 @@ class PausedTrajectory:
 # The trial
 
 
+def oms_point(oms: np.ndarray, sigma_px: float) -> tuple[int, int] | None:
+    """The OMS map's densest point ``(x, y)``: the argmax of its both-polarity sum
+    smoothed by a Gaussian of ``sigma_px`` (zero outside the sensor); None when empty.
+
+    >>> m = np.zeros((2, 16, 16), bool); m[1, 4:7, 9:12] = True; m[0, 14, 1] = True
+    >>> oms_point(m, 2.0)
+    (10, 5)
+    """
+    dens = gaussian_filter(np.asarray(oms, np.float32).sum(axis=0), sigma_px, mode="constant")
+    return saliency_argmax(torch.from_numpy(dens))
+
+
 def soms_params(cfg: EventSuppressionConfig) -> SOMSParams:
+    """The sOMS of the trial: ``soms="table"`` the paper's table with this config's
+    kernel, τ and α (min-max norm); ``"agent"`` the agent's default sOMS
+    (``AgentParams().soms``, the kernel and α fields unused); ``dt`` = ``soms_step_s``."""
+    if cfg.soms == "agent":
+        from agents.attention import AgentParams
+
+        return replace(AgentParams().soms, dt=cfg.soms_step_s)
     return SOMSParams(
         kernel_size=cfg.kernel_size,
         sigma_c=cfg.sigma_c,
@@ -185,6 +212,7 @@ def run_trial(cfg: EventSuppressionConfig, spec: TrialSpec) -> dict[str, Any]:
         gaze = np.zeros((n + 1, 2))
         m = cfg.windows_per_step
         windows: list[tuple[np.ndarray, np.ndarray]] = []  # (counts, mask) of this step
+        hits = hit_steps = 0
         for k in range(n):
             t = k * cfg.window_s
             action = policy.act(info) if is_active(t, cfg.active_s, cfg.pause_s) else np.zeros(2)
@@ -195,6 +223,11 @@ def run_trial(cfg: EventSuppressionConfig, spec: TrialSpec) -> dict[str, Any]:
                 continue
             # one sOMS step on the step's events; its map gates each window's events
             oms = soms.step(np.sum([c for c, _ in windows], axis=0)).oms.numpy() > 0
+            hand = np.any([mk for _, mk in windows], axis=0)
+            if hand.any() and is_active(t, cfg.active_s, cfg.pause_s):
+                hit_steps += 1
+                point = oms_point(oms, cfg.hit_sigma_px)
+                hits += point is not None and detection_hit(point, hand)
             for j, (counts, mask) in enumerate(windows):
                 kept = counts * oms
                 i = k - len(windows) + 1 + j
@@ -228,6 +261,9 @@ def run_trial(cfg: EventSuppressionConfig, spec: TrialSpec) -> dict[str, Any]:
         "object_kept_pct": 100.0 * frac(obj_out, obj_in),
         "background_kept_pct": 100.0 * frac(bg_out, bg_in),
         "camera_speed_deg_s": float(speed[active].mean()),
+        "hit_steps": hit_steps,
+        "hand_hits": int(hits),
+        "hand_hit_pct": 100.0 * frac(hits, hit_steps),
         "_events_in": ins,
         "_events_out": outs,
     }
@@ -245,6 +281,13 @@ def _pooled(rows: list[Row], what: str) -> tuple[float, float]:
     m = np.array([float(r[f"{what}_mean"]) for r in rows])
     s = np.array([float(r[f"{what}_std"]) for r in rows])
     return pooled_mean_std(m, s)
+
+
+def _hit_rate(rows: list[Row]) -> float:
+    """Hits over all trials' scored steps, percent (nan when none)."""
+    steps = sum(int(r["hit_steps"]) for r in rows)
+    hits = sum(int(r["hand_hits"]) for r in rows)
+    return 100.0 * hits / steps if steps else math.nan
 
 
 def compare(cfg: EventSuppressionConfig, rows: list[Row]) -> list[Comparison]:
@@ -273,6 +316,12 @@ def compare(cfg: EventSuppressionConfig, rows: list[Row]) -> list[Comparison]:
             "events suppressed",
             f"{ref['suppressed_pct']} %",
             f"{supp.mean():.2f} % (± {supp.std():.2f} over trials)",
+        ),
+        Comparison(
+            "hand hit (8×8 box around the OMS map's densest point)",
+            "—",
+            f"{_hit_rate(rows):.1f} % of {sum(int(r['hit_steps']) for r in rows)} sOMS steps",
+            "active phases with the hand in view; the bar: ≥ 90 %",
         ),
         Comparison(
             "hand's events kept / background's kept",

@@ -82,6 +82,7 @@ EXPERIMENT_NAMES: tuple[str, ...] = (
     "sac_accuracy",
     "scanpath",
     "saccade_speed",
+    "oms_scorecard",
 )
 
 Scalar = int | float | str | bool

@@ -54,8 +54,9 @@ __all__ = ["RunConfig", "RunResult", "run", "run_closed_loop", "video_frame"]
 @dataclass(frozen=True)
 class RunConfig:
     """What ``wander run`` runs: the scene, its length, the seed, the DVS preset and the
-    agent's main switches (the paper's defaults; ``alpha`` is the agent's calibrated sOMS
-    threshold, :data:`agents.attention.AGENT_SOMS_ALPHA`)."""
+    agent's main switches (the paper's defaults; ``alpha`` is the sOMS threshold on the
+    agent's quantile norm, :data:`agents.attention.AGENT_SOMS_ALPHA`; ``soms_norm="minmax"``
+    runs the paper-literal sOMS)."""
 
     scene: str = "office"
     seconds: float = 10.0
@@ -66,6 +67,7 @@ class RunConfig:
     fixational: bool = True
     streamlined: bool = False
     alpha: float = AGENT_SOMS_ALPHA
+    soms_norm: str = "quantile"
 
     def __post_init__(self) -> None:
         if not (isinstance(self.seconds, (int, float)) and math.isfinite(self.seconds)):
@@ -74,13 +76,17 @@ class RunConfig:
             raise ValueError(f"RunConfig.seconds must be > 0, got {self.seconds}")
         if not (isinstance(self.alpha, (int, float)) and 0.0 <= self.alpha <= 1.0):
             raise ValueError(f"RunConfig.alpha must be in [0, 1], got {self.alpha!r}")
+        if self.soms_norm not in ("quantile", "minmax"):
+            raise ValueError(
+                f"RunConfig.soms_norm must be 'quantile' or 'minmax', got {self.soms_norm!r}"
+            )
 
     def agent_params(self, env: Any) -> AgentParams:
         return AgentParams.for_env(
             env,
             window_s=self.window_s,
             fixational=self.fixational,
-            soms=replace(AgentParams().soms, alpha=self.alpha),
+            soms=replace(AgentParams().soms, alpha=self.alpha, norm=self.soms_norm),
             proto=replace(ProtoObjectParams(), polarity_split=not self.streamlined),
         )
 

@@ -46,8 +46,11 @@ def test_params_defaults_and_resolution() -> None:
     p = AgentParams().resolved()
     assert p.window_s == 0.124 and p.window_steps == 13  # ceil(124 / 10)
     assert p.soms.dt == 0.01 and p.soms.tau_mem == 0.02
-    # The agent's calibrated threshold; the component keeps the paper's table value.
-    assert p.soms.alpha == AGENT_SOMS_ALPHA == 0.5 and SOMSParams().alpha == 0.80
+    # The agent's sOMS: the table's α on the quantile norm; the component alone is the
+    # paper-literal min-max sOMS.
+    assert p.soms.alpha == AGENT_SOMS_ALPHA == 0.80 and SOMSParams().alpha == 0.80
+    assert p.soms.norm == "quantile" and SOMSParams().norm == "minmax"
+    assert (p.soms.pool_sigma, p.soms.quantile, p.soms.gain) == (6.0, 0.9, 2.5)
     assert p.proto.dt == pytest.approx(0.13) and p.proto.tau_mem == 0.1
     assert p.fixation.n_steps == 8 and p.fixation.max_step_pos == 60
     assert p.fixation.interval_s == pytest.approx(0.124 / 8)

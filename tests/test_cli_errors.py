@@ -88,7 +88,7 @@ def test_run_with_an_unknown_scene_prints_one_line_and_exits_2():
             ["experiment", "nosuch"],
             "wander experiment: error: unknown experiment 'nosuch'; "
             "available: oms_characterisation, event_suppression, detection, sac_accuracy, "
-            "scanpath, saccade_speed",
+            "scanpath, saccade_speed, oms_scorecard",
         ),
         (
             ["rig", "--ptu", "emulate", "--camera", "davis"],

@@ -121,7 +121,9 @@ def test_scanpath_trial_exports_one_row_per_fixation(tmp_path):
     # 13-step (130 ms) windows: one, a 31° saccade (≈1 s), then a second window.
     assert (row["decisions"], row["fixations"], row["saccades"]) == (2, 2, 1)
     assert row["fixation_duration_mean_s"] == pytest.approx(0.13)
-    assert row["object_hit_rate"] == 1.0 and row["objects_visited"] == 2
+    # the agent's quantile-norm sOMS suppresses much of the still shelf under fixational
+    # motion (eye-only), so one of the two decisions lands on an object
+    assert row["object_hit_rate"] == 0.5 and row["objects_visited"] == 1
     with (tmp_path / "fixations" / "shelf_fixational_seed0.csv").open() as fh:
         table = list(csv.DictReader(fh))
     assert list(table[0]) == list(scanpath.EXPORT_COLUMNS)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -44,6 +46,17 @@ def test_pooled_mean_std_equals_the_statistics_of_the_union():
     assert m == pytest.approx(groups.mean()) and s == pytest.approx(groups.std())
 
 
+def test_the_agent_variant_uses_the_agents_soms():
+    from agents.attention import AgentParams
+    from experiments.event_suppression import soms_params
+
+    p = soms_params(EventSuppressionConfig(soms="agent"))
+    assert p == replace(AgentParams().soms, dt=0.02)
+    assert soms_params(EventSuppressionConfig()).norm == "minmax"
+    with pytest.raises(ValueError, match="soms"):
+        EventSuppressionConfig(soms="other")  # type: ignore[arg-type]
+
+
 def test_config_checks_windows_and_steps():
     with pytest.raises(ValueError, match="whole number of windows"):
         EventSuppressionConfig(soms_step_s=0.003)
@@ -72,6 +85,8 @@ def test_short_trial_counts_events_per_window_and_pauses_are_quiet():
     assert 0 < row["suppressed_pct"] < 100
     assert row["events_in_active_mean"] > row["events_in_pause_mean"]
     assert row["object_events_in"] > 0
+    # three 20 ms sOMS steps; the hand is scored in the two that end in an active phase
+    assert row["hit_steps"] == 2 and 0 <= row["hand_hits"] <= 2
     comps = {c.result: c for c in compare(cfg, [row])}
     assert comps["events suppressed"].paper == "85.16 %"
     assert comps["trials"].ours == "1"

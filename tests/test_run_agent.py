@@ -44,7 +44,8 @@ def test_run_folder_contents(run_dir: Path) -> None:
     run_json = json.loads((run_dir / "run.json").read_text())
     assert run_json["seed"] == 4 and run_json["config"]["scene"] == "office"
     assert run_json["git_revision"] and run_json["agent"]["window_s"] == 0.124
-    assert run_json["config"]["alpha"] == run_json["agent"]["soms"]["alpha"] == 0.5
+    assert run_json["config"]["alpha"] == run_json["agent"]["soms"]["alpha"] == 0.8
+    assert run_json["config"]["soms_norm"] == run_json["agent"]["soms"]["norm"] == "quantile"
     frames = imageio.mimread(run_dir / "run.mp4", memtest=False)
     assert len(frames) == 150 and frames[0].shape == (24 + 2 * 128 + 24, 4 * 2 * 128 + 3 * 4, 3)
     # One decision per window: the first after 13 steps, then after each saccade.
@@ -62,7 +63,9 @@ def test_alpha_is_checked_and_reaches_the_agent() -> None:
     assert result.exit_code == 2 and "--alpha" in result.output
     # The flag's help (written without importing torch) names the agent's default.
     assert RunConfig().alpha == AGENT_SOMS_ALPHA
-    assert f"calibrated {AGENT_SOMS_ALPHA:g};" in AgentAlphaOpt.__metadata__[0].help
+    assert f"table {AGENT_SOMS_ALPHA:g}, on the agent's quantile norm" in (
+        AgentAlphaOpt.__metadata__[0].help
+    )
 
 
 def test_same_seed_same_scanpath(run_dir: Path, tmp_path: Path) -> None:

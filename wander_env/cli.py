@@ -23,6 +23,7 @@ from wander_env.cli_options import (
     RunDirOpt,
     SceneOpt,
     SecondsOpt,
+    SomsNormOpt,
     StreamlinedOpt,
     VideoOpt,
     WindowOpt,
@@ -153,6 +154,7 @@ def run_agent(
     fixational: FixationalOpt = True,
     streamlined: StreamlinedOpt = False,
     alpha: AgentAlphaOpt = None,
+    soms_norm: SomsNormOpt = "quantile",
     video: VideoOpt = True,
     force: ForceOpt = False,
 ) -> None:
@@ -169,6 +171,7 @@ def run_agent(
         window_s=window,
         fixational=fixational,
         streamlined=streamlined,
+        soms_norm=soms_norm,
         **agent_alpha(alpha),
     )
     out = resolve_out(out, "run", force)
@@ -206,6 +209,7 @@ def evaluate(
     streamlined: StreamlinedOpt = False,
     alpha: AgentAlphaOpt = None,
     force: ForceOpt = False,
+    soms_norm: SomsNormOpt = "quantile",
 ) -> None:
     """The agent's quality in simulation: detection accuracy, suppression, foveation error."""
     from experiments.evaluate_agent import evaluate as run_eval
@@ -225,6 +229,7 @@ def evaluate(
         dvs=dvs,
         video=False,
         streamlined=streamlined,
+        soms_norm=soms_norm,
         **agent_alpha(alpha),
     )
     with _progress() as bar:

@@ -33,6 +33,7 @@ __all__ = [
     "RunDirOpt",
     "SceneOpt",
     "SecondsOpt",
+    "SomsNormOpt",
     "StreamlinedOpt",
     "VideoOpt",
     "WindowOpt",
@@ -140,7 +141,17 @@ AgentAlphaOpt = Annotated[
     typer.Option(
         min=0.0,
         max=1.0,
-        help="sOMS threshold α (default: the agent's calibrated 0.5; the paper's table: 0.8).",
+        help="sOMS threshold α (default: the paper's table 0.8, on the agent's quantile norm).",
+    ),
+]
+
+
+SomsNormOpt = Annotated[
+    str,
+    typer.Option(
+        "--soms-norm",
+        callback=one_of(("quantile", "minmax")),
+        help="sOMS norm: quantile (the agent's) or minmax (the paper-literal sOMS).",
     ),
 ]
 
