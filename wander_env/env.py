@@ -47,10 +47,18 @@ import mujoco
 import numpy as np
 
 from wander_env.actions import action_to_gaze_degrees, check_action
+from wander_env.camera import focal_length_px, intrinsics, rotation_from_mujoco
 from wander_env.dvs import DVSEmulator, DVSParams
 from wander_env.events import concatenate, to_frame
-from wander_env.metrics import focal_length_px
-from wander_env.mjcf import PAN_JOINT, TILT_JOINT, SceneAnimator, build_mjcf
+from wander_env.keyframes import KeyframeSource, View, make_keyframe
+from wander_env.mjcf import (
+    CAMERA_NAME,
+    PAN_JOINT,
+    TILT_JOINT,
+    SceneAnimator,
+    build_mjcf,
+    geom_layer_ids,
+)
 from wander_env.ptu import PanTiltUnit, PTUParams
 from wander_env.renderer import CameraRenderer, project_points
 from wander_env.scene_config import SceneConfig, load_scene_config
@@ -77,6 +85,12 @@ class WanderConfig:
     # bigger per-pixel log changes, so more adaptive sub-frames (office: ~1.5x the frames
     # with a still camera) and ~5 % more events. The scenes' default is 4.
     antialias_samples: int | None = None
+    # How the frames between control steps are made: "exact" renders every one (every
+    # render tick and adaptive sub-frame); "keyframes" renders every keyframe_ms and at
+    # each step's end and synthesises the frames in between from the keys' depth and
+    # motion layers (see wander_env.keyframes).
+    frames: str = "exact"
+    keyframe_ms: float = 5.0
 
     def __post_init__(self) -> None:
         for name in (
@@ -100,6 +114,19 @@ class WanderConfig:
             raise ValueError(f"WanderConfig.max_subframes must be >= 1, got {self.max_subframes}")
         if self.dvs_params is None:
             DVSParams.preset(self.dvs)  # raises for an unknown preset name
+        if self.frames not in FRAME_MODES:
+            raise ValueError(
+                f"WanderConfig.frames must be one of {FRAME_MODES}, got {self.frames!r}"
+            )
+        k = self.keyframe_ms
+        if isinstance(k, bool) or not (isinstance(k, (int, float)) and math.isfinite(k) and k > 0):
+            raise ValueError(f"WanderConfig.keyframe_ms must be a finite number > 0, got {k!r}")
+        ticks = k * 1e3 / (1e6 / self.render_rate_hz)
+        if abs(ticks - round(ticks)) > 1e-9 or round(ticks) < 1:
+            raise ValueError(
+                f"WanderConfig.keyframe_ms={k} must be a whole number (>= 1) of render "
+                f"periods (render_rate_hz={self.render_rate_hz})"
+            )
         aa = self.antialias_samples
         if aa is not None and (isinstance(aa, bool) or not isinstance(aa, int) or aa < 0):
             raise ValueError(f"WanderConfig.antialias_samples must be an int >= 0, got {aa!r}")
@@ -111,6 +138,13 @@ class WanderConfig:
     @property
     def tick_us(self) -> int:
         return round(1e6 / self.render_rate_hz)
+
+    @property
+    def keyframe_us(self) -> int:
+        return round(self.keyframe_ms * 1e3)
+
+
+FRAME_MODES = ("keyframes", "exact")
 
 
 class WanderEnv(gym.Env):
@@ -142,6 +176,13 @@ class WanderEnv(gym.Env):
         self.dvs_params = c.dvs_params if c.dvs_params is not None else DVSParams.preset(c.dvs)
         self.dvs = DVSEmulator(self.width, self.height, self.dvs_params)
         self.animator: SceneAnimator | None = None
+        self._cam_id = int(self.model.camera(CAMERA_NAME).id)
+        self._keys: KeyframeSource | None = None
+        if c.frames == "keyframes":
+            fovy = float(self.model.cam_fovy[self._cam_id])
+            self._keys = KeyframeSource(intrinsics(self.width, self.height, fovy))
+            self._layer_lut = geom_layer_ids(self.model)
+        self._key_mask: tuple[int, np.ndarray] | None = None  # (t_us, object mask) of a key
 
         lo_pan, hi_pan = c.ptu.pan_limits_deg
         lo_tilt, hi_tilt = c.ptu.tilt_limits_deg
@@ -194,12 +235,58 @@ class WanderEnv(gym.Env):
     def _render(self) -> np.ndarray:
         return self.renderer.render(self.data)
 
+    # -- keyframes ----------------------------------------------------------------------
+    def _view(self, t_us: int) -> View:
+        """The camera pose (posed model) and motion layers at ``t_us``."""
+        return View(
+            rotation_from_mujoco(self.data.cam_xmat[self._cam_id]),
+            self.data.cam_xpos[self._cam_id].copy(),
+            self.animator.layer_positions(t_us * 1e-6),
+        )
+
+    def _render_key(self, t_us: int) -> None:
+        """Render a keyframe of the posed model at ``t_us`` (RGB, layers, depth)."""
+        rgb = self.renderer.render(self.data)
+        layers, depth = self.renderer.segment_depth_current(self._layer_lut)
+        lum = self.dvs.prepare(rgb).lum.reshape(self.height, self.width)
+        self._keys.add(make_keyframe(t_us, lum, depth, layers, self._view(t_us)))
+        mask = np.where(layers <= self.scene.num_objects, layers, 0).astype(np.int32)
+        self._key_mask = (t_us, mask)
+        self._frame = rgb
+
+    def _render_keys(self, t0: int, t1: int) -> None:
+        """Keys of the step (t0, t1]: every keyframe_us and at t1, with the PTU moved
+        along the same ticks as the step will move it (so the poses are the step's)."""
+        c = self.config
+        saved = self.ptu
+        self.ptu = saved.copy()
+        try:
+            t = t0
+            while t < t1:
+                t_next = t + c.tick_us
+                self.ptu.step((t_next - t) * 1e-6)
+                t = t_next
+                if t == t1 or t % c.keyframe_us == 0:
+                    self._pose(t)
+                    self._render_key(t)
+        finally:
+            self.ptu = saved
+
+    def _frame_at(self, t_us: int) -> np.ndarray:
+        """The camera frame of the posed model at ``t_us``: rendered (exact) or from keys."""
+        if self._keys is None:
+            return self._render()
+        key = self._keys.key_at(t_us)
+        if key is not None:
+            return key.lum
+        return self._keys.frame(t_us, self._view(t_us))
+
     def _tick(self, t0: int, t1: int) -> tuple[list[np.ndarray], int]:
         """Advance one render period; returns its event chunks and the frames rendered."""
         before = self.ptu.copy()
         self.ptu.step((t1 - t0) * 1e-6)
         self._pose(t1)
-        frame = self._render()
+        frame = self._frame_at(t1)
         prepared = self.dvs.prepare(frame)  # converted once: for the change and the step
         change = self.dvs.log_change(prepared)
         m = 1
@@ -214,11 +301,12 @@ class WanderEnv(gym.Env):
                 self.ptu.step((tj - t_prev) * 1e-6)
                 t_prev = tj
                 self._pose(tj)
-                chunks.append(self.dvs.step(self._render(), tj))
+                chunks.append(self.dvs.step(self._frame_at(tj), tj))
             self.ptu = after
             self._pose(t1)
         chunks.append(self.dvs.step(prepared, t1))
-        self._frame = frame
+        if self._keys is None:
+            self._frame = frame
         return chunks, m
 
     # -- gymnasium API -----------------------------------------------------------------
@@ -234,8 +322,14 @@ class WanderEnv(gym.Env):
         self.ptu.reset(*self.ptu.clip_target(pan, tilt))
         self._t_us = 0
         self._pose(0)
-        self._frame = self._render()
-        self.dvs.reset(self._frame, 0, seed=int(rng.integers(2**63)))
+        if self._keys is None:
+            self._frame = self._render()
+            first = self._frame
+        else:
+            self._keys.reset()
+            self._render_key(0)
+            first = self._keys.keys[0].lum
+        self.dvs.reset(first, 0, seed=int(rng.integers(2**63)))
         self._last_counts = np.zeros((2, self.height, self.width), np.float32)
         empty = self.dvs.flush()
         obs = {"events": self._last_counts.copy(), "gaze": self._gaze()}
@@ -250,6 +344,8 @@ class WanderEnv(gym.Env):
         c = self.config
         chunks: list[np.ndarray] = []
         frames = 0
+        if self._keys is not None:
+            self._render_keys(self._t_us, self._t_us + c.ticks_per_step * c.tick_us)
         for _ in range(c.ticks_per_step):
             t1 = self._t_us + c.tick_us
             tick_chunks, m = self._tick(self._t_us, t1)
@@ -293,7 +389,12 @@ class WanderEnv(gym.Env):
             "extra_frames": extra,
         }
         if self.config.ground_truth:
-            mask = self.renderer.segment(self.data)
+            km = self._key_mask
+            mask = (
+                km[1]
+                if km is not None and km[0] == self._t_us
+                else self.renderer.segment(self.data)
+            )
             info["object_mask"] = mask
             info["objects"] = self._objects(mask)
         return info

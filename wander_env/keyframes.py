@@ -1,0 +1,296 @@
+"""In-between camera frames made from two rendered keyframes and the scene's geometry.
+
+A :class:`Keyframe` is a rendered frame (linear luminance) with its depth, its motion
+layers (0 = the static world, k = a rigidly moving layer: object k, or a sliding
+gratings screen, see :func:`wander_env.mjcf.geom_layer_ids`) and the :class:`View` it
+was rendered from (camera rotation and centre, each layer's position).
+:func:`synthesize` makes the frame of a view at a time between two keys:
+
+1. **Static geometry, camera rotating about its centre**: each key is warped with the
+   exact rotation homography ``K R K⁻¹`` (:func:`wander_env.camera.rotation_homography`,
+   OpenCV's ``warpPerspective``) and the two are blended with time weights, each
+   weighted by how much of the pixel it sees (pixels entering the view come from the
+   key that has them).
+2. **Where something moves relative to the camera** (a moving layer, or the whole
+   image when the camera centre moves: a camera offset from the tilt hinge makes
+   parallax), every target pixel is looked up per key and per layer by reprojection
+   with the key's depth (:func:`wander_env.camera.source_pixels`, a fixed-point
+   iteration on the source depth); a candidate counts only if the source pixel belongs
+   to that layer. Per key the nearest candidate wins (depth test); between the keys
+   the nearer wins where their depths disagree (occlusion, disocclusion: a pixel is
+   filled from the key that sees it) and the time-weighted blend is taken where they
+   agree.
+
+:class:`KeyframeSource` keeps the keys of a stream and answers frames by time.
+
+Example:
+    >>> import numpy as np
+    >>> from wander_env.camera import intrinsics
+    >>> k = intrinsics(8, 8, 90.0)
+    >>> view = View(np.eye(3), np.zeros(3), np.zeros((1, 3)))
+    >>> lum = np.linspace(0.1, 0.9, 64, dtype=np.float32).reshape(8, 8)
+    >>> a = make_keyframe(0, lum, np.full((8, 8), 2.0), np.zeros((8, 8), np.int32), view)
+    >>> b = make_keyframe(10, lum * 2, np.full((8, 8), 2.0), np.zeros((8, 8), np.int32), view)
+    >>> mid = synthesize(a, b, view, 0.25, k)
+    >>> bool(np.allclose(mid, lum * 1.25))
+    True
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from wander_env.camera import relative_pose, source_pixels
+
+__all__ = ["Keyframe", "KeyframeSource", "View", "make_keyframe", "synthesize"]
+
+# A moving layer's pixels are searched in the bounding box of its key pixels, mapped to
+# the target view and padded by its largest displacement plus this many pixels.
+_PAD_PX = 3
+# Fixed-point iterations on the source depth (moving layers, parallax).
+_ITERATIONS = 3
+
+
+@dataclass(frozen=True)
+class View:
+    """A camera pose and the motion layers' positions at one time.
+
+    ``rotation``: world-from-camera (OpenCV axes: x right, y down, z forward);
+    ``centre``: the camera centre (m); ``layer_positions`` (L, 3): each layer's
+    position (m; row 0, the static world, is zero).
+    """
+
+    rotation: np.ndarray
+    centre: np.ndarray
+    layer_positions: np.ndarray
+
+
+@dataclass(frozen=True)
+class Keyframe:
+    """A rendered frame, its geometry and its view (build with :func:`make_keyframe`)."""
+
+    t_us: int
+    lum: np.ndarray  # (H, W) float32 linear luminance
+    inv_depth: np.ndarray  # (H, W) float64, 1 / depth along the optical axis (1/m)
+    layers: np.ndarray  # (H, W) int32 motion layer of each pixel
+    view: View
+    moving: tuple[int, ...]  # moving layers (ids > 0) present
+    static: bool  # whether layer 0 is present
+    box: tuple[int, int, int, int] | None  # (y0, y1, x0, x1) of the moving layers' pixels
+    layer_inv_depth: dict[int, tuple[float, float]]  # layer -> (median, max) inverse depth
+    lum1: np.ndarray  # (H, W, 2) float32: luminance and ones (coverage), for warping
+
+
+def make_keyframe(
+    t_us: int, lum: np.ndarray, depth_m: np.ndarray, layers: np.ndarray, view: View
+) -> Keyframe:
+    """A :class:`Keyframe` from a frame's luminance, depth (m) and layer ids."""
+    lum = np.ascontiguousarray(lum, dtype=np.float32)
+    if lum.ndim != 2 or depth_m.shape != lum.shape or layers.shape != lum.shape:
+        raise ValueError(
+            f"lum, depth and layers must be equal 2-D shapes, got {lum.shape}, "
+            f"{depth_m.shape}, {layers.shape}"
+        )
+    depth = np.asarray(depth_m, dtype=np.float64)
+    if not (np.isfinite(depth).all() and depth.min() > 0):
+        raise ValueError("depth must be finite and > 0")
+    inv = 1.0 / depth
+    layers = np.asarray(layers, dtype=np.int32)
+    present = np.unique(layers)
+    moving = tuple(int(v) for v in present if v > 0)
+    box = None
+    per_layer: dict[int, tuple[float, float]] = {}
+    if moving:
+        ys, xs = np.nonzero(layers)
+        box = (int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1)
+    for v in present:
+        r = inv[layers == v]
+        per_layer[int(v)] = (float(np.median(r)), float(r.max()))
+    return Keyframe(
+        t_us=int(t_us),
+        lum=lum,
+        inv_depth=inv,
+        layers=layers,
+        view=view,
+        moving=moving,
+        static=bool(present[0] == 0),
+        box=box,
+        layer_inv_depth=per_layer,
+        lum1=np.dstack([lum, np.ones_like(lum)]),
+    )
+
+
+def _warp_static(key: Keyframe, view: View, k: np.ndarray) -> np.ndarray:
+    """The key warped to ``view`` by the rotation homography: (H, W, 2) luminance x
+    coverage and coverage (1 where the key sees the pixel, 0 outside its view)."""
+    r_rel = view.rotation.T @ key.view.rotation
+    if np.array_equal(r_rel, np.eye(3)) or np.abs(r_rel - np.eye(3)).max() < 1e-12:
+        return key.lum1
+    h, w = key.lum.shape
+    hom = k @ r_rel @ np.linalg.inv(k)
+    return cv2.warpPerspective(
+        key.lum1, hom, (w, h), flags=cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT
+    )
+
+
+def _layer_translation(key: Keyframe, view: View, layer: int) -> tuple[np.ndarray, np.ndarray]:
+    """(target-from-key rotation, translation in target camera coordinates) of a layer."""
+    r_rel, t_rel = relative_pose(key.view.rotation, key.view.centre, view.rotation, view.centre)
+    shift = view.layer_positions[layer] - key.view.layer_positions[layer]
+    return r_rel, t_rel + view.rotation.T @ shift
+
+
+def _candidates(
+    key: Keyframe, view: View, k: np.ndarray, qx: np.ndarray, qy: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per target pixel (qx, qy): (luminance, inverse depth in the target view) of the
+    nearest layer of ``key`` that maps there; inverse depth -1 where none does."""
+    h, w = key.lum.shape
+    kinv = np.linalg.inv(k)
+    r_rel, _ = _layer_translation(key, view, 0)
+    q = np.stack([qx, qy, np.ones_like(qx)], axis=1)
+    a = q @ (k @ r_rel.T @ kinv).T
+    best_v = np.zeros(len(qx), np.float32)
+    best_r = np.full(len(qx), -1.0)
+    layers = ((0,) if key.static else ()) + key.moving
+    for layer in layers:
+        _, t_l = _layer_translation(key, view, layer)
+        b = k @ r_rel.T @ t_l
+        rho = np.full(len(qx), key.layer_inv_depth[layer][0])
+        for _ in range(_ITERATIONS if np.any(b) else 1):
+            p, lam = source_pixels(a, b, rho)
+            ix = np.clip(np.rint(p[:, 0]), 0, w - 1).astype(np.intp)
+            iy = np.clip(np.rint(p[:, 1]), 0, h - 1).astype(np.intp)
+            same = key.layers[iy, ix] == layer
+            rho = np.where(same, key.inv_depth[iy, ix], rho)
+        p, lam = source_pixels(a, b, rho)
+        px, py = p[:, 0], p[:, 1]
+        inside = (px > -0.5) & (px < w - 0.5) & (py > -0.5) & (py < h - 0.5)
+        ix = np.clip(np.rint(px), 0, w - 1).astype(np.intp)
+        iy = np.clip(np.rint(py), 0, h - 1).astype(np.intp)
+        # The source pixel is this layer's and its depth is the one assumed (converged).
+        err_px = np.abs(key.inv_depth[iy, ix] - rho) * np.hypot(b[0], b[1])
+        valid = inside & (key.layers[iy, ix] == layer) & (err_px < 0.5)
+        rho_t = rho / lam
+        better = valid & (rho_t > best_r)
+        best_v[better] = key.lum[iy[better], ix[better]]
+        best_r[better] = rho_t[better]
+    return best_v, best_r
+
+
+def _moving_region(
+    a: Keyframe, b: Keyframe, view: View, k: np.ndarray
+) -> tuple[int, int, int, int] | None:
+    """The target pixels (y0, y1, x0, x1) that moving layers (or parallax) can touch."""
+    h, w = a.lum.shape
+    for key in (a, b):
+        if key.static and np.any(_layer_translation(key, view, 0)[1]):
+            return (0, h, 0, w)  # the camera centre moved: parallax everywhere
+    y0, y1, x0, x1 = h, 0, w, 0
+    for key in (a, b):
+        if key.box is None:
+            continue
+        r_rel, _ = _layer_translation(key, view, 0)
+        ky0, ky1, kx0, kx1 = key.box
+        corners = np.array([[kx0, ky0, 1], [kx1, ky0, 1], [kx0, ky1, 1], [kx1, ky1, 1]], float)
+        m = corners @ (k @ r_rel @ np.linalg.inv(k)).T
+        uv = m[:, :2] / m[:, 2:]
+        disp = 0.0
+        for layer in key.moving:
+            t_l = _layer_translation(key, view, layer)[1]
+            # |Δq| <= f·|t|·ρ·(1 + r²/f²) at image radius r; bounded at the corner
+            disp = max(disp, k[0, 0] * np.linalg.norm(t_l) * key.layer_inv_depth[layer][1] * 4)
+        pad = _PAD_PX + disp
+        y0 = min(y0, int(np.floor(uv[:, 1].min() - pad)))
+        y1 = max(y1, int(np.ceil(uv[:, 1].max() + pad)) + 1)
+        x0 = min(x0, int(np.floor(uv[:, 0].min() - pad)))
+        x1 = max(x1, int(np.ceil(uv[:, 0].max() + pad)) + 1)
+    y0, y1, x0, x1 = max(y0, 0), min(y1, h), max(x0, 0), min(x1, w)
+    if y0 >= y1 or x0 >= x1:
+        return None
+    return (y0, y1, x0, x1)
+
+
+def synthesize(a: Keyframe, b: Keyframe, view: View, w: float, k: np.ndarray) -> np.ndarray:
+    """The frame (H, W) float32 linear luminance of ``view`` at the time fraction ``w``
+    (0 at key ``a``, 1 at key ``b``) between two keys; ``k`` the camera intrinsics."""
+    if not 0.0 <= w <= 1.0:
+        raise ValueError(f"time fraction w must be in [0, 1], got {w!r}")
+    wa, wb = np.float32(1.0 - w), np.float32(w)
+    ma, mb = _warp_static(a, view, k), _warp_static(b, view, k)
+    num = wa * ma[..., 0] + wb * mb[..., 0]
+    den = wa * ma[..., 1] + wb * mb[..., 1]
+    seen = den > 1e-6
+    out = np.divide(num, den, out=np.zeros_like(num), where=seen)
+    if not seen.all():  # seen by neither key: the nearer key's edge pixels
+        near = a if w <= 0.5 else b
+        r_rel = view.rotation.T @ near.view.rotation
+        h, wd = a.lum.shape
+        edge = cv2.warpPerspective(
+            near.lum,
+            k @ r_rel @ np.linalg.inv(k),
+            (wd, h),
+            flags=cv2.INTER_NEAREST,
+            borderMode=cv2.BORDER_REPLICATE,
+        )
+        out[~seen] = edge[~seen]
+    region = _moving_region(a, b, view, k)
+    if region is None:
+        return out
+    y0, y1, x0, x1 = region
+    gy, gx = np.mgrid[y0:y1, x0:x1]
+    qx, qy = gx.reshape(-1).astype(np.float64), gy.reshape(-1).astype(np.float64)
+    va, ra = _candidates(a, view, k, qx, qy)
+    vb, rb = _candidates(b, view, k, qx, qy)
+    ca, cb = wa * (ra > 0), wb * (rb > 0)
+    den = ca + cb
+    patch = out[y0:y1, x0:x1].reshape(-1).copy()
+    seen = den > 0
+    patch[seen] = (ca * va + cb * vb)[seen] / den[seen]
+    out[y0:y1, x0:x1] = patch.reshape(y1 - y0, x1 - x0)
+    return out
+
+
+class KeyframeSource:
+    """The keys of one stream and the frames between them (see the module docstring).
+
+    ``add`` keys in time order; :meth:`frame` returns a key's own luminance at its
+    time and a synthesised frame between two keys. Keys older than the newest key at
+    or before the last frame asked for are dropped.
+    """
+
+    def __init__(self, intrinsics: np.ndarray) -> None:
+        self.k = np.asarray(intrinsics, dtype=np.float64)
+        self.keys: list[Keyframe] = []
+
+    def reset(self) -> None:
+        self.keys = []
+
+    def add(self, key: Keyframe) -> None:
+        if self.keys and key.t_us <= self.keys[-1].t_us:
+            raise ValueError(f"keys must come in time order: {key.t_us} <= {self.keys[-1].t_us}")
+        self.keys.append(key)
+
+    def key_at(self, t_us: int) -> Keyframe | None:
+        """The key rendered at ``t_us``, if any."""
+        for key in self.keys:
+            if key.t_us == t_us:
+                return key
+        return None
+
+    def frame(self, t_us: int, view: View) -> np.ndarray:
+        """Luminance (H, W) float32 at ``t_us`` from ``view`` (a key's or synthesised)."""
+        keys = self.keys
+        i = next((j for j, key in enumerate(keys) if key.t_us >= t_us), None)
+        if i is None or (keys[i].t_us > t_us and i == 0):
+            span = (keys[0].t_us, keys[-1].t_us) if keys else None
+            raise ValueError(f"t_us={t_us} is not between two keys (keys span {span})")
+        del keys[: max(i - 1, 0)]
+        i = min(i, 1)
+        if keys[i].t_us == t_us:
+            return keys[i].lum
+        a, b = keys[i - 1], keys[i]
+        return synthesize(a, b, view, (t_us - a.t_us) / (b.t_us - a.t_us), self.k)
