@@ -50,6 +50,9 @@ __all__ = ["Keyframe", "KeyframeSource", "View", "make_keyframe", "synthesize"]
 # A moving layer's pixels are searched in the bounding box of its key pixels, mapped to
 # the target view and padded by its largest displacement plus this many pixels.
 _PAD_PX = 3
+# Below this flow bound (px) from both keys, each pixel's nearest source is itself and
+# the frame is the keys' time-weighted blend.
+SUBPIXEL_PX = 0.45
 # Fixed-point iterations on the source depth (moving layers, parallax).
 _ITERATIONS = 3
 
@@ -79,7 +82,7 @@ class Keyframe:
     view: View
     moving: tuple[int, ...]  # moving layers (ids > 0) present
     static: bool  # whether layer 0 is present
-    box: tuple[int, int, int, int] | None  # (y0, y1, x0, x1) of the moving layers' pixels
+    layer_boxes: dict[int, tuple[int, int, int, int]]  # moving layer -> (y0, y1, x0, x1)
     layer_inv_depth: dict[int, tuple[float, float]]  # layer -> (median, max) inverse depth
     lum1: np.ndarray  # (H, W, 2) float32: luminance and ones (coverage), for warping
 
@@ -101,14 +104,15 @@ def make_keyframe(
     layers = np.asarray(layers, dtype=np.int32)
     present = np.unique(layers)
     moving = tuple(int(v) for v in present if v > 0)
-    box = None
+    boxes: dict[int, tuple[int, int, int, int]] = {}
     per_layer: dict[int, tuple[float, float]] = {}
-    if moving:
-        ys, xs = np.nonzero(layers)
-        box = (int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1)
     for v in present:
-        r = inv[layers == v]
+        inside = layers == v
+        r = inv[inside]
         per_layer[int(v)] = (float(np.median(r)), float(r.max()))
+        if v > 0:
+            ys, xs = np.nonzero(inside)
+            boxes[int(v)] = (int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1)
     return Keyframe(
         t_us=int(t_us),
         lum=lum,
@@ -117,7 +121,7 @@ def make_keyframe(
         view=view,
         moving=moving,
         static=bool(present[0] == 0),
-        box=box,
+        layer_boxes=boxes,
         layer_inv_depth=per_layer,
         lum1=np.dstack([lum, np.ones_like(lum)]),
     )
@@ -143,42 +147,104 @@ def _layer_translation(key: Keyframe, view: View, layer: int) -> tuple[np.ndarra
     return r_rel, t_rel + view.rotation.T @ shift
 
 
+def _target_box(key: Keyframe, view: View, k: np.ndarray, layer: int) -> tuple[int, int, int, int]:
+    """Target pixels (y0, y1, x0, x1) a moving layer of ``key`` can reach in ``view``:
+    its key pixels' box mapped by the rotation, padded by its displacement bound."""
+    r_rel, t_l = _layer_translation(key, view, layer)
+    ky0, ky1, kx0, kx1 = key.layer_boxes[layer]
+    corners = np.array([[kx0, ky0, 1], [kx1, ky0, 1], [kx0, ky1, 1], [kx1, ky1, 1]], float)
+    m = corners @ (k @ r_rel @ np.linalg.inv(k)).T
+    uv = m[:, :2] / m[:, 2:]
+    # |Δq| <= f·ρ·(|t_xy| + |t_z|·r/f) at image radius r (<= 1.5 f here): bounded by 4 f ρ |t|
+    pad = _PAD_PX + 4.0 * k[0, 0] * float(np.linalg.norm(t_l)) * key.layer_inv_depth[layer][1]
+    return (
+        int(np.floor(uv[:, 1].min() - pad)),
+        int(np.ceil(uv[:, 1].max() + pad)) + 1,
+        int(np.floor(uv[:, 0].min() - pad)),
+        int(np.ceil(uv[:, 0].max() + pad)) + 1,
+    )
+
+
 def _candidates(
-    key: Keyframe, view: View, k: np.ndarray, qx: np.ndarray, qy: np.ndarray
+    key: Keyframe, view: View, k: np.ndarray, region: tuple[int, int, int, int]
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Per target pixel (qx, qy): (luminance, inverse depth in the target view) of the
-    nearest layer of ``key`` that maps there; inverse depth -1 where none does."""
+    """Per target pixel of ``region`` (flattened, row-major): (luminance, inverse depth in
+    the target view) of the nearest layer of ``key`` that maps there; inverse depth -1
+    where none does."""
     h, w = key.lum.shape
-    kinv = np.linalg.inv(k)
+    y0, y1, x0, x1 = region
+    gy, gx = np.mgrid[y0:y1, x0:x1]
+    qx, qy = gx.reshape(-1), gy.reshape(-1)
     r_rel, _ = _layer_translation(key, view, 0)
-    q = np.stack([qx, qy, np.ones_like(qx)], axis=1)
-    a = q @ (k @ r_rel.T @ kinv).T
+    hinv = k @ r_rel.T @ np.linalg.inv(k)
     best_v = np.zeros(len(qx), np.float32)
     best_r = np.full(len(qx), -1.0)
     layers = ((0,) if key.static else ()) + key.moving
     for layer in layers:
         _, t_l = _layer_translation(key, view, layer)
         b = k @ r_rel.T @ t_l
-        rho = np.full(len(qx), key.layer_inv_depth[layer][0])
-        for _ in range(_ITERATIONS if np.any(b) else 1):
+        if layer == 0:
+            sel = slice(None)
+        else:
+            by0, by1, bx0, bx1 = _target_box(key, view, k, layer)
+            sel = np.flatnonzero((qx >= bx0) & (qx < bx1) & (qy >= by0) & (qy < by1))
+            if not len(sel):
+                continue
+        sx, sy = qx[sel], qy[sel]
+        a = np.stack([sx, sy, np.ones(len(sx))], axis=1) @ hinv.T
+        rho = np.full(len(sx), key.layer_inv_depth[layer][0])
+        moving = bool(np.any(b))
+        for _ in range(_ITERATIONS if moving else 0):
             p, lam = source_pixels(a, b, rho)
             ix = np.clip(np.rint(p[:, 0]), 0, w - 1).astype(np.intp)
             iy = np.clip(np.rint(p[:, 1]), 0, h - 1).astype(np.intp)
-            same = key.layers[iy, ix] == layer
-            rho = np.where(same, key.inv_depth[iy, ix], rho)
+            rho = np.where(key.layers[iy, ix] == layer, key.inv_depth[iy, ix], rho)
         p, lam = source_pixels(a, b, rho)
         px, py = p[:, 0], p[:, 1]
         inside = (px > -0.5) & (px < w - 0.5) & (py > -0.5) & (py < h - 0.5)
         ix = np.clip(np.rint(px), 0, w - 1).astype(np.intp)
         iy = np.clip(np.rint(py), 0, h - 1).astype(np.intp)
-        # The source pixel is this layer's and its depth is the one assumed (converged).
-        err_px = np.abs(key.inv_depth[iy, ix] - rho) * np.hypot(b[0], b[1])
+        src_rho = key.inv_depth[iy, ix]
+        if not moving:
+            rho = src_rho
+        # The source pixel is this layer's and its depth the one assumed (converged).
+        err_px = np.abs(src_rho - rho) * np.hypot(b[0], b[1])
         valid = inside & (key.layers[iy, ix] == layer) & (err_px < 0.5)
         rho_t = rho / lam
-        better = valid & (rho_t > best_r)
-        best_v[better] = key.lum[iy[better], ix[better]]
-        best_r[better] = rho_t[better]
+        cur_r = best_r[sel]
+        better = valid & (rho_t > cur_r)
+        cur_v = best_v[sel]
+        cur_v[better] = key.lum[iy[better], ix[better]]
+        cur_r[better] = rho_t[better]
+        best_v[sel], best_r[sel] = cur_v, cur_r
     return best_v, best_r
+
+
+def max_flow_px(key: Keyframe, view: View, k: np.ndarray) -> float:
+    """An upper bound (px) on how far any pixel's content moves from ``key`` to ``view``.
+
+    The rotation's part is measured at the image's corners and edge midpoints (where a
+    small rotation's flow is largest); a translating layer adds at most
+    ``f·ρ_max·(|t_xy| + |t_z|·r_max/f)`` (``r_max`` the corner radius); both times 1.25.
+    """
+    h, w = key.lum.shape
+    r_rel, t_rel = relative_pose(key.view.rotation, key.view.centre, view.rotation, view.centre)
+    pts = np.array([[x, y, 1.0] for x in (0, (w - 1) / 2, w - 1) for y in (0, (h - 1) / 2, h - 1)])
+    m = pts @ (k @ r_rel @ np.linalg.inv(k)).T
+    flow = float(np.abs(m[:, :2] / m[:, 2:] - pts[:, :2]).max(initial=0.0))
+    f = float(k[0, 0])
+    r_max = float(np.hypot(w, h)) / 2 + 1.0
+    layers = ((0,) if key.static else ()) + key.moving
+    extra = 0.0
+    for layer in layers:
+        t_l = t_rel + view.rotation.T @ (
+            view.layer_positions[layer] - key.view.layer_positions[layer]
+        )
+        if not np.any(t_l):
+            continue
+        rho = key.layer_inv_depth[layer][1]
+        extra = max(extra, f * rho * (np.hypot(t_l[0], t_l[1]) + abs(t_l[2]) * r_max / f))
+    return 1.25 * (flow + extra)
 
 
 def _moving_region(
@@ -191,23 +257,9 @@ def _moving_region(
             return (0, h, 0, w)  # the camera centre moved: parallax everywhere
     y0, y1, x0, x1 = h, 0, w, 0
     for key in (a, b):
-        if key.box is None:
-            continue
-        r_rel, _ = _layer_translation(key, view, 0)
-        ky0, ky1, kx0, kx1 = key.box
-        corners = np.array([[kx0, ky0, 1], [kx1, ky0, 1], [kx0, ky1, 1], [kx1, ky1, 1]], float)
-        m = corners @ (k @ r_rel @ np.linalg.inv(k)).T
-        uv = m[:, :2] / m[:, 2:]
-        disp = 0.0
         for layer in key.moving:
-            t_l = _layer_translation(key, view, layer)[1]
-            # |Δq| <= f·|t|·ρ·(1 + r²/f²) at image radius r; bounded at the corner
-            disp = max(disp, k[0, 0] * np.linalg.norm(t_l) * key.layer_inv_depth[layer][1] * 4)
-        pad = _PAD_PX + disp
-        y0 = min(y0, int(np.floor(uv[:, 1].min() - pad)))
-        y1 = max(y1, int(np.ceil(uv[:, 1].max() + pad)) + 1)
-        x0 = min(x0, int(np.floor(uv[:, 0].min() - pad)))
-        x1 = max(x1, int(np.ceil(uv[:, 0].max() + pad)) + 1)
+            by0, by1, bx0, bx1 = _target_box(key, view, k, layer)
+            y0, y1, x0, x1 = min(y0, by0), max(y1, by1), min(x0, bx0), max(x1, bx1)
     y0, y1, x0, x1 = max(y0, 0), min(y1, h), max(x0, 0), min(x1, w)
     if y0 >= y1 or x0 >= x1:
         return None
@@ -220,6 +272,9 @@ def synthesize(a: Keyframe, b: Keyframe, view: View, w: float, k: np.ndarray) ->
     if not 0.0 <= w <= 1.0:
         raise ValueError(f"time fraction w must be in [0, 1], got {w!r}")
     wa, wb = np.float32(1.0 - w), np.float32(w)
+    if max_flow_px(a, view, k) < SUBPIXEL_PX and max_flow_px(b, view, k) < SUBPIXEL_PX:
+        # Nothing moves by half a pixel: every pixel's nearest source is itself.
+        return wa * a.lum + wb * b.lum
     ma, mb = _warp_static(a, view, k), _warp_static(b, view, k)
     num = wa * ma[..., 0] + wb * mb[..., 0]
     den = wa * ma[..., 1] + wb * mb[..., 1]
@@ -241,10 +296,8 @@ def synthesize(a: Keyframe, b: Keyframe, view: View, w: float, k: np.ndarray) ->
     if region is None:
         return out
     y0, y1, x0, x1 = region
-    gy, gx = np.mgrid[y0:y1, x0:x1]
-    qx, qy = gx.reshape(-1).astype(np.float64), gy.reshape(-1).astype(np.float64)
-    va, ra = _candidates(a, view, k, qx, qy)
-    vb, rb = _candidates(b, view, k, qx, qy)
+    va, ra = _candidates(a, view, k, region)
+    vb, rb = _candidates(b, view, k, region)
     ca, cb = wa * (ra > 0), wb * (rb > 0)
     den = ca + cb
     patch = out[y0:y1, x0:x1].reshape(-1).copy()
