@@ -27,6 +27,7 @@ import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
 from agents.fixation import FixationalMovements, FixationParams
+from wander_env.env import WanderConfig
 from wander_env.event_io import EventRecording, write_events
 from wander_env.events import concatenate
 from wander_env.runinfo import run_record, write_json
@@ -43,6 +44,8 @@ class RecordConfig:
     seed: int = 0
     saccade_interval_s: float = 0.5
     video: bool = True
+    frames: str = WanderConfig.frames  # the env's frame source (keyframes or exact)
+    keyframe_ms: float = WanderConfig.keyframe_ms
 
     def __post_init__(self) -> None:
         if self.policy not in POLICIES:
@@ -89,6 +92,8 @@ def record(
         dvs=config.dvs,
         render_mode="rgb_array" if config.video else None,
         episode_seconds=config.seconds,
+        frames=config.frames,
+        keyframe_ms=config.keyframe_ms,
     )
     base = env.unwrapped
     dt = base.config.control_period_s

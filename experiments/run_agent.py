@@ -38,6 +38,7 @@ from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent, Phas
 from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
 from experiments.scanpath_figure import pixel_to_angles, plot_scanpath
+from wander_env.env import WanderConfig
 from wander_env.event_io import EventRecording, write_events
 from wander_env.events import concatenate
 from wander_env.metrics import degrees_to_pixels, detection_hit, focal_length_px
@@ -62,6 +63,8 @@ class RunConfig:
     fixational: bool = True
     streamlined: bool = False
     alpha: float = AGENT_SOMS_ALPHA
+    frames: str = WanderConfig.frames  # the env's frame source (keyframes or exact)
+    keyframe_ms: float = WanderConfig.keyframe_ms
 
     def __post_init__(self) -> None:
         if not (isinstance(self.seconds, (int, float)) and math.isfinite(self.seconds)):
@@ -383,6 +386,8 @@ def run(
         scene=config.scene,
         dvs=config.dvs,
         episode_seconds=config.seconds,
+        frames=config.frames,
+        keyframe_ms=config.keyframe_ms,
     )
     agent = AttentionAgent(config.agent_params(env), seed=config.seed)
     record = run_record("wander run", asdict(config), config.seed)

@@ -60,7 +60,7 @@ from wander_env.mjcf import (
     geom_layer_ids,
 )
 from wander_env.ptu import PanTiltUnit, PTUParams
-from wander_env.renderer import CameraRenderer, project_points
+from wander_env.renderer import CameraRenderer, RenderParams, project_points
 from wander_env.scene_config import SceneConfig, load_scene_config
 from wander_env.viz import event_image, upscale
 
@@ -90,7 +90,10 @@ class WanderConfig:
     # each step's end and synthesises the frames in between from the keys' depth and
     # motion layers (see wander_env.keyframes).
     frames: str = "exact"
-    keyframe_ms: float = 5.0
+    keyframe_ms: float = 2.0
+    # Render at this many times the resolution and average blocks (see RenderParams): the
+    # finer-antialiased reference of the fidelity benchmark (2 = 16 samples a pixel).
+    supersample: int = 1
 
     def __post_init__(self) -> None:
         for name in (
@@ -127,6 +130,9 @@ class WanderConfig:
                 f"WanderConfig.keyframe_ms={k} must be a whole number (>= 1) of render "
                 f"periods (render_rate_hz={self.render_rate_hz})"
             )
+        ss = self.supersample
+        if isinstance(ss, bool) or not isinstance(ss, int) or ss < 1:
+            raise ValueError(f"WanderConfig.supersample must be an int >= 1, got {ss!r}")
         aa = self.antialias_samples
         if aa is not None and (isinstance(aa, bool) or not isinstance(aa, int) or aa < 0):
             raise ValueError(f"WanderConfig.antialias_samples must be an int >= 0, got {aa!r}")
@@ -171,7 +177,9 @@ class WanderEnv(gym.Env):
         self.data = mujoco.MjData(self.model)
         self._pan_adr = int(self.model.joint(PAN_JOINT).qposadr[0])
         self._tilt_adr = int(self.model.joint(TILT_JOINT).qposadr[0])
-        self.renderer = CameraRenderer(self.model, self.width, self.height)
+        self.renderer = CameraRenderer(
+            self.model, self.width, self.height, params=RenderParams(supersample=c.supersample)
+        )
         self.ptu = PanTiltUnit(c.ptu)
         self.dvs_params = c.dvs_params if c.dvs_params is not None else DVSParams.preset(c.dvs)
         self.dvs = DVSEmulator(self.width, self.height, self.dvs_params)
@@ -180,9 +188,14 @@ class WanderEnv(gym.Env):
         self._keys: KeyframeSource | None = None
         if c.frames == "keyframes":
             fovy = float(self.model.cam_fovy[self._cam_id])
-            self._keys = KeyframeSource(intrinsics(self.width, self.height, fovy))
             self._layer_lut = geom_layer_ids(self.model)
+            self._keys = KeyframeSource(
+                intrinsics(self.width, self.height, fovy), self._layer_radii(), self._key_geometry
+            )
+        self._key_angles: dict[int, tuple[float, float]] = {}  # key t_us -> camera angles
+        self._posed_us = 0
         self._key_mask: tuple[int, np.ndarray] | None = None  # (t_us, object mask) of a key
+        self.renders_in_step = 0  # frames rendered (RGB) in the last step or reset
 
         lo_pan, hi_pan = c.ptu.pan_limits_deg
         lo_tilt, hi_tilt = c.ptu.tilt_limits_deg
@@ -226,13 +239,19 @@ class WanderEnv(gym.Env):
     # -- the world at time t -----------------------------------------------------------
     def _pose(self, t_us: int) -> None:
         """Put the PTU's current camera angles and the objects at ``t_us`` into the model."""
-        self.data.qpos[self._pan_adr] = math.radians(self.ptu.camera_pan_deg)
-        self.data.qpos[self._tilt_adr] = math.radians(self.ptu.camera_tilt_deg)
+        pan, tilt = math.radians(self.ptu.camera_pan_deg), math.radians(self.ptu.camera_tilt_deg)
+        self._pose_angles(t_us, pan, tilt)
+
+    def _pose_angles(self, t_us: int, pan_rad: float, tilt_rad: float) -> None:
+        self._posed_us = t_us
+        self.data.qpos[self._pan_adr] = pan_rad
+        self.data.qpos[self._tilt_adr] = tilt_rad
         self.animator.apply(self.data, t_us * 1e-6)
         mujoco.mj_kinematics(self.model, self.data)
         mujoco.mj_camlight(self.model, self.data)
 
     def _render(self) -> np.ndarray:
+        self.renders_in_step += 1
         return self.renderer.render(self.data)
 
     # -- keyframes ----------------------------------------------------------------------
@@ -244,15 +263,42 @@ class WanderEnv(gym.Env):
             self.animator.layer_positions(t_us * 1e-6),
         )
 
-    def _render_key(self, t_us: int) -> None:
-        """Render a keyframe of the posed model at ``t_us`` (RGB, layers, depth)."""
-        rgb = self.renderer.render(self.data)
-        layers, depth = self.renderer.segment_depth_current(self._layer_lut)
+    def _layer_radii(self) -> np.ndarray:
+        """Bounding radius (m) of each motion layer about its position (inf: a screen)."""
+        n = int(self._layer_lut.max(initial=0))
+        radii = np.full(n + 1, np.inf)
+        if self.scene.gratings is None:
+            for k, obj in enumerate(self.scene.moving_objects, 1):
+                radii[k] = 0.5 * math.hypot(*obj.size) * 1.01
+        return radii
+
+    def _render_key(self, t_us: int, geometry: bool) -> None:
+        """Render a keyframe of the posed model at ``t_us``; with ``geometry`` its layers
+        and depth too (else they are rendered when a frame needs them)."""
+        rgb = self._render()
         lum = self.dvs.prepare(rgb).lum.reshape(self.height, self.width)
-        self._keys.add(make_keyframe(t_us, lum, depth, layers, self._view(t_us)))
-        mask = np.where(layers <= self.scene.num_objects, layers, 0).astype(np.int32)
-        self._key_mask = (t_us, mask)
+        view = self._view(t_us)
+        self._key_angles = {t: a for t, a in self._key_angles.items() if t >= self._t_us}
+        self._key_angles[t_us] = (self.ptu.camera_pan_deg, self.ptu.camera_tilt_deg)
+        if geometry:
+            layers, depth = self.renderer.segment_depth_current(self._layer_lut)
+            self._keys.add(make_keyframe(t_us, lum, view, depth, layers))
+            mask = np.where(layers <= self.scene.num_objects, layers, 0).astype(np.int32)
+            self._key_mask = (t_us, mask)
+        else:
+            self._keys.add(make_keyframe(t_us, lum, view))
         self._frame = rgb
+
+    def _key_geometry(self, key: Any) -> tuple[np.ndarray, np.ndarray]:
+        """(depth, layers) of a key rendered earlier: the model is posed at the key's time
+        and camera angles, drawn, and posed back."""
+        pan, tilt = self._key_angles[key.t_us]
+        now = (self.data.qpos[self._pan_adr], self.data.qpos[self._tilt_adr], self._posed_us)
+        self._pose_angles(key.t_us, math.radians(pan), math.radians(tilt))
+        self.renderer.update(self.data)
+        layers, depth = self.renderer.segment_depth_current(self._layer_lut)
+        self._pose_angles(now[2], now[0], now[1])
+        return depth, layers
 
     def _render_keys(self, t0: int, t1: int) -> None:
         """Keys of the step (t0, t1]: every keyframe_us and at t1, with the PTU moved
@@ -268,7 +314,7 @@ class WanderEnv(gym.Env):
                 t = t_next
                 if t == t1 or t % c.keyframe_us == 0:
                     self._pose(t)
-                    self._render_key(t)
+                    self._render_key(t, geometry=t == t1 and c.ground_truth)
         finally:
             self.ptu = saved
 
@@ -322,12 +368,13 @@ class WanderEnv(gym.Env):
         self.ptu.reset(*self.ptu.clip_target(pan, tilt))
         self._t_us = 0
         self._pose(0)
+        self.renders_in_step = 0
         if self._keys is None:
             self._frame = self._render()
             first = self._frame
         else:
             self._keys.reset()
-            self._render_key(0)
+            self._render_key(0, geometry=self.config.ground_truth)
             first = self._keys.keys[0].lum
         self.dvs.reset(first, 0, seed=int(rng.integers(2**63)))
         self._last_counts = np.zeros((2, self.height, self.width), np.float32)
@@ -344,6 +391,7 @@ class WanderEnv(gym.Env):
         c = self.config
         chunks: list[np.ndarray] = []
         frames = 0
+        self.renders_in_step = 0
         if self._keys is not None:
             self._render_keys(self._t_us, self._t_us + c.ticks_per_step * c.tick_us)
         for _ in range(c.ticks_per_step):

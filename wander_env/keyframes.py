@@ -29,8 +29,8 @@ Example:
     >>> k = intrinsics(8, 8, 90.0)
     >>> view = View(np.eye(3), np.zeros(3), np.zeros((1, 3)))
     >>> lum = np.linspace(0.1, 0.9, 64, dtype=np.float32).reshape(8, 8)
-    >>> a = make_keyframe(0, lum, np.full((8, 8), 2.0), np.zeros((8, 8), np.int32), view)
-    >>> b = make_keyframe(10, lum * 2, np.full((8, 8), 2.0), np.zeros((8, 8), np.int32), view)
+    >>> a = make_keyframe(0, lum, view, np.full((8, 8), 2.0), np.zeros((8, 8), np.int32))
+    >>> b = make_keyframe(10, lum * 2, view, np.full((8, 8), 2.0), np.zeros((8, 8), np.int32))
     >>> mid = synthesize(a, b, view, 0.25, k)
     >>> bool(np.allclose(mid, lum * 1.25))
     True
@@ -38,14 +38,23 @@ Example:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
 
 from wander_env.camera import relative_pose, source_pixels
 
-__all__ = ["Keyframe", "KeyframeSource", "View", "make_keyframe", "synthesize"]
+__all__ = [
+    "Keyframe",
+    "KeyframeSource",
+    "View",
+    "flow_bound_px",
+    "make_keyframe",
+    "max_flow_px",
+    "synthesize",
+]
 
 # A moving layer's pixels are searched in the bounding box of its key pixels, mapped to
 # the target view and padded by its largest displacement plus this many pixels.
@@ -73,58 +82,75 @@ class View:
 
 @dataclass(frozen=True)
 class Keyframe:
-    """A rendered frame, its geometry and its view (build with :func:`make_keyframe`)."""
+    """A rendered frame, its view and (once rendered) its geometry.
+
+    Build with :func:`make_keyframe`; the depth and layers may come later
+    (:meth:`with_geometry`), only when a synthesised frame needs them.
+    """
 
     t_us: int
     lum: np.ndarray  # (H, W) float32 linear luminance
-    inv_depth: np.ndarray  # (H, W) float64, 1 / depth along the optical axis (1/m)
-    layers: np.ndarray  # (H, W) int32 motion layer of each pixel
     view: View
-    moving: tuple[int, ...]  # moving layers (ids > 0) present
-    static: bool  # whether layer 0 is present
-    layer_boxes: dict[int, tuple[int, int, int, int]]  # moving layer -> (y0, y1, x0, x1)
-    layer_inv_depth: dict[int, tuple[float, float]]  # layer -> (median, max) inverse depth
     lum1: np.ndarray  # (H, W, 2) float32: luminance and ones (coverage), for warping
+    inv_depth: np.ndarray | None = None  # (H, W) float64, 1 / depth on the optical axis (1/m)
+    layers: np.ndarray | None = None  # (H, W) int32 motion layer of each pixel
+    moving: tuple[int, ...] = ()  # moving layers (ids > 0) present
+    static: bool = True  # whether layer 0 is present
+    layer_boxes: dict[int, tuple[int, int, int, int]] = field(default_factory=dict)
+    layer_inv_depth: dict[int, tuple[float, float]] = field(default_factory=dict)
+
+    @property
+    def has_geometry(self) -> bool:
+        return self.layers is not None
+
+    def with_geometry(self, depth_m: np.ndarray, layers: np.ndarray) -> Keyframe:
+        """This key with its depth (m along the optical axis) and layer ids (H, W)."""
+        if depth_m.shape != self.lum.shape or layers.shape != self.lum.shape:
+            raise ValueError(
+                f"depth and layers must have the frame's shape {self.lum.shape}, got "
+                f"{depth_m.shape}, {layers.shape}"
+            )
+        depth = np.asarray(depth_m, dtype=np.float64)
+        if not (np.isfinite(depth).all() and depth.min() > 0):
+            raise ValueError("depth must be finite and > 0")
+        inv = 1.0 / depth
+        layers = np.asarray(layers, dtype=np.int32)
+        present = np.unique(layers)
+        boxes: dict[int, tuple[int, int, int, int]] = {}
+        per_layer: dict[int, tuple[float, float]] = {}
+        for v in present:
+            inside = layers == v
+            r = inv[inside]
+            per_layer[int(v)] = (float(np.median(r)), float(r.max()))
+            if v > 0:
+                ys, xs = np.nonzero(inside)
+                boxes[int(v)] = (int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1)
+        return replace(
+            self,
+            inv_depth=inv,
+            layers=layers,
+            moving=tuple(int(v) for v in present if v > 0),
+            static=bool(present[0] == 0),
+            layer_boxes=boxes,
+            layer_inv_depth=per_layer,
+        )
 
 
 def make_keyframe(
-    t_us: int, lum: np.ndarray, depth_m: np.ndarray, layers: np.ndarray, view: View
+    t_us: int,
+    lum: np.ndarray,
+    view: View,
+    depth_m: np.ndarray | None = None,
+    layers: np.ndarray | None = None,
 ) -> Keyframe:
-    """A :class:`Keyframe` from a frame's luminance, depth (m) and layer ids."""
+    """A :class:`Keyframe` from a frame's luminance (and its depth (m) and layer ids)."""
     lum = np.ascontiguousarray(lum, dtype=np.float32)
-    if lum.ndim != 2 or depth_m.shape != lum.shape or layers.shape != lum.shape:
-        raise ValueError(
-            f"lum, depth and layers must be equal 2-D shapes, got {lum.shape}, "
-            f"{depth_m.shape}, {layers.shape}"
-        )
-    depth = np.asarray(depth_m, dtype=np.float64)
-    if not (np.isfinite(depth).all() and depth.min() > 0):
-        raise ValueError("depth must be finite and > 0")
-    inv = 1.0 / depth
-    layers = np.asarray(layers, dtype=np.int32)
-    present = np.unique(layers)
-    moving = tuple(int(v) for v in present if v > 0)
-    boxes: dict[int, tuple[int, int, int, int]] = {}
-    per_layer: dict[int, tuple[float, float]] = {}
-    for v in present:
-        inside = layers == v
-        r = inv[inside]
-        per_layer[int(v)] = (float(np.median(r)), float(r.max()))
-        if v > 0:
-            ys, xs = np.nonzero(inside)
-            boxes[int(v)] = (int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1)
-    return Keyframe(
-        t_us=int(t_us),
-        lum=lum,
-        inv_depth=inv,
-        layers=layers,
-        view=view,
-        moving=moving,
-        static=bool(present[0] == 0),
-        layer_boxes=boxes,
-        layer_inv_depth=per_layer,
-        lum1=np.dstack([lum, np.ones_like(lum)]),
-    )
+    if lum.ndim != 2:
+        raise ValueError(f"lum must be 2-D (H, W), got shape {lum.shape}")
+    key = Keyframe(int(t_us), lum, view, np.dstack([lum, np.ones_like(lum)]))
+    if depth_m is not None and layers is not None:
+        key = key.with_geometry(depth_m, layers)
+    return key
 
 
 def _warp_static(key: Keyframe, view: View, k: np.ndarray) -> np.ndarray:
@@ -247,6 +273,33 @@ def max_flow_px(key: Keyframe, view: View, k: np.ndarray) -> float:
     return 1.25 * (flow + extra)
 
 
+def flow_bound_px(key: Keyframe, view: View, k: np.ndarray, radii: np.ndarray) -> float:
+    """Like :func:`max_flow_px` without the key's geometry: each moving layer is taken
+    as a ball of radius ``radii[layer]`` (m) about its position (``inf``: unbounded, as
+    is a moving camera centre); a layer that may reach the camera gives ``inf``."""
+    h, w = key.lum.shape
+    r_rel, t_rel = relative_pose(key.view.rotation, key.view.centre, view.rotation, view.centre)
+    if np.any(t_rel):
+        return float("inf")
+    pts = np.array([[x, y, 1.0] for x in (0, (w - 1) / 2, w - 1) for y in (0, (h - 1) / 2, h - 1)])
+    m = pts @ (k @ r_rel @ np.linalg.inv(k)).T
+    flow = float(np.abs(m[:, :2] / m[:, 2:] - pts[:, :2]).max(initial=0.0))
+    f = float(k[0, 0])
+    r_max = float(np.hypot(w, h)) / 2 + 1.0
+    extra = 0.0
+    for layer in range(1, len(view.layer_positions)):
+        shift = view.layer_positions[layer] - key.view.layer_positions[layer]
+        if not np.any(shift):
+            continue
+        z = float((key.view.rotation.T @ (key.view.layer_positions[layer] - key.view.centre))[2])
+        near = z - float(radii[layer])
+        if not near > 0.01:
+            return float("inf")
+        t_l = view.rotation.T @ shift
+        extra = max(extra, f / near * (np.hypot(t_l[0], t_l[1]) + abs(t_l[2]) * r_max / f))
+    return 1.25 * (flow + extra)
+
+
 def _moving_region(
     a: Keyframe, b: Keyframe, view: View, k: np.ndarray
 ) -> tuple[int, int, int, int] | None:
@@ -271,6 +324,8 @@ def synthesize(a: Keyframe, b: Keyframe, view: View, w: float, k: np.ndarray) ->
     (0 at key ``a``, 1 at key ``b``) between two keys; ``k`` the camera intrinsics."""
     if not 0.0 <= w <= 1.0:
         raise ValueError(f"time fraction w must be in [0, 1], got {w!r}")
+    if not (a.has_geometry and b.has_geometry):
+        raise ValueError("synthesize needs both keys' geometry (Keyframe.with_geometry)")
     wa, wb = np.float32(1.0 - w), np.float32(w)
     if max_flow_px(a, view, k) < SUBPIXEL_PX and max_flow_px(b, view, k) < SUBPIXEL_PX:
         # Nothing moves by half a pixel: every pixel's nearest source is itself.
@@ -311,13 +366,24 @@ class KeyframeSource:
     """The keys of one stream and the frames between them (see the module docstring).
 
     ``add`` keys in time order; :meth:`frame` returns a key's own luminance at its
-    time and a synthesised frame between two keys. Keys older than the newest key at
-    or before the last frame asked for are dropped.
+    time and a synthesised frame between two keys. A key's depth and layers are asked
+    of ``geometry(key)`` (which returns ``(depth_m, layers)``) only when a frame needs
+    them: when something may move by half a pixel or more (:func:`flow_bound_px`, with
+    the layers' bounding ``radii`` in m). Keys older than the newest key at or before
+    the last frame asked for are dropped.
     """
 
-    def __init__(self, intrinsics: np.ndarray) -> None:
+    def __init__(
+        self,
+        intrinsics: np.ndarray,
+        radii: np.ndarray,
+        geometry: Callable[[Keyframe], tuple[np.ndarray, np.ndarray]],
+    ) -> None:
         self.k = np.asarray(intrinsics, dtype=np.float64)
+        self.radii = np.asarray(radii, dtype=np.float64)
+        self.geometry = geometry
         self.keys: list[Keyframe] = []
+        self.geometry_renders = 0  # how many times geometry() was asked (for benchmarks)
 
     def reset(self) -> None:
         self.keys = []
@@ -334,6 +400,14 @@ class KeyframeSource:
                 return key
         return None
 
+    def _with_geometry(self, i: int) -> Keyframe:
+        key = self.keys[i]
+        if not key.has_geometry:
+            self.geometry_renders += 1
+            key = key.with_geometry(*self.geometry(key))
+            self.keys[i] = key
+        return key
+
     def frame(self, t_us: int, view: View) -> np.ndarray:
         """Luminance (H, W) float32 at ``t_us`` from ``view`` (a key's or synthesised)."""
         keys = self.keys
@@ -346,4 +420,10 @@ class KeyframeSource:
         if keys[i].t_us == t_us:
             return keys[i].lum
         a, b = keys[i - 1], keys[i]
-        return synthesize(a, b, view, (t_us - a.t_us) / (b.t_us - a.t_us), self.k)
+        w = (t_us - a.t_us) / (b.t_us - a.t_us)
+        bound = max(flow_bound_px(a, view, self.k, self.radii),
+                    flow_bound_px(b, view, self.k, self.radii))  # fmt: skip
+        if bound < SUBPIXEL_PX:
+            return np.float32(1.0 - w) * a.lum + np.float32(w) * b.lum
+        a, b = self._with_geometry(i - 1), self._with_geometry(i)
+        return synthesize(a, b, view, w, self.k)
