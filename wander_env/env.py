@@ -89,7 +89,7 @@ class WanderConfig:
     # render tick and adaptive sub-frame); "keyframes" renders every keyframe_ms and at
     # each step's end and synthesises the frames in between from the keys' depth and
     # motion layers (see wander_env.keyframes).
-    frames: str = "exact"
+    frames: str = "keyframes"
     keyframe_ms: float = 2.0
     # Render at this many times the resolution and average blocks (see RenderParams): the
     # finer-antialiased reference of the fidelity benchmark (2 = 16 samples a pixel).
