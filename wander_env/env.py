@@ -8,6 +8,15 @@ log-intensity change (adaptive sampling: a render tick whose largest change
 exceeds ``adaptive_log_change`` is split into up to ``max_subframes`` frames),
 and the emulator turns the frames into events.
 
+Frames (``frames``): ``"keyframes"`` (the default) renders the camera every
+``keyframe_ms`` (2 ms) and at each step's end, and makes the frames in between from the
+two neighbouring keys with the scene's geometry (:mod:`wander_env.keyframes`: the camera's
+rotation homography, each moving object's rigid motion from the keys' depth and motion
+layers, reprojection with depth where the camera centre moves); the keys are rendered at
+the start of the step from the PTU's own trajectory, so nothing waits for a later frame.
+``"exact"`` renders every frame (every tick and sub-frame): the reference.
+``renders_in_step`` counts the RGB renders of the last step.
+
 Action: ``Box(-1, 1, (2,))``, a gaze offset in units of the half sensor: the
 action that brings pixel P to the fovea is ``(P - centre) / (W/2, H/2)``. It is
 converted to angles with the camera's pinhole model (offset d pixels ->
