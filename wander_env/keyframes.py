@@ -6,20 +6,27 @@ gratings screen, see :func:`wander_env.mjcf.geom_layer_ids`) and the :class:`Vie
 was rendered from (camera rotation and centre, each layer's position).
 :func:`synthesize` makes the frame of a view at a time between two keys:
 
+0. **Nothing moves by half a pixel** (:func:`max_flow_px` from both keys): each pixel's
+   source is itself, and the frame is the keys' time-weighted blend.
 1. **Static geometry, camera rotating about its centre**: each key is warped with the
    exact rotation homography ``K R K⁻¹`` (:func:`wander_env.camera.rotation_homography`,
    OpenCV's ``warpPerspective``) and the two are blended with time weights, each
-   weighted by how much of the pixel it sees (pixels entering the view come from the
-   key that has them).
+   weighted by whether it sees the pixel (pixels entering the view come from the key
+   that has them).
 2. **Where something moves relative to the camera** (a moving layer, or the whole
    image when the camera centre moves: a camera offset from the tilt hinge makes
    parallax), every target pixel is looked up per key and per layer by reprojection
    with the key's depth (:func:`wander_env.camera.source_pixels`, a fixed-point
-   iteration on the source depth); a candidate counts only if the source pixel belongs
-   to that layer. Per key the nearest candidate wins (depth test); between the keys
-   the nearer wins where their depths disagree (occlusion, disocclusion: a pixel is
-   filled from the key that sees it) and the time-weighted blend is taken where they
-   agree.
+   iteration on the source depth); a candidate counts only if its source pixel belongs
+   to that layer, and per key the nearest candidate wins (depth test). A pixel no layer
+   of a key maps to (disoccluded) comes from the other key alone; where both keys see
+   it, the time-weighted blend.
+
+Sampling is nearest-pixel. The renderer's multisampled pixels change as an edge crosses
+their samples; bilinear resampling instead leaks a bright neighbour into a dark pixel
+in proportion to the shift, which from the two keys rises and falls within the interval
+(spurious ON/OFF pairs: a first version with bilinear sampling gave +13 % events in the office
+with a still camera, this one -1.8 %, both with 5 ms keys).
 
 :class:`KeyframeSource` keeps the keys of a stream and answers frames by time.
 
