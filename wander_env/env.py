@@ -32,9 +32,10 @@ Observation: ``{"events": (2, H, W) float32 per-polarity counts of the step
 
 ``info``: ``events`` (the raw event array of the step), ``t`` (simulated s),
 ``ptu_positions``, ``ptu_target_positions`` (and ``ptu_target_deg``), ``moving``,
-``target_clipped``, ``frames`` and ``extra_frames`` rendered in the step, and, with ground truth on,
-``object_mask`` ((H, W) int32 object ids, 0 = background) and ``objects`` (per
-moving object: id, name, pixel centre of its projection, mask pixels, visible).
+``target_clipped``, ``frames`` and ``extra_frames`` made in the step (rendered or
+synthesised), and, with ground truth on, ``object_mask`` ((H, W) int32 object ids,
+0 = background) and ``objects`` (per moving object: id, name, pixel centre of its
+projection, mask pixels, visible).
 
 Example:
     >>> import gymnasium, wander_env
