@@ -252,6 +252,8 @@ def test_frames_config_is_checked():
         WanderConfig(frames="fast")
     with pytest.raises(ValueError, match=r"keyframe_ms=2\.5 must be a whole number"):
         WanderConfig(keyframe_ms=2.5)
+    # a key every tick when the interval divides a tick (100 Hz rendering, 2 ms keys)
+    assert WanderConfig(render_rate_hz=100.0, control_period_s=0.02).keyframe_us == 2000
     assert WanderConfig().frames == "keyframes"
 
 

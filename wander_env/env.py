@@ -134,11 +134,13 @@ class WanderConfig:
         k = self.keyframe_ms
         if isinstance(k, bool) or not (isinstance(k, (int, float)) and math.isfinite(k) and k > 0):
             raise ValueError(f"WanderConfig.keyframe_ms must be a finite number > 0, got {k!r}")
-        ticks = k * 1e3 / (1e6 / self.render_rate_hz)
-        if abs(ticks - round(ticks)) > 1e-9 or round(ticks) < 1:
+        # Keys are the render ticks at multiples of keyframe_ms (and each step's end):
+        # keyframe_ms must be a whole number of ticks, or divide a tick (every tick a key).
+        key_us, tick_us = round(k * 1e3), round(1e6 / self.render_rate_hz)
+        if abs(k * 1e3 - key_us) > 1e-6 or key_us < 1 or (key_us % tick_us and tick_us % key_us):
             raise ValueError(
-                f"WanderConfig.keyframe_ms={k} must be a whole number (>= 1) of render "
-                f"periods (render_rate_hz={self.render_rate_hz})"
+                f"WanderConfig.keyframe_ms={k} must be a whole number of render periods or "
+                f"divide one (render_rate_hz={self.render_rate_hz}: {tick_us} µs)"
             )
         ss = self.supersample
         if isinstance(ss, bool) or not isinstance(ss, int) or ss < 1:
