@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -58,15 +59,25 @@ def latency_row(stage: str, seconds: list[float]) -> LatencyRow:
 
 
 def bench_agent(
-    seconds: float = 5.0, scene: str = "office", seed: int = 0, dvs: str = "ideal"
+    seconds: float = 5.0,
+    scene: str = "office",
+    seed: int = 0,
+    dvs: str = "ideal",
+    **env_kwargs: Any,
 ) -> tuple[list[LatencyRow], LoopRow]:
-    """Run the agent closed-loop for ``seconds`` and time every stage (module doc)."""
+    """Run the agent closed-loop for ``seconds`` and time every stage (module doc);
+    ``env_kwargs`` (e.g. ``frames``) go to the env."""
     import gymnasium as gym
 
     import wander_env  # noqa: F401  (registers the environments)
 
     env = gym.make(
-        "wander/Wander-v0", scene=scene, dvs=dvs, ground_truth=False, episode_seconds=seconds
+        "wander/Wander-v0",
+        scene=scene,
+        dvs=dvs,
+        ground_truth=False,
+        episode_seconds=seconds,
+        **env_kwargs,
     )
     agent = AttentionAgent(AgentParams.for_env(env), seed=seed)
     acc: dict[str, list[float]] = {"soms": [], "proto": [], "control": []}
@@ -124,3 +135,97 @@ def bench_agent(
         realtime_factor=n * agent.params.step_s / wall,
     )
     return rows, loop
+
+
+@dataclass(frozen=True)
+class ModesRow:
+    """The closed loop with both frame modes, run side by side in one process."""
+
+    scene: str
+    keyframe_ms: float
+    simulated_s: float
+    exact_rtf: float
+    keyframes_rtf: float
+    speedup: float  # exact loop ms per step / keyframes loop ms per step
+    exact_env_ms: float
+    keyframes_env_ms: float
+    exact_agent_ms: float
+    keyframes_agent_ms: float
+    exact_decisions: int
+    keyframes_decisions: int
+
+
+def loop_modes(
+    seconds: float = 5.0,
+    scene: str = "office",
+    seed: int = 0,
+    dvs: str = "ideal",
+    keyframe_ms: float | None = None,
+) -> ModesRow:
+    """Two closed loops (env + agent), ``frames="exact"`` and ``"keyframes"``, stepped
+    alternately (one step of each in turn, each timed), so that machine noise hits both."""
+    import gymnasium as gym
+
+    import wander_env  # noqa: F401  (registers the environments)
+    from wander_env.env import WanderConfig
+
+    km = WanderConfig.keyframe_ms if keyframe_ms is None else keyframe_ms
+    modes = {"exact": {"frames": "exact"}, "keyframes": {"frames": "keyframes", "keyframe_ms": km}}
+    loops = {}
+    try:
+        for mode, kw in modes.items():
+            env = gym.make(
+                "wander/Wander-v0",
+                scene=scene,
+                dvs=dvs,
+                ground_truth=False,
+                episode_seconds=seconds,
+                **kw,
+            )
+            agent = AttentionAgent(AgentParams.for_env(env), seed=seed)
+            obs, info = env.reset(seed=seed)
+            loops[mode] = {
+                "env": env,
+                "agent": agent,
+                "obs": obs,
+                "info": info,
+                "t_env": 0.0,
+                "t_agent": 0.0,
+                "steps": 0,
+                "decisions": 0,
+            }
+        step_s = loops["exact"]["agent"].params.step_s
+        for _ in range(round(seconds / step_s)):
+            for lp in loops.values():
+                t0 = time.perf_counter()
+                action = lp["agent"].act(lp["obs"], lp["info"])
+                t1 = time.perf_counter()
+                lp["obs"], _, _, _, lp["info"] = lp["env"].step(action)
+                t2 = time.perf_counter()
+                lp["t_agent"] += t1 - t0
+                lp["t_env"] += t2 - t1
+                lp["steps"] += 1
+                lp["decisions"] += int(lp["agent"].decided)
+    finally:
+        for lp in loops.values():
+            lp["agent"].close()
+            lp["env"].close()
+    ex, kf = loops["exact"], loops["keyframes"]
+
+    def rtf(lp: dict) -> float:
+        return lp["steps"] * step_s / (lp["t_env"] + lp["t_agent"])
+
+    return ModesRow(
+        scene=scene,
+        keyframe_ms=km,
+        simulated_s=ex["steps"] * step_s,
+        exact_rtf=rtf(ex),
+        keyframes_rtf=rtf(kf),
+        speedup=rtf(kf) / rtf(ex),
+        exact_env_ms=1e3 * ex["t_env"] / ex["steps"],
+        keyframes_env_ms=1e3 * kf["t_env"] / kf["steps"],
+        exact_agent_ms=1e3 * ex["t_agent"] / ex["steps"],
+        keyframes_agent_ms=1e3 * kf["t_agent"] / kf["steps"],
+        exact_decisions=ex["decisions"],
+        keyframes_decisions=kf["decisions"],
+    )

@@ -2,7 +2,8 @@
 
 Run it as ``wander bench env``. The camera holds still while the scene's objects
 move (zero actions), at 1 kHz rendering; one row per DVS preset and number of
-environments (1 in-process; 2 and 4 as ``AsyncVectorEnv`` worker processes).
+environments (1 in-process; 2 and 4 as ``AsyncVectorEnv`` worker processes), with both
+frame modes (``exact`` and ``keyframes``) side by side and their step-time ratio.
 The real-time factor of a vector row counts the simulated time of all its envs.
 
 :func:`step_breakdown` splits one env's step into its parts (renders, DVS,
@@ -25,18 +26,31 @@ from wander_env.wrappers import EventPacketInfo
 
 @dataclass
 class EnvBenchRow:
+    """One DVS preset and env count, both frame modes measured side by side."""
+
     scene: str
     dvs: str
     envs: int
     ground_truth: bool
-    realtime_factor: float
-    ms_per_step: float
-    frames_per_s: float
-    events_per_s: float
+    keyframe_ms: float
+    exact_rtf: float  # real-time factor (simulated s / wall s) of frames="exact"
+    keyframes_rtf: float
+    speedup: float  # exact ms per step / keyframes ms per step
+    exact_ms_per_step: float
+    keyframes_ms_per_step: float
+    exact_frames_per_step: float  # frames fed to the DVS (ticks + adaptive sub-frames)
+    keyframes_frames_per_step: float
+    events_diff_pct: float  # keyframes vs exact events over the run
 
 
-def _make(scene: str, dvs: str, ground_truth: bool, antialias_samples: int | None = None):
-    kw = {} if antialias_samples is None else {"antialias_samples": antialias_samples}
+def _make(
+    scene: str,
+    dvs: str,
+    ground_truth: bool,
+    antialias_samples: int | None = None,
+    **env: Any,
+):
+    kw = dict(env) if antialias_samples is None else {**env, "antialias_samples": antialias_samples}
     return lambda: EventPacketInfo(
         gym.make("wander/Wander-v0", scene=scene, dvs=dvs, ground_truth=ground_truth, **kw)
     )
@@ -50,39 +64,64 @@ def bench_env(
     ground_truth: bool = True,
     seed: int = 0,
     antialias_samples: int | None = None,
+    keyframe_ms: float | None = None,
 ) -> list[EnvBenchRow]:
-    """One row per preset and env count; ``antialias_samples`` overrides the scene's."""
+    """One row per preset and env count; ``antialias_samples`` overrides the scene's.
+
+    Both frame modes run in one process at once, stepped alternately (one exact step,
+    one keyframes step), so that a noisy machine slows both alike; each step is timed.
+    """
+    from wander_env.env import WanderConfig
+
+    km = WanderConfig.keyframe_ms if keyframe_ms is None else keyframe_ms
+    modes = {"exact": {"frames": "exact"}, "keyframes": {"frames": "keyframes", "keyframe_ms": km}}
     rows = []
     for dvs in presets:
-        make = _make(scene, dvs, ground_truth, antialias_samples)
         for n in env_counts:
-            if n == 1:
-                env = make()
-            else:
-                env = gym.vector.AsyncVectorEnv([make] * n, context="spawn")
-            env.reset(seed=seed)
-            period = env.unwrapped.config.control_period_s if n == 1 else 0.01
+            envs = {}
+            for mode, kw in modes.items():
+                make = _make(scene, dvs, ground_truth, antialias_samples, **kw)
+                envs[mode] = (
+                    make() if n == 1 else gym.vector.AsyncVectorEnv([make] * n, context="spawn")
+                )
+            period = 0.01
             steps = round(seconds / period)
             action = np.zeros((n, 2) if n > 1 else 2, np.float32)
-            env.step(action)  # warm-up: kernels compiled, contexts made
-            frames = events = 0
-            t0 = time.perf_counter()
-            for _ in range(steps):
-                obs, _, _, _, info = env.step(action)
-                events += int(obs["events"].sum())
-                frames += int(np.sum(info["frames"]))
-            wall = time.perf_counter() - t0
-            env.close()
+            wall = dict.fromkeys(modes, 0.0)
+            frames = dict.fromkeys(modes, 0)
+            events = dict.fromkeys(modes, 0)
+            try:
+                for env in envs.values():
+                    env.reset(seed=seed)
+                    env.step(action)  # warm-up: kernels compiled, contexts made
+                for _ in range(steps):
+                    for mode, env in envs.items():
+                        t0 = time.perf_counter()
+                        obs, _, _, _, info = env.step(action)
+                        wall[mode] += time.perf_counter() - t0
+                        events[mode] += int(obs["events"].sum())
+                        frames[mode] += int(np.sum(info["frames"]))
+            finally:
+                for env in envs.values():
+                    env.close()
+            ms = {m: 1e3 * wall[m] / steps for m in modes}
             rows.append(
                 EnvBenchRow(
                     scene=scene,
                     dvs=dvs,
                     envs=n,
                     ground_truth=ground_truth,
-                    realtime_factor=n * steps * period / wall,
-                    ms_per_step=1e3 * wall / steps,
-                    frames_per_s=frames / wall,
-                    events_per_s=events / wall,
+                    keyframe_ms=km,
+                    exact_rtf=n * steps * period / wall["exact"],
+                    keyframes_rtf=n * steps * period / wall["keyframes"],
+                    speedup=ms["exact"] / ms["keyframes"],
+                    exact_ms_per_step=ms["exact"],
+                    keyframes_ms_per_step=ms["keyframes"],
+                    exact_frames_per_step=frames["exact"] / (n * steps),
+                    keyframes_frames_per_step=frames["keyframes"] / (n * steps),
+                    events_diff_pct=100.0 * (events["keyframes"] / events["exact"] - 1.0)
+                    if events["exact"]
+                    else float("nan"),
                 )
             )
     return rows
@@ -94,13 +133,15 @@ class StepBreakdown:
 
     scene: str
     dvs: str
+    frames: str
     antialias_samples: int
     ms_per_step: float
-    frames_per_step: float
+    renders_per_step: float
     ms_per_render: float
-    render_ms: float  # RGB frames: the render ticks and the adaptive sub-frames
+    render_ms: float  # RGB frames: render ticks and sub-frames (exact), keyframes
+    synth_ms: float  # in-between frames made from the keys (keyframes mode)
     dvs_ms: float  # frame -> log input, change check, emulator step
-    segment_ms: float  # the ground-truth mask (one per step)
+    segment_ms: float  # segmentation (ground truth) and keys' layers + depth
     pose_ms: float  # PTU angles and objects into the model, kinematics
     other_ms: float  # the rest: PTU model, events to counts, info
 
@@ -124,13 +165,23 @@ def step_breakdown(
     seconds: float = 2.0,
     antialias_samples: int | None = None,
     seed: int = 0,
+    frames: str = "exact",
+    keyframe_ms: float | None = None,
 ) -> StepBreakdown:
     """Time the parts of :meth:`WanderEnv.step` in one env (zero actions, as bench_env)."""
-    env = _make(scene, dvs, True, antialias_samples)()
+    kw: dict[str, Any] = {"frames": frames}
+    if keyframe_ms is not None:
+        kw["keyframe_ms"] = keyframe_ms
+    env = _make(scene, dvs, True, antialias_samples, **kw)()
     u = env.unwrapped
-    acc: dict[str, list[float]] = {k: [] for k in ("render", "dvs", "segment", "pose")}
+    keys = ("render", "dvs", "segment", "pose", "synth", "geometry")
+    acc: dict[str, list[float]] = {k: [] for k in keys}
     u.renderer.render = timed(u.renderer.render, acc, "render")
     u.renderer.segment = timed(u.renderer.segment, acc, "segment")
+    u.renderer.segment_depth_current = timed(u.renderer.segment_depth_current, acc, "segment")
+    if u._keys is not None:  # synthesis, less the keys' layers and depth drawn inside it
+        u._keys.frame = timed(u._keys.frame, acc, "synth")
+        u._keys.geometry = timed(u._keys.geometry, acc, "geometry")
     for name in ("prepare", "log_change", "step"):
         if hasattr(u.dvs, name):  # prepare: since the fused log input
             setattr(u.dvs, name, timed(getattr(u.dvs, name), acc, "dvs"))
@@ -147,16 +198,20 @@ def step_breakdown(
     wall = time.perf_counter() - t0
     env.close()
     ms = {k: 1e3 * sum(v) / steps for k, v in acc.items()}
+    synth = ms["synth"] - ms["geometry"]
+    parts = ms["render"] + synth + ms["dvs"] + ms["segment"] + ms["pose"]
     return StepBreakdown(
         scene=scene,
         dvs=dvs,
+        frames=frames,
         antialias_samples=u.scene.camera.antialias_samples,
         ms_per_step=1e3 * wall / steps,
-        frames_per_step=len(acc["render"]) / steps,
+        renders_per_step=len(acc["render"]) / steps,
         ms_per_render=1e3 * sum(acc["render"]) / max(len(acc["render"]), 1),
         render_ms=ms["render"],
+        synth_ms=synth,
         dvs_ms=ms["dvs"],
         segment_ms=ms["segment"],
         pose_ms=ms["pose"],
-        other_ms=1e3 * wall / steps - sum(ms.values()),
+        other_ms=1e3 * wall / steps - parts,
     )

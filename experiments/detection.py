@@ -40,6 +40,7 @@ from experiments.benchmark_protocol import (
 )
 from experiments.datasets.base import MaskWindow, SequenceData
 from experiments.framework import Comparison, Experiment, Row, TrialSpec, save_figure
+from wander_env.env import WanderConfig
 from wander_env.events import concatenate
 from wander_env.ptu import FLIR_RESOLUTION_ARCSEC, PTUParams
 
@@ -63,6 +64,7 @@ class DetectionConfig:
     warmup_s: float = 0.2
     step_s: float = 0.02
     dvs: str = "paper"
+    frames: str = WanderConfig.frames  # the env\'s frame source: keyframes or exact
     box: int = 8
     baseline_sigma_px: float = 2.0
     repeats: int = 2
@@ -174,6 +176,7 @@ def record_sequence(
         "wander/Wander-v0",
         scene=scene,
         dvs=cfg.dvs,
+        frames=cfg.frames,
         control_period_s=cfg.step_s,
         episode_seconds=cfg.duration_s + 1.0,
         ptu=ptu_for_speed(speed),

@@ -31,6 +31,7 @@ import numpy as np
 import wander_env  # noqa: F401  (registers the environments)
 from agents.fixation import FixationalMovements, FixationParams
 from experiments.run_viewer import open_run_log
+from wander_env.env import WanderConfig
 from wander_env.event_formats import write_evimo2_sequence
 from wander_env.event_io import read_events, write_events
 from wander_env.event_stream import EventStreamWriter, H5Appender, OutputError, check_space
@@ -53,6 +54,8 @@ class RecordConfig:
     saccade_interval_s: float = 0.5
     video: bool = True
     format: str = "h5"
+    frames: str = WanderConfig.frames  # the env's frame source (keyframes or exact)
+    keyframe_ms: float = WanderConfig.keyframe_ms
 
     def __post_init__(self) -> None:
         if self.policy not in POLICIES:
@@ -106,6 +109,8 @@ def record(
         dvs=config.dvs,
         render_mode="rgb_array" if config.video else None,
         episode_seconds=config.seconds,
+        frames=config.frames,
+        keyframe_ms=config.keyframe_ms,
     )
     try:
         return _record(out_dir, config, env, progress)

@@ -42,6 +42,7 @@ from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
 from experiments.run_viewer import open_run_log
 from experiments.scanpath_figure import pixel_to_angles, plot_scanpath
+from wander_env.env import WanderConfig
 from wander_env.event_stream import EventStreamWriter, OutputError, check_space
 from wander_env.metrics import degrees_to_pixels, detection_hit, focal_length_px
 from wander_env.runinfo import run_record, write_json
@@ -68,6 +69,8 @@ class RunConfig:
     streamlined: bool = False
     alpha: float = AGENT_SOMS_ALPHA
     soms_norm: str = "quantile"
+    frames: str = WanderConfig.frames  # the env's frame source (keyframes or exact)
+    keyframe_ms: float = WanderConfig.keyframe_ms
 
     def __post_init__(self) -> None:
         if not (isinstance(self.seconds, (int, float)) and math.isfinite(self.seconds)):

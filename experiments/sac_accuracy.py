@@ -50,6 +50,7 @@ import wander_env  # noqa: F401  (registers the environments, picks the GL backe
 from agents.attention import AgentParams, AttentionAgent
 from experiments.benchmark_protocol import mean_std
 from experiments.framework import Comparison, Experiment, Row, TrialSpec, save_figure
+from wander_env.env import WanderConfig
 from wander_env.metrics import degrees_to_pixels, foveation_error_px
 from wander_env.ptu import PTUParams
 from wander_env.renderer import project_points
@@ -87,6 +88,7 @@ class SacAccuracyConfig:
     max_saccade_s: float = 3.0
     render_rate_hz: float = 100.0
     dvs: str = "ideal"
+    frames: str = WanderConfig.frames  # the env\'s frame source: keyframes or exact
 
     def __post_init__(self) -> None:
         if self.repeats < 1:
@@ -201,6 +203,7 @@ def run_trial(cfg: SacAccuracyConfig, spec: TrialSpec) -> dict[str, Any]:
         "wander/Wander-v0",
         scene=cfg.scene,
         dvs=cfg.dvs,
+        frames=cfg.frames,
         ptu=ptu_for_condition(cfg, condition),
         render_rate_hz=cfg.render_rate_hz,
         max_subframes=1,

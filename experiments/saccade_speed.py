@@ -48,6 +48,7 @@ from experiments.framework import (
     save_figure,
 )
 from experiments.run_agent import run_closed_loop
+from wander_env.env import WanderConfig
 from wander_env.metrics import SPECK_HFOV_DEG, focal_length_px
 from wander_env.ptu import PTUParams, degrees_to_positions, move_duration, peak_speed
 
@@ -91,6 +92,7 @@ class SaccadeSpeedConfig:
     main_sequence_scene: str = "shelf"
     repeats: int = 1
     dvs: str = "ideal"
+    frames: str = WanderConfig.frames  # the env\'s frame source: keyframes or exact
 
     def __post_init__(self) -> None:
         if not self.duration_s > 0:
@@ -232,6 +234,7 @@ def _closed_loop(cfg: SaccadeSpeedConfig, p: dict[str, Any], seed: int) -> dict[
             "wander/Wander-v0",
             scene=cfg.scene,
             dvs=cfg.dvs,
+            frames=cfg.frames,
             ptu=ptu_for(float(p["speed_pos_s"]), float(p["accel_pos_s2"])),
             episode_seconds=cfg.duration_s + 1.0,
         ),
@@ -270,6 +273,7 @@ def _main_sequence(cfg: SaccadeSpeedConfig, ptu: PTUParams, seed: int) -> dict[s
         "wander/Wander-v0",
         scene=cfg.main_sequence_scene,
         dvs=cfg.dvs,
+        frames=cfg.frames,
         ptu=ptu,
         render_rate_hz=100.0,
         max_subframes=1,

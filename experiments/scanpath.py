@@ -65,6 +65,7 @@ from experiments.framework import (
 from experiments.run_agent import run_closed_loop
 from experiments.sac_accuracy import cast_pixel
 from experiments.scanpath_figure import pixel_to_angles, saliency_mosaic
+from wander_env.env import WanderConfig
 from wander_env.metrics import focal_length_px
 from wander_env.mjcf import object_body_name
 
@@ -99,6 +100,7 @@ class ScanpathConfig:
     radius_deg: float = 5.0
     mosaic_step_deg: float = 0.5
     dvs: str = "ideal"
+    frames: str = WanderConfig.frames  # the env\'s frame source: keyframes or exact
 
     def __post_init__(self) -> None:
         if not self.duration_s > 0:
@@ -244,7 +246,11 @@ def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
     """One scene / condition: the closed loop for ``duration_s``, then the statistics."""
     scene, condition = str(spec.params["scene"]), str(spec.params["condition"])
     env = gym.make(
-        "wander/Wander-v0", scene=scene, dvs=cfg.dvs, episode_seconds=cfg.duration_s + 1.0
+        "wander/Wander-v0",
+        scene=scene,
+        dvs=cfg.dvs,
+        frames=cfg.frames,
+        episode_seconds=cfg.duration_s + 1.0,
     )
     agent = ScanpathAgent(agent_params(cfg, condition, env), spec.seed, env, cfg.box)
     record = {"experiment": "scanpath", "params": dict(spec.params), "seed": spec.seed}

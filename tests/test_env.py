@@ -123,8 +123,9 @@ def test_targets_beyond_the_limits_are_clipped_and_reported():
     env.close()
 
 
-def test_saccade_of_20_degrees_lands_and_emits_events_all_along():
-    env = make("shelf")
+@pytest.mark.parametrize("frames", ["exact", "keyframes"])
+def test_saccade_of_20_degrees_lands_and_emits_events_all_along(frames):
+    env = make("shelf", frames=frames)
     env.reset(seed=0)
     a = math.tan(math.radians(20.0)) * F_PX / 64  # 20 degrees to the right
     infos = [env.step(np.array([a, 0.0], np.float32))[4]]

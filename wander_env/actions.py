@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from wander_env.metrics import SPECK_HFOV_DEG, focal_length_px
+from wander_env.camera import SPECK_HFOV_DEG, focal_length_px
 
 __all__ = ["action_to_gaze_degrees", "check_action", "gaze_degrees_to_action"]
 

@@ -20,6 +20,8 @@ from wander_env.cli_options import (
     DvsOpt,
     FixationalOpt,
     ForceOpt,
+    FramesOpt,
+    KeyframeMsOpt,
     RunDirOpt,
     SceneOpt,
     SecondsOpt,
@@ -29,6 +31,7 @@ from wander_env.cli_options import (
     WindowOpt,
     agent_alpha,
     check_seconds,
+    frames_kwargs,
     one_of,
     resolve_out,
 )
@@ -127,13 +130,22 @@ def record(
         ),
     ] = "h5",
     force: ForceOpt = False,
+    frames: FramesOpt = None,
+    keyframe_ms: KeyframeMsOpt = None,
 ) -> None:
     """Record events, ground truth and a video of the env under a simple gaze policy."""
     from experiments.record import RecordConfig
     from experiments.record import record as run
 
     config = RecordConfig(
-        scene=scene, seconds=seconds, policy=policy, dvs=dvs, seed=seed, video=video, format=format
+        scene=scene,
+        seconds=seconds,
+        policy=policy,
+        dvs=dvs,
+        seed=seed,
+        video=video,
+        format=format,
+        **frames_kwargs(frames, keyframe_ms),
     )
     out = resolve_out(out, "record", force)
     with _progress() as bar:
@@ -157,6 +169,8 @@ def run_agent(
     soms_norm: SomsNormOpt = "quantile",
     video: VideoOpt = True,
     force: ForceOpt = False,
+    frames: FramesOpt = None,
+    keyframe_ms: KeyframeMsOpt = None,
 ) -> None:
     """Run the attention agent closed-loop in a scene; write the run folder."""
     from experiments.run_agent import RunConfig
@@ -173,6 +187,7 @@ def run_agent(
         streamlined=streamlined,
         soms_norm=soms_norm,
         **agent_alpha(alpha),
+        **frames_kwargs(frames, keyframe_ms),
     )
     out = resolve_out(out, "run", force)
     with _progress() as bar:
@@ -210,6 +225,8 @@ def evaluate(
     alpha: AgentAlphaOpt = None,
     force: ForceOpt = False,
     soms_norm: SomsNormOpt = "quantile",
+    frames: FramesOpt = None,
+    keyframe_ms: KeyframeMsOpt = None,
 ) -> None:
     """The agent's quality in simulation: detection accuracy, suppression, foveation error."""
     from experiments.evaluate_agent import evaluate as run_eval
@@ -231,6 +248,7 @@ def evaluate(
         streamlined=streamlined,
         soms_norm=soms_norm,
         **agent_alpha(alpha),
+        **frames_kwargs(frames, keyframe_ms),
     )
     with _progress() as bar:
         task = bar.add_task("evaluate", total=round(seconds / 0.01) * len(seed_list))
@@ -346,44 +364,78 @@ def bench_env(
         int | None, typer.Option(min=0, help="MSAA samples (overrides the scene's; 0 = off).")
     ] = None,
     breakdown: Annotated[bool, typer.Option(help="Also time the parts of one env's step.")] = True,
+    keyframe_ms: KeyframeMsOpt = None,
+    envs: Annotated[str, typer.Option(help="Comma-separated env counts.")] = "1,2,4",
 ) -> None:
-    """Real-time factor of the environment (1 kHz rendering) with 1, 2 and 4 envs."""
+    """Real-time factor of the environment, exact and keyframe frames side by side."""
     from experiments.bench_env import bench_env as run
     from experiments.bench_env import step_breakdown
 
+    km = frames_kwargs(None, keyframe_ms).get("keyframe_ms")
+    try:
+        counts = tuple(int(v) for v in envs.split(",") if v.strip())
+    except ValueError as err:
+        raise typer.BadParameter(
+            f"--envs must be integers separated by commas, got {envs!r}"
+        ) from err
+    if not counts or min(counts) < 1:
+        raise typer.BadParameter(f"--envs must be integers >= 1, got {envs!r}")
     if breakdown:
         parts = [
-            step_breakdown(scene=scene, dvs=d, seconds=seconds, antialias_samples=antialias)
+            step_breakdown(
+                scene=scene,
+                dvs=d,
+                seconds=seconds,
+                antialias_samples=antialias,
+                frames=f,
+                keyframe_ms=km,
+            )
             for d in ("ideal", "speck")
+            for f in ("exact", "keyframes")
         ]
         print_table(
             f"One env's step, scene '{scene}' (ms per step unless named)",
             parts,
             {
                 "dvs": "",
+                "frames": "",
                 "antialias_samples": "d",
                 "ms_per_step": ".2f",
-                "frames_per_step": ".1f",
+                "renders_per_step": ".1f",
                 "ms_per_render": ".2f",
                 "render_ms": ".2f",
+                "synth_ms": ".2f",
                 "dvs_ms": ".2f",
                 "segment_ms": ".2f",
                 "pose_ms": ".2f",
                 "other_ms": ".2f",
             },
         )
-    rows = run(scene=scene, seconds=seconds, ground_truth=ground_truth, antialias_samples=antialias)
+    rows = run(
+        scene=scene,
+        seconds=seconds,
+        ground_truth=ground_truth,
+        antialias_samples=antialias,
+        keyframe_ms=km,
+        env_counts=counts,
+    )
     print_table(
-        f"Environment, scene '{scene}' (real-time factor = simulated s / wall s)",
+        f"Environment, scene '{scene}': exact vs keyframe frames, stepped alternately "
+        "(real-time factor = simulated s / wall s; speedup = exact / keyframes step time)",
         rows,
         {
             "dvs": "",
             "envs": "d",
             "ground_truth": "",
-            "realtime_factor": ".2f",
-            "ms_per_step": ".1f",
-            "frames_per_s": ",.0f",
-            "events_per_s": ",.0f",
+            "keyframe_ms": "g",
+            "exact_rtf": ".2f",
+            "keyframes_rtf": ".2f",
+            "speedup": ".2f",
+            "exact_ms_per_step": ".1f",
+            "keyframes_ms_per_step": ".1f",
+            "exact_frames_per_step": ".1f",
+            "keyframes_frames_per_step": ".1f",
+            "events_diff_pct": "+.2f",
         },
     )
 
@@ -395,15 +447,20 @@ def bench_agent(
         float, typer.Option(callback=check_seconds, help="Simulated seconds of closed loop.")
     ] = 5.0,
     seed: Annotated[int, typer.Option(help="Seed of the env and the agent.")] = 0,
+    keyframe_ms: KeyframeMsOpt = None,
 ) -> None:
-    """Per-step latency of sOMS, proto-object, sAC and the whole agent; closed-loop RTF."""
+    """Per-step latency of sOMS, proto-object, sAC and the whole agent; closed-loop RTF
+    with exact and keyframe frames side by side."""
     from experiments.bench_agent import bench_agent as run
+    from experiments.bench_agent import loop_modes
 
-    rows, loop = run(seconds=seconds, scene=scene, seed=seed)
+    fk = frames_kwargs(None, keyframe_ms)
+    rows, loop = run(seconds=seconds, scene=scene, seed=seed, **fk)
     ms = {"calls": "d", "median_ms": ".2f", "p95_ms": ".2f", "max_ms": ".2f"}
     print_table("Agent latency at 128x128 (ms per call)", rows, {"stage": "", **ms})
     print_table(
-        "Closed loop (env + agent; real-time factor = simulated s / wall s)",
+        "Closed loop (env + agent, the env's default frames; real-time factor = simulated s "
+        "/ wall s)",
         [loop],
         {
             "scene": "",
@@ -412,6 +469,86 @@ def bench_agent(
             "env_ms_per_step": ".1f",
             "agent_ms_per_step": ".2f",
             "realtime_factor": ".2f",
+        },
+    )
+    both = loop_modes(seconds=seconds, scene=scene, seed=seed, keyframe_ms=fk.get("keyframe_ms"))
+    print_table(
+        "Closed loop, exact vs keyframe frames stepped alternately (speedup = keyframes RTF / "
+        "exact RTF)",
+        [both],
+        {
+            "scene": "",
+            "keyframe_ms": "g",
+            "simulated_s": ".1f",
+            "exact_rtf": ".2f",
+            "keyframes_rtf": ".2f",
+            "speedup": ".2f",
+            "exact_env_ms": ".1f",
+            "keyframes_env_ms": ".1f",
+            "exact_agent_ms": ".2f",
+            "keyframes_agent_ms": ".2f",
+            "exact_decisions": "d",
+            "keyframes_decisions": "d",
+        },
+    )
+
+
+@bench_app.command("fidelity")
+def bench_fidelity(
+    scenes: Annotated[
+        str, typer.Option(help="Comma-separated scenes.")
+    ] = "office,shelf,hand,gratings",
+    motions: Annotated[str, typer.Option(help="Comma-separated: still, walk, saccade.")] = (
+        "still,walk,saccade"
+    ),
+    seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
+    seconds: Annotated[float, typer.Option(min=0.01, help="Simulated seconds per run.")] = 0.25,
+    keyframe_ms: KeyframeMsOpt = None,
+) -> None:
+    """Keyframe frames against exact rendering on the same seeds (events, L1, timing)."""
+    from experiments.bench_fidelity import MOTIONS
+    from experiments.bench_fidelity import bench_fidelity as run
+
+    names = [m.strip() for m in motions.split(",") if m.strip()]
+    bad = [m for m in names if m not in MOTIONS]
+    if bad:
+        raise typer.BadParameter(f"--motions: unknown {bad}, choose from {MOTIONS}")
+    try:
+        seed_list = tuple(int(s) for s in seeds.split(",") if s.strip())
+    except ValueError as err:
+        raise typer.BadParameter(
+            f"--seeds must be integers separated by commas, got {seeds!r}"
+        ) from err
+    rows = run(
+        scenes=tuple(s.strip() for s in scenes.split(",") if s.strip()),
+        motions=tuple(names),
+        seeds=seed_list,
+        seconds=seconds,
+        progress=lambda msg: console.print(f"  {msg}", style="dim"),
+        **frames_kwargs(None, keyframe_ms),
+    )
+    km = rows[0].keyframe_ms if rows else keyframe_ms
+    print_table(
+        f"Keyframes ({km:g} ms) vs exact frames, {seconds:g} s per run, seeds {seeds} "
+        "(L1 = per-step count-map L1 / exact events; aa16 = exact with 16 samples a pixel, "
+        "for scale; matched = within 1 ms, same pixel and polarity; gap = longest event gap "
+        "while the camera moves, ms)",
+        rows,
+        {
+            "scene": "",
+            "motion": "",
+            "exact_events": ",d",
+            "keyframes_events": ",d",
+            "events_diff_pct": "+.2f",
+            "l1_per_event": ".3f",
+            "aa16_l1_per_event": ".3f",
+            "matched_pct": ".1f",
+            "exact_matched_pct": ".1f",
+            "aa16_matched_pct": ".1f",
+            "max_gap_exact_ms": "",
+            "max_gap_keyframes_ms": "",
+            "renders_per_step_exact": ".1f",
+            "renders_per_step_keyframes": ".1f",
         },
     )
 

@@ -1,5 +1,6 @@
-"""Command-line options shared by the ``wander`` commands: one definition of each flag,
-its help and its check.
+"""Command-line options shared by the ``wander`` commands (the agent's flags, the
+env's ``--frames`` and ``--keyframe-ms``, scenes, presets, run folders): one definition
+of each flag, its help and its check.
 
 Every check runs while the command line is parsed (a Click callback), so a bad value
 is refused before any work starts, with one line naming the option, the allowed values
@@ -30,6 +31,8 @@ __all__ = [
     "DvsOpt",
     "FixationalOpt",
     "ForceOpt",
+    "FramesOpt",
+    "KeyframeMsOpt",
     "RunDirOpt",
     "SceneOpt",
     "SecondsOpt",
@@ -42,6 +45,7 @@ __all__ = [
     "check_positive",
     "check_scene",
     "check_seconds",
+    "frames_kwargs",
     "one_of",
     "resolve_out",
 ]
@@ -102,8 +106,8 @@ def check_dvs(value: str) -> str:
 def one_of(allowed: Sequence[str]) -> Callable[[str], str]:
     """A check that the value is one of ``allowed``."""
 
-    def check(value: str) -> str:
-        if value not in allowed:
+    def check(value: str | None) -> str | None:
+        if value is not None and value not in allowed:  # None: an optional left unset
             raise typer.BadParameter(
                 f"{value!r} is not allowed; allowed: {', '.join(map(str, allowed))}"
             )
@@ -154,6 +158,41 @@ SomsNormOpt = Annotated[
         help="sOMS norm: quantile (the agent's) or minmax (the paper-literal sOMS).",
     ),
 ]
+
+
+FRAME_MODES = ("keyframes", "exact")  # as wander_env.env.FRAME_MODES (no env import here)
+FramesOpt = Annotated[
+    str | None,
+    typer.Option(
+        callback=one_of(("keyframes", "exact")),
+        help="How the env makes its frames: keyframes (render every --keyframe-ms, "
+        "synthesise the rest) or exact (render every frame; the reference). "
+        "Default: the env's (keyframes).",
+    ),
+]
+KeyframeMsOpt = Annotated[
+    float | None,
+    typer.Option(min=0.001, help="Keyframe interval (ms) of --frames keyframes (default 2)."),
+]
+
+
+def frames_kwargs(frames: str | None, keyframe_ms: float | None) -> dict[str, object]:
+    """The env config keywords for ``--frames``/``--keyframe-ms`` (only those given).
+
+    >>> frames_kwargs("exact", None), frames_kwargs(None, 5.0)
+    ({'frames': 'exact'}, {'keyframe_ms': 5.0})
+    """
+    out: dict[str, object] = {}
+    if frames is not None:
+        if frames not in FRAME_MODES:
+            raise typer.BadParameter(f"--frames must be one of {FRAME_MODES}, got {frames!r}")
+        out["frames"] = frames
+    if keyframe_ms is not None:
+        if abs(keyframe_ms - round(keyframe_ms)) > 1e-9 or round(keyframe_ms) < 1:
+            msg = f"--keyframe-ms must be a whole number of 1 ms render ticks, got {keyframe_ms}"
+            raise typer.BadParameter(msg)
+        out["keyframe_ms"] = float(keyframe_ms)
+    return out
 
 
 def agent_alpha(alpha: float | None) -> dict[str, float]:

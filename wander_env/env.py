@@ -8,6 +8,15 @@ log-intensity change (adaptive sampling: a render tick whose largest change
 exceeds ``adaptive_log_change`` is split into up to ``max_subframes`` frames),
 and the emulator turns the frames into events.
 
+Frames (``frames``): ``"keyframes"`` (the default) renders the camera every
+``keyframe_ms`` (2 ms) and at each step's end, and makes the frames in between from the
+two neighbouring keys with the scene's geometry (:mod:`wander_env.keyframes`: the camera's
+rotation homography, each moving object's rigid motion from the keys' depth and motion
+layers, reprojection with depth where the camera centre moves); the keys are rendered at
+the start of the step from the PTU's own trajectory, so nothing waits for a later frame.
+``"exact"`` renders every frame (every tick and sub-frame): the reference.
+``renders_in_step`` counts the RGB renders of the last step.
+
 Action: ``Box(-1, 1, (2,))``, a gaze offset in units of the half sensor: the
 action that brings pixel P to the fovea is ``(P - centre) / (W/2, H/2)``. It is
 converted to angles with the camera's pinhole model (offset d pixels ->
@@ -25,9 +34,10 @@ Observation: ``{"events": (2, H, W) float32 per-polarity counts of the step
 :class:`~wander_env.event_packet.EventPacket`, whose ``.events`` is the structured array;
 as a packet it passes through vector envs, ``check_env`` and pickling), ``t`` (simulated s),
 ``ptu_positions``, ``ptu_target_positions`` (and ``ptu_target_deg``), ``moving``,
-``target_clipped``, ``frames`` and ``extra_frames`` rendered in the step, and, with ground truth on,
-``object_mask`` ((H, W) int32 object ids, 0 = background) and ``objects`` (per
-moving object: id, name, pixel centre of its projection, mask pixels, visible).
+``target_clipped``, ``frames`` and ``extra_frames`` made in the step (rendered or
+synthesised), and, with ground truth on, ``object_mask`` ((H, W) int32 object ids,
+0 = background) and ``objects`` (per moving object: id, name, pixel centre of its
+projection, mask pixels, visible).
 
 Processes: the renderer (an OpenGL context) is created at the first ``reset``, in the
 process that renders; constructing an env touches no GL, so ``AsyncVectorEnv`` with the
@@ -56,14 +66,22 @@ import mujoco
 import numpy as np
 
 from wander_env.actions import action_to_gaze_degrees, check_action
+from wander_env.camera import focal_length_px, intrinsics, rotation_from_mujoco
 from wander_env.dvs import DVSEmulator, DVSParams
 from wander_env.event_packet import EventPacket
 from wander_env.events import concatenate, to_frame
 from wander_env.gl_fork import ForkedGLError, fork_error_message
-from wander_env.metrics import focal_length_px
-from wander_env.mjcf import PAN_JOINT, TILT_JOINT, SceneAnimator, build_mjcf
+from wander_env.keyframes import KeyframeSource, View, make_keyframe
+from wander_env.mjcf import (
+    CAMERA_NAME,
+    PAN_JOINT,
+    TILT_JOINT,
+    SceneAnimator,
+    build_mjcf,
+    geom_layer_ids,
+)
 from wander_env.ptu import PanTiltUnit, PTUParams
-from wander_env.renderer import CameraRenderer, project_points
+from wander_env.renderer import CameraRenderer, RenderParams, project_points
 from wander_env.scene_config import SceneConfig, load_scene_config
 from wander_env.viz import event_image, labelled_frame
 
@@ -88,6 +106,15 @@ class WanderConfig:
     # bigger per-pixel log changes, so more adaptive sub-frames (office: ~1.5x the frames
     # with a still camera) and ~5 % more events. The scenes' default is 4.
     antialias_samples: int | None = None
+    # How the frames between control steps are made: "exact" renders every one (every
+    # render tick and adaptive sub-frame); "keyframes" renders every keyframe_ms and at
+    # each step's end and synthesises the frames in between from the keys' depth and
+    # motion layers (see wander_env.keyframes).
+    frames: str = "keyframes"
+    keyframe_ms: float = 2.0
+    # Render at this many times the resolution and average blocks (see RenderParams): the
+    # finer-antialiased reference of the fidelity benchmark (2 = 16 samples a pixel).
+    supersample: int = 1
 
     def __post_init__(self) -> None:
         for name in (
@@ -111,6 +138,24 @@ class WanderConfig:
             raise ValueError(f"max_subframes={self.max_subframes} splits a tick below 1 µs")
         if self.dvs_params is None:
             DVSParams.preset(self.dvs)  # raises for an unknown preset name
+        if self.frames not in FRAME_MODES:
+            raise ValueError(
+                f"WanderConfig.frames must be one of {FRAME_MODES}, got {self.frames!r}"
+            )
+        k = self.keyframe_ms
+        if isinstance(k, bool) or not (isinstance(k, (int, float)) and math.isfinite(k) and k > 0):
+            raise ValueError(f"WanderConfig.keyframe_ms must be a finite number > 0, got {k!r}")
+        # Keys are the render ticks at multiples of keyframe_ms (and each step's end):
+        # keyframe_ms must be a whole number of ticks, or divide a tick (every tick a key).
+        key_us, tick_us = round(k * 1e3), round(1e6 / self.render_rate_hz)
+        if abs(k * 1e3 - key_us) > 1e-6 or key_us < 1 or (key_us % tick_us and tick_us % key_us):
+            raise ValueError(
+                f"WanderConfig.keyframe_ms={k} must be a whole number of render periods or "
+                f"divide one (render_rate_hz={self.render_rate_hz}: {tick_us} µs)"
+            )
+        ss = self.supersample
+        if isinstance(ss, bool) or not isinstance(ss, int) or ss < 1:
+            raise ValueError(f"WanderConfig.supersample must be an int >= 1, got {ss!r}")
         aa = self.antialias_samples
         if aa is not None and (isinstance(aa, bool) or not isinstance(aa, int) or aa < 0):
             raise ValueError(f"WanderConfig.antialias_samples must be an int >= 0, got {aa!r}")
@@ -122,6 +167,13 @@ class WanderConfig:
     @property
     def tick_us(self) -> int:
         return round(1e6 / self.render_rate_hz)
+
+    @property
+    def keyframe_us(self) -> int:
+        return round(self.keyframe_ms * 1e3)
+
+
+FRAME_MODES = ("keyframes", "exact")
 
 
 class WanderEnv(gym.Env):
@@ -154,6 +206,18 @@ class WanderEnv(gym.Env):
         self.dvs_params = c.dvs_params if c.dvs_params is not None else DVSParams.preset(c.dvs)
         self.dvs = DVSEmulator(self.width, self.height, self.dvs_params)
         self.animator: SceneAnimator | None = None
+        self._cam_id = int(self.model.camera(CAMERA_NAME).id)
+        self._keys: KeyframeSource | None = None
+        if c.frames == "keyframes":
+            fovy = float(self.model.cam_fovy[self._cam_id])
+            self._layer_lut = geom_layer_ids(self.model)
+            self._keys = KeyframeSource(
+                intrinsics(self.width, self.height, fovy), self._layer_radii(), self._key_geometry
+            )
+        self._key_angles: dict[int, tuple[float, float]] = {}  # key t_us -> camera angles
+        self._posed_us = 0
+        self._key_mask: tuple[int, np.ndarray] | None = None  # (t_us, object mask) of a key
+        self.renders_in_step = 0  # frames rendered (RGB) in the last step or reset
 
         lo_pan, hi_pan = c.ptu.pan_limits_deg
         lo_tilt, hi_tilt = c.ptu.tilt_limits_deg
@@ -187,7 +251,12 @@ class WanderEnv(gym.Env):
         """The camera's renderer, created on first use in this process (see the module doc)."""
         r = self._renderer
         if r is None:
-            r = self._renderer = CameraRenderer(self.model, self.width, self.height)
+            r = self._renderer = CameraRenderer(
+                self.model,
+                self.width,
+                self.height,
+                params=RenderParams(supersample=self.config.supersample),
+            )
             self._renderer_pid = os.getpid()
         elif self._renderer_pid != os.getpid():
             raise ForkedGLError(fork_error_message(self._renderer_pid, os.getpid()))
@@ -208,21 +277,100 @@ class WanderEnv(gym.Env):
     # -- the world at time t -----------------------------------------------------------
     def _pose(self, t_us: int) -> None:
         """Put the PTU's current camera angles and the objects at ``t_us`` into the model."""
-        self.data.qpos[self._pan_adr] = math.radians(self.ptu.camera_pan_deg)
-        self.data.qpos[self._tilt_adr] = math.radians(self.ptu.camera_tilt_deg)
+        pan, tilt = math.radians(self.ptu.camera_pan_deg), math.radians(self.ptu.camera_tilt_deg)
+        self._pose_angles(t_us, pan, tilt)
+
+    def _pose_angles(self, t_us: int, pan_rad: float, tilt_rad: float) -> None:
+        self._posed_us = t_us
+        self.data.qpos[self._pan_adr] = pan_rad
+        self.data.qpos[self._tilt_adr] = tilt_rad
         self.animator.apply(self.data, t_us * 1e-6)
         mujoco.mj_kinematics(self.model, self.data)
         mujoco.mj_camlight(self.model, self.data)
 
     def _render(self) -> np.ndarray:
+        self.renders_in_step += 1
         return self.renderer.render(self.data)
+
+    # -- keyframes ----------------------------------------------------------------------
+    def _view(self, t_us: int) -> View:
+        """The camera pose (posed model) and motion layers at ``t_us``."""
+        return View(
+            rotation_from_mujoco(self.data.cam_xmat[self._cam_id]),
+            self.data.cam_xpos[self._cam_id].copy(),
+            self.animator.layer_positions(t_us * 1e-6),
+        )
+
+    def _layer_radii(self) -> np.ndarray:
+        """Bounding radius (m) of each motion layer about its position (inf: a screen)."""
+        n = int(self._layer_lut.max(initial=0))
+        radii = np.full(n + 1, np.inf)
+        if self.scene.gratings is None:
+            for k, obj in enumerate(self.scene.moving_objects, 1):
+                radii[k] = 0.5 * math.hypot(*obj.size) * 1.01
+        return radii
+
+    def _render_key(self, t_us: int, geometry: bool) -> None:
+        """Render a keyframe of the posed model at ``t_us``; with ``geometry`` its layers
+        and depth too (else they are rendered when a frame needs them)."""
+        rgb = self._render()
+        lum = self.dvs.prepare(rgb).lum.reshape(self.height, self.width)
+        view = self._view(t_us)
+        self._key_angles = {t: a for t, a in self._key_angles.items() if t >= self._t_us}
+        self._key_angles[t_us] = (self.ptu.camera_pan_deg, self.ptu.camera_tilt_deg)
+        if geometry:
+            layers, depth = self.renderer.segment_depth_current(self._layer_lut)
+            self._keys.add(make_keyframe(t_us, lum, view, depth, layers))
+            mask = np.where(layers <= self.scene.num_objects, layers, 0).astype(np.int32)
+            self._key_mask = (t_us, mask)
+        else:
+            self._keys.add(make_keyframe(t_us, lum, view))
+        self._frame = rgb
+
+    def _key_geometry(self, key: Any) -> tuple[np.ndarray, np.ndarray]:
+        """(depth, layers) of a key rendered earlier: the model is posed at the key's time
+        and camera angles, drawn, and posed back."""
+        pan, tilt = self._key_angles[key.t_us]
+        now = (self.data.qpos[self._pan_adr], self.data.qpos[self._tilt_adr], self._posed_us)
+        self._pose_angles(key.t_us, math.radians(pan), math.radians(tilt))
+        self.renderer.update(self.data)
+        layers, depth = self.renderer.segment_depth_current(self._layer_lut)
+        self._pose_angles(now[2], now[0], now[1])
+        return depth, layers
+
+    def _render_keys(self, t0: int, t1: int) -> None:
+        """Keys of the step (t0, t1]: every keyframe_us and at t1, with the PTU moved
+        along the same ticks as the step will move it (so the poses are the step's)."""
+        c = self.config
+        saved = self.ptu
+        self.ptu = saved.copy()
+        try:
+            t = t0
+            while t < t1:
+                t_next = t + c.tick_us
+                self.ptu.step((t_next - t) * 1e-6)
+                t = t_next
+                if t == t1 or t % c.keyframe_us == 0:
+                    self._pose(t)
+                    self._render_key(t, geometry=t == t1 and c.ground_truth)
+        finally:
+            self.ptu = saved
+
+    def _frame_at(self, t_us: int) -> np.ndarray:
+        """The camera frame of the posed model at ``t_us``: rendered (exact) or from keys."""
+        if self._keys is None:
+            return self._render()
+        key = self._keys.key_at(t_us)
+        if key is not None:
+            return key.lum
+        return self._keys.frame(t_us, self._view(t_us))
 
     def _tick(self, t0: int, t1: int) -> tuple[list[np.ndarray], int]:
         """Advance one render period; returns its event chunks and the frames rendered."""
         before = self.ptu.copy()
         self.ptu.step((t1 - t0) * 1e-6)
         self._pose(t1)
-        frame = self._render()
+        frame = self._frame_at(t1)
         prepared = self.dvs.prepare(frame)  # converted once: for the change and the step
         change = self.dvs.log_change(prepared)
         m = 1
@@ -237,11 +385,12 @@ class WanderEnv(gym.Env):
                 self.ptu.step((tj - t_prev) * 1e-6)
                 t_prev = tj
                 self._pose(tj)
-                chunks.append(self.dvs.step(self._render(), tj))
+                chunks.append(self.dvs.step(self._frame_at(tj), tj))
             self.ptu = after
             self._pose(t1)
         chunks.append(self.dvs.step(prepared, t1))
-        self._frame = frame
+        if self._keys is None:
+            self._frame = frame
         return chunks, m
 
     # -- gymnasium API -----------------------------------------------------------------
@@ -257,8 +406,15 @@ class WanderEnv(gym.Env):
         self.ptu.reset(*self.ptu.clip_target(pan, tilt))
         self._t_us = 0
         self._pose(0)
-        self._frame = self._render()
-        self.dvs.reset(self._frame, 0, seed=int(rng.integers(2**63)))
+        self.renders_in_step = 0
+        if self._keys is None:
+            self._frame = self._render()
+            first = self._frame
+        else:
+            self._keys.reset()
+            self._render_key(0, geometry=self.config.ground_truth)
+            first = self._keys.keys[0].lum
+        self.dvs.reset(first, 0, seed=int(rng.integers(2**63)))
         self._last_counts = np.zeros((2, self.height, self.width), np.float32)
         empty = self.dvs.flush()
         obs = {"events": self._last_counts.copy(), "gaze": self._gaze()}
@@ -273,6 +429,9 @@ class WanderEnv(gym.Env):
         c = self.config
         chunks: list[np.ndarray] = []
         frames = 0
+        self.renders_in_step = 0
+        if self._keys is not None:
+            self._render_keys(self._t_us, self._t_us + c.ticks_per_step * c.tick_us)
         for _ in range(c.ticks_per_step):
             t1 = self._t_us + c.tick_us
             tick_chunks, m = self._tick(self._t_us, t1)
@@ -316,7 +475,12 @@ class WanderEnv(gym.Env):
             "extra_frames": extra,
         }
         if self.config.ground_truth:
-            mask = self.renderer.segment(self.data)
+            km = self._key_mask
+            mask = (
+                km[1]
+                if km is not None and km[0] == self._t_us
+                else self.renderer.segment(self.data)
+            )
             info["object_mask"] = mask
             info["objects"] = self._objects(mask)
         return info

@@ -30,8 +30,27 @@ import math
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
-# Speck DVS: sensor width 5.12 mm behind a 1.7 mm lens -> 2·atan(5.12 / 3.4) ≈ 112.8°.
-SPECK_HFOV_DEG = math.degrees(2.0 * math.atan(5.12 / (2.0 * 1.7)))
+from wander_env.camera import (
+    SPECK_HFOV_DEG,
+    degrees_to_pixels,
+    focal_length_px,
+    pixels_to_degrees,
+)
+
+# The pinhole helpers live in wander_env.camera; imported here under their old home.
+__all__ = [
+    "SPECK_HFOV_DEG",
+    "degrees_to_pixels",
+    "detection_hit",
+    "focal_length_px",
+    "foveation_error_px",
+    "iou",
+    "pixels_to_degrees",
+    "precision",
+    "recall",
+    "ssim",
+    "ssim_map",
+]
 
 # SSIM (Wang et al. 2004): 11×11 Gaussian window of σ = 1.5 (radius 5 = int(3.5·1.5 + 0.5)).
 _SSIM_SIGMA = 1.5
@@ -175,44 +194,3 @@ def foveation_error_px(
     dx = float(point_xy[0]) - (w - 1) / 2.0
     dy = float(point_xy[1]) - (h - 1) / 2.0
     return dx, dy, math.hypot(dx, dy)
-
-
-def focal_length_px(width_px: int, hfov_deg: float = SPECK_HFOV_DEG) -> float:
-    """Pinhole focal length in pixels, ``(W / 2) / tan(HFOV / 2)``.
-
-    >>> round(focal_length_px(128), 4)  # Speck: 1.7 mm / (5.12 mm / 128 px)
-    42.5
-    """
-    if width_px <= 0:
-        raise ValueError(f"width_px must be > 0, got {width_px!r}")
-    if not 0 < hfov_deg < 180:
-        raise ValueError(f"hfov_deg must be in (0, 180), got {hfov_deg!r}")
-    return (width_px / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
-
-
-def pixels_to_degrees(
-    dx_px: float | np.ndarray, width_px: int, hfov_deg: float = SPECK_HFOV_DEG
-) -> float | np.ndarray:
-    """Angle (degrees) of a pixel offset from the principal point, pinhole model.
-
-    Works on scalars and arrays: ``atan(dx / f)`` with ``f`` = :func:`focal_length_px`.
-
-    >>> round(pixels_to_degrees(64, 128), 4)  # the sensor edge: half the HFOV
-    56.4134
-    """
-    f = focal_length_px(width_px, hfov_deg)
-    out = np.degrees(np.arctan(np.asarray(dx_px, dtype=np.float64) / f))
-    return float(out) if out.ndim == 0 else out
-
-
-def degrees_to_pixels(
-    angle_deg: float | np.ndarray, width_px: int, hfov_deg: float = SPECK_HFOV_DEG
-) -> float | np.ndarray:
-    """Pixel offset from the principal point of a ray at ``angle_deg``: ``f·tan(angle)``.
-
-    >>> round(degrees_to_pixels(pixels_to_degrees(10.0, 128), 128), 9)
-    10.0
-    """
-    f = focal_length_px(width_px, hfov_deg)
-    out = f * np.tan(np.radians(np.asarray(angle_deg, dtype=np.float64)))
-    return float(out) if out.ndim == 0 else out

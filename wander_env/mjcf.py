@@ -618,6 +618,19 @@ def geom_object_ids(model: mujoco.MjModel) -> np.ndarray:
     return ids
 
 
+def geom_layer_ids(model: mujoco.MjModel) -> np.ndarray:
+    """Motion layer per geom, (ngeom,) int32: 0 static, k object k, and ``n + 1`` for
+    the gratings screen (it slides) when the model has one (``n`` = objects).
+
+    A layer moves rigidly: see :meth:`SceneAnimator.layer_positions`.
+    """
+    ids = geom_object_ids(model)
+    bg = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, GRATING_BACKGROUND_BODY)
+    if bg >= 0:
+        ids[np.asarray(model.geom_bodyid) == bg] = int(ids.max(initial=0)) + 1
+    return ids
+
+
 # ----------------------------------------------------------------------------------------
 # Runtime
 
@@ -668,6 +681,22 @@ class SceneAnimator:
         if not self.trajectories:
             return np.zeros((0, 3))
         return np.stack([tr.position(t) for tr in self.trajectories])
+
+    def layer_positions(self, t: float) -> np.ndarray:
+        """(layers, 3) world positions (m) of what each motion layer shows at time t.
+
+        Row 0 (the static world) is zero; row k is object k's position; with gratings,
+        row 1 is the patch's content (its bars drift inside the fixed patch) and row 2 the
+        screen's, both unwrapped (no jump back by a period): between two times a
+        layer's content moves rigidly by the difference of its rows (see
+        :func:`geom_layer_ids`).
+        """
+        g = self.config.gratings
+        if g is None or self._layout is None:
+            return np.concatenate([np.zeros((1, 3)), self.object_positions(t)])
+        v_b, v_o = (v * g.metres_per_deg for v in g.effective_speeds_deg_s())
+        right = np.array([0.0, -1.0, 0.0])  # image right is world -y
+        return np.stack([np.zeros(3), v_o * t * right, v_b * t * right])
 
     def apply(self, data: mujoco.MjData, t: float) -> None:
         """Set mocap positions (and grating colours) for time t (s)."""

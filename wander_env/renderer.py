@@ -7,7 +7,8 @@ skybox, fog and haze off, and renders from the camera ``event_camera``:
 - :meth:`CameraRenderer.render`: RGB uint8 (H, W, 3), row 0 at the top;
 - :meth:`CameraRenderer.segment`: int32 (H, W) object ids: 0 background, k for the
   geoms of body ``object_k`` (see :func:`wander_env.mjcf.geom_object_ids`);
-- :meth:`CameraRenderer.render_with_mask`: both from one scene update.
+- :meth:`CameraRenderer.render_with_mask`: both from one scene update;
+- :meth:`CameraRenderer.segment_depth_current`: ids and depth (metres) from one draw.
 
 :func:`project_points` maps world points to pixel coordinates (x right, y down, pixel
 centres at integers; the sensor centre is ((W-1)/2, (H-1)/2)).
@@ -32,12 +33,12 @@ import os
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import contextlib
-import math
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
+from wander_env.camera import intrinsics, linearise_depth, project, rotation_from_mujoco
 from wander_env.closing import Closing
 from wander_env.gl_fork import claim_gl
 from wander_env.mjcf import CAMERA_NAME, geom_object_ids
@@ -57,6 +58,16 @@ class RenderParams:
     fog: bool = False
     haze: bool = False
     visible_geom_groups: tuple[int, ...] = (0, 1, 2)  # the PTU's own geoms are group 3
+    # Render s times the resolution and average s × s blocks (of the sRGB codes, as an
+    # MSAA resolve does): with the scenes' 4 MSAA samples, 2 gives 16 samples a pixel.
+    # Mesa's llvmpipe caps MSAA at 4 samples (16 renders the same pixels as 4), so this
+    # is how the exact mode's finer-antialiased reference is made on a CPU.
+    supersample: int = 1
+
+    def __post_init__(self) -> None:
+        s = self.supersample
+        if isinstance(s, bool) or not isinstance(s, int) or s < 1:
+            raise ValueError(f"RenderParams.supersample must be an int >= 1, got {s!r}")
 
 
 class CameraRenderer(Closing):
@@ -90,7 +101,11 @@ class CameraRenderer(Closing):
             cam_id = int(camera)
             if not 0 <= cam_id < model.ncam:
                 raise ValueError(f"camera id {cam_id} out of range [0, {model.ncam})")
+        ss = self.params.supersample
         buf_w, buf_h = model.vis.global_.offwidth, model.vis.global_.offheight
+        if ss > 1:  # the supersampled buffer: grow the model's offscreen buffer to fit
+            model.vis.global_.offwidth = buf_w = max(buf_w, width * ss)
+            model.vis.global_.offheight = buf_h = max(buf_h, height * ss)
         if width > buf_w or height > buf_h:
             raise ValueError(
                 f"image {width}x{height} exceeds the model's offscreen buffer {buf_w}x{buf_h} "
@@ -104,7 +119,7 @@ class CameraRenderer(Closing):
         self._seg_con: mujoco.MjrContext | None = None
         claim_gl()  # in a child forked after GL was initialised: ForkedGLError, not a hang
         try:
-            self._gl = mujoco.GLContext(width, height)
+            self._gl = mujoco.GLContext(width * ss, height * ss)
             self._gl.make_current()
             self._con = self._context(model.vis.quality.offsamples)
             self._seg_con = self._context(0) if model.vis.quality.offsamples > 0 else self._con
@@ -141,8 +156,9 @@ class CameraRenderer(Closing):
         self._camera = mujoco.MjvCamera()
         self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
         self._camera.fixedcamid = cam_id
-        self._rect = mujoco.MjrRect(0, 0, width, height)
-        self._rgb = np.empty((height, width, 3), np.uint8)  # GL rows: bottom first
+        self._rect = mujoco.MjrRect(0, 0, width * ss, height * ss)
+        self._rgb = np.empty((height * ss, width * ss, 3), np.uint8)  # GL rows: bottom first
+        self._depth_buf = np.empty((height * ss, width * ss), np.float32)
         # seg id (geom id + 1; 0 = nothing) -> object id
         self._lut = np.concatenate([[0], geom_object_ids(model)]).astype(np.int32)
 
@@ -159,14 +175,15 @@ class CameraRenderer(Closing):
 
     # -- rendering ------------------------------------------------------------------------
 
-    def _draw(self, con: mujoco.MjrContext | None) -> np.ndarray:
-        """Render the current scene with ``con``; the RGB buffer, bottom row first."""
+    def _draw(self, con: mujoco.MjrContext | None, depth: np.ndarray | None = None) -> np.ndarray:
+        """Render the current scene with ``con``; the RGB buffer, bottom row first (and
+        the raw depth buffer into ``depth`` when given)."""
         if con is None or self._gl is None:
             raise RuntimeError("CameraRenderer is closed")
         self._gl.make_current()
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, con)
         mujoco.mjr_render(self._rect, self._scene, con)
-        mujoco.mjr_readPixels(self._rgb, None, self._rect, con)
+        mujoco.mjr_readPixels(self._rgb, depth, self._rect, con)
         return self._rgb
 
     def update(self, data: mujoco.MjData) -> None:
@@ -180,15 +197,40 @@ class CameraRenderer(Closing):
 
     def render_current(self) -> np.ndarray:
         """RGB uint8 (H, W, 3) of the last :meth:`update` (a new array)."""
-        return self._draw(self._con)[::-1].copy()
+        top = self._draw(self._con)[::-1]
+        s = self.params.supersample
+        if s == 1:
+            return top.copy()
+        blocks = top.reshape(self.height, s, self.width, s, 3).astype(np.float32)
+        return np.rint(blocks.mean(axis=(1, 3))).astype(np.uint8)
 
-    def segment_current(self) -> np.ndarray:
-        """Object ids int32 (H, W) of the last :meth:`update`."""
+    def segment_current(self, lut: np.ndarray | None = None) -> np.ndarray:
+        """Object ids int32 (H, W) of the last :meth:`update`.
+
+        ``lut`` (ngeom,) maps geom ids to the ids returned (default: object ids, see
+        :func:`wander_env.mjcf.geom_object_ids`).
+        """
+        return self._segment(lut, None)
+
+    def segment_depth_current(self, lut: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(ids int32 (H, W), depth (H, W) float64 in metres along the optical axis) of
+        the last :meth:`update`, from one single-sample draw: each pixel's id and depth
+        belong to the same surface."""
+        depth = self._depth_buf
+        ids = self._segment(lut, depth)
+        m = self.model
+        extent = m.stat.extent
+        s = self.params.supersample
+        top = depth[::-1][s // 2 :: s, s // 2 :: s]  # each pixel's central sample
+        z = linearise_depth(top, m.vis.map.znear * extent, m.vis.map.zfar * extent)
+        return ids, z
+
+    def _segment(self, lut: np.ndarray | None, depth: np.ndarray | None) -> np.ndarray:
         flags = self._scene.flags
         seg, idcolor = mujoco.mjtRndFlag.mjRND_SEGMENT, mujoco.mjtRndFlag.mjRND_IDCOLOR
         flags[seg] = flags[idcolor] = 1
         try:
-            rgb = self._draw(self._seg_con)
+            rgb = self._draw(self._seg_con, depth)
         finally:
             flags[seg] = flags[idcolor] = 0
         # A pixel's colour is the scene geom's segid + 1 (0: background).
@@ -197,12 +239,14 @@ class CameraRenderer(Closing):
         ids = top[..., 0].astype(np.int32)
         if n >= 255:  # ids past 255 spill into green and blue
             ids |= (top[..., 1].astype(np.int32) << 8) | (top[..., 2].astype(np.int32) << 16)
+        geom_lut = self._lut if lut is None else np.concatenate([[0], lut]).astype(np.int32)
         seg_lut = np.zeros(n + 1, np.int32)
         geom = int(mujoco.mjtObj.mjOBJ_GEOM)
         for g in self._scene.geoms[:n]:
             if g.segid >= 0 and g.objtype == geom:
-                seg_lut[g.segid + 1] = self._lut[g.objid + 1]
-        return seg_lut[ids]
+                seg_lut[g.segid + 1] = geom_lut[g.objid + 1]
+        s = self.params.supersample
+        return seg_lut[ids[s // 2 :: s, s // 2 :: s]] if s > 1 else seg_lut[ids]
 
     def render(self, data: mujoco.MjData) -> np.ndarray:
         """RGB uint8 (H, W, 3) from ``data``."""
@@ -255,14 +299,7 @@ def project_points(
         if isinstance(camera, str)
         else int(camera)
     )
-    pos = data.cam_xpos[cam_id]
-    rot = data.cam_xmat[cam_id].reshape(3, 3)  # columns: camera x (right), y (up), z (back)
-    pc = (np.atleast_2d(np.asarray(points, float)) - pos) @ rot
-    f = (height / 2.0) / math.tan(math.radians(model.cam_fovy[cam_id]) / 2.0)
-    depth = -pc[:, 2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u = (width - 1) / 2.0 + f * pc[:, 0] / depth
-        v = (height - 1) / 2.0 - f * pc[:, 1] / depth
-    out = np.stack([u, v], axis=1)
-    out[depth <= 0] = np.nan
-    return out
+    k = intrinsics(width, height, float(model.cam_fovy[cam_id]))
+    r_wc = rotation_from_mujoco(data.cam_xmat[cam_id])
+    uv, _ = project(k, r_wc, data.cam_xpos[cam_id], points)
+    return uv

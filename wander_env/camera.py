@@ -1,0 +1,190 @@
+"""The event camera's pinhole model: pure functions on NumPy arrays.
+
+Conventions: pixel ``(u, v)`` with ``u`` right, ``v`` down, pixel centres on integers,
+principal point at the sensor centre ``((W - 1) / 2, (H - 1) / 2)``, square pixels.
+Camera coordinates are OpenCV's (x right, y down, z forward along the optical axis);
+MuJoCo's camera frame (x right, y up, z backward) converts with
+:func:`rotation_from_mujoco`. A rotation ``R`` is world-from-camera (columns: the
+camera's axes in world coordinates) and ``c`` the camera centre in world coordinates.
+
+- :func:`focal_length_px`, :func:`pixels_to_degrees`, :func:`degrees_to_pixels`: the
+  focal length from the field of view and the angle of a pixel offset;
+- :func:`intrinsics`: the 3 × 3 matrix ``K``;
+- :func:`rotation_homography`: ``K R K⁻¹``, the exact image motion of a pure rotation
+  about the camera centre (static geometry at any depth);
+- :func:`project`: world points to pixels;
+- :func:`linearise_depth`: MuJoCo's depth buffer to metres along the optical axis;
+- :func:`source_pixels`: where a target pixel's content was in a source view, for a
+  rotation plus a translation (parallax, moving objects) given the source's depth.
+
+Example:
+    >>> import numpy as np
+    >>> K = intrinsics(128, 128, 90.0)
+    >>> round(float(K[0, 0]), 9), float(K[0, 2])
+    (64.0, 63.5)
+    >>> rz = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+    >>> np.allclose(rotation_homography(K, rz), np.eye(3))
+    True
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+# Speck DVS: sensor width 5.12 mm behind a 1.7 mm lens -> 2·atan(5.12 / 3.4) ≈ 112.8°.
+SPECK_HFOV_DEG = math.degrees(2.0 * math.atan(5.12 / (2.0 * 1.7)))
+
+# MuJoCo camera axes (x right, y up, z back) -> OpenCV's (x right, y down, z forward).
+_MJ_TO_CV = np.diag([1.0, -1.0, -1.0])
+
+
+def focal_length_px(width_px: int, hfov_deg: float = SPECK_HFOV_DEG) -> float:
+    """Pinhole focal length in pixels, ``(W / 2) / tan(HFOV / 2)``.
+
+    >>> round(focal_length_px(128), 4)  # Speck: 1.7 mm / (5.12 mm / 128 px)
+    42.5
+    """
+    if width_px <= 0:
+        raise ValueError(f"width_px must be > 0, got {width_px!r}")
+    if not 0 < hfov_deg < 180:
+        raise ValueError(f"hfov_deg must be in (0, 180), got {hfov_deg!r}")
+    return (width_px / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
+
+
+def pixels_to_degrees(
+    dx_px: float | np.ndarray, width_px: int, hfov_deg: float = SPECK_HFOV_DEG
+) -> float | np.ndarray:
+    """Angle (degrees) of a pixel offset from the principal point, pinhole model.
+
+    Works on scalars and arrays: ``atan(dx / f)`` with ``f`` = :func:`focal_length_px`.
+
+    >>> round(pixels_to_degrees(64, 128), 4)  # the sensor edge: half the HFOV
+    56.4134
+    """
+    f = focal_length_px(width_px, hfov_deg)
+    out = np.degrees(np.arctan(np.asarray(dx_px, dtype=np.float64) / f))
+    return float(out) if out.ndim == 0 else out
+
+
+def degrees_to_pixels(
+    angle_deg: float | np.ndarray, width_px: int, hfov_deg: float = SPECK_HFOV_DEG
+) -> float | np.ndarray:
+    """Pixel offset from the principal point of a ray at ``angle_deg``: ``f·tan(angle)``.
+
+    >>> round(degrees_to_pixels(pixels_to_degrees(10.0, 128), 128), 9)
+    10.0
+    """
+    f = focal_length_px(width_px, hfov_deg)
+    out = f * np.tan(np.radians(np.asarray(angle_deg, dtype=np.float64)))
+    return float(out) if out.ndim == 0 else out
+
+
+def intrinsics(width: int, height: int, fovy_deg: float) -> np.ndarray:
+    """``K`` (3 × 3) of a MuJoCo camera: ``f = (H / 2) / tan(fovy / 2)`` on both axes.
+
+    >>> intrinsics(4, 2, 90.0).round(9).tolist()
+    [[1.0, 0.0, 1.5], [0.0, 1.0, 0.5], [0.0, 0.0, 1.0]]
+    """
+    if width < 1 or height < 1:
+        raise ValueError(f"image size must be >= 1 x 1, got {width} x {height}")
+    if not 0 < fovy_deg < 180:
+        raise ValueError(f"fovy_deg must be in (0, 180), got {fovy_deg!r}")
+    f = (height / 2.0) / math.tan(math.radians(fovy_deg) / 2.0)
+    return np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0], [0.0, 0.0, 1.0]])
+
+
+def rotation_from_mujoco(cam_xmat: np.ndarray) -> np.ndarray:
+    """World-from-camera rotation in OpenCV axes from MuJoCo's ``data.cam_xmat[i]``.
+
+    >>> rotation_from_mujoco(np.eye(3).reshape(9)).tolist()
+    [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]]
+    """
+    return np.asarray(cam_xmat, dtype=np.float64).reshape(3, 3) @ _MJ_TO_CV
+
+
+def rotation_homography(k: np.ndarray, r_rel: np.ndarray) -> np.ndarray:
+    """``K R K⁻¹``: pixels of a source view -> pixels of a view rotated by ``r_rel``
+    (target-from-source camera rotation) about the same centre."""
+    return k @ r_rel @ np.linalg.inv(k)
+
+
+def relative_pose(
+    r_src: np.ndarray, c_src: np.ndarray, r_dst: np.ndarray, c_dst: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(R, t)`` with ``X_dst = R X_src + t`` for camera coordinates of two views."""
+    r = r_dst.T @ r_src
+    return r, r_dst.T @ (np.asarray(c_src, float) - np.asarray(c_dst, float))
+
+
+def project(
+    k: np.ndarray, r_wc: np.ndarray, c: np.ndarray, points: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """World points (N, 3) -> (pixels (N, 2), depth along the optical axis (N,)).
+
+    Pixels of points behind the camera (depth <= 0) are NaN.
+
+    >>> k = intrinsics(128, 128, 90.0)
+    >>> px, z = project(k, np.eye(3), np.zeros(3), np.array([[1.0, 0.5, 2.0]]))
+    >>> px.tolist(), z.tolist()
+    ([[95.5, 79.5]], [2.0])
+    """
+    pc = (np.atleast_2d(np.asarray(points, float)) - np.asarray(c, float)) @ r_wc
+    z = pc[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        uv = (pc[:, :2] / z[:, None]) * np.diag(k)[:2] + k[:2, 2]
+    uv[z <= 0] = np.nan
+    return uv, z
+
+
+def linearise_depth(buffer: np.ndarray, znear_m: float, zfar_m: float) -> np.ndarray:
+    """MuJoCo's depth buffer (default ``mjDEPTH_ZERONEAR``: 0 at the near plane, 1 at
+    the far plane, perspective) -> depth along the optical axis in metres.
+
+    The clip planes are ``model.vis.map.znear/zfar · model.stat.extent``.
+
+    >>> d = np.array([0.0, 1.0])
+    >>> linearise_depth(d, 0.1, 10.0).round(6).tolist()
+    [0.1, 10.0]
+    """
+    b = np.asarray(buffer, dtype=np.float64)
+    return (znear_m * zfar_m) / (znear_m + (zfar_m - znear_m) * (1.0 - b))
+
+
+def source_pixels(
+    a: np.ndarray, b: np.ndarray, inv_depth: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Source pixel and depth ratio of target pixels under rotation + translation.
+
+    A source pixel ``p`` at inverse depth ``ρ`` moves to ``q ~ H p + ρ K t`` (``H`` the
+    rotation homography, ``t`` the translation in target camera coordinates). Given
+    ``a = H⁻¹ q`` (N, 3) for homogeneous target pixels ``q`` and ``b = H⁻¹ K t`` (3,),
+    the source is ``p = λ a - ρ b`` with ``λ = (1 + ρ b_z) / a_z``; ``λ`` is the ratio
+    of target to source depth, so the point's inverse depth in the target is ``ρ / λ``.
+    Returns ``(p (N, 2), λ (N,))``. With ``b = 0`` this is the homography.
+
+    >>> a = np.array([[10.0, 20.0, 1.0]])
+    >>> p, lam = source_pixels(a, np.array([1.0, 0.0, 0.0]), np.array([0.5]))
+    >>> p.tolist(), lam.tolist()
+    ([[9.5, 20.0]], [1.0])
+    """
+    rho = np.asarray(inv_depth, dtype=np.float64)
+    lam = (1.0 + rho * b[2]) / a[:, 2]
+    p = lam[:, None] * a[:, :2] - rho[:, None] * b[None, :2]
+    return p, lam
+
+
+__all__ = [
+    "SPECK_HFOV_DEG",
+    "degrees_to_pixels",
+    "focal_length_px",
+    "intrinsics",
+    "linearise_depth",
+    "pixels_to_degrees",
+    "project",
+    "relative_pose",
+    "rotation_from_mujoco",
+    "rotation_homography",
+    "source_pixels",
+]
