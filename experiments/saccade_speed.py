@@ -38,7 +38,6 @@ import numpy as np
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
 from agents.fixation import FixationParams
-from experiments.benchmark_protocol import mean_std
 from experiments.framework import (
     Comparison,
     Experiment,
@@ -48,6 +47,7 @@ from experiments.framework import (
     save_figure,
 )
 from experiments.run_agent import run_closed_loop
+from experiments.stats import mean_std
 from wander_env.metrics import SPECK_HFOV_DEG, focal_length_px
 from wander_env.ptu import PTUParams, degrees_to_positions, move_duration, peak_speed
 

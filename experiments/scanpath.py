@@ -53,7 +53,6 @@ import numpy as np
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
 from experiments import scanpath_stats
-from experiments.benchmark_protocol import mean_std
 from experiments.framework import (
     Comparison,
     Experiment,
@@ -65,6 +64,7 @@ from experiments.framework import (
 from experiments.run_agent import run_closed_loop
 from experiments.sac_accuracy import cast_pixel
 from experiments.scanpath_figure import pixel_to_angles, saliency_mosaic
+from experiments.stats import mean_std
 from wander_env.metrics import focal_length_px
 from wander_env.mjcf import object_body_name
 
