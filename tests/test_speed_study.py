@@ -111,7 +111,7 @@ TINY = {
 }
 
 
-@pytest.mark.slow  # four ~10 s trials plus worker and Ray start-up (1-3 min when loaded)
+@pytest.mark.slow  # five ~10 s trials plus worker and Ray start-up; 8 min at load 28 on 2 cores
 def test_factorial_sweep_resumes_and_local_and_ray_agree(tmp_path) -> None:
     pytest.importorskip("ray")
     sweep = sweep_from_dict(TINY)
