@@ -30,6 +30,13 @@ moves). Per trial:
   whose ``box``×``box`` square (the paper's detection box) sees an object; in scenes with
   moving objects the run's detection accuracy (the box touches a moving object's mask)
   too;
+- the areas of interest: per decision the scene object under the fovea (ray cast), per
+  fixation its most frequent one (``aois_json``; ``-`` = none), their stationary and
+  transition entropy; the fixation table itself rides in the row (``scanpath_json``);
+- over the repeats (``repeats`` = 10 seeds, paired across conditions):
+  :mod:`experiments.scanpath_analysis` — bootstrap 95 % intervals per cell, the
+  fixational − saccades differences tested (permutation test, d_z, rank-biserial),
+  MultiMatch and AOI-string (Levenshtein) similarity within and between conditions;
 - the fixation table for scanpath-comparison tools (MultiMatch, ScanMatch), written by
   :func:`plot` as ``fixations/<scene>_<condition>_seed<N>.csv`` in the result folder
   with the columns ``x, y, start, duration``: degrees (``x = −pan``, positive to the
