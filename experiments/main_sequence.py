@@ -23,6 +23,7 @@ Example:
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -85,7 +86,9 @@ def _fit(form, names, f, x, y, p0, bounds) -> MainSequenceFit:
         return MainSequenceFit(
             form, nan, dict.fromkeys(names, (math.nan, math.nan)), len(x), *[math.nan] * 2
         )
-    popt, pcov = optimize.curve_fit(f, x, y, p0=p0, bounds=bounds, maxfev=20000)
+    with warnings.catch_warnings():  # an exact fit has no covariance: NaN intervals
+        warnings.simplefilter("ignore", optimize.OptimizeWarning)
+        popt, pcov = optimize.curve_fit(f, x, y, p0=p0, bounds=bounds, maxfev=20000)
     resid = y - f(x, *popt)
     dof = len(x) - len(popt)
     t = float(_st.t.ppf(0.975, dof)) if dof > 0 else math.nan
