@@ -142,6 +142,8 @@ class SaccadeSpeedConfig:
             raise ValueError(f"fixational_counts must be >= 1, got {self.fixational_counts}")
         if any(v < 0 for v in self.object_speed_scales):
             raise ValueError(f"object_speed_scales must be >= 0, got {self.object_speed_scales}")
+        if not self.main_sequence_amplitudes_deg:
+            raise ValueError("main_sequence_amplitudes_deg must list at least one amplitude")
         half = math.degrees(math.atan(63.0 / focal_length_px(128, SPECK_HFOV_DEG)))
         if any(not 0 < a <= half for a in self.main_sequence_amplitudes_deg):
             raise ValueError(
