@@ -61,6 +61,7 @@ import numpy as np
 
 from experiments.datasets.base import SequenceData, check_windows_ordered
 from experiments.datasets.masks import fit_mask
+from experiments.stats import mean_std
 from wander_env.events import SensorSize, check_sorted, time_window, to_frame
 from wander_env.metrics import detection_hit, iou, precision, ssim
 
@@ -332,23 +333,6 @@ def run_benchmark(
 
 # ----------------------------------------------------------------------------------------
 # Statistics
-
-
-def mean_std(values: Iterable[float], ddof: int = 0) -> tuple[float, float]:
-    """Mean and standard deviation of the finite values (NaN are skipped).
-
-    ``(nan, nan)`` without finite values; the std is ``nan`` when there are no more
-    values than ``ddof``.
-
-    >>> mean_std([1.0, 3.0, float("nan")])
-    (2.0, 1.0)
-    """
-    v = np.asarray(list(values), dtype=np.float64)
-    v = v[np.isfinite(v)]
-    if v.size == 0:
-        return math.nan, math.nan
-    std = float(np.std(v, ddof=ddof)) if v.size > ddof else math.nan
-    return float(np.mean(v)), std
 
 
 METRICS = ("iou", "precision", "ssim", "accuracy")

@@ -20,9 +20,9 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-from scipy.stats import binomtest
 
 from experiments.run_agent import RunConfig, run
+from experiments.stats import wilson_interval
 from wander_env.runinfo import run_record, write_json
 
 
@@ -35,10 +35,7 @@ def detection_interval(hits: int, scored: int, confidence: float = 0.95) -> tupl
         >>> round(low, 3), round(high, 3)
         (0.822, 0.928)
     """
-    if scored == 0:
-        return math.nan, math.nan
-    ci = binomtest(hits, scored).proportion_ci(confidence_level=confidence, method="wilson")
-    return float(ci.low), float(ci.high)
+    return wilson_interval(hits, scored, confidence)
 
 
 @dataclass(frozen=True)

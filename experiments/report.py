@@ -114,6 +114,71 @@ def _sweeps(root: Path, report_dir: Path) -> list[str]:
     return [*lines, ""]
 
 
+def _load(folder: Path, name: str) -> tuple[Any, list[dict[str, Any]]]:
+    exp = get_experiment(name)
+    cfg_data = json.loads((folder / "config.json").read_text())
+    cfg_data.pop("experiment", None)
+    config = config_from_dict(exp.config_type, cfg_data, where=str(folder / "config.json"))
+    return config, read_csv(folder / "results.csv")
+
+
+def studies_section(root: Path, report_dir: Path) -> list[str]:
+    """The scanpath and speed studies' tested statements beside the paper's: the
+    fixational − saccades difference in object hit rate (paired test, effect size),
+    the scanpaths' repeatability, the FLIR main-sequence fits, the command latency's
+    effect on time to foveate, and the speed sweeps' response surfaces."""
+    from experiments import saccade_speed, scanpath
+    from experiments.stats import paired_comparison
+
+    lines = ["## Scanpath and speed studies: the statements tested", ""]
+    rows_out = ["| statement | paper | ours | from |", "|---|---|---|---|"]
+    folder = latest_result(root, "scanpath")
+    if folder is not None:
+        cfg, rows = _load(folder, "scanpath")
+        src = _rel(folder / "results.csv", report_dir)
+        for c in scanpath.compare(cfg, rows):
+            if c.result.endswith(": object hit rate") or "repeatability" in c.result:
+                ours = c.ours + (f"; {c.note}" if c.note.startswith("fixational") else "")
+                rows_out.append(f"| {c.result} | {c.paper} | {ours} | [{src}]({src}) |")
+    folder = latest_result(root, "saccade_speed")
+    if folder is not None:
+        cfg, rows = _load(folder, "saccade_speed")
+        src = _rel(folder / "results.csv", report_dir)
+        for c in saccade_speed.compare(cfg, rows):
+            if c.result.startswith("main sequence, 2000 pos/s, 2000 pos/s²"):
+                rows_out.append(f"| {c.result} | {c.paper} | {c.ours} | [{src}]({src}) |")
+        base = [r for r in rows if r["factor"] == "baseline"]
+        ideal = [r for r in rows if r["factor"] == "ptu_link" and r["ptu"] == "ideal"]
+        if base and ideal and base[0]["ptu"] == "flir":
+            by = {int(r["seed"]): float(r["time_to_foveate_s"]) for r in ideal}
+            pairs = [(float(r["time_to_foveate_s"]), by[int(r["seed"])]) for r in base
+                     if int(r["seed"]) in by]  # fmt: skip
+            t = paired_comparison([a for a, _ in pairs], [b for _, b in pairs])
+            rows_out.append(
+                f"| time to foveate: FLIR link (9600 baud) − ideal PTU | — (the paper's rig "
+                f"talks to the PTU at 9600 baud) | {t.text('.3g')} s | [{src}]({src}) |"
+            )
+    if len(rows_out) > 2:
+        lines += [*rows_out, ""]
+    sweeps = root / "sweeps"
+    for d in sorted(sweeps.glob("speed*")) if sweeps.is_dir() else []:
+        if (d / "results.csv").is_file():
+            from experiments.speed_study import plot_surfaces
+
+            fig = plot_surfaces(
+                read_csv(d / "results.csv"),
+                report_dir / "report_figures" / f"sweep_{d.name}_surfaces.png",
+                title=f"sweep {d.name}: response surfaces",
+            )
+            lines += [f"![{fig.stem}]({_rel(fig, report_dir)})", ""]
+    if len(lines) == 2:
+        lines += [
+            "Not run yet: `wander experiment scanpath`, `wander experiment saccade_speed`.",
+            "",
+        ]
+    return lines
+
+
 def render_report(root: Path = Path("results"), report_dir: Path = Path(".")) -> str:
     """The Markdown text (figures are written under ``report_dir/report_figures``)."""
     lines = [
@@ -127,6 +192,7 @@ def render_report(root: Path = Path("results"), report_dir: Path = Path(".")) ->
     ]
     for name in EXPERIMENT_NAMES:
         lines += _section(name, latest_result(root, name), report_dir)
+    lines += studies_section(root, report_dir)
     lines += _sweeps(root, report_dir)
     return "\n".join(lines).rstrip() + "\n"
 

@@ -30,6 +30,13 @@ moves). Per trial:
   whose ``box``×``box`` square (the paper's detection box) sees an object; in scenes with
   moving objects the run's detection accuracy (the box touches a moving object's mask)
   too;
+- the areas of interest: per decision the scene object under the fovea (ray cast), per
+  fixation its most frequent one (``aois_json``; ``-`` = none), their stationary and
+  transition entropy; the fixation table itself rides in the row (``scanpath_json``);
+- over the repeats (``repeats`` = 10 seeds, paired across conditions):
+  :mod:`experiments.scanpath_analysis` — bootstrap 95 % intervals per cell, the
+  fixational − saccades differences tested (permutation test, d_z, rank-biserial),
+  MultiMatch and AOI-string (Levenshtein) similarity within and between conditions;
 - the fixation table for scanpath-comparison tools (MultiMatch, ScanMatch), written by
   :func:`plot` as ``fixations/<scene>_<condition>_seed<N>.csv`` in the result folder
   with the columns ``x, y, start, duration``: degrees (``x = −pan``, positive to the
@@ -39,6 +46,7 @@ moves). Per trial:
 from __future__ import annotations
 
 import csv
+import json
 import math
 import tempfile
 from collections import Counter
@@ -53,7 +61,6 @@ import numpy as np
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
 from experiments import scanpath_stats
-from experiments.benchmark_protocol import mean_std
 from experiments.framework import (
     Comparison,
     Experiment,
@@ -65,8 +72,9 @@ from experiments.framework import (
 from experiments.run_agent import run_closed_loop
 from experiments.sac_accuracy import cast_pixel
 from experiments.scanpath_figure import pixel_to_angles, saliency_mosaic
+from experiments.stats import mean_std
 from wander_env.env import WanderConfig
-from wander_env.metrics import focal_length_px
+from wander_env.metrics import SPECK_HFOV_DEG, focal_length_px
 from wander_env.mjcf import object_body_name
 
 __all__ = [
@@ -95,12 +103,15 @@ class ScanpathConfig:
     saccades_window_s: float = 0.01
     fixational_window_s: float = 0.124
     saccades_fixational: bool = True
-    repeats: int = 1
+    repeats: int = 10
     box: int = 8
     radius_deg: float = 5.0
     mosaic_step_deg: float = 0.5
     dvs: str = "ideal"
     frames: str = WanderConfig.frames  # the env\'s frame source: keyframes or exact
+    # MultiMatch normalises lengths and positions by a "screen": the camera's field of
+    # view (degrees; Speck's 112.8° both ways by default).
+    multimatch_screen_deg: tuple[float, float] = (SPECK_HFOV_DEG, SPECK_HFOV_DEG)
 
     def __post_init__(self) -> None:
         if not self.duration_s > 0:
@@ -116,6 +127,12 @@ class ScanpathConfig:
         for name in ("radius_deg", "mosaic_step_deg"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if len(self.multimatch_screen_deg) != 2 or not all(
+            math.isfinite(v) and v > 0 for v in self.multimatch_screen_deg
+        ):
+            raise ValueError(
+                f"multimatch_screen_deg must be two angles > 0, got {self.multimatch_screen_deg}"
+            )
 
 
 # ----------------------------------------------------------------------------------------
@@ -200,6 +217,8 @@ class ScanpathAgent(AttentionAgent):
         self.map_gazes: list[tuple[float, float]] = []
         # Per decision with a P: (object under P, object most of the box sees); "" = none.
         self.labels: list[tuple[str, str]] = []
+        # Per decision: the object under the fovea (the fixation's area of interest).
+        self.fovea_labels: list[str] = []
 
     def act(self, observation: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
         action = super().act(observation, info)
@@ -207,6 +226,8 @@ class ScanpathAgent(AttentionAgent):
             gaze = tuple(float(g) for g in np.asarray(observation["gaze"]).reshape(2))
             self.maps.append(np.asarray(self.saliency, np.float32).copy())
             self.map_gazes.append(gaze)
+            p = self.params
+            self.fovea_labels.append(self._object((p.width_px // 2, p.height_px // 2)))
             if self.target is not None:
                 self.labels.append(self._objects_at(self.target))
         return action
@@ -270,7 +291,9 @@ def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
     windows = np.array(
         [[*w.gaze_deg, w.t_start, w.t_end - w.t_start] for w in fx], dtype=np.float64
     ).reshape(-1, 4)
-    table = merge_windows(windows, [w.target_px is not None for w in fx])
+    ends = [w.target_px is not None for w in fx]
+    table = merge_windows(windows, ends)
+    aois = scanpath_stats.fixation_aois(agent.fovea_labels, ends)
     hits = [bool(centre) for centre, _ in agent.labels]
     box_hits = [bool(box) for _, box in agent.labels]
     amps = np.array(
@@ -301,9 +324,15 @@ def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
         "objects_visited": len({name for name, _ in agent.labels if name}),
         "revisits": scanpath_stats.revisits(table, cfg.radius_deg),
         "coverage_deg2": scanpath_stats.coverage(table, cfg.radius_deg),
+        "aois_visited": len(set(aois) - {scanpath_stats.BACKGROUND}),
+        "aoi_stationary_entropy": scanpath_stats.stationary_entropy(aois),
+        "aoi_transition_entropy": scanpath_stats.transition_entropy(aois),
         "detection_accuracy_moving": m["detection_accuracy"],
         "events_per_s": m["events"] / m["simulated_s"],
         "soms_suppression": m["soms_suppression"],
+        # The scanpath itself, for the pairwise comparisons and the user's own analysis.
+        "scanpath_json": json.dumps([[round(float(v), 6) for v in f] for f in table]),
+        "aois_json": json.dumps(aois),
         "_fixations": table,
         "_targets_deg": targets,
         "_target_hits": np.array(hits, dtype=bool),
@@ -332,11 +361,9 @@ def _by(rows: list[Row], scene: str, condition: str, metric: str) -> tuple[float
     )
 
 
-def compare(cfg: ScanpathConfig, rows: list[Row]) -> list[Comparison]:
-    """Per scene: the two conditions side by side (the paper shows a figure only)."""
-    scenes = list(dict.fromkeys(str(r["scene"]) for r in rows))
-    conditions = list(dict.fromkeys(str(r["condition"]) for r in rows))
-    metrics = [
+def _metrics(cfg: ScanpathConfig) -> list[tuple[str, str, str]]:
+    """(label, column, format) of the per-trial measures summarised and tested."""
+    return [
         ("object hit rate", "object_hit_rate", "{:.0%}"),
         (f"object hit rate, {cfg.box}×{cfg.box} box", "object_hit_rate_box", "{:.0%}"),
         ("moving-object detection accuracy", "detection_accuracy_moving", "{:.0%}"),
@@ -346,26 +373,78 @@ def compare(cfg: ScanpathConfig, rows: list[Row]) -> list[Comparison]:
         ("saccade amplitude (°)", "saccade_amplitude_mean_deg", "{:.1f}"),
         ("revisits", "revisits", "{:.1f}"),
         (f"coverage (deg², {cfg.radius_deg:g}° radius)", "coverage_deg2", "{:.0f}"),
+        ("AOI stationary entropy (normalised)", "aoi_stationary_entropy", "{:.2f}"),
+        ("AOI transition entropy (normalised)", "aoi_transition_entropy", "{:.2f}"),
     ]
-    paper = {
-        "object hit rate": (
-            "fixational: salient points on the objects; saccades: random jumps to "
-            "non-informative locations (figure, no numbers)"
-        ),
-    }
+
+
+# The paper's statements (its scanpath result is a figure, no numbers).
+PAPER_SCANPATH = {
+    "object_hit_rate": (
+        "fixational: salient points on the objects; saccades: random jumps to "
+        "non-informative locations (figure, no numbers)"
+    ),
+    "stability": "fixational eye movements are needed for stable scanpaths (figure)",
+}
+
+
+def _ci_text(v: tuple[float, float, float, int], fmt: str) -> str:
+    m, lo, hi, n = v
+    if math.isnan(m):
+        return "—"
+    if math.isnan(lo):
+        return f"{fmt.format(m)} (n = {n})"
+    return f"{fmt.format(m)} [{fmt.format(lo)}, {fmt.format(hi)}] (n = {n})"
+
+
+def compare(cfg: ScanpathConfig, rows: list[Row]) -> list[Comparison]:
+    """Per scene and measure: each condition's mean over the repeats with its bootstrap
+    95 % interval, and the fixational − saccades difference tested (paired by seed:
+    permutation test, d_z, rank-biserial); then the MultiMatch / AOI-string similarity
+    within and between the conditions, and whether the fixational scanpaths are the more
+    repeatable (:mod:`experiments.scanpath_analysis`)."""
+    from experiments import scanpath_analysis as sa
+
+    scenes = list(dict.fromkeys(str(r["scene"]) for r in rows))
+    conditions = list(dict.fromkeys(str(r["condition"]) for r in rows))
+    metrics = _metrics(cfg)
+    summ = sa.cell_summaries(rows, [k for _, k, _ in metrics])
+    tests = sa.condition_tests(rows, [k for _, k, _ in metrics])
+    per = f"{cfg.duration_s:g} s per trial"
     out = []
     for s in scenes:
         for label, key, fmt in metrics:
-            parts = []
-            for c in conditions:
-                v = _by(rows, s, c, key)[0]
-                parts.append(f"{c} {'—' if math.isnan(v) else fmt.format(v)}")
+            parts = [f"{c} {_ci_text(summ[(s, c, key)], fmt)}" for c in conditions]
+            t = tests.get((s, key))
+            note = f"fixational − saccades: {t.text('.3g')}; {per}" if t is not None else per
+            out.append(
+                Comparison(f"{s}: {label}", PAPER_SCANPATH.get(key, "—"), " / ".join(parts), note)
+            )
+    if any("scanpath_json" in r for r in rows):
+        screen = tuple(cfg.multimatch_screen_deg)
+        for t in sa.similarity_table(rows, screen):
+            parts = [
+                f"{k} {t[k]:.3f} [{t[k + '_low']:.3f}, {t[k + '_high']:.3f}]"
+                if not math.isnan(t[k])
+                else f"{k} —"
+                for k in sa.SIMILARITY_MEASURES
+            ]
+            n = max(t[k + "_n"] for k in sa.SIMILARITY_MEASURES)
             out.append(
                 Comparison(
-                    f"{s}: {label}",
-                    paper.get(label, "—"),
-                    " / ".join(parts),
-                    f"{cfg.duration_s:g} s per trial",
+                    f"{t['scene']}: MultiMatch, {t['group']}",
+                    "—",
+                    "; ".join(parts),
+                    f"mean over {n} pairs of trials (pairs share trials: descriptive)",
+                )
+            )
+        for (s, k), c in sa.stability_tests(rows, screen).items():
+            out.append(
+                Comparison(
+                    f"{s}: repeatability ({k} similarity to the other seeds)",
+                    PAPER_SCANPATH["stability"],
+                    f"fixational − saccades: {c.text('.3f')}",
+                    "per trial its mean similarity within its condition, paired by seed",
                 )
             )
     return out

@@ -13,6 +13,7 @@ Example:
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -94,3 +95,151 @@ def summary(fixations: np.ndarray, hits: list[bool] | None = None) -> dict[str, 
     if hits is not None:
         out["object_hit_rate"] = float(np.mean(hits)) if hits else math.nan
     return out
+
+
+# ----------------------------------------------------------------------------------------
+# Areas of interest (the scene's objects), string edit distance, entropy
+
+
+BACKGROUND = "-"  # the AOI of a fixation on no object (walls, floor, furniture)
+
+
+def fixation_aois(window_aois: list[str], ends_fixation: list[bool]) -> list[str]:
+    """The AOI of each merged fixation (windows grouped as :func:`experiments.scanpath.
+    merge_windows` does): the most frequent AOI of its windows, the earliest on a tie;
+    ``""`` (no object) becomes :data:`BACKGROUND`.
+
+    >>> fixation_aois(["cup", "", "", "box"], [False, False, True, True])
+    ['-', 'box']
+    """
+    if len(window_aois) != len(ends_fixation):
+        raise ValueError(f"{len(window_aois)} AOI labels but {len(ends_fixation)} flags")
+    out: list[str] = []
+    cur: list[str] = []
+    for label, end in zip(window_aois, ends_fixation, strict=True):
+        cur.append(label or BACKGROUND)
+        if end:
+            out.append(max(dict.fromkeys(cur), key=cur.count))
+            cur = []
+    if cur:
+        out.append(max(dict.fromkeys(cur), key=cur.count))
+    return out
+
+
+def levenshtein(a: list[str], b: list[str]) -> int:
+    """String-edit (Levenshtein) distance between two AOI sequences, each AOI one symbol
+    (insertions, deletions, substitutions cost 1; :mod:`rapidfuzz`).
+
+    >>> levenshtein(["cup", "box", "-"], ["cup", "-"])
+    1
+    """
+    from rapidfuzz.distance import Levenshtein
+
+    return int(Levenshtein.distance(list(a), list(b)))
+
+
+def levenshtein_similarity(a: list[str], b: list[str]) -> float:
+    """``1 − distance / max(len)``: 1 for equal sequences, 0 for nothing in common (NaN
+    when both are empty).
+
+    >>> levenshtein_similarity(["cup", "box", "-"], ["cup", "-"])
+    0.6666666666666667
+    """
+    n = max(len(a), len(b))
+    return 1.0 - levenshtein(a, b) / n if n else math.nan
+
+
+def stationary_entropy(aois: list[str], normalise: bool = True) -> float:
+    """Shannon entropy (bits) of the distribution of fixations over AOIs (Krejtz et al.
+    2015, "stationary entropy"); ``normalise`` divides by log2 of the number of AOIs
+    visited (1 = evenly spread, 0 = one AOI). NaN without fixations; 0 with one AOI.
+
+    >>> stationary_entropy(["a", "b", "a", "b"]), stationary_entropy(["a", "a"])
+    (1.0, 0.0)
+    """
+    if not aois:
+        return math.nan
+    _, counts = np.unique(np.asarray(aois, dtype=object).astype(str), return_counts=True)
+    if len(counts) < 2:
+        return 0.0
+    p = counts / counts.sum()
+    h = float(-(p * np.log2(p)).sum())
+    return h / math.log2(len(counts)) if normalise else h
+
+
+def transition_entropy(aois: list[str], normalise: bool = True) -> float:
+    """Entropy (bits) of the AOI transitions, ``H_t = −Σ_i π_i Σ_j p_ij log2 p_ij`` with
+    ``π`` the AOI distribution of the transitions' sources and ``p_ij`` the first-order
+    transition probabilities (Krejtz et al. 2015); normalised by log2 of the AOIs
+    visited. 0 for a fully predictable scanpath; NaN with fewer than two fixations.
+
+    >>> transition_entropy(["a", "b", "a", "b"]), transition_entropy(["a", "b", "a", "a"])
+    (0.0, 0.6666666666666666)
+    """
+    if len(aois) < 2:
+        return math.nan
+    names = sorted(set(aois))
+    if len(names) < 2:
+        return 0.0
+    idx = {n: i for i, n in enumerate(names)}
+    m = np.zeros((len(names), len(names)))
+    for s, t in itertools.pairwise(aois):
+        m[idx[s], idx[t]] += 1
+    rows = m.sum(1)
+    pi = rows / rows.sum()
+    h = 0.0
+    for i in np.nonzero(rows)[0]:
+        p = m[i][m[i] > 0] / rows[i]
+        h -= float(pi[i]) * float((p * np.log2(p)).sum())
+    return float(h / math.log2(len(names))) if normalise else float(h)
+
+
+# ----------------------------------------------------------------------------------------
+# MultiMatch (Jarodzka et al. 2010; Dewhurst et al. 2012), by the multimatch-gaze package
+
+MULTIMATCH_DIMENSIONS = ("vector", "direction", "length", "position", "duration")
+
+
+def multimatch(
+    a: np.ndarray,
+    b: np.ndarray,
+    screen_deg: tuple[float, float],
+    grouping: bool = False,
+    t_dir_deg: float = 0.0,
+    t_dur_s: float = 0.0,
+    t_amp_deg: float = 0.0,
+) -> dict[str, float]:
+    """MultiMatch similarities (1 = identical) of two fixation tables ``(pan, tilt,
+    start, duration)`` on the five dimensions of :data:`MULTIMATCH_DIMENSIONS`, by
+    :func:`multimatch_gaze.docomparison` on screen coordinates ``x = −pan``,
+    ``y = −tilt`` (degrees, :func:`experiments.scanpath.export_table`); ``screen_deg``
+    (width, height) normalises lengths and positions (its diagonal), as the screen does
+    in eye tracking. ``grouping`` simplifies both scanpaths first (direction, duration
+    and amplitude thresholds). NaN on every dimension when a scanpath has fewer than 3
+    fixations (MultiMatch needs two saccades).
+
+    >>> fx = np.array([[0, 0, 0, 0.2], [-10, 0, 0.3, 0.2], [-10, -10, 0.6, 0.4]])
+    >>> {k: round(v, 3) for k, v in multimatch(fx, fx + [5, 0, 0, 0], (100, 100)).items()}
+    {'vector': 1.0, 'direction': 1.0, 'length': 1.0, 'position': 0.965, 'duration': 1.0}
+    """
+    import multimatch_gaze
+
+    def fixvec(f: np.ndarray) -> np.ndarray:
+        f = _table(f)
+        out = np.zeros(len(f), dtype=[("start_x", "f8"), ("start_y", "f8"), ("duration", "f8")])
+        out["start_x"], out["start_y"], out["duration"] = -f[:, 0], -f[:, 1], f[:, 3]
+        return out
+
+    fa, fb = fixvec(a), fixvec(b)
+    if len(fa) < 3 or len(fb) < 3:
+        return dict.fromkeys(MULTIMATCH_DIMENSIONS, math.nan)
+    res = multimatch_gaze.docomparison(
+        fa,
+        fb,
+        screensize=[float(screen_deg[0]), float(screen_deg[1])],
+        grouping=grouping,
+        TDir=t_dir_deg,
+        TDur=t_dur_s,
+        TAmp=t_amp_deg,
+    )
+    return {k: float(v) for k, v in zip(MULTIMATCH_DIMENSIONS, res, strict=True)}

@@ -53,6 +53,7 @@ from wander_env.ptu import (
     PTUParams,
     axis_step,
     round_position,
+    step_counter,
     stopping_distance,
 )
 
@@ -79,7 +80,10 @@ class PTUEmulatorParams:
     ``Initializing...``) is printed ``banner_delay_s`` after start. ``eol`` ends every
     reply. ``reset_s`` is how long ``R`` takes. ``silent_after``: stop answering after
     that many commands (fault injection for timeouts). ``poll_s`` is the thread's poll
-    period while a reply waits on motion.
+    period while a reply waits on motion. ``baudrate`` (``None``: instant, as a pty is)
+    paces the line as a UART at that rate would: each byte in either direction takes
+    ``bits_per_byte / baudrate`` seconds (8N1: 10 bits), a command is executed once its
+    last byte has arrived, and a reply is readable once its last byte has been sent.
     """
 
     motion: PTUParams = field(default_factory=PTUParams)
@@ -93,8 +97,18 @@ class PTUEmulatorParams:
     reset_s: float = 0.05
     silent_after: int | None = None
     poll_s: float = 0.001
+    baudrate: int | None = None
+    bits_per_byte: int = 10
 
     def __post_init__(self) -> None:
+        if self.baudrate is not None and not (
+            isinstance(self.baudrate, int)
+            and not isinstance(self.baudrate, bool)
+            and self.baudrate > 0
+        ):
+            raise ValueError(f"baudrate must be an int > 0 or None, got {self.baudrate!r}")
+        if not (isinstance(self.bits_per_byte, int) and self.bits_per_byte > 0):
+            raise ValueError(f"bits_per_byte must be an int > 0, got {self.bits_per_byte!r}")
         if not (math.isfinite(self.lower_speed) and self.lower_speed >= 0):
             raise ValueError(f"lower_speed must be >= 0, got {self.lower_speed!r}")
         for name in ("banner_delay_s", "reset_s"):
@@ -112,6 +126,11 @@ class PTUEmulatorParams:
                 raise ValueError(
                     f"motion.{axis}_speed ({speed}) is below lower_speed ({self.lower_speed})"
                 )
+
+    @property
+    def byte_s(self) -> float:
+        """Seconds per byte on the line (0 without a baud rate)."""
+        return self.bits_per_byte / self.baudrate if self.baudrate else 0.0
 
     @property
     def banner_text(self) -> str:
@@ -145,12 +164,7 @@ class _Axis:
         While moving the counter trails the continuous position, so it equals the
         target only once the axis has arrived.
         """
-        p, v = self.state.position, self.state.velocity
-        if v > 0:
-            return math.floor(p + 1e-9)
-        if v < 0:
-            return math.ceil(p - 1e-9)
-        return round_position(p)
+        return step_counter(self.state.position, self.state.velocity)
 
     @property
     def moving(self) -> bool:
@@ -230,6 +244,11 @@ class PTUEmulator:
         self._errors: list[tuple[str | None, str]] = []
         self._garbage: list[str] = []
         self._banner_sent = threading.Event()
+        # Baud-rate pacing: bytes on the line, each chunk with the time its last byte lands.
+        self._rx_line: list[tuple[float, str]] = []
+        self._tx_line: list[tuple[float, bytes]] = []
+        self._rx_free = self._tx_free = 0.0
+        self._clock: float | None = None  # the line time of the command being answered
         self._master, self._slave = os.openpty()
         try:
             # Raw slave: no kernel echo or CR/LF translation of what the emulator writes
@@ -386,6 +405,9 @@ class PTUEmulator:
             self._banner_sent.set()
         while not self._stop.is_set():
             timeout = self.params.poll_s if self._pending is not None else 0.01
+            due = [t for t, _ in self._rx_line[:1] + self._tx_line[:1]]
+            if due:
+                timeout = max(0.0, min(timeout, min(due) - time.monotonic()))
             try:
                 ready, _, _ = select.select([self._master], [], [], timeout)
             except (OSError, ValueError):
@@ -399,12 +421,44 @@ class PTUEmulator:
                 except OSError:  # no reader/writer on the slave side yet
                     time.sleep(timeout)
             with self._lock:
-                self._rx += data.decode("ascii", errors="replace")
+                self._receive(data.decode("ascii", errors="replace"))
                 self._advance()
                 self._service()
+                self._clock = None
+                self._flush_line()
+
+    def _receive(self, text: str) -> None:
+        """Bytes read from the pty: usable now, or once the line has carried them."""
+        byte_s = self.params.byte_s
+        now = time.monotonic()
+        if text and byte_s:
+            self._rx_free = max(now, self._rx_free) + len(text) * byte_s
+            self._rx_line.append((self._rx_free, text))
+        elif text:
+            self._rx += text
+        while self._rx_line and self._rx_line[0][0] <= now:
+            # Replies to these bytes leave from when they arrived (not from when this
+            # thread got round to them), as a unit answering at once would send them.
+            self._clock, text = self._rx_line.pop(0)
+            self._rx += text
+
+    def _flush_line(self) -> None:
+        """Write the replies whose last byte has gone out on the line."""
+        now = time.monotonic()
+        while self._tx_line and self._tx_line[0][0] <= now:
+            self._write_now(self._tx_line.pop(0)[1])
 
     def _write(self, text: str) -> None:
         data = text.encode("ascii", errors="replace")
+        byte_s = self.params.byte_s
+        if byte_s:
+            now = self._clock if self._clock is not None else time.monotonic()
+            self._tx_free = max(now, self._tx_free) + len(data) * byte_s
+            self._tx_line.append((self._tx_free, data))
+            return
+        self._write_now(data)
+
+    def _write_now(self, data: bytes) -> None:
         deadline = time.monotonic() + 0.5
         while data and not self._stop.is_set():
             try:

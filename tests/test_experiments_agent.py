@@ -4,6 +4,7 @@ trials)."""
 from __future__ import annotations
 
 import csv
+import json
 
 import gymnasium as gym
 import numpy as np
@@ -115,7 +116,7 @@ def test_export_table_uses_screen_axes_in_degrees(tmp_path):
 
 
 def test_scanpath_trial_exports_one_row_per_fixation(tmp_path):
-    sets = ["scenes=[shelf]", "conditions=[fixational]", "duration_s=1.2"]
+    sets = ["scenes=[shelf]", "conditions=[fixational]", "duration_s=1.2", "repeats=1"]
     cfg = resolve_config(scanpath.EXPERIMENT, sets=sets)
     (row,), files = run_experiment("scanpath", cfg, 0, tmp_path)
     # 13-step (130 ms) windows: one, a 31° saccade (≈1 s), then a second window.
@@ -124,6 +125,9 @@ def test_scanpath_trial_exports_one_row_per_fixation(tmp_path):
     # the agent's quantile-norm sOMS suppresses much of the still shelf under fixational
     # motion (eye-only), so one of the two decisions lands on an object
     assert row["object_hit_rate"] == 0.5 and row["objects_visited"] == 1
+    # the scanpath and its AOIs travel in the row (for MultiMatch and the user's analysis)
+    assert len(json.loads(row["scanpath_json"])) == 2
+    assert len(json.loads(row["aois_json"])) == 2
     with (tmp_path / "fixations" / "shelf_fixational_seed0.csv").open() as fh:
         table = list(csv.DictReader(fh))
     assert list(table[0]) == list(scanpath.EXPORT_COLUMNS)
@@ -154,20 +158,40 @@ def test_the_saccades_condition_has_a_10_ms_window_and_the_walk():
 
 def test_grid_varies_one_factor_at_a_time_around_the_paper_values():
     rows = saccade_speed.grid(saccade_speed.SaccadeSpeedConfig())
-    assert len(rows) == 11 and rows[0]["factor"] == "baseline"
+    # baseline, 2 values of each of six numeric factors, the ideal (latency-free) PTU
+    assert len(rows) == 14 and rows[0]["factor"] == "baseline"
     assert rows[0] | {"factor": 0} == {
         "factor": 0,
         "speed_pos_s": 2000.0,
         "accel_pos_s2": 2000.0,
         "fixational_step_pos": 60,
         "fixational_n_steps": 8,
+        "window_s": 0.124,
         "object_speed_scale": 1.0,
+        "ptu": "flir",
+        "main_sequence": True,
     }
     speeds = [r["speed_pos_s"] for r in rows if r["factor"] == "ptu_speed"]
     assert speeds == [1000.0, 2902.0]
     for r in rows[1:]:
-        changed = {k for k in rows[0] if k != "factor" and r[k] != rows[0][k]}
+        changed = {
+            k for k in rows[0] if k not in ("factor", "main_sequence") and r[k] != rows[0][k]
+        }
         assert len(changed) == 1
+    # one main sequence per PTU setting: baseline, 2 speeds, 2 accelerations, ideal
+    assert [r["factor"] for r in rows if r["main_sequence"]] == [
+        "baseline", "ptu_speed", "ptu_speed", "ptu_accel", "ptu_accel", "ptu_link"
+    ]  # fmt: skip
+
+
+def test_factorial_grid_is_the_product_of_the_five_factors():
+    cfg = saccade_speed.SaccadeSpeedConfig(design="factorial")
+    rows = saccade_speed.grid(cfg)
+    assert len(rows) == 3**5 and {r["factor"] for r in rows} == {"factorial"}
+    keys = {(r["speed_pos_s"], r["accel_pos_s2"], r["fixational_step_pos"],
+             r["fixational_n_steps"], r["window_s"]) for r in rows}  # fmt: skip
+    assert len(keys) == 243
+    assert sum(r["main_sequence"] for r in rows) == 9  # speed × acceleration
 
 
 def test_theory_main_sequence_saturates_at_the_slew_speed():
@@ -193,6 +217,10 @@ def test_main_sequence_durations_grow_with_amplitude():
         "fixational_steps_pos=[60]",
         "fixational_counts=[8]",
         "object_speed_scales=[1.0]",
+        "windows_s=[0.124]",
+        "ptu_presets=[ideal]",
+        "ptu=ideal",
+        "repeats=1",
         "main_sequence_amplitudes_deg=[2, 10, 30]",
     ]
     cfg = resolve_config(saccade_speed.EXPERIMENT, sets=sets)

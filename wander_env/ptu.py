@@ -21,6 +21,19 @@ sAC's 11.76 px vertical error down to them): backlash (a play of ``*_backlash_po
 between motor and camera, see :func:`backlash`) and the camera's offset from the tilt
 hinge (see :func:`camera_position`).
 
+Command latency (:class:`PTULinkParams`, the ``flir`` preset of :meth:`PTUParams.preset`;
+off in ``ideal``, the default): the real unit talks ASCII at 9600 baud, so every command
+and position query costs milliseconds on the serial line. :class:`CommandLink` replays, in
+simulated time, what the rig's PTU thread (``hardware/rig_env.py``) does with the
+driver (``hardware/ptu_driver.py``): a new target is queued (replacing one not yet sent)
+and sent as ``PP<n>`` then ``TP<n>`` (only the axes that changed), each answered ``*``
+CR LF; between commands the thread polls ``PP`` and ``TP`` (answers ``* <n>`` CR LF)
+every ``poll_s``. Each byte costs ``bits_per_byte / baudrate`` (8N1: 10 bits); an axis
+takes its new target when the unit has received the command's last byte; the position
+a query reports is the unit's step counter when the query arrived. With a link,
+:attr:`PanTiltUnit.moving` is the rig's: true until a poll that began after the
+latest target was acknowledged found the unit on it.
+
 Conventions: positive pan turns the camera left (counter-clockwise seen from above;
 FLIR: ``PO828`` pans 21.3° left); positive tilt raises it. The PTU frame has its
 origin on the tilt hinge, x forward (optical axis at pan = tilt = 0), y left, z up.
@@ -39,6 +52,7 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
 
 ARCSEC_PER_DEG = 3600.0
@@ -83,6 +97,102 @@ def round_position(pos: float) -> int:
     (3, -3, -2)
     """
     return int(math.copysign(math.floor(abs(pos) + 0.5), pos))
+
+
+def step_counter(position: float, velocity: float) -> int:
+    """The position a FLIR unit reports (``PP``): whole steps taken so far. While moving
+    the counter trails the continuous position (floor moving up, ceil moving down), so
+    it equals the target only on arrival; at rest the nearest whole position.
+
+    >>> step_counter(10.7, 5.0), step_counter(-10.7, -5.0), step_counter(10.7, 0.0)
+    (10, -10, 11)
+    """
+    if velocity > 0:
+        return math.floor(position + 1e-9)
+    if velocity < 0:
+        return math.ceil(position - 1e-9)
+    return round_position(position)
+
+
+# ----------------------------------------------------------------------------------------
+# The serial link (command latency)
+
+
+@dataclass(frozen=True)
+class PTULinkParams:
+    """The host-PTU serial link as the rig drives it (``hardware/ptu_driver.py``: terse
+    feedback, echo off, commands ended by a space; replies ended by CR LF as the
+    emulator and the PTU-D48E write them).
+
+    ``baudrate`` 9600 (the FLIR factory setting, ``FlirPTUParams.baudrate``), 8N1 =
+    ``bits_per_byte`` 10; ``poll_s`` the rig's position polling period
+    (``RigConfig.ptu_poll_s``); ``turnaround_s`` the unit's time between a command's
+    last byte and its reply (not documented by FLIR: 0).
+
+    >>> round(PTULinkParams().byte_s * 1e3, 4)
+    1.0417
+    """
+
+    baudrate: int = 9600
+    bits_per_byte: int = 10
+    poll_s: float = 0.01
+    delimiter: str = " "
+    eol: str = "\r\n"
+    turnaround_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("baudrate", "bits_per_byte"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
+                raise ValueError(f"PTULinkParams.{name} must be an int > 0, got {v!r}")
+        for name in ("poll_s", "turnaround_s"):
+            v = getattr(self, name)
+            if (
+                isinstance(v, bool)
+                or not isinstance(v, (int, float))
+                or not (math.isfinite(v) and v >= 0)
+            ):
+                raise ValueError(f"PTULinkParams.{name} must be a finite number >= 0, got {v!r}")
+        if self.delimiter not in (" ", "\r", "\n"):
+            raise ValueError(
+                f"PTULinkParams.delimiter must be a space, CR or LF, got {self.delimiter!r}"
+            )
+        if self.eol not in ("\r\n", "\n", "\r"):
+            raise ValueError(f"PTULinkParams.eol must be CR LF, LF or CR, got {self.eol!r}")
+
+    @property
+    def byte_s(self) -> float:
+        """Seconds per byte on the line."""
+        return self.bits_per_byte / self.baudrate
+
+
+def command_bytes(axis: int, value: int | None, link: PTULinkParams) -> int:
+    """Bytes of a position command (``PP-500 ``) or query (``PP ``) for axis 0 (pan) or 1.
+
+    >>> command_bytes(0, -500, PTULinkParams()), command_bytes(1, None, PTULinkParams())
+    (7, 3)
+    """
+    letter = "PT"[axis]
+    return len(f"{letter}P{'' if value is None else value}{link.delimiter}")
+
+
+def reply_bytes(value: int | None, link: PTULinkParams) -> int:
+    """Bytes of the unit's terse reply: ``*`` (a command) or ``* <value>`` (a query).
+
+    >>> reply_bytes(None, PTULinkParams()), reply_bytes(-1234, PTULinkParams())
+    (3, 9)
+    """
+    return len(("*" if value is None else f"* {value}") + link.eol)
+
+
+def exchange_s(axis: int, value: int | None, reply: int | None, link: PTULinkParams) -> float:
+    """Seconds of one command/reply exchange on an idle line.
+
+    >>> round(exchange_s(0, 1000, None, PTULinkParams()) * 1e3, 2)  # PP1000 + *
+    10.42
+    """
+    n = command_bytes(axis, value, link) + reply_bytes(reply, link)
+    return n * link.byte_s + link.turnaround_s
 
 
 # ----------------------------------------------------------------------------------------
@@ -131,8 +241,27 @@ class PTUParams:
     camera_forward_m: float = 0.0
     camera_up_m: float = 0.0
     quantise: bool = True
+    link: PTULinkParams | None = None
+
+    @classmethod
+    def preset(cls, name: str) -> PTUParams:
+        """``"ideal"`` (the defaults: commands act at once) or ``"flir"`` (the same unit
+        behind its 9600-baud serial link, :class:`PTULinkParams`).
+
+        >>> PTUParams.preset("flir").link.baudrate, PTUParams.preset("ideal").link
+        (9600, None)
+        """
+        if name == "ideal":
+            return cls()
+        if name == "flir":
+            return cls(link=PTULinkParams())
+        raise ValueError(f"unknown PTU preset {name!r}; expected 'ideal' or 'flir'")
 
     def __post_init__(self) -> None:
+        if isinstance(self.link, Mapping):  # from asdict() (pickling, JSON configs)
+            object.__setattr__(self, "link", PTULinkParams(**self.link))
+        if self.link is not None and not isinstance(self.link, PTULinkParams):
+            raise ValueError(f"PTUParams.link must be PTULinkParams or None, got {self.link!r}")
         ints = ("pan_min_pos", "pan_max_pos", "tilt_min_pos", "tilt_max_pos")
         positive = (
             "pan_resolution_arcsec",
@@ -147,6 +276,8 @@ class PTUParams:
         signed = ("camera_forward_m", "camera_up_m")
         for f in fields(self):
             v = getattr(self, f.name)
+            if f.name == "link":
+                continue
             if f.name == "quantise":
                 if not isinstance(v, bool):
                     raise ValueError(f"PTUParams.quantise must be a bool, got {v!r}")
@@ -409,6 +540,135 @@ def camera_position(
 
 
 # ----------------------------------------------------------------------------------------
+# The link thread, in simulated time
+
+
+class CommandLink:
+    """The rig's PTU thread (``hardware/rig_env.py`` ``_PTULink``) replayed in simulated
+    time: one exchange on the line at a time; a submitted target waits for the exchange
+    in progress, replaces a queued one not yet sent, then goes out as ``PP<n>``/``TP<n>``
+    (changed axes only); when no target waits, ``PP``/``TP`` are polled ``poll_s`` after
+    the previous poll ended (at once after a command).
+
+    Driven by :class:`PanTiltUnit` (:meth:`next_time`, :meth:`fire`); ``latencies_s``
+    holds each acknowledged command's latency (submission to the last ``*``), as the
+    rig's ``info["command_latency_s"]`` measures it.
+
+    >>> link = CommandLink(PTULinkParams(), (0, 0))
+    >>> link.submit((100, 0), 0.0)        # the line is idle: PP100 goes out at once
+    >>> round(link.next_time() * 1e3, 3)  # ...and arrives after its 6 bytes
+    6.25
+    """
+
+    def __init__(self, params: PTULinkParams, start: tuple[int, int], t_s: float = 0.0) -> None:
+        self.params = params
+        self.acked = tuple(start)
+        self.positions = tuple(start)  # the last poll's answer
+        self.poll_target = tuple(start)  # the acknowledged target when that poll began
+        self.want: tuple[int, int] | None = None
+        self.want_at = 0.0
+        self.latencies_s: list[float] = []
+        self.counts = {"commands_sent": 0, "commands_replaced": 0, "polls": 0}
+        self._next_poll = t_s + params.poll_s
+        self._stage = "idle"  # idle | sending (command on the line) | replying
+        self._next = self._next_poll
+        self._tx: list[tuple[int, int | None]] = []  # (axis, value or None = query)
+        self._job: tuple[int, int] | None = None
+        self._job_at = 0.0
+        self._poll_acked = self.acked
+        self._samples = list(start)
+        self._reply: int | None = None
+
+    @property
+    def latency_s(self) -> float:
+        """The latest acknowledged command's latency (NaN before the first)."""
+        return self.latencies_s[-1] if self.latencies_s else math.nan
+
+    def copy(self) -> CommandLink:
+        """An independent link in the same state."""
+        twin = copy.copy(self)
+        twin.latencies_s, twin.counts = list(self.latencies_s), dict(self.counts)
+        twin._tx, twin._samples = list(self._tx), list(self._samples)
+        return twin
+
+    def moving(self, target: tuple[int, int]) -> bool:
+        """The rig's test: a target is queued or being sent, or the last poll (begun after
+        ``target`` was acknowledged) did not find the unit on it."""
+        busy = self.want is not None or (self._stage != "idle" and self._job is not None)
+        return busy or self.poll_target != tuple(target) or self.positions != tuple(target)
+
+    def submit(self, target: tuple[int, int], t_s: float) -> None:
+        """Hand a new target (whole positions) to the thread at ``t_s``."""
+        if self.want is not None:
+            self.counts["commands_replaced"] += 1
+        self.want, self.want_at = tuple(target), t_s
+        if self._stage == "idle":
+            self._begin(t_s)
+
+    def next_time(self) -> float:
+        """When the next thing happens on the line (a byte string fully received)."""
+        return self._next
+
+    def fire(self, unit: PanTiltUnit) -> None:
+        """Do what happens at :meth:`next_time` (the unit's motion is advanced to it)."""
+        t = self._next
+        if self._stage == "idle":  # the poll is due
+            self._begin(t)
+        elif self._stage == "sending":  # the unit has the command: act, start the reply
+            axis, value = self._tx[0]
+            if value is None:
+                self._reply = unit.step_counter(axis)
+                self._samples[axis] = self._reply
+            else:
+                unit.drive_axis(axis, float(value))
+                self._reply = None
+            self._stage = "replying"
+            self._next = (
+                t
+                + self.params.turnaround_s
+                + reply_bytes(self._reply, self.params) * (self.params.byte_s)
+            )
+        else:  # the reply is in: next command of the exchange, or the exchange is over
+            self._tx.pop(0)
+            if self._tx:
+                self._send_next(t)
+            else:
+                self._finish(t)
+
+    def _begin(self, t: float) -> None:
+        job, self.want = self.want, None
+        if job is not None and job != self.acked:
+            self._job, self._job_at = job, self.want_at
+            self._tx = [(i, job[i]) for i in (0, 1) if job[i] != self.acked[i]]
+        else:
+            self._job = None
+            self._poll_acked = self.acked
+            self._tx = [(0, None), (1, None)]
+        self._send_next(t)
+
+    def _send_next(self, t: float) -> None:
+        axis, value = self._tx[0]
+        self._stage = "sending"
+        self._next = t + command_bytes(axis, value, self.params) * self.params.byte_s
+
+    def _finish(self, t: float) -> None:
+        if self._job is not None:
+            self.acked = self._job
+            self.latencies_s.append(t - self._job_at)
+            self.counts["commands_sent"] += 1
+            self._next_poll = t  # poll right after a command
+            self._job = None
+        else:
+            self.positions, self.poll_target = tuple(self._samples), self._poll_acked
+            self.counts["polls"] += 1
+            self._next_poll = t + self.params.poll_s
+        if self.want is not None or self._next_poll <= t:
+            self._begin(t)
+        else:
+            self._stage, self._next = "idle", self._next_poll
+
+
+# ----------------------------------------------------------------------------------------
 # The stateful unit
 
 
@@ -437,37 +697,66 @@ class PanTiltUnit:
         tilt = self._to_pos("tilt", tilt_deg)
         self._pan = AxisState(pan, 0.0)
         self._tilt = AxisState(tilt, 0.0)
-        self._target = [pan, tilt]
+        self._target = [pan, tilt]  # commanded (what target_deg reports)
+        self._drive = [pan, tilt]  # what the axes move to (the unit's target)
         self._speed = [self.params.pan_speed, self.params.tilt_speed]
         self._camera = [self._motor(pan), self._motor(tilt)]
         self._time_s = 0.0
+        link = self.params.link
+        self.link = (
+            CommandLink(link, (round_position(pan), round_position(tilt)))
+            if link is not None
+            else None
+        )
 
     def copy(self) -> PanTiltUnit:
         """An independent unit in the same state (for stepping ahead and rolling back)."""
         twin = copy.copy(self)
-        twin._target, twin._speed, twin._camera = (
-            list(self._target), list(self._speed), list(self._camera)
+        twin._target, twin._drive, twin._speed, twin._camera = (
+            list(self._target), list(self._drive), list(self._speed), list(self._camera)
         )  # fmt: skip
+        twin.link = self.link.copy() if self.link is not None else None
         return twin
 
     def set_target(self, pan_deg: float | None = None, tilt_deg: float | None = None) -> None:
         """Command an absolute target in degrees; ``None`` keeps that axis's target.
 
-        Raises ``ValueError`` naming the limit when a target is out of range.
+        Raises ``ValueError`` naming the limit when a target is out of range. With a
+        :attr:`link` a changed target is handed to it (it reaches the axes later).
         """
-        if pan_deg is not None:
-            self._target[0] = self._to_pos("pan", pan_deg)
-        if tilt_deg is not None:
-            self._target[1] = self._to_pos("tilt", tilt_deg)
+        pan = self._to_pos("pan", pan_deg) if pan_deg is not None else None
+        tilt = self._to_pos("tilt", tilt_deg) if tilt_deg is not None else None
+        self._command(pan, tilt)
+
+    def _command(self, pan: float | None, tilt: float | None) -> None:
+        old = tuple(self._target)
+        if pan is not None:
+            self._target[0] = pan
+        if tilt is not None:
+            self._target[1] = tilt
+        if self.link is None:
+            self._drive = list(self._target)
+        elif tuple(self._target) != old:
+            whole = (round_position(self._target[0]), round_position(self._target[1]))
+            self.link.submit(whole, self._time_s)
 
     def set_target_positions(
         self, pan_pos: float | None = None, tilt_pos: float | None = None
     ) -> None:
         """As :meth:`set_target`, in PTU positions (for a FLIR protocol front end)."""
-        if pan_pos is not None:
-            self._target[0] = self._check_pos("pan", pan_pos)
-        if tilt_pos is not None:
-            self._target[1] = self._check_pos("tilt", tilt_pos)
+        pan = self._check_pos("pan", pan_pos) if pan_pos is not None else None
+        tilt = self._check_pos("tilt", tilt_pos) if tilt_pos is not None else None
+        self._command(pan, tilt)
+
+    def drive_axis(self, axis: int, pos: float) -> None:
+        """Give axis 0 (pan) or 1 (tilt) its new target now (the link's command has
+        arrived at the unit)."""
+        self._drive[axis] = float(pos)
+
+    def step_counter(self, axis: int) -> int:
+        """What a ``PP``/``TP`` query of axis 0/1 answers now (:func:`step_counter`)."""
+        state = self._pan if axis == 0 else self._tilt
+        return step_counter(state.position, state.velocity)
 
     def clip_target(self, pan_deg: float, tilt_deg: float) -> tuple[float, float]:
         """(pan, tilt) in degrees clipped into the limits; see :meth:`PTUParams.clip_deg`."""
@@ -491,9 +780,21 @@ class PanTiltUnit:
             self._speed[i] = min(pos_s, upper)
 
     def step(self, dt_s: float) -> None:
-        """Advance the motion model by ``dt_s`` seconds."""
+        """Advance the motion model by ``dt_s`` seconds (with a :attr:`link`, stopping at
+        each of its events: the split does not change the exact motion)."""
         if not (math.isfinite(dt_s) and dt_s >= 0):
             raise ValueError(f"dt_s must be a finite number >= 0, got {dt_s!r}")
+        if self.link is None:
+            self._advance(dt_s)
+            return
+        t_end = self._time_s + dt_s
+        while self.link.next_time() <= t_end:
+            self._advance(max(self.link.next_time() - self._time_s, 0.0))
+            self.link.fire(self)
+        self._advance(max(t_end - self._time_s, 0.0))
+        self._time_s = t_end
+
+    def _advance(self, dt_s: float) -> None:
         p = self.params
         axes = (
             (self._pan, p.pan_accel, p.pan_base_speed, p.pan_backlash_pos),
@@ -502,7 +803,7 @@ class PanTiltUnit:
         new = []
         for i, (state, accel, base, play) in enumerate(axes):
             vb = min(base, self._speed[i])
-            nxt, path = _advance(state, self._target[i], dt_s, self._speed[i], accel, vb)
+            nxt, path = _advance(state, self._drive[i], dt_s, self._speed[i], accel, vb)
             for q in [*path, nxt.position]:
                 self._camera[i] = backlash(self._camera[i], self._motor(q), play)
             new.append(nxt)
@@ -585,11 +886,22 @@ class PanTiltUnit:
 
     @property
     def moving(self) -> bool:
-        """True until both axes are at rest on their targets."""
+        """True until both axes are at rest on their targets; with a :attr:`link`, as
+        the rig sees it (:meth:`CommandLink.moving`)."""
+        if self.link is not None:
+            return self.link.moving(
+                (round_position(self._target[0]), round_position(self._target[1]))
+            )
         return any(
             s.velocity != 0.0 or s.position != t
-            for s, t in ((self._pan, self._target[0]), (self._tilt, self._target[1]))
+            for s, t in ((self._pan, self._drive[0]), (self._tilt, self._drive[1]))
         )
+
+    @property
+    def command_latency_s(self) -> float:
+        """The latest command's latency on the :attr:`link` (NaN without one or before
+        the first acknowledged command)."""
+        return self.link.latency_s if self.link is not None else math.nan
 
     # -- helpers ----------------------------------------------------------------------
 

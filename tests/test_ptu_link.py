@@ -1,0 +1,184 @@
+"""The PTU's serial-link command latency (wander_env.ptu.CommandLink), against the rig."""
+
+from __future__ import annotations
+
+import math
+import pickle
+import time
+from dataclasses import asdict
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import serial
+
+import wander_env  # noqa: F401  (registers the environments)
+from hardware.ptu_driver import FlirPTUParams
+from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
+from wander_env.event_io import EventRecording, write_events
+from wander_env.events import make_events
+from wander_env.ptu import (
+    CommandLink,
+    PanTiltUnit,
+    PTULinkParams,
+    PTUParams,
+    command_bytes,
+    reply_bytes,
+)
+
+BYTE = 10 / 9600  # s per byte at 9600 8N1
+
+
+def test_byte_counts_are_the_drivers_and_emulators_strings() -> None:
+    link = PTULinkParams()
+    assert command_bytes(0, 1234, link) == len("PP1234 ")
+    assert command_bytes(1, -907, link) == len("TP-907 ")
+    assert command_bytes(0, None, link) == len("PP ")
+    assert reply_bytes(None, link) == len("*\r\n")
+    assert reply_bytes(-3090, link) == len("* -3090\r\n")
+
+
+def test_a_command_on_an_idle_line_costs_its_bytes() -> None:
+    link = CommandLink(PTULinkParams(), (0, 0))
+    ptu = PanTiltUnit(PTUParams.preset("flir"))
+    ptu.link = link
+    link.submit((100, -50), 0.0)
+    ptu.step(0.05)
+    # PP100 + *, then TP-50 + *: (6 + 3) + (6 + 3) bytes
+    assert link.latencies_s == [pytest.approx(18 * BYTE, abs=1e-12)]
+    assert link.counts["commands_sent"] == 1
+
+
+def test_a_command_waits_for_the_poll_in_progress() -> None:
+    ptu = PanTiltUnit(PTUParams.preset("flir"))
+    ptu.step(0.0105)  # the first poll began at poll_s = 10 ms: PP is on the line
+    ptu.set_target(pan_deg=100 * ptu.params.pan_deg_per_pos)
+    ptu.step(0.1)
+    # The poll: PP (3) + "* 0\r\n" (5), TP (3) + "* 0\r\n" (5) = 16 bytes from 10 ms;
+    # then PP100 (6) + * (3).
+    expected = 0.010 + 16 * BYTE + 9 * BYTE - 0.0105
+    assert ptu.link.latencies_s == [pytest.approx(expected, abs=1e-9)]
+
+
+def test_the_axis_moves_only_once_the_command_has_arrived() -> None:
+    ptu = PanTiltUnit(PTUParams.preset("flir"))
+    ptu.set_target(pan_deg=200 * ptu.params.pan_deg_per_pos)
+    ptu.step(6 * BYTE - 1e-6)  # "PP200 " is 6 bytes
+    assert ptu.positions == (0, 0) and ptu.moving
+    ptu.step(0.002)
+    assert ptu.pan_velocity_deg_s > 0
+    ideal = PanTiltUnit(PTUParams.preset("ideal"))
+    ideal.set_target(pan_deg=200 * ideal.params.pan_deg_per_pos)
+    ideal.step(6 * BYTE - 1e-6)
+    assert ideal.pan_velocity_deg_s > 0 and math.isnan(ideal.command_latency_s)
+
+
+def test_moving_is_the_rigs_until_a_poll_sees_the_target() -> None:
+    ptu = PanTiltUnit(PTUParams.preset("flir"))
+    ideal = PanTiltUnit(PTUParams.preset("ideal"))
+    for unit in (ptu, ideal):
+        unit.set_target(pan_deg=20 * unit.params.pan_deg_per_pos)
+    t_ideal = t_flir = None
+    for k in range(1, 400):
+        for unit in (ptu, ideal):
+            unit.step(0.001)
+        if t_ideal is None and not ideal.moving:
+            t_ideal = k
+        if t_flir is None and not ptu.moving:
+            t_flir = k
+    # The link adds the command's 9 bytes before the move and up to a poll after it.
+    assert t_flir - t_ideal >= 9 * BYTE * 1e3
+    assert t_flir - t_ideal <= (9 + 16) * BYTE * 1e3 + 10 + 16 * BYTE * 1e3 + 1
+    assert ptu.link.positions == (20, 0) and ptu.link.poll_target == (20, 0)
+
+
+def test_the_split_of_the_steps_does_not_change_the_result() -> None:
+    a, b = PanTiltUnit(PTUParams.preset("flir")), PanTiltUnit(PTUParams.preset("flir"))
+    for k in range(30):
+        for unit, substeps in ((a, 1), (b, 7)):
+            if k % 4 == 0:
+                unit.set_target(pan_deg=(k % 8) * 0.5, tilt_deg=-(k % 3) * 0.3)
+            for _ in range(substeps):
+                unit.step(0.01 / substeps)
+    assert a.link.latencies_s == pytest.approx(b.link.latencies_s, abs=1e-12)
+    assert a.positions == b.positions and a.moving == b.moving
+    assert a.link.counts == b.link.counts
+
+
+def test_presets_round_trip_through_asdict_and_pickle() -> None:
+    flir = PTUParams.preset("flir")
+    assert PTUParams(**asdict(flir)) == flir
+    assert pickle.loads(pickle.dumps(flir)) == flir
+    assert PTUParams.preset("ideal") == PTUParams()
+    with pytest.raises(ValueError, match="unknown PTU preset 'fast'"):
+        PTUParams.preset("fast")
+    with pytest.raises(ValueError, match="baudrate must be an int > 0"):
+        PTULinkParams(baudrate=0)
+
+
+def test_emulator_paces_its_replies_at_the_baud_rate() -> None:
+    params = PTUEmulatorParams(banner="", echo=False, verbose=False, baudrate=9600)
+    with PTUEmulator(params) as emu, serial.Serial(emu.port, timeout=1) as port:
+        t0 = time.monotonic()
+        port.write(b"PP ")
+        line = port.readline()
+        dt = time.monotonic() - t0
+    assert line == b"* 0\r\n"
+    # 3 bytes in, 5 out: 8.3 ms on the line (generous upper bound: a loaded machine)
+    assert 8 * BYTE - 1e-4 <= dt < 8 * BYTE + 0.05
+
+
+@pytest.mark.slow
+def test_simulated_latency_matches_the_rig_env_on_the_emulator_at_9600_baud(tmp_path) -> None:
+    """The rig env's measured ``command_latency_s`` (PTU emulator paced at 9600 baud,
+    real-time replay) against :class:`CommandLink` driven by the same targets at the same
+    step times: mean within 20 %."""
+    n_steps, span_us = 240, 3_000_000
+    t = np.arange(0, span_us, 2000)
+    ev = make_events(t % 128, (t // 128) % 128, t, t % 2)
+    path = tmp_path / "tick.npz"
+    write_events(path, EventRecording(ev, (128, 128, 2)))
+    emulator = PTUEmulatorParams(banner="", baudrate=9600)
+    env = gym.make(
+        "wander/Rig-v0",
+        ptu="emulate",
+        camera=f"replay:{path}",
+        replay="realtime",
+        emulator=emulator,
+        driver=FlirPTUParams(banner_quiet_s=0.02),
+        episode_seconds=10.0,
+    )
+    rig_latencies, targets = [], []
+    try:
+        env.reset()
+        last = math.nan
+        for k in range(n_steps):
+            a = np.zeros(2, np.float32)
+            if k % 6 == 0:  # a command every 60 ms, both axes, alternating
+                s = 1.0 if (k // 6) % 2 == 0 else -1.0
+                a[:] = (0.05 * s, -0.03 * s)
+            _, _, _, _, info = env.step(a)
+            targets.append(tuple(info["ptu_target_positions"]))
+            lat = info["command_latency_s"]
+            if not math.isnan(lat) and lat != last:
+                rig_latencies.append(lat)
+                last = lat
+    finally:
+        env.close()
+    sim = PanTiltUnit(PTUParams.preset("flir"))
+    for target in targets:  # the sim env commands at each step's start, as the rig env
+        sim.set_target_positions(*target)
+        sim.step(0.01)
+    sim.step(0.2)
+    sim_latencies = sim.link.latencies_s
+    assert len(sim_latencies) == len(range(0, n_steps, 6))
+    assert len(rig_latencies) >= 10  # a loaded host lags the real-time steps: commands merge
+    # Medians: a scheduling hiccup of the loaded host (three threads: env, link, emulator)
+    # lengthens a few of the rig's exchanges; the line's timing is what is compared.
+    rig_med, sim_med = float(np.median(rig_latencies)), float(np.median(sim_latencies))
+    print(
+        f"command latency: rig median {rig_med * 1e3:.2f} ms (mean "
+        f"{np.mean(rig_latencies) * 1e3:.2f}), sim median {sim_med * 1e3:.2f} ms (mean "
+        f"{np.mean(sim_latencies) * 1e3:.2f}), {len(rig_latencies)} / {len(sim_latencies)} commands"
+    )
+    assert sim_med == pytest.approx(rig_med, rel=0.2)
