@@ -58,4 +58,5 @@ def test_evaluate_cli_two_seeds(tmp_path: Path) -> None:
     assert q["pooled"]["decisions"] == sum(r["decisions"] for r in q["rows"])
     assert (tmp_path / "seed-0" / "metrics.json").exists()
     bad = CliRunner().invoke(app, ["evaluate", "--seeds", "a,b"])
-    assert bad.exit_code == 2 and "--seeds must be integers" in bad.output
+    assert bad.exit_code == 2
+    assert "Invalid value for '--seeds': must be integers separated by commas" in bad.output
