@@ -67,19 +67,7 @@ def bench_agent(
 ) -> tuple[list[LatencyRow], LoopRow]:
     """Run the agent closed-loop for ``seconds`` and time every stage (module doc);
     ``env_kwargs`` (e.g. ``frames``) go to the env."""
-    import gymnasium as gym
-
-    import wander_env  # noqa: F401  (registers the environments)
-
-    env = gym.make(
-        "wander/Wander-v0",
-        scene=scene,
-        dvs=dvs,
-        ground_truth=False,
-        episode_seconds=seconds,
-        **env_kwargs,
-    )
-    agent = AttentionAgent(AgentParams.for_env(env), seed=seed)
+    env, agent = _agent_in_env(scene, dvs, seconds, seed, **env_kwargs)
     acc: dict[str, list[float]] = {"soms": [], "proto": [], "control": []}
     agent.soms.step = timed(agent.soms.step, acc, "soms")
     agent.proto.step = timed(agent.proto.step, acc, "proto")
@@ -164,9 +152,6 @@ def loop_modes(
 ) -> ModesRow:
     """Two closed loops (env + agent), ``frames="exact"`` and ``"keyframes"``, stepped
     alternately (one step of each in turn, each timed), so that machine noise hits both."""
-    import gymnasium as gym
-
-    import wander_env  # noqa: F401  (registers the environments)
     from wander_env.env import WanderConfig
 
     km = WanderConfig.keyframe_ms if keyframe_ms is None else keyframe_ms
@@ -174,15 +159,7 @@ def loop_modes(
     loops = {}
     try:
         for mode, kw in modes.items():
-            env = gym.make(
-                "wander/Wander-v0",
-                scene=scene,
-                dvs=dvs,
-                ground_truth=False,
-                episode_seconds=seconds,
-                **kw,
-            )
-            agent = AttentionAgent(AgentParams.for_env(env), seed=seed)
+            env, agent = _agent_in_env(scene, dvs, seconds, seed, **kw)
             obs, info = env.reset(seed=seed)
             loops[mode] = {
                 "env": env,
@@ -229,3 +206,22 @@ def loop_modes(
         exact_decisions=ex["decisions"],
         keyframes_decisions=kf["decisions"],
     )
+
+
+def _agent_in_env(
+    scene: str, dvs: str, seconds: float, seed: int, **env_kwargs: Any
+) -> tuple[Any, AttentionAgent]:
+    """The env (no ground truth) and the default agent that the benches time."""
+    import gymnasium as gym
+
+    import wander_env  # noqa: F401  (registers the environments)
+
+    env = gym.make(
+        "wander/Wander-v0",
+        scene=scene,
+        dvs=dvs,
+        ground_truth=False,
+        episode_seconds=seconds,
+        **env_kwargs,
+    )
+    return env, AttentionAgent(AgentParams.for_env(env), seed=seed)
