@@ -32,6 +32,7 @@ from wander_env.cli_options import (
     agent_alpha,
     check_seconds,
     frames_kwargs,
+    int_list,
     one_of,
     resolve_out,
 )
@@ -232,13 +233,7 @@ def evaluate(
     from experiments.evaluate_agent import evaluate as run_eval
     from experiments.run_agent import RunConfig
 
-    try:
-        seed_list = [int(s) for s in seeds.split(",") if s.strip()]
-    except ValueError as err:
-        msg = f"must be integers separated by commas, e.g. 0,1,2, got {seeds!r}"
-        raise typer.BadParameter(msg, param_hint="'--seeds'") from err
-    if not seed_list:
-        raise typer.BadParameter("needs at least one seed, e.g. 0,1,2", param_hint="'--seeds'")
+    seed_list = int_list(seeds, "--seeds", "seed")
     out = resolve_out(out, "evaluate", force)
     config = RunConfig(
         scene=scene,
@@ -372,14 +367,7 @@ def bench_env(
     from experiments.bench_env import step_breakdown
 
     km = frames_kwargs(None, keyframe_ms).get("keyframe_ms")
-    try:
-        counts = tuple(int(v) for v in envs.split(",") if v.strip())
-    except ValueError as err:
-        raise typer.BadParameter(
-            f"--envs must be integers separated by commas, got {envs!r}"
-        ) from err
-    if not counts or min(counts) < 1:
-        raise typer.BadParameter(f"--envs must be integers >= 1, got {envs!r}")
+    counts = tuple(int_list(envs, "--envs", "env count", minimum=1))
     if breakdown:
         parts = [
             step_breakdown(
@@ -513,12 +501,7 @@ def bench_fidelity(
     bad = [m for m in names if m not in MOTIONS]
     if bad:
         raise typer.BadParameter(f"--motions: unknown {bad}, choose from {MOTIONS}")
-    try:
-        seed_list = tuple(int(s) for s in seeds.split(",") if s.strip())
-    except ValueError as err:
-        raise typer.BadParameter(
-            f"--seeds must be integers separated by commas, got {seeds!r}"
-        ) from err
+    seed_list = tuple(int_list(seeds, "--seeds", "seed"))
     rows = run(
         scenes=tuple(s.strip() for s in scenes.split(",") if s.strip()),
         motions=tuple(names),

@@ -46,6 +46,7 @@ __all__ = [
     "check_scene",
     "check_seconds",
     "frames_kwargs",
+    "int_list",
     "one_of",
     "resolve_out",
 ]
@@ -114,6 +115,25 @@ def one_of(allowed: Sequence[str]) -> Callable[[str], str]:
         return value
 
     return check
+
+
+def int_list(text: str, flag: str, what: str = "value", minimum: int | None = None) -> list[int]:
+    """Comma-separated integers of option ``flag`` (at least one; each >= ``minimum``).
+
+    >>> int_list("0, 1,2", "--seeds")
+    [0, 1, 2]
+    """
+    try:
+        values = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError as err:
+        msg = f"must be integers separated by commas, e.g. 0,1,2, got {text!r}"
+        raise typer.BadParameter(msg, param_hint=f"'{flag}'") from err
+    if not values:
+        raise typer.BadParameter(f"needs at least one {what}, e.g. 0,1,2", param_hint=f"'{flag}'")
+    if minimum is not None and min(values) < minimum:
+        msg = f"must be integers >= {minimum}, got {text!r}"
+        raise typer.BadParameter(msg, param_hint=f"'{flag}'")
+    return values
 
 
 SceneOpt = Annotated[
