@@ -105,7 +105,7 @@ BACKGROUND = "-"  # the AOI of a fixation on no object (walls, floor, furniture)
 
 
 def fixation_aois(window_aois: list[str], ends_fixation: list[bool]) -> list[str]:
-    """The AOI of each merged fixation (windows grouped as :func:`experiments.scanpath.
+    """The AOI of each merged fixation (windows grouped as :func:`experiments.paper.scanpath.
     merge_windows` does): the most frequent AOI of its windows, the earliest on a tie;
     ``""`` (no object) becomes :data:`BACKGROUND`.
 
@@ -212,7 +212,7 @@ def multimatch(
     """MultiMatch similarities (1 = identical) of two fixation tables ``(pan, tilt,
     start, duration)`` on the five dimensions of :data:`MULTIMATCH_DIMENSIONS`, by
     :func:`multimatch_gaze.docomparison` on screen coordinates ``x = −pan``,
-    ``y = −tilt`` (degrees, :func:`experiments.scanpath.export_table`); ``screen_deg``
+    ``y = −tilt`` (degrees, :func:`experiments.paper.scanpath.export_table`); ``screen_deg``
     (width, height) normalises lengths and positions (its diagonal), as the screen does
     in eye tracking. ``grouping`` simplifies both scanpaths first (direction, duration
     and amplitude thresholds). NaN on every dimension when a scanpath has fewer than 3

@@ -1,0 +1,48 @@
+"""One line per bad command line: the ``wander`` app's group class.
+
+Click's usage errors (a bad option value, a missing argument, an unknown option)
+normally print the usage, a hint and a boxed message; :class:`OneLineErrors` prints one
+line on stderr instead — ``wander run: Invalid value for '--scene': ...`` — and exits
+with the error's code (2 for usage errors), never a traceback. Options are validated
+by their callbacks (:mod:`experiments.cli.options`) while the command line is parsed, so
+the error comes before any work (or progress bar) starts.
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import Any
+
+import typer
+from typer import _click as click
+from typer.core import TyperGroup
+
+__all__ = ["OneLineErrors", "one_line"]
+
+
+def one_line(err: click.exceptions.ClickException) -> str:
+    """``<command path>: <message>`` on a single line."""
+    ctx = getattr(err, "ctx", None)
+    where = ctx.command_path if ctx is not None else "wander"
+    text = " ".join(err.format_message().split())
+    return f"{where}: {text}"
+
+
+class OneLineErrors(TyperGroup):
+    """A :class:`typer.core.TyperGroup` whose usage errors are one line on stderr."""
+
+    def main(self, *args: Any, standalone_mode: bool = True, **kwargs: Any) -> Any:
+        if not standalone_mode:
+            return super().main(*args, standalone_mode=False, **kwargs)
+        try:
+            rv = super().main(*args, standalone_mode=False, **kwargs)
+        except click.exceptions.NoArgsIsHelpError as err:
+            err.show()
+            sys.exit(err.exit_code)
+        except click.exceptions.ClickException as err:
+            typer.echo(one_line(err), err=True)
+            sys.exit(err.exit_code)
+        except typer.Abort:
+            typer.echo("Aborted!", err=True)
+            sys.exit(1)
+        sys.exit(rv if isinstance(rv, int) else 0)

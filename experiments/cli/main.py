@@ -1,0 +1,585 @@
+"""The ``wander`` command line. ``wander --help`` lists the commands."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.table import Table
+
+from experiments.cli.benchmark import app as benchmark_app
+from experiments.cli.errors import OneLineErrors
+from experiments.cli.experiment import register as register_experiments
+from experiments.cli.options import (
+    AgentAlphaOpt,
+    DvsOpt,
+    FixationalOpt,
+    ForceOpt,
+    FramesOpt,
+    KeyframeMsOpt,
+    RunDirOpt,
+    SceneOpt,
+    SecondsOpt,
+    SomsNormOpt,
+    StreamlinedOpt,
+    VideoOpt,
+    WindowOpt,
+    agent_alpha,
+    check_seconds,
+    frames_kwargs,
+    int_list,
+    one_of,
+    resolve_out,
+)
+from experiments.cli.rig import register as register_rig
+from wander_env.shutdown import long_command
+
+app = typer.Typer(
+    help="wander: a simulated active-vision laboratory for event cameras.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    cls=OneLineErrors,
+)
+bench_app = typer.Typer(help="Benchmarks that print tables (speed is measured here, not in tests).")
+app.add_typer(bench_app, name="bench")
+app.add_typer(benchmark_app, name="benchmark")
+# Tables keep their full column names when the output is a file or a pipe.
+console = Console(width=None if sys.stdout.isatty() else 160)
+
+
+def _progress() -> Progress:
+    return Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total}"),
+        TimeRemainingColumn(),
+        console=console,
+        transient=False,
+    )
+
+
+def print_table(title: str, rows: list, columns: dict[str, str]) -> None:
+    """Print dataclass rows; ``columns`` maps field name -> format spec."""
+    table = Table(title=title)
+    for name in columns:
+        table.add_column(name.replace("_", " "), justify="right")
+    for row in rows:
+        table.add_row(
+            *(
+                "–" if (v := getattr(row, k)) is None else format(v, fmt)
+                for k, fmt in columns.items()
+            )
+        )
+    console.print(table)
+
+
+@app.command()
+def demo(
+    out: RunDirOpt = None,
+    seconds: Annotated[
+        float, typer.Option(callback=check_seconds, help="Simulated seconds of the stimulus.")
+    ] = 1.0,
+    preset: DvsOpt = "paper",
+    seed: Annotated[int, typer.Option(help="Seed of the stimulus and the emulator's noise.")] = 0,
+    force: ForceOpt = False,
+) -> None:
+    """Drive the DVS emulator with a synthetic moving pattern; write events and a picture."""
+    from wander_env.demo import DemoConfig, run_demo
+
+    try:
+        config = DemoConfig(seconds=seconds, preset=preset, seed=seed)
+    except ValueError as err:
+        raise typer.BadParameter(str(err), param_hint="'--seconds'") from None
+    out = resolve_out(out, "demo", force)
+    with _progress() as bar:
+        task = bar.add_task("DVS demo", total=round(seconds * config.frame_rate_hz))
+        summary = run_demo(out, config, progress=lambda i, n: bar.update(task, completed=i))
+    console.print(
+        f"{summary['events']:,} events ({summary['events_per_frame']:.0f} per frame, "
+        f"{summary['on_fraction']:.0%} ON) -> {out}/events.h5, {out}/events.png"
+    )
+
+
+@app.command()
+@long_command("wander record")
+def record(
+    out: RunDirOpt = None,
+    scene: SceneOpt = "office",
+    seconds: SecondsOpt = 5.0,
+    policy: Annotated[
+        str,
+        typer.Option(
+            callback=one_of(("still", "fixational", "saccades")),
+            help="still, fixational or saccades.",
+        ),
+    ] = "fixational",
+    dvs: DvsOpt = "ideal",
+    seed: Annotated[int, typer.Option(help="Seed of the env and the policy.")] = 0,
+    video: Annotated[bool, typer.Option(help="Write video.mp4 (camera | events).")] = True,
+    format: Annotated[
+        str,
+        typer.Option(
+            "--format",
+            callback=one_of(("h5", "aedat4", "evt3", "evimo2")),
+            help="Events as h5, aedat4 or evt3 (.raw); or evimo2: the EVIMO2v2 layout "
+            "(events + per-step masks) that `wander benchmark evimo` scores.",
+        ),
+    ] = "h5",
+    force: ForceOpt = False,
+    frames: FramesOpt = None,
+    keyframe_ms: KeyframeMsOpt = None,
+) -> None:
+    """Record events, ground truth and a video of the env under a simple gaze policy."""
+    from experiments.jobs.record import RecordConfig
+    from experiments.jobs.record import record as run
+
+    config = RecordConfig(
+        scene=scene,
+        seconds=seconds,
+        policy=policy,
+        dvs=dvs,
+        seed=seed,
+        video=video,
+        format=format,
+        **frames_kwargs(frames, keyframe_ms),
+    )
+    out = resolve_out(out, "record", force)
+    with _progress() as bar:
+        task = bar.add_task(f"record {scene}", total=round(seconds / 0.01))
+        summary = run(out, config, progress=lambda i, n: bar.update(task, completed=i, total=n))
+    console.print(f"{summary['events']:,} events over {summary['steps']} steps -> {out}")
+
+
+@app.command("run")
+@long_command("wander run")
+def run_agent(
+    out: RunDirOpt = None,
+    scene: SceneOpt = "office",
+    seconds: SecondsOpt = 10.0,
+    seed: Annotated[int, typer.Option(help="Seed of the env, the walk and the controller.")] = 0,
+    dvs: DvsOpt = "ideal",
+    window: WindowOpt = 0.124,
+    fixational: FixationalOpt = True,
+    streamlined: StreamlinedOpt = False,
+    alpha: AgentAlphaOpt = None,
+    soms_norm: SomsNormOpt = "quantile",
+    video: VideoOpt = True,
+    force: ForceOpt = False,
+    frames: FramesOpt = None,
+    keyframe_ms: KeyframeMsOpt = None,
+) -> None:
+    """Run the attention agent closed-loop in a scene; write the run folder."""
+    from experiments.jobs.run_agent import RunConfig
+    from experiments.jobs.run_agent import run as run_loop
+
+    config = RunConfig(
+        scene=scene,
+        seconds=seconds,
+        seed=seed,
+        dvs=dvs,
+        video=video,
+        window_s=window,
+        fixational=fixational,
+        streamlined=streamlined,
+        soms_norm=soms_norm,
+        **agent_alpha(alpha),
+        **frames_kwargs(frames, keyframe_ms),
+    )
+    out = resolve_out(out, "run", force)
+    with _progress() as bar:
+        task = bar.add_task(f"agent in {scene}", total=round(seconds / 0.01))
+        result = run_loop(out, config, progress=lambda i, n: bar.update(task, completed=i, total=n))
+    m = result.metrics
+    detection = (
+        f"detection accuracy {m['detection_accuracy']:.0%} ({m['decisions_scored']} scored)"
+        if m["decisions_scored"]
+        else "no moving object in view to score"
+    )
+    console.print(
+        f"{m['decisions']} decisions, {m['saccades']} saccades, {detection}, sOMS suppression "
+        f"{m['soms_suppression']:.1%}, real-time factor {m['real_time_factor']:.2f} -> {out}"
+    )
+
+
+@app.command()
+@long_command("wander evaluate")
+def evaluate(
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            help="Folder for one run folder per seed (default: a new time-stamped "
+            "runs/evaluate-DATE-TIME/; an existing non-empty folder needs --force)."
+        ),
+    ] = None,
+    scene: SceneOpt = "office",
+    seconds: Annotated[
+        float, typer.Option(callback=check_seconds, help="Simulated seconds per seed.")
+    ] = 20.0,
+    seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
+    dvs: DvsOpt = "ideal",
+    streamlined: StreamlinedOpt = False,
+    alpha: AgentAlphaOpt = None,
+    force: ForceOpt = False,
+    soms_norm: SomsNormOpt = "quantile",
+    frames: FramesOpt = None,
+    keyframe_ms: KeyframeMsOpt = None,
+) -> None:
+    """The agent's quality in simulation: detection accuracy, suppression, foveation error."""
+    from experiments.jobs.evaluate_agent import evaluate as run_eval
+    from experiments.jobs.run_agent import RunConfig
+
+    seed_list = int_list(seeds, "--seeds", "seed")
+    out = resolve_out(out, "evaluate", force)
+    config = RunConfig(
+        scene=scene,
+        seconds=seconds,
+        dvs=dvs,
+        video=False,
+        streamlined=streamlined,
+        soms_norm=soms_norm,
+        **agent_alpha(alpha),
+        **frames_kwargs(frames, keyframe_ms),
+    )
+    with _progress() as bar:
+        task = bar.add_task("evaluate", total=round(seconds / 0.01) * len(seed_list))
+        done = {s: 0 for s in seed_list}
+
+        def tick(seed: int, i: int, n: int) -> None:
+            done[seed] = i
+            bar.update(task, completed=sum(done.values()))
+
+        rows = run_eval(out, config, seed_list, progress=tick)
+    print_table(
+        f"Agent quality in '{scene}' ({seconds:g} s per seed; seed -1 = all seeds pooled)",
+        rows,
+        {
+            "seed": "d",
+            "decisions": "d",
+            "scored": "d",
+            "hits": "d",
+            "detection_accuracy": ".1%",
+            "detection_ci_low": ".1%",
+            "detection_ci_high": ".1%",
+            "soms_suppression": ".2%",
+            "foveation_error_x_px": ".2f",
+            "foveation_error_y_px": ".2f",
+            "saccades": "d",
+        },
+    )
+
+
+@app.command()
+def view(
+    run_dir: Annotated[Path, typer.Argument(help="A run folder holding run.rrd.")],
+) -> None:
+    """Open a run folder's run.rrd in the Rerun viewer (headless: print the command)."""
+    from wander_env.viewer import command_text
+    from wander_env.viewer import view as open_view
+
+    try:
+        what, command = open_view(run_dir)
+    except FileNotFoundError as err:
+        raise typer.BadParameter(str(err), param_hint="'RUN_DIR'") from None
+    if what == "spawned":
+        typer.echo(f"opened {run_dir / 'run.rrd'} in the Rerun viewer", err=True)
+    else:
+        typer.echo("no display (DISPLAY unset); open the recording with:", err=True)
+        typer.echo(command_text(command))
+
+
+@bench_app.command("dvs")
+def bench_dvs(
+    frames: Annotated[int, typer.Option(min=1, help="Frames per timed run (1 kHz).")] = 1000,
+    repeats: Annotated[
+        int, typer.Option(min=1, help="Timed runs per row; the median is shown.")
+    ] = 3,
+    peers: Annotated[
+        bool, typer.Option(help="Also run evlib's ESIM and v2e on the same frames.")
+    ] = False,
+) -> None:
+    """Frames/s and Mev/s of the DVS emulator at 128x128 and 346x260."""
+    from experiments.bench.dvs import (
+        NOISE_PRESET,
+        PEER_THRESHOLD,
+        bench_dvs,
+        bench_inputs,
+        bench_peers,
+    )
+
+    rows = bench_dvs(n_frames=frames, repeats=repeats)
+    print_table(
+        f"DVS emulator ('all on' = the {NOISE_PRESET} preset, every noise term)",
+        rows,
+        {
+            "sensor": "",
+            "scene": "",
+            "noise": "",
+            "frames_per_s": ",.0f",
+            "mev_per_s": ".2f",
+            "events_per_frame": ",.0f",
+            "on_frame_time_pct": ".1f",
+            "peak_mib": ".1f",
+        },
+    )
+    print_table(
+        "Input paths, moving pattern, ideal (time ratio = time per frame / float32 linear's)",
+        bench_inputs(n_frames=frames, repeats=repeats),
+        {"sensor": "", "input": "", "frames_per_s": ",.0f", "events": ",d", "time_ratio": ".2f"},
+    )
+    if peers:
+        print_table(
+            f"Peers on the same linear frames (moving pattern, threshold {PEER_THRESHOLD}, "
+            "no noise, one torch thread; wander speedup = their time / wander's)",
+            bench_peers(n_frames=frames, repeats=repeats),
+            {
+                "sensor": "",
+                "emulator": "",
+                "frames_per_s": ",.0f",
+                "wander_speedup": ".2f",
+                "events": ",d",
+                "events_diff_pct": "+.2f",
+                "note": "",
+            },
+        )
+
+
+@bench_app.command("env")
+def bench_env(
+    scene: SceneOpt = "office",
+    seconds: Annotated[
+        float, typer.Option(callback=check_seconds, help="Simulated seconds per row.")
+    ] = 2.0,
+    ground_truth: Annotated[bool, typer.Option(help="Render segmentation masks too.")] = True,
+    antialias: Annotated[
+        int | None, typer.Option(min=0, help="MSAA samples (overrides the scene's; 0 = off).")
+    ] = None,
+    breakdown: Annotated[bool, typer.Option(help="Also time the parts of one env's step.")] = True,
+    keyframe_ms: KeyframeMsOpt = None,
+    envs: Annotated[str, typer.Option(help="Comma-separated env counts.")] = "1,2,4",
+) -> None:
+    """Real-time factor of the environment, exact and keyframe frames side by side."""
+    from experiments.bench.env import bench_env as run
+    from experiments.bench.env import step_breakdown
+
+    km = frames_kwargs(None, keyframe_ms).get("keyframe_ms")
+    counts = tuple(int_list(envs, "--envs", "env count", minimum=1))
+    if breakdown:
+        parts = [
+            step_breakdown(
+                scene=scene,
+                dvs=d,
+                seconds=seconds,
+                antialias_samples=antialias,
+                frames=f,
+                keyframe_ms=km,
+            )
+            for d in ("ideal", "speck")
+            for f in ("exact", "keyframes")
+        ]
+        print_table(
+            f"One env's step, scene '{scene}' (ms per step unless named)",
+            parts,
+            {
+                "dvs": "",
+                "frames": "",
+                "antialias_samples": "d",
+                "ms_per_step": ".2f",
+                "renders_per_step": ".1f",
+                "ms_per_render": ".2f",
+                "render_ms": ".2f",
+                "synth_ms": ".2f",
+                "dvs_ms": ".2f",
+                "segment_ms": ".2f",
+                "pose_ms": ".2f",
+                "other_ms": ".2f",
+            },
+        )
+    rows = run(
+        scene=scene,
+        seconds=seconds,
+        ground_truth=ground_truth,
+        antialias_samples=antialias,
+        keyframe_ms=km,
+        env_counts=counts,
+    )
+    print_table(
+        f"Environment, scene '{scene}': exact vs keyframe frames, stepped alternately "
+        "(real-time factor = simulated s / wall s; speedup = exact / keyframes step time)",
+        rows,
+        {
+            "dvs": "",
+            "envs": "d",
+            "ground_truth": "",
+            "keyframe_ms": "g",
+            "exact_rtf": ".2f",
+            "keyframes_rtf": ".2f",
+            "speedup": ".2f",
+            "exact_ms_per_step": ".1f",
+            "keyframes_ms_per_step": ".1f",
+            "exact_frames_per_step": ".1f",
+            "keyframes_frames_per_step": ".1f",
+            "events_diff_pct": "+.2f",
+        },
+    )
+
+
+@bench_app.command("agent")
+def bench_agent(
+    scene: SceneOpt = "office",
+    seconds: Annotated[
+        float, typer.Option(callback=check_seconds, help="Simulated seconds of closed loop.")
+    ] = 5.0,
+    seed: Annotated[int, typer.Option(help="Seed of the env and the agent.")] = 0,
+    keyframe_ms: KeyframeMsOpt = None,
+) -> None:
+    """Per-step latency of sOMS, proto-object, sAC and the whole agent; closed-loop RTF
+    with exact and keyframe frames side by side."""
+    from experiments.bench.agent import bench_agent as run
+    from experiments.bench.agent import loop_modes
+
+    fk = frames_kwargs(None, keyframe_ms)
+    rows, loop = run(seconds=seconds, scene=scene, seed=seed, **fk)
+    ms = {"calls": "d", "median_ms": ".2f", "p95_ms": ".2f", "max_ms": ".2f"}
+    print_table("Agent latency at 128x128 (ms per call)", rows, {"stage": "", **ms})
+    print_table(
+        "Closed loop (env + agent, the env's default frames; real-time factor = simulated s "
+        "/ wall s)",
+        [loop],
+        {
+            "scene": "",
+            "simulated_s": ".1f",
+            "wall_s": ".1f",
+            "env_ms_per_step": ".1f",
+            "agent_ms_per_step": ".2f",
+            "realtime_factor": ".2f",
+        },
+    )
+    both = loop_modes(seconds=seconds, scene=scene, seed=seed, keyframe_ms=fk.get("keyframe_ms"))
+    print_table(
+        "Closed loop, exact vs keyframe frames stepped alternately (speedup = keyframes RTF / "
+        "exact RTF)",
+        [both],
+        {
+            "scene": "",
+            "keyframe_ms": "g",
+            "simulated_s": ".1f",
+            "exact_rtf": ".2f",
+            "keyframes_rtf": ".2f",
+            "speedup": ".2f",
+            "exact_env_ms": ".1f",
+            "keyframes_env_ms": ".1f",
+            "exact_agent_ms": ".2f",
+            "keyframes_agent_ms": ".2f",
+            "exact_decisions": "d",
+            "keyframes_decisions": "d",
+        },
+    )
+
+
+@bench_app.command("fidelity")
+def bench_fidelity(
+    scenes: Annotated[
+        str, typer.Option(help="Comma-separated scenes.")
+    ] = "office,shelf,hand,gratings",
+    motions: Annotated[str, typer.Option(help="Comma-separated: still, walk, saccade.")] = (
+        "still,walk,saccade"
+    ),
+    seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
+    seconds: Annotated[float, typer.Option(min=0.01, help="Simulated seconds per run.")] = 0.25,
+    keyframe_ms: KeyframeMsOpt = None,
+) -> None:
+    """Keyframe frames against exact rendering on the same seeds (events, L1, timing)."""
+    from experiments.bench.fidelity import MOTIONS
+    from experiments.bench.fidelity import bench_fidelity as run
+
+    names = [m.strip() for m in motions.split(",") if m.strip()]
+    bad = [m for m in names if m not in MOTIONS]
+    if bad:
+        raise typer.BadParameter(f"--motions: unknown {bad}, choose from {MOTIONS}")
+    seed_list = tuple(int_list(seeds, "--seeds", "seed"))
+    rows = run(
+        scenes=tuple(s.strip() for s in scenes.split(",") if s.strip()),
+        motions=tuple(names),
+        seeds=seed_list,
+        seconds=seconds,
+        progress=lambda msg: console.print(f"  {msg}", style="dim"),
+        **frames_kwargs(None, keyframe_ms),
+    )
+    km = rows[0].keyframe_ms if rows else keyframe_ms
+    print_table(
+        f"Keyframes ({km:g} ms) vs exact frames, {seconds:g} s per run, seeds {seeds} "
+        "(L1 = per-step count-map L1 / exact events; aa16 = exact with 16 samples a pixel, "
+        "for scale; matched = within 1 ms, same pixel and polarity; gap = longest event gap "
+        "while the camera moves, ms)",
+        rows,
+        {
+            "scene": "",
+            "motion": "",
+            "exact_events": ",d",
+            "keyframes_events": ",d",
+            "events_diff_pct": "+.2f",
+            "l1_per_event": ".3f",
+            "aa16_l1_per_event": ".3f",
+            "matched_pct": ".1f",
+            "exact_matched_pct": ".1f",
+            "aa16_matched_pct": ".1f",
+            "max_gap_exact_ms": "",
+            "max_gap_keyframes_ms": "",
+            "renders_per_step_exact": ".1f",
+            "renders_per_step_keyframes": ".1f",
+        },
+    )
+
+
+@bench_app.command("formats")
+def bench_formats(
+    files: Annotated[
+        list[Path] | None,
+        typer.Argument(help="Event files (.aedat4 .raw .dat .es); default: ../shared/realdata."),
+    ] = None,
+    repeats: Annotated[int, typer.Option(min=1, help="Timed decodes per row (median).")] = 3,
+) -> None:
+    """Decode real event files with every installed library: speed and agreement."""
+    from experiments.bench.formats import bench_formats as run
+    from experiments.bench.formats import default_files
+
+    paths = files or default_files(Path(__file__).resolve().parents[3] / "shared" / "realdata")
+    try:
+        rows, skipped = run(paths, repeats)
+    except (ValueError, OSError) as err:
+        console.print(f"wander bench formats: {err}", markup=False)
+        raise typer.Exit(2) from None
+    print_table(
+        "Event-file decoders (differ: events that disagree with the reference"
+        + (f"; not installed: {', '.join(skipped)}" if skipped else "")
+        + ")",
+        rows,
+        {
+            "file": "",
+            "decoder": "",
+            "events": ",d",
+            "ms": ".1f",
+            "mev_per_s": ".1f",
+            "reference": "",
+            "xyp_differ": ",d",
+            "t_differ": ",d",
+            "max_abs_dt_us": ",d",
+        },
+    )
+
+
+register_rig(app)
+register_experiments(app)
+
+
+def main() -> None:
+    app(prog_name="wander")
+
+
+if __name__ == "__main__":
+    main()
