@@ -29,6 +29,8 @@ from typing import Annotated, Any
 import typer
 
 from experiments.benchmark.figure import WindowSampler
+from experiments.cli.console import progress_bars
+from experiments.cli.errors import fail
 
 app = typer.Typer(
     help="Benchmarks on real event datasets: sOMS maps against masks (IoU, precision, SSIM), "
@@ -123,12 +125,7 @@ def event_files(paths: Sequence[Path]) -> list[Path]:
 
 def _fail(err: BaseException) -> typer.Exit:
     """One line on stderr (``wander benchmark NAME: error: ...``) and exit code 2."""
-    from typer._click.globals import get_current_context
-
-    ctx = get_current_context(silent=True)
-    where = ctx.command_path if ctx is not None else "wander benchmark"
-    typer.echo(f"{where}: error: {' '.join(str(err).split())}", err=True)
-    return typer.Exit(code=2)
+    return fail(err, "wander benchmark")
 
 
 def _set_threads(threads: int | None) -> None:
@@ -158,11 +155,7 @@ class _Bars:
 
 
 def _progress_context(show: bool) -> AbstractContextManager[Any]:
-    if not show:
-        return nullcontext(None)
-    from experiments.cli.main import _progress
-
-    return _progress()
+    return progress_bars() if show else nullcontext(None)
 
 
 def run_sequences(

@@ -17,7 +17,7 @@ import typer
 from typer import _click as click
 from typer.core import TyperGroup
 
-__all__ = ["OneLineErrors", "one_line"]
+__all__ = ["OneLineErrors", "fail", "one_line"]
 
 
 def one_line(err: click.exceptions.ClickException) -> str:
@@ -26,6 +26,18 @@ def one_line(err: click.exceptions.ClickException) -> str:
     where = ctx.command_path if ctx is not None else "wander"
     text = " ".join(err.format_message().split())
     return f"{where}: {text}"
+
+
+def fail(message: object, default: str = "wander") -> typer.Exit:
+    """One line on stderr (``<command path>: error: <message>``, the message's white space
+    folded) and the exit (code 2) for the command to raise; ``default`` names the command
+    outside a Click context."""
+    from typer._click.globals import get_current_context
+
+    ctx = get_current_context(silent=True)
+    where = ctx.command_path if ctx is not None else default
+    typer.echo(f"{where}: error: {' '.join(str(message).split())}", err=True)
+    return typer.Exit(code=2)
 
 
 class OneLineErrors(TyperGroup):

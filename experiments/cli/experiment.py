@@ -11,22 +11,15 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from typer._click.globals import get_current_context
 
+from experiments.cli.console import console, progress_bars
+from experiments.cli.errors import fail
 from experiments.cli.options import one_of
 from experiments.framework import EXPERIMENT_NAMES, ConfigError
 from experiments.sweep import BACKENDS
 from wander_env.shutdown import long_command, record_failure
 
 __all__ = ["register"]
-
-
-def _fail(message: str) -> typer.Exit:
-    """One line on stderr (``wander <command>: error: ...``) and exit code 2."""
-    ctx = get_current_context(silent=True)
-    where = ctx.command_path if ctx is not None else "wander"
-    typer.echo(f"{where}: error: {' '.join(str(message).split())}", err=True)
-    return typer.Exit(code=2)
 
 
 def _command_line() -> str:
@@ -55,7 +48,6 @@ def experiment(
 ) -> None:
     """Run one experiment: a results table, plots, config, seed and git revision."""
 
-    from experiments.cli.main import _progress, console
     from experiments.framework import (
         config_to_dict,
         default_out_dir,
@@ -71,7 +63,7 @@ def experiment(
         exp = get_experiment(name)
         cfg = resolve_config(exp, config, set_ or [])
     except ConfigError as e:
-        raise _fail(str(e)) from None
+        raise fail(str(e)) from None
     if show_config:
         console.print_json(dumps_strict(config_to_dict(cfg)))
         return
@@ -84,7 +76,7 @@ def experiment(
         streams.append(local_executor(specs, workers))
         return streams[-1]
 
-    with _progress() as bar:
+    with progress_bars() as bar:
         task = bar.add_task(name, total=n)
         try:
             rows, files = run_experiment(
@@ -128,16 +120,15 @@ def sweep(
     ] = 6 * 3600.0,
 ) -> None:
     """Run a grid of (experiment, parameters, seeds); reruns skip finished trials."""
-    from experiments.cli.main import _progress, console
     from experiments.sweep import expand, load_sweep, run_sweep
 
     try:
         sw = load_sweep(config)
         n = len(expand(sw))
     except (ConfigError, FileNotFoundError) as e:
-        raise _fail(str(e)) from None
+        raise fail(str(e)) from None
     folder = out or Path("results") / "sweeps" / sw.name
-    with _progress() as bar:
+    with progress_bars() as bar:
         task = bar.add_task(f"sweep {sw.name}", total=n)
         try:
             res = run_sweep(
@@ -151,10 +142,10 @@ def sweep(
                 timeout_s=timeout,
             )
         except ConfigError as e:
-            raise _fail(str(e)) from None
+            raise fail(str(e)) from None
         except TimeoutError as e:
             record_failure(folder, e)
-            raise _fail(f"{e} ({folder}: rerun to resume)") from None
+            raise fail(f"{e} ({folder}: rerun to resume)") from None
         except BaseException as e:  # a signal: the folder says so; the workers are ended
             record_failure(folder, e)
             raise
@@ -175,7 +166,6 @@ def report(
 
     An existing report file is never overwritten without ``--force``.
     """
-    from experiments.cli.main import console
     from experiments.report import build_report
 
     if out.exists() and not force:

@@ -19,10 +19,11 @@ Example:
 
 from __future__ import annotations
 
+import inspect
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any, TypeVar
 
 import typer
 
@@ -47,6 +48,7 @@ __all__ = [
     "check_seconds",
     "frames_kwargs",
     "int_list",
+    "job_config",
     "one_of",
     "resolve_out",
 ]
@@ -219,6 +221,45 @@ def agent_alpha(alpha: float | None) -> dict[str, float]:
     """The config keyword for an ``--alpha`` given on the command line (None: the
     config's own default, :data:`agents.attention.AGENT_SOMS_ALPHA`)."""
     return {} if alpha is None else {"alpha": alpha}
+
+
+T = TypeVar("T")
+
+# Flags named otherwise than the config field they set.
+FIELD_OF_FLAG = {"window": "window_s"}
+
+
+def job_config(cls: Callable[..., T], flags: Mapping[str, Any], **fixed: Any) -> T:
+    """A job's config ``cls`` from a command's flags (``locals()`` on entry): every
+    keyword of ``cls`` that a flag of the same name sets (``--window`` sets ``window_s``);
+    ``--alpha``, ``--frames`` and ``--keyframe-ms`` only when given (:func:`agent_alpha`,
+    :func:`frames_kwargs`: the config's defaults otherwise); ``fixed`` sets keywords the
+    command fixes. Flags that are no keyword of ``cls`` (``--out``, ``--force``) are left.
+
+    >>> from dataclasses import dataclass
+    >>> @dataclass
+    ... class Job:
+    ...     seconds: float = 1.0
+    ...     window_s: float = 0.1
+    ...     alpha: float = 0.8
+    ...     video: bool = True
+    >>> job_config(Job, {"seconds": 2.0, "window": 0.2, "alpha": None, "force": True})
+    Job(seconds=2.0, window_s=0.2, alpha=0.8, video=True)
+    >>> job_config(Job, {"alpha": 0.5, "video": True}, video=False)
+    Job(seconds=1.0, window_s=0.1, alpha=0.5, video=False)
+    """
+    special = ("alpha", "frames", "keyframe_ms")
+    keywords = set(inspect.signature(cls).parameters)
+    kwargs: dict[str, Any] = {
+        FIELD_OF_FLAG.get(flag, flag): value
+        for flag, value in flags.items()
+        if FIELD_OF_FLAG.get(flag, flag) in keywords and flag not in special
+    }
+    if "alpha" in flags:
+        kwargs.update(agent_alpha(flags["alpha"]))
+    if "frames" in flags or "keyframe_ms" in flags:
+        kwargs.update(frames_kwargs(flags.get("frames"), flags.get("keyframe_ms")))
+    return cls(**{**kwargs, **fixed})
 
 
 def resolve_out(out: Path | None, command: str, force: bool) -> Path:

@@ -17,6 +17,7 @@ from typing import Annotated, Any
 
 import typer
 
+from experiments.cli.console import console, step_progress
 from experiments.cli.options import (
     AgentAlphaOpt,
     FixationalOpt,
@@ -25,8 +26,8 @@ from experiments.cli.options import (
     StreamlinedOpt,
     VideoOpt,
     WindowOpt,
-    agent_alpha,
     check_seconds,
+    job_config,
     resolve_out,
 )
 from wander_env.shutdown import SignalExit, exit_code, long_command, record_failure
@@ -107,22 +108,10 @@ def rig(
     force: ForceOpt = False,
 ) -> None:
     """Run the attention agent closed-loop on the rig; write the run folder of `wander run`."""
-    from experiments.cli.main import _progress, console
     from experiments.jobs.rig import RigRunConfig, RigRunError, run_rig
 
     try:
-        config = RigRunConfig(
-            ptu=ptu,
-            camera=camera,
-            replay=replay,
-            seconds=seconds,
-            seed=seed,
-            window_s=window,
-            fixational=fixational,
-            streamlined=streamlined,
-            video=video,
-            **agent_alpha(alpha),
-        )
+        config = job_config(RigRunConfig, locals())
     except ValueError as err:
         field = re.match(r"Rig(?:Run)?Config\.(\w+)", str(err))
         hint = f"'--{field.group(1)}'" if field else None
@@ -133,13 +122,9 @@ def rig(
             f"no such event file: {str(replay_file)!r}", param_hint="'--camera'"
         )
     out = resolve_out(out, "rig", force)
-    bar = _progress()
     try:
-        with bar:
-            task = bar.add_task(f"agent on the rig ({camera})", total=round(seconds / 0.01))
-            result = run_rig(
-                out, config, progress=lambda i, n: bar.update(task, completed=i, total=n)
-            )
+        with step_progress(f"agent on the rig ({camera})", round(seconds / 0.01)) as progress:
+            result = run_rig(out, config, progress=progress)
     except RigRunError as err:
         typer.echo(f"wander rig: {err}", err=True)
         raise typer.Exit(1) from err
