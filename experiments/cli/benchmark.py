@@ -17,11 +17,9 @@ one step per dataset window. Registered in ``experiments/cli/main.py`` as
 
 from __future__ import annotations
 
-import csv
-import dataclasses
 import itertools
 import time
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
 from typing import Annotated, Any
@@ -29,6 +27,17 @@ from typing import Annotated, Any
 import typer
 
 from experiments.benchmark.figure import WindowSampler
+from experiments.benchmark.runner import (
+    event_files,
+    limit_windows,
+    run_sequences,
+    run_suppression,
+    suppression_markdown,
+    suppression_record,
+    write_benchmark_outputs,
+    write_suppression_csv,
+    write_suppression_outputs,
+)
 from experiments.cli.console import progress_bars
 from experiments.cli.errors import fail
 
@@ -39,9 +48,6 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-
-EVENT_SUFFIXES = (".npz", ".h5", ".hdf5", ".npy", ".aedat4", ".aedat", ".raw", ".dat", ".es")
-SUPPRESSION_COLUMNS = ("recording", "window", "t_start_us", "t_end_us", "events_in", "events_out")
 
 
 # ----------------------------------------------------------------------------------------
@@ -77,16 +83,6 @@ def parse_offset(text: str) -> tuple[int, int]:
     return x, y
 
 
-def limit_windows(seq: Any, max_windows: int | None) -> Any:
-    """``seq`` with only its first ``max_windows`` windows (noted), or ``seq`` unchanged."""
-    if max_windows is None or len(seq.windows) <= max_windows:
-        return seq
-    note = f"limited to the first {max_windows} of {len(seq.windows)} windows"
-    return dataclasses.replace(
-        seq, windows=list(seq.windows[:max_windows]), notes=[*seq.notes, note]
-    )
-
-
 def default_name(path: Path) -> str:
     """A run name for an event file: its stem, or its folder's name for ``events*`` files.
 
@@ -98,29 +94,8 @@ def default_name(path: Path) -> str:
     return path.stem
 
 
-def event_files(paths: Sequence[Path]) -> list[Path]:
-    """The event files named, or found (sorted, not recursing) in the folders named."""
-    found: list[Path] = []
-    for p in paths:
-        if p.is_dir():
-            files = sorted(f for f in p.iterdir() if f.suffix.lower() in EVENT_SUFFIXES)
-            if not files:
-                from experiments.benchmark.datasets.base import DatasetLayoutError
-
-                listing = sorted(f.name for f in p.iterdir())[:8]
-                raise DatasetLayoutError(
-                    p,
-                    f"no event file in this folder (found {listing or 'nothing'})",
-                    f"event files ending in {', '.join(EVENT_SUFFIXES)}",
-                )
-            found.extend(files)
-        else:
-            found.append(p)
-    return found
-
-
 # ----------------------------------------------------------------------------------------
-# Running
+# Running (with progress bars; the runner is experiments.benchmark.runner)
 
 
 def _fail(err: BaseException) -> typer.Exit:
@@ -154,124 +129,46 @@ class _Bars:
         self.progress.advance(self.outer)
 
 
-def _progress_context(show: bool) -> AbstractContextManager[Any]:
-    return progress_bars() if show else nullcontext(None)
-
-
-def run_sequences(
+def _run_sequences(
     sequences: Iterable[Any],
     n_sequences: int | None,
     what: str,
     model_config: Any,
     protocol: Any,
     max_windows: int | None,
-    show_progress: bool = True,
+    show_progress: bool,
     sampler: Any = None,
 ) -> tuple[list[Any], dict[str, list[str]], dict[str, float]]:
-    """Stream each sequence through a fresh model (``model_config``, a
-    :class:`experiments.benchmark.model.ModelConfig`) whose ``dt`` is the sequence's window.
-
-    Returns the window rows, each sequence's notes and each sequence's model ``dt``;
-    ``sampler`` (a :class:`experiments.benchmark.figure.WindowSampler`) keeps a few
-    windows' maps for ``maps_vs_masks.png``.
-    """
-    from experiments.benchmark.model import SOMSSaliencyModel, nominal_dt_s
-    from experiments.benchmark.protocol import evaluate_sequence
-
-    rows: list[Any] = []
-    notes: dict[str, list[str]] = {}
-    dts: dict[str, float] = {}
+    """:func:`~experiments.benchmark.runner.run_sequences` with progress bars."""
     with _progress_context(show_progress) as progress:
         bars = _Bars(progress, what, n_sequences) if progress is not None else None
-        for k, seq in enumerate(sequences):
-            seq = limit_windows(seq, max_windows)
-            key = f"{seq.subset}/{seq.name}"
-            notes[key] = list(seq.notes)
-            if not seq.windows:
-                notes[key].append("no mask window: nothing scored")
-                continue
-            dt = nominal_dt_s(seq.windows)
-            dts[key] = dt
-            model = SOMSSaliencyModel.from_config(dataclasses.replace(model_config, dt=dt))
-            if sampler is not None:
-                sampler.start_sequence(len(seq.windows))
-            rows.extend(evaluate_sequence(seq, model, protocol, bars, k, n_sequences, sampler))
-            if bars is not None:
-                bars.sequence_done()
-    return rows, notes, dts
+        return run_sequences(
+            sequences, n_sequences, model_config, protocol, max_windows, sampler,
+            bars, None if bars is None else bars.sequence_done,
+        )  # fmt: skip
 
 
-def _write_summary_csv(summaries: Sequence[Any], path: Path) -> Path:
-    from experiments.benchmark.protocol import summary_dicts
+def _run_suppression(
+    recordings: Sequence[tuple[str, Any, tuple[int, int, int]]],
+    window_us: int,
+    model_config: Any,
+    show_progress: bool,
+) -> list[Any]:
+    """:func:`~experiments.benchmark.runner.run_suppression` with a bar per recording."""
+    with _progress_context(show_progress) as progress:
+        tasks: dict[str, Any] = {}
 
-    dicts = summary_dicts(summaries)
-    with path.open("w", newline="") as f:
-        if dicts:
-            w = csv.DictWriter(f, fieldnames=list(dicts[0]))
-            w.writeheader()
-            w.writerows(dicts)
-    return path
+        def tick(name: str, ev: Any) -> None:
+            if name not in tasks:
+                tasks[name] = progress.add_task(f"suppression {name}", total=None)
+            progress.update(tasks[name], completed=ev.window + 1, total=ev.n_windows)
 
-
-def _notes_markdown(notes: dict[str, list[str]]) -> str:
-    lines = [f"- `{k}`: {'; '.join(v)}" for k, v in notes.items() if v]
-    return "\n".join(["## Loader notes", "", *lines, ""]) if lines else ""
-
-
-def _config_markdown(config: dict[str, Any]) -> str:
-    items = ", ".join(f"{k}={v}" for k, v in config.items())
-    return f"Run: {items}.\n"
+        callback = tick if progress is not None else None
+        return run_suppression(recordings, window_us, model_config, callback)
 
 
-def write_benchmark_outputs(
-    out: Path,
-    rows: Sequence[Any],
-    dataset: str,
-    title: str,
-    command: str,
-    config: dict[str, Any],
-    notes: dict[str, list[str]],
-    extra_markdown: str = "",
-    extra_record: dict[str, Any] | None = None,
-    std_over: str = "sequences",
-    views: Sequence[Any] = (),
-) -> str:
-    """``results.csv`` (one row per window), ``summary.csv``, ``results.md``, ``run.json``
-    and, with ``views`` (sampled windows), ``maps_vs_masks.png``.
-
-    Returns the Markdown written to ``results.md``.
-    """
-    from experiments.benchmark.protocol import (
-        render_markdown,
-        summarize,
-        summary_dicts,
-        write_rows_csv,
-    )
-    from wander_env.runinfo import run_record, write_json
-
-    out.mkdir(parents=True, exist_ok=True)
-    write_rows_csv(rows, out / "results.csv")
-    summaries = summarize(rows, std_over) if rows else []
-    _write_summary_csv(summaries, out / "summary.csv")
-    md = render_markdown(summaries, dataset, title)
-    md += "\n" + _config_markdown(config)
-    notes_md = _notes_markdown(notes)
-    if notes_md:
-        md += "\n" + notes_md
-    if extra_markdown:
-        md += "\n" + extra_markdown
-    (out / "results.md").write_text(md)
-    record = run_record(command, config, seed=None)
-    record["seed_note"] = "the model is deterministic (draws no random numbers)"
-    record["summaries"] = summary_dicts(summaries)
-    record["sequence_notes"] = notes
-    record.update(extra_record or {})
-    write_json(out / "run.json", record)
-    if views:
-        from experiments.benchmark.figure import plot_maps_vs_masks
-
-        plot_maps_vs_masks(out / "maps_vs_masks.png", list(views), f"{title}: maps vs masks")
-    return md
+def _progress_context(show: bool) -> AbstractContextManager[Any]:
+    return progress_bars() if show else nullcontext(None)
 
 
 def _finish(out: Path, md: str, started: float) -> None:
@@ -282,86 +179,6 @@ def _finish(out: Path, md: str, started: float) -> None:
         + " "
         f"({time.monotonic() - started:.1f} s)"
     )
-
-
-def _suppression_rows(name: str, result: Any, t0: int) -> Iterator[list[Any]]:
-    for k, (n_in, n_out) in enumerate(zip(result.events_in, result.events_out, strict=True)):
-        a = t0 + k * result.window_us
-        yield [name, k, a, a + result.window_us, int(n_in), int(n_out)]
-
-
-def run_suppression(
-    recordings: Sequence[tuple[str, Any, tuple[int, int, int]]],
-    window_us: int,
-    model_config: Any,
-    show_progress: bool = True,
-) -> list[Any]:
-    """:func:`event_suppression` on each ``(name, events, sensor)`` with a fresh model
-    (``model_config`` with the step ``window_us``)."""
-    from experiments.benchmark.model import SOMSSaliencyModel
-    from experiments.benchmark.protocol import event_suppression
-
-    results = []
-    with _progress_context(show_progress) as progress:
-        for name, events, sensor in recordings:
-            cb: Callable[[Any], None] | None = None
-            if progress is not None:
-                task = progress.add_task(f"suppression {name}", total=None)
-                cb = _suppression_callback(progress, task)
-            model = SOMSSaliencyModel.from_config(
-                dataclasses.replace(model_config, dt=window_us / 1e6)
-            )
-            results.append(event_suppression(events, sensor, model, window_us, cb, name))
-    return results
-
-
-def _suppression_callback(progress: Any, task: Any) -> Callable[[Any], None]:
-    def cb(ev: Any) -> None:
-        progress.update(task, completed=ev.window + 1, total=ev.n_windows)
-
-    return cb
-
-
-def suppression_markdown(names: Sequence[str], results: Sequence[Any]) -> str:
-    """Per-recording tables (beside the paper's) and, for several, the pooled fraction."""
-    from experiments.benchmark.protocol import render_suppression_markdown
-
-    parts = [render_suppression_markdown(r, n) for n, r in zip(names, results, strict=True)]
-    if len(results) > 1:
-        t_in = sum(r.total_in for r in results)
-        t_out = sum(r.total_out for r in results)
-        frac = 1.0 - t_out / t_in if t_in else float("nan")
-        parts.append(
-            f"Pooled over {len(results)} recordings: {t_in:,} events in, {t_out:,} OMS events "
-            f"out, {100 * frac:.2f} % suppressed.\n"
-        )
-    return "\n".join(parts)
-
-
-def suppression_record(names: Sequence[str], results: Sequence[Any]) -> dict[str, Any]:
-    """The suppression figures for ``run.json``."""
-    return {
-        n: {
-            "window_us": r.window_us,
-            "n_windows": r.n_windows,
-            "events_in": r.total_in,
-            "events_out": r.total_out,
-            "fraction_suppressed": r.fraction_suppressed,
-            **r.per_window(),
-        }
-        for n, r in zip(names, results, strict=True)
-    }
-
-
-def write_suppression_csv(path: Path, items: Sequence[tuple[str, Any, int]]) -> Path:
-    """Per-window events in / out of each ``(name, result, t_first_us)``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(SUPPRESSION_COLUMNS)
-        for name, result, t0 in items:
-            w.writerows(_suppression_rows(name, result, t0))
-    return path
 
 
 # ----------------------------------------------------------------------------------------
@@ -442,7 +259,7 @@ def _score_dataset(
     sampler = WindowSampler()
     try:
         seqs, n = load()
-        rows, notes, dts = run_sequences(
+        rows, notes, dts = _run_sequences(
             seqs, n, label, model, ProtocolConfig(), max_windows, progress, sampler
         )
     except (ValueError, OSError) as err:
@@ -644,7 +461,7 @@ def events(
         seq = limit_windows(seq, max_windows)
         model = _model_config(streamlined, alpha)
         sampler = WindowSampler()
-        rows, notes, dts = run_sequences(
+        rows, notes, dts = _run_sequences(
             [seq], 1, "events", model, ProtocolConfig(mask_offset_xy=offset), None, progress,
             sampler,
         )  # fmt: skip
@@ -654,7 +471,7 @@ def events(
             ev = seq.events
             if max_windows is not None:
                 ev = time_window(ev, int(ev["t"][0]) if len(ev) else 0, seq.windows[-1].t_end_us)
-            (res,) = run_suppression([(seq.name, ev, seq.sensor_size)], win, model, progress)
+            (res,) = _run_suppression([(seq.name, ev, seq.sensor_size)], win, model, progress)
             t0 = int(ev["t"][0]) if len(ev) else 0
             write_suppression_csv(out / "suppression.csv", [(seq.name, res, t0)])
             extra_md = suppression_markdown([seq.name], [res])
@@ -716,7 +533,6 @@ def suppression(
     """Fraction of events sOMS suppresses on recordings without masks (e.g. ego-motion only)."""
     from wander_env.event_io import read_events
     from wander_env.events import time_window
-    from wander_env.runinfo import run_record, write_json
 
     started = time.monotonic()
     sensor_size = parse_sensor(sensor) if sensor else None
@@ -741,13 +557,9 @@ def suppression(
                 notes[f.stem].append(f"limited to the first {max_windows} windows")
             recs.append((f.stem, ev, rec.sensor_size))
         model = _model_config(streamlined, alpha)
-        results = run_suppression(recs, window_us, model, progress)
+        results = _run_suppression(recs, window_us, model, progress)
     except (ValueError, OSError) as err:
         raise _fail(err) from None
-    names = [n for n, _, _ in recs]
-    t0s = [int(ev["t"][0]) if len(ev) else 0 for _, ev, _ in recs]
-    write_suppression_csv(out / "results.csv", list(zip(names, results, t0s, strict=True)))
-    md = suppression_markdown(names, results)
     config = {
         "paths": [str(p) for p in paths],
         "files": [str(f) for f in files],
@@ -757,17 +569,9 @@ def suppression(
         "streamlined": streamlined,
         "alpha": model.alpha,
     }
-    md += "\n" + _config_markdown(config)
-    notes_md = _notes_markdown(notes)
-    if notes_md:
-        md += "\n" + notes_md
-    (out / "results.md").write_text(md)
-    record = run_record("wander benchmark suppression", config, seed=None)
-    record["seed_note"] = "the model is deterministic (draws no random numbers)"
-    record["suppression"] = suppression_record(names, results)
-    record["notes"] = notes
-    record["elapsed_s"] = time.monotonic() - started
-    write_json(out / "run.json", record)
+    md = write_suppression_outputs(
+        out, recs, results, config, notes, elapsed_s=time.monotonic() - started
+    )
     _finish(out, md, started)
 
 
