@@ -214,6 +214,7 @@ AlphaOpt = Annotated[
         help="sOMS threshold α of Eq. (1) (default: the paper's table, 0.80).",
     ),
 ]
+MaxSequencesOpt = Annotated[int | None, typer.Option(min=1, help="Only the first N sequences.")]
 ThreadsOpt = Annotated[
     int | None, typer.Option("--threads", min=1, help="torch CPU threads (default: torch's).")
 ]
@@ -239,26 +240,36 @@ def _check_std_over(std_over: str) -> None:
         raise typer.BadParameter(f"--std-over must be 'sequences' or 'windows', got {std_over!r}")
 
 
+# The options every dataset command (evimo, llevos) shares, in the order run.json lists them.
+DATASET_OPTIONS = ("max_sequences", "max_windows", "streamlined", "alpha", "std_over")
+
+
 def _score_dataset(
     label: str,
-    load: Callable[[], tuple[Iterable[Any], int]],
-    model: Any,
-    config: dict[str, Any],
-    out: Path | None,
-    max_windows: int | None,
-    std_over: str,
-    progress: bool,
-    started: float,
+    dataset: str,
+    load: Callable[[int | None], tuple[Iterable[Any], int]],
+    flags: dict[str, Any],
+    options: dict[str, Any],
 ) -> None:
-    """Score a dataset's sequences (``load`` finds them) with ``model`` (a ``ModelConfig``)
-    and write its results folder."""
+    """Score a dataset's sequences with the benchmark model and write its results folder.
+
+    ``flags`` are the command's (its ``locals()``: ``path``, ``out`` and the shared
+    :data:`DATASET_OPTIONS`, ``threads``, ``progress``); ``options`` its own, for
+    ``run.json``; ``load(max_sequences)`` finds the sequences and counts them.
+    """
     from experiments.benchmark.protocol import ProtocolConfig
 
-    dataset = config["dataset"]
-    out = out or Path(f"runs/benchmark-{dataset}")
+    std_over, max_windows, progress = flags["std_over"], flags["max_windows"], flags["progress"]
+    _check_std_over(std_over)
+    started = time.monotonic()
+    _set_threads(flags["threads"])
+    model = _model_config(flags["streamlined"], flags["alpha"])
+    config = {"dataset": dataset, "path": str(flags["path"]), **options}
+    config.update({k: flags[k] for k in DATASET_OPTIONS}, alpha=model.alpha)
+    out = flags["out"] or Path(f"runs/benchmark-{dataset}")
     sampler = WindowSampler()
     try:
-        seqs, n = load()
+        seqs, n = load(flags["max_sequences"])
         rows, notes, dts = _run_sequences(
             seqs, n, label, model, ProtocolConfig(), max_windows, progress, sampler
         )
@@ -304,9 +315,7 @@ def evimo(
         int | None,
         typer.Option(min=1, help="Window length in µs (default: median mask spacing)."),
     ] = None,
-    max_sequences: Annotated[
-        int | None, typer.Option(min=1, help="Only the first N sequences.")
-    ] = None,
+    max_sequences: MaxSequencesOpt = None,
     max_windows: MaxWindowsOpt = None,
     streamlined: StreamlinedOpt = False,
     alpha: AlphaOpt = None,
@@ -317,30 +326,14 @@ def evimo(
     """EVIMO: per-subset accuracy, IoU, precision, SSIM beside the paper's Table."""
     from experiments.benchmark.datasets.evimo import find_evimo_sequences, load_evimo_sequence
 
-    _check_std_over(std_over)
-    started = time.monotonic()
-    _set_threads(threads)
-
-    def load() -> tuple[Iterable[Any], int]:
+    def load(max_sequences: int | None) -> tuple[Iterable[Any], int]:
         sources = find_evimo_sequences(path, subset)
         if max_sequences is not None:
             sources = sources[:max_sequences]
         return (load_evimo_sequence(s, window_mode, window_us) for s in sources), len(sources)
 
-    model = _model_config(streamlined, alpha)
-    config = {
-        "dataset": "evimo",
-        "path": str(path),
-        "subsets": subset,
-        "window_mode": window_mode,
-        "window_us": window_us,
-        "max_sequences": max_sequences,
-        "max_windows": max_windows,
-        "streamlined": streamlined,
-        "alpha": model.alpha,
-        "std_over": std_over,
-    }
-    _score_dataset("EVIMO", load, model, config, out, max_windows, std_over, progress, started)
+    options = {"subsets": subset, "window_mode": window_mode, "window_us": window_us}
+    _score_dataset("EVIMO", "evimo", load, locals(), options)
 
 
 @app.command("llevos")
@@ -358,9 +351,7 @@ def llevos(
     ] = None,
     time_unit: Annotated[str, typer.Option(help="Unit of t in the event files.")] = "us",
     npy_columns: Annotated[str, typer.Option(help="Column order of (N, 4) event arrays.")] = "xytp",
-    max_sequences: Annotated[
-        int | None, typer.Option(min=1, help="Only the first N sequences.")
-    ] = None,
+    max_sequences: MaxSequencesOpt = None,
     max_windows: MaxWindowsOpt = None,
     streamlined: StreamlinedOpt = False,
     alpha: AlphaOpt = None,
@@ -376,30 +367,14 @@ def llevos(
         load_llevos,
     )
 
-    _check_std_over(std_over)
-    started = time.monotonic()
-    _set_threads(threads)
-
-    def load() -> tuple[Iterable[Any], int]:
+    def load(max_sequences: int | None) -> tuple[Iterable[Any], int]:
         cfg = LLEVOSConfig(time_unit=time_unit, npy_columns=npy_columns)
         names = sequence or list_llevos_sequences(find_llevos_root(path))
         n = len(names) if max_sequences is None else min(len(names), max_sequences)
         return itertools.islice(load_llevos(path, sequence, cfg), n), n
 
-    model = _model_config(streamlined, alpha)
-    config = {
-        "dataset": "llevos",
-        "path": str(path),
-        "sequences": sequence,
-        "time_unit": time_unit,
-        "npy_columns": npy_columns,
-        "max_sequences": max_sequences,
-        "max_windows": max_windows,
-        "streamlined": streamlined,
-        "alpha": model.alpha,
-        "std_over": std_over,
-    }
-    _score_dataset("LLE-VOS", load, model, config, out, max_windows, std_over, progress, started)
+    options = {"sequences": sequence, "time_unit": time_unit, "npy_columns": npy_columns}
+    _score_dataset("LLE-VOS", "llevos", load, locals(), options)
 
 
 @app.command("events")
