@@ -18,6 +18,8 @@ import math
 
 import numpy as np
 
+from experiments.stats import mean_std
+
 FIXATION_COLUMNS = ("pan_deg", "tilt_deg", "start_s", "duration_s")
 
 
@@ -82,13 +84,14 @@ def summary(fixations: np.ndarray, hits: list[bool] | None = None) -> dict[str, 
     """Count, mean ± std duration, mean ± std saccade amplitude, revisits, coverage and
     (given per-fixation object hits) the object hit rate."""
     f = _table(fixations)
-    amp = saccade_amplitudes(f)
+    duration = mean_std(f[:, 3])
+    amplitude = mean_std(saccade_amplitudes(f))
     out = {
         "fixations": float(len(f)),
-        "fixation_duration_mean_s": float(f[:, 3].mean()) if len(f) else math.nan,
-        "fixation_duration_std_s": float(f[:, 3].std()) if len(f) else math.nan,
-        "saccade_amplitude_mean_deg": float(amp.mean()) if len(amp) else math.nan,
-        "saccade_amplitude_std_deg": float(amp.std()) if len(amp) else math.nan,
+        "fixation_duration_mean_s": duration[0],
+        "fixation_duration_std_s": duration[1],
+        "saccade_amplitude_mean_deg": amplitude[0],
+        "saccade_amplitude_std_deg": amplitude[1],
         "revisits": float(revisits(f)),
         "coverage_deg2": coverage(f),
     }

@@ -13,6 +13,7 @@ import pytest
 import wander_env  # noqa: F401
 from experiments.framework import make_trials, resolve_config, run_experiment, run_spec
 from experiments.paper import sac_accuracy, saccade_speed, scanpath
+from wander_env.camera import cast_pixel
 from wander_env.ptu import PTUParams
 from wander_env.renderer import project_points
 
@@ -42,7 +43,7 @@ def test_cast_pixel_finds_the_point_that_projects_back_onto_the_pixel():
     try:
         env.reset(seed=0)
         base = env.unwrapped
-        point, depth, name = sac_accuracy.cast_pixel(base.model, base.data, (80, 66))
+        point, depth, name = cast_pixel(base.model, base.data, (80, 66))
         back = project_points(base.model, base.data, point[None])[0]
     finally:
         env.close()

@@ -36,10 +36,10 @@ from experiments.benchmark.protocol import (
     ProtocolConfig,
     WindowRow,
     evaluate_sequence,
-    mean_std,
     paper_reference,
 )
 from experiments.framework import Comparison, Experiment, Row, TrialSpec, save_figure
+from experiments.stats import mean_std
 from wander_env.env import WanderConfig
 from wander_env.events import concatenate
 from wander_env.ptu import FLIR_RESOLUTION_ARCSEC, PTUParams

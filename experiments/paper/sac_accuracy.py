@@ -50,6 +50,7 @@ import wander_env  # noqa: F401  (registers the environments, picks the GL backe
 from agents.attention import AgentParams, AttentionAgent
 from experiments.framework import Comparison, Experiment, Row, TrialSpec, save_figure
 from experiments.stats import mean_std
+from wander_env.camera import cast_pixel
 from wander_env.env import WanderConfig
 from wander_env.metrics import degrees_to_pixels, foveation_error_px
 from wander_env.ptu import PTUParams
@@ -59,9 +60,7 @@ __all__ = [
     "EXPERIMENT",
     "PAPER_DISPLACEMENT_PX",
     "SacAccuracyConfig",
-    "cast_pixel",
     "draw_target",
-    "pixel_ray",
     "ptu_for_condition",
 ]
 
@@ -145,49 +144,6 @@ def draw_target(
     x = int(rng.integers(math.ceil(cx - range_x_px), math.floor(cx + range_x_px) + 1))
     y = int(rng.integers(math.ceil(cy - range_y_px), math.floor(cy + range_y_px) + 1))
     return x, y
-
-
-def pixel_ray(
-    cam_pos: np.ndarray,
-    cam_mat: np.ndarray,
-    fovy_deg: float,
-    xy: tuple[float, float],
-    width: int = 128,
-    height: int = 128,
-) -> tuple[np.ndarray, np.ndarray]:
-    """(origin, unit direction) in the world of pixel ``xy``: the inverse of
-    :func:`wander_env.renderer.project_points` (``cam_mat`` columns: right, up, back).
-
-    >>> o, d = pixel_ray(np.zeros(3), np.eye(3), 90.0, (63.5, 63.5))
-    >>> d.tolist()
-    [0.0, 0.0, -1.0]
-    """
-    f = (height / 2.0) / math.tan(math.radians(fovy_deg) / 2.0)
-    local = np.array([(xy[0] - (width - 1) / 2.0) / f, -(xy[1] - (height - 1) / 2.0) / f, -1.0])
-    d = np.asarray(cam_mat, float).reshape(3, 3) @ local
-    return np.asarray(cam_pos, float).copy(), d / np.linalg.norm(d)
-
-
-def cast_pixel(
-    model: Any, data: Any, xy: tuple[float, float], width: int = 128, height: int = 128
-) -> tuple[np.ndarray, float, str]:
-    """(world point, distance in m, geom name) of the first visible surface under pixel
-    ``xy`` of the event camera (the PTU's own geoms, group 3, are not seen); the point is
-    NaN and the name empty when the ray hits nothing. ``data`` must be posed."""
-    import mujoco
-
-    from wander_env.mjcf import CAMERA_NAME
-
-    cam = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, CAMERA_NAME)
-    origin, direction = pixel_ray(
-        data.cam_xpos[cam], data.cam_xmat[cam], float(model.cam_fovy[cam]), xy, width, height
-    )
-    geom = np.full(1, -1, np.int32)
-    groups = np.array([1, 1, 1, 0, 0, 0], np.uint8)
-    dist = mujoco.mj_ray(model, data, origin, direction, groups, 1, -1, geom)
-    if geom[0] < 0 or dist < 0:
-        return np.full(3, np.nan), math.nan, ""
-    return origin + dist * direction, float(dist), str(model.geom(int(geom[0])).name)
 
 
 # ----------------------------------------------------------------------------------------

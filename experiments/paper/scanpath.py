@@ -26,7 +26,7 @@ moves). Per trial:
   ``radius_deg``), and the **object hit rate**: the fraction of the salient points
   ``P`` that lie on an object of the scene — static or moving, not walls, floor or
   furniture — found by casting ``P``'s pixel ray into the scene at the decision
-  (:func:`experiments.paper.sac_accuracy.cast_pixel`); ``object_hit_rate_box`` counts ``P``
+  (:func:`wander_env.camera.cast_pixel`); ``object_hit_rate_box`` counts ``P``
   whose ``box``×``box`` square (the paper's detection box) sees an object; in scenes with
   moving objects the run's detection accuracy (the box touches a moving object's mask)
   too;
@@ -71,8 +71,8 @@ from experiments.framework import (
 )
 from experiments.jobs.run_agent import run_closed_loop
 from experiments.jobs.scanpath_figure import pixel_to_angles, saliency_mosaic
-from experiments.paper.sac_accuracy import cast_pixel
 from experiments.stats import mean_std
+from wander_env.camera import cast_pixel
 from wander_env.env import WanderConfig
 from wander_env.metrics import SPECK_HFOV_DEG, focal_length_px
 from wander_env.mjcf import object_body_name
