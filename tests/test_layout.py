@@ -143,6 +143,28 @@ def test_library_code_never_imports_the_cli():
     assert found == []
 
 
+def _third_party_of(module: str) -> set[str]:
+    tree = ast.parse(SOURCES[module].read_text(encoding="utf-8"))
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names |= {a.name.split(".")[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            names.add(node.module.split(".")[0])
+    return names
+
+
+def test_only_the_cli_imports_the_command_line_libraries():
+    found = sorted(
+        f"{m} imports {lib}"
+        for m in SOURCES
+        if not m.startswith("experiments.cli")
+        for lib in _third_party_of(m) & {"typer", "rich", "click"}
+    )
+    assert found == []
+    assert "typer" in _third_party_of("experiments.cli.errors")
+
+
 def test_the_cli_lives_in_one_package():
     elsewhere = [
         m for m in SOURCES if "cli" in m.rpartition(".")[2] and not m.startswith("experiments.cli")

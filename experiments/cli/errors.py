@@ -10,14 +10,19 @@ the error comes before any work (or progress bar) starts.
 
 from __future__ import annotations
 
+import functools
 import sys
-from typing import Any
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TypeVar
 
 import typer
 from typer import _click as click
 from typer.core import TyperGroup
 
-__all__ = ["OneLineErrors", "fail", "one_line"]
+from wander_env.shutdown import SignalExit, describe, handle_signals, record_failure, write_failure
+
+__all__ = ["OneLineErrors", "fail", "long_command", "one_line"]
 
 
 def one_line(err: click.exceptions.ClickException) -> str:
@@ -38,6 +43,43 @@ def fail(message: object, default: str = "wander") -> typer.Exit:
     where = ctx.command_path if ctx is not None else default
     typer.echo(f"{where}: error: {' '.join(str(message).split())}", err=True)
     return typer.Exit(code=2)
+
+
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def long_command(name: str, folder_arg: str | None = "out") -> Callable[[_F], _F]:
+    """Decorate a Typer command: signals handled (:func:`wander_env.shutdown.handle_signals`),
+    failures as one line and an exit code (the module docstring of
+    :mod:`wander_env.shutdown`).
+
+    ``folder_arg`` names the keyword holding the result folder (gets the error).
+    """
+
+    def deco(fn: _F) -> _F:
+        @functools.wraps(fn)
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            folder = kwargs.get(folder_arg) if folder_arg else None
+            try:
+                with handle_signals():
+                    return fn(*args, **kwargs)
+            except SignalExit as stop:
+                record_failure(folder, stop)
+                where = f"; {str(folder)!r} holds what was recorded" if folder else ""
+                typer.echo(f"{name}: {stop}{where}", err=True)
+                raise typer.Exit(stop.exit_code) from None
+            except OSError as err:
+                if write_failure(err) is None:
+                    raise
+                record_failure(folder, err)
+                marked = folder is not None and (Path(folder) / "INCOMPLETE").exists()
+                mark = f"; {str(folder)!r} is marked INCOMPLETE" if marked else ""
+                typer.echo(f"{name}: {describe(err)}{mark}", err=True)
+                raise typer.Exit(1) from None
+
+        return wrapper  # type: ignore[return-value]
+
+    return deco
 
 
 class OneLineErrors(TyperGroup):

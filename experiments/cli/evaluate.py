@@ -10,6 +10,7 @@ from typing import Annotated
 import typer
 
 from experiments.cli.console import print_table, progress_bars
+from experiments.cli.errors import long_command
 from experiments.cli.options import (
     AgentAlphaOpt,
     DvsOpt,
@@ -24,7 +25,6 @@ from experiments.cli.options import (
     job_config,
     resolve_out,
 )
-from wander_env.shutdown import long_command
 
 __all__ = ["evaluate"]
 

@@ -13,11 +13,11 @@ from typing import Annotated
 import typer
 
 from experiments.cli.console import console, progress_bars
-from experiments.cli.errors import fail
+from experiments.cli.errors import fail, long_command
 from experiments.cli.options import one_of
 from experiments.framework import EXPERIMENT_NAMES, ConfigError
 from experiments.sweep import BACKENDS
-from wander_env.shutdown import long_command, record_failure
+from wander_env.shutdown import record_failure
 
 __all__ = ["register"]
 

@@ -18,6 +18,7 @@ from typing import Annotated, Any
 import typer
 
 from experiments.cli.console import console, step_progress
+from experiments.cli.errors import long_command
 from experiments.cli.options import (
     AgentAlphaOpt,
     FixationalOpt,
@@ -30,7 +31,7 @@ from experiments.cli.options import (
     job_config,
     resolve_out,
 )
-from wander_env.shutdown import SignalExit, exit_code, long_command, record_failure
+from wander_env.shutdown import SignalExit, exit_code, record_failure
 
 
 def _or_nan(value: Any) -> float:

@@ -11,6 +11,7 @@ from typing import Annotated
 import typer
 
 from experiments.cli.console import console, step_progress
+from experiments.cli.errors import long_command
 from experiments.cli.options import (
     AgentAlphaOpt,
     DvsOpt,
@@ -30,7 +31,6 @@ from experiments.cli.options import (
     one_of,
     resolve_out,
 )
-from wander_env.shutdown import long_command
 
 __all__ = ["demo", "record", "run_agent", "view"]
 
