@@ -35,7 +35,7 @@ Design decisions (each checked against the paper and its public code):
 * **Input-dependent threshold** (``norm="quantile"``, the agent's default): min-max
   normalisation lets a fixed share of events through whatever the stimulus, so no α
   suppresses ego-motion on textured scenes and keeps the object's events too (the
-  stimulus family of :mod:`experiments.oms_stimuli`). The quantile norm compares the
+  stimulus family of :mod:`experiments.paper.oms_stimuli`). The quantile norm compares the
   pooled surround excess with its own 90th percentile over the map: ego-motion is
   suppressed, denser (faster) objects and objects on a still background kept
   (``wander experiment oms_scorecard``).

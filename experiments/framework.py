@@ -1,10 +1,10 @@
 """Experiments: a registry, typed configs with ``--set`` overrides, trials, result folders.
 
-An experiment is one module ``experiments/NAME.py`` that defines ``EXPERIMENT``, an
+An experiment is one module ``experiments/paper/NAME.py`` that defines ``EXPERIMENT``, an
 :class:`Experiment`: its config dataclass (the paper's values as defaults), a ``grid``
 function (config -> list of trial parameter dicts), ``run_trial`` (config, trial -> one
 row of metrics), and optionally ``plot`` (rows -> PNG files) and ``compare`` (rows -> the
-paper's numbers beside ours). Its default config file is ``experiments/configs/NAME.yaml``.
+paper's numbers beside ours). Its default config file is ``experiments/paper/configs/NAME.yaml``.
 ``run_trial`` may also return arrays under keys that start with ``_`` (time series,
 example maps): they are kept out of the table and saved as ``artifacts/<trial_id>.npz``
 in the result folder, where ``plot(config, rows, results_dir, fig_dir)`` can load them
@@ -74,7 +74,7 @@ __all__ = [
     "write_result_folder",
 ]
 
-# The registry: experiment names, each the module experiments/<name>.py with EXPERIMENT.
+# The registry: experiment names, each the module experiments/paper/<name>.py with EXPERIMENT.
 EXPERIMENT_NAMES: tuple[str, ...] = (
     "oms_characterisation",
     "event_suppression",
@@ -142,15 +142,17 @@ def get_experiment(name: str) -> Experiment:
     """The :class:`Experiment` called ``name`` (ConfigError listing the known ones)."""
     if name not in EXPERIMENT_NAMES:
         raise ConfigError(f"unknown experiment {name!r}; available: {', '.join(EXPERIMENT_NAMES)}")
-    exp = importlib.import_module(f"experiments.{name}").EXPERIMENT
+    exp = importlib.import_module(f"experiments.paper.{name}").EXPERIMENT
     if not isinstance(exp, Experiment) or exp.name != name:
-        raise ConfigError(f"experiments.{name}.EXPERIMENT must be an Experiment named {name!r}")
+        raise ConfigError(
+            f"experiments.paper.{name}.EXPERIMENT must be an Experiment named {name!r}"
+        )
     return exp
 
 
 def configs_dir() -> Path:
-    """``experiments/configs`` (default configs and example sweeps)."""
-    return Path(__file__).resolve().parent / "configs"
+    """``experiments/paper/configs`` (default configs and example sweeps)."""
+    return Path(__file__).resolve().parent / "paper" / "configs"
 
 
 # ----------------------------------------------------------------------------------------

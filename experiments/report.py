@@ -127,7 +127,7 @@ def studies_section(root: Path, report_dir: Path) -> list[str]:
     fixational − saccades difference in object hit rate (paired test, effect size),
     the scanpaths' repeatability, the FLIR main-sequence fits, the command latency's
     effect on time to foveate, and the speed sweeps' response surfaces."""
-    from experiments import saccade_speed, scanpath
+    from experiments.paper import saccade_speed, scanpath
     from experiments.stats import paired_comparison
 
     lines = ["## Scanpath and speed studies: the statements tested", ""]
@@ -163,7 +163,7 @@ def studies_section(root: Path, report_dir: Path) -> list[str]:
     sweeps = root / "sweeps"
     for d in sorted(sweeps.glob("speed*")) if sweeps.is_dir() else []:
         if (d / "results.csv").is_file():
-            from experiments.speed_study import plot_surfaces
+            from experiments.paper.speed_study import plot_surfaces
 
             fig = plot_surfaces(
                 read_csv(d / "results.csv"),

@@ -18,6 +18,8 @@ import math
 
 import numpy as np
 
+from experiments.stats import mean_std
+
 FIXATION_COLUMNS = ("pan_deg", "tilt_deg", "start_s", "duration_s")
 
 
@@ -82,13 +84,14 @@ def summary(fixations: np.ndarray, hits: list[bool] | None = None) -> dict[str, 
     """Count, mean ± std duration, mean ± std saccade amplitude, revisits, coverage and
     (given per-fixation object hits) the object hit rate."""
     f = _table(fixations)
-    amp = saccade_amplitudes(f)
+    duration = mean_std(f[:, 3])
+    amplitude = mean_std(saccade_amplitudes(f))
     out = {
         "fixations": float(len(f)),
-        "fixation_duration_mean_s": float(f[:, 3].mean()) if len(f) else math.nan,
-        "fixation_duration_std_s": float(f[:, 3].std()) if len(f) else math.nan,
-        "saccade_amplitude_mean_deg": float(amp.mean()) if len(amp) else math.nan,
-        "saccade_amplitude_std_deg": float(amp.std()) if len(amp) else math.nan,
+        "fixation_duration_mean_s": duration[0],
+        "fixation_duration_std_s": duration[1],
+        "saccade_amplitude_mean_deg": amplitude[0],
+        "saccade_amplitude_std_deg": amplitude[1],
         "revisits": float(revisits(f)),
         "coverage_deg2": coverage(f),
     }
@@ -105,7 +108,7 @@ BACKGROUND = "-"  # the AOI of a fixation on no object (walls, floor, furniture)
 
 
 def fixation_aois(window_aois: list[str], ends_fixation: list[bool]) -> list[str]:
-    """The AOI of each merged fixation (windows grouped as :func:`experiments.scanpath.
+    """The AOI of each merged fixation (windows grouped as :func:`experiments.paper.scanpath.
     merge_windows` does): the most frequent AOI of its windows, the earliest on a tie;
     ``""`` (no object) becomes :data:`BACKGROUND`.
 
@@ -212,7 +215,7 @@ def multimatch(
     """MultiMatch similarities (1 = identical) of two fixation tables ``(pan, tilt,
     start, duration)`` on the five dimensions of :data:`MULTIMATCH_DIMENSIONS`, by
     :func:`multimatch_gaze.docomparison` on screen coordinates ``x = −pan``,
-    ``y = −tilt`` (degrees, :func:`experiments.scanpath.export_table`); ``screen_deg``
+    ``y = −tilt`` (degrees, :func:`experiments.paper.scanpath.export_table`); ``screen_deg``
     (width, height) normalises lengths and positions (its diagonal), as the screen does
     in eye tracking. ``grouping`` simplifies both scanpaths first (direction, duration
     and amplitude thresholds). NaN on every dimension when a scanpath has fewer than 3

@@ -9,9 +9,9 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from experiments.bench_agent import bench_agent, latency_row
-from experiments.evaluate_agent import QualityRow, detection_interval, pooled
-from wander_env.cli import app
+from experiments.bench.agent import bench_agent, latency_row
+from experiments.cli.main import app
+from experiments.jobs.evaluate_agent import QualityRow, detection_interval, pooled
 
 
 def test_latency_row_percentiles() -> None:

@@ -7,7 +7,7 @@ import importlib.util
 import numpy as np
 import pytest
 
-from experiments.bench_dvs import PEERS, bench_inputs, bench_peers, linear_frames
+from experiments.bench.dvs import PEERS, bench_inputs, bench_peers, linear_frames
 from wander_env.dvs import DVSEmulator
 from wander_env.synthetic import drifting_texture
 

@@ -1,4 +1,4 @@
-"""Tests for the benchmark protocol (experiments.benchmark_protocol) with a fake model."""
+"""Tests for the benchmark protocol (experiments.benchmark.protocol) with a fake model."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
-from experiments.benchmark_protocol import (
+from experiments.benchmark.datasets import MaskWindow, SequenceData
+from experiments.benchmark.protocol import (
     ROW_COLUMNS,
     BenchmarkModel,
     Maps,
@@ -27,7 +28,6 @@ from experiments.benchmark_protocol import (
     write_results,
     write_rows_csv,
 )
-from experiments.datasets import MaskWindow, SequenceData
 from wander_env.events import make_events
 from wander_env.metrics import ssim
 

@@ -8,7 +8,7 @@ import cv2
 import pytest
 from typer.testing import CliRunner
 
-from wander_env.cli import app
+from experiments.cli.main import app
 from wander_env.event_io import read_events
 
 runner = CliRunner()

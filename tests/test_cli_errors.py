@@ -10,7 +10,7 @@ import sys
 import pytest
 from typer.testing import CliRunner
 
-from wander_env.cli import app
+from experiments.cli.main import app
 from wander_env.runinfo import VERSIONED_PACKAGES, dumps_strict, package_versions, run_record
 
 runner = CliRunner()
@@ -27,7 +27,7 @@ def _strict(text: str) -> object:
 def test_run_with_an_unknown_scene_prints_one_line_and_exits_2():
     """The issue's bar, through a real process: ≤ 3 lines on stderr, no traceback."""
     proc = subprocess.run(
-        [sys.executable, "-c", "from wander_env.cli import main; main()", "run",
+        [sys.executable, "-c", "from experiments.cli.main import main; main()", "run",
          "--scene", "nosuch"],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip

@@ -11,10 +11,10 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
+from experiments.cli.errors import long_command
 from wander_env.event_io import read_events
 from wander_env.event_stream import EventStreamWriter, H5Appender, OutputError
 from wander_env.events import make_events
-from wander_env.shutdown import long_command
 
 
 def step(k: int, n: int = 100) -> np.ndarray:

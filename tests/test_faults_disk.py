@@ -75,7 +75,7 @@ def test_stream_writer_on_a_full_disk_names_the_file_and_keeps_what_was_flushed(
 def test_record_on_a_full_disk_is_one_line_and_an_incomplete_folder(tiny_disk, video):
     out = tiny_disk / "rec"
     env = {**os.environ, "PYTHONPATH": str(ROOT), "MUJOCO_GL": "egl"}
-    code = "import sys; from wander_env.cli import app; sys.argv[0] = 'wander'; app()"
+    code = "import sys; from experiments.cli.main import app; sys.argv[0] = 'wander'; app()"
     args = ["record", "--seconds", "10", "--out", str(out), "--video" if video else "--no-video"]
     done = subprocess.run(
         [sys.executable, "-c", code, *args], env=env, capture_output=True, text=True, timeout=600
@@ -98,7 +98,7 @@ def test_a_read_only_folder_is_one_line(tmp_path):
     try:
         from typer.testing import CliRunner
 
-        from wander_env.cli import app
+        from experiments.cli.main import app
 
         result = CliRunner().invoke(app, ["record", "--seconds", "0.1", "--out", str(ro / "x")])
         assert result.exit_code == 1

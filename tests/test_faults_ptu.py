@@ -4,7 +4,7 @@ garbage, a closed pty), at the driver and through ``wander rig``."""
 from __future__ import annotations
 
 import pytest
-from test_rig_cli import (  # noqa: F401  (fixtures: app, square)
+from test_cli_rig import (  # noqa: F401  (fixtures: app, square)
     QUICK,
     app,
     assert_events_of_steps,
@@ -31,7 +31,7 @@ def emu():
 def patient_driver(monkeypatch):
     """`wander rig` with PTU reply timeouts a loaded machine cannot starve (5 s, not 1 s),
     for tests whose fault is not the PTU's."""
-    from experiments.rig import RigRunConfig
+    from experiments.jobs.rig import RigRunConfig
 
     env_kwargs = RigRunConfig.env_kwargs
     patient = FlirPTUParams(timeout_s=5.0, halt_timeout_s=2.0, banner_quiet_s=0.02)

@@ -102,7 +102,7 @@ def test_record_failure_adds_the_signal_as_strict_json(tmp_path):
 
 def start(args: list[str], out: Path) -> subprocess.Popen:
     env = {**os.environ, "PYTHONPATH": str(ROOT), "MUJOCO_GL": "egl"}
-    code = "import sys; from wander_env.cli import app; sys.argv[0] = 'wander'; app()"
+    code = "import sys; from experiments.cli.main import app; sys.argv[0] = 'wander'; app()"
     return subprocess.Popen(
         [sys.executable, "-c", code, *args, "--out", str(out)],
         env=env,
@@ -192,7 +192,7 @@ def test_sigkill_leaves_a_readable_stream_that_says_where_it_stops(tmp_path):
 
 
 def test_a_signal_while_setting_up_still_leaves_a_folder(tmp_path, monkeypatch):
-    import experiments.run_agent as run_agent
+    import experiments.jobs.run_agent as run_agent
 
     def stopped(*args, **kwargs):
         raise SignalExit(signal.SIGTERM)  # as if it came while the agent was being built

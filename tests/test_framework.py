@@ -11,7 +11,7 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
-from experiments.cli_experiments import register
+from experiments.cli.experiment import register
 from experiments.framework import (
     EXPERIMENT_NAMES,
     Comparison,

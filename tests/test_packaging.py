@@ -89,7 +89,7 @@ def test_a_wheel_built_from_the_checkout_contains_the_scene_files(tmp_path):
         assert cfg.relative_to(ROOT).as_posix() in names
     assert any(n.endswith("/LICENSE") for n in names)
     entry = next(n for n in names if n.endswith("entry_points.txt"))
-    assert "wander = wander_env.cli:app" in zipfile.ZipFile(wheel).read(entry).decode()
+    assert "wander = experiments.cli.main:app" in zipfile.ZipFile(wheel).read(entry).decode()
 
 
 def test_license_is_mit_as_pyproject_says():

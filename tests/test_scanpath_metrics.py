@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from experiments import scanpath, scanpath_analysis, scanpath_stats
+from experiments import scanpath_stats
+from experiments.paper import scanpath, scanpath_analysis
 
 DATA = Path(__file__).parent / "data" / "multimatch"
 # multimatch-gaze's test_compare2matlab: the MATLAB toolbox's results on these two files

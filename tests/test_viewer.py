@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from experiments.record import RecordConfig, record
+from experiments.jobs.record import RecordConfig, record
 from wander_env.event_io import read_events
 from wander_env.events import time_window, to_frame
 from wander_env.viewer import RunLog, polarity_labels, view

@@ -15,7 +15,10 @@ camera's axes in world coordinates) and ``c`` the camera centre in world coordin
 - :func:`project`: world points to pixels;
 - :func:`linearise_depth`: MuJoCo's depth buffer to metres along the optical axis;
 - :func:`source_pixels`: where a target pixel's content was in a source view, for a
-  rotation plus a translation (parallax, moving objects) given the source's depth.
+  rotation plus a translation (parallax, moving objects) given the source's depth;
+- :func:`pixel_ray`, :func:`cast_pixel`: a pixel's ray in the world and the first
+  surface it meets in a posed MuJoCo scene (the one function here that takes MuJoCo's
+  model and data; it imports ``mujoco`` when called).
 
 Example:
     >>> import numpy as np
@@ -30,6 +33,7 @@ Example:
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -175,12 +179,57 @@ def source_pixels(
     return p, lam
 
 
+def pixel_ray(
+    cam_pos: np.ndarray,
+    cam_mat: np.ndarray,
+    fovy_deg: float,
+    xy: tuple[float, float],
+    width: int = 128,
+    height: int = 128,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(origin, unit direction) in the world of pixel ``xy``: the inverse of
+    :func:`wander_env.renderer.project_points` (``cam_mat`` columns: right, up, back).
+
+    >>> o, d = pixel_ray(np.zeros(3), np.eye(3), 90.0, (63.5, 63.5))
+    >>> d.tolist()
+    [0.0, 0.0, -1.0]
+    """
+    f = (height / 2.0) / math.tan(math.radians(fovy_deg) / 2.0)
+    local = np.array([(xy[0] - (width - 1) / 2.0) / f, -(xy[1] - (height - 1) / 2.0) / f, -1.0])
+    d = np.asarray(cam_mat, float).reshape(3, 3) @ local
+    return np.asarray(cam_pos, float).copy(), d / np.linalg.norm(d)
+
+
+def cast_pixel(
+    model: Any, data: Any, xy: tuple[float, float], width: int = 128, height: int = 128
+) -> tuple[np.ndarray, float, str]:
+    """(world point, distance in m, geom name) of the first visible surface under pixel
+    ``xy`` of the event camera (the PTU's own geoms, group 3, are not seen); the point is
+    NaN and the name empty when the ray hits nothing. ``data`` must be posed."""
+    import mujoco
+
+    from wander_env.mjcf import CAMERA_NAME
+
+    cam = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, CAMERA_NAME)
+    origin, direction = pixel_ray(
+        data.cam_xpos[cam], data.cam_xmat[cam], float(model.cam_fovy[cam]), xy, width, height
+    )
+    geom = np.full(1, -1, np.int32)
+    groups = np.array([1, 1, 1, 0, 0, 0], np.uint8)
+    dist = mujoco.mj_ray(model, data, origin, direction, groups, 1, -1, geom)
+    if geom[0] < 0 or dist < 0:
+        return np.full(3, np.nan), math.nan, ""
+    return origin + dist * direction, float(dist), str(model.geom(int(geom[0])).name)
+
+
 __all__ = [
     "SPECK_HFOV_DEG",
+    "cast_pixel",
     "degrees_to_pixels",
     "focal_length_px",
     "intrinsics",
     "linearise_depth",
+    "pixel_ray",
     "pixels_to_degrees",
     "project",
     "relative_pose",

@@ -32,6 +32,8 @@ import json
 import math
 import os
 from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -292,3 +294,43 @@ def fill_events(
         for f in _FIELDS:
             out[f][a:b] = block[f]
     return out
+
+
+@dataclass
+class EventRecording:
+    """Events with the sensor they came from and free-form metadata."""
+
+    events: np.ndarray
+    sensor_size: SensorSize
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def duration_us(self) -> int:
+        if len(self.events) == 0:
+            return 0
+        return int(self.events["t"][-1] - self.events["t"][0])
+
+
+def checked_recording(
+    path: Path,
+    columns: dict[str, Any],
+    sensor_size: SensorSize | None,
+    metadata: dict[str, Any],
+    max_side: int,
+    n: int | None = None,
+) -> EventRecording:
+    """The recording of a reader's raw ``columns``: check the sensor size (or infer it
+    from the largest coordinates), then copy the columns in checked chunks."""
+    count = n_rows(path, columns) if n is None else n
+    if sensor_size is None:
+        if count == 0:
+            raise EventFileError(path, "no events and no sensor size: pass sensor_size")
+        chunk = 1 << 20
+        w = column_max(path, "x", columns["x"], count, max_side, chunk) + 1
+        h = column_max(path, "y", columns["y"], count, max_side, chunk) + 1
+        sensor_size = check_sensor_size(path, (w, h, 2), max_side, "sensor_size (inferred)")
+        metadata = {**metadata, "sensor_size_inferred": True}
+    else:
+        sensor_size = check_sensor_size(path, sensor_size, max_side)
+    events = fill_events(path, columns, sensor_size, max_side, n=count)
+    return EventRecording(events, sensor_size, metadata)

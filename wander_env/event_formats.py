@@ -53,8 +53,12 @@ from typing import Any
 
 import numpy as np
 
-from wander_env.event_checks import MAX_SENSOR_SIDE
-from wander_env.event_io import EventFileError, EventRecording, _finish
+from wander_env.event_checks import (
+    MAX_SENSOR_SIDE,
+    EventFileError,
+    EventRecording,
+    checked_recording,
+)
 from wander_env.events import SensorSize, time_window
 
 # Prophesee sensors whose headers omit the geometry (older plugins), by plugin name.
@@ -129,7 +133,8 @@ def _evt_version(fields: dict[str, str]) -> str | None:
 def _sensor(
     path: Path, given: SensorSize | None, fields: dict[str, str], meta: dict[str, Any]
 ) -> SensorSize | None:
-    """The sensor size: the caller's, else the header's; None lets ``_finish`` infer it."""
+    """The sensor size: the caller's, else the header's; None: ``checked_recording`` infers
+    it."""
     if given is not None:
         return given
     geometry = _header_geometry(fields)
@@ -189,7 +194,7 @@ def read_prophesee_raw(
     else:
         import faery
 
-        # Without a known geometry: decode the full 11-bit range; _finish infers the size.
+        # Without a known geometry: decode the full 11-bit range; checked_recording infers the size.
         fallback = (size[0], size[1]) if size else (EVT3_MAX_COORD, EVT3_MAX_COORD)
         chunks, triggers = [], 0
         try:
@@ -203,11 +208,11 @@ def read_prophesee_raw(
         raw = np.concatenate(chunks) if chunks else np.zeros(0, faery.EVENTS_DTYPE)
         columns = {"x": raw["x"], "y": raw["y"], "t": raw["t"], "p": raw["on"]}
         meta["trigger_events"] = triggers
-    return _finish(path, _checked(path, columns), size, meta, max_side)
+    return checked_recording(path, _checked(path, columns), size, meta, max_side)
 
 
 def _checked(path: Path, columns: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """The columns, refusing timestamps the int64 µs clock cannot hold (``_finish`` checks
+    """The columns, refusing timestamps the int64 µs clock cannot hold (``checked_recording`` checks
     every value as it copies)."""
     t = np.asarray(columns["t"])
     if t.dtype.kind == "u" and len(t) and int(t.max()) > np.iinfo(np.int64).max:
@@ -241,7 +246,7 @@ def read_dat(
         )
     meta: dict[str, Any] = {"source_format": "dat", "header": fields}
     size = _sensor(path, sensor_size, fields, meta)
-    # Without a known geometry: decode the full 14-bit range; _finish infers the size.
+    # Without a known geometry: decode the full 14-bit range; checked_recording infers the size.
     fallback = (size[0], size[1]) if size else (DAT_MAX_COORD, DAT_MAX_COORD)
     try:
         with faery.dat.Decoder(path, fallback, "dat2") as dec:
@@ -255,7 +260,7 @@ def read_dat(
         "t": raw["t"],
         "p": raw["payload"],
     }
-    return _finish(path, _checked(path, columns), size, meta, max_side)
+    return checked_recording(path, _checked(path, columns), size, meta, max_side)
 
 
 def es_expected_bytes(t: np.ndarray) -> int:
@@ -320,7 +325,8 @@ def read_es(
     y = raw["y"].astype(np.int64)
     columns = {"x": raw["x"], "y": height - 1 - y if flip_y else y, "t": raw["t"], "p": raw["on"]}
     meta = {"source_format": "es", "es_version": ".".join(map(str, version)), "flip_y": flip_y}
-    return _finish(path, _checked(path, columns), sensor_size or (width, height, 2), meta, max_side)
+    size = sensor_size or (width, height, 2)
+    return checked_recording(path, _checked(path, columns), size, meta, max_side)
 
 
 # ----------------------------------------------------------------------------------------

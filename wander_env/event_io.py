@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import os
 import zipfile
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -48,10 +47,10 @@ import numpy as np
 from wander_env.event_checks import (
     MAX_SENSOR_SIDE,
     EventFileError,
+    EventRecording,
     check_claim,
     check_sensor_size,
-    column_max,
-    fill_events,
+    checked_recording,
     n_rows,
     parse_metadata,
 )
@@ -59,45 +58,6 @@ from wander_env.events import EVENT_DTYPE, SensorSize, validate_events
 from wander_env.runinfo import dumps_strict
 
 FORMAT_TAG = "wander-events/1"
-
-
-@dataclass
-class EventRecording:
-    """Events with the sensor they came from and free-form metadata."""
-
-    events: np.ndarray
-    sensor_size: SensorSize
-    metadata: dict[str, Any] = field(default_factory=dict)
-
-    @property
-    def duration_us(self) -> int:
-        if len(self.events) == 0:
-            return 0
-        return int(self.events["t"][-1] - self.events["t"][0])
-
-
-def _finish(
-    path: Path,
-    columns: dict[str, Any],
-    sensor_size: SensorSize | None,
-    metadata: dict[str, Any],
-    max_side: int,
-    n: int | None = None,
-) -> EventRecording:
-    """Check the sensor size, then copy the columns in checked chunks (event_checks)."""
-    count = n_rows(path, columns) if n is None else n
-    if sensor_size is None:
-        if count == 0:
-            raise EventFileError(path, "no events and no sensor size: pass sensor_size")
-        chunk = 1 << 20
-        w = column_max(path, "x", columns["x"], count, max_side, chunk) + 1
-        h = column_max(path, "y", columns["y"], count, max_side, chunk) + 1
-        sensor_size = check_sensor_size(path, (w, h, 2), max_side, "sensor_size (inferred)")
-        metadata = {**metadata, "sensor_size_inferred": True}
-    else:
-        sensor_size = check_sensor_size(path, sensor_size, max_side)
-    events = fill_events(path, columns, sensor_size, max_side, n=count)
-    return EventRecording(events, sensor_size, metadata)
 
 
 def _npy_header(path: Path, fh: Any, available: int, what: str) -> tuple[tuple, np.dtype]:
@@ -141,7 +101,7 @@ def _read_npz(path: Path, sensor_size: SensorSize | None, max_side: int) -> Even
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as err:
         raise EventFileError(path, f"not a readable .npz file ({err})") from None
-    return _finish(path, columns, sensor_size, metadata, max_side)
+    return checked_recording(path, columns, sensor_size, metadata, max_side)
 
 
 def _read_npy(path: Path, sensor_size: SensorSize | None, max_side: int) -> EventRecording:
@@ -154,7 +114,7 @@ def _read_npy(path: Path, sensor_size: SensorSize | None, max_side: int) -> Even
     if arr.dtype.names is None:
         raise EventFileError(path, f"expected a structured array with x, y, t, p; got {arr.dtype}")
     columns = {f: arr[f] for f in arr.dtype.names}
-    return _finish(path, columns, sensor_size, {}, max_side)
+    return checked_recording(path, columns, sensor_size, {}, max_side)
 
 
 def _h5_column(path: Path, group: Any, name: str) -> Any:
@@ -208,7 +168,7 @@ def _read_h5(path: Path, sensor_size: SensorSize | None, max_side: int) -> Event
                 sensor_size = check_sensor_size(path, f.attrs["sensor_size"], max_side)
             metadata = parse_metadata(path, f.attrs["metadata"]) if "metadata" in f.attrs else {}
             n, metadata = stream_state(path, f.attrs, n_rows(path, columns), metadata)
-            return _finish(path, columns, sensor_size, metadata, max_side, n=n)
+            return checked_recording(path, columns, sensor_size, metadata, max_side, n=n)
     except EventFileError:
         raise
     except (OSError, KeyError, TypeError, ValueError) as err:
@@ -267,7 +227,7 @@ def _read_aedat4(path: Path, sensor_size: SensorSize | None, max_side: int) -> E
         "p": raw["on"] if len(raw) else empty,
     }
     metadata = {"source_format": "aedat4", "other_stream_packets": other}
-    return _finish(path, columns, sensor_size, metadata, max_side)
+    return checked_recording(path, columns, sensor_size, metadata, max_side)
 
 
 def _read_aedat2(path: Path, sensor_size: SensorSize | None, max_side: int) -> EventRecording:
@@ -316,7 +276,7 @@ def _read_aedat2(path: Path, sensor_size: SensorSize | None, max_side: int) -> E
     del words
     columns = {f: np.concatenate(v) if v else np.zeros(0, np.int64) for f, v in parts.items()}
     metadata = {"source_format": "aedat2", "special_events": special_n}
-    return _finish(path, columns, sensor_size or (128, 128, 2), metadata, max_side)
+    return checked_recording(path, columns, sensor_size or (128, 128, 2), metadata, max_side)
 
 
 _READERS = {

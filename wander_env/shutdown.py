@@ -9,7 +9,7 @@ Further signals while that clean-up runs are reported and ignored (it is bounded
 the devices' timeouts); a third ends the process at once. A signal that lands where
 Python drops exceptions (a ``__del__``, a weakref callback) is delivered again.
 
-:func:`long_command` wraps a Typer command in it and turns the ways a long run ends
+:func:`experiments.cli.errors.long_command` wraps a command in it and turns the ways a long run ends
 badly into one line on stderr and an exit code: a signal → ``128 + signal`` (130
 SIGINT, 143 SIGTERM, 129 SIGHUP), a result file that cannot be written (disk full,
 read-only or unwritable folder) → 1, after :func:`record_failure` has added the error
@@ -30,17 +30,16 @@ Example:
 from __future__ import annotations
 
 import errno
-import functools
 import json
 import math
 import os
 import signal
 import sys
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 SIGNALS: tuple[signal.Signals, ...] = tuple(
     getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
@@ -49,7 +48,6 @@ SIGNALS: tuple[signal.Signals, ...] = tuple(
 WRITE_ERRNOS = frozenset(
     getattr(errno, n) for n in ("ENOSPC", "EDQUOT", "EACCES", "EPERM", "EROFS") if hasattr(errno, n)
 )
-_F = TypeVar("_F", bound=Callable[..., Any])
 
 
 class SignalExit(KeyboardInterrupt):
@@ -186,39 +184,6 @@ def describe(err: BaseException) -> str:
     return " ".join(f"{type(err).__name__}: {err}".split())
 
 
-def long_command(name: str, folder_arg: str | None = "out") -> Callable[[_F], _F]:
-    """Decorate a Typer command: signals handled, failures as one line and an exit code.
-
-    ``folder_arg`` names the keyword holding the result folder (gets the error).
-    """
-    import typer
-
-    def deco(fn: _F) -> _F:
-        @functools.wraps(fn)
-        def wrapper(*args: Any, **kwargs: Any) -> Any:
-            folder = kwargs.get(folder_arg) if folder_arg else None
-            try:
-                with handle_signals():
-                    return fn(*args, **kwargs)
-            except SignalExit as stop:
-                record_failure(folder, stop)
-                where = f"; {str(folder)!r} holds what was recorded" if folder else ""
-                typer.echo(f"{name}: {stop}{where}", err=True)
-                raise typer.Exit(stop.exit_code) from None
-            except OSError as err:
-                if write_failure(err) is None:
-                    raise
-                record_failure(folder, err)
-                marked = folder is not None and (Path(folder) / "INCOMPLETE").exists()
-                mark = f"; {str(folder)!r} is marked INCOMPLETE" if marked else ""
-                typer.echo(f"{name}: {describe(err)}{mark}", err=True)
-                raise typer.Exit(1) from None
-
-        return wrapper  # type: ignore[return-value]
-
-    return deco
-
-
 def exit_code(err: BaseException) -> int:
     """128 + signal for a :class:`SignalExit`, 130 for a plain ``KeyboardInterrupt``, else 1."""
     if isinstance(err, SignalExit):
@@ -232,7 +197,6 @@ __all__ = [
     "describe",
     "exit_code",
     "handle_signals",
-    "long_command",
     "record_failure",
     "write_failure",
 ]

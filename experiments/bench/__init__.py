@@ -1,0 +1,1 @@
+"""Speed benchmarks (``wander bench ...``): env, DVS emulator, agent, fidelity, formats."""

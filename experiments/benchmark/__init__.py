@@ -1,0 +1,1 @@
+"""The real-data benchmark (``wander benchmark ...``): protocol, model, figures, datasets."""

@@ -1,0 +1,1 @@
+"""The ``wander`` command line (the top floor): :mod:`experiments.cli.main` builds the app."""

@@ -1,0 +1,299 @@
+"""``wander bench ...``: the speed benchmarks, each printing tables (speed is measured
+here, never in tests): ``dvs``, ``env``, ``agent``, ``fidelity``, ``formats``.
+:mod:`experiments.cli.main` adds :data:`app` as ``bench``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from experiments.cli.console import console, print_table
+from experiments.cli.options import KeyframeMsOpt, SceneOpt, check_seconds, frames_kwargs, int_list
+
+__all__ = ["app"]
+
+app = typer.Typer(help="Benchmarks that print tables (speed is measured here, not in tests).")
+
+
+@app.command("dvs")
+def bench_dvs(
+    frames: Annotated[int, typer.Option(min=1, help="Frames per timed run (1 kHz).")] = 1000,
+    repeats: Annotated[
+        int, typer.Option(min=1, help="Timed runs per row; the median is shown.")
+    ] = 3,
+    peers: Annotated[
+        bool, typer.Option(help="Also run evlib's ESIM and v2e on the same frames.")
+    ] = False,
+) -> None:
+    """Frames/s and Mev/s of the DVS emulator at 128x128 and 346x260."""
+    from experiments.bench.dvs import (
+        NOISE_PRESET,
+        PEER_THRESHOLD,
+        bench_dvs,
+        bench_inputs,
+        bench_peers,
+    )
+
+    rows = bench_dvs(n_frames=frames, repeats=repeats)
+    print_table(
+        f"DVS emulator ('all on' = the {NOISE_PRESET} preset, every noise term)",
+        rows,
+        {
+            "sensor": "",
+            "scene": "",
+            "noise": "",
+            "frames_per_s": ",.0f",
+            "mev_per_s": ".2f",
+            "events_per_frame": ",.0f",
+            "on_frame_time_pct": ".1f",
+            "peak_mib": ".1f",
+        },
+    )
+    print_table(
+        "Input paths, moving pattern, ideal (time ratio = time per frame / float32 linear's)",
+        bench_inputs(n_frames=frames, repeats=repeats),
+        {"sensor": "", "input": "", "frames_per_s": ",.0f", "events": ",d", "time_ratio": ".2f"},
+    )
+    if peers:
+        print_table(
+            f"Peers on the same linear frames (moving pattern, threshold {PEER_THRESHOLD}, "
+            "no noise, one torch thread; wander speedup = their time / wander's)",
+            bench_peers(n_frames=frames, repeats=repeats),
+            {
+                "sensor": "",
+                "emulator": "",
+                "frames_per_s": ",.0f",
+                "wander_speedup": ".2f",
+                "events": ",d",
+                "events_diff_pct": "+.2f",
+                "note": "",
+            },
+        )
+
+
+@app.command("env")
+def bench_env(
+    scene: SceneOpt = "office",
+    seconds: Annotated[
+        float, typer.Option(callback=check_seconds, help="Simulated seconds per row.")
+    ] = 2.0,
+    ground_truth: Annotated[bool, typer.Option(help="Render segmentation masks too.")] = True,
+    antialias: Annotated[
+        int | None, typer.Option(min=0, help="MSAA samples (overrides the scene's; 0 = off).")
+    ] = None,
+    breakdown: Annotated[bool, typer.Option(help="Also time the parts of one env's step.")] = True,
+    keyframe_ms: KeyframeMsOpt = None,
+    envs: Annotated[str, typer.Option(help="Comma-separated env counts.")] = "1,2,4",
+) -> None:
+    """Real-time factor of the environment, exact and keyframe frames side by side."""
+    from experiments.bench.env import bench_env as run
+    from experiments.bench.env import step_breakdown
+
+    km = frames_kwargs(None, keyframe_ms).get("keyframe_ms")
+    counts = tuple(int_list(envs, "--envs", "env count", minimum=1))
+    if breakdown:
+        parts = [
+            step_breakdown(
+                scene=scene,
+                dvs=d,
+                seconds=seconds,
+                antialias_samples=antialias,
+                frames=f,
+                keyframe_ms=km,
+            )
+            for d in ("ideal", "speck")
+            for f in ("exact", "keyframes")
+        ]
+        print_table(
+            f"One env's step, scene '{scene}' (ms per step unless named)",
+            parts,
+            {
+                "dvs": "",
+                "frames": "",
+                "antialias_samples": "d",
+                "ms_per_step": ".2f",
+                "renders_per_step": ".1f",
+                "ms_per_render": ".2f",
+                "render_ms": ".2f",
+                "synth_ms": ".2f",
+                "dvs_ms": ".2f",
+                "segment_ms": ".2f",
+                "pose_ms": ".2f",
+                "other_ms": ".2f",
+            },
+        )
+    rows = run(
+        scene=scene,
+        seconds=seconds,
+        ground_truth=ground_truth,
+        antialias_samples=antialias,
+        keyframe_ms=km,
+        env_counts=counts,
+    )
+    print_table(
+        f"Environment, scene '{scene}': exact vs keyframe frames, stepped alternately "
+        "(real-time factor = simulated s / wall s; speedup = exact / keyframes step time)",
+        rows,
+        {
+            "dvs": "",
+            "envs": "d",
+            "ground_truth": "",
+            "keyframe_ms": "g",
+            "exact_rtf": ".2f",
+            "keyframes_rtf": ".2f",
+            "speedup": ".2f",
+            "exact_ms_per_step": ".1f",
+            "keyframes_ms_per_step": ".1f",
+            "exact_frames_per_step": ".1f",
+            "keyframes_frames_per_step": ".1f",
+            "events_diff_pct": "+.2f",
+        },
+    )
+
+
+@app.command("agent")
+def bench_agent(
+    scene: SceneOpt = "office",
+    seconds: Annotated[
+        float, typer.Option(callback=check_seconds, help="Simulated seconds of closed loop.")
+    ] = 5.0,
+    seed: Annotated[int, typer.Option(help="Seed of the env and the agent.")] = 0,
+    keyframe_ms: KeyframeMsOpt = None,
+) -> None:
+    """Per-step latency of sOMS, proto-object, sAC and the whole agent; closed-loop RTF
+    with exact and keyframe frames side by side."""
+    from experiments.bench.agent import bench_agent as run
+    from experiments.bench.agent import loop_modes
+
+    fk = frames_kwargs(None, keyframe_ms)
+    rows, loop = run(seconds=seconds, scene=scene, seed=seed, **fk)
+    ms = {"calls": "d", "median_ms": ".2f", "p95_ms": ".2f", "max_ms": ".2f"}
+    print_table("Agent latency at 128x128 (ms per call)", rows, {"stage": "", **ms})
+    print_table(
+        "Closed loop (env + agent, the env's default frames; real-time factor = simulated s "
+        "/ wall s)",
+        [loop],
+        {
+            "scene": "",
+            "simulated_s": ".1f",
+            "wall_s": ".1f",
+            "env_ms_per_step": ".1f",
+            "agent_ms_per_step": ".2f",
+            "realtime_factor": ".2f",
+        },
+    )
+    both = loop_modes(seconds=seconds, scene=scene, seed=seed, keyframe_ms=fk.get("keyframe_ms"))
+    print_table(
+        "Closed loop, exact vs keyframe frames stepped alternately (speedup = keyframes RTF / "
+        "exact RTF)",
+        [both],
+        {
+            "scene": "",
+            "keyframe_ms": "g",
+            "simulated_s": ".1f",
+            "exact_rtf": ".2f",
+            "keyframes_rtf": ".2f",
+            "speedup": ".2f",
+            "exact_env_ms": ".1f",
+            "keyframes_env_ms": ".1f",
+            "exact_agent_ms": ".2f",
+            "keyframes_agent_ms": ".2f",
+            "exact_decisions": "d",
+            "keyframes_decisions": "d",
+        },
+    )
+
+
+@app.command("fidelity")
+def bench_fidelity(
+    scenes: Annotated[
+        str, typer.Option(help="Comma-separated scenes.")
+    ] = "office,shelf,hand,gratings",
+    motions: Annotated[str, typer.Option(help="Comma-separated: still, walk, saccade.")] = (
+        "still,walk,saccade"
+    ),
+    seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
+    seconds: Annotated[float, typer.Option(min=0.01, help="Simulated seconds per run.")] = 0.25,
+    keyframe_ms: KeyframeMsOpt = None,
+) -> None:
+    """Keyframe frames against exact rendering on the same seeds (events, L1, timing)."""
+    from experiments.bench.fidelity import MOTIONS
+    from experiments.bench.fidelity import bench_fidelity as run
+
+    names = [m.strip() for m in motions.split(",") if m.strip()]
+    bad = [m for m in names if m not in MOTIONS]
+    if bad:
+        raise typer.BadParameter(f"--motions: unknown {bad}, choose from {MOTIONS}")
+    seed_list = tuple(int_list(seeds, "--seeds", "seed"))
+    rows = run(
+        scenes=tuple(s.strip() for s in scenes.split(",") if s.strip()),
+        motions=tuple(names),
+        seeds=seed_list,
+        seconds=seconds,
+        progress=lambda msg: console.print(f"  {msg}", style="dim"),
+        **frames_kwargs(None, keyframe_ms),
+    )
+    km = rows[0].keyframe_ms if rows else keyframe_ms
+    print_table(
+        f"Keyframes ({km:g} ms) vs exact frames, {seconds:g} s per run, seeds {seeds} "
+        "(L1 = per-step count-map L1 / exact events; aa16 = exact with 16 samples a pixel, "
+        "for scale; matched = within 1 ms, same pixel and polarity; gap = longest event gap "
+        "while the camera moves, ms)",
+        rows,
+        {
+            "scene": "",
+            "motion": "",
+            "exact_events": ",d",
+            "keyframes_events": ",d",
+            "events_diff_pct": "+.2f",
+            "l1_per_event": ".3f",
+            "aa16_l1_per_event": ".3f",
+            "matched_pct": ".1f",
+            "exact_matched_pct": ".1f",
+            "aa16_matched_pct": ".1f",
+            "max_gap_exact_ms": "",
+            "max_gap_keyframes_ms": "",
+            "renders_per_step_exact": ".1f",
+            "renders_per_step_keyframes": ".1f",
+        },
+    )
+
+
+@app.command("formats")
+def bench_formats(
+    files: Annotated[
+        list[Path] | None,
+        typer.Argument(help="Event files (.aedat4 .raw .dat .es); default: ../shared/realdata."),
+    ] = None,
+    repeats: Annotated[int, typer.Option(min=1, help="Timed decodes per row (median).")] = 3,
+) -> None:
+    """Decode real event files with every installed library: speed and agreement."""
+    from experiments.bench.formats import bench_formats as run
+    from experiments.bench.formats import default_files
+
+    paths = files or default_files(Path(__file__).resolve().parents[3] / "shared" / "realdata")
+    try:
+        rows, skipped = run(paths, repeats)
+    except (ValueError, OSError) as err:
+        console.print(f"wander bench formats: {err}", markup=False)
+        raise typer.Exit(2) from None
+    print_table(
+        "Event-file decoders (differ: events that disagree with the reference"
+        + (f"; not installed: {', '.join(skipped)}" if skipped else "")
+        + ")",
+        rows,
+        {
+            "file": "",
+            "decoder": "",
+            "events": ",d",
+            "ms": ".1f",
+            "mev_per_s": ".1f",
+            "reference": "",
+            "xyp_differ": ",d",
+            "t_differ": ",d",
+            "max_abs_dt_us": ",d",
+        },
+    )

@@ -1,0 +1,558 @@
+"""``wander benchmark``: the paper's detection / segmentation benchmark on real event data.
+
+Commands (each writes ``results.csv``, ``results.md`` and ``run.json`` to ``--out``):
+
+- ``evimo PATH`` — EVIMO / EVIMO2 NPZ releases (:mod:`experiments.benchmark.datasets.evimo`);
+- ``llevos PATH`` — LLE-VOS (:mod:`experiments.benchmark.datasets.llevos`);
+- ``events FILE --masks DIR`` — any event file + a folder of ``NNNNNN_T.png`` masks
+  (:mod:`experiments.benchmark.datasets.generic`), plus the sOMS event suppression on it;
+- ``suppression PATH...`` — the fraction of events sOMS suppresses on recordings
+  without masks (e.g. ego-motion only, where every kept event is a false positive).
+
+The protocol is :mod:`experiments.benchmark.protocol`; the model is
+:class:`experiments.benchmark.model.SOMSSaliencyModel` (sOMS → proto-object saliency),
+one step per dataset window. Registered in ``experiments/cli/main.py`` as
+``app.add_typer(benchmark_app, name="benchmark")``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from collections.abc import Callable, Iterable, Sequence
+from contextlib import AbstractContextManager, nullcontext
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from experiments.benchmark.figure import WindowSampler
+from experiments.benchmark.runner import (
+    event_files,
+    limit_windows,
+    run_sequences,
+    run_suppression,
+    suppression_markdown,
+    suppression_record,
+    write_benchmark_outputs,
+    write_suppression_csv,
+    write_suppression_outputs,
+)
+from experiments.cli.console import progress_bars
+from experiments.cli.errors import fail
+
+app = typer.Typer(
+    help="Benchmarks on real event datasets: sOMS maps against masks (IoU, precision, SSIM), "
+    "saliency argmax hit rate (8x8 box), sOMS event suppression.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+
+# ----------------------------------------------------------------------------------------
+# Small pure helpers
+
+
+def parse_sensor(text: str) -> tuple[int, int, int]:
+    """``"WxH"`` → sensor size ``(W, H, 2)``.
+
+    >>> parse_sensor("240x180")
+    (240, 180, 2)
+    """
+    parts = text.lower().replace("×", "x").split("x")
+    try:
+        w, h = (int(v) for v in parts)
+    except ValueError:
+        raise typer.BadParameter(f"--sensor {text!r}: expected WxH, e.g. 240x180") from None
+    if w <= 0 or h <= 0:
+        raise typer.BadParameter(f"--sensor {text!r}: width and height must be > 0")
+    return w, h, 2
+
+
+def parse_offset(text: str) -> tuple[int, int]:
+    """``"X,Y"`` → ``(x, y)`` pixel offset of the masks inside the sensor.
+
+    >>> parse_offset("25,0")
+    (25, 0)
+    """
+    try:
+        x, y = (int(v) for v in text.split(","))
+    except ValueError:
+        raise typer.BadParameter(f"--mask-offset {text!r}: expected X,Y, e.g. 25,0") from None
+    return x, y
+
+
+def default_name(path: Path) -> str:
+    """A run name for an event file: its stem, or its folder's name for ``events*`` files.
+
+    >>> default_name(Path("realdata/eed_ball_net/events_txyp.npy"))
+    'eed_ball_net'
+    """
+    if path.stem.lower().startswith("events"):
+        return path.resolve().parent.name or path.stem
+    return path.stem
+
+
+# ----------------------------------------------------------------------------------------
+# Running (with progress bars; the runner is experiments.benchmark.runner)
+
+
+def _fail(err: BaseException) -> typer.Exit:
+    """One line on stderr (``wander benchmark NAME: error: ...``) and exit code 2."""
+    return fail(err, "wander benchmark")
+
+
+def _set_threads(threads: int | None) -> None:
+    if threads is not None:
+        import torch
+
+        torch.set_num_threads(threads)
+
+
+class _Bars:
+    """Rich progress bars: one for the sequences, one per sequence's windows."""
+
+    def __init__(self, progress: Any, what: str, n_sequences: int | None) -> None:
+        self.progress = progress
+        self.outer = progress.add_task(what, total=n_sequences)
+        self.tasks: dict[int, Any] = {}
+
+    def __call__(self, ev: Any) -> None:
+        task = self.tasks.get(ev.sequence_index)
+        if task is None:
+            task = self.progress.add_task(f"  {ev.subset}/{ev.sequence}", total=ev.n_windows)
+            self.tasks[ev.sequence_index] = task
+        self.progress.update(task, completed=ev.window + 1)
+
+    def sequence_done(self) -> None:
+        self.progress.advance(self.outer)
+
+
+def _run_sequences(
+    sequences: Iterable[Any],
+    n_sequences: int | None,
+    what: str,
+    model_config: Any,
+    protocol: Any,
+    max_windows: int | None,
+    show_progress: bool,
+    sampler: Any = None,
+) -> tuple[list[Any], dict[str, list[str]], dict[str, float]]:
+    """:func:`~experiments.benchmark.runner.run_sequences` with progress bars."""
+    with _progress_context(show_progress) as progress:
+        bars = _Bars(progress, what, n_sequences) if progress is not None else None
+        return run_sequences(
+            sequences, n_sequences, model_config, protocol, max_windows, sampler,
+            bars, None if bars is None else bars.sequence_done,
+        )  # fmt: skip
+
+
+def _run_suppression(
+    recordings: Sequence[tuple[str, Any, tuple[int, int, int]]],
+    window_us: int,
+    model_config: Any,
+    show_progress: bool,
+) -> list[Any]:
+    """:func:`~experiments.benchmark.runner.run_suppression` with a bar per recording."""
+    with _progress_context(show_progress) as progress:
+        tasks: dict[str, Any] = {}
+
+        def tick(name: str, ev: Any) -> None:
+            if name not in tasks:
+                tasks[name] = progress.add_task(f"suppression {name}", total=None)
+            progress.update(tasks[name], completed=ev.window + 1, total=ev.n_windows)
+
+        callback = tick if progress is not None else None
+        return run_suppression(recordings, window_us, model_config, callback)
+
+
+def _progress_context(show: bool) -> AbstractContextManager[Any]:
+    return progress_bars() if show else nullcontext(None)
+
+
+def _finish(out: Path, md: str, started: float) -> None:
+    typer.echo(md)
+    typer.echo(
+        f"wrote {out}/results.csv, {out}/results.md, {out}/run.json"
+        + (f", {out}/maps_vs_masks.png" if (out / "maps_vs_masks.png").is_file() else "")
+        + " "
+        f"({time.monotonic() - started:.1f} s)"
+    )
+
+
+# ----------------------------------------------------------------------------------------
+# Options shared by the commands
+
+OutOpt = Annotated[
+    Path | None,
+    typer.Option("--out", help="Output folder (default runs/benchmark-<name>)."),
+]
+MaxWindowsOpt = Annotated[
+    int | None,
+    typer.Option(
+        "--max-windows",
+        "--limit",
+        min=1,
+        help="Score only the first N windows of each sequence (a quick run; noted).",
+    ),
+]
+StreamlinedOpt = Annotated[
+    bool,
+    typer.Option(
+        "--streamlined/--split",
+        help="Proto-object stage on V = V+ or V- (the paper's streamlined model) instead of "
+        "one population per polarity line.",
+    ),
+]
+AlphaOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--alpha",
+        min=0.0,
+        max=1.0,
+        help="sOMS threshold α of Eq. (1) (default: the paper's table, 0.80).",
+    ),
+]
+MaxSequencesOpt = Annotated[int | None, typer.Option(min=1, help="Only the first N sequences.")]
+ThreadsOpt = Annotated[
+    int | None, typer.Option("--threads", min=1, help="torch CPU threads (default: torch's).")
+]
+ProgressOpt = Annotated[bool, typer.Option("--progress/--no-progress", help="Progress bars.")]
+StdOverOpt = Annotated[
+    str,
+    typer.Option(
+        "--std-over",
+        help="Subset/overall std over 'sequences' (the paper's tables) or pooled 'windows'.",
+    ),
+]
+
+
+def _model_config(streamlined: bool, alpha: float | None) -> Any:
+    """The benchmark model's :class:`ModelConfig` (``alpha`` None: the paper's 0.80)."""
+    from experiments.benchmark.model import ModelConfig
+
+    return ModelConfig(streamlined=streamlined, **({} if alpha is None else {"alpha": alpha}))
+
+
+def _check_std_over(std_over: str) -> None:
+    if std_over not in ("sequences", "windows"):
+        raise typer.BadParameter(f"--std-over must be 'sequences' or 'windows', got {std_over!r}")
+
+
+# The options every dataset command (evimo, llevos) shares, in the order run.json lists them.
+DATASET_OPTIONS = ("max_sequences", "max_windows", "streamlined", "alpha", "std_over")
+
+
+def _score_dataset(
+    label: str,
+    dataset: str,
+    load: Callable[[int | None], tuple[Iterable[Any], int]],
+    flags: dict[str, Any],
+    options: dict[str, Any],
+) -> None:
+    """Score a dataset's sequences with the benchmark model and write its results folder.
+
+    ``flags`` are the command's (its ``locals()``: ``path``, ``out`` and the shared
+    :data:`DATASET_OPTIONS`, ``threads``, ``progress``); ``options`` its own, for
+    ``run.json``; ``load(max_sequences)`` finds the sequences and counts them.
+    """
+    from experiments.benchmark.protocol import ProtocolConfig
+
+    std_over, max_windows, progress = flags["std_over"], flags["max_windows"], flags["progress"]
+    _check_std_over(std_over)
+    started = time.monotonic()
+    _set_threads(flags["threads"])
+    model = _model_config(flags["streamlined"], flags["alpha"])
+    config = {"dataset": dataset, "path": str(flags["path"]), **options}
+    config.update({k: flags[k] for k in DATASET_OPTIONS}, alpha=model.alpha)
+    out = flags["out"] or Path(f"runs/benchmark-{dataset}")
+    sampler = WindowSampler()
+    try:
+        seqs, n = load(flags["max_sequences"])
+        rows, notes, dts = _run_sequences(
+            seqs, n, label, model, ProtocolConfig(), max_windows, progress, sampler
+        )
+    except (ValueError, OSError) as err:
+        raise _fail(err) from None
+    md = write_benchmark_outputs(
+        out,
+        rows,
+        dataset,
+        f"Benchmark: {label}",
+        f"wander benchmark {dataset}",
+        {**config, "model_dt_s": dts},
+        notes,
+        extra_record={"elapsed_s": time.monotonic() - started},
+        std_over=std_over,
+        views=sampler.views,
+    )
+    _finish(out, md, started)
+
+
+# ----------------------------------------------------------------------------------------
+# Commands
+
+
+@app.command("evimo")
+def evimo(
+    path: Annotated[
+        Path,
+        typer.Argument(
+            help="EVIMO root: PATH/<subset>/.../<sequence>.npz (EVIMO1, subsets box, fast, "
+            "floor, table, tabletop, wall) and/or EVIMO2v2 sequence folders; or one .npz."
+        ),
+    ],
+    out: OutOpt = None,
+    subset: Annotated[
+        list[str] | None, typer.Option("--subset", help="Only these subsets (repeatable).")
+    ] = None,
+    window_mode: Annotated[
+        str,
+        typer.Option(help="Mask window around each mask time: preceding, following, centered."),
+    ] = "preceding",
+    window_us: Annotated[
+        int | None,
+        typer.Option(min=1, help="Window length in µs (default: median mask spacing)."),
+    ] = None,
+    max_sequences: MaxSequencesOpt = None,
+    max_windows: MaxWindowsOpt = None,
+    streamlined: StreamlinedOpt = False,
+    alpha: AlphaOpt = None,
+    std_over: StdOverOpt = "sequences",
+    threads: ThreadsOpt = None,
+    progress: ProgressOpt = True,
+) -> None:
+    """EVIMO: per-subset accuracy, IoU, precision, SSIM beside the paper's Table."""
+    from experiments.benchmark.datasets.evimo import find_evimo_sequences, load_evimo_sequence
+
+    def load(max_sequences: int | None) -> tuple[Iterable[Any], int]:
+        sources = find_evimo_sequences(path, subset)
+        if max_sequences is not None:
+            sources = sources[:max_sequences]
+        return (load_evimo_sequence(s, window_mode, window_us) for s in sources), len(sources)
+
+    options = {"subsets": subset, "window_mode": window_mode, "window_us": window_us}
+    _score_dataset("EVIMO", "evimo", load, locals(), options)
+
+
+@app.command("llevos")
+def llevos(
+    path: Annotated[
+        Path,
+        typer.Argument(
+            help="LLE-VOS root holding Annotations/<seq>/<frame>.png and "
+            "Lowlight_event/<seq>/<frame>.npz|.npy (or one folder above it)."
+        ),
+    ],
+    out: OutOpt = None,
+    sequence: Annotated[
+        list[str] | None, typer.Option("--sequence", help="Only these sequences (repeatable).")
+    ] = None,
+    time_unit: Annotated[str, typer.Option(help="Unit of t in the event files.")] = "us",
+    npy_columns: Annotated[str, typer.Option(help="Column order of (N, 4) event arrays.")] = "xytp",
+    max_sequences: MaxSequencesOpt = None,
+    max_windows: MaxWindowsOpt = None,
+    streamlined: StreamlinedOpt = False,
+    alpha: AlphaOpt = None,
+    std_over: StdOverOpt = "sequences",
+    threads: ThreadsOpt = None,
+    progress: ProgressOpt = True,
+) -> None:
+    """LLE-VOS: accuracy mean ± std over sequences beside the paper's 53.3 % ± 25.56."""
+    from experiments.benchmark.datasets.llevos import (
+        LLEVOSConfig,
+        find_llevos_root,
+        list_llevos_sequences,
+        load_llevos,
+    )
+
+    def load(max_sequences: int | None) -> tuple[Iterable[Any], int]:
+        cfg = LLEVOSConfig(time_unit=time_unit, npy_columns=npy_columns)
+        names = sequence or list_llevos_sequences(find_llevos_root(path))
+        n = len(names) if max_sequences is None else min(len(names), max_sequences)
+        return itertools.islice(load_llevos(path, sequence, cfg), n), n
+
+    options = {"sequences": sequence, "time_unit": time_unit, "npy_columns": npy_columns}
+    _score_dataset("LLE-VOS", "llevos", load, locals(), options)
+
+
+@app.command("events")
+def events(
+    file: Annotated[
+        Path, typer.Argument(help="Event file: .npz, .h5, .npy (x, y, t µs, p), .aedat4, .aedat.")
+    ],
+    masks: Annotated[
+        Path,
+        typer.Option(
+            "--masks",
+            help="Folder of per-window masks NNNNNN_T.png (T = window end, µs); "
+            "mask k covers T - window <= t < T.",
+        ),
+    ],
+    out: OutOpt = None,
+    name: Annotated[
+        str | None,
+        typer.Option(help="Sequence name (default: file stem, or the folder for events*)."),
+    ] = None,
+    sensor: Annotated[
+        str | None,
+        typer.Option(help="Sensor WxH (default: the file's; for a bare .npy the masks')."),
+    ] = None,
+    window_us: Annotated[
+        int | None,
+        typer.Option(min=1, help="Mask window in µs (default: smallest step of the names)."),
+    ] = None,
+    mask_offset: Annotated[
+        str | None,
+        typer.Option(help="X,Y: place masks unscaled at this offset (default: resize)."),
+    ] = None,
+    max_windows: MaxWindowsOpt = None,
+    streamlined: StreamlinedOpt = False,
+    alpha: AlphaOpt = None,
+    suppression: Annotated[
+        bool,
+        typer.Option(
+            "--suppression/--no-suppression",
+            help="Also measure the fraction of events sOMS suppresses (windows of the masks).",
+        ),
+    ] = True,
+    threads: ThreadsOpt = None,
+    progress: ProgressOpt = True,
+) -> None:
+    """Any event file + a mask folder: hit rate, IoU, precision, SSIM, sOMS suppression."""
+    from experiments.benchmark.datasets.generic import load_generic
+    from experiments.benchmark.protocol import ProtocolConfig
+    from wander_env.events import time_window
+
+    started = time.monotonic()
+    sensor_size = parse_sensor(sensor) if sensor else None
+    offset = parse_offset(mask_offset) if mask_offset else None
+    seq_name = name or default_name(file)
+    out = out or Path(f"runs/benchmark-events-{seq_name}")
+    _set_threads(threads)
+    try:
+        seq = load_generic(file, masks, sensor_size, window_us, name=seq_name, subset="events")
+        seq = limit_windows(seq, max_windows)
+        model = _model_config(streamlined, alpha)
+        sampler = WindowSampler()
+        rows, notes, dts = _run_sequences(
+            [seq], 1, "events", model, ProtocolConfig(mask_offset_xy=offset), None, progress,
+            sampler,
+        )  # fmt: skip
+        extra_md, extra_rec = "", {}
+        if suppression and seq.windows:
+            win = round(dts[f"{seq.subset}/{seq.name}"] * 1e6)
+            ev = seq.events
+            if max_windows is not None:
+                ev = time_window(ev, int(ev["t"][0]) if len(ev) else 0, seq.windows[-1].t_end_us)
+            (res,) = _run_suppression([(seq.name, ev, seq.sensor_size)], win, model, progress)
+            t0 = int(ev["t"][0]) if len(ev) else 0
+            write_suppression_csv(out / "suppression.csv", [(seq.name, res, t0)])
+            extra_md = suppression_markdown([seq.name], [res])
+            extra_rec = {"suppression": suppression_record([seq.name], [res])}
+    except (ValueError, OSError) as err:
+        raise _fail(err) from None
+    config = {
+        "dataset": "generic",
+        "events": str(file),
+        "masks": str(masks),
+        "name": seq_name,
+        "sensor": list(seq.sensor_size),
+        "window_us": window_us,
+        "mask_offset_xy": offset,
+        "max_windows": max_windows,
+        "streamlined": streamlined,
+        "alpha": model.alpha,
+        "suppression": suppression,
+        "model_dt_s": dts,
+    }
+    md = write_benchmark_outputs(
+        out,
+        rows,
+        "generic",
+        f"Benchmark: {seq_name} ({file.name} + {masks.name}/)",
+        "wander benchmark events",
+        config,
+        notes,
+        extra_markdown=extra_md,
+        extra_record={**extra_rec, "elapsed_s": time.monotonic() - started},
+        views=sampler.views,
+    )
+    _finish(out, md, started)
+
+
+@app.command("suppression")
+def suppression(
+    paths: Annotated[
+        list[Path],
+        typer.Argument(help="Event files, or folders whose event files are all read."),
+    ],
+    out: OutOpt = None,
+    sensor: Annotated[
+        str | None,
+        typer.Option(help="Sensor WxH (default: the file's; a bare .npy infers it)."),
+    ] = None,
+    window_us: Annotated[
+        int, typer.Option(min=1, help="Step length in µs (the paper counts per 2 ms).")
+    ] = 2000,
+    max_windows: Annotated[
+        int | None,
+        typer.Option("--max-windows", "--limit", min=1, help="Only the first N steps of each."),
+    ] = None,
+    streamlined: StreamlinedOpt = False,
+    alpha: AlphaOpt = None,
+    threads: ThreadsOpt = None,
+    progress: ProgressOpt = True,
+) -> None:
+    """Fraction of events sOMS suppresses on recordings without masks (e.g. ego-motion only)."""
+    from wander_env.event_io import read_events
+    from wander_env.events import time_window
+
+    started = time.monotonic()
+    sensor_size = parse_sensor(sensor) if sensor else None
+    out = out or Path("runs/benchmark-suppression")
+    _set_threads(threads)
+    notes: dict[str, list[str]] = {}
+    try:
+        files = event_files(paths)
+        recs = []
+        for f in files:
+            rec = read_events(f, sensor_size)
+            ev = rec.events
+            notes[f.stem] = []
+            if rec.metadata.get("sensor_size_inferred"):
+                notes[f.stem].append(
+                    f"sensor size {rec.sensor_size[0]}x{rec.sensor_size[1]} inferred from the "
+                    "largest coordinates (give --sensor WxH)"
+                )
+            if max_windows is not None and len(ev):
+                t0 = int(ev["t"][0])
+                ev = time_window(ev, t0, t0 + max_windows * window_us)
+                notes[f.stem].append(f"limited to the first {max_windows} windows")
+            recs.append((f.stem, ev, rec.sensor_size))
+        model = _model_config(streamlined, alpha)
+        results = _run_suppression(recs, window_us, model, progress)
+    except (ValueError, OSError) as err:
+        raise _fail(err) from None
+    config = {
+        "paths": [str(p) for p in paths],
+        "files": [str(f) for f in files],
+        "sensor": {n: list(s) for n, _, s in recs},
+        "window_us": window_us,
+        "max_windows": max_windows,
+        "streamlined": streamlined,
+        "alpha": model.alpha,
+    }
+    md = write_suppression_outputs(
+        out, recs, results, config, notes, elapsed_s=time.monotonic() - started
+    )
+    _finish(out, md, started)
+
+
+def main() -> None:  # pragma: no cover - ``python -m experiments.cli.benchmark``
+    app()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

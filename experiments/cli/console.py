@@ -1,0 +1,71 @@
+"""The CLI's one console, its progress bars and its tables (rich).
+
+Library code never imports this module: a job takes a ``progress`` callback (or
+nothing), and the command that runs it turns the calls into a bar here
+(:func:`step_progress`).
+
+Example:
+    >>> from dataclasses import dataclass
+    >>> @dataclass
+    ... class Row:
+    ...     name: str
+    ...     ms: float | None
+    >>> table_of("Speed", [Row("a", 1.234), Row("b", None)], {"name": "", "ms": ".2f"}).row_count
+    2
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from typing import Any
+
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.table import Table
+
+__all__ = ["console", "print_table", "progress_bars", "step_progress", "table_of"]
+
+# Tables keep their full column names when the output is a file or a pipe.
+console = Console(width=None if sys.stdout.isatty() else 160)
+
+
+def progress_bars() -> Progress:
+    """Rich progress bars on :data:`console` (description, bar, done/total, time left)."""
+    return Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total}"),
+        TimeRemainingColumn(),
+        console=console,
+        transient=False,
+    )
+
+
+@contextmanager
+def step_progress(description: str, total: float | None) -> Iterator[Callable[[int, int], None]]:
+    """One bar; yields the ``progress(i, n)`` callback a job calls (``i`` of ``n`` done)."""
+    with progress_bars() as bar:
+        task = bar.add_task(description, total=total)
+        yield lambda i, n: bar.update(task, completed=i, total=n)
+
+
+def table_of(title: str, rows: Sequence[Any], columns: dict[str, str]) -> Table:
+    """A table of dataclass rows; ``columns`` maps field name -> format spec (None: –)."""
+    table = Table(title=title)
+    for name in columns:
+        table.add_column(name.replace("_", " "), justify="right")
+    for row in rows:
+        table.add_row(
+            *(
+                "–" if (v := getattr(row, k)) is None else format(v, fmt)
+                for k, fmt in columns.items()
+            )
+        )
+    return table
+
+
+def print_table(title: str, rows: Sequence[Any], columns: dict[str, str]) -> None:
+    """Print dataclass rows on :data:`console` (:func:`table_of`)."""
+    console.print(table_of(title, rows, columns))

@@ -1,0 +1,102 @@
+"""One line per bad command line: the ``wander`` app's group class.
+
+Click's usage errors (a bad option value, a missing argument, an unknown option)
+normally print the usage, a hint and a boxed message; :class:`OneLineErrors` prints one
+line on stderr instead — ``wander run: Invalid value for '--scene': ...`` — and exits
+with the error's code (2 for usage errors), never a traceback. Options are validated
+by their callbacks (:mod:`experiments.cli.options`) while the command line is parsed, so
+the error comes before any work (or progress bar) starts.
+"""
+
+from __future__ import annotations
+
+import functools
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TypeVar
+
+import typer
+from typer import _click as click
+from typer.core import TyperGroup
+
+from wander_env.shutdown import SignalExit, describe, handle_signals, record_failure, write_failure
+
+__all__ = ["OneLineErrors", "fail", "long_command", "one_line"]
+
+
+def one_line(err: click.exceptions.ClickException) -> str:
+    """``<command path>: <message>`` on a single line."""
+    ctx = getattr(err, "ctx", None)
+    where = ctx.command_path if ctx is not None else "wander"
+    text = " ".join(err.format_message().split())
+    return f"{where}: {text}"
+
+
+def fail(message: object, default: str = "wander") -> typer.Exit:
+    """One line on stderr (``<command path>: error: <message>``, the message's white space
+    folded) and the exit (code 2) for the command to raise; ``default`` names the command
+    outside a Click context."""
+    from typer._click.globals import get_current_context
+
+    ctx = get_current_context(silent=True)
+    where = ctx.command_path if ctx is not None else default
+    typer.echo(f"{where}: error: {' '.join(str(message).split())}", err=True)
+    return typer.Exit(code=2)
+
+
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def long_command(name: str, folder_arg: str | None = "out") -> Callable[[_F], _F]:
+    """Decorate a Typer command: signals handled (:func:`wander_env.shutdown.handle_signals`),
+    failures as one line and an exit code (the module docstring of
+    :mod:`wander_env.shutdown`).
+
+    ``folder_arg`` names the keyword holding the result folder (gets the error).
+    """
+
+    def deco(fn: _F) -> _F:
+        @functools.wraps(fn)
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            folder = kwargs.get(folder_arg) if folder_arg else None
+            try:
+                with handle_signals():
+                    return fn(*args, **kwargs)
+            except SignalExit as stop:
+                record_failure(folder, stop)
+                where = f"; {str(folder)!r} holds what was recorded" if folder else ""
+                typer.echo(f"{name}: {stop}{where}", err=True)
+                raise typer.Exit(stop.exit_code) from None
+            except OSError as err:
+                if write_failure(err) is None:
+                    raise
+                record_failure(folder, err)
+                marked = folder is not None and (Path(folder) / "INCOMPLETE").exists()
+                mark = f"; {str(folder)!r} is marked INCOMPLETE" if marked else ""
+                typer.echo(f"{name}: {describe(err)}{mark}", err=True)
+                raise typer.Exit(1) from None
+
+        return wrapper  # type: ignore[return-value]
+
+    return deco
+
+
+class OneLineErrors(TyperGroup):
+    """A :class:`typer.core.TyperGroup` whose usage errors are one line on stderr."""
+
+    def main(self, *args: Any, standalone_mode: bool = True, **kwargs: Any) -> Any:
+        if not standalone_mode:
+            return super().main(*args, standalone_mode=False, **kwargs)
+        try:
+            rv = super().main(*args, standalone_mode=False, **kwargs)
+        except click.exceptions.NoArgsIsHelpError as err:
+            err.show()
+            sys.exit(err.exit_code)
+        except click.exceptions.ClickException as err:
+            typer.echo(one_line(err), err=True)
+            sys.exit(err.exit_code)
+        except typer.Abort:
+            typer.echo("Aborted!", err=True)
+            sys.exit(1)
+        sys.exit(rv if isinstance(rv, int) else 0)

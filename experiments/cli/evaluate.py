@@ -1,0 +1,86 @@
+"""``wander evaluate``: the agent's quality in simulation over seeds (a table, and one run
+folder per seed). :mod:`experiments.cli.main` registers it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from experiments.cli.console import print_table, progress_bars
+from experiments.cli.errors import long_command
+from experiments.cli.options import (
+    AgentAlphaOpt,
+    DvsOpt,
+    ForceOpt,
+    FramesOpt,
+    KeyframeMsOpt,
+    SceneOpt,
+    SomsNormOpt,
+    StreamlinedOpt,
+    check_seconds,
+    int_list,
+    job_config,
+    resolve_out,
+)
+
+__all__ = ["evaluate"]
+
+
+@long_command("wander evaluate")
+def evaluate(
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            help="Folder for one run folder per seed (default: a new time-stamped "
+            "runs/evaluate-DATE-TIME/; an existing non-empty folder needs --force)."
+        ),
+    ] = None,
+    scene: SceneOpt = "office",
+    seconds: Annotated[
+        float, typer.Option(callback=check_seconds, help="Simulated seconds per seed.")
+    ] = 20.0,
+    seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
+    dvs: DvsOpt = "ideal",
+    streamlined: StreamlinedOpt = False,
+    alpha: AgentAlphaOpt = None,
+    force: ForceOpt = False,
+    soms_norm: SomsNormOpt = "quantile",
+    frames: FramesOpt = None,
+    keyframe_ms: KeyframeMsOpt = None,
+) -> None:
+    """The agent's quality in simulation: detection accuracy, suppression, foveation error."""
+    from experiments.jobs.evaluate_agent import evaluate as run_eval
+    from experiments.jobs.run_agent import RunConfig
+
+    seed_list = int_list(seeds, "--seeds", "seed")
+    out = resolve_out(out, "evaluate", force)
+    config = job_config(RunConfig, locals(), video=False)
+    with progress_bars() as bar:
+        task = bar.add_task("evaluate", total=round(seconds / 0.01) * len(seed_list))
+        done = {s: 0 for s in seed_list}
+
+        def tick(seed: int, i: int, n: int) -> None:
+            done[seed] = i
+            bar.update(task, completed=sum(done.values()))
+
+        rows = run_eval(out, config, seed_list, progress=tick)
+    print_table(
+        f"Agent quality in '{scene}' ({seconds:g} s per seed; seed -1 = all seeds pooled)",
+        rows,
+        {
+            "seed": "d",
+            "decisions": "d",
+            "scored": "d",
+            "hits": "d",
+            "detection_accuracy": ".1%",
+            "detection_ci_low": ".1%",
+            "detection_ci_high": ".1%",
+            "soms_suppression": ".2%",
+            "foveation_error_x_px": ".2f",
+            "foveation_error_y_px": ".2f",
+            "saccades": "d",
+        },
+    )

@@ -1,0 +1,184 @@
+"""The ``wander experiment``, ``wander sweep`` and ``wander report`` commands.
+
+``register(app)`` adds them to the main Typer app (``experiments/cli/main.py``).
+"""
+
+from __future__ import annotations
+
+import shlex
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from experiments.cli.console import console, progress_bars
+from experiments.cli.errors import fail, long_command
+from experiments.cli.options import one_of
+from experiments.framework import EXPERIMENT_NAMES, ConfigError
+from experiments.sweep import BACKENDS
+from wander_env.shutdown import record_failure
+
+__all__ = ["register"]
+
+
+def _command_line() -> str:
+    return "wander " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+
+
+@long_command("wander experiment")
+def experiment(
+    name: Annotated[str, typer.Argument(help=f"One of: {', '.join(EXPERIMENT_NAMES)}.")],
+    set_: Annotated[
+        list[str] | None,
+        typer.Option("--set", help="Override a config key: --set key=value (repeatable)."),
+    ] = None,
+    config: Annotated[
+        Path | None,
+        typer.Option(help="Config file (default: experiments/paper/configs/NAME.yaml)."),
+    ] = None,
+    seed: Annotated[int, typer.Option(help="Base seed (repeat r uses seed + r).")] = 0,
+    out: Annotated[
+        Path | None, typer.Option(help="Result folder (default: results/NAME/<time>-seedN).")
+    ] = None,
+    workers: Annotated[int, typer.Option(min=1, help="Worker processes (1 = this process).")] = 1,
+    show_config: Annotated[
+        bool, typer.Option("--show-config", help="Print the resolved config and stop.")
+    ] = False,
+) -> None:
+    """Run one experiment: a results table, plots, config, seed and git revision."""
+
+    from experiments.framework import (
+        config_to_dict,
+        default_out_dir,
+        get_experiment,
+        make_trials,
+        resolve_config,
+        run_experiment,
+    )
+    from experiments.sweep import local_executor
+    from wander_env.runinfo import dumps_strict
+
+    try:
+        exp = get_experiment(name)
+        cfg = resolve_config(exp, config, set_ or [])
+    except ConfigError as e:
+        raise fail(str(e)) from None
+    if show_config:
+        console.print_json(dumps_strict(config_to_dict(cfg)))
+        return
+    folder = out or default_out_dir(name, seed)
+    n = len(make_trials(exp, cfg, seed))
+
+    streams: list = []
+
+    def executor(specs):  # type: ignore[no-untyped-def]
+        streams.append(local_executor(specs, workers))
+        return streams[-1]
+
+    with progress_bars() as bar:
+        task = bar.add_task(name, total=n)
+        try:
+            rows, files = run_experiment(
+                name,
+                cfg,
+                seed,
+                folder,
+                command=_command_line(),
+                executor=executor if workers > 1 else None,
+                progress=lambda i, total: bar.update(task, completed=i, total=total),
+            )
+        except BaseException as e:  # a signal, a full disk: the result folder says so
+            record_failure(folder, e)
+            raise
+        finally:
+            for stream in streams:
+                stream.close()  # the workers end now, not when their trials do
+    console.print(f"{len(rows)} trials -> {folder}/results.csv ({len(files)} files)")
+    console.print((folder / "summary.md").read_text(), markup=False, highlight=False)
+
+
+@long_command("wander sweep")
+def sweep(
+    config: Annotated[Path, typer.Argument(help="Sweep file (see experiments/paper/configs/).")],
+    backend: Annotated[
+        str, typer.Option(callback=one_of(BACKENDS), help="serial, local or ray.")
+    ] = "local",
+    workers: Annotated[
+        int | None,
+        typer.Option(min=1, help="Processes (local) or CPUs of a local Ray instance."),
+    ] = None,
+    address: Annotated[
+        str | None, typer.Option(help="Ray cluster address (default: start a local Ray).")
+    ] = None,
+    out: Annotated[
+        Path | None, typer.Option(help="Sweep folder (default: results/sweeps/NAME).")
+    ] = None,
+    timeout: Annotated[
+        float,
+        typer.Option(help="Seconds to wait for the next trial to finish before giving up."),
+    ] = 6 * 3600.0,
+) -> None:
+    """Run a grid of (experiment, parameters, seeds); reruns skip finished trials."""
+    from experiments.sweep import expand, load_sweep, run_sweep
+
+    try:
+        sw = load_sweep(config)
+        n = len(expand(sw))
+    except (ConfigError, FileNotFoundError) as e:
+        raise fail(str(e)) from None
+    folder = out or Path("results") / "sweeps" / sw.name
+    with progress_bars() as bar:
+        task = bar.add_task(f"sweep {sw.name}", total=n)
+        try:
+            res = run_sweep(
+                sw,
+                folder,
+                backend=backend,
+                workers=workers,
+                address=address,
+                progress=lambda i, total: bar.update(task, completed=i, total=total),
+                command=_command_line(),
+                timeout_s=timeout,
+            )
+        except ConfigError as e:
+            raise fail(str(e)) from None
+        except TimeoutError as e:
+            record_failure(folder, e)
+            raise fail(f"{e} ({folder}: rerun to resume)") from None
+        except BaseException as e:  # a signal: the folder says so; the workers are ended
+            record_failure(folder, e)
+            raise
+    console.print(
+        f"{len(res.rows)} trials ({res.ran} run, {res.skipped} already done) -> "
+        f"{folder}/results.csv"
+    )
+
+
+def report(
+    results: Annotated[Path, typer.Option(help="Folder of result folders.")] = Path("results"),
+    out: Annotated[
+        Path, typer.Option(help="Report file (its figures go to report_figures/ beside it).")
+    ] = Path("REPORT.md"),
+    force: Annotated[bool, typer.Option("--force", help="Overwrite an existing report.")] = False,
+) -> None:
+    """Build REPORT.md (and its figures) from the latest results of each experiment.
+
+    An existing report file is never overwritten without ``--force``.
+    """
+    from experiments.report import build_report
+
+    if out.exists() and not force:
+        raise typer.BadParameter(
+            f"{str(out)!r} exists: pass --force to overwrite it, or --out another file",
+            param_hint="'--out'",
+        )
+    path = build_report(results, out)
+    console.print(f"-> {path}")
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``experiment``, ``sweep`` and ``report`` to ``app``."""
+    app.command("experiment")(experiment)
+    app.command("sweep")(sweep)
+    app.command("report")(report)

@@ -1,0 +1,152 @@
+"""The ``wander rig`` command: the attention agent on the rig (camera on a pan-tilt unit).
+
+:func:`register` adds it to the main ``wander`` app. It runs
+:func:`experiments.jobs.rig.run_rig` and writes the same run folder as ``wander run``. A
+device failure prints one line on stderr (what failed, the port or device, the unit's
+message; the run folder when the run had started) and exits with code 1; a bad option
+exits with code 2; Ctrl-C, SIGTERM or SIGHUP halt the PTU, leave the folder with what was
+recorded (``metrics.json`` names the signal) and exit with 128 + the signal (130, 143, 129).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from experiments.cli.console import console, step_progress
+from experiments.cli.errors import long_command
+from experiments.cli.options import (
+    AgentAlphaOpt,
+    FixationalOpt,
+    ForceOpt,
+    RunDirOpt,
+    StreamlinedOpt,
+    VideoOpt,
+    WindowOpt,
+    check_seconds,
+    job_config,
+    resolve_out,
+)
+from wander_env.shutdown import SignalExit, exit_code, record_failure
+
+
+def _or_nan(value: Any) -> float:
+    return math.nan if value is None else float(value)
+
+
+def summary_line(metrics: dict[str, Any], out: Path) -> str:
+    """The line printed after a run: decisions, saccades, events, drops, PTU latency."""
+    rig = metrics.get("rig", {})
+    # metrics.json is strict JSON: a latency never measured is null (None here).
+    mean_ms = _or_nan(rig.get("command_latency_mean_s")) * 1e3
+    max_ms = _or_nan(rig.get("command_latency_max_s")) * 1e3
+    return (
+        f"{metrics['decisions']} decisions, {metrics['saccades']} saccades, "
+        f"{metrics['steps']} steps, {metrics['events']:,} events "
+        f"({rig.get('dropped_events', 0):,} dropped), PTU command latency "
+        f"mean {mean_ms:.1f} ms / max {max_ms:.1f} ms, real-time factor "
+        f"{_or_nan(metrics['real_time_factor']):.2f} -> {out}"
+    )
+
+
+def dropped_warning(metrics: dict[str, Any]) -> str | None:
+    """A warning when the camera lost events (queue overflow, late or off-sensor events)."""
+    rig = metrics.get("rig", {})
+    n = int(rig.get("dropped_events", 0))
+    if n <= 0:
+        return None
+    camera = rig.get("camera") or {}
+    parts = [
+        f"{k.replace('_', ' ')} {camera[k]:,}"
+        for k in ("dropped_overflow", "late", "out_of_range")
+        if camera.get(k)
+    ]
+    detail = f" ({', '.join(parts)})" if parts else ""
+    return (
+        f"warning: the camera dropped {n:,} events{detail}; the agent did not see them "
+        "(see metrics.json 'rig')"
+    )
+
+
+@long_command("wander rig")
+def rig(
+    ptu: Annotated[
+        str,
+        typer.Option(
+            help="The PTU's serial port or pyserial URL (/dev/ttyUSB0, socket://host:4000), "
+            "or 'emulate' for the protocol emulator."
+        ),
+    ],
+    camera: Annotated[
+        str,
+        typer.Option(
+            help="'speck', 'speck:<serial number>', or 'replay:<event file>' "
+            "(.npz, .h5, .npy, .aedat4, .aedat)."
+        ),
+    ],
+    replay: Annotated[
+        str,
+        typer.Option(
+            help="Replay pacing: 'fast' (windows advance in stream time, so every step's "
+            "events are fixed by the file) or 'realtime' (paced by the wall clock, like a "
+            "live camera). Ignored for a Speck."
+        ),
+    ] = "fast",
+    seconds: Annotated[
+        float, typer.Option(callback=check_seconds, help="Run length in seconds of camera time.")
+    ] = 10.0,
+    seed: Annotated[int, typer.Option(help="Seed of the agent (walk, controller).")] = 0,
+    out: RunDirOpt = None,
+    window: WindowOpt = 0.124,
+    fixational: FixationalOpt = True,
+    streamlined: StreamlinedOpt = False,
+    alpha: AgentAlphaOpt = None,
+    video: VideoOpt = True,
+    force: ForceOpt = False,
+) -> None:
+    """Run the attention agent closed-loop on the rig; write the run folder of `wander run`."""
+    from experiments.jobs.rig import RigRunConfig, RigRunError, run_rig
+
+    try:
+        config = job_config(RigRunConfig, locals())
+    except ValueError as err:
+        field = re.match(r"Rig(?:Run)?Config\.(\w+)", str(err))
+        hint = f"'--{field.group(1)}'" if field else None
+        raise typer.BadParameter(str(err), param_hint=hint) from None
+    replay_file = Path(camera[len("replay:") :]) if camera.startswith("replay:") else None
+    if replay_file is not None and not replay_file.is_file():
+        raise typer.BadParameter(
+            f"no such event file: {str(replay_file)!r}", param_hint="'--camera'"
+        )
+    out = resolve_out(out, "rig", force)
+    try:
+        with step_progress(f"agent on the rig ({camera})", round(seconds / 0.01)) as progress:
+            result = run_rig(out, config, progress=progress)
+    except RigRunError as err:
+        typer.echo(f"wander rig: {err}", err=True)
+        raise typer.Exit(1) from err
+    except KeyboardInterrupt as err:  # Ctrl-C, SIGTERM, SIGHUP (wander_env.shutdown)
+        record_failure(out, err)
+        what = str(err) if isinstance(err, SignalExit) else "interrupted"
+        typer.echo(
+            f"wander rig: {what}; the PTU was halted; if the run had started, "
+            f"{str(out)!r} holds what was recorded",
+            err=True,
+        )
+        raise typer.Exit(exit_code(err)) from None
+    console.print(summary_line(result.metrics, out), soft_wrap=True)
+    warning = dropped_warning(result.metrics)
+    if warning is not None:
+        console.print(f"[yellow]{warning}[/yellow]", soft_wrap=True)
+
+
+def register(app: typer.Typer) -> None:
+    """Add the ``rig`` command to ``app`` (the main ``wander`` app)."""
+    app.command("rig")(rig)
+
+
+__all__ = ["dropped_warning", "register", "rig", "summary_line"]

@@ -1,0 +1,154 @@
+"""``wander demo``, ``wander record``, ``wander run`` and ``wander view``: one run of the
+DVS demo, of a gaze policy or of the agent in a scene, each writing a run folder, and the
+Rerun viewer on one. :mod:`experiments.cli.main` registers them.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from experiments.cli.console import console, step_progress
+from experiments.cli.errors import long_command
+from experiments.cli.options import (
+    AgentAlphaOpt,
+    DvsOpt,
+    FixationalOpt,
+    ForceOpt,
+    FramesOpt,
+    KeyframeMsOpt,
+    RunDirOpt,
+    SceneOpt,
+    SecondsOpt,
+    SomsNormOpt,
+    StreamlinedOpt,
+    VideoOpt,
+    WindowOpt,
+    check_seconds,
+    job_config,
+    one_of,
+    resolve_out,
+)
+
+__all__ = ["demo", "record", "run_agent", "view"]
+
+
+def demo(
+    out: RunDirOpt = None,
+    seconds: Annotated[
+        float, typer.Option(callback=check_seconds, help="Simulated seconds of the stimulus.")
+    ] = 1.0,
+    preset: DvsOpt = "paper",
+    seed: Annotated[int, typer.Option(help="Seed of the stimulus and the emulator's noise.")] = 0,
+    force: ForceOpt = False,
+) -> None:
+    """Drive the DVS emulator with a synthetic moving pattern; write events and a picture."""
+    from wander_env.demo import DemoConfig, run_demo
+
+    try:
+        config = DemoConfig(seconds=seconds, preset=preset, seed=seed)
+    except ValueError as err:
+        raise typer.BadParameter(str(err), param_hint="'--seconds'") from None
+    out = resolve_out(out, "demo", force)
+    with step_progress("DVS demo", round(seconds * config.frame_rate_hz)) as progress:
+        summary = run_demo(out, config, progress=progress)
+    console.print(
+        f"{summary['events']:,} events ({summary['events_per_frame']:.0f} per frame, "
+        f"{summary['on_fraction']:.0%} ON) -> {out}/events.h5, {out}/events.png"
+    )
+
+
+@long_command("wander record")
+def record(
+    out: RunDirOpt = None,
+    scene: SceneOpt = "office",
+    seconds: SecondsOpt = 5.0,
+    policy: Annotated[
+        str,
+        typer.Option(
+            callback=one_of(("still", "fixational", "saccades")),
+            help="still, fixational or saccades.",
+        ),
+    ] = "fixational",
+    dvs: DvsOpt = "ideal",
+    seed: Annotated[int, typer.Option(help="Seed of the env and the policy.")] = 0,
+    video: Annotated[bool, typer.Option(help="Write video.mp4 (camera | events).")] = True,
+    format: Annotated[
+        str,
+        typer.Option(
+            "--format",
+            callback=one_of(("h5", "aedat4", "evt3", "evimo2")),
+            help="Events as h5, aedat4 or evt3 (.raw); or evimo2: the EVIMO2v2 layout "
+            "(events + per-step masks) that `wander benchmark evimo` scores.",
+        ),
+    ] = "h5",
+    force: ForceOpt = False,
+    frames: FramesOpt = None,
+    keyframe_ms: KeyframeMsOpt = None,
+) -> None:
+    """Record events, ground truth and a video of the env under a simple gaze policy."""
+    from experiments.jobs.record import RecordConfig
+    from experiments.jobs.record import record as run
+
+    config = job_config(RecordConfig, locals())
+    out = resolve_out(out, "record", force)
+    with step_progress(f"record {scene}", round(seconds / 0.01)) as progress:
+        summary = run(out, config, progress=progress)
+    console.print(f"{summary['events']:,} events over {summary['steps']} steps -> {out}")
+
+
+@long_command("wander run")
+def run_agent(
+    out: RunDirOpt = None,
+    scene: SceneOpt = "office",
+    seconds: SecondsOpt = 10.0,
+    seed: Annotated[int, typer.Option(help="Seed of the env, the walk and the controller.")] = 0,
+    dvs: DvsOpt = "ideal",
+    window: WindowOpt = 0.124,
+    fixational: FixationalOpt = True,
+    streamlined: StreamlinedOpt = False,
+    alpha: AgentAlphaOpt = None,
+    soms_norm: SomsNormOpt = "quantile",
+    video: VideoOpt = True,
+    force: ForceOpt = False,
+    frames: FramesOpt = None,
+    keyframe_ms: KeyframeMsOpt = None,
+) -> None:
+    """Run the attention agent closed-loop in a scene; write the run folder."""
+    from experiments.jobs.run_agent import RunConfig
+    from experiments.jobs.run_agent import run as run_loop
+
+    config = job_config(RunConfig, locals())
+    out = resolve_out(out, "run", force)
+    with step_progress(f"agent in {scene}", round(seconds / 0.01)) as progress:
+        result = run_loop(out, config, progress=progress)
+    m = result.metrics
+    detection = (
+        f"detection accuracy {m['detection_accuracy']:.0%} ({m['decisions_scored']} scored)"
+        if m["decisions_scored"]
+        else "no moving object in view to score"
+    )
+    console.print(
+        f"{m['decisions']} decisions, {m['saccades']} saccades, {detection}, sOMS suppression "
+        f"{m['soms_suppression']:.1%}, real-time factor {m['real_time_factor']:.2f} -> {out}"
+    )
+
+
+def view(
+    run_dir: Annotated[Path, typer.Argument(help="A run folder holding run.rrd.")],
+) -> None:
+    """Open a run folder's run.rrd in the Rerun viewer (headless: print the command)."""
+    from wander_env.viewer import command_text
+    from wander_env.viewer import view as open_view
+
+    try:
+        what, command = open_view(run_dir)
+    except FileNotFoundError as err:
+        raise typer.BadParameter(str(err), param_hint="'RUN_DIR'") from None
+    if what == "spawned":
+        typer.echo(f"opened {run_dir / 'run.rrd'} in the Rerun viewer", err=True)
+    else:
+        typer.echo("no display (DISPLAY unset); open the recording with:", err=True)
+        typer.echo(command_text(command))

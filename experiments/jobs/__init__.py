@@ -1,0 +1,1 @@
+"""Jobs: one run of the agent, an evaluation, a rig run, a recording (and their run logs)."""

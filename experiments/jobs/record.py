@@ -1,0 +1,219 @@
+"""``wander record``: run the environment under a simple gaze policy and keep everything.
+
+Writes, as the run goes, ``events.h5`` (all events, config and seed in its metadata;
+``--format aedat4`` / ``evt3`` convert it to ``events.aedat4`` / ``events.raw`` at the
+end, ``evimo2`` to the EVIMO2v2 ``dataset_*`` files of
+:func:`wander_env.event_formats.write_evimo2_sequence`),
+``ground_truth.h5`` (per step: time, gaze, PTU positions, object-id mask, each
+moving object's pixel centre, mask size and visibility), ``video.mp4`` (camera |
+events, with the fovea marked) and ``run.json``.
+
+Policies:
+- ``still``: the camera holds its gaze;
+- ``fixational``: fixational eye movements only (a new 8-step random walk of
+  ±60 PTU positions every 124 ms, :mod:`agents.fixation`);
+- ``saccades``: a saccade to a random pixel every ``saccade_interval_s``, with
+  fixational movements in between.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import h5py
+import imageio.v2 as imageio
+import numpy as np
+
+import wander_env  # noqa: F401  (registers the environments)
+from agents.fixation import FixationalMovements, FixationParams
+from experiments.jobs.run_viewer import open_run_log
+from wander_env.env import WanderConfig
+from wander_env.event_formats import write_evimo2_sequence
+from wander_env.event_io import read_events, write_events
+from wander_env.event_stream import EventStreamWriter, H5Appender, OutputError, check_space
+from wander_env.metrics import focal_length_px
+from wander_env.runinfo import run_record, write_json
+
+POLICIES = ("still", "fixational", "saccades")
+# --format: the events file (events.h5 / .aedat4 / .raw) beside ground_truth.h5, or the
+# EVIMO2v2 layout (events + per-step masks) that `wander benchmark evimo` scores.
+FORMATS = {"h5": "events.h5", "aedat4": "events.aedat4", "evt3": "events.raw", "evimo2": None}
+
+
+@dataclass(frozen=True)
+class RecordConfig:
+    scene: str = "office"
+    seconds: float = 5.0
+    policy: str = "fixational"
+    dvs: str = "ideal"
+    seed: int = 0
+    saccade_interval_s: float = 0.5
+    video: bool = True
+    format: str = "h5"
+    frames: str = WanderConfig.frames  # the env's frame source (keyframes or exact)
+    keyframe_ms: float = WanderConfig.keyframe_ms
+
+    def __post_init__(self) -> None:
+        if self.policy not in POLICIES:
+            raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
+        if self.format not in FORMATS:
+            raise ValueError(f"format must be one of {tuple(FORMATS)}, got {self.format!r}")
+        if not self.seconds > 0:
+            raise ValueError(f"seconds must be > 0, got {self.seconds}")
+
+
+class GazePolicy:
+    """The simple policies of :data:`POLICIES`, seeded."""
+
+    def __init__(self, name: str, seed: int, dt_s: float, saccade_interval_s: float) -> None:
+        self.name, self.dt_s, self.interval = name, dt_s, saccade_interval_s
+        self.rng = np.random.default_rng(seed)
+        self.fixation = FixationalMovements(FixationParams(), self.rng)
+        self.fixation.start()
+        self.t_fix = 0.0
+        self.t = 0.0
+
+    def act(self, info: dict[str, Any]) -> np.ndarray:
+        action = np.zeros(2, np.float32)
+        if self.name == "saccades" and self.t > 0 and self.t % self.interval < self.dt_s / 2:
+            action = self.rng.uniform(-0.6, 0.6, 2).astype(np.float32)
+            self.fixation.start()
+            self.t_fix = self.t
+        elif self.name != "still" and not info["moving"]:
+            if self.fixation.done:
+                self.fixation.start(after_saccade=False)
+                self.t_fix = self.t
+            if self.fixation.due(self.t - self.t_fix):
+                action = np.asarray(self.fixation.next_offset().action, np.float32)
+        self.t += self.dt_s
+        return np.clip(action, -1.0, 1.0)
+
+
+def record(
+    out_dir: Path, config: RecordConfig, progress: Callable[[int, int], None] | None = None
+) -> dict[str, Any]:
+    """Run and write the recording folder; returns a summary.
+
+    Events and ground truth go to disk as they are made (memory does not grow with
+    ``seconds``). A failure or a signal mid-way still closes both files with what was
+    recorded, writes ``run.json`` and ``metrics.json`` with the error, then raises it.
+    """
+    out_dir.mkdir(parents=True, exist_ok=True)
+    env = gym.make(
+        "wander/Wander-v0",
+        scene=config.scene,
+        dvs=config.dvs,
+        render_mode="rgb_array" if config.video else None,
+        episode_seconds=config.seconds,
+        frames=config.frames,
+        keyframe_ms=config.keyframe_ms,
+    )
+    try:
+        return _record(out_dir, config, env, progress)
+    finally:
+        env.close()
+
+
+def _record(
+    out_dir: Path, config: RecordConfig, env: Any, progress: Callable[[int, int], None] | None
+) -> dict[str, Any]:
+    base = env.unwrapped
+    dt = base.config.control_period_s
+    policy = GazePolicy(config.policy, config.seed + 1, dt, config.saccade_interval_s)
+    obs, info = env.reset(seed=config.seed)
+    steps = round(config.seconds / dt)
+    n_obj = len(base.scene.moving_objects)
+    h, w = base.height, base.width
+    rec = run_record("wander record", asdict(config), config.seed)
+    rec["env"] = {"control_period_s": dt, "dvs": base.dvs_params.to_dict()}
+    fields = {
+        "t": (np.float64, ()),
+        "gaze_deg": (np.float32, (2,)),
+        "ptu_positions": (np.int32, (2,)),
+        "object_mask": (np.uint8, (h, w)),
+        "object_centre_px": (np.float32, (n_obj, 2)),
+        "object_mask_pixels": (np.int32, (n_obj,)),
+    }
+    attrs = {
+        "object_names": [o.name for o in base.scene.moving_objects],
+        "mask_ids": "0 = background, k = moving object k (1-based)",
+    }
+    video_path = out_dir / "video.mp4"
+    done, error = 0, None
+    with (
+        EventStreamWriter(out_dir / "events.h5", (w, h, 2), rec) as events,
+        H5Appender(out_dir / "ground_truth.h5", fields, attrs, chunk_rows=100) as truth,
+    ):
+        writer = (
+            imageio.get_writer(video_path, fps=round(1 / dt), macro_block_size=1)
+            if config.video
+            else None
+        )
+        rrlog = open_run_log(out_dir, env, "wander record")  # run.rrd
+        try:
+            for k in range(steps):
+                obs, _, _, _, info = env.step(policy.act(info))
+                rrlog.step(obs, info)
+                events.append(info["events"].events)
+                centre = np.full((n_obj, 2), np.nan, np.float32)
+                pixels = np.zeros(n_obj, np.int32)
+                for j, o in enumerate(info["objects"]):
+                    centre[j], pixels[j] = o["centre_px"], o["mask_pixels"]
+                truth.append(
+                    t=info["t"],
+                    gaze_deg=obs["gaze"],
+                    ptu_positions=info["ptu_positions"],
+                    object_mask=info["object_mask"],
+                    object_centre_px=centre,
+                    object_mask_pixels=pixels,
+                )
+                if writer is not None:
+                    frame = env.render()
+                    try:
+                        writer.append_data(frame)
+                    except Exception as err:  # ffmpeg's pipe: a full disk is a broken pipe
+                        check_space(video_path, frame.nbytes)
+                        raise OutputError(video_path, err) from err
+                done = k + 1
+                if progress is not None:
+                    progress(k + 1, steps)
+        except BaseException as exc:
+            error = exc
+        finally:
+            rrlog.close()
+            if writer is not None:
+                try:
+                    writer.close()
+                except Exception as err:
+                    error = error or OutputError(video_path, err)
+        n_events = events.events_written
+        summary = {"events": n_events, "steps": done}
+        events.close({**rec, "summary": summary})
+        truth.close()
+    if error is None and config.format != "h5":
+        _convert(out_dir, config.format, base, dt)
+    summary["files"] = sorted({p.name for p in out_dir.iterdir()} | {"run.json"})
+    if error is not None:
+        message = f"{type(error).__name__}: {error}"
+        write_json(out_dir / "metrics.json", {**summary, "error": message})
+        write_json(out_dir / "run.json", rec | {"summary": summary, "error": message})
+        raise error
+    write_json(out_dir / "run.json", rec | {"summary": summary})
+    return summary
+
+
+def _convert(out_dir: Path, fmt: str, base: Any, dt: float) -> None:
+    """Rewrite the streamed ``events.h5`` as ``fmt`` (the recording is read back whole)."""
+    recording = read_events(out_dir / "events.h5")
+    if fmt == "evimo2":
+        with h5py.File(out_dir / "ground_truth.h5", "r") as f:
+            t, masks = f["t"][()], f["object_mask"][()]
+        f_px = focal_length_px(base.width, base.scene.camera.hfov_deg)
+        write_evimo2_sequence(out_dir, recording, t, masks, f_px, dt)
+    else:
+        write_events(out_dir / FORMATS[fmt], recording)
+    (out_dir / "events.h5").unlink()

@@ -1,0 +1,293 @@
+"""``wander rig``: the attention agent on the rig, writing the same run folder as ``wander run``.
+
+The rig is an event camera (a Speck, or a recorded event file replayed as one) on a FLIR
+pan-tilt unit (a real one on a serial port, or the protocol emulator): the
+``wander/Rig-v0`` env of :mod:`hardware.rig_env`. :func:`run_rig` builds it, runs the
+same :class:`~agents.attention.AttentionAgent` as ``wander run`` through
+:func:`experiments.jobs.run_agent.run_closed_loop`, and adds what only the rig has:
+
+- ``run.json`` (and the ``events.h5`` metadata): the config, plus ``rig``: the PTU's
+  resolution and limits and the sensor size, as the devices reported them;
+- ``metrics.json``: ``rig``: events the camera dropped (queue overflow, late, off the
+  sensor), the PTU command latency (mean and max over the acknowledged commands seen at
+  step boundaries), commands sent and replaced, polls, the largest lag behind the
+  camera's clock, the episode's start in the camera's clock (``t0_us``: ``events.h5``
+  times are relative to it), the halt result and the PTU error if any, and the camera's
+  counters.
+
+A device that fails raises :class:`RigRunError` naming the device and saying what went
+wrong; when the run had started the run folder is written first with what was recorded
+(``metrics.json`` then has ``error`` and the ``steps`` done).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent
+from experiments.jobs.run_agent import RunConfig, RunResult, run_closed_loop
+from hardware.ptu_driver import FlirPTUParams, PTUError, PTUPortError, PTUTimeout
+from hardware.ptu_emulator import PTUEmulatorParams
+from hardware.rig_env import RigConfig
+from hardware.speck import SpeckParams
+from wander_env.runinfo import run_record, to_strict_json, write_json
+
+__all__ = ["RigRunConfig", "RigRunError", "run_rig"]
+
+
+@dataclass(frozen=True)
+class RigRunConfig:
+    """What ``wander rig`` runs.
+
+    ``ptu``: the PTU's pyserial URL (``/dev/ttyUSB0``, ``socket://host:4000``) or
+    ``"emulate"``; ``camera``: ``"speck"``, ``"speck:<serial>"`` or ``"replay:<event
+    file>"``; ``replay``: ``"fast"`` (windows advance in stream time: the events of
+    every step are fixed by the file) or ``"realtime"`` (paced by the wall clock, as a
+    live camera); ignored for a Speck. ``seconds``: run length (a replay that ends
+    earlier ends the run); ``seed``, ``window_s``, ``fixational``, ``streamlined``,
+    ``video``: as ``wander run``. ``driver``, ``emulator``, ``speck``: the device
+    parameter blocks handed to :class:`~hardware.rig_env.RigConfig`.
+
+    >>> RigRunConfig(ptu="emulate", camera="replay:walk.npz").env_kwargs()["episode_seconds"]
+    10.0
+    """
+
+    ptu: str = ""
+    camera: str = ""
+    replay: str = "fast"
+    seconds: float = 10.0
+    seed: int = 0
+    window_s: float = 0.124
+    fixational: bool = True
+    streamlined: bool = False
+    alpha: float = AGENT_SOMS_ALPHA
+    video: bool = True
+    driver: FlirPTUParams = field(default_factory=FlirPTUParams)
+    emulator: PTUEmulatorParams = field(default_factory=PTUEmulatorParams)
+    speck: SpeckParams = field(default_factory=SpeckParams)
+
+    def __post_init__(self) -> None:
+        s = self.seconds
+        if isinstance(s, bool) or not isinstance(s, (int, float)) or not math.isfinite(s):
+            raise ValueError(f"RigRunConfig.seconds must be a finite number, got {s!r}")
+        if s <= 0:
+            raise ValueError(f"RigRunConfig.seconds must be > 0, got {s!r}")
+        RigConfig(**self.env_kwargs())  # ptu, camera and replay are checked before any device
+
+    def env_kwargs(self) -> dict[str, Any]:
+        """The keyword arguments of ``gymnasium.make("wander/Rig-v0", ...)``."""
+        return {
+            "ptu": self.ptu,
+            "camera": self.camera,
+            "replay": self.replay,
+            "episode_seconds": float(self.seconds),
+            "driver": self.driver,
+            "emulator": self.emulator,
+            "speck": self.speck,
+        }
+
+    def agent_params(self, env: Any) -> AgentParams:
+        """The agent of ``wander run`` with these switches, matched to the rig's sensor."""
+        run = RunConfig(
+            seconds=self.seconds,
+            seed=self.seed,
+            window_s=self.window_s,
+            fixational=self.fixational,
+            streamlined=self.streamlined,
+            alpha=self.alpha,
+        )
+        return run.agent_params(env)
+
+
+class RigRunError(RuntimeError):
+    """A device failed: one line naming the device and the failure.
+
+    ``device`` (``"PTU '/dev/ttyUSB0'"``, ``"camera 'speck'"``), ``stage`` (``"open"``
+    or ``"run"``), ``folder`` (the run folder written with what was recorded, ``None``
+    when the run had not started); the original error is ``__cause__``.
+    """
+
+    def __init__(self, text: str, device: str, stage: str, folder: Path | None) -> None:
+        super().__init__(" ".join(text.split()))
+        self.device = device
+        self.stage = stage
+        self.folder = folder
+
+
+class _RigCounters(gym.Wrapper):
+    """Sees every step's ``info`` and keeps the rig's counters for ``metrics.json``."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        self.latencies: list[float] = []
+        self.lag_max_s = 0.0
+        self._sent = 0
+
+    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
+        obs, info = self.env.reset(**kwargs)
+        self.latencies, self.lag_max_s = [], 0.0
+        self._sent = self.env.unwrapped.stats["commands_sent"]
+        return obs, info
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        out = self.env.step(action)
+        info = out[4]
+        sent = self.env.unwrapped.stats["commands_sent"]
+        latency = float(info.get("command_latency_s", math.nan))
+        if sent != self._sent and math.isfinite(latency):
+            self.latencies.append(latency)
+        self._sent = sent
+        self.lag_max_s = max(self.lag_max_s, float(info.get("lag_s", 0.0)))
+        return out
+
+    def summary(self) -> dict[str, Any]:
+        """The counters (valid also after a fault)."""
+        base = self.env.unwrapped
+        stats = base.stats
+        camera = base.camera
+        lat = np.asarray(self.latencies, dtype=np.float64)
+        return {
+            "dropped_events": int(camera.dropped) - int(stats["dropped_at_reset"]),
+            "command_latency_mean_s": float(lat.mean()) if len(lat) else math.nan,
+            "command_latency_max_s": float(lat.max()) if len(lat) else math.nan,
+            "command_latencies_seen": len(lat),
+            "ptu_commands_sent": stats.get("commands_sent", 0),
+            "ptu_commands_replaced": stats.get("commands_replaced", 0),
+            "ptu_polls": stats.get("polls", 0),
+            "lag_max_s": self.lag_max_s,
+            "t0_us": stats["t0_us"],
+            "discarded_at_reset": stats["discarded_at_reset"],
+            "ptu_halt": stats["ptu_halt"],
+            "ptu_error": stats["ptu_error"],
+            "camera": stats["camera"],
+        }
+
+
+def device_record(base: Any) -> dict[str, Any]:
+    """What the devices reported: the PTU's resolution and limits, the sensor size."""
+    ptu = base.ptu
+    camera = base.camera
+    kind, arg = base.config.camera_kind()
+    cam: dict[str, Any] = {"kind": kind, "sensor_size": list(base.sensor_size)}
+    if kind == "replay":
+        cam |= {"file": arg, "n_events": camera.n_events, "duration_us": camera.duration_us}
+        cam["t_offset_us"] = camera.metadata.get("t_offset_us")
+    else:
+        cam |= {"device_type_name": camera.device_type_name, "serial_number": arg or None}
+        cam["sensor_size_from"] = camera.stats.get("sensor_size_from")
+    return {
+        "ptu": {
+            "url": ptu.url,
+            "emulated": base.emulator is not None,
+            "resolution_arcsec": list(ptu.resolution_arcsec),
+            "pan_limits_deg": list(ptu.pan_limits_deg),
+            "tilt_limits_deg": list(ptu.tilt_limits_deg),
+        },
+        "camera": cam,
+        "control_period_s": base.config.control_period_s,
+        "hfov_deg": base.config.hfov_deg,
+    }
+
+
+def _device(err: BaseException, config: RigRunConfig) -> str | None:
+    """Which device ``err`` comes from (``None``: not a device failure)."""
+    if isinstance(err, (PTUError, TimeoutError)):
+        return f"PTU {config.ptu!r}"
+    return None
+
+
+def _open_failure(err: Exception, config: RigRunConfig) -> RigRunError:
+    device = _device(err, config) or f"camera {config.camera!r}"
+    if isinstance(err, PTUError) and not isinstance(err, (PTUPortError, PTUTimeout)):
+        if err.command is not None:
+            why = f"the unit answered '! {err.message}' to {err.command!r}"
+        else:
+            why = str(err)
+    else:
+        why = str(err) or type(err).__name__
+    return RigRunError(f"opening the {device} failed: {why}", device, "open", None)
+
+
+def _run_failure(err: BaseException, config: RigRunConfig, out: Path, steps: int) -> RigRunError:
+    device = _device(err, config) or f"camera {config.camera!r}"
+    text = str(err)
+    if not text.startswith(("PTU ", "camera ")):
+        text = f"{device} failed mid-run: {text}"
+    return RigRunError(
+        f"{text} The run folder {str(out)!r} holds what was recorded ({steps} steps completed).",
+        device,
+        "run",
+        out,
+    )
+
+
+def _camera_failed(base: Any) -> bool:
+    stats = getattr(base.camera, "stats", None) or {}
+    return bool(stats.get("reader_error"))
+
+
+def _add_metrics(out_dir: Path, rig: dict[str, Any]) -> dict[str, Any]:
+    """Add ``rig`` to the run folder's ``metrics.json``; returns the updated metrics."""
+    path = out_dir / "metrics.json"
+    metrics = json.loads(path.read_text()) if path.is_file() else {}
+    metrics["rig"] = rig
+    write_json(path, metrics)
+    return to_strict_json(metrics)  # as written: a missing figure is None (null)
+
+
+def run_rig(
+    out_dir: Path, config: RigRunConfig, progress: Callable[[int, int], None] | None = None
+) -> RunResult:
+    """``wander rig``: the agent on the rig; the run folder as ``wander run`` writes it.
+
+    Raises :class:`RigRunError` when a device fails (after writing the folder when the
+    run had started); other errors propagate (also after writing the folder).
+    """
+    import wander_env  # noqa: F401  (registers the environments)
+
+    out_dir = Path(out_dir)
+    try:
+        env = gym.make("wander/Rig-v0", **config.env_kwargs())
+    except Exception as err:
+        raise _open_failure(err, config) from err
+    agent: AttentionAgent | None = None
+    try:
+        counters = _RigCounters(env)
+        base = env.unwrapped
+        agent = AttentionAgent(config.agent_params(env), seed=config.seed)
+        record = run_record("wander rig", asdict(config), config.seed)
+        record["rig"] = device_record(base)
+        try:
+            result = run_closed_loop(
+                counters,
+                agent,
+                config.seconds,
+                out_dir,
+                record,
+                video=config.video,
+                progress=progress,
+                seed=config.seed,
+            )
+        except BaseException as err:
+            base.halt_after_failure()  # a signal, a camera fault: halt, and record it
+            metrics = _add_metrics(out_dir, counters.summary())
+            is_device = _device(err, config) is not None or (
+                isinstance(err, (RuntimeError, OSError)) and _camera_failed(base)
+            )
+            if isinstance(err, Exception) and is_device:
+                raise _run_failure(err, config, out_dir, metrics.get("steps", 0)) from err
+            raise
+        result.metrics = _add_metrics(out_dir, counters.summary())
+        return result
+    finally:
+        if agent is not None:
+            agent.close()
+        env.close()

@@ -1,0 +1,464 @@
+"""``wander run``: the attention agent closed-loop in a scene, and its run folder.
+
+:func:`run_closed_loop` drives any env with the shared contract (the simulated
+``wander/Wander-v0`` or the rig's ``wander/Rig-v0``) with an :class:`AttentionAgent` and
+writes the run folder:
+
+- ``run.json``: resolved config, seed, git revision, versions;
+- ``metrics.json``: fixations, saccades, detection accuracy (the 8×8 box around each
+  ``P`` touches a moving object's mask, the mask being the union over the fixation
+  window — with ground truth only), sOMS event suppression, foveation error of the
+  saccades (reached minus intended gaze, in pixels at the fovea), scanpath statistics,
+  wall time and real-time factor;
+- ``fixations.csv``: the fixation table (pan, tilt, start, duration; degrees, seconds)
+  plus each fixation's ``P`` and hit;
+- ``scanpath.png``: cumulative saliency on the pan-tilt sphere with fixations, saccade
+  lines and the salient points; gaze over time;
+- ``run.mp4``: events | OMS | saliency | camera, with the fovea (green) and ``P``
+  (magenta 8×8 box) marked;
+- ``events.h5``: every event of the run, written as the run goes
+  (:class:`~wander_env.event_stream.EventStreamWriter`: memory does not grow with the
+  run's length, and a killed run leaves the file readable up to its last flushed chunk).
+
+A fault mid-run (a device that stops answering, a signal: :mod:`wander_env.shutdown`)
+still leaves the folder with what was recorded, ``metrics.json`` naming the error (and
+the signal); the exception is raised after it is written.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent, Phase
+from agents.proto_object import ProtoObjectParams
+from experiments import scanpath_stats
+from experiments.jobs.run_viewer import open_run_log
+from experiments.jobs.scanpath_figure import pixel_to_angles, plot_scanpath
+from wander_env.env import WanderConfig
+from wander_env.event_stream import EventStreamWriter, OutputError, check_space
+from wander_env.metrics import degrees_to_pixels, detection_hit, focal_length_px
+from wander_env.runinfo import run_record, write_json
+from wander_env.shutdown import SignalExit
+from wander_env.viz import event_image, labelled_frame, saliency_rgb
+
+__all__ = ["RunConfig", "RunResult", "run", "run_closed_loop", "video_frame"]
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """What ``wander run`` runs: the scene, its length, the seed, the DVS preset and the
+    agent's main switches (the paper's defaults; ``alpha`` is the sOMS threshold on the
+    agent's quantile norm, :data:`agents.attention.AGENT_SOMS_ALPHA`; ``soms_norm="minmax"``
+    runs the paper-literal sOMS)."""
+
+    scene: str = "office"
+    seconds: float = 10.0
+    seed: int = 0
+    dvs: str = "ideal"
+    video: bool = True
+    window_s: float = 0.124
+    fixational: bool = True
+    streamlined: bool = False
+    alpha: float = AGENT_SOMS_ALPHA
+    soms_norm: str = "quantile"
+    frames: str = WanderConfig.frames  # the env's frame source (keyframes or exact)
+    keyframe_ms: float = WanderConfig.keyframe_ms
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.seconds, (int, float)) and math.isfinite(self.seconds)):
+            raise ValueError(f"RunConfig.seconds must be a finite number, got {self.seconds!r}")
+        if self.seconds <= 0:
+            raise ValueError(f"RunConfig.seconds must be > 0, got {self.seconds}")
+        if not (isinstance(self.alpha, (int, float)) and 0.0 <= self.alpha <= 1.0):
+            raise ValueError(f"RunConfig.alpha must be in [0, 1], got {self.alpha!r}")
+        if self.soms_norm not in ("quantile", "minmax"):
+            raise ValueError(
+                f"RunConfig.soms_norm must be 'quantile' or 'minmax', got {self.soms_norm!r}"
+            )
+
+    def agent_params(self, env: Any) -> AgentParams:
+        return AgentParams.for_env(
+            env,
+            window_s=self.window_s,
+            fixational=self.fixational,
+            soms=replace(AgentParams().soms, alpha=self.alpha, norm=self.soms_norm),
+            proto=replace(ProtoObjectParams(), polarity_split=not self.streamlined),
+        )
+
+
+@dataclass
+class RunResult:
+    """What a run produced: the metrics and the files written."""
+
+    metrics: dict[str, Any]
+    files: list[str] = field(default_factory=list)
+    error: str | None = None
+
+
+# ----------------------------------------------------------------------------------------
+# Pictures
+
+
+def video_frame(
+    events: np.ndarray,
+    oms: np.ndarray,
+    saliency: np.ndarray | None,
+    camera: np.ndarray | None,
+    target: tuple[int, int] | None,
+    caption: str = "",
+    scale: int = 2,
+) -> np.ndarray:
+    """One video frame (uint8 RGB): events | OMS | saliency | camera, each named, the
+    fovea and P marked, and a footer with ``caption`` (the time stamp) and the colour
+    keys (ON/OFF, the saliency scale, fovea, P)."""
+    h, w = events.shape[1:]
+    sal = saliency_rgb(saliency) if saliency is not None else np.zeros((h, w, 3), np.uint8)
+    panels = [
+        ("events (this step)", event_image(events)),
+        ("OMS (fixation window)", event_image(oms)),
+        ("saliency (last decision)", sal),
+    ]
+    if camera is not None:
+        panels.append(("camera", np.asarray(camera, dtype=np.uint8)))
+    keys = ("polarity", "saliency", "fovea", "P")
+    return labelled_frame(panels, scale, caption, keys=keys, target=target)
+
+
+# ----------------------------------------------------------------------------------------
+# The loop
+
+
+@dataclass
+class _Log:
+    """Everything gathered step by step (kept to write the folder even after a fault)."""
+
+    events: int = 0
+    gaze: list[tuple[float, float, float]] = field(default_factory=list)
+    maps: list[np.ndarray] = field(default_factory=list)  # saliency per decision
+    hits: list[bool | None] = field(default_factory=list)  # per decision
+    clipped: list[bool] = field(default_factory=list)  # per saccade
+    steps: int = 0
+    sightings: list[tuple] = field(default_factory=list)  # ground truth (run_viewer)
+
+
+def run_closed_loop(
+    env: Any,
+    agent: AttentionAgent,
+    seconds: float,
+    out_dir: Path,
+    record: dict[str, Any],
+    video: bool = True,
+    progress: Callable[[int, int], None] | None = None,
+    seed: int | None = None,
+) -> RunResult:
+    """Run ``agent`` on ``env`` for ``seconds`` and write the run folder (module doc)."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    base = env.unwrapped
+    dt = float(getattr(getattr(base, "config", None), "control_period_s", agent.params.step_s))
+    n_steps = max(1, round(seconds / dt))
+    log = _Log()
+    p = agent.params
+    stream = EventStreamWriter(out_dir / "events.h5", (p.width_px, p.height_px, 2), record)
+    writer = None
+    video_path = out_dir / "run.mp4"
+    if video:
+        import imageio.v2 as imageio
+
+        try:
+            writer = imageio.get_writer(video_path, fps=round(1 / dt), macro_block_size=1)
+        except BaseException:
+            stream.close()
+            raise
+    rrlog = open_run_log(out_dir, env, str(record.get("command", "wander run")))  # run.rrd
+    error: BaseException | None = None
+    t_wall = time.perf_counter()
+    window_mask: np.ndarray | None = None
+    saccade_clipped = False
+    try:
+        obs, info = env.reset(seed=seed)
+        agent.reset()
+        for k in range(n_steps):
+            phase_before = agent.phase
+            n_sacc = len(agent.saccades)
+            action = agent.act(obs, info)
+            mask = info.get("object_mask")
+            if mask is not None and phase_before is Phase.FIXATE:  # step went into the window
+                window_mask = mask > 0 if window_mask is None else window_mask | (mask > 0)
+            if len(agent.saccades) > n_sacc:  # a saccade ended at this step
+                log.clipped.append(saccade_clipped)
+            if agent.decided:
+                log.maps.append(agent.saliency.copy())
+                hit = None
+                if window_mask is not None and window_mask.any() and agent.target is not None:
+                    hit = detection_hit(agent.target, window_mask)
+                log.hits.append(hit)
+                window_mask = None
+                saccade_clipped = False
+            obs, _, terminated, truncated, info = env.step(action)
+            if agent.phase is Phase.SACCADE:
+                saccade_clipped |= bool(info.get("target_clipped", False))
+            step_events = info["events"].events
+            stream.append(step_events)
+            log.events += len(step_events)
+            log.gaze.append((float(info.get("t", (k + 1) * dt)), *map(float, obs["gaze"])))
+            log.steps = k + 1
+            rrlog.step(obs, info, agent)
+            if writer is not None:
+                frame = _frame_for(agent, obs, base, info)
+                try:
+                    writer.append_data(frame)
+                except Exception as err:  # ffmpeg's pipe: a full disk shows as a broken pipe
+                    check_space(video_path, frame.nbytes)
+                    raise OutputError(video_path, err) from err
+            if progress is not None:
+                progress(k + 1, n_steps)
+            if terminated or truncated:
+                break
+    except BaseException as exc:
+        error = exc
+    finally:
+        rrlog.close()
+        log.sightings = rrlog.sightings
+        if writer is not None:
+            try:
+                writer.close()
+            except Exception as err:
+                if error is None:
+                    error = OutputError(video_path, err)
+    wall = time.perf_counter() - t_wall
+    try:
+        result = _write_folder(out_dir, env, agent, log, stream, record, dt, wall, error)
+    except Exception as write_error:
+        if error is None:
+            raise
+        error.add_note(f"writing the run folder {out_dir} also failed: {write_error!r}")
+        raise error from write_error
+    finally:
+        try:
+            stream.close()  # already closed by _write_folder unless that failed
+        except OutputError:
+            pass
+    if error is not None:
+        raise error
+    return result
+
+
+def _frame_for(agent: AttentionAgent, obs: dict, base: Any, info: dict) -> np.ndarray:
+    camera = getattr(base, "camera_frame", None)
+    t = info.get("t", math.nan)
+    target = "none" if agent.target is None else f"({agent.target[0]}, {agent.target[1]})"
+    caption = f"t = {t:5.2f} s   {agent.phase.value}   P = {target}"
+    return video_frame(obs["events"], agent.oms_map, agent.saliency, camera, agent.target, caption)
+
+
+def _saccade_metrics(agent: AttentionAgent, clipped: list[bool]) -> dict[str, Any]:
+    p = agent.params
+    f = focal_length_px(p.width_px, p.hfov_deg)
+    errs = []
+    for s, c in zip(agent.saccades, clipped, strict=False):
+        if c:
+            continue
+        e = s.error_deg
+        # Pixels at the fovea; x right is −pan, y down is −tilt.
+        errs.append(
+            (
+                degrees_to_pixels(-e[0], p.width_px, p.hfov_deg),
+                degrees_to_pixels(-e[1], p.width_px, p.hfov_deg),
+            )
+        )
+    out: dict[str, Any] = {
+        "saccades": len(agent.saccades),
+        "saccades_clipped_by_ptu_limits": int(sum(clipped)),
+        "saccade_duration_mean_s": _mean([s.t_end - s.t_start for s in agent.saccades]),
+        "focal_length_px": f,
+    }
+    if errs:
+        e = np.abs(np.asarray(errs))
+        out |= {
+            "foveation_error_x_px_mean": float(e[:, 0].mean()),
+            "foveation_error_x_px_std": float(e[:, 0].std()),
+            "foveation_error_y_px_mean": float(e[:, 1].mean()),
+            "foveation_error_y_px_std": float(e[:, 1].std()),
+        }
+    return out
+
+
+def _object_paths(
+    sightings: list[tuple], focal_px: float, centre: tuple[float, float]
+) -> dict[str, np.ndarray]:
+    """Each moving object's world (t, pan, tilt) from its pixel centres and the gaze."""
+    paths: dict[str, list[tuple[float, float, float]]] = {}
+    for name, t, pan, tilt, x, y in sightings:
+        paths.setdefault(name, []).append(
+            (t, *pixel_to_angles((x, y), (pan, tilt), focal_px, centre))
+        )
+    return {k: np.asarray(v) for k, v in paths.items()}
+
+
+def _ptu_limits(env: Any) -> tuple[tuple[float, float], tuple[float, float]] | None:
+    """The PTU's (pan, tilt) limits in degrees (simulated unit or the rig's driver)."""
+    ptu = getattr(env.unwrapped, "ptu", None)
+    for src in (ptu, getattr(ptu, "params", None)):  # the rig's driver, the simulated unit
+        if hasattr(src, "pan_limits_deg") and hasattr(src, "tilt_limits_deg"):
+            return tuple(src.pan_limits_deg), tuple(src.tilt_limits_deg)  # type: ignore[return-value]
+    return None
+
+
+def _mean(values: list[float]) -> float:
+    return float(np.mean(values)) if values else math.nan
+
+
+def _write_folder(
+    out_dir: Path,
+    env: Any,
+    agent: AttentionAgent,
+    log: _Log,
+    stream: EventStreamWriter,
+    record: dict[str, Any],
+    dt: float,
+    wall: float,
+    error: BaseException | None,
+) -> RunResult:
+    p = agent.params
+    f = focal_length_px(p.width_px, p.hfov_deg)
+    centre = ((p.width_px - 1) / 2.0, (p.height_px - 1) / 2.0)
+    targets_deg = [
+        pixel_to_angles(fx.target_px, fx.gaze_deg, f, centre) if fx.target_px else None
+        for fx in agent.fixations
+    ]
+    fix_rows = []
+    for k, (fx, target_deg) in enumerate(zip(agent.fixations, targets_deg, strict=True)):
+        hit = log.hits[k] if k < len(log.hits) else None
+        fix_rows.append(
+            {
+                "pan_deg": fx.gaze_deg[0],
+                "tilt_deg": fx.gaze_deg[1],
+                "start_s": fx.t_start,
+                "duration_s": fx.t_end - fx.t_start,
+                "target_x_px": fx.target_px[0] if fx.target_px else "",
+                "target_y_px": fx.target_px[1] if fx.target_px else "",
+                "target_pan_deg": target_deg[0] if target_deg else "",
+                "target_tilt_deg": target_deg[1] if target_deg else "",
+                "hit": "" if hit is None else int(hit),
+                "events": fx.events,
+                "oms_events": fx.oms_events,
+            }
+        )
+    if fix_rows:
+        with open(out_dir / "fixations.csv", "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=list(fix_rows[0]))
+            w.writeheader()
+            w.writerows(fix_rows)
+    table = np.array(
+        [[r["pan_deg"], r["tilt_deg"], r["start_s"], r["duration_s"]] for r in fix_rows]
+    ).reshape(-1, 4)
+    scored = [h for h in log.hits if h is not None]
+    sim_s = log.steps * dt
+    metrics: dict[str, Any] = {
+        "steps": log.steps,
+        "simulated_s": sim_s,
+        "wall_s": wall,
+        "real_time_factor": sim_s / wall if wall > 0 else math.nan,
+        "decisions": len(agent.fixations),
+        "decisions_with_target": sum(fx.target_px is not None for fx in agent.fixations),
+        "decisions_scored": len(scored),
+        "detection_accuracy": float(np.mean(scored)) if scored else math.nan,
+        "events": log.events,
+        "events_into_agent": agent.events_in,
+        "events_kept_by_soms": agent.events_oms,
+        "soms_suppression": agent.suppression,
+        **_saccade_metrics(agent, log.clipped),
+        "scanpath": scanpath_stats.summary(table) if len(table) else {},
+    }
+    if error is not None:
+        metrics["error"] = f"{type(error).__name__}: {error}"
+        if isinstance(error, SignalExit):
+            metrics["signal"] = error.name
+    write_json(out_dir / "metrics.json", metrics)
+    if agent.fixations and log.maps:
+        n = min(len(log.maps), len(agent.fixations))
+        plot_scanpath(
+            out_dir / "scanpath.png",
+            log.maps[:n],
+            [
+                {"gaze_deg": fx.gaze_deg, "duration_s": fx.t_end - fx.t_start, "target_deg": tg}
+                for fx, tg in zip(agent.fixations[:n], targets_deg, strict=False)
+            ],
+            f,
+            gaze_trace=np.asarray(log.gaze),
+            title=f"scanpath ({len(agent.fixations)} fixations, {len(agent.saccades)} saccades)",
+            object_paths=_object_paths(log.sightings, f, centre),
+            limits_deg=_ptu_limits(env),
+        )
+    rec = record | {"agent": asdict(p), "summary": {k: metrics[k] for k in ("steps", "events")}}
+    stream.close(rec)
+    write_json(out_dir / "run.json", rec)
+    files = sorted(x.name for x in out_dir.iterdir())
+    return RunResult(metrics=metrics, files=files, error=metrics.get("error"))
+
+
+def run(
+    out_dir: Path, config: RunConfig, progress: Callable[[int, int], None] | None = None
+) -> RunResult:
+    """``wander run``: the agent in the simulated scene."""
+    import gymnasium as gym
+
+    import wander_env  # noqa: F401  (registers the environments)
+
+    record = run_record("wander run", asdict(config), config.seed)
+    env = None
+    try:
+        env = gym.make(
+            "wander/Wander-v0",
+            scene=config.scene,
+            dvs=config.dvs,
+            episode_seconds=config.seconds,
+        )
+        agent = AttentionAgent(config.agent_params(env), seed=config.seed)
+    except KeyboardInterrupt as stop:  # Ctrl-C or a signal while setting up
+        _stopped_in_setup(Path(out_dir), config, record, stop)
+        if env is not None:
+            env.close()
+        raise
+    try:
+        return run_closed_loop(
+            env,
+            agent,
+            config.seconds,
+            out_dir,
+            record,
+            video=config.video,
+            progress=progress,
+            seed=config.seed,
+        )
+    finally:
+        agent.close()
+        env.close()
+
+
+def _stopped_in_setup(
+    out_dir: Path, config: RunConfig, record: dict[str, Any], stop: KeyboardInterrupt
+) -> None:
+    """The run folder of a run stopped before its first step: no events, the signal named."""
+    from wander_env.scene_config import load_scene_config
+
+    camera = load_scene_config(config.scene).camera
+    out_dir.mkdir(parents=True, exist_ok=True)
+    summary = {"steps": 0, "events": 0}
+    rec = record | {"summary": summary}
+    EventStreamWriter(out_dir / "events.h5", (camera.width, camera.height, 2)).close(rec)
+    metrics: dict[str, Any] = {**summary, "stage": "set-up"}
+    metrics["error"] = f"{type(stop).__name__}: {stop} (while setting up)"
+    if isinstance(stop, SignalExit):
+        metrics["signal"] = stop.name
+    write_json(out_dir / "metrics.json", metrics)
+    write_json(out_dir / "run.json", rec)

@@ -1,0 +1,1 @@
+"""The paper's experiments (``wander experiment NAME``), their analyses and ``configs/``."""

@@ -1,0 +1,645 @@
+"""Saccade and fixational speeds: what the PTU's limits and the eye movements cost.
+
+The paper leaves this as future work ("the investigation of saccades and fixational eye
+speeds, exploring the limits of the system and the PTU"); its numbers are the FLIR
+defaults and the fixational walk (N = 8 steps of up to ±60 positions in St_w = 124 ms).
+
+One factor at a time around that baseline (:func:`grid`): the PTU's slew speed and
+acceleration (positions/s, /s²; 0.025714° each), the fixational step amplitude
+(``max_step_pos``) and count (``n_steps``), and the speed of the scene's moving objects
+(their trajectories run ``object_speed_scale`` times faster, :class:`ScaledTrajectory`).
+Each trial:
+
+- runs the agent closed-loop in the ``office`` scene for ``duration_s``
+  (:func:`experiments.jobs.run_agent.run_closed_loop`) and measures the **time to foveate**
+  (decision to settled gaze: the saccades' mean duration), the **foveation error**
+  (reached minus ideal gaze for ``P``, px at the fovea), the **detection accuracy** (the
+  8×8 box around ``P`` touches a moving object) and the **events per second**;
+- for the baseline and the PTU settings, measures the **main sequence**: forced saccades
+  (:meth:`agents.attention.AttentionAgent.saccade_to`) of ``main_sequence_amplitudes_deg``
+  along the pan axis, alternating in direction, in the static ``shelf`` scene rendered at
+  100 Hz (events play no part): pan amplitude reached, peak pan speed (the tilt moves
+  only the half pixel between the fovea and a pixel row) and movement duration (command
+  to standstill, to the 10 ms step) — beside the PTU's rest-to-rest trapezoid
+  (:func:`wander_env.ptu.move_duration`, :func:`wander_env.ptu.peak_speed`).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import tempfile
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any, Literal
+
+import gymnasium as gym
+import numpy as np
+
+import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
+from agents.attention import AgentParams, AttentionAgent
+from agents.fixation import FixationParams
+from experiments.framework import (
+    Comparison,
+    Experiment,
+    Row,
+    TrialSpec,
+    load_artifacts,
+    save_figure,
+)
+from experiments.jobs.run_agent import run_closed_loop
+from experiments.paper import main_sequence
+from experiments.paper.speed_study import plot_surfaces
+from experiments.stats import mean_ci, mean_std, paired_comparison
+from wander_env.env import WanderConfig
+from wander_env.metrics import SPECK_HFOV_DEG, focal_length_px
+from wander_env.ptu import PTUParams, degrees_to_positions, move_duration, peak_speed
+
+__all__ = [
+    "EXPERIMENT",
+    "FACTORS",
+    "ObjectSpeed",
+    "SaccadeSpeedConfig",
+    "ScaledTrajectory",
+    "baseline",
+    "main_sequence_targets",
+    "ptu_for",
+    "theory_main_sequence",
+]
+
+# factor name -> (the grid column it sets, the config field holding its values)
+FACTORS = {
+    "ptu_speed": ("speed_pos_s", "speeds_pos_s"),
+    "ptu_accel": ("accel_pos_s2", "accels_pos_s2"),
+    "fixational_amplitude": ("fixational_step_pos", "fixational_steps_pos"),
+    "fixational_count": ("fixational_n_steps", "fixational_counts"),
+    "window": ("window_s", "windows_s"),
+    "object_speed": ("object_speed_scale", "object_speed_scales"),
+    "ptu_link": ("ptu", "ptu_presets"),
+}
+# The numeric factors (one plot column each); ``ptu_link`` is compared by a test.
+NUMERIC_FACTORS = {k: v for k, v in FACTORS.items() if k != "ptu_link"}
+# The factorial design's factors (object speed and the link stay at the baseline).
+FACTORIAL = ("ptu_speed", "ptu_accel", "fixational_amplitude", "fixational_count", "window")
+PTU_FACTORS = ("baseline", "ptu_speed", "ptu_accel", "ptu_link")
+
+
+@dataclass(frozen=True)
+class SaccadeSpeedConfig:
+    """Defaults: the baseline is the paper's (FLIR defaults, N = 8 steps of ±60 positions,
+    St_w = 124 ms) on the ``flir`` PTU (its 9600-baud command latency); the swept values,
+    the scene, the trial length and the repeats are ours.
+
+    ``design``: ``one_at_a_time`` (the baseline, then each factor's other values) or
+    ``factorial`` (every combination of PTU speed × acceleration × fixational step ×
+    count × window, the other factors at the baseline). Every setting runs ``repeats``
+    seeds (``seed + r``: paired across settings)."""
+
+    scene: str = "office"
+    duration_s: float = 3.0
+    window_s: float = 0.124
+    design: Literal["one_at_a_time", "factorial"] = "one_at_a_time"
+    ptu: Literal["ideal", "flir"] = "flir"
+    windows_s: tuple[float, ...] = (0.05, 0.124, 0.25)
+    ptu_presets: tuple[str, ...] = ("flir", "ideal")
+    speeds_pos_s: tuple[float, ...] = (1000.0, 2000.0, 2902.0)
+    accels_pos_s2: tuple[float, ...] = (1000.0, 2000.0, 8000.0)
+    fixational_steps_pos: tuple[int, ...] = (20, 60, 120)
+    fixational_counts: tuple[int, ...] = (4, 8, 16)
+    object_speed_scales: tuple[float, ...] = (0.5, 1.0, 2.0)
+    main_sequence_amplitudes_deg: tuple[float, ...] = (
+        1.0,
+        2.0,
+        4.0,
+        7.0,
+        10.0,
+        15.0,
+        20.0,
+        30.0,
+        40.0,
+    )
+    main_sequence_scene: str = "shelf"
+    repeats: int = 10
+    dvs: str = "ideal"
+    frames: str = WanderConfig.frames  # the env\'s frame source: keyframes or exact
+
+    def __post_init__(self) -> None:
+        if not self.duration_s > 0:
+            raise ValueError(f"duration_s must be > 0, got {self.duration_s}")
+        for w in (self.window_s, *self.windows_s):
+            if not w >= 0.01 - 1e-12:
+                raise ValueError(f"window_s / windows_s must be >= the 10 ms env step, got {w}")
+        for name in self.ptu_presets:
+            PTUParams.preset(name)  # raises for an unknown preset
+        if self.repeats < 1:
+            raise ValueError(f"repeats must be >= 1, got {self.repeats}")
+        upper = PTUParams().pan_upper_speed
+        if any(not 0 < v <= upper for v in self.speeds_pos_s):
+            raise ValueError(f"speeds_pos_s must be in (0, {upper}] (PU), got {self.speeds_pos_s}")
+        if any(not v > 0 for v in self.accels_pos_s2):
+            raise ValueError(f"accels_pos_s2 must be > 0, got {self.accels_pos_s2}")
+        if any(v < 0 for v in self.fixational_steps_pos):
+            raise ValueError(f"fixational_steps_pos must be >= 0, got {self.fixational_steps_pos}")
+        if any(v < 1 for v in self.fixational_counts):
+            raise ValueError(f"fixational_counts must be >= 1, got {self.fixational_counts}")
+        if any(v < 0 for v in self.object_speed_scales):
+            raise ValueError(f"object_speed_scales must be >= 0, got {self.object_speed_scales}")
+        if not self.main_sequence_amplitudes_deg:
+            raise ValueError("main_sequence_amplitudes_deg must list at least one amplitude")
+        half = math.degrees(math.atan(63.0 / focal_length_px(128, SPECK_HFOV_DEG)))
+        if any(not 0 < a <= half for a in self.main_sequence_amplitudes_deg):
+            raise ValueError(
+                f"main_sequence_amplitudes_deg must be in (0, {half:.1f}] (a pixel on the "
+                f"sensor), got {self.main_sequence_amplitudes_deg}"
+            )
+
+
+# ----------------------------------------------------------------------------------------
+# Pure helpers
+
+
+def baseline(window_s: float = 0.124, ptu: str = "flir") -> dict[str, float | int | str]:
+    """The grid columns at the paper's values (FLIR defaults, the paper's walk, St_w).
+
+    >>> baseline()["speed_pos_s"], baseline()["fixational_n_steps"], baseline()["ptu"]
+    (2000.0, 8, 'flir')
+    """
+    ptu_, fix = PTUParams(), FixationParams()
+    return {
+        "speed_pos_s": float(ptu_.pan_speed),
+        "accel_pos_s2": float(ptu_.pan_accel),
+        "fixational_step_pos": int(fix.max_step_pos),
+        "fixational_n_steps": int(fix.n_steps),
+        "window_s": float(window_s),
+        "object_speed_scale": 1.0,
+        "ptu": ptu,
+    }
+
+
+def ptu_for(speed_pos_s: float, accel_pos_s2: float, preset: str = "ideal") -> PTUParams:
+    """The ``preset``'s unit (:meth:`PTUParams.preset`) with both axes' speed and
+    acceleration set (base speed capped to the speed).
+
+    >>> p = ptu_for(500.0, 4000.0, "flir")
+    >>> p.tilt_speed, p.pan_base_speed, p.tilt_accel, p.link.baudrate
+    (500.0, 500.0, 4000.0, 9600)
+    """
+    d = PTUParams.preset(preset)
+    return replace(
+        d,
+        pan_speed=speed_pos_s,
+        tilt_speed=speed_pos_s,
+        pan_base_speed=min(d.pan_base_speed, speed_pos_s),
+        tilt_base_speed=min(d.tilt_base_speed, speed_pos_s),
+        pan_accel=accel_pos_s2,
+        tilt_accel=accel_pos_s2,
+    )
+
+
+def _trial_ptu(p: dict[str, Any]) -> PTUParams:
+    return ptu_for(float(p["speed_pos_s"]), float(p["accel_pos_s2"]), str(p["ptu"]))
+
+
+def theory_main_sequence(
+    amplitudes_deg: np.ndarray, ptu: PTUParams
+) -> tuple[np.ndarray, np.ndarray]:
+    """(peak speed °/s, duration s) of rest-to-rest pan moves of the PTU's trapezoid.
+
+    >>> v, t = theory_main_sequence(np.array([25.714]), PTUParams())
+    >>> round(float(v[0]), 1), round(float(t[0]), 3)
+    (44.5, 0.732)
+    """
+    r = ptu.pan_resolution_arcsec
+    speeds, durations = [], []
+    for a in np.asarray(amplitudes_deg, float):
+        d = degrees_to_positions(float(a), r)
+        speeds.append(peak_speed(d, ptu.pan_speed, ptu.pan_accel, ptu.pan_base_speed))
+        durations.append(move_duration(d, ptu.pan_speed, ptu.pan_accel, ptu.pan_base_speed))
+    return np.asarray(speeds) * ptu.pan_deg_per_pos, np.asarray(durations)
+
+
+def main_sequence_targets(
+    amplitudes_deg: tuple[float, ...],
+    width: int = 128,
+    height: int = 128,
+    hfov_deg: float = SPECK_HFOV_DEG,
+) -> list[tuple[int, int]]:
+    """Target pixels for pan saccades of the given amplitudes, alternating right and left
+    (rows alternating 63 and 64 so the half-pixel tilt offsets cancel).
+
+    >>> main_sequence_targets((10.0, 10.0))
+    [(71, 63), (56, 64)]
+    """
+    f = focal_length_px(width, hfov_deg)
+    cx = (width - 1) / 2.0
+    out = []
+    for k, a in enumerate(amplitudes_deg):
+        sign = 1.0 if k % 2 == 0 else -1.0
+        x = min(max(round(cx + sign * f * math.tan(math.radians(a))), 0), width - 1)
+        out.append((int(x), height // 2 - 1 + k % 2))
+    return out
+
+
+class ScaledTrajectory:
+    """A trajectory run ``scale`` times faster: ``position(t) = inner.position(scale·t)``."""
+
+    def __init__(self, inner: Any, scale: float) -> None:
+        self.inner, self.scale = inner, scale
+
+    def position(self, t: float) -> np.ndarray:
+        return self.inner.position(self.scale * t)
+
+
+class ObjectSpeed(gym.Wrapper):
+    """The env with its moving objects' trajectories sped up by ``scale`` (after every
+    reset, which builds them anew)."""
+
+    def __init__(self, env: gym.Env, scale: float) -> None:
+        super().__init__(env)
+        self.scale = scale
+
+    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
+        obs, info = self.env.reset(**kwargs)
+        anim = self.env.unwrapped.animator
+        anim.trajectories = tuple(ScaledTrajectory(tr, self.scale) for tr in anim.trajectories)
+        return obs, info
+
+
+# ----------------------------------------------------------------------------------------
+# The trial
+
+
+def _closed_loop(cfg: SaccadeSpeedConfig, p: dict[str, Any], seed: int) -> dict[str, Any]:
+    env = ObjectSpeed(
+        gym.make(
+            "wander/Wander-v0",
+            scene=cfg.scene,
+            dvs=cfg.dvs,
+            frames=cfg.frames,
+            ptu=_trial_ptu(p),
+            episode_seconds=cfg.duration_s + 1.0,
+        ),
+        float(p["object_speed_scale"]),
+    )
+    fixation = FixationParams(
+        n_steps=int(p["fixational_n_steps"]), max_step_pos=int(p["fixational_step_pos"])
+    )
+    agent = AttentionAgent(
+        AgentParams.for_env(env, window_s=float(p["window_s"]), fixational=True, fixation=fixation),
+        seed=seed,
+    )
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            record = {"experiment": "saccade_speed", "params": p, "seed": seed}
+            run = run_closed_loop(env, agent, cfg.duration_s, Path(tmp), record, False, seed=seed)
+            link = env.unwrapped.ptu.link
+            latencies = list(link.latencies_s) if link is not None else []
+    finally:
+        agent.close()
+        env.close()
+    m = run.metrics
+    durations = [s.t_end - s.t_start for s in agent.saccades]
+    return {
+        # Command latency on the PTU's serial link (0 on the ideal unit).
+        "command_latency_mean_s": mean_std(latencies)[0] if latencies else 0.0,
+        "commands_sent": len(latencies),
+        "saccades": len(agent.saccades),
+        "time_to_foveate_s": mean_std(durations)[0],
+        "foveation_error_x_px": m.get("foveation_error_x_px_mean", math.nan),
+        "foveation_error_y_px": m.get("foveation_error_y_px_mean", math.nan),
+        "detection_accuracy": m["detection_accuracy"],
+        "decisions_scored": m["decisions_scored"],
+        "events_per_s": m["events"] / m["simulated_s"],
+        "soms_suppression": m["soms_suppression"],
+    }
+
+
+def _main_sequence(cfg: SaccadeSpeedConfig, ptu: PTUParams, seed: int) -> dict[str, Any]:
+    env = gym.make(
+        "wander/Wander-v0",
+        scene=cfg.main_sequence_scene,
+        dvs=cfg.dvs,
+        frames=cfg.frames,
+        ptu=ptu,
+        render_rate_hz=100.0,
+        max_subframes=1,
+        ground_truth=False,
+        episode_seconds=1000.0,
+    )
+    base = env.unwrapped
+    agent = AttentionAgent(AgentParams.for_env(env, fixational=False), seed=seed)
+    amp, vpeak, dur = [], [], []
+    try:
+        obs, info = env.reset(seed=seed)
+        agent.reset()
+        for target in main_sequence_targets(cfg.main_sequence_amplitudes_deg):
+            start = np.asarray(obs["gaze"], float)
+            t0 = float(info["t"])
+            n = len(agent.saccades)
+            agent.saccade_to(target, (float(start[0]), float(start[1])), info)
+            peak, t_stop = 0.0, t0
+            while len(agent.saccades) == n:
+                obs, _, _, _, info = env.step(agent.act(obs, info))
+                peak = max(peak, abs(base.ptu.pan_velocity_deg_s))
+                if info["moving"]:
+                    t_stop = float(info["t"]) + 0.0  # still moving at this step's end
+            amp.append(abs(float(obs["gaze"][0]) - float(start[0])))
+            vpeak.append(peak)
+            # Standstill is reached within the step after the last moving one.
+            dur.append(t_stop + agent.params.step_s - t0)
+    finally:
+        agent.close()
+        env.close()
+    vfit = main_sequence.fit_saturating(amp, vpeak)
+    dfit = main_sequence.fit_linear(amp, dur)
+    return {
+        "_ms_amplitude_deg": np.asarray(amp),
+        "_ms_peak_velocity_deg_s": np.asarray(vpeak),
+        "_ms_duration_s": np.asarray(dur),
+        "ms_peak_velocity_max_deg_s": max(vpeak) if vpeak else math.nan,
+        "ms_duration_max_s": max(dur) if dur else math.nan,
+        # The main-sequence fits (parameters and 95 % intervals), per PTU setting.
+        **vfit.as_dict("ms_v_"),
+        **dfit.as_dict("ms_d_"),
+    }
+
+
+def run_trial(cfg: SaccadeSpeedConfig, spec: TrialSpec) -> dict[str, Any]:
+    """The closed loop at one setting; at the first repeat of a setting marked
+    ``main_sequence`` (one per PTU setting: the PTU is deterministic), its main sequence
+    and the fits too."""
+    p = dict(spec.params)
+    out = _closed_loop(cfg, p, spec.seed)
+    if p["main_sequence"] and spec.repeat == 0:
+        out |= _main_sequence(cfg, _trial_ptu(p), spec.seed)
+    return out
+
+
+def grid(cfg: SaccadeSpeedConfig) -> list[dict[str, Any]]:
+    """``one_at_a_time``: the baseline, then each factor's other values with the rest at
+    the baseline; ``factorial``: every combination of :data:`FACTORIAL`'s values. The
+    first setting of each PTU (speed, acceleration, link) is marked ``main_sequence``."""
+    base = baseline(cfg.window_s, cfg.ptu)
+    rows: list[dict[str, Any]] = []
+    if cfg.design == "factorial":
+        cols = [FACTORS[f] for f in FACTORIAL]
+        for values in itertools.product(*(getattr(cfg, field) for _, field in cols)):
+            point = dict(zip((c for c, _ in cols), values, strict=True))
+            rows.append({"factor": "factorial", **base, **point})
+    else:
+        rows.append({"factor": "baseline", **base})
+        for factor, (column, field_name) in FACTORS.items():
+            for v in getattr(cfg, field_name):
+                if v != base[column]:
+                    rows.append({"factor": factor, **base, column: v})
+    seen: set[tuple[Any, ...]] = set()
+    for r in rows:
+        key = (r["speed_pos_s"], r["accel_pos_s2"], r["ptu"])
+        r["main_sequence"] = key not in seen
+        seen.add(key)
+    return rows
+
+
+# ----------------------------------------------------------------------------------------
+# Summary and plots
+
+
+def _value(row: Row) -> tuple[str, Any]:
+    factor = str(row["factor"])
+    if factor == "baseline":
+        return "baseline", ""
+    return factor, row[FACTORS[factor][0]]
+
+
+def _fmt(v: float, spec: str) -> str:
+    return "—" if math.isnan(v) else format(v, spec)
+
+
+SETTING_COLUMNS = (
+    "speed_pos_s",
+    "accel_pos_s2",
+    "fixational_step_pos",
+    "fixational_n_steps",
+    "window_s",
+    "object_speed_scale",
+    "ptu",
+)
+# (column, label, format) of the closed-loop measures summarised per setting.
+MEASURES = (
+    ("time_to_foveate_s", "time to foveate (s)", ".3f"),
+    ("detection_accuracy", "detection accuracy", ".2f"),
+    ("foveation_error_x_px", "foveation error x (px)", ".2f"),
+    ("foveation_error_y_px", "foveation error y (px)", ".2f"),
+    ("command_latency_mean_s", "command latency (s)", ".4f"),
+)
+TESTED = ("time_to_foveate_s", "detection_accuracy")
+
+
+def settings(rows: list[Row]) -> dict[tuple[Any, ...], list[Row]]:
+    """Rows grouped by setting (:data:`SETTING_COLUMNS`), in grid order."""
+    out: dict[tuple[Any, ...], list[Row]] = {}
+    for r in rows:
+        out.setdefault(tuple(r[c] for c in SETTING_COLUMNS), []).append(r)
+    return out
+
+
+def _label(r: Row) -> str:
+    factor, v = _value(r)
+    return "baseline (paper's values)" if factor == "baseline" else f"{factor} = {v}"
+
+
+def _ms_text(r: Row) -> str:
+    """The main-sequence fits stored in a row, as text ('' when none)."""
+    if math.isnan(float(r.get("ms_v_vmax", math.nan))):
+        return ""
+
+    def part(name: str, unit: str, fmt: str) -> str:
+        v, lo, hi = (float(r[f"{name}{x}"]) for x in ("", "_low", "_high"))
+        return f"{v:{fmt}} [{lo:{fmt}}, {hi:{fmt}}] {unit}"
+
+    return (
+        f"V = Vmax(1 − e^(−A/C)): Vmax {part('ms_v_vmax', '°/s', '.1f')}, "
+        f"C {part('ms_v_c', '°', '.2f')} (R² {float(r['ms_v_r2']):.3f}); D = D0 + k·A: "
+        f"D0 {part('ms_d_d0', 's', '.3f')}, k {part('ms_d_k', 's/°', '.4f')} "
+        f"(R² {float(r['ms_d_r2']):.3f})"
+    )
+
+
+def _pairs(a: list[Row], b: list[Row], key: str) -> tuple[list[float], list[float]]:
+    bs = {int(r["seed"]): float(r[key]) for r in b}
+    common = [r for r in a if int(r["seed"]) in bs]
+    return [float(r[key]) for r in common], [bs[int(r["seed"])] for r in common]
+
+
+def compare(cfg: SaccadeSpeedConfig, rows: list[Row]) -> list[Comparison]:
+    """Per setting: each measure's mean over the repeats with its bootstrap 95 % interval,
+    the time to foveate and detection accuracy against the baseline (paired by seed:
+    permutation test, d_z, rank-biserial), and the main-sequence fits of each PTU
+    setting (``factorial``: per factor level, the marginal means). The paper gives
+    no numbers here (future work), except its 124 ms decision latency."""
+    groups = settings(rows)
+    out = [
+        Comparison(
+            "latency to the salient point",
+            "0.124 s (St_w), then the saccade",
+            f"{cfg.window_s:g} s window + time to foveate "
+            f"{_fmt(mean_std(float(r['time_to_foveate_s']) for r in rows)[0], '.2f')} s "
+            "(mean over all trials)",
+        )
+    ]
+    base = next((g for g in groups.values() if str(g[0]["factor"]) == "baseline"), None)
+    factorial = any(str(r["factor"]) == "factorial" for r in rows)
+    if factorial:
+        for factor in FACTORIAL:
+            col = FACTORS[factor][0]
+            for v in dict.fromkeys(r[col] for r in rows):
+                sel = [r for r in rows if r[col] == v]
+                parts = []
+                for key, label, fmt in MEASURES[:2]:
+                    parts.append(f"{label} {_ci(sel, key, fmt)}")
+                out.append(Comparison(f"{factor} = {v} (marginal)", "—", "; ".join(parts), ""))
+    else:
+        for g in groups.values():
+            r0 = g[0]
+            parts = [f"{label} {_ci(g, key, fmt)}" for key, label, fmt in MEASURES]
+            notes = []
+            if base is not None and g is not base:
+                for key in TESTED:
+                    t = paired_comparison(*_pairs(g, base, key))
+                    notes.append(f"{key} − baseline: {t.text('.3g')}")
+            out.append(
+                Comparison(
+                    _label(r0),
+                    "— (future work)",
+                    "; ".join(parts),
+                    "; ".join(notes) or f"{len(g)} repeats",
+                )
+            )
+    for g in groups.values():
+        fits = next((_ms_text(r) for r in g if _ms_text(r)), "")
+        if fits:
+            r0 = g[0]
+            name = (
+                f"{float(r0['speed_pos_s']):g} pos/s, {float(r0['accel_pos_s2']):g} pos/s², "
+                f"{r0['ptu']} PTU"
+            )
+            out.append(
+                Comparison(
+                    f"main sequence, {name}",
+                    "— (future work)",
+                    fits,
+                    "curve_fit, 95 % intervals from the covariance; D = command to standstill",
+                )
+            )
+    return out
+
+
+def _ci(rows: list[Row], key: str, fmt: str) -> str:
+    m, lo, hi, n = mean_ci(float(r[key]) for r in rows)
+    if math.isnan(m):
+        return "—"
+    if math.isnan(lo):
+        return f"{m:{fmt}} (n = {n})"
+    return f"{m:{fmt}} [{lo:{fmt}}, {hi:{fmt}}] (n = {n})"
+
+
+def plot(cfg: SaccadeSpeedConfig, rows: list[Row], results_dir: Path, fig_dir: Path) -> list[Path]:
+    """The main sequence (amplitude vs peak velocity and duration) per PTU setting, with
+    the PTU's trapezoid; and each measure against each factor."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    amps = np.linspace(0.5, max(cfg.main_sequence_amplitudes_deg), 100)
+    k = 0
+    for r in rows:
+        if r["repeat"] != 0:
+            continue
+        arts = load_artifacts(results_dir, r)
+        if "ms_amplitude_deg" not in arts:
+            continue
+        ptu = _trial_ptu(r)
+        label = (
+            f"{ptu.pan_speed * ptu.pan_deg_per_pos:.0f} °/s, "
+            f"{ptu.pan_accel * ptu.pan_deg_per_pos:.0f} °/s², {r['ptu']}"
+        )
+        v, t = theory_main_sequence(amps, ptu)
+        c = f"C{k}"
+        ms_amp = arts["ms_amplitude_deg"]
+        mk = dict(color=c, marker="osD^v<>p"[k % 8], ls="none", mfc="none" if k == 0 else c)
+        axes[0].plot(ms_amp, arts["ms_peak_velocity_deg_s"], label=label, **mk)
+        axes[0].plot(amps, v, "--", color=c, lw=0.8)
+        axes[1].plot(ms_amp, arts["ms_duration_s"], label=label, **mk)
+        axes[1].plot(amps, t, "--", color=c, lw=0.8)
+        k += 1
+    axes[0].set(xlabel="saccade amplitude (°)", ylabel="peak velocity (°/s)")
+    axes[0].set_title("main sequence (dashed: the PTU's trapezoid)")
+    axes[1].set(xlabel="saccade amplitude (°)", ylabel="duration (s)", title="saccade duration")
+    axes[0].legend(fontsize=7)
+    fig.suptitle(f"Main sequence of the closed-loop saccades ({len(rows)} trials)", fontsize=10)
+    ms_path = save_figure(fig, fig_dir / "main_sequence.png")
+    if any(str(r["factor"]) == "factorial" for r in rows):
+        return [ms_path, plot_surfaces(rows, fig_dir / "response_surfaces.png")]
+
+    metrics = [
+        ("time_to_foveate_s", "time to foveate (s)"),
+        ("foveation_error_x_px", "foveation error (px): x, y"),
+        ("detection_accuracy", "detection accuracy"),
+        ("events_per_s", "events / s"),
+    ]
+    base = [r for r in rows if r["factor"] == "baseline"]
+    fig, axes = plt.subplots(
+        len(metrics),
+        len(NUMERIC_FACTORS),
+        figsize=(3.0 * len(NUMERIC_FACTORS), 2.4 * len(metrics)),
+        squeeze=False,
+    )
+    for j, (factor, (column, _)) in enumerate(NUMERIC_FACTORS.items()):
+        sel = base + [r for r in rows if r["factor"] == factor]
+        xs = sorted({float(r[column]) for r in sel})
+        for i, (key, label) in enumerate(metrics):
+            ys = [mean_std(float(r[key]) for r in sel if float(r[column]) == x)[0] for x in xs]
+            ax = axes[i, j]
+            ax.plot(xs, ys, "o-")
+            if key == "foveation_error_x_px":
+                y2 = [
+                    mean_std(
+                        float(r["foveation_error_y_px"]) for r in sel if float(r[column]) == x
+                    )[0]
+                    for x in xs
+                ]
+                ax.plot(xs, y2, "s--")
+            if i == len(metrics) - 1:
+                ax.set_xlabel(column)
+            if j == 0:
+                ax.set_ylabel(label, fontsize=8)
+            if i == 0:
+                ax.set_title(factor, fontsize=9)
+    fig.suptitle(
+        "One factor at a time around the paper's values (PTU speed and acceleration, "
+        "fixational steps, object speed)",
+        fontsize=10,
+    )
+    sweep_path = save_figure(fig, fig_dir / "saccade_speed.png")
+    return [ms_path, sweep_path]
+
+
+EXPERIMENT = Experiment(
+    name="saccade_speed",
+    description=(
+        "One factor at a time around the paper's values (or a factorial design): PTU speed "
+        "and acceleration, fixational step amplitude and count, window, object speed, the "
+        "PTU's serial-link latency; time to foveate, foveation error, detection accuracy "
+        "and events per second in the office scene over seeded repeats with intervals and "
+        "paired tests, and the main sequence (peak velocity and duration against "
+        "amplitude) with its saturating and linear fits."
+    ),
+    config_type=SaccadeSpeedConfig,
+    grid=grid,
+    run_trial=run_trial,
+    plot=plot,
+    compare=compare,
+)

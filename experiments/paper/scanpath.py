@@ -1,0 +1,565 @@
+"""Scanpaths of the attention agent: the paper's "saccades" vs "fixational" conditions.
+
+The paper (§"evaluating the scanpath") ran its model on iCub recordings of objects on a
+shelf, the eyes making fixational movements throughout, in two conditions:
+
+- ``saccades``: no time for spatiotemporal integration, maps and a saccade every
+  ``t_w = 10 ms``;
+- ``fixational``: ``t_w = St_w = 124 ms`` (the demonstrator's latency);
+
+and showed (figure only) that the fixational condition detects objects while the
+saccade condition makes "random saccadic jumps to non-informative locations".
+
+Here the closed loop (:func:`experiments.jobs.run_agent.run_closed_loop`) runs the agent for
+``duration_s`` in the ``shelf`` (static) and ``office`` (two moving objects) scenes, in
+both conditions. As in the paper's recordings the fixational random walk goes on in both
+conditions (``saccades_fixational``; set it false for a saccade condition without any
+fixational movement — in a static scene that camera never sees an event and never
+moves). Per trial:
+
+- the scanpath: the agent's fixation windows merged into fixations (the windows between
+  two saccades, :func:`merge_windows`), its saccades, and the saliency maps of its
+  decisions put together on the pan-tilt sphere
+  (:func:`experiments.jobs.scanpath_figure.saliency_mosaic`);
+- statistics (:mod:`experiments.scanpath_stats`): fixation count and duration, saccade
+  amplitude (reached minus start gaze), revisits and coverage (within
+  ``radius_deg``), and the **object hit rate**: the fraction of the salient points
+  ``P`` that lie on an object of the scene — static or moving, not walls, floor or
+  furniture — found by casting ``P``'s pixel ray into the scene at the decision
+  (:func:`wander_env.camera.cast_pixel`); ``object_hit_rate_box`` counts ``P``
+  whose ``box``×``box`` square (the paper's detection box) sees an object; in scenes with
+  moving objects the run's detection accuracy (the box touches a moving object's mask)
+  too;
+- the areas of interest: per decision the scene object under the fovea (ray cast), per
+  fixation its most frequent one (``aois_json``; ``-`` = none), their stationary and
+  transition entropy; the fixation table itself rides in the row (``scanpath_json``);
+- over the repeats (``repeats`` = 10 seeds, paired across conditions):
+  :mod:`experiments.paper.scanpath_analysis` — bootstrap 95 % intervals per cell, the
+  fixational − saccades differences tested (permutation test, d_z, rank-biserial),
+  MultiMatch and AOI-string (Levenshtein) similarity within and between conditions;
+- the fixation table for scanpath-comparison tools (MultiMatch, ScanMatch), written by
+  :func:`plot` as ``fixations/<scene>_<condition>_seed<N>.csv`` in the result folder
+  with the columns ``x, y, start, duration``: degrees (``x = −pan``, positive to the
+  right, ``y = −tilt``, positive down, as on a screen) and seconds.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import tempfile
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import gymnasium as gym
+import numpy as np
+
+import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
+from agents.attention import AgentParams, AttentionAgent
+from experiments import scanpath_stats
+from experiments.framework import (
+    Comparison,
+    Experiment,
+    Row,
+    TrialSpec,
+    load_artifacts,
+    save_figure,
+)
+from experiments.jobs.run_agent import run_closed_loop
+from experiments.jobs.scanpath_figure import pixel_to_angles, saliency_mosaic
+from experiments.stats import mean_std
+from wander_env.camera import cast_pixel
+from wander_env.env import WanderConfig
+from wander_env.metrics import SPECK_HFOV_DEG, focal_length_px
+from wander_env.mjcf import object_body_name
+
+__all__ = [
+    "EXPERIMENT",
+    "EXPORT_COLUMNS",
+    "ScanpathAgent",
+    "ScanpathConfig",
+    "agent_params",
+    "export_table",
+    "merge_windows",
+    "write_export",
+]
+
+EXPORT_COLUMNS = ("x", "y", "start", "duration")
+Condition = Literal["saccades", "fixational"]
+
+
+@dataclass(frozen=True)
+class ScanpathConfig:
+    """Defaults: the paper's two windows (10 ms, 124 ms) and 8×8 box, the shelf scene;
+    the office scene, trial length, radii and DVS preset are ours."""
+
+    scenes: tuple[str, ...] = ("shelf", "office")
+    conditions: tuple[Condition, ...] = ("saccades", "fixational")
+    duration_s: float = 5.0
+    saccades_window_s: float = 0.01
+    fixational_window_s: float = 0.124
+    saccades_fixational: bool = True
+    repeats: int = 10
+    box: int = 8
+    radius_deg: float = 5.0
+    mosaic_step_deg: float = 0.5
+    dvs: str = "ideal"
+    frames: str = WanderConfig.frames  # the env\'s frame source: keyframes or exact
+    # MultiMatch normalises lengths and positions by a "screen": the camera's field of
+    # view (degrees; Speck's 112.8° both ways by default).
+    multimatch_screen_deg: tuple[float, float] = (SPECK_HFOV_DEG, SPECK_HFOV_DEG)
+
+    def __post_init__(self) -> None:
+        if not self.duration_s > 0:
+            raise ValueError(f"duration_s must be > 0, got {self.duration_s}")
+        for name in ("saccades_window_s", "fixational_window_s"):
+            v = getattr(self, name)
+            if not v >= 0.01 - 1e-12:
+                raise ValueError(f"{name} must be >= the 10 ms env step, got {v}")
+        if self.repeats < 1:
+            raise ValueError(f"repeats must be >= 1, got {self.repeats}")
+        if self.box < 1:
+            raise ValueError(f"box must be >= 1, got {self.box}")
+        for name in ("radius_deg", "mosaic_step_deg"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if len(self.multimatch_screen_deg) != 2 or not all(
+            math.isfinite(v) and v > 0 for v in self.multimatch_screen_deg
+        ):
+            raise ValueError(
+                f"multimatch_screen_deg must be two angles > 0, got {self.multimatch_screen_deg}"
+            )
+
+
+# ----------------------------------------------------------------------------------------
+# Pure helpers
+
+
+def merge_windows(windows: np.ndarray, ends_fixation: Sequence[bool]) -> np.ndarray:
+    """Fixation windows ``(n, 4)`` (pan, tilt, start, duration) -> fixations: each run of
+    consecutive windows up to one that ends it (its ``P`` started a saccade) becomes one
+    fixation, at the first window's gaze, lasting from its start to the last one's end.
+
+    >>> w = np.array([[0, 0, 0.0, 0.1], [0, 0, 0.1, 0.1], [5, 1, 0.5, 0.1]])
+    >>> merge_windows(w, [False, True, True]).tolist()
+    [[0.0, 0.0, 0.0, 0.2], [5.0, 1.0, 0.5, 0.1]]
+    """
+    w = np.asarray(windows, dtype=np.float64).reshape(-1, 4)
+    if len(ends_fixation) != len(w):
+        raise ValueError(f"{len(w)} windows but {len(ends_fixation)} flags")
+    out: list[list[float]] = []
+    cur: list[float] | None = None
+    for row, end in zip(w, ends_fixation, strict=True):
+        if cur is None:
+            cur = [row[0], row[1], row[2], row[3]]
+        else:
+            cur[3] = row[2] + row[3] - cur[2]
+        if end:
+            out.append(cur)
+            cur = None
+    if cur is not None:
+        out.append(cur)
+    return np.array(out, dtype=np.float64).reshape(-1, 4)
+
+
+def export_table(fixations: np.ndarray) -> list[dict[str, float]]:
+    """Fixations ``(pan, tilt, start, duration)`` -> rows of :data:`EXPORT_COLUMNS`:
+    ``x = −pan`` (right), ``y = −tilt`` (down), degrees; start and duration in seconds.
+
+    >>> export_table(np.array([[2.0, -1.0, 0.5, 0.25]]))
+    [{'x': -2.0, 'y': 1.0, 'start': 0.5, 'duration': 0.25}]
+    """
+    f = np.asarray(fixations, dtype=np.float64).reshape(-1, 4)
+    return [
+        {"x": -float(p) + 0.0, "y": -float(t) + 0.0, "start": float(s), "duration": float(d)}
+        for p, t, s, d in f
+    ]
+
+
+def write_export(fixations: np.ndarray, path: Path) -> Path:
+    """Write :func:`export_table` as CSV (floats exact)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(EXPORT_COLUMNS), lineterminator="\n")
+        w.writeheader()
+        for row in export_table(fixations):
+            w.writerow({k: repr(v) for k, v in row.items()})
+    return path
+
+
+def _export_name(row: Row) -> str:
+    return f"{row['scene']}_{row['condition']}_seed{row['seed']}.csv"
+
+
+# ----------------------------------------------------------------------------------------
+# The agent, watched
+
+
+class ScanpathAgent(AttentionAgent):
+    """The attention agent, also keeping per decision the saliency map, the gaze and
+    which scene object the box around ``P`` sees (ray casts in ``env``'s current pose)."""
+
+    def __init__(self, params: AgentParams, seed: int, env: Any, box: int = 8) -> None:
+        self._env, self._box = env.unwrapped, box
+        scene = self._env.scene
+        names = {o.name or f"static_{i}" for i, o in enumerate(scene.static_objects)}
+        names |= {object_body_name(k) for k in range(1, len(scene.moving_objects) + 1)}
+        self._objects = names
+        super().__init__(params, seed=seed)
+
+    def reset(self, seed: int | None = None) -> None:
+        super().reset(seed)
+        self.maps: list[np.ndarray] = []
+        self.map_gazes: list[tuple[float, float]] = []
+        # Per decision with a P: (object under P, object most of the box sees); "" = none.
+        self.labels: list[tuple[str, str]] = []
+        # Per decision: the object under the fovea (the fixation's area of interest).
+        self.fovea_labels: list[str] = []
+
+    def act(self, observation: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
+        action = super().act(observation, info)
+        if self.decided:
+            gaze = tuple(float(g) for g in np.asarray(observation["gaze"]).reshape(2))
+            self.maps.append(np.asarray(self.saliency, np.float32).copy())
+            self.map_gazes.append(gaze)
+            p = self.params
+            self.fovea_labels.append(self._object((p.width_px // 2, p.height_px // 2)))
+            if self.target is not None:
+                self.labels.append(self._objects_at(self.target))
+        return action
+
+    def _object(self, xy: tuple[int, int]) -> str:
+        p = self.params
+        name = cast_pixel(self._env.model, self._env.data, xy, p.width_px, p.height_px)[2]
+        return name if name in self._objects else ""
+
+    def _objects_at(self, xy: tuple[int, int]) -> tuple[str, str]:
+        """(the object under ``xy``, the object most of the box's pixels see)."""
+        p, half = self.params, self._box // 2
+        seen: Counter[str] = Counter()
+        for y in range(max(xy[1] - half, 0), min(xy[1] - half + self._box, p.height_px)):
+            for x in range(max(xy[0] - half, 0), min(xy[0] - half + self._box, p.width_px)):
+                seen[self._object((x, y))] += 1
+        seen.pop("", None)
+        return self._object(xy), seen.most_common(1)[0][0] if seen else ""
+
+
+def agent_params(cfg: ScanpathConfig, condition: str, env: Any) -> AgentParams:
+    """The agent of a condition: the window and whether the fixational walk runs."""
+    if condition == "saccades":
+        return AgentParams.for_env(
+            env, window_s=cfg.saccades_window_s, fixational=cfg.saccades_fixational
+        )
+    if condition == "fixational":
+        return AgentParams.for_env(env, window_s=cfg.fixational_window_s, fixational=True)
+    raise ValueError(f"unknown condition {condition!r}; expected 'saccades' or 'fixational'")
+
+
+# ----------------------------------------------------------------------------------------
+# The trial
+
+
+def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
+    """One scene / condition: the closed loop for ``duration_s``, then the statistics."""
+    scene, condition = str(spec.params["scene"]), str(spec.params["condition"])
+    env = gym.make(
+        "wander/Wander-v0",
+        scene=scene,
+        dvs=cfg.dvs,
+        frames=cfg.frames,
+        episode_seconds=cfg.duration_s + 1.0,
+    )
+    agent = ScanpathAgent(agent_params(cfg, condition, env), spec.seed, env, cfg.box)
+    record = {"experiment": "scanpath", "params": dict(spec.params), "seed": spec.seed}
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            run = run_closed_loop(
+                env, agent, cfg.duration_s, Path(tmp), record, video=False, seed=spec.seed
+            )
+    finally:
+        agent.close()
+        env.close()
+    m = run.metrics
+    p = agent.params
+    f = focal_length_px(p.width_px, p.hfov_deg)
+    centre = ((p.width_px - 1) / 2.0, (p.height_px - 1) / 2.0)
+    fx = agent.fixations
+    windows = np.array(
+        [[*w.gaze_deg, w.t_start, w.t_end - w.t_start] for w in fx], dtype=np.float64
+    ).reshape(-1, 4)
+    ends = [w.target_px is not None for w in fx]
+    table = merge_windows(windows, ends)
+    aois = scanpath_stats.fixation_aois(agent.fovea_labels, ends)
+    hits = [bool(centre) for centre, _ in agent.labels]
+    box_hits = [bool(box) for _, box in agent.labels]
+    amps = np.array(
+        [
+            scanpath_stats.angular_distance(np.array(s.from_target_deg), np.array(s.to_gaze_deg))[0]
+            for s in agent.saccades
+        ]
+    )
+    targets = np.array(
+        [
+            pixel_to_angles(w.target_px, g, f, centre)
+            for w, g in zip(fx, agent.map_gazes, strict=True)
+            if w.target_px is not None
+        ],
+        dtype=np.float64,
+    ).reshape(-1, 2)
+    out: dict[str, Any] = {
+        "decisions": len(fx),
+        "decisions_with_target": len(agent.labels),
+        "fixations": len(table),
+        "fixation_duration_mean_s": mean_std(table[:, 3])[0],
+        "fixation_duration_std_s": mean_std(table[:, 3])[1],
+        "saccades": len(agent.saccades),
+        "saccade_amplitude_mean_deg": mean_std(amps)[0],
+        "saccade_amplitude_std_deg": mean_std(amps)[1],
+        "object_hit_rate": float(np.mean(hits)) if hits else math.nan,
+        "object_hit_rate_box": float(np.mean(box_hits)) if box_hits else math.nan,
+        "objects_visited": len({name for name, _ in agent.labels if name}),
+        "revisits": scanpath_stats.revisits(table, cfg.radius_deg),
+        "coverage_deg2": scanpath_stats.coverage(table, cfg.radius_deg),
+        "aois_visited": len(set(aois) - {scanpath_stats.BACKGROUND}),
+        "aoi_stationary_entropy": scanpath_stats.stationary_entropy(aois),
+        "aoi_transition_entropy": scanpath_stats.transition_entropy(aois),
+        "detection_accuracy_moving": m["detection_accuracy"],
+        "events_per_s": m["events"] / m["simulated_s"],
+        "soms_suppression": m["soms_suppression"],
+        # The scanpath itself, for the pairwise comparisons and the user's own analysis.
+        "scanpath_json": json.dumps([[round(float(v), 6) for v in f] for f in table]),
+        "aois_json": json.dumps(aois),
+        "_fixations": table,
+        "_targets_deg": targets,
+        "_target_hits": np.array(hits, dtype=bool),
+    }
+    if agent.maps:
+        grid_ = saliency_mosaic(agent.maps, agent.map_gazes, f, cfg.mosaic_step_deg)
+        out |= {
+            "_mosaic_pan": grid_.pan,
+            "_mosaic_tilt": grid_.tilt,
+            "_mosaic": grid_.values.astype(np.float32),
+        }
+    return out
+
+
+def grid(cfg: ScanpathConfig) -> list[dict[str, Any]]:
+    return [{"scene": s, "condition": c} for s in cfg.scenes for c in cfg.conditions]
+
+
+# ----------------------------------------------------------------------------------------
+# Summary, exports and plots
+
+
+def _by(rows: list[Row], scene: str, condition: str, metric: str) -> tuple[float, float]:
+    return mean_std(
+        float(r[metric]) for r in rows if r["scene"] == scene and r["condition"] == condition
+    )
+
+
+def _metrics(cfg: ScanpathConfig) -> list[tuple[str, str, str]]:
+    """(label, column, format) of the per-trial measures summarised and tested."""
+    return [
+        ("object hit rate", "object_hit_rate", "{:.0%}"),
+        (f"object hit rate, {cfg.box}×{cfg.box} box", "object_hit_rate_box", "{:.0%}"),
+        ("moving-object detection accuracy", "detection_accuracy_moving", "{:.0%}"),
+        ("objects visited", "objects_visited", "{:.1f}"),
+        ("fixations", "fixations", "{:.1f}"),
+        ("fixation duration (s)", "fixation_duration_mean_s", "{:.3f}"),
+        ("saccade amplitude (°)", "saccade_amplitude_mean_deg", "{:.1f}"),
+        ("revisits", "revisits", "{:.1f}"),
+        (f"coverage (deg², {cfg.radius_deg:g}° radius)", "coverage_deg2", "{:.0f}"),
+        ("AOI stationary entropy (normalised)", "aoi_stationary_entropy", "{:.2f}"),
+        ("AOI transition entropy (normalised)", "aoi_transition_entropy", "{:.2f}"),
+    ]
+
+
+# The paper's statements (its scanpath result is a figure, no numbers).
+PAPER_SCANPATH = {
+    "object_hit_rate": (
+        "fixational: salient points on the objects; saccades: random jumps to "
+        "non-informative locations (figure, no numbers)"
+    ),
+    "stability": "fixational eye movements are needed for stable scanpaths (figure)",
+}
+
+
+def _ci_text(v: tuple[float, float, float, int], fmt: str) -> str:
+    m, lo, hi, n = v
+    if math.isnan(m):
+        return "—"
+    if math.isnan(lo):
+        return f"{fmt.format(m)} (n = {n})"
+    return f"{fmt.format(m)} [{fmt.format(lo)}, {fmt.format(hi)}] (n = {n})"
+
+
+def compare(cfg: ScanpathConfig, rows: list[Row]) -> list[Comparison]:
+    """Per scene and measure: each condition's mean over the repeats with its bootstrap
+    95 % interval, and the fixational − saccades difference tested (paired by seed:
+    permutation test, d_z, rank-biserial); then the MultiMatch / AOI-string similarity
+    within and between the conditions, and whether the fixational scanpaths are the more
+    repeatable (:mod:`experiments.paper.scanpath_analysis`)."""
+    from experiments.paper import scanpath_analysis as sa
+
+    scenes = list(dict.fromkeys(str(r["scene"]) for r in rows))
+    conditions = list(dict.fromkeys(str(r["condition"]) for r in rows))
+    metrics = _metrics(cfg)
+    summ = sa.cell_summaries(rows, [k for _, k, _ in metrics])
+    tests = sa.condition_tests(rows, [k for _, k, _ in metrics])
+    per = f"{cfg.duration_s:g} s per trial"
+    out = []
+    for s in scenes:
+        for label, key, fmt in metrics:
+            parts = [f"{c} {_ci_text(summ[(s, c, key)], fmt)}" for c in conditions]
+            t = tests.get((s, key))
+            note = f"fixational − saccades: {t.text('.3g')}; {per}" if t is not None else per
+            out.append(
+                Comparison(f"{s}: {label}", PAPER_SCANPATH.get(key, "—"), " / ".join(parts), note)
+            )
+    if any("scanpath_json" in r for r in rows):
+        screen = tuple(cfg.multimatch_screen_deg)
+        for t in sa.similarity_table(rows, screen):
+            parts = [
+                f"{k} {t[k]:.3f} [{t[k + '_low']:.3f}, {t[k + '_high']:.3f}]"
+                if not math.isnan(t[k])
+                else f"{k} —"
+                for k in sa.SIMILARITY_MEASURES
+            ]
+            n = max(t[k + "_n"] for k in sa.SIMILARITY_MEASURES)
+            out.append(
+                Comparison(
+                    f"{t['scene']}: MultiMatch, {t['group']}",
+                    "—",
+                    "; ".join(parts),
+                    f"mean over {n} pairs of trials (pairs share trials: descriptive)",
+                )
+            )
+        for (s, k), c in sa.stability_tests(rows, screen).items():
+            out.append(
+                Comparison(
+                    f"{s}: repeatability ({k} similarity to the other seeds)",
+                    PAPER_SCANPATH["stability"],
+                    f"fixational − saccades: {c.text('.3f')}",
+                    "per trial its mean similarity within its condition, paired by seed",
+                )
+            )
+    return out
+
+
+def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path) -> list[Path]:
+    """The scanpath figure (a panel per scene and condition: the saliency mosaic, the
+    fixations sized by duration, the saccade lines, the salient points green on an
+    object, red off), a bar chart of the statistics, and the fixation tables
+    ``results_dir/fixations/*.csv`` (:func:`write_export`)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    scenes = list(dict.fromkeys(str(r["scene"]) for r in rows))
+    conditions = list(dict.fromkeys(str(r["condition"]) for r in rows))
+    firsts = {}
+    for r in rows:
+        firsts.setdefault((str(r["scene"]), str(r["condition"])), r)
+        arts = load_artifacts(results_dir, r)
+        if "fixations" in arts:
+            write_export(arts["fixations"], results_dir / "fixations" / _export_name(r))
+    fig, axes = plt.subplots(
+        len(scenes),
+        len(conditions),
+        figsize=(5.2 * len(conditions), 4.4 * len(scenes)),
+        squeeze=False,
+    )
+    for i, s in enumerate(scenes):
+        for j, c in enumerate(conditions):
+            ax = axes[i, j]
+            r = firsts.get((s, c))
+            arts = load_artifacts(results_dir, r) if r is not None else {}
+            _draw_scanpath(ax, arts)
+            title = f"{s}, {c}"
+            if r is not None:
+                title += f" (seed {r['seed']}): hit rate {float(r['object_hit_rate']):.0%}"
+            ax.set_title(title, fontsize=9)
+    fig.suptitle(
+        "Scanpaths on the pan-tilt sphere: saliency mosaic (max over fixations, each map / "
+        "its peak, 0 black … 1 bright), fixations sized by duration",
+        fontsize=10,
+    )
+    path = save_figure(fig, fig_dir / "scanpath.png")
+
+    keys = [
+        ("object_hit_rate", "object hit rate"),
+        ("fixations", "fixations"),
+        ("saccade_amplitude_mean_deg", "saccade amplitude (°)"),
+        ("revisits", "revisits"),
+        ("coverage_deg2", "coverage (deg²)"),
+    ]
+    fig, axes = plt.subplots(1, len(keys), figsize=(3.2 * len(keys), 3.2))
+    x = np.arange(len(scenes))
+    width = 0.8 / max(len(conditions), 1)
+    for ax, (key, label) in zip(axes, keys, strict=True):
+        for j, c in enumerate(conditions):
+            ms = [_by(rows, s, c, key) for s in scenes]
+            offset = (j - (len(conditions) - 1) / 2) * width
+            ax.bar(x + offset, [m for m, _ in ms], width, label=c)
+        ax.set_xticks(x, scenes)
+        ax.set_title(label, fontsize=9)
+    axes[0].legend(fontsize=8)
+    fig.suptitle(f"Scanpath statistics per scene and condition ({len(rows)} trials)", fontsize=10)
+    stats_path = save_figure(fig, fig_dir / "scanpath_stats.png")
+    return [path, stats_path]
+
+
+def _draw_scanpath(ax: Any, arts: dict[str, Any]) -> None:
+    if "mosaic" in arts:
+        pan, tilt = arts["mosaic_pan"], arts["mosaic_tilt"]
+        image = ax.imshow(
+            arts["mosaic"],
+            extent=(pan[0], pan[-1], tilt[-1], tilt[0]),
+            cmap="magma",
+            origin="upper",
+            aspect="equal",
+            interpolation="nearest",
+            vmin=0.0,
+            vmax=1.0,
+        )
+        bar = ax.figure.colorbar(image, ax=ax, fraction=0.046, pad=0.02)
+        bar.set_label("saliency (normalised)", fontsize=7)
+        ax.set_ylim(tilt[0], tilt[-1])
+    fx = arts.get("fixations", np.zeros((0, 4)))
+    if len(fx):
+        ax.plot(fx[:, 0], fx[:, 1], "-", color="gold", lw=1.2, label="saccades")
+        sizes = 15 + 150 * fx[:, 3]
+        ax.scatter(
+            fx[:, 0], fx[:, 1], s=sizes, c="cyan", edgecolors="k", zorder=3, label="fixations"
+        )
+    tg, hits = arts.get("targets_deg", np.zeros((0, 2))), arts.get("target_hits", np.zeros(0))
+    if len(tg):
+        hits = np.asarray(hits, bool)
+        for sel, colour, label in ((hits, "lime", "P on an object"), (~hits, "red", "P elsewhere")):
+            ax.scatter(tg[sel, 0], tg[sel, 1], marker="x", c=colour, s=25, zorder=4, label=label)
+    ax.invert_xaxis()  # positive pan turns left
+    ax.set_xlabel("pan (°, + = left)")
+    ax.set_ylabel("tilt (°, + = up)")
+    ax.legend(loc="lower right", fontsize=6)
+
+
+EXPERIMENT = Experiment(
+    name="scanpath",
+    description=(
+        "Scanpaths of the closed-loop agent in the shelf and office scenes, the paper's "
+        "'saccades' (t_w = 10 ms) vs 'fixational' (t_w = St_w = 124 ms) conditions: fixations, "
+        "saccade amplitudes, object hit rate, revisits, coverage; fixation tables for "
+        "scanpath-comparison tools."
+    ),
+    config_type=ScanpathConfig,
+    grid=grid,
+    run_trial=run_trial,
+    plot=plot,
+    compare=compare,
+)

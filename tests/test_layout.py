@@ -1,0 +1,214 @@
+"""The house rules, read from the source with ``ast``: imports run only downward
+(``experiments`` → ``agents`` / ``hardware`` → ``wander_env``), library code never
+imports the CLI (``experiments.cli``), and no import circle exists between modules or
+between packages (``experiments``' wings and root modules counted one by one).
+
+Every import counts, also one inside a function or under ``TYPE_CHECKING``: a lazy import
+still ties the two modules together.
+"""
+
+from __future__ import annotations
+
+import ast
+import graphlib
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("wander_env", "agents", "hardware", "experiments")
+WINGS = ("cli", "jobs", "bench", "benchmark", "paper")
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _sources() -> dict[str, Path]:
+    found = {}
+    for top in PACKAGES:
+        for path in sorted((ROOT / top).rglob("*.py")):
+            if "__pycache__" not in path.parts:
+                found[_module_name(path)] = path
+    return found
+
+
+SOURCES = _sources()
+
+
+def _resolve(name: str) -> str | None:
+    """The longest of our own modules that ``name`` (a dotted import) names or lies in."""
+    parts = name.split(".")
+    for n in range(len(parts), 0, -1):
+        cand = ".".join(parts[:n])
+        if cand in SOURCES:
+            return cand
+    return None
+
+
+def imports_of(module: str) -> list[tuple[str, int]]:
+    """Our own modules that ``module`` imports, with the line of each import."""
+    path = SOURCES[module]
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    found = []
+    for node in ast.walk(tree):
+        names: list[str] = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join([*anchor, base] if base else anchor)
+            # ``from pkg import mod`` imports the module pkg.mod; ``from mod import f`` mod.
+            names = [
+                f"{base}.{a.name}" if f"{base}.{a.name}" in SOURCES else base for a in node.names
+            ]
+        for name in names:
+            target = _resolve(name)
+            if target is not None and target != module:
+                found.append((target, node.lineno))
+    return found
+
+
+GRAPH = {m: imports_of(m) for m in SOURCES}
+
+
+def _top(module: str) -> str:
+    return module.split(".")[0]
+
+
+def _unit(module: str) -> str:
+    """A package for the package-level graph: a top-level package, or one of
+    ``experiments``' wings, or one root module of ``experiments``."""
+    parts = module.split(".")
+    if parts[0] != "experiments" or len(parts) == 1:
+        return parts[0]
+    return ".".join(parts[:2])
+
+
+def _where(module: str, line: int) -> str:
+    return f"{SOURCES[module].relative_to(ROOT)}:{line}"
+
+
+def test_the_parser_sees_the_imports_it_must_see():
+    # Guards the rules below: a parser that found nothing would pass every one of them.
+    assert len(SOURCES) > 90
+    main = {t for t, _ in GRAPH["experiments.cli.main"]}
+    groups = ("run", "evaluate", "bench", "benchmark", "experiment", "rig", "errors")
+    assert {f"experiments.cli.{g}" for g in groups} <= main
+    assert "experiments.jobs.run_agent" in {t for t, _ in GRAPH["experiments.cli.run"]}
+    assert "wander_env.metrics" in {t for t, _ in GRAPH["agents.attention"]}
+    # ``from experiments import scanpath_stats`` names the module, not the package.
+    assert "experiments.scanpath_stats" in {t for t, _ in GRAPH["experiments.paper.scanpath"]}
+    # A lazy import inside a function counts (wander_env.camera.cast_pixel's mjcf).
+    assert "wander_env.mjcf" in {t for t, _ in GRAPH["wander_env.camera"]}
+    rel = imports_of("experiments.benchmark.datasets")
+    assert {"experiments.benchmark.datasets.base", "experiments.benchmark.datasets.evimo"} <= {
+        t for t, _ in rel
+    }
+
+
+@pytest.mark.parametrize(
+    ("lower", "higher"),
+    [
+        ("wander_env", "experiments"),
+        ("agents", "experiments"),
+        ("hardware", "experiments"),
+        ("wander_env", "agents"),
+        ("wander_env", "hardware"),
+    ],
+)
+def test_imports_run_only_downward(lower, higher):
+    upward = [
+        f"{_where(m, line)} imports {t}"
+        for m, edges in GRAPH.items()
+        if _top(m) == lower
+        for t, line in edges
+        if _top(t) == higher
+    ]
+    assert upward == []
+
+
+def test_library_code_never_imports_the_cli():
+    found = [
+        f"{_where(m, line)} imports {t}"
+        for m, edges in GRAPH.items()
+        if not m.startswith("experiments.cli")
+        for t, line in edges
+        if t.startswith("experiments.cli")
+    ]
+    assert found == []
+
+
+def _third_party_of(module: str) -> set[str]:
+    tree = ast.parse(SOURCES[module].read_text(encoding="utf-8"))
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names |= {a.name.split(".")[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            names.add(node.module.split(".")[0])
+    return names
+
+
+def test_only_the_cli_imports_the_command_line_libraries():
+    found = sorted(
+        f"{m} imports {lib}"
+        for m in SOURCES
+        if not m.startswith("experiments.cli")
+        for lib in _third_party_of(m) & {"typer", "rich", "click"}
+    )
+    assert found == []
+    assert "typer" in _third_party_of("experiments.cli.errors")
+
+
+def test_the_cli_lives_in_one_package():
+    elsewhere = [
+        m for m in SOURCES if "cli" in m.rpartition(".")[2] and not m.startswith("experiments.cli")
+    ]
+    assert elsewhere == []
+    assert {f"experiments.cli.{n}" for n in ("main", "console", "options", "errors")} <= set(
+        SOURCES
+    )
+
+
+def test_experiments_is_in_wings():
+    wings = {f"experiments.{w}" for w in WINGS}
+    assert wings <= set(SOURCES), "a wing's __init__.py is missing"
+    root = sorted(m for m in SOURCES if m.count(".") == 1 and m.startswith("experiments."))
+    assert [m for m in root if m not in wings] == [
+        "experiments.framework",
+        "experiments.report",
+        "experiments.scanpath_stats",
+        "experiments.stats",
+        "experiments.sweep",
+    ]
+
+
+def _cycle(graph: dict[str, set[str]]) -> list[str]:
+    try:
+        tuple(graphlib.TopologicalSorter(graph).static_order())
+    except graphlib.CycleError as err:
+        return list(err.args[1])
+    return []
+
+
+def test_no_import_circle_between_modules():
+    assert _cycle({m: {t for t, _ in edges} for m, edges in GRAPH.items()}) == []
+
+
+def test_no_import_circle_between_packages():
+    units: dict[str, set[str]] = {}
+    for m, edges in GRAPH.items():
+        units.setdefault(_unit(m), set()).update(_unit(t) for t, _ in edges if _unit(t) != _unit(m))
+    # The top-level ``experiments`` package itself (its __init__) holds nothing.
+    assert _cycle(units) == []
+    assert {"experiments.cli", "experiments.paper", "agents", "wander_env"} <= set(units)
+
+
+def test_the_cycle_finder_finds_a_circle():
+    assert sorted(set(_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}))) == ["a", "b", "c"]
+    assert _cycle({"a": {"b"}, "b": set()}) == []

@@ -1,0 +1,92 @@
+"""event_suppression: the pause clock, pooled statistics, and a short trial."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from experiments.framework import make_trials, resolve_config, run_spec
+from experiments.paper.event_suppression import (
+    EXPERIMENT,
+    EventSuppressionConfig,
+    PausedTrajectory,
+    active_time,
+    compare,
+    is_active,
+    pooled_mean_std,
+)
+from wander_env.scene_config import load_scene_config
+
+
+def test_the_pause_clock_stops_during_pauses():
+    ts = [0.0, 0.5, 1.0, 1.2, 1.5, 1.75, 2.7, 3.2]
+    got = [active_time(t, 1.0, 0.5) for t in ts]
+    assert got == pytest.approx([0.0, 0.5, 1.0, 1.0, 1.0, 1.25, 2.0, 2.2])
+    active = [is_active(t, 1.0, 0.5) for t in ts]
+    assert active == [True, True, False, False, True, True, False, True]
+    assert active_time(2.0, 1.0, 0.0) == 2.0
+
+
+def test_paused_trajectory_holds_still_during_a_pause():
+    class Line:
+        def position(self, t: float) -> np.ndarray:
+            return np.array([t, 0.0, 0.0])
+
+    tr = PausedTrajectory(Line(), 0.2, 0.1)
+    assert tr.position(0.21)[0] == tr.position(0.29)[0] == pytest.approx(0.2)
+    assert tr.position(0.35)[0] == pytest.approx(0.25)
+
+
+def test_pooled_mean_std_equals_the_statistics_of_the_union():
+    rng = np.random.default_rng(0)
+    groups = rng.normal(5.0, 2.0, (4, 50))
+    m, s = pooled_mean_std(groups.mean(axis=1), groups.std(axis=1))
+    assert m == pytest.approx(groups.mean()) and s == pytest.approx(groups.std())
+
+
+def test_the_agent_variant_uses_the_agents_soms():
+    from agents.attention import AgentParams
+    from experiments.paper.event_suppression import soms_params
+
+    p = soms_params(EventSuppressionConfig(soms="agent"))
+    assert p == replace(AgentParams().soms, dt=0.02)
+    assert soms_params(EventSuppressionConfig()).norm == "minmax"
+    with pytest.raises(ValueError, match="soms"):
+        EventSuppressionConfig(soms="other")  # type: ignore[arg-type]
+
+
+def test_config_checks_windows_and_steps():
+    with pytest.raises(ValueError, match="whole number of windows"):
+        EventSuppressionConfig(soms_step_s=0.003)
+    with pytest.raises(ValueError, match="shake must be"):
+        EventSuppressionConfig(shake="wild")
+    assert EventSuppressionConfig().windows_per_step == 10
+
+
+def test_hand_scene_has_one_hand_sized_moving_object():
+    scene = load_scene_config("hand")
+    (hand,) = scene.moving_objects
+    assert hand.name == "hand" and hand.size == (0.03, 0.11, 0.19)
+
+
+def test_short_trial_counts_events_per_window_and_pauses_are_quiet():
+    """0.06 s, still camera: 20 ms of the hand moving, 10 ms pause, 20 ms, 10 ms pause."""
+    sets = ["duration_s=0.06", "active_s=0.02", "pause_s=0.01", "repeats=1", "shake=still"]
+    cfg = resolve_config(EXPERIMENT, sets=sets)
+    (spec,) = make_trials(EXPERIMENT, cfg, 0)
+    row = run_spec(spec)
+    ins, outs = row["_events_in"], row["_events_out"]
+    assert row["windows"] == len(ins) == len(outs) == 30
+    assert np.all(outs <= ins)
+    assert row["events_in_mean"] == pytest.approx(ins.mean())
+    assert row["suppressed_pct"] == pytest.approx(100 * (1 - outs.sum() / ins.sum()))
+    assert 0 < row["suppressed_pct"] < 100
+    assert row["events_in_active_mean"] > row["events_in_pause_mean"]
+    assert row["object_events_in"] > 0
+    # three 20 ms sOMS steps; the hand is scored in the two that end in an active phase
+    assert row["hit_steps"] == 2 and 0 <= row["hand_hits"] <= 2
+    comps = {c.result: c for c in compare(cfg, [row])}
+    assert comps["events suppressed"].paper == "85.16 %"
+    assert comps["trials"].ours == "1"

@@ -1,0 +1,151 @@
+"""The stimulus family, its scoring and the sOMS scorecard experiment."""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import numpy as np
+import pytest
+import torch
+
+from agents.soms import SOMSParams
+from experiments.framework import ConfigError, get_experiment, resolve_config, run_experiment
+from experiments.paper.oms_family import family_claims, measure
+from experiments.paper.oms_scorecard import OMSScorecardConfig, variants
+from experiments.paper.oms_stimuli import (
+    Stimulus,
+    family,
+    frames,
+    object_mask,
+    prediction,
+    render,
+    split,
+)
+
+
+def test_family_size_labels_and_halves():
+    fam = family()
+    assert len(fam) == 672 >= 100
+    labels = Counter(prediction(s) for s in fam)
+    assert labels == {"respond": 288, "suppress": 96, "fail": 288}
+    train, test = split(fam)
+    assert len(train) == len(test) == 336
+    assert {s.seed % 2 for s in train} == {0} and {s.seed % 2 for s in test} == {1}
+
+    def cell(s: Stimulus) -> tuple:
+        return (s.texture, s.object, s.period_px, s.motion, s.preset)
+
+    assert {cell(s) for s in train} == {cell(s) for s in test}  # every cell in both halves
+    assert len({cell(s) for s in fam}) == 336
+    assert {s.period_px for s in fam} == {8, 16, 32}
+
+
+def test_patch_object_is_invisible_at_rest_and_window_is_not():
+    patch = Stimulus("noise", "patch", 16, "ratio-2", "ideal", seed=4, duration_s=0.01)
+    window = Stimulus("noise", "window", 16, "ratio-2", "ideal", seed=4, duration_s=0.01)
+    fp, fw = frames(patch), frames(window)
+    assert fp.shape == (11, 128, 128)
+    mask = object_mask(patch)
+    assert mask.sum() == 1264  # disc of radius 20 px about the centre
+    assert np.array_equal(fp[0][~mask], fw[0][~mask])  # same background
+    assert not np.array_equal(fp[0][mask], fw[0][mask])  # own texture in the window
+    # the patch at t = 0 is the background's own texture: the first frame is seamless
+    ref = Stimulus("noise", "patch", 16, "eye-only", "ideal", seed=4, duration_s=0.01)
+    assert np.array_equal(frames(ref)[0], fp[0])
+
+
+@pytest.mark.parametrize("preset", ["ideal"])
+def test_nothing_moving_emits_nothing(preset):
+    s = Stimulus("discs", "window", 16, "still", preset, seed=2, duration_s=0.05)
+    rec = render(s)
+    assert rec.counts.shape == (5, 2, 128, 128) and rec.events == 0
+    for m in measure(s, variants()).values():
+        assert (m.events_in, m.kept, m.object_in, m.object_kept) == (0, 0, 0, 0)
+
+
+def test_eye_only_grating_suppression_bounds():
+    """A full-field sine grating (period 16 px) drifting at 30 px/s for 0.1 s, ideal DVS,
+    10 ms bins: the agent's sOMS suppresses ≥ 99.5 % of ~55.5 k events; the
+    paper-literal one (min-max, α 0.80) only 70–75 %."""
+    torch.set_num_threads(1)
+    s = Stimulus("sine", "patch", 16, "eye-only", "ideal", seed=1, speed_px_s=30.0, duration_s=0.1)
+    m = measure(s, variants())
+    assert m["paper"].events_in == m["agent"].events_in
+    assert 54_000 <= m["agent"].events_in <= 57_000
+    assert 0.995 <= m["agent"].suppressed <= 1.0
+    assert 0.70 <= m["paper"].suppressed <= 0.75
+
+
+def test_object_only_is_kept_by_the_agent_sOMS():
+    s = Stimulus(
+        "sine", "window", 16, "object-only", "ideal", seed=1, speed_px_s=30.0, duration_s=0.1
+    )
+    m = measure(s, variants())
+    agent = m["agent"]
+    assert agent.events_in == agent.object_in > 4000  # only the window moves
+    assert agent.precision == 1.0 and agent.object_kept_share >= 0.85
+    assert m["paper"].object_kept_share <= 0.3
+
+
+def test_family_claims_arithmetic():
+    from experiments.paper.oms_family import Measure
+
+    eo = Stimulus("sine", "patch", 16, "eye-only", "ideal", seed=0)
+    oo = Stimulus("sine", "patch", 16, "object-only", "ideal", seed=0)
+    items = [
+        (eo, Measure(100, 4, 10, 0)),
+        (eo, Measure(100, 14, 10, 0)),
+        (oo, Measure(50, 20, 50, 20)),
+    ]
+    c = family_claims(items)
+    assert c["eye-only"]["suppressed"] == pytest.approx(0.91) and c["eye-only"]["pass"]
+    assert c["eye-only"]["stimuli_passing"] == pytest.approx(0.5)
+    assert c["object-only"]["precision"] == 1.0
+    assert c["object-only"]["object_kept"] == pytest.approx(0.4) and c["object-only"]["pass"]
+    assert c["eye+object"]["n"] == 0 and not c["eye+object"]["pass"]
+
+
+def test_variants_are_paper_literal_and_agent_default():
+    from agents.attention import AgentParams
+
+    v = variants()
+    assert v["paper"].norm == "minmax" and v["paper"].alpha == 0.80
+    assert v["agent"] == AgentParams().resolved().soms
+    assert SOMSParams().norm == "minmax"
+
+
+SMALL = [
+    "parts=[family-test, family-train]",
+    "textures=[square]",
+    "objects=[patch]",
+    "periods=[16]",
+    "motions=[eye-only, object-only]",
+    "presets=[ideal]",
+    "duration_s=0.05",
+]
+
+
+@pytest.mark.slow
+def test_same_seed_gives_the_same_scorecard(tmp_path):
+    exp = get_experiment("oms_scorecard")
+    cfg = resolve_config(exp, sets=SMALL)
+    rows_a, _ = run_experiment("oms_scorecard", cfg, 3, tmp_path / "a")
+    run_experiment("oms_scorecard", cfg, 3, tmp_path / "b")
+    a = (tmp_path / "a" / "results.csv").read_bytes()
+    assert a == (tmp_path / "b" / "results.csv").read_bytes()
+    assert [r["part"] for r in rows_a] == ["family-test", "family-train"]
+    assert rows_a[0]["stimuli"] == 2
+    summary = (tmp_path / "a" / "summary.md").read_text()
+    assert "eye-only, family held-out (odd seeds), 2 stimuli" in summary
+    rows_c, _ = run_experiment("oms_scorecard", cfg, 4, tmp_path / "c")
+    # another seed draws other stimuli (directions, speeds, textures)
+    assert rows_c[0]["paper:eye-only:suppressed"] != rows_a[0]["paper:eye-only:suppressed"]
+
+
+def test_scorecard_config_is_validated():
+    exp = get_experiment("oms_scorecard")
+    with pytest.raises(ConfigError, match="parts"):
+        resolve_config(exp, sets=["parts=[nonsense]"])
+    with pytest.raises(ConfigError, match="replicates"):
+        resolve_config(exp, sets=["replicates=3"])
+    assert OMSScorecardConfig().replicates == 2
