@@ -61,8 +61,9 @@ from agents.fixation import (
     gaze_degrees_to_action,
     pixel_to_rotation,
 )
-from agents.proto_object import ProtoObjectParams, ProtoObjectSaliency
-from agents.soms import SOMS, SOMSParams
+from agents.pipeline import SaliencyPipeline
+from agents.proto_object import ProtoObjectParams
+from agents.soms import SOMSParams
 from agents.torch_fork import set_torch_threads
 from wander_env.metrics import SPECK_HFOV_DEG
 
@@ -260,8 +261,9 @@ class AttentionAgent:
         if p.torch_threads is not None:
             set_torch_threads(p.torch_threads)  # one only in a forked child
         self.seed = seed
-        self.soms = SOMS(p.soms, p.height_px, p.width_px)
-        self.proto = ProtoObjectSaliency(p.proto, p.height_px, p.width_px)
+        # One pipeline (agents.pipeline): the sOMS every step, the saliency once a window.
+        self.pipeline = SaliencyPipeline(p.soms, p.proto, p.height_px, p.width_px, lockstep=False)
+        self.soms, self.proto = self.pipeline.soms, self.pipeline.proto
         self.controller = AttentionController(replace(p.control, seed=seed))
         self.fixation = FixationalMovements(p.fixation, np.random.default_rng(seed))
         self._shape = (2, p.height_px, p.width_px)
@@ -274,8 +276,7 @@ class AttentionAgent:
         and the controller (default: the constructor's seed)."""
         if seed is not None:
             self.seed = seed
-        self.soms.reset()
-        self.proto.reset()
+        self.pipeline.reset()
         self.controller.reset(seed=self.seed)
         self.fixation = FixationalMovements(self.params.fixation, np.random.default_rng(self.seed))
         self.phase = Phase.FIXATE
@@ -295,8 +296,7 @@ class AttentionAgent:
 
     def _begin_fixation(self, after_saccade: bool, t: float, gaze: tuple[float, float]) -> None:
         if after_saccade and self.params.reset_after_saccade:
-            self.soms.reset()
-            self.proto.reset()
+            self.pipeline.reset()
         self.event_map[:] = 0.0
         self.oms_map[:] = 0.0
         self._window_steps = 0
@@ -326,7 +326,7 @@ class AttentionAgent:
         self.steps += 1
         self.decided = False
 
-        oms_counts = counts * self.soms.step(counts).oms.numpy()  # the events the sOMS keeps
+        oms_counts = counts * self.pipeline.oms_step(counts).numpy()  # the events sOMS keeps
         self.events_in += int(counts.sum())
         self.events_oms += int(oms_counts.sum())
 
@@ -354,9 +354,8 @@ class AttentionAgent:
             self.controller.step(None, p.step_s)
             return _clip(action)
         # End of the window: saliency of its OMS map, then decide.
-        out = self.proto.step(self.oms_map)
-        self.saliency = out.saliency.numpy()
-        target = self.proto.argmax()
+        self.saliency = self.pipeline.saliency_of(self.oms_map).numpy()
+        target = self.pipeline.argmax()
         peak = float(self.saliency[target[1], target[0]]) if target is not None else 0.0
         if target is not None and peak <= p.min_saliency:
             target = None

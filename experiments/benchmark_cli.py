@@ -10,7 +10,7 @@ Commands (each writes ``results.csv``, ``results.md`` and ``run.json`` to ``--ou
   without masks (e.g. ego-motion only, where every kept event is a false positive).
 
 The protocol is :mod:`experiments.benchmark_protocol`; the model is
-:class:`experiments.benchmark_model.SOMSSaliencyModel` (sOMS → proto-object saliency),
+:class:`agents.pipeline.SaliencyPipeline` (sOMS → proto-object saliency),
 one step per dataset window. Registered in ``wander_env/cli.py`` as
 ``app.add_typer(benchmark_app, name="benchmark")``.
 """
@@ -182,7 +182,7 @@ def run_sequences(
     ``sampler`` (a :class:`experiments.benchmark_figure.WindowSampler`) keeps a few
     windows' maps for ``maps_vs_masks.png``.
     """
-    from experiments.benchmark_model import SOMSSaliencyModel, nominal_dt_s
+    from experiments.benchmark_model import nominal_dt_s
     from experiments.benchmark_protocol import evaluate_sequence
 
     rows: list[Any] = []
@@ -199,7 +199,7 @@ def run_sequences(
                 continue
             dt = nominal_dt_s(seq.windows)
             dts[key] = dt
-            model = SOMSSaliencyModel.from_config(dataclasses.replace(model_config, dt=dt))
+            model = dataclasses.replace(model_config, dt=dt).pipeline()
             if sampler is not None:
                 sampler.start_sequence(len(seq.windows))
             rows.extend(evaluate_sequence(seq, model, protocol, bars, k, n_sequences, sampler))
@@ -305,7 +305,6 @@ def run_suppression(
 ) -> list[Any]:
     """:func:`event_suppression` on each ``(name, events, sensor)`` with a fresh model
     (``model_config`` with the step ``window_us``)."""
-    from experiments.benchmark_model import SOMSSaliencyModel
     from experiments.benchmark_protocol import event_suppression
 
     results = []
@@ -315,9 +314,7 @@ def run_suppression(
             if progress is not None:
                 task = progress.add_task(f"suppression {name}", total=None)
                 cb = _suppression_callback(progress, task)
-            model = SOMSSaliencyModel.from_config(
-                dataclasses.replace(model_config, dt=window_us / 1e6)
-            )
+            model = dataclasses.replace(model_config, dt=window_us / 1e6).pipeline()
             results.append(event_suppression(events, sensor, model, window_us, cb, name))
     return results
 
