@@ -43,7 +43,7 @@ from experiments import scanpath_stats
 from experiments.run_viewer import open_run_log
 from experiments.scanpath_figure import pixel_to_angles, plot_scanpath
 from wander_env.env import WanderConfig
-from wander_env.event_stream import EventStreamWriter, OutputError, check_space
+from wander_env.event_stream import EventStreamWriter, OutputError, VideoSink
 from wander_env.metrics import degrees_to_pixels, detection_hit, focal_length_px
 from wander_env.runinfo import run_record, write_json
 from wander_env.shutdown import SignalExit
@@ -171,10 +171,8 @@ def run_closed_loop(
     writer = None
     video_path = out_dir / "run.mp4"
     if video:
-        import imageio.v2 as imageio
-
         try:
-            writer = imageio.get_writer(video_path, fps=round(1 / dt), macro_block_size=1)
+            writer = VideoSink(video_path, fps=round(1 / dt))
         except BaseException:
             stream.close()
             raise
@@ -213,12 +211,7 @@ def run_closed_loop(
             log.steps = k + 1
             rrlog.step(obs, info, agent)
             if writer is not None:
-                frame = _frame_for(agent, obs, base, info)
-                try:
-                    writer.append_data(frame)
-                except Exception as err:  # ffmpeg's pipe: a full disk shows as a broken pipe
-                    check_space(video_path, frame.nbytes)
-                    raise OutputError(video_path, err) from err
+                writer.append(_frame_for(agent, obs, base, info))
             if progress is not None:
                 progress(k + 1, n_steps)
             if terminated or truncated:
@@ -229,11 +222,7 @@ def run_closed_loop(
         rrlog.close()
         log.sightings = rrlog.sightings
         if writer is not None:
-            try:
-                writer.close()
-            except Exception as err:
-                if error is None:
-                    error = OutputError(video_path, err)
+            error = writer.finish(error)
     wall = time.perf_counter() - t_wall
     try:
         result = _write_folder(out_dir, env, agent, log, stream, record, dt, wall, error)
