@@ -65,6 +65,7 @@ from agents.pipeline import SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
 from agents.torch_fork import set_torch_threads
+from wander_env.config import check_fields
 from wander_env.metrics import SPECK_HFOV_DEG
 
 __all__ = [
@@ -149,18 +150,13 @@ class AgentParams:
     fixation: FixationParams = field(default_factory=FixationParams)
 
     def __post_init__(self) -> None:
-        for name in ("window_s", "step_s", "saccade_settle_s", "max_saccade_s", "hfov_deg"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"AgentParams.{name} must be a finite number > 0, got {v!r}")
+        names = ("window_s", "step_s", "saccade_settle_s", "max_saccade_s", "hfov_deg")
+        check_fields(self, names, positive=True)
         if self.window_s + _EPS < self.step_s:
             raise ValueError(
                 f"AgentParams.window_s={self.window_s} is shorter than step_s={self.step_s}"
             )
-        for name in ("width_px", "height_px"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-                raise ValueError(f"AgentParams.{name} must be an int >= 1, got {v!r}")
+        check_fields(self, ("width_px", "height_px"), integer=True, minimum=1)
 
     @property
     def window_steps(self) -> int:

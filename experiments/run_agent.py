@@ -49,7 +49,7 @@ from wander_env.runinfo import run_record, write_json
 from wander_env.shutdown import SignalExit
 from wander_env.viz import event_image, labelled_frame, saliency_rgb
 
-__all__ = ["RunConfig", "RunResult", "run", "run_closed_loop", "video_frame"]
+__all__ = ["RunConfig", "RunResult", "run", "run_closed_loop", "run_for_config", "video_frame"]
 
 
 @dataclass(frozen=True)
@@ -395,6 +395,28 @@ def _write_folder(
     return RunResult(metrics=metrics, files=files, error=metrics.get("error"))
 
 
+def run_for_config(
+    env: Any,
+    agent: AttentionAgent,
+    config: Any,
+    out_dir: Path,
+    record: dict[str, Any],
+    progress: Callable[[int, int], None] | None = None,
+) -> RunResult:
+    """:func:`run_closed_loop` for a run config's ``seconds``, ``video`` and ``seed``
+    (``wander run``'s :class:`RunConfig` and ``wander rig``'s config)."""
+    return run_closed_loop(
+        env,
+        agent,
+        config.seconds,
+        out_dir,
+        record,
+        video=config.video,
+        progress=progress,
+        seed=config.seed,
+    )
+
+
 def run(
     out_dir: Path, config: RunConfig, progress: Callable[[int, int], None] | None = None
 ) -> RunResult:
@@ -419,16 +441,7 @@ def run(
             env.close()
         raise
     try:
-        return run_closed_loop(
-            env,
-            agent,
-            config.seconds,
-            out_dir,
-            record,
-            video=config.video,
-            progress=progress,
-            seed=config.seed,
-        )
+        return run_for_config(env, agent, config, out_dir, record, progress)
     finally:
         agent.close()
         env.close()
