@@ -61,9 +61,11 @@ from agents.fixation import (
     gaze_degrees_to_action,
     pixel_to_rotation,
 )
-from agents.proto_object import ProtoObjectParams, ProtoObjectSaliency
-from agents.soms import SOMS, SOMSParams
+from agents.pipeline import SaliencyPipeline
+from agents.proto_object import ProtoObjectParams
+from agents.soms import SOMSParams
 from agents.torch_fork import set_torch_threads
+from wander_env.config import check_fields
 from wander_env.metrics import SPECK_HFOV_DEG
 
 __all__ = [
@@ -148,18 +150,13 @@ class AgentParams:
     fixation: FixationParams = field(default_factory=FixationParams)
 
     def __post_init__(self) -> None:
-        for name in ("window_s", "step_s", "saccade_settle_s", "max_saccade_s", "hfov_deg"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"AgentParams.{name} must be a finite number > 0, got {v!r}")
+        names = ("window_s", "step_s", "saccade_settle_s", "max_saccade_s", "hfov_deg")
+        check_fields(self, names, positive=True)
         if self.window_s + _EPS < self.step_s:
             raise ValueError(
                 f"AgentParams.window_s={self.window_s} is shorter than step_s={self.step_s}"
             )
-        for name in ("width_px", "height_px"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-                raise ValueError(f"AgentParams.{name} must be an int >= 1, got {v!r}")
+        check_fields(self, ("width_px", "height_px"), integer=True, minimum=1)
 
     @property
     def window_steps(self) -> int:
@@ -260,8 +257,9 @@ class AttentionAgent:
         if p.torch_threads is not None:
             set_torch_threads(p.torch_threads)  # one only in a forked child
         self.seed = seed
-        self.soms = SOMS(p.soms, p.height_px, p.width_px)
-        self.proto = ProtoObjectSaliency(p.proto, p.height_px, p.width_px)
+        # One pipeline (agents.pipeline): the sOMS every step, the saliency once a window.
+        self.pipeline = SaliencyPipeline(p.soms, p.proto, p.height_px, p.width_px, lockstep=False)
+        self.soms, self.proto = self.pipeline.soms, self.pipeline.proto
         self.controller = AttentionController(replace(p.control, seed=seed))
         self.fixation = FixationalMovements(p.fixation, np.random.default_rng(seed))
         self._shape = (2, p.height_px, p.width_px)
@@ -274,8 +272,7 @@ class AttentionAgent:
         and the controller (default: the constructor's seed)."""
         if seed is not None:
             self.seed = seed
-        self.soms.reset()
-        self.proto.reset()
+        self.pipeline.reset()
         self.controller.reset(seed=self.seed)
         self.fixation = FixationalMovements(self.params.fixation, np.random.default_rng(self.seed))
         self.phase = Phase.FIXATE
@@ -295,8 +292,7 @@ class AttentionAgent:
 
     def _begin_fixation(self, after_saccade: bool, t: float, gaze: tuple[float, float]) -> None:
         if after_saccade and self.params.reset_after_saccade:
-            self.soms.reset()
-            self.proto.reset()
+            self.pipeline.reset()
         self.event_map[:] = 0.0
         self.oms_map[:] = 0.0
         self._window_steps = 0
@@ -326,7 +322,7 @@ class AttentionAgent:
         self.steps += 1
         self.decided = False
 
-        oms_counts = counts * self.soms.step(counts).oms.numpy()  # the events the sOMS keeps
+        oms_counts = counts * self.pipeline.oms_step(counts).numpy()  # the events sOMS keeps
         self.events_in += int(counts.sum())
         self.events_oms += int(oms_counts.sum())
 
@@ -354,9 +350,8 @@ class AttentionAgent:
             self.controller.step(None, p.step_s)
             return _clip(action)
         # End of the window: saliency of its OMS map, then decide.
-        out = self.proto.step(self.oms_map)
-        self.saliency = out.saliency.numpy()
-        target = self.proto.argmax()
+        self.saliency = self.pipeline.saliency_of(self.oms_map).numpy()
+        target = self.pipeline.argmax()
         peak = float(self.saliency[target[1], target[0]]) if target is not None else 0.0
         if target is not None and peak <= p.min_saliency:
             target = None

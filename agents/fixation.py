@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wander_env.actions import action_to_gaze_degrees, gaze_degrees_to_action
+from wander_env.config import check_fields
 from wander_env.metrics import SPECK_HFOV_DEG, focal_length_px
 from wander_env.ptu import FLIR_RESOLUTION_ARCSEC, positions_to_degrees
 
@@ -190,16 +191,11 @@ class FixationParams:
     hfov_deg: float = SPECK_HFOV_DEG
 
     def __post_init__(self) -> None:
-        for name in ("n_steps", "max_step_pos", "width_px", "height_px"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
-                raise ValueError(f"FixationParams.{name} must be an int >= 0, got {v!r}")
+        names = ("n_steps", "max_step_pos", "width_px", "height_px")
+        check_fields(self, names, integer=True, minimum=0)
         if self.width_px < 1 or self.height_px < 1:
             raise ValueError("FixationParams.width_px and height_px must be >= 1")
-        for name in ("resolution_arcsec", "interval_s", "hfov_deg"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"FixationParams.{name} must be a finite number > 0, got {v!r}")
+        check_fields(self, ("resolution_arcsec", "interval_s", "hfov_deg"), positive=True)
         b = self.max_excursion_pos
         if b is not None and (isinstance(b, bool) or not isinstance(b, (int, np.integer)) or b < 0):
             raise ValueError(

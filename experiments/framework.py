@@ -30,22 +30,20 @@ Example:
 from __future__ import annotations
 
 import csv
-import dataclasses
 import hashlib
 import importlib
 import io
 import json
 import math
 import time
-import types
-import typing
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from dataclasses import asdict, dataclass, field, fields
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import yaml
 
+from wander_env.config import ConfigError, coerce, parse_sets, validate
 from wander_env.runinfo import run_record, write_json
 from wander_env.viz import save_figure
 
@@ -88,10 +86,6 @@ EXPERIMENT_NAMES: tuple[str, ...] = (
 Scalar = int | float | str | bool
 Row = dict[str, Scalar]
 ID_COLUMNS = ("trial", "trial_id", "repeat", "seed")
-
-
-class ConfigError(ValueError):
-    """A bad experiment name, config key or value; the message names it."""
 
 
 @dataclass(frozen=True)
@@ -159,127 +153,17 @@ def configs_dir() -> Path:
 # Typed config values (pure)
 
 
-def _type_name(tp: Any) -> str:
-    origin = typing.get_origin(tp)
-    if origin is Literal:
-        return "one of " + ", ".join(repr(a) for a in typing.get_args(tp))
-    if origin in (typing.Union, types.UnionType):
-        return " or ".join(_type_name(a) for a in typing.get_args(tp))
-    if origin is tuple:
-        args = typing.get_args(tp)
-        if len(args) == 2 and args[1] is Ellipsis:
-            return f"list of {_type_name(args[0])}"
-        return "list [" + ", ".join(_type_name(a) for a in args) + "]"
-    if tp is type(None):
-        return "null"
-    return getattr(tp, "__name__", str(tp))
-
-
-def coerce(value: Any, tp: Any) -> Any:
-    """``value`` as type ``tp`` (int, float, str, bool, Literal, tuples, unions); raises
-    TypeError when it is not one.
-
-    >>> coerce([1, 2.5], tuple[float, ...]), coerce(3, float), coerce("a", Literal["a", "b"])
-    ((1.0, 2.5), 3.0, 'a')
-    """
-    origin = typing.get_origin(tp)
-    if tp is Any:
-        return value
-    if origin is Literal:
-        if value in typing.get_args(tp) and not isinstance(value, bool):
-            return value
-    elif origin in (typing.Union, types.UnionType):
-        for arm in typing.get_args(tp):
-            try:
-                return coerce(value, arm)
-            except TypeError:
-                continue
-    elif origin is tuple and isinstance(value, (list, tuple)):
-        args = typing.get_args(tp)
-        if len(args) == 2 and args[1] is Ellipsis:
-            return tuple(coerce(v, args[0]) for v in value)
-        if len(args) == len(value):
-            return tuple(coerce(v, a) for v, a in zip(value, args, strict=True))
-    elif tp is type(None):
-        if value is None:
-            return None
-    elif tp is bool:
-        if isinstance(value, bool):
-            return value
-    elif tp is int:
-        if isinstance(value, int) and not isinstance(value, bool):
-            return value
-    elif tp is float:
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
-            return float(value)
-        if isinstance(value, str):
-            try:
-                return float(value)  # YAML 1.1 reads "1e-3" as a string
-            except ValueError:
-                pass
-    elif tp is str:
-        if isinstance(value, str):
-            return value
-    raise TypeError(f"expected {_type_name(tp)}")
-
-
-def _field_types(cls: type) -> dict[str, Any]:
-    hints = typing.get_type_hints(cls)
-    return {f.name: hints[f.name] for f in fields(cls) if f.init}
-
-
-def allowed_keys(cls: type) -> str:
-    """``key (type), ...`` for error messages and ``--help``."""
-    return ", ".join(f"{k} ({_type_name(t)})" for k, t in _field_types(cls).items())
-
-
 def config_from_dict(
     cls: type, values: Mapping[str, Any], base: Any = None, where: str = "config"
 ) -> Any:
-    """A ``cls`` instance: ``base`` (or the defaults) with ``values`` typed and applied."""
-    types_ = _field_types(cls)
-    kwargs: dict[str, Any] = {}
-    for key, value in values.items():
-        if key not in types_:
-            raise ConfigError(
-                f"{where}: unknown key {key!r} for {cls.__name__}; allowed keys: "
-                f"{allowed_keys(cls)}"
-            )
-        try:
-            kwargs[key] = coerce(value, types_[key])
-        except TypeError as e:
-            raise ConfigError(f"{where}: bad value for key {key!r}: {e}, got {value!r}") from None
-    try:
-        return dataclasses.replace(base, **kwargs) if base is not None else cls(**kwargs)
-    except (ValueError, TypeError) as e:
-        raise ConfigError(f"{where}: {e}") from None
+    """A ``cls`` instance: ``base`` (or the defaults) with ``values`` typed and applied;
+    nested mappings set nested parameter blocks (:func:`wander_env.config.validate`)."""
+    return validate(cls, values, base, where)
 
 
 def config_to_dict(config: Any) -> dict[str, Any]:
     """JSON-able dict of a config (tuples become lists)."""
     return json.loads(json.dumps(asdict(config)))
-
-
-def parse_sets(sets: Iterable[str], cls: type) -> dict[str, Any]:
-    """``["key=value", ...]`` -> ``{key: value}``; values read as YAML (``[1, 2]``,
-    ``true``, ``0.5``) except for plain string fields, which take the text as it is."""
-    types_ = _field_types(cls)
-    out: dict[str, Any] = {}
-    for item in sets:
-        key, sep, text = item.partition("=")
-        key = key.strip()
-        if not sep or not key:
-            raise ConfigError(
-                f"--set {item!r}: expected key=value; allowed keys: {allowed_keys(cls)}"
-            )
-        if types_.get(key) is str:
-            out[key] = text
-            continue
-        try:
-            out[key] = yaml.safe_load(text) if text.strip() else text
-        except yaml.YAMLError:
-            out[key] = text
-    return out
 
 
 def load_yaml_mapping(path: Path) -> dict[str, Any]:

@@ -290,16 +290,7 @@ def paired_comparison(
     if np.all(d == 0):
         p = 1.0
     else:
-        res = _st.permutation_test(
-            (x, y),
-            _mean_diff,
-            permutation_type="samples",
-            vectorized=True,
-            n_resamples=n_resamples,
-            alternative="two-sided",
-            rng=np.random.default_rng(seed),
-        )
-        p = float(res.pvalue)
+        p = _permutation_p(x, y, "samples", n_resamples, np.random.default_rng(seed))
     lo, hi = bootstrap_ci(d, seed=seed)
     return Comparison2(
         "paired",
@@ -313,6 +304,23 @@ def paired_comparison(
         cohens_dz(d),
         rank_biserial_paired(d),
     )
+
+
+def _permutation_p(
+    x: np.ndarray, y: np.ndarray, kind: str, n_resamples: int, rng: np.random.Generator
+) -> float:
+    """Two-sided permutation p of the difference of means (``kind``: scipy's
+    ``permutation_type``, "samples" for paired data, "independent" for two groups)."""
+    res = _st.permutation_test(
+        (x, y),
+        _mean_diff,
+        permutation_type=kind,
+        vectorized=True,
+        n_resamples=n_resamples,
+        alternative="two-sided",
+        rng=rng,
+    )
+    return float(res.pvalue)
 
 
 def independent_comparison(
@@ -333,16 +341,7 @@ def independent_comparison(
         p, lo, hi = 1.0, 0.0, 0.0
     else:
         rng = np.random.default_rng(seed)
-        res = _st.permutation_test(
-            (x, y),
-            _mean_diff,
-            permutation_type="independent",
-            vectorized=True,
-            n_resamples=n_resamples,
-            alternative="two-sided",
-            rng=rng,
-        )
-        p = float(res.pvalue)
+        p = _permutation_p(x, y, "independent", n_resamples, rng)
         boot = _st.bootstrap(
             (x, y),
             _mean_diff,

@@ -68,7 +68,7 @@ import math
 import threading
 import time
 from dataclasses import dataclass, field, replace
-from typing import Any, ClassVar
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -79,6 +79,7 @@ from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from hardware.replay import ReplaySource
 from hardware.speck import SpeckParams, SpeckSource
 from wander_env.actions import action_to_gaze_degrees, check_action
+from wander_env.env_base import CameraEnv
 from wander_env.event_packet import EventPacket
 from wander_env.events import empty_events, to_frame
 from wander_env.metrics import SPECK_HFOV_DEG
@@ -345,18 +346,13 @@ class _PTULink:
         return "halt (H) acknowledged"
 
 
-class RigEnv(gym.Env):
+class RigEnv(CameraEnv):
     """See the module docstring. Build with ``gymnasium.make("wander/Rig-v0", ...)``."""
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 100}
-
     def __init__(self, render_mode: str | None = None, **config: Any) -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None")
-        self.render_mode = render_mode
         self.config = RigConfig(**config)
         c = self.config
-        self.metadata = {**self.metadata, "render_fps": round(1.0 / c.control_period_s)}
+        self.init_render(render_mode, c.control_period_s)
         self.emulator: PTUEmulator | None = None
         self.ptu: FlirPTU | None = None
         self.camera: EventSource | None = None

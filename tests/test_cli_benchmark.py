@@ -13,10 +13,11 @@ import typer
 from PIL import Image
 from typer.testing import CliRunner
 
+from agents.pipeline import SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
 from experiments.benchmark.datasets.base import MaskWindow
-from experiments.benchmark.model import ModelConfig, SOMSSaliencyModel, nominal_dt_s
+from experiments.benchmark.model import ModelConfig, nominal_dt_s
 from experiments.cli.benchmark import app, default_name, parse_offset, parse_sensor
 from wander_env.events import EVENT_DTYPE, time_window
 
@@ -143,7 +144,7 @@ def assert_square_scored(out: Path) -> None:
 
 
 def test_model_maps_on_the_sensor_grid_and_dt_follows_the_call():
-    model = SOMSSaliencyModel.from_config(ModelConfig(dt=0.01))
+    model = ModelConfig(dt=0.01).pipeline()
     events, _ = square_scene(1)
     counts = np.zeros((2, H, W), np.float32)
     np.add.at(counts, (events["p"].astype(int), events["y"], events["x"]), 1)
@@ -164,7 +165,7 @@ def test_model_maps_on_the_sensor_grid_and_dt_follows_the_call():
 
 
 def test_model_bad_input_is_named():
-    model = SOMSSaliencyModel()
+    model = SaliencyPipeline()
     with pytest.raises(ValueError, match=r"event_counts must be \(2, H, W\), got shape \(3, 4\)"):
         model.process(np.zeros((3, 4)), 0.01)
     with pytest.raises(ValueError, match="dt_s must be a positive number of seconds, got 0"):
@@ -173,11 +174,11 @@ def test_model_bad_input_is_named():
         ModelConfig(dt=-1.0)
     assert ModelConfig(streamlined=True).proto_params().polarity_split is False
     with pytest.raises(ValueError, match=r"SOMSParams\.dt=0\.01, ProtoObjectParams\.dt=0\.02"):
-        SOMSSaliencyModel(SOMSParams(dt=0.01), ProtoObjectParams(dt=0.02))
+        SaliencyPipeline(SOMSParams(dt=0.01), ProtoObjectParams(dt=0.02))
     with pytest.raises(ValueError, match="saliency must be 'proto' or 'oms_density', got 'oms'"):
-        SOMSSaliencyModel(saliency="oms")
+        SaliencyPipeline(saliency="oms")
     with pytest.raises(ValueError, match="density_sigma_px must be a number > 0, got 0"):
-        SOMSSaliencyModel(saliency="oms_density", density_sigma_px=0)
+        SaliencyPipeline(saliency="oms_density", density_sigma_px=0)
     with pytest.raises(ValueError, match="no windows"):
         nominal_dt_s([])
     m = np.ones((2, 2), np.uint8)

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from agents.fixation import action_to_gaze_degrees
+from agents.pipeline import SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
-from experiments.benchmark.model import SOMSSaliencyModel
 from experiments.framework import make_trials, resolve_config, run_spec
 from experiments.paper.detection import (
     EXPERIMENT,
@@ -73,8 +73,8 @@ def _blob_events(step: int) -> np.ndarray:
 def test_pipeline_points_at_the_dense_moving_blob_with_and_without_proto_objects():
     soms = SOMSParams(alpha=0.5, dt=0.02)
     proto = ProtoObjectParams(dt=0.02)
-    baseline = SOMSSaliencyModel(soms, saliency="oms_density", density_sigma_px=2.0)
-    for model in (SOMSSaliencyModel(soms, proto), baseline):
+    baseline = SaliencyPipeline(soms, saliency="oms_density", density_sigma_px=2.0)
+    for model in (SaliencyPipeline(soms, proto), baseline):
         model.reset()
         for k in range(8):
             maps = model.process(_blob_events(k), 0.02)

@@ -59,7 +59,7 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import asdict, dataclass, field, replace
-from typing import Any, ClassVar
+from typing import Any
 
 import gymnasium as gym
 import mujoco
@@ -67,7 +67,9 @@ import numpy as np
 
 from wander_env.actions import action_to_gaze_degrees, check_action
 from wander_env.camera import focal_length_px, intrinsics, rotation_from_mujoco
+from wander_env.config import check_fields
 from wander_env.dvs import DVSEmulator, DVSParams
+from wander_env.env_base import CameraEnv
 from wander_env.event_packet import EventPacket
 from wander_env.events import concatenate, to_frame
 from wander_env.gl_fork import ForkedGLError, fork_error_message
@@ -117,15 +119,8 @@ class WanderConfig:
     supersample: int = 1
 
     def __post_init__(self) -> None:
-        for name in (
-            "control_period_s",
-            "render_rate_hz",
-            "adaptive_log_change",
-            "episode_seconds",
-        ):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"WanderConfig.{name} must be a finite number > 0, got {v!r}")
+        names = ("control_period_s", "render_rate_hz", "adaptive_log_change", "episode_seconds")
+        check_fields(self, names, positive=True)
         ticks = self.control_period_s * self.render_rate_hz
         if abs(ticks - round(ticks)) > 1e-9 or round(ticks) < 1:
             raise ValueError(
@@ -176,18 +171,13 @@ class WanderConfig:
 FRAME_MODES = ("keyframes", "exact")
 
 
-class WanderEnv(gym.Env):
+class WanderEnv(CameraEnv):
     """See the module docstring. Build with ``gymnasium.make("wander/Wander-v0", ...)``."""
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 100}
-
     def __init__(self, render_mode: str | None = None, **config: Any) -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None")
-        self.render_mode = render_mode
         self.config = WanderConfig(**config)
         c = self.config
-        self.metadata = {**self.metadata, "render_fps": round(1.0 / c.control_period_s)}
+        self.init_render(render_mode, c.control_period_s)
         scene = self._scene_with_mount(load_scene_config(c.scene), c.ptu)
         if c.antialias_samples is not None:
             camera = replace(scene.camera, antialias_samples=c.antialias_samples)

@@ -339,3 +339,44 @@ class EventStreamWriter(_StreamFile):
             self._file.attrs["complete"] = True
         finally:
             self._abandon()
+
+
+class VideoSink:
+    """An MP4 (imageio's ffmpeg writer) written frame by frame, its failures named.
+
+    :meth:`append` turns a failed write into :class:`OutputError` naming the file (ENOSPC
+    with the free bytes when the disk is full: ffmpeg's pipe shows a full disk as a broken
+    pipe); :meth:`finish` closes it and hands back the run's error, or the close's own
+    when the run had none.
+
+    Example:
+        >>> import tempfile
+        >>> path = Path(tempfile.mkdtemp()) / "v.mp4"
+        >>> sink = VideoSink(path, fps=10)
+        >>> for _ in range(3):
+        ...     sink.append(np.zeros((16, 16, 3), np.uint8))
+        >>> sink.finish(None) is None, path.stat().st_size > 0
+        (True, True)
+    """
+
+    def __init__(self, path: str | os.PathLike, fps: int) -> None:
+        import imageio.v2 as imageio
+
+        self.path = Path(path)
+        self._writer = imageio.get_writer(self.path, fps=fps, macro_block_size=1)
+
+    def append(self, frame: np.ndarray) -> None:
+        """Write one RGB frame ``(H, W, 3)`` uint8."""
+        try:
+            self._writer.append_data(frame)
+        except Exception as err:
+            check_space(self.path, frame.nbytes)
+            raise OutputError(self.path, err) from err
+
+    def finish(self, error: BaseException | None) -> BaseException | None:
+        """Close the file; return ``error``, or the close's :class:`OutputError` if none."""
+        try:
+            self._writer.close()
+        except Exception as err:
+            return error or OutputError(self.path, err)
+        return error

@@ -93,7 +93,7 @@ def run_sequences(
     (:class:`experiments.benchmark.protocol.ProgressEvent`), ``sequence_done`` is called
     after each scored sequence.
     """
-    from experiments.benchmark.model import SOMSSaliencyModel, nominal_dt_s
+    from experiments.benchmark.model import nominal_dt_s
     from experiments.benchmark.protocol import evaluate_sequence
 
     rows: list[Any] = []
@@ -108,7 +108,7 @@ def run_sequences(
             continue
         dt = nominal_dt_s(seq.windows)
         dts[key] = dt
-        model = SOMSSaliencyModel.from_config(dataclasses.replace(model_config, dt=dt))
+        model = dataclasses.replace(model_config, dt=dt).pipeline()
         if sampler is not None:
             sampler.start_sequence(len(seq.windows))
         rows.extend(evaluate_sequence(seq, model, protocol, progress, k, n_sequences, sampler))
@@ -205,13 +205,12 @@ def run_suppression(
     """:func:`event_suppression` on each ``(name, events, sensor)`` with a fresh model
     (``model_config`` with the step ``window_us``); ``progress(name, event)`` sees every
     window."""
-    from experiments.benchmark.model import SOMSSaliencyModel
     from experiments.benchmark.protocol import event_suppression
 
     results = []
     for name, events, sensor in recordings:
         cb = None if progress is None else functools.partial(progress, name)
-        model = SOMSSaliencyModel.from_config(dataclasses.replace(model_config, dt=window_us / 1e6))
+        model = dataclasses.replace(model_config, dt=window_us / 1e6).pipeline()
         results.append(event_suppression(events, sensor, model, window_us, cb, name))
     return results
 

@@ -10,7 +10,7 @@ Commands (each writes ``results.csv``, ``results.md`` and ``run.json`` to ``--ou
   without masks (e.g. ego-motion only, where every kept event is a false positive).
 
 The protocol is :mod:`experiments.benchmark.protocol`; the model is
-:class:`experiments.benchmark.model.SOMSSaliencyModel` (sOMS → proto-object saliency),
+:class:`agents.pipeline.SaliencyPipeline` (sOMS → proto-object saliency),
 one step per dataset window. Registered in ``experiments/cli/main.py`` as
 ``app.add_typer(benchmark_app, name="benchmark")``.
 """

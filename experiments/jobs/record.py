@@ -25,7 +25,6 @@ from typing import Any
 
 import gymnasium as gym
 import h5py
-import imageio.v2 as imageio
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
@@ -34,7 +33,7 @@ from experiments.jobs.run_viewer import open_run_log
 from wander_env.env import WanderConfig
 from wander_env.event_formats import write_evimo2_sequence
 from wander_env.event_io import read_events, write_events
-from wander_env.event_stream import EventStreamWriter, H5Appender, OutputError, check_space
+from wander_env.event_stream import EventStreamWriter, H5Appender, VideoSink
 from wander_env.metrics import focal_length_px
 from wander_env.runinfo import run_record, write_json
 
@@ -148,11 +147,7 @@ def _record(
         EventStreamWriter(out_dir / "events.h5", (w, h, 2), rec) as events,
         H5Appender(out_dir / "ground_truth.h5", fields, attrs, chunk_rows=100) as truth,
     ):
-        writer = (
-            imageio.get_writer(video_path, fps=round(1 / dt), macro_block_size=1)
-            if config.video
-            else None
-        )
+        writer = VideoSink(video_path, fps=round(1 / dt)) if config.video else None
         rrlog = open_run_log(out_dir, env, "wander record")  # run.rrd
         try:
             for k in range(steps):
@@ -172,12 +167,7 @@ def _record(
                     object_mask_pixels=pixels,
                 )
                 if writer is not None:
-                    frame = env.render()
-                    try:
-                        writer.append_data(frame)
-                    except Exception as err:  # ffmpeg's pipe: a full disk is a broken pipe
-                        check_space(video_path, frame.nbytes)
-                        raise OutputError(video_path, err) from err
+                    writer.append(env.render())
                 done = k + 1
                 if progress is not None:
                     progress(k + 1, steps)
@@ -186,10 +176,7 @@ def _record(
         finally:
             rrlog.close()
             if writer is not None:
-                try:
-                    writer.close()
-                except Exception as err:
-                    error = error or OutputError(video_path, err)
+                error = writer.finish(error)
         n_events = events.events_written
         summary = {"events": n_events, "steps": done}
         events.close({**rec, "summary": summary})

@@ -33,7 +33,7 @@ import gymnasium as gym
 import numpy as np
 
 from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent
-from experiments.jobs.run_agent import RunConfig, RunResult, run_closed_loop
+from experiments.jobs.run_agent import RunConfig, RunResult, run_for_config
 from hardware.ptu_driver import FlirPTUParams, PTUError, PTUPortError, PTUTimeout
 from hardware.ptu_emulator import PTUEmulatorParams
 from hardware.rig_env import RigConfig
@@ -266,16 +266,7 @@ def run_rig(
         record = run_record("wander rig", asdict(config), config.seed)
         record["rig"] = device_record(base)
         try:
-            result = run_closed_loop(
-                counters,
-                agent,
-                config.seconds,
-                out_dir,
-                record,
-                video=config.video,
-                progress=progress,
-                seed=config.seed,
-            )
+            result = run_for_config(counters, agent, config, out_dir, record, progress)
         except BaseException as err:
             base.halt_after_failure()  # a signal, a camera fault: halt, and record it
             metrics = _add_metrics(out_dir, counters.summary())

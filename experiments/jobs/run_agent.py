@@ -43,13 +43,13 @@ from experiments import scanpath_stats
 from experiments.jobs.run_viewer import open_run_log
 from experiments.jobs.scanpath_figure import pixel_to_angles, plot_scanpath
 from wander_env.env import WanderConfig
-from wander_env.event_stream import EventStreamWriter, OutputError, check_space
+from wander_env.event_stream import EventStreamWriter, OutputError, VideoSink
 from wander_env.metrics import degrees_to_pixels, detection_hit, focal_length_px
 from wander_env.runinfo import run_record, write_json
 from wander_env.shutdown import SignalExit
 from wander_env.viz import event_image, labelled_frame, saliency_rgb
 
-__all__ = ["RunConfig", "RunResult", "run", "run_closed_loop", "video_frame"]
+__all__ = ["RunConfig", "RunResult", "run", "run_closed_loop", "run_for_config", "video_frame"]
 
 
 @dataclass(frozen=True)
@@ -171,10 +171,8 @@ def run_closed_loop(
     writer = None
     video_path = out_dir / "run.mp4"
     if video:
-        import imageio.v2 as imageio
-
         try:
-            writer = imageio.get_writer(video_path, fps=round(1 / dt), macro_block_size=1)
+            writer = VideoSink(video_path, fps=round(1 / dt))
         except BaseException:
             stream.close()
             raise
@@ -213,12 +211,7 @@ def run_closed_loop(
             log.steps = k + 1
             rrlog.step(obs, info, agent)
             if writer is not None:
-                frame = _frame_for(agent, obs, base, info)
-                try:
-                    writer.append_data(frame)
-                except Exception as err:  # ffmpeg's pipe: a full disk shows as a broken pipe
-                    check_space(video_path, frame.nbytes)
-                    raise OutputError(video_path, err) from err
+                writer.append(_frame_for(agent, obs, base, info))
             if progress is not None:
                 progress(k + 1, n_steps)
             if terminated or truncated:
@@ -229,11 +222,7 @@ def run_closed_loop(
         rrlog.close()
         log.sightings = rrlog.sightings
         if writer is not None:
-            try:
-                writer.close()
-            except Exception as err:
-                if error is None:
-                    error = OutputError(video_path, err)
+            error = writer.finish(error)
     wall = time.perf_counter() - t_wall
     try:
         result = _write_folder(out_dir, env, agent, log, stream, record, dt, wall, error)
@@ -406,6 +395,28 @@ def _write_folder(
     return RunResult(metrics=metrics, files=files, error=metrics.get("error"))
 
 
+def run_for_config(
+    env: Any,
+    agent: AttentionAgent,
+    config: Any,
+    out_dir: Path,
+    record: dict[str, Any],
+    progress: Callable[[int, int], None] | None = None,
+) -> RunResult:
+    """:func:`run_closed_loop` for a run config's ``seconds``, ``video`` and ``seed``
+    (``wander run``'s :class:`RunConfig` and ``wander rig``'s config)."""
+    return run_closed_loop(
+        env,
+        agent,
+        config.seconds,
+        out_dir,
+        record,
+        video=config.video,
+        progress=progress,
+        seed=config.seed,
+    )
+
+
 def run(
     out_dir: Path, config: RunConfig, progress: Callable[[int, int], None] | None = None
 ) -> RunResult:
@@ -430,16 +441,7 @@ def run(
             env.close()
         raise
     try:
-        return run_closed_loop(
-            env,
-            agent,
-            config.seconds,
-            out_dir,
-            record,
-            video=config.video,
-            progress=progress,
-            seed=config.seed,
-        )
+        return run_for_config(env, agent, config, out_dir, record, progress)
     finally:
         agent.close()
         env.close()

@@ -28,10 +28,10 @@ import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
 from agents.fixation import gaze_degrees_to_action
+from agents.pipeline import SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
 from experiments.benchmark.datasets.base import MaskWindow, SequenceData
-from experiments.benchmark.model import SOMSSaliencyModel
 from experiments.benchmark.protocol import (
     ProtocolConfig,
     WindowRow,
@@ -219,10 +219,10 @@ def run_trial(cfg: DetectionConfig, spec: TrialSpec) -> dict[str, Any]:
     soms, proto = _params(cfg)
     protocol = ProtocolConfig(box=cfg.box)
     warm = round(cfg.warmup_s * 1e6)
-    baseline = SOMSSaliencyModel(
+    baseline = SaliencyPipeline(
         soms, saliency="oms_density", density_sigma_px=cfg.baseline_sigma_px
     )
-    with_proto = _means(evaluate_sequence(seq, SOMSSaliencyModel(soms, proto), protocol), warm)
+    with_proto = _means(evaluate_sequence(seq, SaliencyPipeline(soms, proto), protocol), warm)
     without = _means(evaluate_sequence(seq, baseline, protocol), warm)
     n_windows = len(seq.windows)
     return {

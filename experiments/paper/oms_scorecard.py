@@ -154,7 +154,7 @@ def _family_row(cfg: OMSScorecardConfig, seed: int, half: str) -> dict[str, Any]
 
 
 def _real_row(cfg: OMSScorecardConfig) -> dict[str, Any]:
-    from experiments.benchmark.model import SOMSSaliencyModel
+    from agents.pipeline import SaliencyPipeline
     from experiments.benchmark.protocol import event_suppression
     from wander_env.event_io import read_events
 
@@ -167,7 +167,7 @@ def _real_row(cfg: OMSScorecardConfig) -> dict[str, Any]:
         rec = read_events(path, (240, 180))  # DAVIS240C
         for ms in cfg.real_bins_ms:
             for k, p in variants().items():
-                model = SOMSSaliencyModel(replace(p, dt=ms / 1000.0), saliency="oms_density")
+                model = SaliencyPipeline(replace(p, dt=ms / 1000.0), saliency="oms_density")
                 r = event_suppression(rec.events, rec.sensor_size, model, ms * 1000, name=clip)
                 row[f"{k}:{clip}:{ms}ms:suppressed"] = r.fraction_suppressed
                 row[f"{k}:{clip}:{ms}ms:windows"] = r.n_windows

@@ -1,0 +1,108 @@
+"""The one config system (wander_env.config): nested blocks, overrides, messages."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import pytest
+
+from agents.attention import AgentParams
+from agents.soms import SOMSParams
+from experiments.framework import resolve_config
+from wander_env.config import ConfigError, check_fields, parse_sets, validate
+
+
+@dataclass(frozen=True)
+class Block:
+    alpha: float = 0.8
+    k: int = 8
+
+
+@dataclass(frozen=True)
+class Outer:
+    name: str = "x"
+    block: Block = field(default_factory=Block)
+    soms: SOMSParams = field(default_factory=SOMSParams)
+
+    def __post_init__(self) -> None:
+        if self.block.k < 1:
+            raise ValueError(f"block.k must be >= 1, got {self.block.k}")
+
+
+def test_nested_set_changes_only_the_named_field():
+    base = Outer(block=Block(alpha=0.5, k=3))
+    cfg = validate(Outer, parse_sets(["soms.alpha=0.6", "block.k=4"], Outer), base, "--set")
+    assert cfg.soms.alpha == 0.6 and cfg.soms.sigma_s == SOMSParams().sigma_s
+    assert cfg.block == Block(alpha=0.5, k=4)  # alpha kept from base
+    assert isinstance(cfg.soms, SOMSParams) and cfg.name == "x"
+
+
+def test_dotted_keys_of_a_mapping_are_nested_too():
+    cfg = validate(Outer, {"soms.tau_mem": 0.05, "block": {"alpha": 1}})
+    assert cfg.soms.tau_mem == 0.05 and cfg.block.alpha == 1.0
+
+
+def test_a_real_parameter_block_validates_nested():
+    p = validate(AgentParams, parse_sets(["soms.alpha=0.6", "window_s=0.05"], AgentParams))
+    assert p.soms.alpha == 0.6 and p.window_s == 0.05
+    assert p.soms.norm == AgentParams().soms.norm  # the rest of the agent's sOMS kept
+
+
+def test_bad_nested_key_names_its_path_and_the_blocks_allowed_keys():
+    with pytest.raises(ConfigError) as e:
+        validate(Outer, parse_sets(["soms.alph=0.6"], Outer), where="--set")
+    msg = str(e.value)
+    assert msg.startswith("--set: unknown key 'soms.alph' for SOMSParams; allowed keys: ")
+    assert "alpha (float)" in msg and "sigma_c (float)" in msg
+
+
+def test_bad_nested_value_names_path_type_and_value():
+    with pytest.raises(ConfigError) as e:
+        validate(Outer, {"block": {"k": 1.5}}, where="c.yaml")
+    assert str(e.value) == "c.yaml: bad value for key 'block.k': expected int, got 1.5"
+    with pytest.raises(ConfigError, match=r"c\.yaml: bad value for key 'block.alpha': "):
+        validate(Outer, {"block": {"alpha": True}}, where="c.yaml")
+    with pytest.raises(ConfigError, match=r"^--set: block.k must be >= 1, got 0$"):
+        validate(Outer, {"block": {"k": 0}}, where="--set")
+    with pytest.raises(ConfigError, match=r"^x: soms: alpha must be in \[0, 1\], got -1.0$"):
+        validate(Outer, {"soms": {"alpha": -1.0}}, where="x")
+
+
+def test_yaml_file_error_names_the_file_the_field_and_the_value(tmp_path):
+    from experiments.framework import get_experiment
+
+    path = tmp_path / "det.yaml"
+    path.write_text("alpha: 0.5\nscenes: [office, 3]\n")
+    with pytest.raises(ConfigError) as e:
+        resolve_config(get_experiment("detection"), path)
+    msg = str(e.value)
+    assert msg.startswith(f"{path}: bad value for key 'scenes': expected list of str, got ")
+    assert "['office', 3]" in msg and "scenes[1]" in msg
+
+
+def test_set_cannot_set_a_block_and_one_of_its_keys():
+    with pytest.raises(ConfigError, match="block is set to a value already"):
+        parse_sets(["block=1", "block.k=2"], Outer)
+
+
+def test_check_fields_names_class_field_bound_and_value():
+    @dataclass
+    class P:
+        a: float = 1.0
+        n: int = 2
+
+        def __post_init__(self) -> None:
+            check_fields(self, ("a",), positive=True)
+            check_fields(self, ("n",), integer=True, minimum=1)
+
+    for kwargs, text in [
+        ({"a": 0.0}, "P.a must be a finite number > 0, got 0.0"),
+        ({"a": float("nan")}, "P.a must be a finite number > 0, got nan"),
+        ({"a": True}, "P.a must be a finite number > 0, got True"),
+        ({"n": 0}, "P.n must be an int >= 1, got 0"),
+        ({"n": 2.0}, "P.n must be an int >= 1, got 2.0"),
+    ]:
+        with pytest.raises(ValueError) as e:
+            P(**kwargs)
+        assert str(e.value) == text
+    assert P(a=0.5, n=3).n == 3

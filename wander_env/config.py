@@ -1,0 +1,375 @@
+"""One config system: parameter dataclasses validated from YAML, dicts and ``--set`` items.
+
+pydantic (strict, unknown keys refused, nested dataclasses and tuples) does the
+validation; this module only turns its errors into the project's messages, which name
+where the value came from (a file, ``--set``), the field's path, the allowed keys or
+values and the bad value, e.g.
+``--set: unknown key 'soms.alph' for SOMSParams; allowed keys: ...`` or
+``c.yaml: bad value for key 'x': expected float, got 'abc'``.
+
+- :func:`validate` — a dataclass instance from a mapping (nested mappings become nested
+  dataclasses), optionally on top of a ``base`` instance (a nested mapping updates only
+  the keys it names);
+- :func:`coerce` — one value as a type (``TypeError`` naming the type);
+- :func:`parse_sets` — ``["a.b=value", ...]`` → nested ``{"a": {"b": value}}``;
+- :func:`check_fields` — the shared ``__post_init__`` check of numeric fields.
+
+Numbers: ints are accepted for floats; bools are not numbers; a string such as ``1e-3``
+(YAML 1.1 reads it as a string) is read as the float it spells.
+
+Example:
+    >>> from wander_env.scene_config import RoomConfig
+    >>> room = validate(RoomConfig, parse_sets(["wall_texture.tile_m=2"], RoomConfig))
+    >>> room.wall_texture.tile_m, room.floor_texture.kind  # the other blocks keep defaults
+    (2.0, 'checker')
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import types
+import typing
+from collections.abc import Iterable, Mapping
+from typing import Any, Literal
+
+import numpy as np
+import pydantic
+import yaml
+
+__all__ = [
+    "ConfigError",
+    "allowed_keys",
+    "check_fields",
+    "coerce",
+    "field_types",
+    "parse_sets",
+    "to_plain",
+    "type_name",
+    "validate",
+]
+
+
+class ConfigError(ValueError):
+    """A bad config key or value; the message names where, the key and the value."""
+
+
+_STRICT = pydantic.ConfigDict(strict=True, extra="forbid")
+
+
+def type_name(tp: Any) -> str:
+    """A readable name of a type for messages (``list [float, float]``, ``one of 'a'``)."""
+    origin = typing.get_origin(tp)
+    if origin is Literal:
+        return "one of " + ", ".join(repr(a) for a in typing.get_args(tp))
+    if origin in (typing.Union, types.UnionType):
+        return " or ".join(type_name(a) for a in typing.get_args(tp))
+    if origin is tuple:
+        args = typing.get_args(tp)
+        if len(args) == 2 and args[1] is Ellipsis:
+            return f"list of {type_name(args[0])}"
+        return "list [" + ", ".join(type_name(a) for a in args) + "]"
+    if tp is type(None):
+        return "null"
+    return getattr(tp, "__name__", str(tp))
+
+
+def field_types(cls: type) -> dict[str, Any]:
+    """The init fields of dataclass ``cls`` and their (resolved) types."""
+    hints = typing.get_type_hints(cls)
+    return {f.name: hints[f.name] for f in dataclasses.fields(cls) if f.init}
+
+
+def allowed_keys(cls: type) -> str:
+    """``key (type), ...`` for error messages and ``--help``."""
+    return ", ".join(f"{k} ({type_name(t)})" for k, t in field_types(cls).items())
+
+
+def to_plain(obj: Any) -> Any:
+    """Dataclasses (their init fields) as dicts and tuples as lists, recursively."""
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return {f.name: to_plain(getattr(obj, f.name)) for f in dataclasses.fields(obj) if f.init}
+    if isinstance(obj, (list, tuple)):
+        return [to_plain(v) for v in obj]
+    if isinstance(obj, Mapping):
+        return {k: to_plain(v) for k, v in obj.items()}
+    return obj
+
+
+def _merge(base: Any, values: Mapping[str, Any]) -> dict[str, Any]:
+    """``base`` (a plain dict) updated by ``values``; nested mappings update nested dicts."""
+    out = dict(base) if isinstance(base, Mapping) else {}
+    for k, v in values.items():
+        if isinstance(v, Mapping) and isinstance(out.get(k), Mapping):
+            out[k] = _merge(out[k], v)
+        else:
+            out[k] = v
+    return out
+
+
+def _expand(values: Mapping[str, Any]) -> dict[str, Any]:
+    """Dotted keys (``"soms.alpha": 0.6``, as in a sweep's grid) as nested mappings."""
+    out: dict[str, Any] = {}
+    for key, v in values.items():
+        *head, last = key.split(".")
+        node = out
+        for name in head:
+            node = node.setdefault(name, {})
+            if not isinstance(node, dict):
+                raise ConfigError(f"key {key!r}: {name} is set to a value already")
+        if isinstance(v, Mapping) and isinstance(node.get(last), dict):
+            node[last] = _merge(node[last], v)
+        else:
+            node[last] = v
+    return out
+
+
+def _on_defaults(cls: Any, values: Mapping[str, Any]) -> dict[str, Any]:
+    """``values`` with each nested block laid over its field's default (so a nested
+    mapping changes only the keys it names, also where the default is not the block
+    class's own defaults)."""
+    if not dataclasses.is_dataclass(cls):
+        return dict(values)
+    by_name = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    out = dict(values)
+    for k, v in values.items():
+        f = by_name.get(k)
+        if f is None or not isinstance(v, Mapping):
+            continue
+        if f.default is not dataclasses.MISSING:
+            default = f.default
+        elif f.default_factory is not dataclasses.MISSING:
+            default = f.default_factory()
+        else:
+            default = None
+        if dataclasses.is_dataclass(default) and not isinstance(default, type):
+            out[k] = _merge(to_plain(default), _on_defaults(type(default), v))
+    return out
+
+
+def _float_text(v: Any) -> float | None:
+    if not isinstance(v, str):
+        return None
+    try:
+        return float(v)
+    except ValueError:
+        return None
+
+
+def _set_at(data: Any, loc: tuple[Any, ...], value: Any) -> None:
+    for part in loc[:-1]:
+        data = data[part]
+    data[loc[-1]] = value
+
+
+def _run(tp: Any, data: Any) -> Any:
+    """Validate ``data`` as ``tp`` (strict, JSON semantics); numeric strings taken as floats."""
+    adapter = pydantic.TypeAdapter(list[tp], config=_STRICT)  # type: ignore[valid-type]
+    box = [json.loads(json.dumps(data, allow_nan=True))]
+    for _ in range(64):  # at most one retry per numeric string
+        try:
+            return adapter.validate_json(json.dumps(box, allow_nan=True))[0]
+        except pydantic.ValidationError as e:
+            fixable = [
+                err
+                for err in e.errors()
+                if err["type"] == "float_type" and _float_text(err["input"]) is not None
+            ]
+            if not fixable:
+                raise
+            for err in fixable:
+                _set_at(box, err["loc"], _float_text(err["input"]))
+    return adapter.validate_json(json.dumps(box, allow_nan=True))[0]
+
+
+def coerce(value: Any, tp: Any) -> Any:
+    """``value`` as type ``tp`` (int, float, str, bool, Literal, tuples, unions,
+    dataclasses); raises TypeError when it is not one.
+
+    >>> coerce([1, 2.5], tuple[float, ...]), coerce(3, float), coerce("a", Literal["a", "b"])
+    ((1.0, 2.5), 3.0, 'a')
+    """
+    if tp is Any:
+        return value
+    try:
+        return _run(tp, value)
+    except (pydantic.ValidationError, TypeError, ValueError):
+        raise TypeError(f"expected {type_name(tp)}") from None
+
+
+def _describe(cls: type, loc: tuple[Any, ...]) -> tuple[str, type, Any, str]:
+    """(dotted key, the dataclass holding it, the field's type, the key's last name)."""
+    owner: Any = cls
+    key, tp, name = "", None, ""
+    for part in loc:
+        if isinstance(part, int):
+            key += f"[{part}]"
+            continue
+        name = str(part)
+        key = f"{key}.{name}" if key else name
+        types_ = field_types(owner) if dataclasses.is_dataclass(owner) else {}
+        if name not in types_:
+            tp = None
+            break
+        tp = types_[name]
+        inner = [a for a in (typing.get_args(tp) or (tp,)) if dataclasses.is_dataclass(a)]
+        if dataclasses.is_dataclass(tp):
+            owner = tp
+        elif typing.get_origin(tp) is tuple and inner:
+            owner = inner[0]
+        elif inner:
+            owner = inner[0]
+    return key, owner, tp, name
+
+
+def _value_at(data: Any, loc: tuple[Any, ...]) -> Any:
+    for part in loc:
+        try:
+            data = data[part]
+        except (KeyError, IndexError, TypeError):
+            return None
+    return data
+
+
+def _message(cls: type, data: Any, err: Mapping[str, Any]) -> str:
+    loc = tuple(err["loc"])[1:]  # drop the list index of _run's box
+    kind = err["type"]
+    if kind == "unexpected_keyword_argument":
+        key, owner, _, _ = _describe(cls, loc[:-1])
+        full = f"{key}.{loc[-1]}" if key else str(loc[-1])
+        return f"unknown key {full!r} for {owner.__name__}; allowed keys: {allowed_keys(owner)}"
+    if kind == "missing":
+        key = _describe(cls, loc)[0]
+        return f"key {key!r} is required"
+    if kind == "value_error":  # a dataclass's own check (__post_init__)
+        text = str(err["ctx"]["error"]) if "ctx" in err else err["msg"]
+        key = _describe(cls, loc)[0]
+        return f"{key}: {text}" if key else text
+    # A type error: name the field (the first dataclass field on the path), its type,
+    # the value given and, when the error is deeper in it, pydantic's precise complaint.
+    fields_only = [i for i, p in enumerate(loc) if isinstance(p, str)]
+    cut = fields_only[-1] + 1 if fields_only else len(loc)
+    key, _, tp, _ = _describe(cls, loc[:cut])
+    got = _value_at(data, loc[:cut])
+    text = f"bad value for key {key!r}: expected {type_name(tp)}, got {got!r}"
+    if loc[cut:]:
+        inner = key + "".join(f"[{p}]" for p in loc[cut:])
+        text += f" ({inner}: {err['msg']}, got {err['input']!r})"
+    return text
+
+
+def validate(cls: type, values: Mapping[str, Any], base: Any = None, where: str = "config") -> Any:
+    """A ``cls`` instance: ``base`` (or the defaults) with ``values`` applied; nested
+    mappings set nested dataclass fields. ConfigError naming ``where``, the key and the
+    value (every problem found, ``; ``-separated)."""
+    if not isinstance(values, Mapping):
+        raise ConfigError(f"{where}: expected a mapping of key: value, got {values!r}")
+    bad = [k for k in values if not isinstance(k, str)]
+    if bad:
+        raise ConfigError(f"{where}: keys must be strings, got {bad!r}")
+    values = _expand(values)
+    data = _merge(to_plain(base), values) if base is not None else _on_defaults(cls, values)
+    try:
+        return _run(cls, data)
+    except pydantic.ValidationError as e:
+        msgs = list(dict.fromkeys(_message(cls, data, err) for err in e.errors()))
+        raise ConfigError(f"{where}: " + "; ".join(msgs)) from None
+    except (ValueError, TypeError) as e:
+        raise ConfigError(f"{where}: {e}") from None
+
+
+def _type_at(cls: type, path: list[str]) -> Any:
+    tp: Any = cls
+    for name in path:
+        types_ = field_types(tp) if dataclasses.is_dataclass(tp) else {}
+        if name not in types_:
+            return None
+        tp = types_[name]
+        inner = [a for a in typing.get_args(tp) if dataclasses.is_dataclass(a)]
+        if inner and not dataclasses.is_dataclass(tp):
+            tp = inner[0]
+    return tp
+
+
+def parse_sets(sets: Iterable[str], cls: type) -> dict[str, Any]:
+    """``["key=value", "block.key=value", ...]`` -> ``{key: value, block: {key: value}}``;
+    values read as YAML (``[1, 2]``, ``true``, ``0.5``) except for plain string fields,
+    which take the text as it is.
+
+    >>> from wander_env.scene_config import SceneConfig
+    >>> parse_sets(["name=on", "camera.width=64"], SceneConfig)
+    {'name': 'on', 'camera': {'width': 64}}
+    """
+    out: dict[str, Any] = {}
+    for item in sets:
+        key, sep, text = item.partition("=")
+        path = [p.strip() for p in key.strip().split(".")]
+        if not sep or not all(path):
+            raise ConfigError(
+                f"--set {item!r}: expected key=value or block.key=value; allowed keys: "
+                f"{allowed_keys(cls)}"
+            )
+        if _type_at(cls, path) is str:
+            value: Any = text
+        else:
+            try:
+                value = yaml.safe_load(text) if text.strip() else text
+            except yaml.YAMLError:
+                value = text
+        node = out
+        for i, name in enumerate(path[:-1]):
+            nxt = node.setdefault(name, {})
+            if not isinstance(nxt, dict):
+                raise ConfigError(
+                    f"--set {item!r}: {'.'.join(path[: i + 1])} is set to a value already"
+                )
+            node = nxt
+        node[path[-1]] = value
+    return out
+
+
+def check_fields(
+    obj: Any,
+    names: Iterable[str],
+    *,
+    positive: bool = False,
+    minimum: float | None = None,
+    integer: bool = False,
+    allow_none: bool = False,
+) -> None:
+    """The shared ``__post_init__`` check: each field in ``names`` of dataclass ``obj`` is
+    a finite number (an int when ``integer``; bools refused), > 0 when ``positive``,
+    >= ``minimum`` when given (None passes when ``allow_none``). ValueError
+    ``Class.field must be ..., got value``.
+
+    >>> from dataclasses import dataclass
+    >>> @dataclass
+    ... class P:
+    ...     n: int = 0
+    ...     def __post_init__(self):
+    ...         check_fields(self, ("n",), integer=True, minimum=1)
+    >>> P(n=0)
+    Traceback (most recent call last):
+    ...
+    ValueError: P.n must be an int >= 1, got 0
+    """
+    cls = type(obj).__name__
+    for name in names:
+        v = getattr(obj, name)
+        if v is None and allow_none:
+            continue
+        kind = "an int" if integer else "a finite number"
+        bound = " > 0" if positive else (f" >= {minimum:g}" if minimum is not None else "")
+        if isinstance(v, bool):
+            ok = False
+        elif integer:
+            ok = isinstance(v, (int, np.integer))
+        else:
+            ok = isinstance(v, (int, float)) and math.isfinite(v)
+        if ok and positive:
+            ok = v > 0
+        if ok and minimum is not None:
+            ok = v >= minimum
+        if not ok:
+            raise ValueError(f"{cls}.{name} must be {kind}{bound}, got {v!r}")
