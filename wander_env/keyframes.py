@@ -45,7 +45,7 @@ Example:
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
 import cv2
@@ -57,10 +57,12 @@ __all__ = [
     "Keyframe",
     "KeyframeSource",
     "View",
+    "adaptive_key_ticks",
     "flow_bound_px",
     "make_keyframe",
     "max_flow_px",
     "synthesize",
+    "view_flow_bounds_px",
 ]
 
 # A moving layer's pixels are searched in the bounding box of its key pixels, mapped to
@@ -284,27 +286,122 @@ def flow_bound_px(key: Keyframe, view: View, k: np.ndarray, radii: np.ndarray) -
     """Like :func:`max_flow_px` without the key's geometry: each moving layer is taken
     as a ball of radius ``radii[layer]`` (m) about its position (``inf``: unbounded, as
     is a moving camera centre); a layer that may reach the camera gives ``inf``."""
-    h, w = key.lum.shape
-    r_rel, t_rel = relative_pose(key.view.rotation, key.view.centre, view.rotation, view.centre)
-    if np.any(t_rel):
-        return float("inf")
+    return float(view_flow_bounds_px(key.view, [view], k, radii, key.lum.shape)[0])
+
+
+def view_flow_bounds_px(
+    ref: View,
+    views: Sequence[View],
+    k: np.ndarray,
+    radii: np.ndarray,
+    shape: tuple[int, int],
+) -> np.ndarray:
+    """:func:`flow_bound_px` from the view ``ref`` to each of ``views`` at once: (n,)
+    upper bounds (px) on how far any pixel's content moves, from the poses alone.
+
+    The camera's rotation is measured at the image's corners and edge midpoints; a
+    moving layer (a ball of radius ``radii[layer]`` m about its position) adds
+    ``f/near·(|t_xy| + |t_z|·r_max/f)``; both times 1.25. ``inf`` where the camera
+    centre moves or a moving layer may reach the camera (or has no bounded radius).
+
+    >>> from wander_env.camera import intrinsics
+    >>> k = intrinsics(128, 128, 90.0)
+    >>> still = View(np.eye(3), np.zeros(3), np.array([[0, 0, 0], [0, 0, 2.0]]))
+    >>> moved = View(np.eye(3), np.zeros(3), np.array([[0, 0, 0], [0.01, 0, 2.0]]))
+    >>> view_flow_bounds_px(still, [still, moved], k, np.array([np.inf, 0.1]), (128, 128))
+    array([0.        , 0.42105263])
+    """
+    n = len(views)
+    if n == 0:
+        return np.zeros(0)
+    h, w = shape
+    rot = np.stack([v.rotation for v in views])  # (n, 3, 3) world-from-camera
+    centres = np.stack([v.centre for v in views])
+    layers = np.stack([v.layer_positions for v in views])  # (n, L, 3)
+    out = np.zeros(n)
+    out[np.abs(centres - ref.centre).max(axis=1) > 0] = np.inf
+    # Rotation part: target-from-ref rotation R_i^T R_ref, homography K R K^-1.
     pts = np.array([[x, y, 1.0] for x in (0, (w - 1) / 2, w - 1) for y in (0, (h - 1) / 2, h - 1)])
-    m = pts @ (k @ r_rel @ np.linalg.inv(k)).T
-    flow = float(np.abs(m[:, :2] / m[:, 2:] - pts[:, :2]).max(initial=0.0))
+    hom = k @ np.swapaxes(rot, 1, 2) @ ref.rotation @ np.linalg.inv(k)  # (n, 3, 3)
+    m = pts @ np.swapaxes(hom, 1, 2)  # (n, 9, 3)
+    flow = np.abs(m[..., :2] / m[..., 2:] - pts[:, :2]).max(axis=(1, 2))
     f = float(k[0, 0])
     r_max = float(np.hypot(w, h)) / 2 + 1.0
-    extra = 0.0
-    for layer in range(1, len(view.layer_positions)):
-        shift = view.layer_positions[layer] - key.view.layer_positions[layer]
+    extra = np.zeros(n)
+    for layer in range(1, layers.shape[1]):
+        shift = layers[:, layer] - ref.layer_positions[layer]  # (n, 3) world
         if not np.any(shift):
             continue
-        z = float((key.view.rotation.T @ (key.view.layer_positions[layer] - key.view.centre))[2])
+        z = float((ref.rotation.T @ (ref.layer_positions[layer] - ref.centre))[2])
         near = z - float(radii[layer])
-        if not near > 0.01:
-            return float("inf")
-        t_l = view.rotation.T @ shift
-        extra = max(extra, f / near * (np.hypot(t_l[0], t_l[1]) + abs(t_l[2]) * r_max / f))
-    return 1.25 * (flow + extra)
+        t_l = np.einsum("nji,nj->ni", rot, shift)  # in each target camera's axes
+        move = f * (np.hypot(t_l[:, 0], t_l[:, 1]) + np.abs(t_l[:, 2]) * r_max / f)
+        moved = np.abs(shift).max(axis=1) > 0
+        bound = move / near if near > 0.01 else np.where(moved, np.inf, 0.0)
+        extra = np.maximum(extra, bound)
+    return out + 1.25 * (flow + extra)
+
+
+def adaptive_key_ticks(
+    ref: View,
+    views: Sequence[View],
+    k: np.ndarray,
+    radii: np.ndarray,
+    shape: tuple[int, int],
+    bound_px: float,
+    max_ticks: int | None = None,
+) -> list[int] | None:
+    """Indices of the ticks of a step (``views``, the last one the step's end) to
+    render as keys, after the key ``ref`` at the step's start.
+
+    The step's end is always a key. Between two consecutive keys no pixel's content
+    moves more than ``bound_px`` (:func:`view_flow_bounds_px`; each key as late as that
+    allows; where one tick alone moves more, every tick is a key), and, where anything
+    moves at all, keys are no more than ``max_ticks`` ticks apart (spread evenly over
+    the span between the keys the motion bound set). Where nothing moves the step
+    has one key: its end. ``None`` when the motion has no finite bound (a moving
+    camera centre, a layer without a bounded radius): the caller keeps a fixed interval.
+
+    >>> from wander_env.camera import intrinsics
+    >>> k = intrinsics(128, 128, 90.0)
+    >>> v = [View(np.eye(3), np.zeros(3), np.array([[0, 0, 0], [0.002 * i, 0, 2.0]]))
+    ...      for i in range(11)]
+    >>> radii = np.array([np.inf, 0.1])
+    >>> adaptive_key_ticks(v[0], v[1:], k, radii, (128, 128), 0.3)
+    [2, 5, 8, 9]
+    >>> adaptive_key_ticks(v[0], v[1:], k, radii, (128, 128), 10.0, max_ticks=4)
+    [2, 6, 9]
+    >>> adaptive_key_ticks(v[0], [v[0]] * 10, k, radii, (128, 128), 0.3, max_ticks=2)
+    [9]
+    """
+    if not bound_px > 0:
+        raise ValueError(f"bound_px must be > 0, got {bound_px!r}")
+    if max_ticks is not None and max_ticks < 1:
+        raise ValueError(f"max_ticks must be >= 1, got {max_ticks!r}")
+    n = len(views)
+    keys: list[int] = []
+    moves: list[bool] = []  # whether anything moves between the previous key and this one
+    start = 0
+    while start < n:
+        bounds = view_flow_bounds_px(ref, views[start:], k, radii, shape)
+        if not np.isfinite(bounds).all():
+            return None
+        over = np.flatnonzero(bounds > bound_px)
+        j = n - 1 if not len(over) else start + max(int(over[0]) - 1, 0)
+        keys.append(j)
+        moves.append(bool(bounds[: j - start + 1].max() > 0))
+        ref, start = views[j], j + 1
+    if max_ticks is None:
+        return keys
+    spread: list[int] = []
+    prev = -1
+    for j, moving in zip(keys, moves, strict=True):
+        span = j - prev
+        parts = -(-span // max_ticks) if moving else 1
+        spread.extend(prev + round(span * i / parts) for i in range(1, parts))
+        spread.append(j)
+        prev = j
+    return spread
 
 
 def _moving_region(
