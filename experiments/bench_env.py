@@ -185,7 +185,9 @@ def step_breakdown(
     for name in ("prepare", "log_change", "step"):
         if hasattr(u.dvs, name):  # prepare: since the fused log input
             setattr(u.dvs, name, timed(getattr(u.dvs, name), acc, "dvs"))
-    u._pose = timed(u._pose, acc, "pose")
+    u._pose_angles = timed(u._pose_angles, acc, "pose")  # every full pose goes through it
+    if hasattr(u, "_camera_view"):  # keyframes: the camera alone, for a tick's view
+        u._camera_view = timed(u._camera_view, acc, "pose")
     env.reset(seed=seed)
     action = np.zeros(2, np.float32)
     env.step(action)  # warm-up

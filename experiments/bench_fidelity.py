@@ -64,6 +64,7 @@ class FidelityRow:
     renders_per_step_keyframes: float
     # Adaptive keys (keyframe_px): the same measures against exact.
     keyframe_px: float = ADAPTIVE_PX
+    adaptive_ms: float = float("nan")  # the adaptive keys' longest interval while moving
     adaptive_events: int = 0
     adaptive_events_diff_pct: float = float("nan")
     adaptive_l1_per_event: float = float("nan")
@@ -145,7 +146,13 @@ class _Run:
 
 
 def _run(
-    scene: str, motion: str, seed: int, seconds: float, keyframe_ms: float, keyframe_px: float
+    scene: str,
+    motion: str,
+    seed: int,
+    seconds: float,
+    keyframe_ms: float,
+    keyframe_px: float,
+    adaptive_ms: float,
 ) -> _Run:
     import gymnasium as gym
 
@@ -154,7 +161,7 @@ def _run(
     kwargs = {
         "exact": {"frames": "exact"},
         "keyframes": {"frames": "keyframes", "keyframe_ms": keyframe_ms, "keyframe_px": None},
-        "adaptive": {"frames": "keyframes", "keyframe_ms": keyframe_ms, "keyframe_px": keyframe_px},
+        "adaptive": {"frames": "keyframes", "keyframe_ms": adaptive_ms, "keyframe_px": keyframe_px},
         "aa16": {"frames": "exact", "supersample": 2},
     }
     envs = {
@@ -212,15 +219,18 @@ def bench_fidelity(
     seconds: float = 0.25,
     keyframe_ms: float | None = None,
     keyframe_px: float = ADAPTIVE_PX,
+    adaptive_ms: float | None = None,
     tol_us: int = 1000,
     progress: Callable[[str], None] | None = None,
 ) -> list[FidelityRow]:
     """One row per scene and motion (seeds pooled); see the module docstring.
     ``keyframe_ms`` defaults to the env's; the adaptive columns use keys bounded by
-    ``keyframe_px`` (``WanderConfig.keyframe_px``)."""
+    ``keyframe_px`` and no more than ``adaptive_ms`` apart (default ``keyframe_ms``)
+    while anything moves (``WanderConfig.keyframe_px``)."""
     from wander_env.env import WanderConfig
 
     keyframe_ms = WanderConfig.keyframe_ms if keyframe_ms is None else keyframe_ms
+    adaptive_ms = keyframe_ms if adaptive_ms is None else adaptive_ms
     rows = []
     for scene in scenes:
         for motion in motions:
@@ -228,7 +238,9 @@ def bench_fidelity(
             for seed in seeds:
                 if progress is not None:
                     progress(f"{scene} {motion} seed {seed}")
-                runs.append(_run(scene, motion, seed, seconds, keyframe_ms, keyframe_px))
+                runs.append(
+                    _run(scene, motion, seed, seconds, keyframe_ms, keyframe_px, adaptive_ms)
+                )
             ev = {m: [np.concatenate(r.events[m]) for r in runs] for m in _MODES}
             n = {m: sum(len(e) for e in ev[m]) for m in _MODES}
             steps = sum(r.steps for r in runs)
@@ -274,6 +286,7 @@ def bench_fidelity(
                     renders_per_step_exact=sum(r.renders["exact"] for r in runs) / steps,
                     renders_per_step_keyframes=sum(r.renders["keyframes"] for r in runs) / steps,
                     keyframe_px=keyframe_px,
+                    adaptive_ms=adaptive_ms,
                     adaptive_events=n["adaptive"],
                     adaptive_events_diff_pct=_pct(n["adaptive"] / n["exact"] - 1.0)
                     if n["exact"]

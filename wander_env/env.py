@@ -71,7 +71,13 @@ from wander_env.dvs import DVSEmulator, DVSParams
 from wander_env.event_packet import EventPacket
 from wander_env.events import concatenate, to_frame
 from wander_env.gl_fork import ForkedGLError, fork_error_message
-from wander_env.keyframes import KeyframeSource, View, adaptive_key_ticks, make_keyframe
+from wander_env.keyframes import (
+    KeyframeSource,
+    View,
+    adaptive_key_ticks,
+    make_keyframe,
+    view_flow_bounds_px,
+)
 from wander_env.mjcf import (
     CAMERA_NAME,
     PAN_JOINT,
@@ -233,6 +239,7 @@ class WanderEnv(gym.Env):
         self._key_angles: dict[int, tuple[float, float]] = {}  # key t_us -> camera angles
         self._tick_views: dict[int, tuple[float, float, View]] = {}  # t_us -> angles, view
         self._pose_stale = False  # the model was moved off the step's end (keyframes)
+        self._tick_bounds: dict[int, float] = {}  # t_us -> flow bound from its two keys
         self._posed_us = 0
         self._key_mask: tuple[int, np.ndarray] | None = None  # (t_us, object mask) of a key
         self.renders_in_step = 0  # frames rendered (RGB) in the last step or reset
@@ -410,6 +417,18 @@ class WanderEnv(gym.Env):
                 geometry = t == t1 and c.ground_truth
                 self._render_key(t, geometry, angles=(pan, tilt), view=view)
         self._pose_stale = False
+        # Each synthesised tick's flow bound from its two keys, for all ticks at once.
+        between = [(t, v) for (t, _, _), v in zip(ticks, views, strict=True) if t not in chosen]
+        self._tick_bounds = {}
+        if between:
+            pairs = [self._keys.neighbours(t) for t, _ in between]
+            tv = [v for _, v in between]
+            shape = (self.height, self.width)
+            k, radii = self._keys.k, self._keys.radii
+            ba = view_flow_bounds_px([p[0].view for p in pairs], tv, k, radii, shape)
+            bb = view_flow_bounds_px([p[1].view for p in pairs], tv, k, radii, shape)
+            both = zip(between, np.maximum(ba, bb), strict=True)
+            self._tick_bounds = {t: float(b) for (t, _), b in both}
 
     def _frame_at(self, t_us: int) -> np.ndarray:
         """The camera frame at ``t_us``: rendered from the posed model (exact) or from
@@ -419,7 +438,10 @@ class WanderEnv(gym.Env):
         key = self._keys.key_at(t_us)
         if key is not None:
             return key.lum
-        return self._keys.frame(t_us, self._keyframes_view(t_us))
+        view = self._keyframes_view(t_us)
+        kept = self._tick_views.get(t_us)
+        bound = self._tick_bounds.get(t_us) if kept is not None and view is kept[2] else None
+        return self._keys.frame(t_us, view, bound_px=bound)
 
     def _keyframes_view(self, t_us: int) -> View:
         """The view at ``t_us`` for the PTU's current angles: the one :meth:`_render_keys`

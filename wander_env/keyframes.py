@@ -290,14 +290,15 @@ def flow_bound_px(key: Keyframe, view: View, k: np.ndarray, radii: np.ndarray) -
 
 
 def view_flow_bounds_px(
-    ref: View,
+    ref: View | Sequence[View],
     views: Sequence[View],
     k: np.ndarray,
     radii: np.ndarray,
     shape: tuple[int, int],
 ) -> np.ndarray:
-    """:func:`flow_bound_px` from the view ``ref`` to each of ``views`` at once: (n,)
-    upper bounds (px) on how far any pixel's content moves, from the poses alone.
+    """:func:`flow_bound_px` from the view ``ref`` (or from each of a sequence of
+    views, one per view) to each of ``views`` at once: (n,) upper bounds (px) on how
+    far any pixel's content moves, from the poses alone.
 
     The camera's rotation is measured at the image's corners and edge midpoints; a
     moving layer (a ball of radius ``radii[layer]`` m about its position) adds
@@ -315,31 +316,42 @@ def view_flow_bounds_px(
     if n == 0:
         return np.zeros(0)
     h, w = shape
-    rot = np.stack([v.rotation for v in views])  # (n, 3, 3) world-from-camera
-    centres = np.stack([v.centre for v in views])
-    layers = np.stack([v.layer_positions for v in views])  # (n, L, 3)
-    out = np.zeros(n)
-    out[np.abs(centres - ref.centre).max(axis=1) > 0] = np.inf
-    # Rotation part: target-from-ref rotation R_i^T R_ref, homography K R K^-1.
-    pts = np.array([[x, y, 1.0] for x in (0, (w - 1) / 2, w - 1) for y in (0, (h - 1) / 2, h - 1)])
-    hom = k @ np.swapaxes(rot, 1, 2) @ ref.rotation @ np.linalg.inv(k)  # (n, 3, 3)
-    m = pts @ np.swapaxes(hom, 1, 2)  # (n, 9, 3)
-    flow = np.abs(m[..., :2] / m[..., 2:] - pts[:, :2]).max(axis=(1, 2))
-    f = float(k[0, 0])
-    r_max = float(np.hypot(w, h)) / 2 + 1.0
-    extra = np.zeros(n)
-    for layer in range(1, layers.shape[1]):
-        shift = layers[:, layer] - ref.layer_positions[layer]  # (n, 3) world
-        if not np.any(shift):
-            continue
-        z = float((ref.rotation.T @ (ref.layer_positions[layer] - ref.centre))[2])
-        near = z - float(radii[layer])
-        t_l = np.einsum("nji,nj->ni", rot, shift)  # in each target camera's axes
-        move = f * (np.hypot(t_l[:, 0], t_l[:, 1]) + np.abs(t_l[:, 2]) * r_max / f)
-        moved = np.abs(shift).max(axis=1) > 0
-        bound = move / near if near > 0.01 else np.where(moved, np.inf, 0.0)
-        extra = np.maximum(extra, bound)
-    return out + 1.25 * (flow + extra)
+    rot = np.array([v.rotation for v in views])  # (n, 3, 3) world-from-camera
+    centres = np.array([v.centre for v in views])
+    layers = np.array([v.layer_positions for v in views])  # (n, L, 3)
+    if isinstance(ref, View):
+        r_rot, r_centre, r_layers = ref.rotation, ref.centre, ref.layer_positions
+    else:
+        if len(ref) != n:
+            raise ValueError(f"{len(ref)} reference views for {n} views")
+        r_rot = np.array([v.rotation for v in ref])
+        r_centre = np.array([v.centre for v in ref])
+        r_layers = np.array([v.layer_positions for v in ref])
+    out = np.where((centres != r_centre).any(axis=1), np.inf, 0.0)
+    fx, fy, cx, cy = float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2])
+    if (rot != r_rot).any():
+        # Rotation part: target-from-ref rotation R_i^T R_ref applied to the rays of the
+        # corners and edge midpoints (the homography K R K^-1).
+        xs, ys = np.meshgrid([0.0, (w - 1) / 2, w - 1], [0.0, (h - 1) / 2, h - 1])
+        px = np.stack([xs.ravel(), ys.ravel()], axis=1)  # (9, 2)
+        rays = np.stack([(px[:, 0] - cx) / fx, (px[:, 1] - cy) / fy, np.ones(9)], axis=1)
+        rel = np.swapaxes(rot, 1, 2) @ r_rot  # (n, 3, 3)
+        m = rays @ np.swapaxes(rel, 1, 2)  # (n, 9, 3) rays in each target camera
+        uv = np.stack([fx * m[..., 0] / m[..., 2] + cx, fy * m[..., 1] / m[..., 2] + cy], -1)
+        out += 1.25 * np.abs(uv - px).max(axis=(1, 2))
+    shift = layers - r_layers  # (n, L, 3) world
+    moved = (shift != 0).any(axis=2)  # (n, L)
+    if moved.any():
+        r_max = float(np.hypot(w, h)) / 2 + 1.0
+        rel_pos = r_layers - np.asarray(r_centre)[..., None, :]  # (L, 3) or (n, L, 3)
+        z = np.einsum("...lj,...j->...l", rel_pos, np.asarray(r_rot)[..., :, 2])  # depth
+        near = z - np.asarray(radii, float)[: layers.shape[1]]
+        t_l = np.einsum("nji,nlj->nli", rot, shift)  # in each target camera's axes
+        move = fx * np.hypot(t_l[..., 0], t_l[..., 1]) + np.abs(t_l[..., 2]) * r_max
+        with np.errstate(divide="ignore", invalid="ignore"):
+            extra = np.where(moved, np.where(near > 0.01, move / near, np.inf), 0.0)
+        out += 1.25 * extra.max(axis=1)
+    return out
 
 
 def adaptive_key_ticks(
@@ -512,8 +524,20 @@ class KeyframeSource:
             self.keys[i] = key
         return key
 
-    def frame(self, t_us: int, view: View) -> np.ndarray:
-        """Luminance (H, W) float32 at ``t_us`` from ``view`` (a key's or synthesised)."""
+    def neighbours(self, t_us: int) -> tuple[Keyframe, Keyframe] | None:
+        """The keys just before and at-or-after ``t_us`` (``None`` where there are not
+        two such keys); :meth:`frame` synthesises between them."""
+        keys = self.keys
+        i = next((j for j, key in enumerate(keys) if key.t_us >= t_us), None)
+        if i is None or i == 0:
+            return None
+        return keys[i - 1], keys[i]
+
+    def frame(self, t_us: int, view: View, bound_px: float | None = None) -> np.ndarray:
+        """Luminance (H, W) float32 at ``t_us`` from ``view`` (a key's or synthesised).
+
+        ``bound_px``: the flow bound from the neighbouring keys to ``view`` when the
+        caller computed it (the larger :func:`flow_bound_px` of the two keys)."""
         keys = self.keys
         i = next((j for j, key in enumerate(keys) if key.t_us >= t_us), None)
         if i is None or (keys[i].t_us > t_us and i == 0):
@@ -525,8 +549,10 @@ class KeyframeSource:
             return keys[i].lum
         a, b = keys[i - 1], keys[i]
         w = (t_us - a.t_us) / (b.t_us - a.t_us)
-        bound = max(flow_bound_px(a, view, self.k, self.radii),
-                    flow_bound_px(b, view, self.k, self.radii))  # fmt: skip
+        bound = bound_px
+        if bound is None:
+            bound = max(flow_bound_px(a, view, self.k, self.radii),
+                        flow_bound_px(b, view, self.k, self.radii))  # fmt: skip
         if bound < SUBPIXEL_PX:
             return np.float32(1.0 - w) * a.lum + np.float32(w) * b.lum
         a, b = self._with_geometry(i - 1), self._with_geometry(i)
