@@ -302,7 +302,8 @@ def view_flow_bounds_px(
 
     The camera's rotation is measured at the image's corners and edge midpoints; a
     moving layer (a ball of radius ``radii[layer]`` m about its position) adds
-    ``f/near·(|t_xy| + |t_z|·r_max/f)``; both times 1.25. ``inf`` where the camera
+    ``f/near·(|t_xy| + |t_z|·r_max/f)`` (``near``: the ball's nearest depth in either
+    view); both times 1.25. ``inf`` where the camera
     centre moves or a moving layer may reach the camera (or has no bounded radius).
 
     >>> from wander_env.camera import intrinsics
@@ -345,7 +346,8 @@ def view_flow_bounds_px(
         r_max = float(np.hypot(w, h)) / 2 + 1.0
         rel_pos = r_layers - np.asarray(r_centre)[..., None, :]  # (L, 3) or (n, L, 3)
         z = np.einsum("...lj,...j->...l", rel_pos, np.asarray(r_rot)[..., :, 2])  # depth
-        near = z - np.asarray(radii, float)[: layers.shape[1]]
+        z_to = np.einsum("nlj,nj->nl", layers - centres[:, None, :], rot[:, :, 2])
+        near = np.minimum(z, z_to) - np.asarray(radii, float)[: layers.shape[1]]
         t_l = np.einsum("nji,nlj->nli", rot, shift)  # in each target camera's axes
         move = fx * np.hypot(t_l[..., 0], t_l[..., 1]) + np.abs(t_l[..., 2]) * r_max
         with np.errstate(divide="ignore", invalid="ignore"):
