@@ -67,7 +67,7 @@ import numpy as np
 
 from wander_env.actions import action_to_gaze_degrees, check_action
 from wander_env.camera import focal_length_px, intrinsics, rotation_from_mujoco
-from wander_env.dvs import DVSEmulator, DVSParams
+from wander_env.dvs import DVSEmulator, DVSParams, LogFrame
 from wander_env.event_packet import EventPacket
 from wander_env.events import concatenate, to_frame
 from wander_env.gl_fork import ForkedGLError, fork_error_message
@@ -240,6 +240,7 @@ class WanderEnv(gym.Env):
         self._tick_views: dict[int, tuple[float, float, View]] = {}  # t_us -> angles, view
         self._pose_stale = False  # the model was moved off the step's end (keyframes)
         self._tick_bounds: dict[int, float] = {}  # t_us -> flow bound from its two keys
+        self._key_inputs: dict[int, LogFrame] = {}  # key t_us -> its prepared DVS input
         self._posed_us = 0
         self._key_mask: tuple[int, np.ndarray] | None = None  # (t_us, object mask) of a key
         self.renders_in_step = 0  # frames rendered (RGB) in the last step or reset
@@ -346,7 +347,10 @@ class WanderEnv(gym.Env):
         default the PTU's; ``view`` its view when known); with ``geometry`` its layers
         and depth too (else they are rendered when a frame needs them)."""
         rgb = self._render()
-        lum = self.dvs.prepare(rgb).lum.reshape(self.height, self.width)
+        prepared = self.dvs.prepare(rgb)
+        self._key_inputs = {t: p for t, p in self._key_inputs.items() if t >= self._t_us}
+        self._key_inputs[t_us] = prepared  # the DVS input of the key's own tick
+        lum = prepared.lum.reshape(self.height, self.width)
         view = self._view(t_us) if view is None else view
         self._key_angles = {t: a for t, a in self._key_angles.items() if t >= self._t_us}
         if angles is None:
@@ -464,7 +468,9 @@ class WanderEnv(gym.Env):
         self.ptu.step((t1 - t0) * 1e-6)
         self._advance(t1)
         frame = self._frame_at(t1)
-        prepared = self.dvs.prepare(frame)  # converted once: for the change and the step
+        prepared = self._key_inputs.get(t1) if self._keys is not None else None
+        if prepared is None:
+            prepared = self.dvs.prepare(frame)  # converted once: for the change and the step
         change = self.dvs.log_change(prepared)
         m = 1
         if change > self.config.adaptive_log_change:
@@ -505,6 +511,7 @@ class WanderEnv(gym.Env):
             first = self._frame
         else:
             self._keys.reset()
+            self._key_inputs = {}
             self._render_key(0, geometry=self.config.ground_truth)
             first = self._keys.keys[0].lum
         self.dvs.reset(first, 0, seed=int(rng.integers(2**63)))

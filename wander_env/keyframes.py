@@ -47,6 +47,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -100,13 +101,18 @@ class Keyframe:
     t_us: int
     lum: np.ndarray  # (H, W) float32 linear luminance
     view: View
-    lum1: np.ndarray  # (H, W, 2) float32: luminance and ones (coverage), for warping
     inv_depth: np.ndarray | None = None  # (H, W) float64, 1 / depth on the optical axis (1/m)
     layers: np.ndarray | None = None  # (H, W) int32 motion layer of each pixel
     moving: tuple[int, ...] = ()  # moving layers (ids > 0) present
     static: bool = True  # whether layer 0 is present
     layer_boxes: dict[int, tuple[int, int, int, int]] = field(default_factory=dict)
     layer_inv_depth: dict[int, tuple[float, float]] = field(default_factory=dict)
+
+    @cached_property
+    def lum1(self) -> np.ndarray:
+        """(H, W, 2) float32: luminance and ones (coverage), for warping (made when a
+        warp first needs it)."""
+        return np.dstack([self.lum, np.ones_like(self.lum)])
 
     @property
     def has_geometry(self) -> bool:
@@ -156,7 +162,7 @@ def make_keyframe(
     lum = np.ascontiguousarray(lum, dtype=np.float32)
     if lum.ndim != 2:
         raise ValueError(f"lum must be 2-D (H, W), got shape {lum.shape}")
-    key = Keyframe(int(t_us), lum, view, np.dstack([lum, np.ones_like(lum)]))
+    key = Keyframe(int(t_us), lum, view)
     if depth_m is not None and layers is not None:
         key = key.with_geometry(depth_m, layers)
     return key
