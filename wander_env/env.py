@@ -241,6 +241,7 @@ class WanderEnv(gym.Env):
         self._pose_stale = False  # the model was moved off the step's end (keyframes)
         self._tick_bounds: dict[int, float] = {}  # t_us -> flow bound from its two keys
         self._key_inputs: dict[int, LogFrame] = {}  # key t_us -> its prepared DVS input
+        self._tick_states: dict[int, PanTiltUnit] = {}  # t_us -> the PTU there (keyframes)
         self._posed_us = 0
         self._key_mask: tuple[int, np.ndarray] | None = None  # (t_us, object mask) of a key
         self.renders_in_step = 0  # frames rendered (RGB) in the last step or reset
@@ -395,12 +396,14 @@ class WanderEnv(gym.Env):
         c = self.config
         ptu = self.ptu.copy()
         ticks: list[tuple[int, float, float]] = []
+        self._tick_states = {}
         t = t0
         while t < t1:
             t_next = t + c.tick_us
             ptu.step((t_next - t) * 1e-6)
             t = t_next
             ticks.append((t, ptu.camera_pan_deg, ptu.camera_tilt_deg))
+            self._tick_states[t] = ptu.copy()  # the PTU at this tick, for _tick
         views = [self._camera_view(t, pan, tilt) for t, pan, tilt in ticks]
         kept = zip(ticks, views, strict=True)
         self._tick_views = {t: (pan, tilt, v) for (t, pan, tilt), v in kept}
@@ -464,8 +467,12 @@ class WanderEnv(gym.Env):
 
     def _tick(self, t0: int, t1: int) -> tuple[list[np.ndarray], int]:
         """Advance one render period; returns its event chunks and the frames rendered."""
-        before = self.ptu.copy()
-        self.ptu.step((t1 - t0) * 1e-6)
+        ahead = self._tick_states.pop(t1, None) if self._keys is not None else None
+        if ahead is not None:  # keyframes: the PTU was stepped through this tick already
+            before, self.ptu = self.ptu, ahead
+        else:
+            before = self.ptu.copy()
+            self.ptu.step((t1 - t0) * 1e-6)
         self._advance(t1)
         frame = self._frame_at(t1)
         prepared = self._key_inputs.get(t1) if self._keys is not None else None
@@ -512,6 +519,7 @@ class WanderEnv(gym.Env):
         else:
             self._keys.reset()
             self._key_inputs = {}
+            self._tick_states = {}
             self._render_key(0, geometry=self.config.ground_truth)
             first = self._keys.keys[0].lum
         self.dvs.reset(first, 0, seed=int(rng.integers(2**63)))

@@ -660,7 +660,7 @@ class SceneAnimator:
             ],
             dtype=int,
         )
-        self._last_positions: tuple[float, np.ndarray] | None = None
+        self._positions: dict[float, np.ndarray] = {}  # recent times' object positions
         self._layout: GratingLayout | None = None
         if config.gratings is not None:
             cam = config.camera
@@ -679,17 +679,20 @@ class SceneAnimator:
 
     def object_positions(self, t: float) -> np.ndarray:
         """(n_objects, 3) world positions (m) of the moving objects at time t (read-only:
-        the last time's positions are kept, as posing, views and ground truth ask for the
-        same time several times)."""
-        last = self._last_positions
-        if last is not None and last[0] == t:
-            return last[1]
+        recent times' positions are kept, as posing, views and ground truth ask for the
+        same times several times)."""
+        cache = self._positions
+        pos = cache.get(t)
+        if pos is not None:
+            return pos
         if not self.trajectories:
             pos = np.zeros((0, 3))
         else:
             pos = np.stack([tr.position(t) for tr in self.trajectories])
         pos.setflags(write=False)
-        self._last_positions = (t, pos)
+        if len(cache) >= 64:
+            cache.clear()
+        cache[t] = pos
         return pos
 
     def layer_positions(self, t: float) -> np.ndarray:
