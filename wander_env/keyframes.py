@@ -46,7 +46,7 @@ Example:
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import cv2
@@ -103,10 +103,45 @@ class Keyframe:
     view: View
     inv_depth: np.ndarray | None = None  # (H, W) float64, 1 / depth on the optical axis (1/m)
     layers: np.ndarray | None = None  # (H, W) int32 motion layer of each pixel
-    moving: tuple[int, ...] = ()  # moving layers (ids > 0) present
-    static: bool = True  # whether layer 0 is present
-    layer_boxes: dict[int, tuple[int, int, int, int]] = field(default_factory=dict)
-    layer_inv_depth: dict[int, tuple[float, float]] = field(default_factory=dict)
+
+    @cached_property
+    def _layer_stats(self) -> tuple[tuple[int, ...], bool, dict, dict]:
+        """(moving layers present, whether layer 0 is, each moving layer's pixel box
+        (y0, y1, x0, x1), each layer's (median, max) inverse depth), computed when a
+        synthesised frame first asks."""
+        if self.layers is None:
+            return (), True, {}, {}
+        layers, inv = self.layers, self.inv_depth
+        present = np.flatnonzero(np.bincount(layers.ravel()))
+        boxes: dict[int, tuple[int, int, int, int]] = {}
+        per_layer: dict[int, tuple[float, float]] = {}
+        for v in present:
+            inside = layers == v
+            r = inv[inside]
+            per_layer[int(v)] = (float(np.median(r)), float(r.max()))
+            if v > 0:
+                ys, xs = np.nonzero(inside)
+                boxes[int(v)] = (int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1)
+        moving = tuple(int(v) for v in present if v > 0)
+        return moving, bool(present[0] == 0), boxes, per_layer
+
+    @property
+    def moving(self) -> tuple[int, ...]:
+        """The moving layers (ids > 0) present."""
+        return self._layer_stats[0]
+
+    @property
+    def static(self) -> bool:
+        """Whether layer 0 (the static world) is present."""
+        return self._layer_stats[1]
+
+    @property
+    def layer_boxes(self) -> dict[int, tuple[int, int, int, int]]:
+        return self._layer_stats[2]
+
+    @property
+    def layer_inv_depth(self) -> dict[int, tuple[float, float]]:
+        return self._layer_stats[3]
 
     @cached_property
     def lum1(self) -> np.ndarray:
@@ -128,27 +163,10 @@ class Keyframe:
         depth = np.asarray(depth_m, dtype=np.float64)
         if not (np.isfinite(depth).all() and depth.min() > 0):
             raise ValueError("depth must be finite and > 0")
-        inv = 1.0 / depth
         layers = np.asarray(layers, dtype=np.int32)
-        present = np.unique(layers)
-        boxes: dict[int, tuple[int, int, int, int]] = {}
-        per_layer: dict[int, tuple[float, float]] = {}
-        for v in present:
-            inside = layers == v
-            r = inv[inside]
-            per_layer[int(v)] = (float(np.median(r)), float(r.max()))
-            if v > 0:
-                ys, xs = np.nonzero(inside)
-                boxes[int(v)] = (int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1)
-        return replace(
-            self,
-            inv_depth=inv,
-            layers=layers,
-            moving=tuple(int(v) for v in present if v > 0),
-            static=bool(present[0] == 0),
-            layer_boxes=boxes,
-            layer_inv_depth=per_layer,
-        )
+        if layers.min() < 0:
+            raise ValueError(f"layer ids must be >= 0, got {int(layers.min())}")
+        return replace(self, inv_depth=1.0 / depth, layers=layers)
 
 
 def make_keyframe(
