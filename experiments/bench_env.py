@@ -79,8 +79,9 @@ def bench_env(
     """One row per preset and env count; ``antialias_samples`` overrides the scene's.
 
     The frame modes (exact, keyframes every ``keyframe_ms``, adaptive keys bounded by
-    ``keyframe_px``) run in one process at once, stepped in turn (one step of each), so
-    that a noisy machine slows all alike; each step is timed.
+    ``keyframe_px``) run in one process at once, stepped in turn (one step of each, the
+    order rotated every step), so that a noisy machine slows all alike; each step is
+    timed.
     """
     from wander_env.env import WanderConfig
 
@@ -110,8 +111,10 @@ def bench_env(
                 for env in envs.values():
                     env.reset(seed=seed)
                     env.step(action)  # warm-up: kernels compiled, contexts made
-                for _ in range(steps):
-                    for mode, env in envs.items():
+                order = list(envs.items())
+                for k in range(steps):  # each step in a rotated order: none always first
+                    j = k % len(order)
+                    for mode, env in order[j:] + order[:j]:
                         t0 = time.perf_counter()
                         obs, _, _, _, info = env.step(action)
                         wall[mode] += time.perf_counter() - t0
