@@ -8,12 +8,15 @@ log-intensity change (adaptive sampling: a render tick whose largest change
 exceeds ``adaptive_log_change`` is split into up to ``max_subframes`` frames),
 and the emulator turns the frames into events.
 
-Frames (``frames``): ``"keyframes"`` (the default) renders the camera every
-``keyframe_ms`` (2 ms) and at each step's end, and makes the frames in between from the
-two neighbouring keys with the scene's geometry (:mod:`wander_env.keyframes`: the camera's
-rotation homography, each moving object's rigid motion from the keys' depth and motion
-layers, reprojection with depth where the camera centre moves); the keys are rendered at
-the start of the step from the PTU's own trajectory, so nothing waits for a later frame.
+Frames (``frames``): ``"keyframes"`` (the default) renders the camera at each step's end
+and, while anything in view moves, every ``keyframe_ms`` (2 ms) or sooner where the
+predicted image motion since the last key would pass ``keyframe_px`` (2 px; one key a
+step while nothing moves; ``keyframe_px=None``: every ``keyframe_ms`` always), and makes
+the frames in between from the two neighbouring keys with the scene's geometry
+(:mod:`wander_env.keyframes`: the camera's rotation homography, each moving object's
+rigid motion from the keys' depth and motion layers, reprojection with depth where the
+camera centre moves); the keys are rendered at the start of the step from the PTU's own
+trajectory, so nothing waits for a later frame.
 ``"exact"`` renders every frame (every tick and sub-frame): the reference.
 ``renders_in_step`` counts the RGB renders of the last step.
 
@@ -68,12 +71,18 @@ import numpy as np
 from wander_env.actions import action_to_gaze_degrees, check_action
 from wander_env.camera import focal_length_px, intrinsics, rotation_from_mujoco
 from wander_env.config import check_fields
-from wander_env.dvs import DVSEmulator, DVSParams
+from wander_env.dvs import DVSEmulator, DVSParams, LogFrame
 from wander_env.env_base import CameraEnv
 from wander_env.event_packet import EventPacket
 from wander_env.events import concatenate, to_frame
 from wander_env.gl_fork import ForkedGLError, fork_error_message
-from wander_env.keyframes import KeyframeSource, View, make_keyframe
+from wander_env.keyframes import (
+    KeyframeSource,
+    View,
+    adaptive_key_ticks,
+    make_keyframe,
+    view_flow_bounds_px,
+)
 from wander_env.mjcf import (
     CAMERA_NAME,
     PAN_JOINT,
@@ -114,6 +123,15 @@ class WanderConfig:
     # motion layers (see wander_env.keyframes).
     frames: str = "keyframes"
     keyframe_ms: float = 2.0
+    # Adaptive keys (frames="keyframes"): when given, a step's keys are its end and the
+    # ticks where the image motion predicted since the last key (the camera's rotation
+    # along the PTU's own trajectory, the objects' known motion) would pass keyframe_px
+    # pixels, no more than keyframe_ms apart while anything moves and one a step while
+    # nothing does (wander_env.keyframes.adaptive_key_ticks); every keyframe_ms where the
+    # motion has no bound (a camera centre that moves, a sliding screen). None: every
+    # keyframe_ms. Default 2 px: `wander bench fidelity` meets every bar with it (the
+    # README's table), and a step where nothing moves renders once instead of 5 times.
+    keyframe_px: float | None = 2.0
     # Render at this many times the resolution and average blocks (see RenderParams): the
     # finer-antialiased reference of the fidelity benchmark (2 = 16 samples a pixel).
     supersample: int = 1
@@ -147,6 +165,14 @@ class WanderConfig:
             raise ValueError(
                 f"WanderConfig.keyframe_ms={k} must be a whole number of render periods or "
                 f"divide one (render_rate_hz={self.render_rate_hz}: {tick_us} µs)"
+            )
+        px = self.keyframe_px
+        if px is not None and (
+            isinstance(px, bool) or not (isinstance(px, (int, float)) and math.isfinite(px))
+            or px <= 0
+        ):  # fmt: skip
+            raise ValueError(
+                f"WanderConfig.keyframe_px must be None or a finite number > 0, got {px!r}"
             )
         ss = self.supersample
         if isinstance(ss, bool) or not isinstance(ss, int) or ss < 1:
@@ -205,6 +231,11 @@ class WanderEnv(CameraEnv):
                 intrinsics(self.width, self.height, fovy), self._layer_radii(), self._key_geometry
             )
         self._key_angles: dict[int, tuple[float, float]] = {}  # key t_us -> camera angles
+        self._tick_views: dict[int, tuple[float, float, View]] = {}  # t_us -> angles, view
+        self._pose_stale = False  # the model was moved off the step's end (keyframes)
+        self._tick_bounds: dict[int, float] = {}  # t_us -> flow bound from its two keys
+        self._key_inputs: dict[int, LogFrame] = {}  # key t_us -> its prepared DVS input
+        self._tick_states: dict[int, PanTiltUnit] = {}  # t_us -> the PTU there (keyframes)
         self._posed_us = 0
         self._key_mask: tuple[int, np.ndarray] | None = None  # (t_us, object mask) of a key
         self.renders_in_step = 0  # frames rendered (RGB) in the last step or reset
@@ -300,14 +331,26 @@ class WanderEnv(CameraEnv):
                 radii[k] = 0.5 * math.hypot(*obj.size) * 1.01
         return radii
 
-    def _render_key(self, t_us: int, geometry: bool) -> None:
-        """Render a keyframe of the posed model at ``t_us``; with ``geometry`` its layers
+    def _render_key(
+        self,
+        t_us: int,
+        geometry: bool,
+        angles: tuple[float, float] | None = None,
+        view: View | None = None,
+    ) -> None:
+        """Render a keyframe of the posed model at ``t_us`` (camera ``angles`` in degrees,
+        default the PTU's; ``view`` its view when known); with ``geometry`` its layers
         and depth too (else they are rendered when a frame needs them)."""
         rgb = self._render()
-        lum = self.dvs.prepare(rgb).lum.reshape(self.height, self.width)
-        view = self._view(t_us)
+        prepared = self.dvs.prepare(rgb)
+        self._key_inputs = {t: p for t, p in self._key_inputs.items() if t >= self._t_us}
+        self._key_inputs[t_us] = prepared  # the DVS input of the key's own tick
+        lum = prepared.lum.reshape(self.height, self.width)
+        view = self._view(t_us) if view is None else view
         self._key_angles = {t: a for t, a in self._key_angles.items() if t >= self._t_us}
-        self._key_angles[t_us] = (self.ptu.camera_pan_deg, self.ptu.camera_tilt_deg)
+        if angles is None:
+            angles = (self.ptu.camera_pan_deg, self.ptu.camera_tilt_deg)
+        self._key_angles[t_us] = angles
         if geometry:
             layers, depth = self.renderer.segment_depth_current(self._layer_lut)
             self._keys.add(make_keyframe(t_us, lum, view, depth, layers))
@@ -328,40 +371,107 @@ class WanderEnv(CameraEnv):
         self._pose_angles(now[2], now[0], now[1])
         return depth, layers
 
+    def _camera_view(self, t_us: int, pan_deg: float, tilt_deg: float) -> View:
+        """The :class:`View` at ``t_us`` with the camera at these angles: only the PTU's
+        joints, the kinematics and the camera are set (the objects are not moved; see
+        :meth:`_pose_angles` for the full pose)."""
+        self.data.qpos[self._pan_adr] = math.radians(pan_deg)
+        self.data.qpos[self._tilt_adr] = math.radians(tilt_deg)
+        mujoco.mj_kinematics(self.model, self.data)
+        mujoco.mj_camlight(self.model, self.data)  # the camera's pose is computed here
+        return self._view(t_us)
+
     def _render_keys(self, t0: int, t1: int) -> None:
-        """Keys of the step (t0, t1]: every keyframe_us and at t1, with the PTU moved
-        along the same ticks as the step will move it (so the poses are the step's)."""
+        """Keys of the step (t0, t1]: at t1 and every keyframe_us (or, with keyframe_px,
+        where the predicted motion asks: :func:`adaptive_key_ticks`), with the PTU moved
+        along the same ticks as the step will move it (so the poses are the step's).
+        Each tick's camera angles and view are kept for :meth:`_tick`; the model is left
+        posed at t1."""
         c = self.config
-        saved = self.ptu
-        self.ptu = saved.copy()
-        try:
-            t = t0
-            while t < t1:
-                t_next = t + c.tick_us
-                self.ptu.step((t_next - t) * 1e-6)
-                t = t_next
-                if t == t1 or t % c.keyframe_us == 0:
-                    self._pose(t)
-                    self._render_key(t, geometry=t == t1 and c.ground_truth)
-        finally:
-            self.ptu = saved
+        ptu = self.ptu.copy()
+        ticks: list[tuple[int, float, float]] = []
+        self._tick_states = {}
+        t = t0
+        while t < t1:
+            t_next = t + c.tick_us
+            ptu.step((t_next - t) * 1e-6)
+            t = t_next
+            ticks.append((t, ptu.camera_pan_deg, ptu.camera_tilt_deg))
+            self._tick_states[t] = ptu.copy()  # the PTU at this tick, for _tick
+        views = [self._camera_view(t, pan, tilt) for t, pan, tilt in ticks]
+        kept = zip(ticks, views, strict=True)
+        self._tick_views = {t: (pan, tilt, v) for (t, pan, tilt), v in kept}
+        chosen = None
+        if c.keyframe_px is not None:
+            ref = self._keys.keys[-1].view  # the key at t0 (the last step's end)
+            shape = (self.height, self.width)
+            idx = adaptive_key_ticks(
+                ref, views, self._keys.k, self._keys.radii, shape, c.keyframe_px,
+                max_ticks=max(c.keyframe_us // c.tick_us, 1),
+            )  # fmt: skip
+            chosen = None if idx is None else {ticks[i][0] for i in idx}
+        if chosen is None:
+            chosen = {t for t, _, _ in ticks if t == t1 or t % c.keyframe_us == 0}
+        for (t, pan, tilt), view in zip(ticks, views, strict=True):
+            if t in chosen:
+                self._pose_angles(t, math.radians(pan), math.radians(tilt))
+                geometry = t == t1 and c.ground_truth
+                self._render_key(t, geometry, angles=(pan, tilt), view=view)
+        self._pose_stale = False
+        # Each synthesised tick's flow bound from its two keys, for all ticks at once.
+        between = [(t, v) for (t, _, _), v in zip(ticks, views, strict=True) if t not in chosen]
+        self._tick_bounds = {}
+        if between:
+            pairs = [self._keys.neighbours(t) for t, _ in between]
+            tv = [v for _, v in between]
+            shape = (self.height, self.width)
+            k, radii = self._keys.k, self._keys.radii
+            ba = view_flow_bounds_px([p[0].view for p in pairs], tv, k, radii, shape)
+            bb = view_flow_bounds_px([p[1].view for p in pairs], tv, k, radii, shape)
+            both = zip(between, np.maximum(ba, bb), strict=True)
+            self._tick_bounds = {t: float(b) for (t, _), b in both}
 
     def _frame_at(self, t_us: int) -> np.ndarray:
-        """The camera frame of the posed model at ``t_us``: rendered (exact) or from keys."""
+        """The camera frame at ``t_us``: rendered from the posed model (exact) or from
+        the keys (keyframes: the model need not be posed, only the camera's view)."""
         if self._keys is None:
             return self._render()
         key = self._keys.key_at(t_us)
         if key is not None:
             return key.lum
-        return self._keys.frame(t_us, self._view(t_us))
+        view = self._keyframes_view(t_us)
+        kept = self._tick_views.get(t_us)
+        bound = self._tick_bounds.get(t_us) if kept is not None and view is kept[2] else None
+        return self._keys.frame(t_us, view, bound_px=bound)
+
+    def _keyframes_view(self, t_us: int) -> View:
+        """The view at ``t_us`` for the PTU's current angles: the one :meth:`_render_keys`
+        kept for the tick when the angles agree, else the camera posed afresh."""
+        pan, tilt = self.ptu.camera_pan_deg, self.ptu.camera_tilt_deg
+        kept = self._tick_views.get(t_us)
+        if kept is not None and kept[0] == pan and kept[1] == tilt:
+            return kept[2]
+        self._pose_stale = True
+        return self._camera_view(t_us, pan, tilt)
+
+    def _advance(self, t_us: int) -> None:
+        """Pose the model for a frame at ``t_us`` (exact mode; keyframes need views only)."""
+        if self._keys is None:
+            self._pose(t_us)
 
     def _tick(self, t0: int, t1: int) -> tuple[list[np.ndarray], int]:
         """Advance one render period; returns its event chunks and the frames rendered."""
-        before = self.ptu.copy()
-        self.ptu.step((t1 - t0) * 1e-6)
-        self._pose(t1)
+        ahead = self._tick_states.pop(t1, None) if self._keys is not None else None
+        if ahead is not None:  # keyframes: the PTU was stepped through this tick already
+            before, self.ptu = self.ptu, ahead
+        else:
+            before = self.ptu.copy()
+            self.ptu.step((t1 - t0) * 1e-6)
+        self._advance(t1)
         frame = self._frame_at(t1)
-        prepared = self.dvs.prepare(frame)  # converted once: for the change and the step
+        prepared = self._key_inputs.get(t1) if self._keys is not None else None
+        if prepared is None:
+            prepared = self.dvs.prepare(frame)  # converted once: for the change and the step
         change = self.dvs.log_change(prepared)
         m = 1
         if change > self.config.adaptive_log_change:
@@ -374,10 +484,10 @@ class WanderEnv(CameraEnv):
                 tj = t0 + (t1 - t0) * j // m
                 self.ptu.step((tj - t_prev) * 1e-6)
                 t_prev = tj
-                self._pose(tj)
+                self._advance(tj)
                 chunks.append(self.dvs.step(self._frame_at(tj), tj))
             self.ptu = after
-            self._pose(t1)
+            self._advance(t1)
         chunks.append(self.dvs.step(prepared, t1))
         if self._keys is None:
             self._frame = frame
@@ -402,6 +512,8 @@ class WanderEnv(CameraEnv):
             first = self._frame
         else:
             self._keys.reset()
+            self._key_inputs = {}
+            self._tick_states = {}
             self._render_key(0, geometry=self.config.ground_truth)
             first = self._keys.keys[0].lum
         self.dvs.reset(first, 0, seed=int(rng.integers(2**63)))
@@ -428,6 +540,9 @@ class WanderEnv(CameraEnv):
             chunks.extend(tick_chunks)
             frames += m
             self._t_us = t1
+        if self._pose_stale:  # a sub-frame's view moved the camera: back to the step's end
+            self._pose(self._t_us)
+            self._pose_stale = False
         events = concatenate(chunks)
         self._last_counts = to_frame(events, (self.width, self.height, 2))
         obs = {"events": self._last_counts.copy(), "gaze": self._gaze()}

@@ -45,8 +45,9 @@ Example:
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -57,10 +58,12 @@ __all__ = [
     "Keyframe",
     "KeyframeSource",
     "View",
+    "adaptive_key_ticks",
     "flow_bound_px",
     "make_keyframe",
     "max_flow_px",
     "synthesize",
+    "view_flow_bounds_px",
 ]
 
 # A moving layer's pixels are searched in the bounding box of its key pixels, mapped to
@@ -98,13 +101,53 @@ class Keyframe:
     t_us: int
     lum: np.ndarray  # (H, W) float32 linear luminance
     view: View
-    lum1: np.ndarray  # (H, W, 2) float32: luminance and ones (coverage), for warping
     inv_depth: np.ndarray | None = None  # (H, W) float64, 1 / depth on the optical axis (1/m)
     layers: np.ndarray | None = None  # (H, W) int32 motion layer of each pixel
-    moving: tuple[int, ...] = ()  # moving layers (ids > 0) present
-    static: bool = True  # whether layer 0 is present
-    layer_boxes: dict[int, tuple[int, int, int, int]] = field(default_factory=dict)
-    layer_inv_depth: dict[int, tuple[float, float]] = field(default_factory=dict)
+
+    @cached_property
+    def _layer_stats(self) -> tuple[tuple[int, ...], bool, dict, dict]:
+        """(moving layers present, whether layer 0 is, each moving layer's pixel box
+        (y0, y1, x0, x1), each layer's (median, max) inverse depth), computed when a
+        synthesised frame first asks."""
+        if self.layers is None:
+            return (), True, {}, {}
+        layers, inv = self.layers, self.inv_depth
+        present = np.flatnonzero(np.bincount(layers.ravel()))
+        boxes: dict[int, tuple[int, int, int, int]] = {}
+        per_layer: dict[int, tuple[float, float]] = {}
+        for v in present:
+            inside = layers == v
+            r = inv[inside]
+            per_layer[int(v)] = (float(np.median(r)), float(r.max()))
+            if v > 0:
+                ys, xs = np.nonzero(inside)
+                boxes[int(v)] = (int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1)
+        moving = tuple(int(v) for v in present if v > 0)
+        return moving, bool(present[0] == 0), boxes, per_layer
+
+    @property
+    def moving(self) -> tuple[int, ...]:
+        """The moving layers (ids > 0) present."""
+        return self._layer_stats[0]
+
+    @property
+    def static(self) -> bool:
+        """Whether layer 0 (the static world) is present."""
+        return self._layer_stats[1]
+
+    @property
+    def layer_boxes(self) -> dict[int, tuple[int, int, int, int]]:
+        return self._layer_stats[2]
+
+    @property
+    def layer_inv_depth(self) -> dict[int, tuple[float, float]]:
+        return self._layer_stats[3]
+
+    @cached_property
+    def lum1(self) -> np.ndarray:
+        """(H, W, 2) float32: luminance and ones (coverage), for warping (made when a
+        warp first needs it)."""
+        return np.dstack([self.lum, np.ones_like(self.lum)])
 
     @property
     def has_geometry(self) -> bool:
@@ -120,27 +163,10 @@ class Keyframe:
         depth = np.asarray(depth_m, dtype=np.float64)
         if not (np.isfinite(depth).all() and depth.min() > 0):
             raise ValueError("depth must be finite and > 0")
-        inv = 1.0 / depth
         layers = np.asarray(layers, dtype=np.int32)
-        present = np.unique(layers)
-        boxes: dict[int, tuple[int, int, int, int]] = {}
-        per_layer: dict[int, tuple[float, float]] = {}
-        for v in present:
-            inside = layers == v
-            r = inv[inside]
-            per_layer[int(v)] = (float(np.median(r)), float(r.max()))
-            if v > 0:
-                ys, xs = np.nonzero(inside)
-                boxes[int(v)] = (int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1)
-        return replace(
-            self,
-            inv_depth=inv,
-            layers=layers,
-            moving=tuple(int(v) for v in present if v > 0),
-            static=bool(present[0] == 0),
-            layer_boxes=boxes,
-            layer_inv_depth=per_layer,
-        )
+        if layers.min() < 0:
+            raise ValueError(f"layer ids must be >= 0, got {int(layers.min())}")
+        return replace(self, inv_depth=1.0 / depth, layers=layers)
 
 
 def make_keyframe(
@@ -154,7 +180,7 @@ def make_keyframe(
     lum = np.ascontiguousarray(lum, dtype=np.float32)
     if lum.ndim != 2:
         raise ValueError(f"lum must be 2-D (H, W), got shape {lum.shape}")
-    key = Keyframe(int(t_us), lum, view, np.dstack([lum, np.ones_like(lum)]))
+    key = Keyframe(int(t_us), lum, view)
     if depth_m is not None and layers is not None:
         key = key.with_geometry(depth_m, layers)
     return key
@@ -284,27 +310,136 @@ def flow_bound_px(key: Keyframe, view: View, k: np.ndarray, radii: np.ndarray) -
     """Like :func:`max_flow_px` without the key's geometry: each moving layer is taken
     as a ball of radius ``radii[layer]`` (m) about its position (``inf``: unbounded, as
     is a moving camera centre); a layer that may reach the camera gives ``inf``."""
-    h, w = key.lum.shape
-    r_rel, t_rel = relative_pose(key.view.rotation, key.view.centre, view.rotation, view.centre)
-    if np.any(t_rel):
-        return float("inf")
-    pts = np.array([[x, y, 1.0] for x in (0, (w - 1) / 2, w - 1) for y in (0, (h - 1) / 2, h - 1)])
-    m = pts @ (k @ r_rel @ np.linalg.inv(k)).T
-    flow = float(np.abs(m[:, :2] / m[:, 2:] - pts[:, :2]).max(initial=0.0))
-    f = float(k[0, 0])
-    r_max = float(np.hypot(w, h)) / 2 + 1.0
-    extra = 0.0
-    for layer in range(1, len(view.layer_positions)):
-        shift = view.layer_positions[layer] - key.view.layer_positions[layer]
-        if not np.any(shift):
-            continue
-        z = float((key.view.rotation.T @ (key.view.layer_positions[layer] - key.view.centre))[2])
-        near = z - float(radii[layer])
-        if not near > 0.01:
-            return float("inf")
-        t_l = view.rotation.T @ shift
-        extra = max(extra, f / near * (np.hypot(t_l[0], t_l[1]) + abs(t_l[2]) * r_max / f))
-    return 1.25 * (flow + extra)
+    return float(view_flow_bounds_px(key.view, [view], k, radii, key.lum.shape)[0])
+
+
+def view_flow_bounds_px(
+    ref: View | Sequence[View],
+    views: Sequence[View],
+    k: np.ndarray,
+    radii: np.ndarray,
+    shape: tuple[int, int],
+) -> np.ndarray:
+    """:func:`flow_bound_px` from the view ``ref`` (or from each of a sequence of
+    views, one per view) to each of ``views`` at once: (n,) upper bounds (px) on how
+    far any pixel's content moves, from the poses alone.
+
+    The camera's rotation is measured at the image's corners and edge midpoints; a
+    moving layer (a ball of radius ``radii[layer]`` m about its position) adds
+    ``f/near·(|t_xy| + |t_z|·r_max/f)`` (``near``: the ball's nearest depth in either
+    view); both times 1.25. ``inf`` where the camera
+    centre moves or a moving layer may reach the camera (or has no bounded radius).
+
+    >>> from wander_env.camera import intrinsics
+    >>> k = intrinsics(128, 128, 90.0)
+    >>> still = View(np.eye(3), np.zeros(3), np.array([[0, 0, 0], [0, 0, 2.0]]))
+    >>> moved = View(np.eye(3), np.zeros(3), np.array([[0, 0, 0], [0.01, 0, 2.0]]))
+    >>> view_flow_bounds_px(still, [still, moved], k, np.array([np.inf, 0.1]), (128, 128))
+    array([0.        , 0.42105263])
+    """
+    n = len(views)
+    if n == 0:
+        return np.zeros(0)
+    h, w = shape
+    rot = np.array([v.rotation for v in views])  # (n, 3, 3) world-from-camera
+    centres = np.array([v.centre for v in views])
+    layers = np.array([v.layer_positions for v in views])  # (n, L, 3)
+    if isinstance(ref, View):
+        r_rot, r_centre, r_layers = ref.rotation, ref.centre, ref.layer_positions
+    else:
+        if len(ref) != n:
+            raise ValueError(f"{len(ref)} reference views for {n} views")
+        r_rot = np.array([v.rotation for v in ref])
+        r_centre = np.array([v.centre for v in ref])
+        r_layers = np.array([v.layer_positions for v in ref])
+    out = np.where((centres != r_centre).any(axis=1), np.inf, 0.0)
+    fx, fy, cx, cy = float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2])
+    if (rot != r_rot).any():
+        # Rotation part: target-from-ref rotation R_i^T R_ref applied to the rays of the
+        # corners and edge midpoints (the homography K R K^-1).
+        xs, ys = np.meshgrid([0.0, (w - 1) / 2, w - 1], [0.0, (h - 1) / 2, h - 1])
+        px = np.stack([xs.ravel(), ys.ravel()], axis=1)  # (9, 2)
+        rays = np.stack([(px[:, 0] - cx) / fx, (px[:, 1] - cy) / fy, np.ones(9)], axis=1)
+        rel = np.swapaxes(rot, 1, 2) @ r_rot  # (n, 3, 3)
+        m = rays @ np.swapaxes(rel, 1, 2)  # (n, 9, 3) rays in each target camera
+        uv = np.stack([fx * m[..., 0] / m[..., 2] + cx, fy * m[..., 1] / m[..., 2] + cy], -1)
+        out += 1.25 * np.abs(uv - px).max(axis=(1, 2))
+    shift = layers - r_layers  # (n, L, 3) world
+    moved = (shift != 0).any(axis=2)  # (n, L)
+    if moved.any():
+        r_max = float(np.hypot(w, h)) / 2 + 1.0
+        rel_pos = r_layers - np.asarray(r_centre)[..., None, :]  # (L, 3) or (n, L, 3)
+        z = np.einsum("...lj,...j->...l", rel_pos, np.asarray(r_rot)[..., :, 2])  # depth
+        z_to = np.einsum("nlj,nj->nl", layers - centres[:, None, :], rot[:, :, 2])
+        near = np.minimum(z, z_to) - np.asarray(radii, float)[: layers.shape[1]]
+        t_l = np.einsum("nji,nlj->nli", rot, shift)  # in each target camera's axes
+        move = fx * np.hypot(t_l[..., 0], t_l[..., 1]) + np.abs(t_l[..., 2]) * r_max
+        with np.errstate(divide="ignore", invalid="ignore"):
+            extra = np.where(moved, np.where(near > 0.01, move / near, np.inf), 0.0)
+        out += 1.25 * extra.max(axis=1)
+    return out
+
+
+def adaptive_key_ticks(
+    ref: View,
+    views: Sequence[View],
+    k: np.ndarray,
+    radii: np.ndarray,
+    shape: tuple[int, int],
+    bound_px: float,
+    max_ticks: int | None = None,
+) -> list[int] | None:
+    """Indices of the ticks of a step (``views``, the last one the step's end) to
+    render as keys, after the key ``ref`` at the step's start.
+
+    The step's end is always a key. Between two consecutive keys no pixel's content
+    moves more than ``bound_px`` (:func:`view_flow_bounds_px`; each key as late as that
+    allows; where one tick alone moves more, every tick is a key), and, where anything
+    moves at all, keys are no more than ``max_ticks`` ticks apart (spread evenly over
+    the span between the keys the motion bound set). Where nothing moves the step
+    has one key: its end. ``None`` when the motion has no finite bound (a moving
+    camera centre, a layer without a bounded radius): the caller keeps a fixed interval.
+
+    >>> from wander_env.camera import intrinsics
+    >>> k = intrinsics(128, 128, 90.0)
+    >>> v = [View(np.eye(3), np.zeros(3), np.array([[0, 0, 0], [0.002 * i, 0, 2.0]]))
+    ...      for i in range(11)]
+    >>> radii = np.array([np.inf, 0.1])
+    >>> adaptive_key_ticks(v[0], v[1:], k, radii, (128, 128), 0.3)
+    [2, 5, 8, 9]
+    >>> adaptive_key_ticks(v[0], v[1:], k, radii, (128, 128), 10.0, max_ticks=4)
+    [2, 6, 9]
+    >>> adaptive_key_ticks(v[0], [v[0]] * 10, k, radii, (128, 128), 0.3, max_ticks=2)
+    [9]
+    """
+    if not bound_px > 0:
+        raise ValueError(f"bound_px must be > 0, got {bound_px!r}")
+    if max_ticks is not None and max_ticks < 1:
+        raise ValueError(f"max_ticks must be >= 1, got {max_ticks!r}")
+    n = len(views)
+    keys: list[int] = []
+    moves: list[bool] = []  # whether anything moves between the previous key and this one
+    start = 0
+    while start < n:
+        bounds = view_flow_bounds_px(ref, views[start:], k, radii, shape)
+        if not np.isfinite(bounds).all():
+            return None
+        over = np.flatnonzero(bounds > bound_px)
+        j = n - 1 if not len(over) else start + max(int(over[0]) - 1, 0)
+        keys.append(j)
+        moves.append(bool(bounds[: j - start + 1].max() > 0))
+        ref, start = views[j], j + 1
+    if max_ticks is None:
+        return keys
+    spread: list[int] = []
+    prev = -1
+    for j, moving in zip(keys, moves, strict=True):
+        span = j - prev
+        parts = -(-span // max_ticks) if moving else 1
+        spread.extend(prev + round(span * i / parts) for i in range(1, parts))
+        spread.append(j)
+        prev = j
+    return spread
 
 
 def _moving_region(
@@ -415,8 +550,20 @@ class KeyframeSource:
             self.keys[i] = key
         return key
 
-    def frame(self, t_us: int, view: View) -> np.ndarray:
-        """Luminance (H, W) float32 at ``t_us`` from ``view`` (a key's or synthesised)."""
+    def neighbours(self, t_us: int) -> tuple[Keyframe, Keyframe] | None:
+        """The keys just before and at-or-after ``t_us`` (``None`` where there are not
+        two such keys); :meth:`frame` synthesises between them."""
+        keys = self.keys
+        i = next((j for j, key in enumerate(keys) if key.t_us >= t_us), None)
+        if i is None or i == 0:
+            return None
+        return keys[i - 1], keys[i]
+
+    def frame(self, t_us: int, view: View, bound_px: float | None = None) -> np.ndarray:
+        """Luminance (H, W) float32 at ``t_us`` from ``view`` (a key's or synthesised).
+
+        ``bound_px``: the flow bound from the neighbouring keys to ``view`` when the
+        caller computed it (the larger :func:`flow_bound_px` of the two keys)."""
         keys = self.keys
         i = next((j for j, key in enumerate(keys) if key.t_us >= t_us), None)
         if i is None or (keys[i].t_us > t_us and i == 0):
@@ -428,8 +575,10 @@ class KeyframeSource:
             return keys[i].lum
         a, b = keys[i - 1], keys[i]
         w = (t_us - a.t_us) / (b.t_us - a.t_us)
-        bound = max(flow_bound_px(a, view, self.k, self.radii),
-                    flow_bound_px(b, view, self.k, self.radii))  # fmt: skip
+        bound = bound_px
+        if bound is None:
+            bound = max(flow_bound_px(a, view, self.k, self.radii),
+                        flow_bound_px(b, view, self.k, self.radii))  # fmt: skip
         if bound < SUBPIXEL_PX:
             return np.float32(1.0 - w) * a.lum + np.float32(w) * b.lum
         a, b = self._with_geometry(i - 1), self._with_geometry(i)

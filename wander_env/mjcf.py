@@ -660,6 +660,7 @@ class SceneAnimator:
             ],
             dtype=int,
         )
+        self._positions: dict[float, np.ndarray] = {}  # recent times' object positions
         self._layout: GratingLayout | None = None
         if config.gratings is not None:
             cam = config.camera
@@ -677,10 +678,22 @@ class SceneAnimator:
             )
 
     def object_positions(self, t: float) -> np.ndarray:
-        """(n_objects, 3) world positions (m) of the moving objects at time t."""
+        """(n_objects, 3) world positions (m) of the moving objects at time t (read-only:
+        recent times' positions are kept, as posing, views and ground truth ask for the
+        same times several times)."""
+        cache = self._positions
+        pos = cache.get(t)
+        if pos is not None:
+            return pos
         if not self.trajectories:
-            return np.zeros((0, 3))
-        return np.stack([tr.position(t) for tr in self.trajectories])
+            pos = np.zeros((0, 3))
+        else:
+            pos = np.stack([tr.position(t) for tr in self.trajectories])
+        pos.setflags(write=False)
+        if len(cache) >= 64:
+            cache.clear()
+        cache[t] = pos
+        return pos
 
     def layer_positions(self, t: float) -> np.ndarray:
         """(layers, 3) world positions (m) of what each motion layer shows at time t.

@@ -41,6 +41,15 @@ class EnvBenchRow:
     exact_frames_per_step: float  # frames fed to the DVS (ticks + adaptive sub-frames)
     keyframes_frames_per_step: float
     events_diff_pct: float  # keyframes vs exact events over the run
+    # Adaptive keys (WanderConfig.keyframe_px), measured in the same loop.
+    keyframe_px: float = float("nan")
+    adaptive_rtf: float = float("nan")
+    adaptive_speedup: float = float("nan")  # exact ms per step / adaptive ms per step
+    adaptive_ms_per_step: float = float("nan")
+    adaptive_events_diff_pct: float = float("nan")
+    exact_renders_per_step: float = float("nan")  # RGB renders (frames drawn)
+    keyframes_renders_per_step: float = float("nan")
+    adaptive_renders_per_step: float = float("nan")
 
 
 def _make(
@@ -65,16 +74,23 @@ def bench_env(
     seed: int = 0,
     antialias_samples: int | None = None,
     keyframe_ms: float | None = None,
+    keyframe_px: float = 2.0,
 ) -> list[EnvBenchRow]:
     """One row per preset and env count; ``antialias_samples`` overrides the scene's.
 
-    Both frame modes run in one process at once, stepped alternately (one exact step,
-    one keyframes step), so that a noisy machine slows both alike; each step is timed.
+    The frame modes (exact, keyframes every ``keyframe_ms``, adaptive keys bounded by
+    ``keyframe_px``) run in one process at once, stepped in turn (one step of each, the
+    order rotated every step), so that a noisy machine slows all alike; each step is
+    timed.
     """
     from wander_env.env import WanderConfig
 
     km = WanderConfig.keyframe_ms if keyframe_ms is None else keyframe_ms
-    modes = {"exact": {"frames": "exact"}, "keyframes": {"frames": "keyframes", "keyframe_ms": km}}
+    modes = {
+        "exact": {"frames": "exact"},
+        "keyframes": {"frames": "keyframes", "keyframe_ms": km, "keyframe_px": None},
+        "adaptive": {"frames": "keyframes", "keyframe_ms": km, "keyframe_px": keyframe_px},
+    }
     rows = []
     for dvs in presets:
         for n in env_counts:
@@ -89,22 +105,32 @@ def bench_env(
             action = np.zeros((n, 2) if n > 1 else 2, np.float32)
             wall = dict.fromkeys(modes, 0.0)
             frames = dict.fromkeys(modes, 0)
+            renders = dict.fromkeys(modes, 0)
             events = dict.fromkeys(modes, 0)
             try:
                 for env in envs.values():
                     env.reset(seed=seed)
                     env.step(action)  # warm-up: kernels compiled, contexts made
-                for _ in range(steps):
-                    for mode, env in envs.items():
+                order = list(envs.items())
+                for k in range(steps):  # each step in a rotated order: none always first
+                    j = k % len(order)
+                    for mode, env in order[j:] + order[:j]:
                         t0 = time.perf_counter()
                         obs, _, _, _, info = env.step(action)
                         wall[mode] += time.perf_counter() - t0
                         events[mode] += int(obs["events"].sum())
                         frames[mode] += int(np.sum(info["frames"]))
+                        renders[mode] += _renders(env)
             finally:
                 for env in envs.values():
                     env.close()
             ms = {m: 1e3 * wall[m] / steps for m in modes}
+
+            def diff_pct(mode: str, events=events) -> float:
+                if not events["exact"]:
+                    return float("nan")
+                return 100.0 * (events[mode] / events["exact"] - 1.0)
+
             rows.append(
                 EnvBenchRow(
                     scene=scene,
@@ -119,12 +145,25 @@ def bench_env(
                     keyframes_ms_per_step=ms["keyframes"],
                     exact_frames_per_step=frames["exact"] / (n * steps),
                     keyframes_frames_per_step=frames["keyframes"] / (n * steps),
-                    events_diff_pct=100.0 * (events["keyframes"] / events["exact"] - 1.0)
-                    if events["exact"]
-                    else float("nan"),
+                    events_diff_pct=diff_pct("keyframes"),
+                    keyframe_px=keyframe_px,
+                    adaptive_rtf=n * steps * period / wall["adaptive"],
+                    adaptive_speedup=ms["exact"] / ms["adaptive"],
+                    adaptive_ms_per_step=ms["adaptive"],
+                    adaptive_events_diff_pct=diff_pct("adaptive"),
+                    exact_renders_per_step=renders["exact"] / (n * steps),
+                    keyframes_renders_per_step=renders["keyframes"] / (n * steps),
+                    adaptive_renders_per_step=renders["adaptive"] / (n * steps),
                 )
             )
     return rows
+
+
+def _renders(env: Any) -> int:
+    """RGB renders of the last step, summed over a vector env's sub-envs."""
+    if isinstance(env, gym.vector.VectorEnv):
+        return int(sum(env.get_attr("renders_in_step")))
+    return int(env.unwrapped.renders_in_step)
 
 
 @dataclass
@@ -167,9 +206,11 @@ def step_breakdown(
     seed: int = 0,
     frames: str = "exact",
     keyframe_ms: float | None = None,
+    keyframe_px: float | None = None,
 ) -> StepBreakdown:
-    """Time the parts of :meth:`WanderEnv.step` in one env (zero actions, as bench_env)."""
-    kw: dict[str, Any] = {"frames": frames}
+    """Time the parts of :meth:`WanderEnv.step` in one env (zero actions, as bench_env);
+    ``keyframe_px`` gives adaptive keys (its row's ``frames`` reads ``adaptive``)."""
+    kw: dict[str, Any] = {"frames": frames, "keyframe_px": keyframe_px}
     if keyframe_ms is not None:
         kw["keyframe_ms"] = keyframe_ms
     env = _make(scene, dvs, True, antialias_samples, **kw)()
@@ -185,7 +226,9 @@ def step_breakdown(
     for name in ("prepare", "log_change", "step"):
         if hasattr(u.dvs, name):  # prepare: since the fused log input
             setattr(u.dvs, name, timed(getattr(u.dvs, name), acc, "dvs"))
-    u._pose = timed(u._pose, acc, "pose")
+    u._pose_angles = timed(u._pose_angles, acc, "pose")  # every full pose goes through it
+    if hasattr(u, "_camera_view"):  # keyframes: the camera alone, for a tick's view
+        u._camera_view = timed(u._camera_view, acc, "pose")
     env.reset(seed=seed)
     action = np.zeros(2, np.float32)
     env.step(action)  # warm-up
@@ -203,7 +246,7 @@ def step_breakdown(
     return StepBreakdown(
         scene=scene,
         dvs=dvs,
-        frames=frames,
+        frames="adaptive" if frames == "keyframes" and keyframe_px is not None else frames,
         antialias_samples=u.scene.camera.antialias_samples,
         ms_per_step=1e3 * wall / steps,
         renders_per_step=len(acc["render"]) / steps,

@@ -1,7 +1,9 @@
 """``wander bench fidelity``: keyframe frames against exact rendering, on the same seeds.
 
-For each scene, gaze motion and seed, three envs run in lockstep on the same actions:
-``frames="exact"`` (every frame rendered, the reference), ``frames="keyframes"`` and, for
+For each scene, gaze motion and seed, four envs run in lockstep on the same actions:
+``frames="exact"`` (every frame rendered, the reference), ``frames="keyframes"`` with
+keys every ``keyframe_ms``, ``frames="keyframes"`` with adaptive keys (``keyframe_px``:
+see :func:`wander_env.keyframes.adaptive_key_ticks`) and, for
 scale, ``frames="exact"`` with 16 samples a pixel instead of the scenes' 4 (2 × 2
 supersampling of the 4 MSAA samples: Mesa's llvmpipe caps MSAA at 4, so asking it for 16
 renders the same pixels as 4). The motions:
@@ -34,7 +36,9 @@ from wander_env.actions import gaze_degrees_to_action
 SCENES = ("office", "shelf", "hand", "gratings")
 MOTIONS = ("still", "walk", "saccade")
 SACCADE_DEG = 20.0
-_MODES = ("exact", "keyframes", "aa16")
+_MODES = ("exact", "keyframes", "adaptive", "aa16")
+# The adaptive keys' motion bound (px) the benchmark uses when not told.
+ADAPTIVE_PX = 2.0
 
 
 @dataclass(frozen=True)
@@ -58,6 +62,16 @@ class FidelityRow:
     max_gap_keyframes_ms: float | None
     renders_per_step_exact: float
     renders_per_step_keyframes: float
+    # Adaptive keys (keyframe_px): the same measures against exact.
+    keyframe_px: float = ADAPTIVE_PX
+    adaptive_ms: float = float("nan")  # the adaptive keys' longest interval while moving
+    adaptive_events: int = 0
+    adaptive_events_diff_pct: float = float("nan")
+    adaptive_l1_per_event: float = float("nan")
+    adaptive_matched_pct: float = float("nan")
+    adaptive_exact_matched_pct: float = float("nan")
+    max_gap_adaptive_ms: float | None = None
+    renders_per_step_adaptive: float = float("nan")
 
 
 def matched_share(a: np.ndarray, b: np.ndarray, tol_us: int, width: int, height: int) -> float:
@@ -131,14 +145,23 @@ class _Run:
     period_us: int
 
 
-def _run(scene: str, motion: str, seed: int, seconds: float, keyframe_ms: float) -> _Run:
+def _run(
+    scene: str,
+    motion: str,
+    seed: int,
+    seconds: float,
+    keyframe_ms: float,
+    keyframe_px: float,
+    adaptive_ms: float,
+) -> _Run:
     import gymnasium as gym
 
     import wander_env  # noqa: F401  (registers the environments)
 
     kwargs = {
         "exact": {"frames": "exact"},
-        "keyframes": {"frames": "keyframes", "keyframe_ms": keyframe_ms},
+        "keyframes": {"frames": "keyframes", "keyframe_ms": keyframe_ms, "keyframe_px": None},
+        "adaptive": {"frames": "keyframes", "keyframe_ms": adaptive_ms, "keyframe_px": keyframe_px},
         "aa16": {"frames": "exact", "supersample": 2},
     }
     envs = {
@@ -177,7 +200,7 @@ def _run(scene: str, motion: str, seed: int, seconds: float, keyframe_ms: float)
                 run.events[m].append(info["events"])
                 run.renders[m] += env.unwrapped.renders_in_step
             run.moving.append(bool(infos["exact"]["moving"]))
-            for m in ("keyframes", "aa16"):
+            for m in ("keyframes", "adaptive", "aa16"):
                 run.l1[m] += float(np.abs(counts[m] - counts["exact"]).sum())
         return run
     finally:
@@ -195,14 +218,19 @@ def bench_fidelity(
     seeds: tuple[int, ...] = (0, 1, 2),
     seconds: float = 0.25,
     keyframe_ms: float | None = None,
+    keyframe_px: float = ADAPTIVE_PX,
+    adaptive_ms: float | None = None,
     tol_us: int = 1000,
     progress: Callable[[str], None] | None = None,
 ) -> list[FidelityRow]:
     """One row per scene and motion (seeds pooled); see the module docstring.
-    ``keyframe_ms`` defaults to the env's."""
+    ``keyframe_ms`` defaults to the env's; the adaptive columns use keys bounded by
+    ``keyframe_px`` and no more than ``adaptive_ms`` apart (default ``keyframe_ms``)
+    while anything moves (``WanderConfig.keyframe_px``)."""
     from wander_env.env import WanderConfig
 
     keyframe_ms = WanderConfig.keyframe_ms if keyframe_ms is None else keyframe_ms
+    adaptive_ms = keyframe_ms if adaptive_ms is None else adaptive_ms
     rows = []
     for scene in scenes:
         for motion in motions:
@@ -210,7 +238,9 @@ def bench_fidelity(
             for seed in seeds:
                 if progress is not None:
                     progress(f"{scene} {motion} seed {seed}")
-                runs.append(_run(scene, motion, seed, seconds, keyframe_ms))
+                runs.append(
+                    _run(scene, motion, seed, seconds, keyframe_ms, keyframe_px, adaptive_ms)
+                )
             ev = {m: [np.concatenate(r.events[m]) for r in runs] for m in _MODES}
             n = {m: sum(len(e) for e in ev[m]) for m in _MODES}
             steps = sum(r.steps for r in runs)
@@ -226,7 +256,7 @@ def bench_fidelity(
                 return got / n[x]
 
             gaps = {}
-            for m in ("exact", "keyframes"):
+            for m in ("exact", "keyframes", "adaptive"):
                 per = [
                     _max_gap_ms(e, _moving_windows(r.moving, r.period_us))
                     for e, r in zip(ev[m], runs, strict=True)
@@ -255,6 +285,17 @@ def bench_fidelity(
                     max_gap_keyframes_ms=gaps["keyframes"],
                     renders_per_step_exact=sum(r.renders["exact"] for r in runs) / steps,
                     renders_per_step_keyframes=sum(r.renders["keyframes"] for r in runs) / steps,
+                    keyframe_px=keyframe_px,
+                    adaptive_ms=adaptive_ms,
+                    adaptive_events=n["adaptive"],
+                    adaptive_events_diff_pct=_pct(n["adaptive"] / n["exact"] - 1.0)
+                    if n["exact"]
+                    else float("nan"),
+                    adaptive_l1_per_event=sum(r.l1["adaptive"] for r in runs) / den,
+                    adaptive_matched_pct=_pct(share("adaptive", "exact")),
+                    adaptive_exact_matched_pct=_pct(share("exact", "adaptive")),
+                    max_gap_adaptive_ms=gaps["adaptive"],
+                    renders_per_step_adaptive=sum(r.renders["adaptive"] for r in runs) / steps,
                 )
             )
     return rows

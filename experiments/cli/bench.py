@@ -87,8 +87,12 @@ def bench_env(
     breakdown: Annotated[bool, typer.Option(help="Also time the parts of one env's step.")] = True,
     keyframe_ms: KeyframeMsOpt = None,
     envs: Annotated[str, typer.Option(help="Comma-separated env counts.")] = "1,2,4",
+    keyframe_px: Annotated[
+        float, typer.Option(min=0.01, help="Motion bound (px) of the adaptive keys' column.")
+    ] = 2.0,
 ) -> None:
-    """Real-time factor of the environment, exact and keyframe frames side by side."""
+    """Real-time factor of the environment: exact, keyframe and adaptive-keyframe frames
+    side by side."""
     from experiments.bench.env import bench_env as run
     from experiments.bench.env import step_breakdown
 
@@ -103,9 +107,10 @@ def bench_env(
                 antialias_samples=antialias,
                 frames=f,
                 keyframe_ms=km,
+                keyframe_px=px,
             )
             for d in ("ideal", "speck")
-            for f in ("exact", "keyframes")
+            for f, px in (("exact", None), ("keyframes", None), ("keyframes", keyframe_px))
         ]
         print_table(
             f"One env's step, scene '{scene}' (ms per step unless named)",
@@ -132,10 +137,12 @@ def bench_env(
         antialias_samples=antialias,
         keyframe_ms=km,
         env_counts=counts,
+        keyframe_px=keyframe_px,
     )
     print_table(
-        f"Environment, scene '{scene}': exact vs keyframe frames, stepped alternately "
-        "(real-time factor = simulated s / wall s; speedup = exact / keyframes step time)",
+        f"Environment, scene '{scene}': exact, keyframe and adaptive-keyframe frames "
+        f"({keyframe_px:g} px), stepped in turn (real-time factor = simulated s / wall s; "
+        "speedup = exact / keyframes step time)",
         rows,
         {
             "dvs": "",
@@ -144,12 +151,17 @@ def bench_env(
             "keyframe_ms": "g",
             "exact_rtf": ".2f",
             "keyframes_rtf": ".2f",
+            "adaptive_rtf": ".2f",
             "speedup": ".2f",
+            "adaptive_speedup": ".2f",
             "exact_ms_per_step": ".1f",
             "keyframes_ms_per_step": ".1f",
-            "exact_frames_per_step": ".1f",
-            "keyframes_frames_per_step": ".1f",
+            "adaptive_ms_per_step": ".1f",
+            "exact_renders_per_step": ".1f",
+            "keyframes_renders_per_step": ".1f",
+            "adaptive_renders_per_step": ".1f",
             "events_diff_pct": "+.2f",
+            "adaptive_events_diff_pct": "+.2f",
         },
     )
 
@@ -218,8 +230,12 @@ def bench_fidelity(
     seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
     seconds: Annotated[float, typer.Option(min=0.01, help="Simulated seconds per run.")] = 0.25,
     keyframe_ms: KeyframeMsOpt = None,
+    keyframe_px: Annotated[
+        float, typer.Option(min=0.01, help="Motion bound (px) of the adaptive keys' columns.")
+    ] = 2.0,
 ) -> None:
-    """Keyframe frames against exact rendering on the same seeds (events, L1, timing)."""
+    """Keyframe and adaptive-keyframe frames against exact rendering on the same seeds
+    (events, L1, timing)."""
     from experiments.bench.fidelity import MOTIONS
     from experiments.bench.fidelity import bench_fidelity as run
 
@@ -234,6 +250,7 @@ def bench_fidelity(
         seeds=seed_list,
         seconds=seconds,
         progress=lambda msg: console.print(f"  {msg}", style="dim"),
+        keyframe_px=keyframe_px,
         **frames_kwargs(None, keyframe_ms),
     )
     km = rows[0].keyframe_ms if rows else keyframe_ms
@@ -258,6 +275,26 @@ def bench_fidelity(
             "max_gap_keyframes_ms": "",
             "renders_per_step_exact": ".1f",
             "renders_per_step_keyframes": ".1f",
+        },
+    )
+    print_table(
+        f"Adaptive keys ({keyframe_px:g} px, no more than {km:g} ms apart while anything "
+        "moves) vs exact frames, same runs",
+        rows,
+        {
+            "scene": "",
+            "motion": "",
+            "exact_events": ",d",
+            "adaptive_events": ",d",
+            "adaptive_events_diff_pct": "+.2f",
+            "adaptive_l1_per_event": ".3f",
+            "aa16_l1_per_event": ".3f",
+            "adaptive_matched_pct": ".1f",
+            "adaptive_exact_matched_pct": ".1f",
+            "max_gap_exact_ms": "",
+            "max_gap_adaptive_ms": "",
+            "renders_per_step_exact": ".1f",
+            "renders_per_step_adaptive": ".1f",
         },
     )
 

@@ -55,6 +55,7 @@ class RecordConfig:
     format: str = "h5"
     frames: str = WanderConfig.frames  # the env's frame source (keyframes or exact)
     keyframe_ms: float = WanderConfig.keyframe_ms
+    keyframe_px: float | None = WanderConfig.keyframe_px  # adaptive keys' bound (None: off)
 
     def __post_init__(self) -> None:
         if self.policy not in POLICIES:
@@ -110,6 +111,7 @@ def record(
         episode_seconds=config.seconds,
         frames=config.frames,
         keyframe_ms=config.keyframe_ms,
+        keyframe_px=config.keyframe_px,
     )
     try:
         return _record(out_dir, config, env, progress)
