@@ -117,3 +117,17 @@ def test_fused_steps_only_for_the_sac_network() -> None:
         assert FusedSteps.build(sim) is None
     with pytest.raises(ValueError, match="stepper"):
         ControlParams(stepper="fast")
+
+
+def test_compare_impls_times_old_and_new_on_the_same_inputs() -> None:
+    from experiments.bench_agent import compare_impls
+
+    rng = np.random.default_rng(2)
+    diffs = [
+        torch.from_numpy(rng.integers(-2, 3, (2, 64, 64)).astype(np.float32)) for _ in range(4)
+    ]
+    calls = [(None if k % 3 else (float(k), 100.0 - k), 0.01) for k in range(12)]
+    rows = {r.part: r for r in compare_impls({"diff": diffs, "control": calls}, seed=1)}
+    soms, sac = rows["sOMS score: pooling + quantile"], rows["sAC: nengo steps"]
+    assert len(soms.old_s) == len(soms.new_s) == 4 and 0.0 < soms.max_abs_diff <= 1e-5
+    assert len(sac.old_s) == len(sac.new_s) == 12 and sac.max_abs_diff == 0.0
