@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 import scipy.fft
 import torch
@@ -42,7 +43,9 @@ from scipy.special import i0
 
 __all__ = [
     "FFTConv2d",
+    "SeparableConv2d",
     "gaussian_kernel",
+    "gaussian_kernel_1d",
     "kernel_coordinates",
     "same_fft_shape",
     "von_mises_kernel",
@@ -79,6 +82,25 @@ def gaussian_kernel(size: int = 8, sigma: float = 1.0) -> np.ndarray:
         raise ValueError(f"sigma must be > 0, got {sigma}")
     x, y = kernel_coordinates(size)
     k = np.exp(-(x**2 + y**2) / (2.0 * sigma**2))
+    return k / k.sum()
+
+
+def gaussian_kernel_1d(size: int = 8, sigma: float = 1.0) -> np.ndarray:
+    """The 1-D factor of :func:`gaussian_kernel`: ``exp(-x² / (2 σ²))`` on ``size``
+    points centred at ``(size - 1) / 2``, normalised to sum 1, so that
+    ``np.outer(g, g)`` is ``gaussian_kernel(size, sigma)`` (to float64 rounding).
+
+    Example:
+        >>> g = gaussian_kernel_1d(7, 1.5)
+        >>> bool(np.allclose(np.outer(g, g), gaussian_kernel(7, 1.5), rtol=1e-12, atol=0))
+        True
+    """
+    if sigma <= 0:
+        raise ValueError(f"sigma must be > 0, got {sigma}")
+    if size < 1:
+        raise ValueError(f"size must be >= 1, got {size}")
+    c = np.arange(size, dtype=np.float64) - (size - 1) / 2.0
+    k = np.exp(-(c**2) / (2.0 * sigma**2))
     return k / k.sum()
 
 
@@ -246,3 +268,51 @@ class FFTConv2d:
             )
         y = self.from_spectrum(self.spectrum(x))
         return y[0] if squeeze else y
+
+
+class SeparableConv2d:
+    """'Same'-size 2-D cross-correlation with a separable kernel ``outer(ky, kx)``, zero
+    padding and torch's alignment (kernel index ``(k - 1) // 2`` on the output pixel),
+    by two 1-D passes (``cv2.sepFilter2D``, float32). Equals
+    ``conv2d(x, outer(ky, kx), padding='same')`` per channel to float32 rounding, at a
+    fraction of the cost of an FFT pair for a 37-tap Gaussian on 128×128.
+
+    Inputs are ``(C, H, W)`` or ``(H, W)`` arrays or tensors (any float dtype, computed
+    in float32); the result is a float32 numpy array of the same shape.
+
+    Example:
+        >>> g = gaussian_kernel_1d(5, 1.0)
+        >>> conv = SeparableConv2d(g, g)
+        >>> x = np.zeros((1, 9, 9), np.float32); x[0, 0, 0] = 1.0
+        >>> y = conv(x)
+        >>> ref = torch.nn.functional.conv2d(
+        ...     torch.from_numpy(x)[None], torch.from_numpy(np.outer(g, g)).float()[None, None],
+        ...     padding="same")[0].numpy()
+        >>> bool(np.allclose(y, ref, atol=1e-7)), round(float(y.sum()), 4)  # a corner: its quadrant
+        (True, 0.4918)
+    """
+
+    def __init__(self, ky: np.ndarray, kx: np.ndarray) -> None:
+        self.ky = np.ascontiguousarray(np.asarray(ky, dtype=np.float32).ravel())
+        self.kx = np.ascontiguousarray(np.asarray(kx, dtype=np.float32).ravel())
+        if self.ky.size < 1 or self.kx.size < 1:
+            raise ValueError("SeparableConv2d needs non-empty 1-D kernels")
+        # cv2's anchor (x, y): the kernel index lying on the output pixel
+        self._anchor = ((self.kx.size - 1) // 2, (self.ky.size - 1) // 2)
+
+    def __call__(self, x: np.ndarray | torch.Tensor) -> np.ndarray:
+        a = x.detach().cpu().numpy() if isinstance(x, torch.Tensor) else np.asarray(x)
+        a = np.ascontiguousarray(a, dtype=np.float32)
+        if a.ndim == 2:
+            return self._one(a)
+        if a.ndim != 3:
+            raise ValueError(f"expected (C, H, W) or (H, W), got shape {a.shape}")
+        out = np.empty_like(a)
+        for c in range(a.shape[0]):
+            out[c] = self._one(a[c])
+        return out
+
+    def _one(self, a: np.ndarray) -> np.ndarray:
+        return cv2.sepFilter2D(
+            a, cv2.CV_32F, self.kx, self.ky, anchor=self._anchor, borderType=cv2.BORDER_CONSTANT
+        )

@@ -68,7 +68,7 @@ import sinabs.layers as sl
 import torch
 import torch.nn.functional as F
 
-from agents.kernels import FFTConv2d, gaussian_kernel
+from agents.kernels import FFTConv2d, SeparableConv2d, gaussian_kernel, gaussian_kernel_1d
 
 __all__ = [
     "SOMS",
@@ -205,6 +205,23 @@ def pooling_weights(sigma: float) -> torch.Tensor:
     return torch.from_numpy(gaussian_kernel(k, sigma)).float()[None, None]
 
 
+def _quantile_linear(a: np.ndarray, q: float) -> float:
+    """``float(np.quantile(a, q))`` (method "linear") of a 1-D array, bit for bit, by one
+    ``np.partition`` at the two neighbours of the virtual index (np.quantile also
+    partitions at the minimum and maximum and pays its general-case set-up)."""
+    n = a.size
+    if n == 0:
+        raise ValueError("quantile of an empty map")
+    v = (n - 1) * q
+    lo = math.floor(v)
+    hi = min(lo + 1, n - 1)
+    g = v - lo
+    part = np.partition(a, (lo, hi) if hi != lo else lo)
+    x0, x1 = part[lo], part[hi]
+    d = x1 - x0  # numpy's _lerp, in the array's dtype
+    return float(x1 - d * (1 - g)) if g >= 0.5 else float(x0 + d * g)
+
+
 def quantile_score(
     pooled: torch.Tensor, quantile: float, gain: float, floor_spikes: float
 ) -> torch.Tensor:
@@ -218,8 +235,8 @@ def quantile_score(
         >>> float(s[0, 0, 0]), float(s[0, 5, 5]), float(s[0, 0, 9])
         (1.0, 0.5, 0.0)
     """
-    # numpy selects (introselect) where torch.quantile sorts the map: ≈10× faster here
-    q = float(np.quantile(pooled.detach().cpu().numpy().ravel(), quantile))
+    # a selection (introselect) where torch.quantile sorts the map: ≈10× faster here
+    q = _quantile_linear(pooled.detach().cpu().numpy().ravel(), quantile)
     scale = max(gain * q, floor_spikes)
     return torch.clamp(pooled / scale, 0.0, 1.0)
 
@@ -251,7 +268,7 @@ class SOMS:
         self._pad = ((k - 1) // 2, k // 2, (k - 1) // 2, k // 2)  # torch 'same' alignment
         self._fft: FFTConv2d | None = None
         self.pool_weight = pooling_weights(self.params.pool_sigma)
-        self._pool_fft: FFTConv2d | None = None
+        self._pool_sep: SeparableConv2d | None = None
         if height is not None and width is not None:
             self._build(int(height), int(width))
 
@@ -272,7 +289,8 @@ class SOMS:
         if self.params.conv == "fft":
             self._fft = FFTConv2d(self.weight, h, w)
             if self.params.norm == "quantile":
-                self._pool_fft = FFTConv2d(self.pool_weight, h, w)
+                g = gaussian_kernel_1d(self.pool_weight.shape[-1], self.params.pool_sigma)
+                self._pool_sep = SeparableConv2d(g, g)  # the Gaussian is outer(g, g)
         self.lif.init_state_with_shape((1, 2, 2, h, w))
 
     def reset(self) -> None:
@@ -287,11 +305,11 @@ class SOMS:
         return F.conv2d(F.pad(x, self._pad), self.weight)
 
     def pool(self, x: torch.Tensor) -> torch.Tensor:
-        """The pooling Gaussian applied to each polarity of ``x (2, H, W)`` (zero padding)."""
-        x = x.unsqueeze(1)
-        if self._pool_fft is not None:
-            return self._pool_fft(x)[:, 0]
-        return F.conv2d(x, self.pool_weight, padding="same")[:, 0]
+        """The pooling Gaussian applied to each polarity of ``x (2, H, W)`` (zero padding;
+        ``conv="fft"``: two 1-D passes of its factor, equal to float32 rounding)."""
+        if self._pool_sep is not None:
+            return torch.from_numpy(self._pool_sep(x))
+        return F.conv2d(x.unsqueeze(1), self.pool_weight, padding="same")[:, 0]
 
     def score(self, diff: torch.Tensor) -> torch.Tensor:
         """``1 - norm(diff)`` of ``params.norm`` (Eq. 1's left side before ``>= alpha``)."""

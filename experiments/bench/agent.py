@@ -66,9 +66,12 @@ def bench_agent(
     **env_kwargs: Any,
 ) -> tuple[list[LatencyRow], LoopRow]:
     """Run the agent closed-loop for ``seconds`` and time every stage (module doc);
-    ``env_kwargs`` (e.g. ``frames``) go to the env."""
+    ``env_kwargs`` (e.g. ``frames``) go to the env. Afterwards the parts the speed work
+    replaced are timed old against new on the run's own inputs (:func:`compare_impls`)."""
     env, agent = _agent_in_env(scene, dvs, seconds, seed, **env_kwargs)
     acc: dict[str, list[float]] = {"soms": [], "proto": [], "control": []}
+    record: dict[str, list] = {}
+    _record_inputs(agent, record)
     agent.soms.step = timed(agent.soms.step, acc, "soms")
     agent.proto.step = timed(agent.proto.step, acc, "proto")
     agent.controller.step = timed(agent.controller.step, acc, "control")
@@ -110,6 +113,11 @@ def bench_agent(
         latency_row("proto-object, split (per decision)", t_proto),
         latency_row("proto-object, streamlined (same maps)", t_stream),
         latency_row("sAC nengo (every step)", t_ctrl),
+        *(
+            latency_row(f"{r.part}, {which} (same inputs; max |diff| {r.max_abs_diff:.1e})", t)
+            for r in compare_impls(record, seed=seed)
+            for which, t in (("replaced", r.old_s), ("today", r.new_s))
+        ),
         latency_row("agent act, all steps", t_act + t_decide),
         latency_row("agent act, decision steps", t_decide),
         latency_row("env step", t_env),
@@ -225,3 +233,93 @@ def _agent_in_env(
         **env_kwargs,
     )
     return env, AttentionAgent(AgentParams.for_env(env), seed=seed)
+
+
+@dataclass(frozen=True)
+class ImplTimes:
+    """One part of the agent, the implementation it replaced (``old``) and today's,
+    called alternately on the same inputs of one run: each call's duration (s) and the
+    largest absolute difference of their outputs."""
+
+    part: str
+    old_s: list[float]
+    new_s: list[float]
+    max_abs_diff: float
+
+
+def _record_inputs(agent: AttentionAgent, record: dict[str, list], keep: int = 200) -> None:
+    """Wrap the agent's sOMS and sAC so that their inputs land in ``record`` (the first
+    ``keep`` sOMS maps, every sAC call)."""
+    record.setdefault("diff", [])
+    record.setdefault("control", [])
+    soms_step, ctrl_step = agent.soms.step, agent.controller.step
+
+    def soms(x: Any) -> Any:
+        out = soms_step(x)
+        if len(record["diff"]) < keep:
+            record["diff"].append(out.diff.clone())
+        return out
+
+    def ctrl(target: Any, duration_s: float = 0.01) -> Any:
+        record["control"].append((None if target is None else tuple(target), duration_s))
+        return ctrl_step(target, duration_s)
+
+    agent.soms.step, agent.controller.step = soms, ctrl
+
+
+def compare_impls(record: dict[str, list], seed: int = 0) -> list[ImplTimes]:
+    """Old against new implementation of the parts this speed work replaced, on the
+    inputs recorded from a run (``record["diff"]``: sOMS ``diff`` maps ``(2, H, W)``;
+    ``record["control"]``: sAC calls ``(target, duration_s)``): the sOMS quantile
+    norm's pooling + 90th percentile (FFT pair + ``np.quantile`` against the separable
+    Gaussian + one ``np.partition``) and the sAC's 10 nengo steps per env step
+    (``Simulator.run_steps`` against :class:`agents.control.FusedSteps`)."""
+    import torch
+
+    from agents.control import AttentionController
+    from agents.kernels import FFTConv2d
+    from agents.soms import SOMS
+
+    p = AgentParams().resolved()
+    rows = []
+    diffs = record.get("diff", [])
+    if diffs and p.soms.norm == "quantile":
+        h, w = diffs[0].shape[-2:]
+        soms = SOMS(p.soms, h, w)
+        old_pool = FFTConv2d(soms.pool_weight, h, w)
+        sp = p.soms
+        t_old, t_new, worst = [], [], 0.0
+        with torch.no_grad():
+            for d in diffs:
+                t0 = time.perf_counter()
+                pooled = old_pool(-d.unsqueeze(1))[:, 0]
+                q = float(np.quantile(pooled.numpy().ravel(), sp.quantile))
+                old = torch.clamp(pooled / max(sp.gain * q, sp.floor_spikes), 0.0, 1.0)
+                t1 = time.perf_counter()
+                new = soms.score(d)
+                t2 = time.perf_counter()
+                t_old.append(t1 - t0)
+                t_new.append(t2 - t1)
+                worst = max(worst, float((old - new).abs().max()))
+        rows.append(ImplTimes("sOMS score: pooling + quantile", t_old, t_new, worst))
+    calls = record.get("control", [])
+    if calls:
+        ctrl = {
+            k: AttentionController(replace(p.control, seed=seed, stepper=k))
+            for k in ("nengo", "fused")
+        }
+        t = {"nengo": [], "fused": []}
+        worst = 0.0
+        try:
+            for target, duration in calls:
+                u = {}
+                for k, c in ctrl.items():
+                    t0 = time.perf_counter()
+                    u[k] = c.step(target, duration)
+                    t[k].append(time.perf_counter() - t0)
+                worst = max(worst, float(np.abs(u["nengo"] - u["fused"]).max()))
+        finally:
+            for c in ctrl.values():
+                c.close()
+        rows.append(ImplTimes("sAC: nengo steps", t["nengo"], t["fused"], worst))
+    return rows
