@@ -424,9 +424,7 @@ def compare(cfg: ScanpathConfig, rows: list[Row]) -> list[Comparison]:
         screen = tuple(cfg.multimatch_screen_deg)
         for t in sa.similarity_table(rows, screen):
             parts = [
-                f"{k} {t[k]:.3f} [{t[k + '_low']:.3f}, {t[k + '_high']:.3f}]"
-                if not math.isnan(t[k])
-                else f"{k} —"
+                f"{k} {_ci_text((t[k], t[k + '_low'], t[k + '_high'], t[k + '_n']), '{:.3f}')}"
                 for k in sa.SIMILARITY_MEASURES
             ]
             n = max(t[k + "_n"] for k in sa.SIMILARITY_MEASURES)
