@@ -467,6 +467,10 @@ def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path)
         arts = load_artifacts(results_dir, r)
         if "fixations" in arts:
             write_export(arts["fixations"], results_dir / "fixations" / _export_name(r))
+    from wander_env.ptu import PTUParams  # the env's unit (the trials use its default)
+
+    unit = PTUParams()
+    limits = (unit.pan_limits_deg, unit.tilt_limits_deg)
     fig, axes = plt.subplots(
         len(scenes),
         len(conditions),
@@ -478,14 +482,14 @@ def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path)
             ax = axes[i, j]
             r = firsts.get((s, c))
             arts = load_artifacts(results_dir, r) if r is not None else {}
-            _draw_scanpath(ax, arts)
+            _draw_scanpath(ax, arts, limits)
             title = f"{s}, {c}"
             if r is not None:
                 title += f" (seed {r['seed']}): hit rate {float(r['object_hit_rate']):.0%}"
             ax.set_title(title, fontsize=9)
     fig.suptitle(
         "Scanpaths on the pan-tilt sphere, the first seed of each cell "
-        f"({cfg.duration_s:g} s of simulated time each): saliency mosaic (max over "
+        f"({cfg.duration_s:g} s of simulated time each)\nsaliency mosaic (max over "
         "fixations, each map / its peak, 0 black … 1 bright), fixations sized by duration",
         fontsize=10,
     )
@@ -580,7 +584,15 @@ def plot_statistics(cfg: ScanpathConfig, rows: list[Row], path: Path) -> Path:
     return save_figure(fig, path, rect=(0.0, 0.0, 1.0, 0.93))
 
 
-def _draw_scanpath(ax: Any, arts: dict[str, Any]) -> None:
+def _draw_scanpath(
+    ax: Any,
+    arts: dict[str, Any],
+    limits_deg: tuple[tuple[float, float], tuple[float, float]] | None = None,
+) -> None:
+    """One scanpath panel: the mosaic, fixations, saccades, the salient points and (given
+    ``limits_deg``, the PTU's pan and tilt ranges of the gaze) a dashed box of the reach."""
+    from matplotlib.patches import Rectangle
+
     if "mosaic" in arts:
         pan, tilt = arts["mosaic_pan"], arts["mosaic_tilt"]
         image = ax.imshow(
@@ -612,6 +624,14 @@ def _draw_scanpath(ax: Any, arts: dict[str, Any]) -> None:
                 ax.scatter(
                     tg[sel, 0], tg[sel, 1], marker="x", c=colour, s=25, zorder=4, label=label
                 )
+    if limits_deg is not None:
+        (plo, phi), (tlo, thi) = limits_deg
+        x0, x1 = ax.get_xlim()
+        y0, y1 = ax.get_ylim()
+        ax.add_patch(Rectangle((plo, tlo), phi - plo, thi - tlo, fill=False, ls="--",
+                               ec="0.75", lw=1.0, label="PTU reach of the gaze"))  # fmt: skip
+        ax.set_xlim(x0, x1)  # the box may be larger than the mosaic: keep the view
+        ax.set_ylim(y0, y1)
     ax.invert_xaxis()  # positive pan turns left
     ax.set_xlabel("pan (°, + = left)")
     ax.set_ylabel("tilt (°, + = up)")
