@@ -454,14 +454,18 @@ def _ms_text(r: Row) -> str:
         return ""
 
     def part(name: str, unit: str, fmt: str) -> str:
-        v, lo, hi = (float(r[f"{name}{x}"]) for x in ("", "_low", "_high"))
+        v, lo, hi = (float(r.get(f"{name}{x}", math.nan)) for x in ("", "_low", "_high"))
+        if math.isnan(v):
+            return "— (not identifiable)"
+        if math.isnan(lo) or math.isnan(hi):
+            return f"{v:{fmt}} {unit}"
         return f"{v:{fmt}} [{lo:{fmt}}, {hi:{fmt}}] {unit}"
 
     return (
         f"V = Vmax(1 − e^(−A/C)): Vmax {part('ms_v_vmax', '°/s', '.1f')}, "
-        f"C {part('ms_v_c', '°', '.2f')} (R² {float(r['ms_v_r2']):.3f}); D = D0 + k·A: "
+        f"C {part('ms_v_c', '°', '.2f')} (R² {_f(r, 'ms_v_r2')}); D = D0 + k·A: "
         f"D0 {part('ms_d_d0', 's', '.3f')}, k {part('ms_d_k', 's/°', '.4f')} "
-        f"(R² {float(r['ms_d_r2']):.3f})"
+        f"(R² {_f(r, 'ms_d_r2')})"
     )
 
 

@@ -185,3 +185,17 @@ def test_one_at_a_time_figure_has_intervals_and_main_sequence_fits(tmp_path, mon
     assert "mean over 3 seeded repeats" in oat_fig._suptitle.get_text()
     for f in figs:
         real_close(f)
+
+
+def test_saturating_fit_of_a_constant_peak_leaves_c_undefined() -> None:
+    """A unit slewing at its base speed at every amplitude (1000 pos/s: 25.7 °/s):
+    Vmax is that speed, C is not identifiable (was a spurious 0.04 [0.04, 0.04]°)."""
+    amps = np.array([1.0, 2, 4, 7, 10, 15, 20, 30, 40])
+    fit = fit_saturating(amps, np.full(amps.size, 25.714))
+    assert fit.params["vmax"] == 25.714 and fit.intervals["vmax"] == (25.714, 25.714)
+    assert math.isnan(fit.params["c"]) and all(math.isnan(x) for x in fit.intervals["c"])
+    assert fit.n == 9 and fit.rmse == 0.0 and math.isnan(fit.r2)
+    row = fit.as_dict("ms_v_") | fit_linear(amps, 0.1 + 0.0374 * amps).as_dict("ms_d_")
+    text = saccade_speed._ms_text(row)
+    assert text.startswith("V = Vmax(1 − e^(−A/C)): Vmax 25.7 [25.7, 25.7] °/s, ")
+    assert "C — (not identifiable) (R² —)" in text and "k 0.0374 [0.0374, 0.0374] s/°" in text
