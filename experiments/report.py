@@ -155,8 +155,8 @@ def studies_section(root: Path, report_dir: Path) -> list[str]:
                      if int(r["seed"]) in by]  # fmt: skip
             t = paired_comparison([a for a, _ in pairs], [b for _, b in pairs])
             rows_out.append(
-                f"| time to foveate: FLIR link (9600 baud) − ideal PTU | — (the paper's rig "
-                f"talks to the PTU at 9600 baud) | {t.text('.3g')} s | [{src}]({src}) |"
+                f"| time to foveate (s): FLIR link (9600 baud) − ideal PTU | — (the paper's "
+                f"rig talks to the PTU at 9600 baud) | {t.text('.3g')} | [{src}]({src}) |"
             )
     if len(rows_out) > 2:
         lines += [*rows_out, ""]

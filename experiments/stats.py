@@ -254,15 +254,29 @@ class Comparison2:
             return "no data"
         d_name = "d_z" if self.test == "paired" else "d"
         r_name = "r_rb" if self.test == "paired" else "Cliff's δ"
+        interval = (
+            f" [{self.diff_low:{fmt}}, {self.diff_high:{fmt}}]"
+            if math.isfinite(self.diff_low) and math.isfinite(self.diff_high)
+            else ""
+        )
         return (
-            f"Δ = {self.mean_diff:{fmt}} [{self.diff_low:{fmt}}, {self.diff_high:{fmt}}], "
-            f"p = {_p(self.p_value)}, {d_name} = {self.effect_d:.2f}, "
-            f"{r_name} = {self.rank_biserial:.2f} (n = {self.n})"
+            f"Δ = {self.mean_diff:{fmt}}{interval}, "
+            f"p = {_p(self.p_value)}, {d_name} = {_num(self.effect_d, '.2f')}, "
+            f"{r_name} = {_num(self.rank_biserial, '.2f')} (n = {self.n})"
         )
 
 
 def _p(p: float) -> str:
     return "—" if math.isnan(p) else f"{p:.3g}"
+
+
+def _num(v: float, fmt: str) -> str:
+    """``v`` formatted, "—" where it is undefined (NaN); ±inf as "±∞" (no spread)."""
+    if math.isnan(v):
+        return "—"
+    if math.isinf(v):
+        return "+∞" if v > 0 else "−∞"
+    return format(v, fmt)
 
 
 def _mean_diff(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:

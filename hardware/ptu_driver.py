@@ -225,6 +225,8 @@ class FlirPTUParams:
     ``banner_timeout_s``). ``exclusive`` locks a device port against other processes;
     ``home_on_close`` returns the unit to (0°, 0°) after the halt on close.
     ``read_poll_s`` is the serial read granularity; ``delimiter`` ends each command.
+    ``write_timeout_s`` bounds each write (a stuck link: flow control, a hung adapter):
+    past it the command fails with :class:`PTUPortError`, the device-fault path.
     """
 
     baudrate: int = 9600
@@ -238,6 +240,7 @@ class FlirPTUParams:
     home_on_close: bool = False
     read_poll_s: float = 0.01
     delimiter: str = " "
+    write_timeout_s: float = 1.0
 
     def __post_init__(self) -> None:
         for name in (
@@ -247,6 +250,7 @@ class FlirPTUParams:
             "halt_timeout_s",
             "banner_timeout_s",
             "read_poll_s",
+            "write_timeout_s",
         ):
             if not getattr(self, name) > 0:
                 raise ValueError(f"FlirPTUParams.{name} must be > 0, got {getattr(self, name)!r}")
@@ -265,7 +269,11 @@ def open_port(url: str, params: FlirPTUParams | None = None) -> serial.SerialBas
     hardware.ptu_driver.PTUPortError: PTU port '/dev/no-such-ptu' does not exist ...
     """
     p = params if params is not None else FlirPTUParams()
-    kwargs: dict[str, Any] = {"baudrate": p.baudrate, "timeout": p.read_poll_s}
+    kwargs: dict[str, Any] = {
+        "baudrate": p.baudrate,
+        "timeout": p.read_poll_s,
+        "write_timeout": p.write_timeout_s,
+    }
     if "://" not in url:  # a device path: lock it (flock) so no other process talks to the unit
         kwargs["exclusive"] = p.exclusive
     try:
@@ -362,6 +370,13 @@ class FlirPTU(Closing):
                 raise PTUPortError(f"PTU port {self.url!r} is closed", command)
             try:
                 return self._proto.transact(command, timeout_s or self.params.timeout_s)
+            except serial.SerialTimeoutException as exc:  # the write did not go out in time
+                raise PTUPortError(
+                    f"PTU port {self.url!r} failed: writing {command!r} timed out after "
+                    f"{self.params.write_timeout_s:g} s (the serial link is stuck: flow "
+                    f"control, a hung adapter) ({exc!r})",
+                    command,
+                ) from exc
             except SERIAL_ERRORS as exc:  # unplugged, hung up, I/O error: a device failure
                 raise PTUPortError(f"PTU port {self.url!r} failed: {exc!r}", command) from exc
 

@@ -316,6 +316,32 @@ class PTUEmulator:
             pass
         self._master = -1
 
+    def stall(self) -> None:
+        """Wedge the line: the thread stops reading (the pty stays open) and the pty's
+        buffer towards the unit is filled, so the host's next write blocks, as on a link
+        held by flow control or a hung USB-serial adapter. Only a bounded write timeout
+        gets the host out."""
+        with self._lock:
+            self._stop.set()
+        self._thread.join(timeout=5.0)
+        blocking = os.get_blocking(self._slave)
+        os.set_blocking(self._slave, False)
+        try:
+            # The kernel moves a pty's buffered bytes on in the background: fill until
+            # three rounds 20 ms apart take nothing more.
+            idle = 0
+            while idle < 3:
+                wrote = 0
+                try:
+                    while True:
+                        wrote += os.write(self._slave, b"\x00" * 1024)
+                except BlockingIOError:
+                    pass
+                idle = idle + 1 if wrote == 0 else 0
+                time.sleep(0.02)
+        finally:
+            os.set_blocking(self._slave, blocking)
+
     def inject_error(self, message: str, command: str | None = None, count: int = 1) -> None:
         """Answer ``! <message>`` instead of executing the next ``count`` commands.
 

@@ -133,3 +133,69 @@ def test_factorial_sweep_resumes_and_local_and_ray_agree(tmp_path) -> None:
     assert flir["command_latency_mean_s"] > 0.009 and ideal["command_latency_mean_s"] == 0.0
     # the serial link delays the move: command to standstill is longer on the FLIR unit
     assert flir["ms_duration_max_s"] > ideal["ms_duration_max_s"]
+
+
+def test_one_at_a_time_figure_has_intervals_and_main_sequence_fits(tmp_path, monkeypatch) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from experiments.framework import save_artifacts
+
+    cfg = saccade_speed.SaccadeSpeedConfig(repeats=3)
+    grid = saccade_speed.grid(cfg)
+    rows = []
+    for k, p in enumerate(grid):
+        for r in range(3):
+            rows.append({
+                "trial": len(rows), "trial_id": f"t{len(rows)}", "repeat": r, "seed": r, **p,
+                "time_to_foveate_s": 0.3 + 0.01 * r + 0.001 * k, "detection_accuracy": 0.5,
+                "foveation_error_x_px": 1.0 + r, "foveation_error_y_px": 2.0,
+                "events_per_s": 1e4,
+            })  # fmt: skip
+    amps = np.array(cfg.main_sequence_amplitudes_deg)
+    v, d = saccade_speed.theory_main_sequence(amps, PTUParams())
+    vf, df = fit_saturating(amps, v), fit_linear(amps, d)
+    rows[0] |= vf.as_dict("ms_v_") | df.as_dict("ms_d_")
+    arrays = {"ms_amplitude_deg": amps, "ms_peak_velocity_deg_s": v, "ms_duration_s": d}
+    save_artifacts(tmp_path, "t0", arrays)
+    # factor_intervals: the baseline's x errors 1, 2, 3 px: mean 2, a bootstrap interval
+    m, lo, hi = saccade_speed.factor_intervals(
+        rows[:3], "window_s", "foveation_error_x_px", [0.124]
+    )
+    assert m.tolist() == [2.0] and 0 < lo[0] <= 1.0 and 0 < hi[0] <= 1.0
+    figs = []
+    real_close = plt.close
+    monkeypatch.setattr(plt, "close", lambda fig=None: figs.append(fig))
+    paths = saccade_speed.plot(cfg, rows, tmp_path, tmp_path / "fig")
+    assert [p.name for p in paths] == ["main_sequence.png", "saccade_speed.png"]
+    ms_fig, oat_fig = figs
+    labels = [line.get_label() for line in ms_fig.axes[0].lines]
+    vmax, c = vf.params["vmax"], vf.params["c"]
+    assert f"fit: Vmax {vmax:.1f} °/s, C {c:.2f}° (R² {vf.r2:.3f})" in labels
+    assert any(lb.startswith("fit: D0 ") for lb in (x.get_label() for x in ms_fig.axes[1].lines))
+    # every panel of the one-at-a-time figure draws its means with error bars (x and y
+    # foveation errors: two)
+    per_panel = [
+        sum(type(cn).__name__ == "ErrorbarContainer" for cn in ax.containers) for ax in oat_fig.axes
+    ]
+    n_factors = len(saccade_speed.NUMERIC_FACTORS)
+    assert per_panel == [1] * n_factors + [2] * n_factors + [1] * 2 * n_factors
+    assert "mean over 3 seeded repeats" in oat_fig._suptitle.get_text()
+    for f in figs:
+        real_close(f)
+
+
+def test_saturating_fit_of_a_constant_peak_leaves_c_undefined() -> None:
+    """A unit slewing at its base speed at every amplitude (1000 pos/s: 25.7 °/s):
+    Vmax is that speed, C is not identifiable (was a spurious 0.04 [0.04, 0.04]°)."""
+    amps = np.array([1.0, 2, 4, 7, 10, 15, 20, 30, 40])
+    fit = fit_saturating(amps, np.full(amps.size, 25.714))
+    assert fit.params["vmax"] == 25.714 and fit.intervals["vmax"] == (25.714, 25.714)
+    assert math.isnan(fit.params["c"]) and all(math.isnan(x) for x in fit.intervals["c"])
+    assert fit.n == 9 and fit.rmse == 0.0 and math.isnan(fit.r2)
+    row = fit.as_dict("ms_v_") | fit_linear(amps, 0.1 + 0.0374 * amps).as_dict("ms_d_")
+    text = saccade_speed._ms_text(row)
+    assert text.startswith("V = Vmax(1 − e^(−A/C)): Vmax 25.7 [25.7, 25.7] °/s, ")
+    assert "C — (not identifiable) (R² —)" in text and "k 0.0374 [0.0374, 0.0374] s/°" in text

@@ -36,3 +36,39 @@ def test_studies_section_shows_the_tested_statements_beside_the_papers(tmp_path)
 def test_studies_section_without_results_says_what_to_run(tmp_path) -> None:
     lines = studies_section(tmp_path, tmp_path)
     assert "Not run yet" in lines[2]
+
+
+def test_studies_section_shows_the_flir_main_sequence_and_the_links_cost(tmp_path) -> None:
+    import numpy as np
+    from experiments.main_sequence import fit_linear, fit_saturating
+
+    from experiments import saccade_speed
+    from wander_env.ptu import PTUParams
+
+    cfg = saccade_speed.SaccadeSpeedConfig()
+    folder = tmp_path / "results" / "saccade_speed" / "x"
+    base = saccade_speed.baseline()
+    amps = np.array(cfg.main_sequence_amplitudes_deg)
+    v, d = saccade_speed.theory_main_sequence(amps, PTUParams())
+    fits = fit_saturating(amps, v).as_dict("ms_v_") | fit_linear(amps, d).as_dict("ms_d_")
+    rows = []
+    for factor, ptu, ttf in (("baseline", "flir", 0.75), ("ptu_link", "ideal", 0.5)):
+        for seed in range(10):
+            rows.append({"trial": len(rows), "trial_id": f"t{len(rows)}", "repeat": seed,
+                         "seed": seed, "factor": factor, **base, "ptu": ptu,
+                         "main_sequence": seed == 0, "time_to_foveate_s": ttf + 0.125 * seed,
+                         "detection_accuracy": 1.0, "foveation_error_x_px": 0.3,
+                         "foveation_error_y_px": 0.3, "command_latency_mean_s": 0.024,
+                         **(fits if seed == 0 else {})})  # fmt: skip
+    write_csv(rows, folder / "results.csv")
+    (folder / "config.json").write_text(
+        json.dumps({"experiment": "saccade_speed", **config_to_dict(cfg)})
+    )
+    (folder / "run.json").write_text(json.dumps({"created": "2026-01-01T00:00:00"}))
+    lines = studies_section(tmp_path / "results", tmp_path)
+    ms = [line for line in lines if line.startswith("| main sequence, 2000 pos/s, 2000 pos/s²")]
+    assert len(ms) == 2 and "flir PTU" in ms[0] and "— (future work)" in ms[0]
+    assert "D = D0 + k·A: D0 " in ms[0] and "k 0.0255 [" in ms[0]
+    link = next(line for line in lines if line.startswith("| time to foveate (s): FLIR link"))
+    # FLIR − ideal: exactly 0.25 s on every seed: p = 2/1024, no spread (d_z infinite)
+    assert "Δ = 0.25 [0.25, 0.25], p = 0.00195, d_z = +∞, r_rb = 1.00 (n = 10) |" in link

@@ -139,3 +139,36 @@ def test_scanpath_compare_reports_intervals_tests_and_multimatch() -> None:
         "shelf: MultiMatch, between fixational and saccades",
     ]
     assert "position 1.000 [1.000, 1.000]" in mm[0].ours
+
+
+def test_statistics_figure_draws_the_intervals_and_the_test(tmp_path, monkeypatch) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cfg = scanpath.ScanpathConfig(scenes=("shelf",))
+    rows = _rows()
+    m, lo, hi = scanpath.bar_intervals(rows, ["shelf", "office"], "fixational", "object_hit_rate")
+    want = scanpath_analysis.cell_summaries(rows, ["object_hit_rate"])
+    mean, low, high, n = want[("shelf", "fixational", "object_hit_rate")]
+    assert n == 10 and m[0] == pytest.approx(0.945)
+    assert (lo[0], hi[0]) == (pytest.approx(mean - low), pytest.approx(high - mean))
+    assert lo[0] > 0 and hi[0] > 0 and math.isnan(m[1])  # no office rows
+    captured = {}
+    real_close = plt.close
+    monkeypatch.setattr(plt, "close", lambda fig=None: captured.setdefault("fig", fig))
+    rows = [r | {k: 1.0 for k, _ in scanpath._stat_panels(cfg)[1:]} for r in rows]
+    path = scanpath.plot_statistics(cfg, rows, tmp_path / "stats.png")
+    assert path.is_file() and path.stat().st_size > 10_000
+    fig = captured["fig"]
+    hit_ax = fig.axes[0]
+    # one error bar per condition on the hit-rate panel; the test's line above the bars
+    bars = [c for c in hit_ax.containers if type(c).__name__ == "ErrorbarContainer"]
+    assert len(bars) == 2
+    texts = [t.get_text() for t in hit_ax.texts]
+    # Δ = 0.6 + 0.01·seed: mean 0.645, sd 0.01·sd(0..9, ddof 1) = 0.030277 → d_z 21.30;
+    # all ten positive: p = 2/1024
+    assert texts == ["fix − sac: Δ = +0.64\np = 0.002, d_z = 21.30"]
+    assert "10 seeded repeats" in fig._suptitle.get_text()
+    real_close(fig)

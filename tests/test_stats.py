@@ -74,6 +74,16 @@ def test_paired_permutation_test_is_exact_for_ten_pairs() -> None:
     assert same.p_value == 1.0 and same.mean_diff == 0.0
 
 
+def test_comparison_text_says_undefined_quantities_without_nan() -> None:
+    one = paired_comparison([1.0], [0.5])
+    assert one.text(".3g") == "Δ = 0.5, p = —, d_z = —, r_rb = — (n = 1)"
+    same = paired_comparison([1.0, 2.0], [1.0, 2.0])
+    assert same.text(".2f") == "Δ = 0.00 [0.00, 0.00], p = 1, d_z = 0.00, r_rb = — (n = 2)"
+    shift = paired_comparison([2.0, 3.0, 4.0], [1.0, 2.0, 3.0])
+    assert "d_z = +∞, r_rb = 1.00 (n = 3)" in shift.text()
+    assert "nan" not in one.text() + same.text() + shift.text()
+
+
 def test_independent_permutation_test_matches_a_t_test_on_separated_samples() -> None:
     rng = np.random.default_rng(1)
     a, b = rng.normal(1.0, 1.0, 30), rng.normal(0.0, 1.0, 30)

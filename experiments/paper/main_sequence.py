@@ -103,9 +103,29 @@ def _fit(form, names, f, x, y, p0, bounds) -> MainSequenceFit:
 
 
 def fit_saturating(amplitude_deg: np.ndarray, peak_velocity_deg_s: np.ndarray) -> MainSequenceFit:
-    """Fit ``V = Vmax (1 − e^(−A/C))`` (parameters ``vmax`` °/s and ``c`` °)."""
+    """Fit ``V = Vmax (1 − e^(−A/C))`` (parameters ``vmax`` °/s and ``c`` °); with the
+    same peak at every amplitude ``c`` is NaN (not identifiable).
+
+    >>> fit = fit_saturating([1.0, 5.0, 20.0], [25.7, 25.7, 25.7])
+    >>> fit.params["vmax"], math.isnan(fit.params["c"]), math.isnan(fit.r2)
+    (25.7, True, True)
+    """
     v = np.asarray(peak_velocity_deg_s, float)
     a = np.asarray(amplitude_deg, float)
+    ok = np.isfinite(a) & np.isfinite(v)
+    if ok.sum() >= 3 and np.all(v[ok] == v[ok][0]):
+        # The same peak at every amplitude (a unit that never leaves its base speed): Vmax
+        # is that speed, C is not identifiable (any C far below the smallest amplitude
+        # fits), R² undefined.
+        vm = float(v[ok][0])
+        return MainSequenceFit(
+            "saturating",
+            {"vmax": vm, "c": math.nan},
+            {"vmax": (vm, vm), "c": (math.nan, math.nan)},
+            int(ok.sum()),
+            0.0,
+            math.nan,
+        )
     vmax0 = float(np.nanmax(v)) if np.isfinite(v).any() else 1.0
     c0 = float(np.nanmedian(a)) if np.isfinite(a).any() else 1.0
     return _fit(

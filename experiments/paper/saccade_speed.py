@@ -49,7 +49,7 @@ from experiments.framework import (
 )
 from experiments.jobs.run_agent import run_closed_loop
 from experiments.paper import main_sequence
-from experiments.paper.speed_study import plot_surfaces
+from experiments.paper.speed_study import AXIS_LABELS, plot_surfaces
 from experiments.stats import mean_ci, mean_std, paired_comparison
 from wander_env.env import WanderConfig
 from wander_env.metrics import SPECK_HFOV_DEG, focal_length_px
@@ -454,14 +454,18 @@ def _ms_text(r: Row) -> str:
         return ""
 
     def part(name: str, unit: str, fmt: str) -> str:
-        v, lo, hi = (float(r[f"{name}{x}"]) for x in ("", "_low", "_high"))
+        v, lo, hi = (float(r.get(f"{name}{x}", math.nan)) for x in ("", "_low", "_high"))
+        if math.isnan(v):
+            return "— (not identifiable)"
+        if math.isnan(lo) or math.isnan(hi):
+            return f"{v:{fmt}} {unit}"
         return f"{v:{fmt}} [{lo:{fmt}}, {hi:{fmt}}] {unit}"
 
     return (
         f"V = Vmax(1 − e^(−A/C)): Vmax {part('ms_v_vmax', '°/s', '.1f')}, "
-        f"C {part('ms_v_c', '°', '.2f')} (R² {float(r['ms_v_r2']):.3f}); D = D0 + k·A: "
+        f"C {part('ms_v_c', '°', '.2f')} (R² {_f(r, 'ms_v_r2')}); D = D0 + k·A: "
         f"D0 {part('ms_d_d0', 's', '.3f')}, k {part('ms_d_k', 's/°', '.4f')} "
-        f"(R² {float(r['ms_d_r2']):.3f})"
+        f"(R² {_f(r, 'ms_d_r2')})"
     )
 
 
@@ -543,6 +547,39 @@ def _ci(rows: list[Row], key: str, fmt: str) -> str:
     return f"{m:{fmt}} [{lo:{fmt}}, {hi:{fmt}}] (n = {n})"
 
 
+def _row_fits(r: Row) -> tuple[tuple[float, float] | None, tuple[float, float] | None]:
+    """The (Vmax, C) and (D0, k) fitted parameters stored in a row (None where absent)."""
+
+    def get(*keys: str) -> tuple[float, float] | None:
+        v = tuple(float(r.get(k, math.nan)) for k in keys)
+        return v if all(math.isfinite(x) for x in v) else None  # type: ignore[return-value]
+
+    return get("ms_v_vmax", "ms_v_c"), get("ms_d_d0", "ms_d_k")
+
+
+def _f(r: Row, key: str, fmt: str = ".3f") -> str:
+    """``r[key]`` formatted, "—" where missing or NaN."""
+    return _fmt(float(r.get(key, math.nan)), fmt)
+
+
+def factor_intervals(
+    rows: list[Row], column: str, key: str, levels: list[float]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(means, lower, upper error-bar lengths) of ``key`` at each level of ``column``: the
+    mean over the rows at that level and its bootstrap 95 % interval (0-length bars
+    where the interval is undefined; NaN means where no row has a value).
+
+    >>> rows = [{"f": 1.0, "y": v} for v in (1.0, 1.0)] + [{"f": 2.0, "y": 3.0}]
+    >>> [a.tolist() for a in factor_intervals(rows, "f", "y", [1.0, 2.0])]
+    [[1.0, 3.0], [0.0, 0.0], [0.0, 0.0]]
+    """
+    out = [mean_ci(float(r[key]) for r in rows if float(r[column]) == x) for x in levels]
+    m = np.array([v[0] for v in out], float)
+    lo = np.nan_to_num(m - np.array([v[1] for v in out], float))
+    hi = np.nan_to_num(np.array([v[2] for v in out], float) - m)
+    return m, lo, hi
+
+
 def plot(cfg: SaccadeSpeedConfig, rows: list[Row], results_dir: Path, fig_dir: Path) -> list[Path]:
     """The main sequence (amplitude vs peak velocity and duration) per PTU setting, with
     the PTU's trapezoid; and each measure against each factor."""
@@ -574,12 +611,28 @@ def plot(cfg: SaccadeSpeedConfig, rows: list[Row], results_dir: Path, fig_dir: P
         axes[0].plot(amps, v, "--", color=c, lw=0.8)
         axes[1].plot(ms_amp, arts["ms_duration_s"], label=label, **mk)
         axes[1].plot(amps, t, "--", color=c, lw=0.8)
+        vfit, dfit = _row_fits(r)
+        fit_style = dict(color=c, lw=1.4, alpha=0.6)
+        if vfit is not None:
+            v_label = f"fit: Vmax {vfit[0]:.1f} °/s, C {vfit[1]:.2f}° (R² {_f(r, 'ms_v_r2')})"
+            v_fit = main_sequence.saturating(amps, *vfit)
+            axes[0].plot(amps, v_fit, "-", label=v_label, **fit_style)
+        if dfit is not None:
+            d_label = f"fit: D0 {dfit[0]:.3f} s, k {dfit[1]:.4f} s/° (R² {_f(r, 'ms_d_r2')})"
+            axes[1].plot(amps, main_sequence.linear(amps, *dfit), "-", label=d_label, **fit_style)
         k += 1
-    axes[0].set(xlabel="saccade amplitude (°)", ylabel="peak velocity (°/s)")
-    axes[0].set_title("main sequence (dashed: the PTU's trapezoid)")
-    axes[1].set(xlabel="saccade amplitude (°)", ylabel="duration (s)", title="saccade duration")
-    axes[0].legend(fontsize=7)
-    fig.suptitle(f"Main sequence of the closed-loop saccades ({len(rows)} trials)", fontsize=10)
+    axes[0].set(xlabel="saccade amplitude (°)", ylabel="peak pan velocity (°/s)")
+    axes[0].set_title("peak velocity: V = Vmax(1 − e^(−A/C))", fontsize=9)
+    axes[1].set(xlabel="saccade amplitude (°)", ylabel="duration, command to standstill (s)")
+    axes[1].set_title("duration: D = D0 + k·A", fontsize=9)
+    for ax in axes:
+        ax.legend(fontsize=6.5)
+    fig.suptitle(
+        f"Main sequence: forced pan saccades in the static {cfg.main_sequence_scene} scene, "
+        "one series per PTU setting (markers: measured; solid: fit; dashed: the PTU's "
+        "rest-to-rest trapezoid)",
+        fontsize=9,
+    )
     ms_path = save_figure(fig, fig_dir / "main_sequence.png")
     if any(str(r["factor"]) == "factorial" for r in rows):
         return [ms_path, plot_surfaces(rows, fig_dir / "response_surfaces.png")]
@@ -601,26 +654,28 @@ def plot(cfg: SaccadeSpeedConfig, rows: list[Row], results_dir: Path, fig_dir: P
         sel = base + [r for r in rows if r["factor"] == factor]
         xs = sorted({float(r[column]) for r in sel})
         for i, (key, label) in enumerate(metrics):
-            ys = [mean_std(float(r[key]) for r in sel if float(r[column]) == x)[0] for x in xs]
             ax = axes[i, j]
-            ax.plot(xs, ys, "o-")
+            series = [(key, "o-", "x")]
             if key == "foveation_error_x_px":
-                y2 = [
-                    mean_std(
-                        float(r["foveation_error_y_px"]) for r in sel if float(r[column]) == x
-                    )[0]
-                    for x in xs
-                ]
-                ax.plot(xs, y2, "s--")
+                series.append(("foveation_error_y_px", "s--", "y"))
+            for col, style, name in series:
+                m, lo, hi = factor_intervals(sel, column, col, xs)
+                ax.errorbar(xs, m, yerr=[lo, hi], fmt=style, capsize=3, ms=4,
+                            label=name if len(series) > 1 else None)  # fmt: skip
+            if len(series) > 1:
+                ax.legend(fontsize=6)
             if i == len(metrics) - 1:
-                ax.set_xlabel(column)
+                ax.set_xlabel(AXIS_LABELS.get(column, column), fontsize=7.5)
             if j == 0:
                 ax.set_ylabel(label, fontsize=8)
             if i == 0:
                 ax.set_title(factor, fontsize=9)
+    n = max((len(g) for g in settings(rows).values()), default=0)
     fig.suptitle(
         "One factor at a time around the paper's values (PTU speed and acceleration, "
-        "fixational steps, object speed)",
+        f"fixational steps, window, object speed): mean over {n} seeded repeats of "
+        f"{cfg.duration_s:g} s in the {cfg.scene} scene per setting, error bars the "
+        "bootstrap 95 % interval",
         fontsize=10,
     )
     sweep_path = save_figure(fig, fig_dir / "saccade_speed.png")

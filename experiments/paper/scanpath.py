@@ -424,9 +424,7 @@ def compare(cfg: ScanpathConfig, rows: list[Row]) -> list[Comparison]:
         screen = tuple(cfg.multimatch_screen_deg)
         for t in sa.similarity_table(rows, screen):
             parts = [
-                f"{k} {t[k]:.3f} [{t[k + '_low']:.3f}, {t[k + '_high']:.3f}]"
-                if not math.isnan(t[k])
-                else f"{k} —"
+                f"{k} {_ci_text((t[k], t[k + '_low'], t[k + '_high'], t[k + '_n']), '{:.3f}')}"
                 for k in sa.SIMILARITY_MEASURES
             ]
             n = max(t[k + "_n"] for k in sa.SIMILARITY_MEASURES)
@@ -469,6 +467,10 @@ def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path)
         arts = load_artifacts(results_dir, r)
         if "fixations" in arts:
             write_export(arts["fixations"], results_dir / "fixations" / _export_name(r))
+    from wander_env.ptu import PTUParams  # the env's unit (the trials use its default)
+
+    unit = PTUParams()
+    limits = (unit.pan_limits_deg, unit.tilt_limits_deg)
     fig, axes = plt.subplots(
         len(scenes),
         len(conditions),
@@ -480,42 +482,117 @@ def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path)
             ax = axes[i, j]
             r = firsts.get((s, c))
             arts = load_artifacts(results_dir, r) if r is not None else {}
-            _draw_scanpath(ax, arts)
+            _draw_scanpath(ax, arts, limits)
             title = f"{s}, {c}"
             if r is not None:
                 title += f" (seed {r['seed']}): hit rate {float(r['object_hit_rate']):.0%}"
             ax.set_title(title, fontsize=9)
     fig.suptitle(
-        "Scanpaths on the pan-tilt sphere: saliency mosaic (max over fixations, each map / "
-        "its peak, 0 black … 1 bright), fixations sized by duration",
+        "Scanpaths on the pan-tilt sphere, the first seed of each cell "
+        f"({cfg.duration_s:g} s of simulated time each)\nsaliency mosaic (max over "
+        "fixations, each map / its peak, 0 black … 1 bright), fixations sized by duration",
         fontsize=10,
     )
     path = save_figure(fig, fig_dir / "scanpath.png")
 
-    keys = [
-        ("object_hit_rate", "object hit rate"),
-        ("fixations", "fixations"),
-        ("saccade_amplitude_mean_deg", "saccade amplitude (°)"),
-        ("revisits", "revisits"),
-        ("coverage_deg2", "coverage (deg²)"),
-    ]
-    fig, axes = plt.subplots(1, len(keys), figsize=(3.2 * len(keys), 3.2))
-    x = np.arange(len(scenes))
-    width = 0.8 / max(len(conditions), 1)
-    for ax, (key, label) in zip(axes, keys, strict=True):
-        for j, c in enumerate(conditions):
-            ms = [_by(rows, s, c, key) for s in scenes]
-            offset = (j - (len(conditions) - 1) / 2) * width
-            ax.bar(x + offset, [m for m, _ in ms], width, label=c)
-        ax.set_xticks(x, scenes)
-        ax.set_title(label, fontsize=9)
-    axes[0].legend(fontsize=8)
-    fig.suptitle(f"Scanpath statistics per scene and condition ({len(rows)} trials)", fontsize=10)
-    stats_path = save_figure(fig, fig_dir / "scanpath_stats.png")
+    stats_path = plot_statistics(cfg, rows, fig_dir / "scanpath_stats.png")
     return [path, stats_path]
 
 
-def _draw_scanpath(ax: Any, arts: dict[str, Any]) -> None:
+def _stat_panels(cfg: ScanpathConfig) -> list[tuple[str, str]]:
+    """(column, label with units) of the statistics figure's panels."""
+    per = f"per {cfg.duration_s:g} s trial"
+    return [
+        ("object_hit_rate", "object hit rate (fraction of P)"),
+        ("fixations", f"fixations ({per})"),
+        ("fixation_duration_mean_s", "fixation duration, mean (s)"),
+        ("saccade_amplitude_mean_deg", "saccade amplitude, mean (°)"),
+        ("revisits", f"revisits within {cfg.radius_deg:g}° ({per})"),
+        ("coverage_deg2", f"coverage (deg², {cfg.radius_deg:g}° radius)"),
+    ]
+
+
+def bar_intervals(
+    rows: list[Row], scenes: Sequence[str], condition: str, key: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(means, lower, upper error-bar lengths) of ``key`` per scene for one condition:
+    the mean over the repeats and its bootstrap 95 % interval
+    (:func:`experiments.scanpath_analysis.cell_summaries`); NaN where undefined.
+
+    >>> rows = [{"scene": "s", "condition": "c", "seed": k, "v": float(k)} for k in (1, 1, 1)]
+    >>> [a.tolist() for a in bar_intervals(rows, ["s"], "c", "v")]
+    [[1.0], [0.0], [0.0]]
+    """
+    from experiments.scanpath_analysis import cell_summaries
+
+    summ = cell_summaries([r for r in rows if str(r["condition"]) == condition], [key])
+    stats = [summ.get((s, condition, key), (math.nan,) * 3 + (0,)) for s in scenes]
+    m = np.array([v[0] for v in stats], float)
+    return m, m - np.array([v[1] for v in stats], float), np.array([v[2] for v in stats]) - m
+
+
+def plot_statistics(cfg: ScanpathConfig, rows: list[Row], path: Path) -> Path:
+    """Bars of the per-trial statistics per scene and condition: the mean over the
+    repeats with its bootstrap 95 % interval, and on the hit-rate panel the
+    fixational − saccades test (paired by seed: permutation p, d_z)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from experiments.scanpath_analysis import cells, condition_tests
+
+    scenes = list(dict.fromkeys(str(r["scene"]) for r in rows))
+    conditions = list(dict.fromkeys(str(r["condition"]) for r in rows))
+    panels = _stat_panels(cfg)
+    tests = condition_tests(rows, ["object_hit_rate"])
+    fig, axes = plt.subplots(1, len(panels), figsize=(3.1 * len(panels), 3.6), squeeze=False)
+    x = np.arange(len(scenes))
+    width = 0.8 / max(len(conditions), 1)
+    for ax, (key, label) in zip(axes[0], panels, strict=True):
+        for j, c in enumerate(conditions):
+            m, lo, hi = bar_intervals(rows, scenes, c, key)
+            offset = (j - (len(conditions) - 1) / 2) * width
+            ax.bar(x + offset, np.nan_to_num(m), width, color=f"C{j}", label=c)
+            ok = np.isfinite(lo) & np.isfinite(hi)
+            if ok.any():
+                ax.errorbar((x + offset)[ok], m[ok], yerr=[lo[ok], hi[ok]], fmt="none",
+                            ecolor="k", capsize=3, lw=1)  # fmt: skip
+        ax.set_xticks(x, scenes)
+        ax.set_title(label, fontsize=8.5)
+        ax.set_ylim(bottom=0.0)  # every statistic here is >= 0
+        if ax.get_ylim()[1] <= 0.0:
+            ax.set_ylim(0.0, 1.0)
+        if key == "object_hit_rate":
+            ax.set_ylim(0.0, 1.25)
+            for i, s in enumerate(scenes):
+                t = tests.get((s, key))
+                if t is not None and t.n >= 2 and math.isfinite(t.p_value):
+                    text = f"fix − sac: Δ = {t.mean_diff:+.2f}\np = {t.p_value:.2g}, d_z = "
+                    text += f"{t.effect_d:.2f}" if math.isfinite(t.effect_d) else "—"
+                    ax.text(i, 1.03, text, ha="center", va="bottom", fontsize=6.5)
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper right", ncol=len(conditions), fontsize=8)
+    n = max((len(v) for v in cells(rows).values()), default=0)
+    fig.suptitle(
+        f"Scanpath statistics per scene and condition: mean over {n} seeded repeat"
+        f"{'s' if n != 1 else ''} ({cfg.duration_s:g} s each), error bars the bootstrap "
+        f"95 % interval ({len(rows)} trials)",
+        fontsize=10,
+        x=0.4,
+    )
+    return save_figure(fig, path, rect=(0.0, 0.0, 1.0, 0.93))
+
+
+def _draw_scanpath(
+    ax: Any,
+    arts: dict[str, Any],
+    limits_deg: tuple[tuple[float, float], tuple[float, float]] | None = None,
+) -> None:
+    """One scanpath panel: the mosaic, fixations, saccades, the salient points and (given
+    ``limits_deg``, the PTU's pan and tilt ranges of the gaze) a dashed box of the reach."""
+    from matplotlib.patches import Rectangle
+
     if "mosaic" in arts:
         pan, tilt = arts["mosaic_pan"], arts["mosaic_tilt"]
         image = ax.imshow(
@@ -542,7 +619,19 @@ def _draw_scanpath(ax: Any, arts: dict[str, Any]) -> None:
     if len(tg):
         hits = np.asarray(hits, bool)
         for sel, colour, label in ((hits, "lime", "P on an object"), (~hits, "red", "P elsewhere")):
-            ax.scatter(tg[sel, 0], tg[sel, 1], marker="x", c=colour, s=25, zorder=4, label=label)
+            if sel.any():
+                label += f" ({int(sel.sum())})"
+                ax.scatter(
+                    tg[sel, 0], tg[sel, 1], marker="x", c=colour, s=25, zorder=4, label=label
+                )
+    if limits_deg is not None:
+        (plo, phi), (tlo, thi) = limits_deg
+        x0, x1 = ax.get_xlim()
+        y0, y1 = ax.get_ylim()
+        ax.add_patch(Rectangle((plo, tlo), phi - plo, thi - tlo, fill=False, ls="--",
+                               ec="0.75", lw=1.0, label="PTU reach of the gaze"))  # fmt: skip
+        ax.set_xlim(x0, x1)  # the box may be larger than the mosaic: keep the view
+        ax.set_ylim(y0, y1)
     ax.invert_xaxis()  # positive pan turns left
     ax.set_xlabel("pan (°, + = left)")
     ax.set_ylabel("tilt (°, + = up)")

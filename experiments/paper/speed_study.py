@@ -43,6 +43,7 @@ AXIS_LABELS = {
     "fixational_step_pos": "fixational step, max (positions)",
     "fixational_n_steps": "fixational steps per window",
     "window_s": "integration window t_w (s)",
+    "object_speed_scale": "object speed (× the scene's)",
 }
 
 
