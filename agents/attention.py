@@ -91,7 +91,8 @@ AGENT_SOMS = SOMSParams(
     norm="quantile",
     pool_sigma=6.0,
     quantile=0.9,
-    gain=2.5,
+    gain=3.5,
+    peak_ratio=2.0,
 )
 
 

@@ -28,7 +28,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import torch
 
-from agents.soms import SOMS, SOMSParams
+from agents.soms import SOMS, SOMSParams, peak_scale
 from experiments.oms_stimuli import Recording, Stimulus, prediction, render
 
 __all__ = [
@@ -128,8 +128,11 @@ def measure_recording(rec: Recording, variants: Mapping[str, SOMSParams]) -> dic
                         key = (pk.pool_sigma, pk.quantile)
                         if key not in quant:
                             quant[key] = float(torch.quantile(d.flatten(), pk.quantile))
-                        scale = max(pk.gain * quant[key], pk.floor_spikes)
-                        score = torch.clamp(d / scale, 0.0, 1.0)  # = quantile_score(d, ...)
+                        peak = float(d.max())
+                        scale = peak_scale(
+                            quant[key], peak, pk.gain, pk.peak_ratio, pk.floor_spikes
+                        )
+                        score = torch.clamp(d / scale, 0.0, 1.0)  # = SOMS.score(diff)
                     else:
                         score = somses[k].score(diff)
                     kept = x * ((x > 0) & (score >= params[k].alpha))
