@@ -35,10 +35,14 @@ Design decisions (each checked against the paper and its public code):
 * **Input-dependent threshold** (``norm="quantile"``, the agent's default): min-max
   normalisation lets a fixed share of events through whatever the stimulus, so no α
   suppresses ego-motion on textured scenes and keeps the object's events too (the
-  stimulus family of :mod:`experiments.oms_stimuli`). The quantile norm compares the
-  pooled surround excess with its own 90th percentile over the map: ego-motion is
-  suppressed, denser (faster) objects and objects on a still background kept
-  (``wander experiment oms_scorecard``).
+  stimulus family of :mod:`experiments.oms_stimuli`). The quantile norm pools the
+  surround excess (Gaussian, σ 6 px) and divides it by the map's own peak clipped to
+  [2, 3.5] × its 90th percentile (``peak_ratio``, ``gain``; :func:`peak_score`): a map
+  whose peak does not stand out from the bulk by 2× (global ego-motion) keeps nothing,
+  one whose peak does keeps the events within α of it, and one far above the bulk keeps
+  what exceeds 2.8× the bulk. Without ``peak_ratio`` the divisor is ``gain`` × the
+  quantile (:func:`quantile_score`). Chosen on the even-seed half of the family,
+  scored on the odd half (``wander experiment oms_scorecard``).
 * **Signed difference** kept (``diff``), as the paper stresses.
 * **Sensor grid.** 'same' convolution with zero padding (torch's alignment: for the
   even 8 px kernel the centre sits half a pixel down-right of the output pixel); the
@@ -76,9 +80,9 @@ __all__ = [
     "SOMSParams",
     "lif_layer",
     "oms_score",
-    "pooling_weights",
     "peak_scale",
     "peak_score",
+    "pooling_weights",
     "quantile_score",
     "tau_steps",
 ]
