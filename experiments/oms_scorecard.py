@@ -365,10 +365,31 @@ def scorecard(cfg: OMSScorecardConfig, rows: list[Row]) -> list[tuple[str, str, 
 def compare(cfg: OMSScorecardConfig, rows: list[Row]) -> list[Comparison]:
     """The scorecard as the report's table: paper column = the paper-literal sOMS, ours
     = the agent's default; the bar in the note."""
-    return [
+    out = [
         Comparison(claim, cells.get("paper", "—"), cells.get("agent", "—"), bar)
         for claim, bar, cells in scorecard(cfg, rows)
     ]
+    if out:
+        out.append(choice_comparison())
+    return out
+
+
+def choice_comparison() -> Comparison:
+    """The report's line on the two variants' thresholds and how ours was chosen."""
+    p = variants()["agent"]
+    how = (
+        f"divisor: the map's peak clipped to [{p.peak_ratio:g}, {p.gain:g}] × its "
+        f"{p.quantile:g} quantile"
+        if p.peak_ratio is not None
+        else f"divisor: {p.gain:g} × its {p.quantile:g} quantile"
+    )
+    return Comparison(
+        "sOMS threshold (Eq. 1's norm)",
+        "min-max over the map, α 0.80",
+        f"{p.norm} norm of the σ {p.pool_sigma:g} px pooled surround excess, {how}, α {p.alpha:g}",
+        "ours chosen on the even-seed half (most family claims, then the largest margin: "
+        "`python -m experiments.oms_family`); the odd half held out",
+    )
 
 
 def plot(cfg: OMSScorecardConfig, rows: list[Row], results_dir: Path, fig_dir: Path) -> list[Path]:
