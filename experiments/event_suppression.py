@@ -380,8 +380,12 @@ def plot(
     axes[1].set_xticks(range(len(rows)))
     axes[1].legend(loc="lower right")
     axes[1].set_title("events suppressed per trial", fontsize=9)
+    sp = soms_params(cfg)
+    which = (
+        "paper-literal sOMS (min-max)" if cfg.soms == "table" else f"agent's sOMS ({sp.norm} norm)"
+    )
     fig.suptitle(
-        f"Event suppression by the sOMS (α = {cfg.alpha:g}): events in and out per "
+        f"Event suppression by the {which}, α = {sp.alpha:g}: events in and out per "
         f"{cfg.window_s * 1000:g} ms",
         fontsize=10,
     )

@@ -1,6 +1,7 @@
 """The sOMS scorecard: every sOMS finding of the paper, pass or fail with its figures,
 for the paper-literal sOMS (min-max norm, α 0.80: ``SOMSParams()``) beside the agent's
-default (``AgentParams().resolved().soms``, the ``"quantile"`` norm).
+default (``AgentParams().resolved().soms``, the ``"quantile"`` norm whose divisor is the
+map's peak clipped to [2, 3.5] × its 90th percentile).
 
 Parts (``parts``), one trial each (both variants in the same trial):
 
