@@ -35,10 +35,14 @@ Design decisions (each checked against the paper and its public code):
 * **Input-dependent threshold** (``norm="quantile"``, the agent's default): min-max
   normalisation lets a fixed share of events through whatever the stimulus, so no α
   suppresses ego-motion on textured scenes and keeps the object's events too (the
-  stimulus family of :mod:`experiments.paper.oms_stimuli`). The quantile norm compares the
-  pooled surround excess with its own 90th percentile over the map: ego-motion is
-  suppressed, denser (faster) objects and objects on a still background kept
-  (``wander experiment oms_scorecard``).
+  stimulus family of :mod:`experiments.paper.oms_stimuli`). The quantile norm pools the
+  surround excess (Gaussian, σ 6 px) and divides it by the map's own peak clipped to
+  [2, 3.5] × its 90th percentile (``peak_ratio``, ``gain``; :func:`peak_score`): a map
+  whose peak does not stand out from the bulk by 2× (global ego-motion) keeps nothing,
+  one whose peak does keeps the events within α of it, and one far above the bulk keeps
+  what exceeds 2.8× the bulk. Without ``peak_ratio`` the divisor is ``gain`` × the
+  quantile (:func:`quantile_score`). Chosen on the even-seed half of the family,
+  scored on the odd half (``wander experiment oms_scorecard``).
 * **Signed difference** kept (``diff``), as the paper stresses.
 * **Sensor grid.** 'same' convolution with zero padding (torch's alignment: for the
   even 8 px kernel the centre sits half a pixel down-right of the output pixel); the
@@ -76,6 +80,8 @@ __all__ = [
     "SOMSParams",
     "lif_layer",
     "oms_score",
+    "peak_scale",
+    "peak_score",
     "pooling_weights",
     "quantile_score",
     "tau_steps",
@@ -124,8 +130,13 @@ class SOMSParams:
     makes the threshold depend on the input's statistics: ``surround − centre`` pooled by
     a unit-sum Gaussian of ``pool_sigma`` px, divided by ``gain`` × its ``quantile`` over
     the whole map (at least ``floor_spikes``) and clipped to [0, 1]; an event is kept
-    where that is ``>= alpha`` (:func:`quantile_score`). ``pool_sigma``, ``quantile``,
-    ``gain`` and ``floor_spikes`` are unused by ``"minmax"``.
+    where that is ``>= alpha`` (:func:`quantile_score`). With ``peak_ratio`` set (the
+    agent's), the divisor is the map's own peak clipped to [``peak_ratio``, ``gain``] ×
+    that quantile (:func:`peak_score`): a peak that stands out from the bulk is kept with
+    the events near it even when it is not ``gain``× the bulk, and a map whose peak does
+    not stand out by ``peak_ratio`` keeps nothing once ``alpha · peak_ratio > 1``.
+    ``pool_sigma``, ``quantile``, ``gain``, ``floor_spikes`` and ``peak_ratio`` are unused
+    by ``"minmax"``.
     """
 
     kernel_size: int = 8
@@ -142,6 +153,7 @@ class SOMSParams:
     quantile: float = 0.9
     gain: float = 2.0
     floor_spikes: float = 1.0
+    peak_ratio: float | None = None
 
     def __post_init__(self) -> None:
         if self.kernel_size < 1:
@@ -152,6 +164,14 @@ class SOMSParams:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"SOMSParams.{name} must be a finite number > 0, got {v!r}")
+        pr = self.peak_ratio
+        if pr is not None and not (
+            isinstance(pr, (int, float)) and math.isfinite(pr) and 0 < pr <= self.gain
+        ):
+            raise ValueError(
+                f"SOMSParams.peak_ratio must be None or a finite number in (0, gain={self.gain}]"
+                f", got {pr!r}"
+            )
         if not 0.0 <= self.quantile <= 1.0:
             raise ValueError(f"SOMSParams.quantile must be in [0, 1], got {self.quantile}")
         if not 0.0 <= self.alpha <= 1.0:
@@ -241,6 +261,48 @@ def quantile_score(
     return torch.clamp(pooled / scale, 0.0, 1.0)
 
 
+def peak_scale(
+    q: float, peak: float, gain: float, peak_ratio: float | None, floor_spikes: float
+) -> float:
+    """The divisor of the ``"quantile"`` norm from the map's ``quantile`` value ``q`` and
+    its ``peak``: ``gain · q`` when ``peak_ratio`` is None, else the peak clipped to
+    ``[peak_ratio · q, gain · q]``; at least ``floor_spikes``.
+
+    Example:
+        >>> peak_scale(2.0, 5.0, 2.5, None, 1.0), peak_scale(2.0, 5.0, 3.5, 2.0, 1.0)
+        (5.0, 5.0)
+        >>> peak_scale(2.0, 9.0, 3.5, 2.0, 1.0), peak_scale(2.0, 2.2, 3.5, 2.0, 1.0)
+        (7.0, 4.0)
+    """
+    if peak_ratio is None:
+        return max(gain * q, floor_spikes)
+    return max(min(max(peak, peak_ratio * q), gain * q), floor_spikes)
+
+
+def peak_score(
+    pooled: torch.Tensor, quantile: float, gain: float, peak_ratio: float, floor_spikes: float
+) -> torch.Tensor:
+    """``1 - norm(OMS)`` of the ``"quantile"`` norm with ``peak_ratio``: the pooled
+    surround excess over :func:`peak_scale` of its ``quantile`` and its maximum over the
+    whole map, clipped to [0, 1]. An event is kept where this is ``>= alpha``: with
+    ``alpha`` 0.8, ``peak_ratio`` 2 and ``gain`` 3.5 the threshold is 0.8 × the peak
+    when the peak lies between 2 and 3.5 × the quantile, 2.8 × the quantile above that,
+    and above the peak (nothing kept) when the peak is below 2 × the quantile.
+
+    Example:
+        >>> d = torch.zeros(1, 10, 10); d[0, 0, :5] = 3.0; d[0, 1:, :] = 1.0
+        >>> s = peak_score(d, 0.9, 3.5, 2.0, 1.0)   # q 1, peak 3 -> scale 3
+        >>> float(s[0, 0, 0]), round(float(s[0, 5, 5]), 4)
+        (1.0, 0.3333)
+        >>> float(peak_score(torch.ones(1, 4, 4), 0.9, 3.5, 2.0, 1.0).max())  # flat: 1 / 2
+        0.5
+    """
+    a = pooled.detach().cpu().numpy().ravel()
+    q = float(np.quantile(a, quantile))
+    scale = peak_scale(q, float(a.max(initial=0.0)), gain, peak_ratio, floor_spikes)
+    return torch.clamp(pooled / scale, 0.0, 1.0)
+
+
 class SOMS:
     """Stateful sOMS: call :meth:`step` once per event map ``(2, H, W)`` (counts in one
     step of ``params.dt`` seconds); LIF membranes carry over between calls until
@@ -316,6 +378,8 @@ class SOMS:
         p = self.params
         if p.norm == "minmax":
             return oms_score(diff)
+        if p.peak_ratio is not None:
+            return peak_score(self.pool(-diff), p.quantile, p.gain, p.peak_ratio, p.floor_spikes)
         return quantile_score(self.pool(-diff), p.quantile, p.gain, p.floor_spikes)
 
     @torch.no_grad()

@@ -50,7 +50,12 @@ def test_params_defaults_and_resolution() -> None:
     # paper-literal min-max sOMS.
     assert p.soms.alpha == AGENT_SOMS_ALPHA == 0.80 and SOMSParams().alpha == 0.80
     assert p.soms.norm == "quantile" and SOMSParams().norm == "minmax"
-    assert (p.soms.pool_sigma, p.soms.quantile, p.soms.gain) == (6.0, 0.9, 2.5)
+    assert (p.soms.pool_sigma, p.soms.quantile, p.soms.gain, p.soms.peak_ratio) == (
+        6.0,
+        0.9,
+        3.5,
+        2.0,
+    )
     assert p.proto.dt == pytest.approx(0.13) and p.proto.tau_mem == 0.1
     assert p.fixation.n_steps == 8 and p.fixation.max_step_pos == 60
     assert p.fixation.interval_s == pytest.approx(0.124 / 8)

@@ -120,15 +120,17 @@ def test_scanpath_trial_exports_one_row_per_fixation(tmp_path):
     sets = ["scenes=[shelf]", "conditions=[fixational]", "duration_s=1.2", "repeats=1"]
     cfg = resolve_config(scanpath.EXPERIMENT, sets=sets)
     (row,), files = run_experiment("scanpath", cfg, 0, tmp_path)
-    # 13-step (130 ms) windows: one, a 31° saccade (≈1 s), then a second window.
-    assert (row["decisions"], row["fixations"], row["saccades"]) == (2, 2, 1)
+    # 13-step (130 ms) windows and the saccades between them: three decisions in 1.2 s
+    # with the agent's peak-clipped sOMS (two with the former divisor, whose first
+    # saccade was a 31° one)
+    assert (row["decisions"], row["fixations"], row["saccades"]) == (3, 3, 2)
     assert row["fixation_duration_mean_s"] == pytest.approx(0.13)
-    # the agent's quantile-norm sOMS suppresses much of the still shelf under fixational
-    # motion (eye-only), so one of the two decisions lands on an object
-    assert row["object_hit_rate"] == 0.5 and row["objects_visited"] == 1
+    # the agent's sOMS suppresses much of the still shelf under fixational motion
+    # (eye-only), so two of the three decisions land on an object (the same one)
+    assert row["object_hit_rate"] == pytest.approx(2 / 3) and row["objects_visited"] == 1
     # the scanpath and its AOIs travel in the row (for MultiMatch and the user's analysis)
-    assert len(json.loads(row["scanpath_json"])) == 2
-    assert len(json.loads(row["aois_json"])) == 2
+    assert len(json.loads(row["scanpath_json"])) == 3
+    assert len(json.loads(row["aois_json"])) == 3
     with (tmp_path / "fixations" / "shelf_fixational_seed0.csv").open() as fh:
         table = list(csv.DictReader(fh))
     assert list(table[0]) == list(scanpath.EXPORT_COLUMNS)

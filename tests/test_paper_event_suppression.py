@@ -90,3 +90,21 @@ def test_short_trial_counts_events_per_window_and_pauses_are_quiet():
     comps = {c.result: c for c in compare(cfg, [row])}
     assert comps["events suppressed"].paper == "85.16 %"
     assert comps["trials"].ours == "1"
+
+
+def test_hand_hit_scores_the_box_around_the_oms_maps_densest_point():
+    from experiments.paper.event_suppression import hand_hit, oms_point
+
+    oms = np.zeros((2, 64, 64), bool)
+    oms[0, 30:36, 40:46] = True  # a dense patch of kept events (OFF) ...
+    oms[1, 5, 5] = True  # ... and one stray kept event
+    assert oms_point(oms, 2.0) == (42, 32)  # box: x in [38, 45], y in [28, 35]
+    hand = np.zeros((64, 64), bool)
+    hand[36:50, 20:38] = True  # just below-left of the box: a miss
+    assert not hand_hit(oms, hand, 2.0)
+    hand[35, 37] = False
+    hand[35, 38] = True  # one pixel in the box's corner: a hit
+    assert hand_hit(oms, hand, 2.0)
+    assert not hand_hit(np.zeros_like(oms), hand, 2.0)  # nothing kept: a miss
+    with pytest.raises(ValueError, match="mask"):
+        hand_hit(oms, hand[None], 2.0)

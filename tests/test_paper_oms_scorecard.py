@@ -83,7 +83,9 @@ def test_object_only_is_kept_by_the_agent_sOMS():
     m = measure(s, variants())
     agent = m["agent"]
     assert agent.events_in == agent.object_in > 4000  # only the window moves
-    assert agent.precision == 1.0 and agent.object_kept_share >= 0.85
+    # the peak-clipped norm keeps the window's events within α of its peak: 2685 of 4381
+    # (the former divisor 2.5 × the 90th percentile kept ≥ 85 %)
+    assert agent.precision == 1.0 and 0.60 <= agent.object_kept_share <= 0.63
     assert m["paper"].object_kept_share <= 0.3
 
 

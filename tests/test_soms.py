@@ -183,3 +183,48 @@ def test_imports_without_samna():
     """sinabs must not pull in samna (the PyPI stub fails offline at import)."""
     code = "import sys, agents.soms, agents.proto_object; assert 'samna' not in sys.modules"
     subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+
+
+def test_peak_ratio_clips_the_divisor_between_the_bulk_and_the_gain():
+    from agents.soms import peak_scale, peak_score, quantile_score
+
+    # the map's bulk (90th percentile) is 1 spike; the peak decides the divisor
+    d = torch.ones(1, 10, 10)
+    d[0, 0, 0] = 2.5  # a peak 2.5x the bulk: divisor 2.5, only the peak reaches α 0.8
+    s = peak_score(d, 0.9, 3.5, 2.0, 1.0)
+    assert float(s[0, 0, 0]) == 1.0 and float(s[0, 5, 5]) == pytest.approx(0.4)
+    d[0, 0, 0] = 1.9  # below 2x the bulk: divisor 2, nothing reaches 0.8 but the peak's 0.95
+    s = peak_score(d, 0.9, 3.5, 2.0, 1.0)
+    assert float(s[0, 0, 0]) == pytest.approx(0.95) and float(s[0, 5, 5]) == 0.5
+    d[0, 0, 0] = 10.0  # far above: divisor gain x bulk = 3.5, the quantile norm
+    s = peak_score(d, 0.9, 3.5, 2.0, 1.0)
+    assert torch.equal(s, quantile_score(d, 0.9, 3.5, 1.0))
+    assert peak_scale(0.1, 0.2, 3.5, 2.0, 1.0) == 1.0  # the floor
+    assert peak_scale(2.0, 3.0, 2.5, None, 1.0) == 5.0  # no peak_ratio: gain x quantile
+
+
+def test_peak_ratio_is_validated_and_the_agent_uses_it():
+    from agents.attention import AgentParams
+
+    p = AgentParams().resolved().soms
+    assert (p.norm, p.quantile, p.gain, p.peak_ratio, p.alpha) == ("quantile", 0.9, 3.5, 2.0, 0.8)
+    assert SOMSParams().peak_ratio is None
+    for bad in (0.0, -1.0, math.inf, 5.0):
+        with pytest.raises(ValueError, match="peak_ratio"):
+            SOMSParams(norm="quantile", gain=3.5, peak_ratio=bad)
+
+
+def test_agent_soms_suppresses_uniform_ego_motion_and_keeps_the_object():
+    from agents.attention import AgentParams
+
+    p = AgentParams().resolved().soms
+    ev, _ = scene_events(WARM + 4, v_bg=1)
+    out = run(ev, p)
+    # a texture drifting as one: only its few densest spots reach 2x the bulk
+    # (measured: 297 of 13428 events kept)
+    suppressed = 1.0 - float((ev[WARM:] * out[WARM:]).sum()) / float(ev[WARM:].sum())
+    assert 0.97 <= suppressed <= 0.985
+    ev, mask = scene_events(WARM + 4, v_bg=1, v_obj=4, obj=24)
+    out = run(ev, p)[WARM:]
+    kept = out.sum(axis=(0, 1))
+    assert kept.sum() > 0 and kept[mask].sum() / kept.sum() >= 0.9

@@ -50,6 +50,7 @@ __all__ = [
     "EventSuppressionConfig",
     "PausedTrajectory",
     "active_time",
+    "hand_hit",
     "is_active",
     "pooled_mean_std",
 ]
@@ -169,6 +170,25 @@ def oms_point(oms: np.ndarray, sigma_px: float) -> tuple[int, int] | None:
     return saliency_argmax(torch.from_numpy(dens))
 
 
+def hand_hit(oms: np.ndarray, hand: np.ndarray, sigma_px: float, box: int = 8) -> bool:
+    """The scorer of the hand claim for one sOMS step: the ``box``×``box`` square around
+    the OMS map's densest point (:func:`oms_point`) touches the hand's mask
+    (:func:`wander_env.metrics.detection_hit`); an empty map is a miss (the hand's events
+    did not survive).
+
+    >>> m = np.zeros((2, 32, 32), bool); m[1, 20:24, 20:24] = True   # kept events
+    >>> oms_point(m, 2.0)                         # box: x and y in [17, 24]
+    (21, 21)
+    >>> hand = np.zeros((32, 32), bool); hand[24:29, 24:29] = True
+    >>> hand_hit(m, hand, 2.0), hand_hit(m, np.roll(hand, 1, axis=1), 2.0)
+    (True, False)
+    >>> hand_hit(np.zeros((2, 32, 32), bool), hand, 2.0)   # nothing kept: a miss
+    False
+    """
+    point = oms_point(oms, sigma_px)
+    return point is not None and detection_hit(point, hand, box)
+
+
 def soms_params(cfg: EventSuppressionConfig) -> SOMSParams:
     """The sOMS of the trial: ``soms="table"`` the paper's table with this config's
     kernel, τ and α (min-max norm); ``"agent"`` the agent's default sOMS
@@ -226,8 +246,7 @@ def run_trial(cfg: EventSuppressionConfig, spec: TrialSpec) -> dict[str, Any]:
             hand = np.any([mk for _, mk in windows], axis=0)
             if hand.any() and is_active(t, cfg.active_s, cfg.pause_s):
                 hit_steps += 1
-                point = oms_point(oms, cfg.hit_sigma_px)
-                hits += point is not None and detection_hit(point, hand)
+                hits += hand_hit(oms, hand, cfg.hit_sigma_px)
             for j, (counts, mask) in enumerate(windows):
                 kept = counts * oms
                 i = k - len(windows) + 1 + j
@@ -361,8 +380,12 @@ def plot(
     axes[1].set_xticks(range(len(rows)))
     axes[1].legend(loc="lower right")
     axes[1].set_title("events suppressed per trial", fontsize=9)
+    sp = soms_params(cfg)
+    which = (
+        "paper-literal sOMS (min-max)" if cfg.soms == "table" else f"agent's sOMS ({sp.norm} norm)"
+    )
     fig.suptitle(
-        f"Event suppression by the sOMS (α = {cfg.alpha:g}): events in and out per "
+        f"Event suppression by the {which}, α = {sp.alpha:g}: events in and out per "
         f"{cfg.window_s * 1000:g} ms",
         fontsize=10,
     )

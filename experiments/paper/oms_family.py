@@ -28,7 +28,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import torch
 
-from agents.soms import SOMS, SOMSParams
+from agents.soms import SOMS, SOMSParams, peak_scale
 from experiments.paper.oms_stimuli import Recording, Stimulus, prediction, render
 
 __all__ = [
@@ -128,8 +128,11 @@ def measure_recording(rec: Recording, variants: Mapping[str, SOMSParams]) -> dic
                         key = (pk.pool_sigma, pk.quantile)
                         if key not in quant:
                             quant[key] = float(torch.quantile(d.flatten(), pk.quantile))
-                        scale = max(pk.gain * quant[key], pk.floor_spikes)
-                        score = torch.clamp(d / scale, 0.0, 1.0)  # = quantile_score(d, ...)
+                        peak = float(d.max())
+                        scale = peak_scale(
+                            quant[key], peak, pk.gain, pk.peak_ratio, pk.floor_spikes
+                        )
+                        score = torch.clamp(d / scale, 0.0, 1.0)  # = SOMS.score(diff)
                     else:
                         score = somses[k].score(diff)
                     kept = x * ((x > 0) & (score >= params[k].alpha))
@@ -211,15 +214,33 @@ def margin(claims: Mapping[str, Mapping[str, float | bool | int]]) -> float:
 
 def candidates(
     base: SOMSParams,
-    pool_sigmas: Sequence[float] = (3.0, 6.0, 9.0),
+    pool_sigmas: Sequence[float] = (6.0,),
     quantiles: Sequence[float] = (0.8, 0.9, 0.95),
     gains: Sequence[float] = (1.5, 2.0, 2.5, 3.0),
+    peak_quantiles: Sequence[float] = (0.9, 0.95),
+    peak_gains: Sequence[float] = (2.5, 3.0, 3.5),
+    peak_ratios: Sequence[float] = (1.5, 1.75, 2.0, 2.25),
 ) -> dict[str, SOMSParams]:
-    """The ``"quantile"``-norm grid searched by :func:`tune` (``alpha`` kept from ``base``)."""
-    return {
-        f"σ{s:g} q{q:g} g{g:g}": replace(base, norm="quantile", pool_sigma=s, quantile=q, gain=g)
-        for s, q, g in itertools.product(pool_sigmas, quantiles, gains)
-    }
+    """The ``"quantile"``-norm settings searched by :func:`tune` (``alpha`` kept from
+    ``base``): the plain norm (divisor ``gain`` × quantile) over ``quantiles`` ×
+    ``gains``, and the peak-clipped one (``peak_ratio`` set) over ``peak_quantiles`` ×
+    ``peak_gains`` × ``peak_ratios``; each for every ``pool_sigmas``.
+
+    Example:
+        >>> len(candidates(SOMSParams()))
+        36
+    """
+    out: dict[str, SOMSParams] = {}
+    for s in pool_sigmas:
+        for q, g in itertools.product(quantiles, gains):
+            out[f"σ{s:g} q{q:g} g{g:g}"] = replace(
+                base, norm="quantile", pool_sigma=s, quantile=q, gain=g
+            )
+        for q, g, r in itertools.product(peak_quantiles, peak_gains, peak_ratios):
+            out[f"σ{s:g} q{q:g} g{g:g} peak {r:g}"] = replace(
+                base, norm="quantile", pool_sigma=s, quantile=q, gain=g, peak_ratio=r
+            )
+    return out
 
 
 def tune(

@@ -1,6 +1,7 @@
 """The sOMS scorecard: every sOMS finding of the paper, pass or fail with its figures,
 for the paper-literal sOMS (min-max norm, α 0.80: ``SOMSParams()``) beside the agent's
-default (``AgentParams().resolved().soms``, the ``"quantile"`` norm).
+default (``AgentParams().resolved().soms``, the ``"quantile"`` norm whose divisor is the
+map's peak clipped to [2, 3.5] × its 90th percentile).
 
 Parts (``parts``), one trial each (both variants in the same trial):
 
@@ -373,10 +374,31 @@ def scorecard(cfg: OMSScorecardConfig, rows: list[Row]) -> list[tuple[str, str, 
 def compare(cfg: OMSScorecardConfig, rows: list[Row]) -> list[Comparison]:
     """The scorecard as the report's table: paper column = the paper-literal sOMS, ours
     = the agent's default; the bar in the note."""
-    return [
+    out = [
         Comparison(claim, cells.get("paper", "—"), cells.get("agent", "—"), bar)
         for claim, bar, cells in scorecard(cfg, rows)
     ]
+    if out:
+        out.append(choice_comparison())
+    return out
+
+
+def choice_comparison() -> Comparison:
+    """The report's line on the two variants' thresholds and how ours was chosen."""
+    p = variants()["agent"]
+    how = (
+        f"divisor: the map's peak clipped to [{p.peak_ratio:g}, {p.gain:g}] × its "
+        f"{p.quantile:g} quantile"
+        if p.peak_ratio is not None
+        else f"divisor: {p.gain:g} × its {p.quantile:g} quantile"
+    )
+    return Comparison(
+        "sOMS threshold (Eq. 1's norm)",
+        "min-max over the map, α 0.80",
+        f"{p.norm} norm of the σ {p.pool_sigma:g} px pooled surround excess, {how}, α {p.alpha:g}",
+        "ours chosen on the even-seed half (most family claims, then the largest margin: "
+        "`python -m experiments.paper.oms_family`); the odd half held out",
+    )
 
 
 def plot(cfg: OMSScorecardConfig, rows: list[Row], results_dir: Path, fig_dir: Path) -> list[Path]:

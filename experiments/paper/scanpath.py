@@ -517,13 +517,13 @@ def bar_intervals(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(means, lower, upper error-bar lengths) of ``key`` per scene for one condition:
     the mean over the repeats and its bootstrap 95 % interval
-    (:func:`experiments.scanpath_analysis.cell_summaries`); NaN where undefined.
+    (:func:`experiments.paper.scanpath_analysis.cell_summaries`); NaN where undefined.
 
     >>> rows = [{"scene": "s", "condition": "c", "seed": k, "v": float(k)} for k in (1, 1, 1)]
     >>> [a.tolist() for a in bar_intervals(rows, ["s"], "c", "v")]
     [[1.0], [0.0], [0.0]]
     """
-    from experiments.scanpath_analysis import cell_summaries
+    from experiments.paper.scanpath_analysis import cell_summaries
 
     summ = cell_summaries([r for r in rows if str(r["condition"]) == condition], [key])
     stats = [summ.get((s, condition, key), (math.nan,) * 3 + (0,)) for s in scenes]
@@ -540,7 +540,7 @@ def plot_statistics(cfg: ScanpathConfig, rows: list[Row], path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from experiments.scanpath_analysis import cells, condition_tests
+    from experiments.paper.scanpath_analysis import cells, condition_tests
 
     scenes = list(dict.fromkeys(str(r["scene"]) for r in rows))
     conditions = list(dict.fromkeys(str(r["condition"]) for r in rows))
