@@ -15,7 +15,7 @@ from agents.attention import AGENT_SOMS_ALPHA
 from experiments import scanpath_stats
 from experiments.cli.main import app
 from experiments.cli.options import AgentAlphaOpt
-from experiments.jobs.run_agent import RunConfig, run, run_closed_loop, video_frame
+from experiments.jobs.run_agent import RunConfig, env_kwargs, run, run_closed_loop, video_frame
 from experiments.jobs.scanpath_figure import pixel_to_angles, saliency_mosaic
 from wander_env.event_io import read_events
 
@@ -66,6 +66,27 @@ def test_alpha_is_checked_and_reaches_the_agent() -> None:
     assert f"table {AGENT_SOMS_ALPHA:g}, on the agent's quantile norm" in (
         AgentAlphaOpt.__metadata__[0].help
     )
+
+
+def test_frame_source_reaches_the_env() -> None:
+    # `wander run --frames/--keyframe-ms` (and evaluate, which runs `run` per seed) build
+    # the env with them; before, RunConfig recorded them and gym.make never saw them.
+    import gymnasium as gym
+
+    kw = env_kwargs(RunConfig(scene="shelf", seconds=0.5, frames="exact", keyframe_ms=4.0))
+    assert kw == {
+        "scene": "shelf",
+        "dvs": "ideal",
+        "episode_seconds": 0.5,
+        "frames": "exact",
+        "keyframe_ms": 4.0,
+    }
+    env = gym.make("wander/Wander-v0", **kw)
+    try:
+        cfg = env.unwrapped.config
+        assert (cfg.frames, cfg.keyframe_ms, cfg.episode_seconds) == ("exact", 4.0, 0.5)
+    finally:
+        env.close()
 
 
 def test_same_seed_same_scanpath(run_dir: Path, tmp_path: Path) -> None:

@@ -49,7 +49,15 @@ from wander_env.runinfo import run_record, write_json
 from wander_env.shutdown import SignalExit
 from wander_env.viz import event_image, labelled_frame, saliency_rgb
 
-__all__ = ["RunConfig", "RunResult", "run", "run_closed_loop", "run_for_config", "video_frame"]
+__all__ = [
+    "RunConfig",
+    "RunResult",
+    "env_kwargs",
+    "run",
+    "run_closed_loop",
+    "run_for_config",
+    "video_frame",
+]
 
 
 @dataclass(frozen=True)
@@ -417,6 +425,22 @@ def run_for_config(
     )
 
 
+def env_kwargs(config: RunConfig) -> dict[str, Any]:
+    """The ``wander/Wander-v0`` keywords of a run: scene, DVS, length and frame source.
+
+    Example:
+        >>> env_kwargs(RunConfig(frames="exact", seconds=2.0))["frames"]
+        'exact'
+    """
+    return {
+        "scene": config.scene,
+        "dvs": config.dvs,
+        "episode_seconds": config.seconds,
+        "frames": config.frames,
+        "keyframe_ms": config.keyframe_ms,
+    }
+
+
 def run(
     out_dir: Path, config: RunConfig, progress: Callable[[int, int], None] | None = None
 ) -> RunResult:
@@ -428,12 +452,7 @@ def run(
     record = run_record("wander run", asdict(config), config.seed)
     env = None
     try:
-        env = gym.make(
-            "wander/Wander-v0",
-            scene=config.scene,
-            dvs=config.dvs,
-            episode_seconds=config.seconds,
-        )
+        env = gym.make("wander/Wander-v0", **env_kwargs(config))
         agent = AttentionAgent(config.agent_params(env), seed=config.seed)
     except KeyboardInterrupt as stop:  # Ctrl-C or a signal while setting up
         _stopped_in_setup(Path(out_dir), config, record, stop)
