@@ -298,7 +298,7 @@ def peak_score(
         0.5
     """
     a = pooled.detach().cpu().numpy().ravel()
-    q = float(np.quantile(a, quantile))
+    q = _quantile_linear(a, quantile)
     scale = peak_scale(q, float(a.max(initial=0.0)), gain, peak_ratio, floor_spikes)
     return torch.clamp(pooled / scale, 0.0, 1.0)
 

@@ -13,7 +13,7 @@ import torch.nn.functional as F
 from agents.attention import AGENT_SOMS
 from agents.control import AttentionController, ControlParams, FusedSteps
 from agents.kernels import FFTConv2d, SeparableConv2d, gaussian_kernel, gaussian_kernel_1d
-from agents.soms import SOMS, _quantile_linear
+from agents.soms import SOMS, _quantile_linear, peak_scale
 
 
 @pytest.mark.parametrize(("size", "sigma"), [(37, 6.0), (8, 1.0), (8, 4.0), (5, 0.7)])
@@ -72,8 +72,10 @@ def test_soms_quantile_outputs_equal_the_fft_pooling_and_np_quantile() -> None:
         tol = 1e-6 * max(1.0, float(exact.abs().max()))  # float32 rounding
         assert float((new - pooled).abs().max()) <= tol
         assert float((new - exact[:, 0]).abs().max()) <= tol / 2
-        q = float(np.quantile(pooled.numpy().ravel(), p.quantile))
-        score = torch.clamp(pooled / max(p.gain * q, p.floor_spikes), 0.0, 1.0)
+        a = pooled.numpy().ravel()
+        q = float(np.quantile(a, p.quantile))
+        scale = peak_scale(q, float(a.max()), p.gain, p.peak_ratio, p.floor_spikes)
+        score = torch.clamp(pooled / scale, 0.0, 1.0)
         worst = max(worst, float((out.score - score).abs().max()))
         oms = ((torch.from_numpy(x) > 0) & (score >= p.alpha)).float()
         assert torch.equal(out.oms, oms), k
