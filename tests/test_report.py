@@ -41,7 +41,7 @@ def test_studies_section_without_results_says_what_to_run(tmp_path) -> None:
 def test_studies_section_shows_the_flir_main_sequence_and_the_links_cost(tmp_path) -> None:
     import numpy as np
 
-    from experiments import saccade_speed
+    from experiments.paper import saccade_speed
     from experiments.paper.main_sequence import fit_linear, fit_saturating
     from wander_env.ptu import PTUParams
 

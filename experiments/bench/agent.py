@@ -278,7 +278,7 @@ def compare_impls(record: dict[str, list], seed: int = 0) -> list[ImplTimes]:
 
     from agents.control import AttentionController
     from agents.kernels import FFTConv2d
-    from agents.soms import SOMS
+    from agents.soms import SOMS, peak_scale
 
     p = AgentParams().resolved()
     rows = []
@@ -293,8 +293,10 @@ def compare_impls(record: dict[str, list], seed: int = 0) -> list[ImplTimes]:
             for d in diffs:
                 t0 = time.perf_counter()
                 pooled = old_pool(-d.unsqueeze(1))[:, 0]
-                q = float(np.quantile(pooled.numpy().ravel(), sp.quantile))
-                old = torch.clamp(pooled / max(sp.gain * q, sp.floor_spikes), 0.0, 1.0)
+                a = pooled.numpy().ravel()
+                q = float(np.quantile(a, sp.quantile))
+                scale = peak_scale(q, float(a.max()), sp.gain, sp.peak_ratio, sp.floor_spikes)
+                old = torch.clamp(pooled / scale, 0.0, 1.0)
                 t1 = time.perf_counter()
                 new = soms.score(d)
                 t2 = time.perf_counter()
