@@ -128,7 +128,8 @@ class MapLayer:
     _shape: tuple[int, int] | None
 
     def _build(self, h: int, w: int) -> None:
-        raise NotImplementedError
+        """Build (and reset) the state for maps of ``h × w``; each layer defines it."""
+        raise NotImplementedError(f"{type(self).__name__} defines no _build")
 
     @property
     def alpha_mem(self) -> float:

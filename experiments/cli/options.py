@@ -27,6 +27,8 @@ from typing import Annotated, Any, TypeVar
 
 import typer
 
+from experiments.cli.console import step_progress
+
 __all__ = [
     "AgentAlphaOpt",
     "DvsOpt",
@@ -280,8 +282,6 @@ def run_env_job(
     """Run ``job(folder, config, progress=...)`` in a new run folder (:func:`resolve_out`)
     under one progress bar of ``config.seconds`` in env steps of 10 ms; returns the folder
     and what the job returned."""
-    from experiments.cli.console import step_progress
-
     folder = resolve_out(out, command, force)
     with step_progress(title, round(config.seconds / 0.01)) as progress:
         return folder, job(folder, config, progress=progress)
