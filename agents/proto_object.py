@@ -79,7 +79,7 @@ import torch
 import torch.nn.functional as F
 
 from agents.kernels import FFTConv2d, same_fft_shape, von_mises_kernel, von_mises_radius
-from agents.soms import lif_layer, tau_steps
+from agents.soms import MapLayer, lif_layer, tau_steps
 
 __all__ = [
     "ProtoObjectOutput",
@@ -250,7 +250,7 @@ class _DirectConv2d:
         return F.conv2d(x, self.weight, padding="same", groups=self.groups)
 
 
-class ProtoObjectSaliency:
+class ProtoObjectSaliency(MapLayer):
     """Stateful SNN proto-object model: :meth:`step` once per OMS map ``(2, H, W)``
     (channel 0 OFF, 1 ON; nonzero = spike); the LIF state carries over until
     :meth:`reset`. Any ``H, W`` works (a new size rebuilds and resets).
@@ -288,11 +288,6 @@ class ProtoObjectSaliency:
         self._saliency: torch.Tensor | None = None
         if height is not None and width is not None:
             self._build(int(height), int(width))
-
-    @property
-    def alpha_mem(self) -> float:
-        """Membrane decay per step, ``exp(-dt / tau)``."""
-        return math.exp(-self.params.dt / self.params.tau_mem)
 
     @property
     def saliency(self) -> torch.Tensor | None:
@@ -371,12 +366,8 @@ class ProtoObjectSaliency:
     @torch.no_grad()
     def step(self, oms_map: np.ndarray | torch.Tensor) -> ProtoObjectOutput:
         """Advance one step with the OMS map ``(2, H, W)``; returns the saliency."""
-        x = torch.as_tensor(oms_map, dtype=torch.float32)
-        if x.ndim != 3 or x.shape[0] != 2:
-            raise ValueError(f"oms_map must be (2, H, W), got {tuple(x.shape)}")
-        h, w = int(x.shape[1]), int(x.shape[2])
-        if self._shape != (h, w):
-            self._build(h, w)
+        x = self._input(oms_map, "oms_map")
+        h, w = x.shape[1:]
         currents = [c.reshape(-1) for c in self._border_currents(self._levels(x))]
         spikes = self.border_lif(torch.cat(currents)[None, None])[0, 0]
         # Grouping currents, Eq. (4), pooled over orientations and levels.

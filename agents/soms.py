@@ -65,7 +65,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import sinabs.layers as sl
@@ -76,6 +76,7 @@ from agents.kernels import FFTConv2d, SeparableConv2d, gaussian_kernel, gaussian
 
 __all__ = [
     "SOMS",
+    "MapLayer",
     "SOMSOutput",
     "SOMSParams",
     "lif_layer",
@@ -116,6 +117,35 @@ def lif_layer(tau_s: float, dt_s: float, spike_threshold: float = 1.0) -> sl.LIF
     )
     layer.requires_grad_(False)
     return layer
+
+
+class MapLayer:
+    """Mixin for a stateful spiking layer stepped on ``(2, H, W)`` maps whose ``params``
+    have ``dt`` and ``tau_mem`` (seconds) and which builds its state for one map size in
+    ``_build(h, w)`` (``SOMS`` and ``ProtoObjectSaliency``)."""
+
+    params: Any
+    _shape: tuple[int, int] | None
+
+    def _build(self, h: int, w: int) -> None:
+        """Build (and reset) the state for maps of ``h × w``; each layer defines it."""
+        raise NotImplementedError(f"{type(self).__name__} defines no _build")
+
+    @property
+    def alpha_mem(self) -> float:
+        """Membrane decay per step, ``exp(-dt / tau)``."""
+        return math.exp(-self.params.dt / self.params.tau_mem)
+
+    def _input(self, m: np.ndarray | torch.Tensor, name: str) -> torch.Tensor:
+        """``m`` as a float32 tensor ``(2, H, W)`` (``ValueError`` naming ``name``
+        otherwise); a new ``H, W`` rebuilds (and resets) the layer."""
+        x = torch.as_tensor(m, dtype=torch.float32)
+        if x.ndim != 3 or x.shape[0] != 2:
+            raise ValueError(f"{name} must be (2, H, W), got {tuple(x.shape)}")
+        h, w = int(x.shape[1]), int(x.shape[2])
+        if self._shape != (h, w):
+            self._build(h, w)
+        return x
 
 
 @dataclass(frozen=True)
@@ -303,7 +333,7 @@ def peak_score(
     return torch.clamp(pooled / scale, 0.0, 1.0)
 
 
-class SOMS:
+class SOMS(MapLayer):
     """Stateful sOMS: call :meth:`step` once per event map ``(2, H, W)`` (counts in one
     step of ``params.dt`` seconds); LIF membranes carry over between calls until
     :meth:`reset`. Any ``H, W`` works; a new size rebuilds and resets the layers.
@@ -333,11 +363,6 @@ class SOMS:
         self._pool_sep: SeparableConv2d | None = None
         if height is not None and width is not None:
             self._build(int(height), int(width))
-
-    @property
-    def alpha_mem(self) -> float:
-        """Membrane decay per step, ``exp(-dt / tau)``."""
-        return math.exp(-self.params.dt / self.params.tau_mem)
 
     @property
     def v_mem(self) -> torch.Tensor | None:
@@ -385,12 +410,7 @@ class SOMS:
     @torch.no_grad()
     def step(self, event_map: np.ndarray | torch.Tensor) -> SOMSOutput:
         """Advance one step with the event counts ``(2, H, W)``; returns the OMS map."""
-        x = torch.as_tensor(event_map, dtype=torch.float32)
-        if x.ndim != 3 or x.shape[0] != 2:
-            raise ValueError(f"event_map must be (2, H, W), got {tuple(x.shape)}")
-        h, w = int(x.shape[1]), int(x.shape[2])
-        if self._shape != (h, w):
-            self._build(h, w)
+        x = self._input(event_map, "event_map")
         spikes = self.lif(self.filter(x)[None, None])[0, 0]  # (2, 2, H, W)
         diff = spikes[:, 0] - spikes[:, 1]
         score = self.score(diff)

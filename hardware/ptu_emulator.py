@@ -705,14 +705,6 @@ class PTUEmulator:
         self._pending = lambda: None if any(a.moving for a in self._axes.values()) else "*"
         return None
 
-    def _immediate(self, arg: int | None) -> str:
-        self._slaved = False
-        return "*"
-
-    def _slave(self, arg: int | None) -> str:
-        self._slaved = True
-        return "*"
-
     def _reset(self, arg: int | None) -> None:
         done = time.monotonic() + self.params.reset_s
         for ax in self._axes.values():
@@ -727,62 +719,11 @@ class PTUEmulator:
 
         self._pending = finished
 
-    def _mode_query(self, flag: bool, on: str, off: str) -> str:
-        return f"* {on if flag else off}"
-
-    def _echo_query(self, arg: int | None) -> str:
-        return self._mode_query(self._echo, "Echoing ON", "Echoing OFF")
-
-    def _echo_on(self, arg: int | None) -> str:
-        self._echo = True
-        return "*"
-
-    def _echo_off(self, arg: int | None) -> str:
-        self._echo = False
-        return "*"
-
-    def _feedback_query(self, arg: int | None) -> str:
-        return self._mode_query(self._verbose, "ASCII verbose mode", "ASCII terse mode")
-
-    def _terse(self, arg: int | None) -> str:
-        self._verbose = False
-        return "*"
-
-    def _verbose_on(self, arg: int | None) -> str:
-        self._verbose = True
-        return "*"
-
-    def _control_query(self, arg: int | None) -> str:
-        return self._mode_query(
-            self._velocity_mode,
-            "Pure velocity speed control mode",
-            "Independent speed control mode",
-        )
-
     def _independent(self, arg: int | None) -> str:
         if self._velocity_mode:
             for ax in self._axes.values():
                 ax.target = ax.stop_point()
         self._velocity_mode = False
-        return "*"
-
-    def _velocity(self, arg: int | None) -> str:
-        self._velocity_mode = True
-        return "*"
-
-    def _limits_query(self, arg: int | None) -> str:
-        return self._mode_query(
-            self._limits_enabled,
-            "Limit bounds are ENABLED (soft limits enabled)",
-            "Limit bounds are DISABLED (hard limits only: use care)",
-        )
-
-    def _limits_on(self, arg: int | None) -> str:
-        self._limits_enabled = True
-        return "*"
-
-    def _limits_off(self, arg: int | None) -> str:
-        self._limits_enabled = False
         return "*"
 
     def _version(self, arg: int | None) -> str:
@@ -824,6 +765,25 @@ def _halt_handler(letters: str) -> Callable[[PTUEmulator, int | None], str]:
     return handler
 
 
+def _mode_setter(flag: str, value: bool) -> Callable[[PTUEmulator, int | None], str]:
+    """A unit command that sets the mode flag attribute ``flag`` (``EE``, ``FT``, ``LD``...)."""
+
+    def handler(emu: PTUEmulator, arg: int | None) -> str:
+        setattr(emu, flag, value)
+        return "*"
+
+    return handler
+
+
+def _mode_query(flag: str, on: str, off: str) -> Callable[[PTUEmulator, int | None], str]:
+    """A unit command that reports the mode flag attribute ``flag`` (``E``, ``F``, ``C``, ``L``)."""
+
+    def handler(emu: PTUEmulator, arg: int | None) -> str:
+        return f"* {on if getattr(emu, flag) else off}"
+
+    return handler
+
+
 _AXIS_COMMANDS: dict[str, Callable[..., str]] = {
     "P": PTUEmulator._position,
     "O": PTUEmulator._offset,
@@ -843,21 +803,27 @@ _UNIT_COMMANDS: dict[str, Callable[..., str | None]] = {
     "H": _halt_handler("PT"),
     "HP": _halt_handler("P"),
     "HT": _halt_handler("T"),
-    "I": PTUEmulator._immediate,
-    "S": PTUEmulator._slave,
+    "I": _mode_setter("_slaved", False),
+    "S": _mode_setter("_slaved", True),
     "R": PTUEmulator._reset,
-    "E": PTUEmulator._echo_query,
-    "EE": PTUEmulator._echo_on,
-    "ED": PTUEmulator._echo_off,
-    "F": PTUEmulator._feedback_query,
-    "FT": PTUEmulator._terse,
-    "FV": PTUEmulator._verbose_on,
-    "C": PTUEmulator._control_query,
+    "E": _mode_query("_echo", "Echoing ON", "Echoing OFF"),
+    "EE": _mode_setter("_echo", True),
+    "ED": _mode_setter("_echo", False),
+    "F": _mode_query("_verbose", "ASCII verbose mode", "ASCII terse mode"),
+    "FT": _mode_setter("_verbose", False),
+    "FV": _mode_setter("_verbose", True),
+    "C": _mode_query(
+        "_velocity_mode", "Pure velocity speed control mode", "Independent speed control mode"
+    ),
     "CI": PTUEmulator._independent,
-    "CV": PTUEmulator._velocity,
-    "L": PTUEmulator._limits_query,
-    "LE": PTUEmulator._limits_on,
-    "LD": PTUEmulator._limits_off,
+    "CV": _mode_setter("_velocity_mode", True),
+    "L": _mode_query(
+        "_limits_enabled",
+        "Limit bounds are ENABLED (soft limits enabled)",
+        "Limit bounds are DISABLED (hard limits only: use care)",
+    ),
+    "LE": _mode_setter("_limits_enabled", True),
+    "LD": _mode_setter("_limits_enabled", False),
     "V": PTUEmulator._version,
     "DS": PTUEmulator._defaults,
     "DR": PTUEmulator._defaults,

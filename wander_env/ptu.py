@@ -53,7 +53,7 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 ARCSEC_PER_DEG = 3600.0
 # FLIR PTU-D46/E46 resolution as reported by ``PR``/``TR`` on the paper's unit.
@@ -338,6 +338,24 @@ class PTUParams:
         plo, phi = self.pan_limits_deg
         tlo, thi = self.tilt_limits_deg
         return min(max(pan_deg, plo), phi), min(max(tilt_deg, tlo), thi)
+
+    def with_slew(self, speed_pos_s: float, accel_pos_s2: float) -> PTUParams:
+        """These parameters with both axes' slew speed and acceleration set (positions/s,
+        positions/s²) and the start speed capped to the slew speed.
+
+        >>> p = PTUParams().with_slew(500.0, 4000.0)
+        >>> p.tilt_speed, p.pan_base_speed, p.tilt_accel
+        (500.0, 500.0, 4000.0)
+        """
+        return replace(
+            self,
+            pan_speed=speed_pos_s,
+            tilt_speed=speed_pos_s,
+            pan_base_speed=min(self.pan_base_speed, speed_pos_s),
+            tilt_base_speed=min(self.tilt_base_speed, speed_pos_s),
+            pan_accel=accel_pos_s2,
+            tilt_accel=accel_pos_s2,
+        )
 
 
 # ----------------------------------------------------------------------------------------

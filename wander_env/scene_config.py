@@ -61,12 +61,22 @@ T = TypeVar("T")
 # Dataclasses
 
 
-def _check_shape(shape: str, size: Sequence[float]) -> None:
-    if shape not in SHAPES:
-        raise ValueError(f"shape must be one of {SHAPES}, got {shape!r}")
-    n = SHAPE_SIZE_LEN[shape]
-    if len(size) != n or not all(math.isfinite(v) and v > 0 for v in size):
-        raise ValueError(f"size of a {shape} must be {n} extents > 0 (m), got {tuple(size)}")
+@dataclass(frozen=True)
+class _ShapedBody:
+    """The shape and full-extent size (m) that a prop and a moving object both start with,
+    checked together (a sphere has 1 extent, a cylinder 2, a box 3)."""
+
+    shape: Literal["box", "sphere", "cylinder"]
+    size: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        if self.shape not in SHAPES:
+            raise ValueError(f"shape must be one of {SHAPES}, got {self.shape!r}")
+        n = SHAPE_SIZE_LEN[self.shape]
+        if len(self.size) != n or not all(math.isfinite(v) and v > 0 for v in self.size):
+            raise ValueError(
+                f"size of a {self.shape} must be {n} extents > 0 (m), got {tuple(self.size)}"
+            )
 
 
 @dataclass(frozen=True)
@@ -165,37 +175,27 @@ class ShelfConfig:
 
 
 @dataclass(frozen=True)
-class StaticObjectConfig:
+class StaticObjectConfig(_ShapedBody):
     """A static prop: shape, full-extent size (m), centre, orientation (xyz Euler, deg)."""
 
-    shape: Literal["box", "sphere", "cylinder"]
-    size: tuple[float, ...]
     position: Vec3
     euler_deg: Vec3 = (0.0, 0.0, 0.0)
     rgba: RGBA = (0.7, 0.7, 0.7, 1.0)
     texture: TextureSpec | None = None
     name: str = ""
 
-    def __post_init__(self) -> None:
-        _check_shape(self.shape, self.size)
-
 
 @dataclass(frozen=True)
-class MovingObjectConfig:
+class MovingObjectConfig(_ShapedBody):
     """A moving object (a mocap body): shape, full-extent size (m), look, trajectory.
 
     Object k (1-based, in list order) has id k in segmentation masks.
     """
 
-    shape: Literal["box", "sphere", "cylinder"]
-    size: tuple[float, ...]
     trajectory: TrajectoryParams
     rgba: RGBA = (1.0, 1.0, 1.0, 1.0)
     texture: TextureSpec | None = None
     name: str = ""
-
-    def __post_init__(self) -> None:
-        _check_shape(self.shape, self.size)
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,8 @@ from typing import Annotated, Any, TypeVar
 
 import typer
 
+from experiments.cli.console import step_progress
+
 __all__ = [
     "AgentAlphaOpt",
     "DvsOpt",
@@ -51,6 +53,7 @@ __all__ = [
     "job_config",
     "one_of",
     "resolve_out",
+    "run_env_job",
 ]
 
 
@@ -271,3 +274,14 @@ def resolve_out(out: Path | None, command: str, force: bool) -> Path:
         return new_run_dir(out, command, force)
     except FileExistsError as err:
         raise typer.BadParameter(str(err), param_hint="'--out'") from None
+
+
+def run_env_job(
+    job: Callable[..., T], config: Any, out: Path | None, command: str, force: bool, title: str
+) -> tuple[Path, T]:
+    """Run ``job(folder, config, progress=...)`` in a new run folder (:func:`resolve_out`)
+    under one progress bar of ``config.seconds`` in env steps of 10 ms; returns the folder
+    and what the job returned."""
+    folder = resolve_out(out, command, force)
+    with step_progress(title, round(config.seconds / 0.01)) as progress:
+        return folder, job(folder, config, progress=progress)

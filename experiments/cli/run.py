@@ -30,6 +30,7 @@ from experiments.cli.options import (
     job_config,
     one_of,
     resolve_out,
+    run_env_job,
 )
 
 __all__ = ["demo", "record", "run_agent", "view"]
@@ -93,9 +94,7 @@ def record(
     from experiments.jobs.record import record as run
 
     config = job_config(RecordConfig, locals())
-    out = resolve_out(out, "record", force)
-    with step_progress(f"record {scene}", round(seconds / 0.01)) as progress:
-        summary = run(out, config, progress=progress)
+    out, summary = run_env_job(run, config, out, "record", force, f"record {scene}")
     console.print(f"{summary['events']:,} events over {summary['steps']} steps -> {out}")
 
 
@@ -121,9 +120,7 @@ def run_agent(
     from experiments.jobs.run_agent import run as run_loop
 
     config = job_config(RunConfig, locals())
-    out = resolve_out(out, "run", force)
-    with step_progress(f"agent in {scene}", round(seconds / 0.01)) as progress:
-        result = run_loop(out, config, progress=progress)
+    out, result = run_env_job(run_loop, config, out, "run", force, f"agent in {scene}")
     m = result.metrics
     detection = (
         f"detection accuracy {m['detection_accuracy']:.0%} ({m['decisions_scored']} scored)"

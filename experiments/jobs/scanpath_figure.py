@@ -23,6 +23,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -148,6 +149,31 @@ def beyond_limits(
     return (a[:, 0] < plo) | (a[:, 0] > phi) | (a[:, 1] < tlo) | (a[:, 1] > thi)
 
 
+def show_mosaic(
+    ax: Any,
+    values: np.ndarray,
+    pan_deg: np.ndarray,
+    tilt_deg: np.ndarray,
+    label: str,
+    fontsize: float = 8,
+) -> None:
+    """Draw a saliency mosaic (values in [0, 1], rows top-down) on ``ax`` in pan/tilt
+    degrees (tilt axis upwards) with a colour bar labelled ``label``."""
+    image = ax.imshow(
+        values,
+        extent=(pan_deg[0], pan_deg[-1], tilt_deg[-1], tilt_deg[0]),
+        cmap="magma",
+        origin="upper",
+        aspect="equal",
+        interpolation="nearest",
+        vmin=0.0,
+        vmax=1.0,
+    )
+    bar = ax.figure.colorbar(image, ax=ax, fraction=0.046, pad=0.02)
+    bar.set_label(label, fontsize=fontsize)
+    ax.set_ylim(tilt_deg[0], tilt_deg[-1])
+
+
 def plot_scanpath(
     path: Path,
     maps: Sequence[np.ndarray],
@@ -180,19 +206,8 @@ def plot_scanpath(
     gazes = [f["gaze_deg"] for f in fixations]
     if maps:
         grid = saliency_mosaic(maps, gazes, focal_px)
-        image = ax.imshow(
-            grid.values,
-            extent=(grid.pan[0], grid.pan[-1], grid.tilt[-1], grid.tilt[0]),
-            cmap="magma",
-            origin="upper",
-            aspect="equal",
-            interpolation="nearest",
-            vmin=0.0,
-            vmax=1.0,
-        )
-        bar = fig.colorbar(image, ax=ax, fraction=0.046, pad=0.02)
-        bar.set_label("saliency (max over fixations, each map / its peak)", fontsize=8)
-        ax.set_ylim(grid.tilt[0], grid.tilt[-1])
+        label = "saliency (max over fixations, each map / its peak)"
+        show_mosaic(ax, grid.values, grid.pan, grid.tilt, label)
     for k, (name, track) in enumerate((object_paths or {}).items()):
         track = np.asarray(track, dtype=np.float64).reshape(-1, 3)
         if len(track):

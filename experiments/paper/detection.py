@@ -110,14 +110,7 @@ def ptu_for_speed(speed_deg_s: float, ramp_s: float = 0.05) -> PTUParams:
         return d
     pos = speed_deg_s / (d.pan_resolution_arcsec / 3600.0)
     accel = max(d.pan_accel, pos / ramp_s)
-    return PTUParams(
-        pan_speed=pos,
-        tilt_speed=pos,
-        pan_base_speed=min(d.pan_base_speed, pos),
-        tilt_base_speed=min(d.tilt_base_speed, pos),
-        pan_accel=accel,
-        tilt_accel=accel,
-    )
+    return d.with_slew(pos, accel)
 
 
 class SweepPolicy:

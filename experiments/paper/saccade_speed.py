@@ -29,7 +29,7 @@ from __future__ import annotations
 import itertools
 import math
 import tempfile
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
@@ -184,16 +184,7 @@ def ptu_for(speed_pos_s: float, accel_pos_s2: float, preset: str = "ideal") -> P
     >>> p.tilt_speed, p.pan_base_speed, p.tilt_accel, p.link.baudrate
     (500.0, 500.0, 4000.0, 9600)
     """
-    d = PTUParams.preset(preset)
-    return replace(
-        d,
-        pan_speed=speed_pos_s,
-        tilt_speed=speed_pos_s,
-        pan_base_speed=min(d.pan_base_speed, speed_pos_s),
-        tilt_base_speed=min(d.tilt_base_speed, speed_pos_s),
-        pan_accel=accel_pos_s2,
-        tilt_accel=accel_pos_s2,
-    )
+    return PTUParams.preset(preset).with_slew(speed_pos_s, accel_pos_s2)
 
 
 def _trial_ptu(p: dict[str, Any]) -> PTUParams:

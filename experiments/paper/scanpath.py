@@ -70,7 +70,7 @@ from experiments.framework import (
     save_figure,
 )
 from experiments.jobs.run_agent import run_closed_loop
-from experiments.jobs.scanpath_figure import pixel_to_angles, saliency_mosaic
+from experiments.jobs.scanpath_figure import pixel_to_angles, saliency_mosaic, show_mosaic
 from experiments.stats import mean_std
 from wander_env.camera import cast_pixel
 from wander_env.env import WanderConfig
@@ -595,19 +595,7 @@ def _draw_scanpath(
 
     if "mosaic" in arts:
         pan, tilt = arts["mosaic_pan"], arts["mosaic_tilt"]
-        image = ax.imshow(
-            arts["mosaic"],
-            extent=(pan[0], pan[-1], tilt[-1], tilt[0]),
-            cmap="magma",
-            origin="upper",
-            aspect="equal",
-            interpolation="nearest",
-            vmin=0.0,
-            vmax=1.0,
-        )
-        bar = ax.figure.colorbar(image, ax=ax, fraction=0.046, pad=0.02)
-        bar.set_label("saliency (normalised)", fontsize=7)
-        ax.set_ylim(tilt[0], tilt[-1])
+        show_mosaic(ax, arts["mosaic"], pan, tilt, "saliency (normalised)", fontsize=7)
     fx = arts.get("fixations", np.zeros((0, 4)))
     if len(fx):
         ax.plot(fx[:, 0], fx[:, 1], "-", color="gold", lw=1.2, label="saccades")
