@@ -8,7 +8,9 @@ os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: headless
 
 import copy
 import dataclasses
+import json
 import math
+from pathlib import Path
 
 import cv2
 import mujoco
@@ -258,6 +260,18 @@ def test_invalid_file_names_the_file(tmp_path):
         load_scene_config(path)
     with pytest.raises(ValueError, match=r"available: .*office"):
         load_scene_config("no_such_scene")
+
+
+def test_shipped_scenes_load_to_the_snapshot():
+    """Each shipped scene loads to the same SceneConfig as the snapshot taken in
+    tests/data/scene_snapshots.json (repr: every class and exact float)."""
+    with open(Path(__file__).parent / "data" / "scene_snapshots.json", encoding="utf-8") as f:
+        snapshot = json.load(f)
+    assert sorted(snapshot) == list(available_scenes())
+    for name, want in snapshot.items():
+        cfg = load_scene_config(name)
+        assert repr(cfg) == want["repr"], name
+        assert json.loads(json.dumps(dataclasses.asdict(cfg))) == want["asdict"], name
 
 
 # ----------------------------------------------------------------------------------------
