@@ -238,6 +238,55 @@ def _bad_mode(d):
         (_bad_kind, "moving_objects[1].trajectory.kind", ("zigzag", "linear_bounce", "circular")),
         (_unknown_key, "moving_objects[0].trajectory", ("unknown", "speed", "velocity")),
         (_bad_mode, "gratings.mode", ("eye-and-object", "eye+object", "eye-only", "object-only")),
+        (
+            lambda d: d["moving_objects"][1]["trajectory"].pop("kind"),
+            "moving_objects[1].trajectory.kind: required",
+            ("'linear_bounce', 'circular', 'random_walk', 'waypoints')",),
+        ),
+        (
+            lambda d: d["moving_objects"][0].__setitem__("rgba", [0.2, 2, 1, 1]),
+            "moving_objects[0].rgba[1]: ",
+            ("less than or equal to 1", "got 2"),
+        ),
+        (
+            lambda d: d["moving_objects"][0]["trajectory"].__setitem__(
+                "velocity", [math.nan, 0, 0]
+            ),
+            "moving_objects[0].trajectory.velocity[0]: ",
+            ("finite", "nan"),
+        ),
+        (
+            lambda d: d.__setitem__("tables", [{"height": 0.5, "thickness": 0.6}]),
+            "tables[0].thickness: must be < height (0.5), got 0.6",
+            (),
+        ),
+        (
+            lambda d: d.__setitem__("shelves", [{"levels": [0.1, 3.0]}]),
+            "shelves[0].levels: must be <= height (1.8), got (0.1, 3.0)",
+            (),
+        ),
+        (
+            lambda d: d.__setitem__("lighting", {"lights": [{"direction": [0, 0, 0]}]}),
+            "lighting.lights[0].direction: must not be the zero vector",
+            (),
+        ),
+        (
+            lambda d: d.__setitem__("room", {"wall_texture": {"kind": "wood", "seed": -1}}),
+            "room.wall_texture.kind: expected one of 'blobs'",
+            ("got 'wood'", "room.wall_texture.seed: ", "greater than or equal to 0", "got -1"),
+        ),
+        (
+            lambda d: d.__setitem__("camera", {"width": True, "hfov_deg": 200}),
+            "camera.width: ",
+            ("valid integer, got True", "camera.hfov_deg: ", "179, got 200"),
+        ),
+        (
+            lambda d: d.update(moving_objects=[], gratings={"object_size_deg": 150}),
+            "gratings.object_size_deg: must be smaller than the field of view",
+            ("112.8 deg", "got 150"),
+        ),
+        (lambda d: d.__setitem__("gratings", {}), "moving_objects: must be empty", ()),
+        (lambda d: d.__setitem__("lens", 1), "unknown key 'lens' for SceneConfig", ("camera",)),
     ],
 )
 def test_invalid_configs_name_the_field(mutate, field_path, words):
