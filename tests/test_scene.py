@@ -435,3 +435,19 @@ def test_camera_offset_matches_the_ptu_model():
     forward = -data.cam_xmat[cam].reshape(3, 3)[:, 2]  # the camera looks along its -z
     p, t = math.radians(pan), math.radians(tilt)
     assert np.allclose(forward, [math.cos(t) * math.cos(p), math.cos(t) * math.sin(p), math.sin(t)])
+
+
+def test_grating_config_built_in_code_is_checked_by_its_annotations():
+    g = load_scene_config("gratings").gratings
+    assert dataclasses.replace(g, mode="eye-only").effective_speeds_deg_s() == (10.0, 10.0)
+    bad = [
+        ({"mode": "eye-and-object"}, "mode: expected one of 'eye+object', 'eye-only'"),
+        ({"distance_m": 0.0}, "distance_m: input should be greater than 0, got 0.0"),
+        ({"contrast": 1.5}, "contrast: input should be less than or equal to 1, got 1.5"),
+        ({"object_strips": 1}, "object_strips: input should be greater than or equal to 2"),
+        ({"object_speed_deg_s": math.inf}, "object_speed_deg_s: input should be a finite"),
+    ]
+    for changes, message in bad:
+        with pytest.raises(ValueError) as info:
+            dataclasses.replace(g, **changes)
+        assert str(info.value).startswith(message), (changes, str(info.value))

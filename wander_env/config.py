@@ -13,6 +13,9 @@ values and the bad value, e.g.
 - :func:`coerce` — one value as a type (``TypeError`` naming the type);
 - :func:`parse_sets` — ``["a.b=value", ...]`` → nested ``{"a": {"b": value}}``;
 - :func:`check_fields` — the shared ``__post_init__`` check of numeric fields;
+- :func:`check_annotated` — a ``__post_init__`` check of a dataclass's ``Annotated``
+  and ``Literal`` fields by pydantic (for instances built in code, e.g. by
+  ``dataclasses.replace``);
 - :func:`validate_paths` — a dataclass instance from a whole document (a scene file),
   finite numbers only, every message led by the field's path
   (``moving_objects[1].trajectory.kind: expected one of ...``), tagged unions
@@ -46,6 +49,7 @@ import yaml
 __all__ = [
     "ConfigError",
     "allowed_keys",
+    "check_annotated",
     "check_fields",
     "coerce",
     "field_types",
@@ -510,3 +514,30 @@ def validate_paths(cls: type, data: Any, where: str | None = None) -> Any:
         raise ConfigError(head + "; ".join(msgs)) from None
     except (ValueError, TypeError) as e:
         raise ConfigError(f"{head}{e}") from None
+
+
+def check_annotated(obj: Any) -> None:
+    """The ``__post_init__`` check of dataclass ``obj``'s constrained fields: each field
+    annotated ``Annotated[..., pydantic.Field(...)]`` or ``Literal[...]`` is validated by
+    pydantic (strict, finite numbers). ValueError ``field: what is wrong, got value``.
+
+    >>> from wander_env.scene_config import GratingConfig  # its __post_init__ calls this
+    >>> GratingConfig(distance_m=0)
+    Traceback (most recent call last):
+    ...
+    ValueError: distance_m: input should be greater than 0, got 0
+    """
+    hints = typing.get_type_hints(type(obj), include_extras=True)
+    for f in dataclasses.fields(obj):
+        tp = hints.get(f.name)
+        if not f.init or typing.get_origin(tp) not in (typing.Annotated, Literal):
+            continue
+        try:
+            pydantic.TypeAdapter(tp, config=_FINITE).validate_python(getattr(obj, f.name))
+        except pydantic.ValidationError as e:
+            err = e.errors()[0]
+            if err["type"] == "literal_error":
+                text = f"expected {type_name(tp)}"
+            else:
+                text = err["msg"][:1].lower() + err["msg"][1:]
+            raise ValueError(f"{f.name}: {text}, got {getattr(obj, f.name)!r}") from None

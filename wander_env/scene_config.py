@@ -36,10 +36,11 @@ from typing import Annotated, Any, Literal
 import pydantic
 import yaml
 
-from wander_env.config import validate_paths
+from wander_env.config import check_annotated, validate_paths
 from wander_env.textures import TextureSpec
 from wander_env.trajectories import TrajectoryParams
 
+Finite = Annotated[float, pydantic.Field(allow_inf_nan=False)]
 Positive = Annotated[float, pydantic.Field(gt=0)]
 NonNegative = Annotated[float, pydantic.Field(ge=0)]
 Unit = Annotated[float, pydantic.Field(ge=0, le=1)]
@@ -241,10 +242,10 @@ class GratingConfig:
     mode: Literal["eye+object", "eye-only", "object-only"] = "eye+object"
     distance_m: Positive = 1.0
     background_cycles_per_deg: Positive = 0.05
-    background_speed_deg_s: float = 10.0
+    background_speed_deg_s: Finite = 10.0
     object_size_deg: Positive = 40.0
     object_cycles_per_deg: Positive = 0.1
-    object_speed_deg_s: float = 30.0
+    object_speed_deg_s: Finite = 30.0
     profile: Literal["sine", "square"] = "square"
     contrast: Unit = 1.0
     mean: Unit = 0.5
@@ -252,29 +253,7 @@ class GratingConfig:
     object_strips: Annotated[int, pydantic.Field(ge=2)] = 128
 
     def __post_init__(self) -> None:
-        if self.mode not in GRATING_MODES:
-            raise ValueError(f"mode must be one of {GRATING_MODES}, got {self.mode!r}")
-        if self.profile not in ("sine", "square"):
-            raise ValueError(f"profile must be one of ('sine', 'square'), got {self.profile!r}")
-        for name in (
-            "distance_m",
-            "background_cycles_per_deg",
-            "object_size_deg",
-            "object_cycles_per_deg",
-        ):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be > 0, got {v!r}")
-        for name in ("background_speed_deg_s", "object_speed_deg_s", "margin_deg"):
-            if not math.isfinite(getattr(self, name)):
-                raise ValueError(f"{name} must be finite, got {getattr(self, name)!r}")
-        for name in ("contrast", "mean"):
-            if not 0.0 <= getattr(self, name) <= 1.0:
-                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)!r}")
-        if isinstance(self.object_strips, bool) or not isinstance(self.object_strips, int):
-            raise ValueError(f"object_strips must be an int, got {self.object_strips!r}")
-        if self.object_strips < 2:
-            raise ValueError(f"object_strips must be >= 2, got {self.object_strips}")
+        check_annotated(self)
 
     @property
     def metres_per_deg(self) -> float:
