@@ -8,7 +8,9 @@ os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: headless
 
 import copy
 import dataclasses
+import json
 import math
+from pathlib import Path
 
 import cv2
 import mujoco
@@ -236,6 +238,55 @@ def _bad_mode(d):
         (_bad_kind, "moving_objects[1].trajectory.kind", ("zigzag", "linear_bounce", "circular")),
         (_unknown_key, "moving_objects[0].trajectory", ("unknown", "speed", "velocity")),
         (_bad_mode, "gratings.mode", ("eye-and-object", "eye+object", "eye-only", "object-only")),
+        (
+            lambda d: d["moving_objects"][1]["trajectory"].pop("kind"),
+            "moving_objects[1].trajectory.kind: required",
+            ("'linear_bounce', 'circular', 'random_walk', 'waypoints')",),
+        ),
+        (
+            lambda d: d["moving_objects"][0].__setitem__("rgba", [0.2, 2, 1, 1]),
+            "moving_objects[0].rgba[1]: ",
+            ("less than or equal to 1", "got 2"),
+        ),
+        (
+            lambda d: d["moving_objects"][0]["trajectory"].__setitem__(
+                "velocity", [math.nan, 0, 0]
+            ),
+            "moving_objects[0].trajectory.velocity[0]: ",
+            ("finite", "nan"),
+        ),
+        (
+            lambda d: d.__setitem__("tables", [{"height": 0.5, "thickness": 0.6}]),
+            "tables[0].thickness: must be < height (0.5), got 0.6",
+            (),
+        ),
+        (
+            lambda d: d.__setitem__("shelves", [{"levels": [0.1, 3.0]}]),
+            "shelves[0].levels: must be <= height (1.8), got (0.1, 3.0)",
+            (),
+        ),
+        (
+            lambda d: d.__setitem__("lighting", {"lights": [{"direction": [0, 0, 0]}]}),
+            "lighting.lights[0].direction: must not be the zero vector",
+            (),
+        ),
+        (
+            lambda d: d.__setitem__("room", {"wall_texture": {"kind": "wood", "seed": -1}}),
+            "room.wall_texture.kind: expected one of 'blobs'",
+            ("got 'wood'", "room.wall_texture.seed: ", "greater than or equal to 0", "got -1"),
+        ),
+        (
+            lambda d: d.__setitem__("camera", {"width": True, "hfov_deg": 200}),
+            "camera.width: ",
+            ("valid integer, got True", "camera.hfov_deg: ", "179, got 200"),
+        ),
+        (
+            lambda d: d.update(moving_objects=[], gratings={"object_size_deg": 150}),
+            "gratings.object_size_deg: must be smaller than the field of view",
+            ("112.8 deg", "got 150"),
+        ),
+        (lambda d: d.__setitem__("gratings", {}), "moving_objects: must be empty", ()),
+        (lambda d: d.__setitem__("lens", 1), "unknown key 'lens' for SceneConfig", ("camera",)),
     ],
 )
 def test_invalid_configs_name_the_field(mutate, field_path, words):
@@ -258,6 +309,18 @@ def test_invalid_file_names_the_file(tmp_path):
         load_scene_config(path)
     with pytest.raises(ValueError, match=r"available: .*office"):
         load_scene_config("no_such_scene")
+
+
+def test_shipped_scenes_load_to_the_snapshot():
+    """Each shipped scene loads to the same SceneConfig as the snapshot taken in
+    tests/data/scene_snapshots.json (repr: every class and exact float)."""
+    with open(Path(__file__).parent / "data" / "scene_snapshots.json", encoding="utf-8") as f:
+        snapshot = json.load(f)
+    assert sorted(snapshot) == list(available_scenes())
+    for name, want in snapshot.items():
+        cfg = load_scene_config(name)
+        assert repr(cfg) == want["repr"], name
+        assert json.loads(json.dumps(dataclasses.asdict(cfg))) == want["asdict"], name
 
 
 # ----------------------------------------------------------------------------------------
@@ -372,3 +435,19 @@ def test_camera_offset_matches_the_ptu_model():
     forward = -data.cam_xmat[cam].reshape(3, 3)[:, 2]  # the camera looks along its -z
     p, t = math.radians(pan), math.radians(tilt)
     assert np.allclose(forward, [math.cos(t) * math.cos(p), math.cos(t) * math.sin(p), math.sin(t)])
+
+
+def test_grating_config_built_in_code_is_checked_by_its_annotations():
+    g = load_scene_config("gratings").gratings
+    assert dataclasses.replace(g, mode="eye-only").effective_speeds_deg_s() == (10.0, 10.0)
+    bad = [
+        ({"mode": "eye-and-object"}, "mode: expected one of 'eye+object', 'eye-only'"),
+        ({"distance_m": 0.0}, "distance_m: input should be greater than 0, got 0.0"),
+        ({"contrast": 1.5}, "contrast: input should be less than or equal to 1, got 1.5"),
+        ({"object_strips": 1}, "object_strips: input should be greater than or equal to 2"),
+        ({"object_speed_deg_s": math.inf}, "object_speed_deg_s: input should be a finite"),
+    ]
+    for changes, message in bad:
+        with pytest.raises(ValueError) as info:
+            dataclasses.replace(g, **changes)
+        assert str(info.value).startswith(message), (changes, str(info.value))

@@ -12,7 +12,14 @@ values and the bad value, e.g.
   the keys it names);
 - :func:`coerce` — one value as a type (``TypeError`` naming the type);
 - :func:`parse_sets` — ``["a.b=value", ...]`` → nested ``{"a": {"b": value}}``;
-- :func:`check_fields` — the shared ``__post_init__`` check of numeric fields.
+- :func:`check_fields` — the shared ``__post_init__`` check of numeric fields;
+- :func:`check_annotated` — a ``__post_init__`` check of a dataclass's ``Annotated``
+  and ``Literal`` fields by pydantic (for instances built in code, e.g. by
+  ``dataclasses.replace``);
+- :func:`validate_paths` — a dataclass instance from a whole document (a scene file),
+  finite numbers only, every message led by the field's path
+  (``moving_objects[1].trajectory.kind: expected one of ...``), tagged unions
+  (``Annotated[A | B, pydantic.Field(discriminator="kind")]``) included.
 
 Numbers: ints are accepted for floats; bools are not numbers; a string such as ``1e-3``
 (YAML 1.1 reads it as a string) is read as the float it spells.
@@ -29,6 +36,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 import types
 import typing
 from collections.abc import Iterable, Mapping
@@ -41,6 +49,7 @@ import yaml
 __all__ = [
     "ConfigError",
     "allowed_keys",
+    "check_annotated",
     "check_fields",
     "coerce",
     "field_types",
@@ -48,6 +57,7 @@ __all__ = [
     "to_plain",
     "type_name",
     "validate",
+    "validate_paths",
 ]
 
 
@@ -163,9 +173,9 @@ def _set_at(data: Any, loc: tuple[Any, ...], value: Any) -> None:
     data[loc[-1]] = value
 
 
-def _run(tp: Any, data: Any) -> Any:
+def _run(tp: Any, data: Any, config: pydantic.ConfigDict = _STRICT) -> Any:
     """Validate ``data`` as ``tp`` (strict, JSON semantics); numeric strings taken as floats."""
-    adapter = pydantic.TypeAdapter(list[tp], config=_STRICT)  # type: ignore[valid-type]
+    adapter = pydantic.TypeAdapter(list[tp], config=config)  # type: ignore[valid-type]
     box = [json.loads(json.dumps(data, allow_nan=True))]
     for _ in range(64):  # at most one retry per numeric string
         try:
@@ -373,3 +383,161 @@ def check_fields(
             ok = v >= minimum
         if not ok:
             raise ValueError(f"{cls}.{name} must be {kind}{bound}, got {v!r}")
+
+
+# ----------------------------------------------------------------------------------------
+# Whole documents, path-first messages
+
+_FINITE = pydantic.ConfigDict(strict=True, extra="forbid", allow_inf_nan=False)
+_LEADING_FIELD = re.compile(r"^(?:\w+\.)?(\w+)((?:\[\d+\])*)(:?) ")
+
+
+def _bare(tp: Any) -> Any:
+    """``tp`` without ``| None``."""
+    if typing.get_origin(tp) in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        if len(args) == 1:
+            return args[0]
+    return tp
+
+
+def _members(tp: Any) -> list[Any]:
+    """The dataclasses of a union of dataclasses (a tagged union), else []."""
+    if typing.get_origin(tp) not in (typing.Union, types.UnionType):
+        return []
+    args = [a for a in typing.get_args(tp) if a is not type(None)]
+    return args if len(args) > 1 and all(dataclasses.is_dataclass(a) for a in args) else []
+
+
+def _tags(member: Any, key: str | None = None) -> set[Any]:
+    """The values of ``member``'s Literal fields (field ``key`` only, when given): a
+    tagged union's tag is one of them."""
+    return {
+        v
+        for name, t in field_types(member).items()
+        if typing.get_origin(t) is Literal and key in (None, name)
+        for v in typing.get_args(t)
+    }
+
+
+def _walk(cls: Any, loc: Iterable[Any]) -> tuple[str, Any]:
+    """(the path text, the type there) of a pydantic error location under ``cls``; a
+    tagged union's tag (pydantic puts it in the location) leaves the path as it is."""
+    path, tp = "", cls
+    for part in loc:
+        base = _bare(tp)
+        members = _members(base)
+        if members and isinstance(part, str):
+            tp = next((m for m in members if part in _tags(m)), None)
+            continue
+        if isinstance(part, int):
+            path += f"[{part}]"
+            args = typing.get_args(base) if typing.get_origin(base) is tuple else ()
+            if len(args) == 2 and args[1] is Ellipsis:
+                tp = args[0]
+            else:
+                tp = args[part] if part < len(args) else None
+            continue
+        path = f"{path}.{part}" if path else str(part)
+        tp = field_types(base).get(part) if dataclasses.is_dataclass(base) else None
+    return path, tp
+
+
+def _at(path: str, text: str) -> str:
+    return f"{path}: {text}" if path else text
+
+
+def _path_message(cls: Any, err: Mapping[str, Any]) -> str:
+    """One pydantic error as ``path: what is wrong, got value``."""
+    loc = tuple(err["loc"])[1:]  # drop the list index of _run's box
+    kind, ctx = err["type"], err.get("ctx") or {}
+    if kind == "unexpected_keyword_argument":
+        path, tp = _walk(cls, loc[:-1])
+        owner = _bare(tp)
+        name = getattr(owner, "__name__", "this block")
+        allowed = allowed_keys(owner) if dataclasses.is_dataclass(owner) else "none"
+        return _at(path, f"unknown key {loc[-1]!r} for {name}; allowed keys: {allowed}")
+    if kind == "missing" and loc and isinstance(loc[-1], int):  # a list too short
+        path, tp = _walk(cls, loc[:-1])
+        return _at(path, f"expected {type_name(_bare(tp))}, got {err['input']!r}")
+    path, tp = _walk(cls, loc)
+    if kind == "missing":
+        return _at(path, "required")
+    if kind in ("union_tag_invalid", "union_tag_not_found"):
+        key = str(ctx.get("discriminator", "kind")).strip("'")
+        tags = [t for m in _members(_bare(tp)) for t in sorted(_tags(m, key))]
+        allowed = ", ".join(repr(t) for t in tags)
+        if "tag" in ctx:
+            text = f"expected one of {allowed}, got {ctx['tag']!r}"
+        else:
+            text = f"required (one of {allowed})"
+        return _at(f"{path}.{key}" if path else key, text)
+    if kind == "value_error":  # a dataclass's own check (__post_init__): name its field
+        text = str(ctx["error"]) if "error" in ctx else err["msg"]
+        owner = _bare(tp)
+        m = _LEADING_FIELD.match(text)
+        if m and dataclasses.is_dataclass(owner) and m.group(1) in field_types(owner):
+            sub = f"{m.group(1)}{m.group(2)}"
+            path = f"{path}.{sub}" if path else sub
+            if m.group(3):  # "field: text" -> "path.field: text"
+                text = text[m.end() :]
+        return _at(path, text)
+    if kind == "literal_error":
+        return _at(path, f"expected {type_name(_bare(tp))}, got {err['input']!r}")
+    msg = err["msg"][:1].lower() + err["msg"][1:]
+    return _at(path, f"{msg}, got {err['input']!r}")
+
+
+def validate_paths(cls: type, data: Any, where: str | None = None) -> Any:
+    """A ``cls`` instance from the mapping ``data`` as it stands (absent keys take the
+    dataclasses' defaults; strict, unknown keys refused, numbers finite). ConfigError:
+    each problem as ``field.path: what is wrong, got value`` (``; ``-separated), after
+    ``where: `` when given.
+
+    >>> from wander_env.scene_config import SceneConfig
+    >>> try:
+    ...     validate_paths(SceneConfig, {"name": "a", "camera": {"width": 0}}, where="a.yaml")
+    ... except ConfigError as e:
+    ...     print(e)
+    a.yaml: camera.width: input should be greater than or equal to 1, got 0
+    """
+    head = f"{where}: " if where else ""
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{head}expected a mapping of key: value, got {data!r}")
+    bad = [k for k in data if not isinstance(k, str)]
+    if bad:
+        raise ConfigError(f"{head}keys must be strings, got {bad!r}")
+    try:
+        return _run(cls, data, _FINITE)
+    except pydantic.ValidationError as e:
+        msgs = list(dict.fromkeys(_path_message(cls, err) for err in e.errors()))
+        raise ConfigError(head + "; ".join(msgs)) from None
+    except (ValueError, TypeError) as e:
+        raise ConfigError(f"{head}{e}") from None
+
+
+def check_annotated(obj: Any) -> None:
+    """The ``__post_init__`` check of dataclass ``obj``'s constrained fields: each field
+    annotated ``Annotated[..., pydantic.Field(...)]`` or ``Literal[...]`` is validated by
+    pydantic (strict, finite numbers). ValueError ``field: what is wrong, got value``.
+
+    >>> from wander_env.scene_config import GratingConfig  # its __post_init__ calls this
+    >>> GratingConfig(distance_m=0)
+    Traceback (most recent call last):
+    ...
+    ValueError: distance_m: input should be greater than 0, got 0
+    """
+    hints = typing.get_type_hints(type(obj), include_extras=True)
+    for f in dataclasses.fields(obj):
+        tp = hints.get(f.name)
+        if not f.init or typing.get_origin(tp) not in (typing.Annotated, Literal):
+            continue
+        try:
+            pydantic.TypeAdapter(tp, config=_FINITE).validate_python(getattr(obj, f.name))
+        except pydantic.ValidationError as e:
+            err = e.errors()[0]
+            if err["type"] == "literal_error":
+                text = f"expected {type_name(tp)}"
+            else:
+                text = err["msg"][:1].lower() + err["msg"][1:]
+            raise ValueError(f"{f.name}: {text}, got {getattr(obj, f.name)!r}") from None

@@ -10,9 +10,13 @@ Conventions: metres, degrees, seconds; the world frame has z up, and the PTU loo
 (not MuJoCo half-sizes): a box ``[sx, sy, sz]``, a sphere ``[diameter]``, a cylinder
 ``[diameter, height]`` (axis along z).
 
-Errors: a bad value, a missing required key or an unknown key raises ``ValueError``
-whose message starts with the field's path, e.g.
-``moving_objects[1].trajectory.kind: must be one of (...), got 'zigzag'``.
+Validation: :func:`wander_env.config.validate_paths` (pydantic, strict, unknown keys
+refused, numbers finite) reads a scene file into these dataclasses; single-field bounds
+are ``Annotated`` constraints on the fields, cross-field rules are ``__post_init__``
+checks, and a trajectory is a union tagged by its ``kind``. A bad value, a missing
+required key or an unknown key raises :class:`wander_env.config.ConfigError` (a
+``ValueError``) whose message starts with the field's path, e.g.
+``moving_objects[1].trajectory.kind: expected one of 'circular', ..., got 'zigzag'``.
 
 Example:
     >>> cfg = load_scene_config("office")
@@ -24,27 +28,25 @@ from __future__ import annotations
 
 import importlib.resources
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal, TypeVar
+from typing import Annotated, Any, Literal
 
+import pydantic
 import yaml
 
-from wander_env.textures import TEXTURE_KINDS, TextureSpec
-from wander_env.trajectories import (
-    PLANES,
-    TRAJECTORY_KINDS,
-    CircularParams,
-    LinearBounceParams,
-    RandomWalkParams,
-    TrajectoryParams,
-    WaypointsParams,
-)
+from wander_env.config import check_annotated, validate_paths
+from wander_env.textures import TextureSpec
+from wander_env.trajectories import TrajectoryParams
 
+Finite = Annotated[float, pydantic.Field(allow_inf_nan=False)]
+Positive = Annotated[float, pydantic.Field(gt=0)]
+NonNegative = Annotated[float, pydantic.Field(ge=0)]
+Unit = Annotated[float, pydantic.Field(ge=0, le=1)]
 Vec2 = tuple[float, float]
 Vec3 = tuple[float, float, float]
-RGBA = tuple[float, float, float, float]
+RGBA = tuple[Unit, Unit, Unit, Unit]
 
 SHAPES = ("box", "sphere", "cylinder")
 SHAPE_SIZE_LEN = {"box": 3, "sphere": 1, "cylinder": 2}
@@ -54,29 +56,17 @@ GRATING_MODES = ("eye+object", "eye-only", "object-only")
 SPECK_HFOV_DEG = math.degrees(2.0 * math.atan(5.12 / 3.4))
 DEFAULT_SCENE = "office"
 
-T = TypeVar("T")
-
 
 # ----------------------------------------------------------------------------------------
 # Dataclasses
 
 
-@dataclass(frozen=True)
-class _ShapedBody:
-    """The shape and full-extent size (m) that a prop and a moving object both start with,
-    checked together (a sphere has 1 extent, a cylinder 2, a box 3)."""
-
-    shape: Literal["box", "sphere", "cylinder"]
-    size: tuple[float, ...]
-
-    def __post_init__(self) -> None:
-        if self.shape not in SHAPES:
-            raise ValueError(f"shape must be one of {SHAPES}, got {self.shape!r}")
-        n = SHAPE_SIZE_LEN[self.shape]
-        if len(self.size) != n or not all(math.isfinite(v) and v > 0 for v in self.size):
-            raise ValueError(
-                f"size of a {self.shape} must be {n} extents > 0 (m), got {tuple(self.size)}"
-            )
+def _check_shape(shape: str, size: Sequence[float]) -> None:
+    if shape not in SHAPES:
+        raise ValueError(f"shape must be one of {SHAPES}, got {shape!r}")
+    n = SHAPE_SIZE_LEN[shape]
+    if len(size) != n or not all(math.isfinite(v) and v > 0 for v in size):
+        raise ValueError(f"size of a {shape} must be {n} extents > 0 (m), got {tuple(size)}")
 
 
 @dataclass(frozen=True)
@@ -88,10 +78,10 @@ class CameraConfig:
     sensor; 0 renders about twice as fast on a CPU (llvmpipe).
     """
 
-    width: int = 128
-    height: int = 128
-    hfov_deg: float = SPECK_HFOV_DEG
-    antialias_samples: int = 4
+    width: Annotated[int, pydantic.Field(ge=1)] = 128
+    height: Annotated[int, pydantic.Field(ge=1)] = 128
+    hfov_deg: Annotated[float, pydantic.Field(gt=0, le=179)] = SPECK_HFOV_DEG
+    antialias_samples: Annotated[int, pydantic.Field(ge=0)] = 4
 
 
 @dataclass(frozen=True)
@@ -114,15 +104,19 @@ class LightConfig:
 
     position: Vec3 = (0.0, 0.0, 2.5)
     direction: Vec3 = (0.0, 0.0, -1.0)
-    diffuse: float = 0.5
+    diffuse: Unit = 0.5
+
+    def __post_init__(self) -> None:
+        if not any(self.direction):
+            raise ValueError(f"direction: must not be the zero vector, got {self.direction}")
 
 
 @dataclass(frozen=True)
 class LightingConfig:
     """Headlight (follows the camera) intensities and extra lights (no shadows)."""
 
-    headlight_ambient: float = 0.35
-    headlight_diffuse: float = 0.35
+    headlight_ambient: Unit = 0.35
+    headlight_diffuse: Unit = 0.35
     lights: tuple[LightConfig, ...] = ()
 
 
@@ -133,7 +127,7 @@ class RoomConfig:
     Set a texture's ``tile_m`` to fix how many metres one image spans on the surfaces.
     """
 
-    size: Vec3 = (4.0, 4.0, 2.6)
+    size: tuple[Positive, Positive, Positive] = (4.0, 4.0, 2.6)
     center_xy: Vec2 = (1.0, 0.0)
     wall_texture: TextureSpec = field(default_factory=lambda: TextureSpec(tile_m=1.0))
     floor_texture: TextureSpec = field(
@@ -147,12 +141,16 @@ class TableConfig:
     """A table: top ``top_size`` (x, y) at ``height`` (top surface), four legs."""
 
     center_xy: Vec2 = (1.0, 0.0)
-    top_size: Vec2 = (0.8, 1.4)
-    height: float = 0.72
-    thickness: float = 0.04
-    leg_width: float = 0.05
+    top_size: tuple[Positive, Positive] = (0.8, 1.4)
+    height: Positive = 0.72
+    thickness: Positive = 0.04
+    leg_width: Positive = 0.05
     rgba: RGBA = (1.0, 1.0, 1.0, 1.0)
     texture: TextureSpec | None = None
+
+    def __post_init__(self) -> None:
+        if self.thickness >= self.height:
+            raise ValueError(f"thickness: must be < height ({self.height}), got {self.thickness}")
 
 
 @dataclass(frozen=True)
@@ -164,38 +162,58 @@ class ShelfConfig:
     """
 
     center_xy: Vec2 = (2.0, 0.0)
-    width: float = 1.6
-    depth: float = 0.35
-    height: float = 1.8
-    levels: tuple[float, ...] = (0.05, 0.5, 0.95, 1.4, 1.8)
-    thickness: float = 0.03
+    width: Positive = 1.6
+    depth: Positive = 0.35
+    height: Positive = 1.8
+    levels: Annotated[tuple[NonNegative, ...], pydantic.Field(min_length=1)] = (
+        0.05,
+        0.5,
+        0.95,
+        1.4,
+        1.8,
+    )
+    thickness: Positive = 0.03
     yaw_deg: float = 0.0
     rgba: RGBA = (1.0, 1.0, 1.0, 1.0)
     texture: TextureSpec | None = None
 
+    def __post_init__(self) -> None:
+        if self.levels and max(self.levels) > self.height + 1e-9:
+            raise ValueError(f"levels: must be <= height ({self.height}), got {self.levels}")
+
 
 @dataclass(frozen=True)
-class StaticObjectConfig(_ShapedBody):
+class StaticObjectConfig:
     """A static prop: shape, full-extent size (m), centre, orientation (xyz Euler, deg)."""
 
+    shape: Literal["box", "sphere", "cylinder"]
+    size: Annotated[tuple[Positive, ...], pydantic.Field(min_length=1)]
     position: Vec3
     euler_deg: Vec3 = (0.0, 0.0, 0.0)
     rgba: RGBA = (0.7, 0.7, 0.7, 1.0)
     texture: TextureSpec | None = None
     name: str = ""
 
+    def __post_init__(self) -> None:
+        _check_shape(self.shape, self.size)
+
 
 @dataclass(frozen=True)
-class MovingObjectConfig(_ShapedBody):
+class MovingObjectConfig:
     """A moving object (a mocap body): shape, full-extent size (m), look, trajectory.
 
     Object k (1-based, in list order) has id k in segmentation masks.
     """
 
-    trajectory: TrajectoryParams
+    shape: Literal["box", "sphere", "cylinder"]
+    size: Annotated[tuple[Positive, ...], pydantic.Field(min_length=1)]
+    trajectory: Annotated[TrajectoryParams, pydantic.Field(discriminator="kind")]
     rgba: RGBA = (1.0, 1.0, 1.0, 1.0)
     texture: TextureSpec | None = None
     name: str = ""
+
+    def __post_init__(self) -> None:
+        _check_shape(self.shape, self.size)
 
 
 @dataclass(frozen=True)
@@ -222,42 +240,20 @@ class GratingConfig:
     """
 
     mode: Literal["eye+object", "eye-only", "object-only"] = "eye+object"
-    distance_m: float = 1.0
-    background_cycles_per_deg: float = 0.05
-    background_speed_deg_s: float = 10.0
-    object_size_deg: float = 40.0
-    object_cycles_per_deg: float = 0.1
-    object_speed_deg_s: float = 30.0
+    distance_m: Positive = 1.0
+    background_cycles_per_deg: Positive = 0.05
+    background_speed_deg_s: Finite = 10.0
+    object_size_deg: Positive = 40.0
+    object_cycles_per_deg: Positive = 0.1
+    object_speed_deg_s: Finite = 30.0
     profile: Literal["sine", "square"] = "square"
-    contrast: float = 1.0
-    mean: float = 0.5
-    margin_deg: float = 20.0
-    object_strips: int = 128
+    contrast: Unit = 1.0
+    mean: Unit = 0.5
+    margin_deg: Annotated[float, pydantic.Field(ge=0, le=60)] = 20.0
+    object_strips: Annotated[int, pydantic.Field(ge=2)] = 128
 
     def __post_init__(self) -> None:
-        if self.mode not in GRATING_MODES:
-            raise ValueError(f"mode must be one of {GRATING_MODES}, got {self.mode!r}")
-        if self.profile not in ("sine", "square"):
-            raise ValueError(f"profile must be one of ('sine', 'square'), got {self.profile!r}")
-        for name in (
-            "distance_m",
-            "background_cycles_per_deg",
-            "object_size_deg",
-            "object_cycles_per_deg",
-        ):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be > 0, got {v!r}")
-        for name in ("background_speed_deg_s", "object_speed_deg_s", "margin_deg"):
-            if not math.isfinite(getattr(self, name)):
-                raise ValueError(f"{name} must be finite, got {getattr(self, name)!r}")
-        for name in ("contrast", "mean"):
-            if not 0.0 <= getattr(self, name) <= 1.0:
-                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)!r}")
-        if isinstance(self.object_strips, bool) or not isinstance(self.object_strips, int):
-            raise ValueError(f"object_strips must be an int, got {self.object_strips!r}")
-        if self.object_strips < 2:
-            raise ValueError(f"object_strips must be >= 2, got {self.object_strips}")
+        check_annotated(self)
 
     @property
     def metres_per_deg(self) -> float:
@@ -288,6 +284,17 @@ class SceneConfig:
     static_objects: tuple[StaticObjectConfig, ...] = ()
     moving_objects: tuple[MovingObjectConfig, ...] = ()
     gratings: GratingConfig | None = None
+
+    def __post_init__(self) -> None:
+        if self.gratings is not None and self.moving_objects:
+            raise ValueError(
+                "moving_objects: must be empty when gratings is set (the grating patch is object 1)"
+            )
+        if self.gratings is not None and self.gratings.object_size_deg >= self.camera.hfov_deg:
+            raise ValueError(
+                "gratings.object_size_deg: must be smaller than the field of view "
+                f"({self.camera.hfov_deg:.1f} deg), got {self.gratings.object_size_deg}"
+            )
 
     @property
     def num_objects(self) -> int:
@@ -331,402 +338,30 @@ def load_scene_config(path_or_name: str | Path = DEFAULT_SCENE) -> SceneConfig:
             raise ValueError(f"unknown scene {text!r}; available: {', '.join(available_scenes())}")
     with open(path, encoding="utf-8") as f:
         data = yaml.safe_load(f)
-    try:
-        return scene_config_from_dict(data, default_name=path.stem)
-    except ValueError as e:
-        raise ValueError(f"{path}: {e}") from None
+    return scene_config_from_dict(data, default_name=path.stem, where=str(path))
 
 
 # ----------------------------------------------------------------------------------------
 # Parsing
 
 
-_MISSING: Any = object()
+def scene_config_from_dict(
+    data: Any, default_name: str = "scene", where: str | None = None
+) -> SceneConfig:
+    """Validate a parsed YAML mapping into a :class:`SceneConfig` (``name`` defaults to
+    ``default_name``); ConfigError (a ValueError) starting with ``where: `` (the file)
+    when given, then the field's path.
 
-
-class _Fields:
-    """Reads typed values from one mapping, tracking its path and the keys read."""
-
-    def __init__(self, data: Any, path: str) -> None:
-        if not isinstance(data, Mapping):
-            raise ValueError(f"{path or '<scene>'}: expected a mapping, got {data!r}")
-        bad = [k for k in data if not isinstance(k, str)]
-        if bad:
-            raise ValueError(f"{path or '<scene>'}: keys must be strings, got {bad!r}")
-        self.data = data
-        self.path = path
-        self.known: set[str] = set()
-
-    def at(self, key: str) -> str:
-        """The path of ``key``."""
-        return f"{self.path}.{key}" if self.path else key
-
-    def raw(self, key: str, default: Any = _MISSING) -> Any:
-        """The value of ``key`` (``default`` when absent; required when no default)."""
-        self.known.add(key)
-        if key in self.data and self.data[key] is not None:
-            return self.data[key]
-        if key in self.data and default is None:
-            return None
-        if default is _MISSING:
-            raise ValueError(f"{self.at(key)}: required")
-        return default
-
-    def number(
-        self,
-        key: str,
-        default: Any = _MISSING,
-        *,
-        lo: float | None = None,
-        hi: float | None = None,
-        positive: bool = False,
-    ) -> float:
-        """A finite float, optionally in [lo, hi] or > 0."""
-        return _number(self.raw(key, default), self.at(key), lo=lo, hi=hi, positive=positive)
-
-    def integer(self, key: str, default: Any = _MISSING, *, lo: int | None = None) -> int:
-        """An int (bools refused)."""
-        v = self.raw(key, default)
-        if isinstance(v, bool) or not isinstance(v, int):
-            raise ValueError(f"{self.at(key)}: must be an integer, got {v!r}")
-        if lo is not None and v < lo:
-            raise ValueError(f"{self.at(key)}: must be >= {lo}, got {v}")
-        return v
-
-    def boolean(self, key: str, default: Any = _MISSING) -> bool:
-        """A bool."""
-        v = self.raw(key, default)
-        if not isinstance(v, bool):
-            raise ValueError(f"{self.at(key)}: must be true or false, got {v!r}")
-        return v
-
-    def string(self, key: str, default: Any = _MISSING) -> str:
-        """A string."""
-        v = self.raw(key, default)
-        if not isinstance(v, str):
-            raise ValueError(f"{self.at(key)}: must be a string, got {v!r}")
-        return v
-
-    def choice(self, key: str, allowed: Sequence[str], default: Any = _MISSING) -> str:
-        """One of ``allowed``."""
-        v = self.raw(key, default)
-        if v not in allowed:
-            raise ValueError(f"{self.at(key)}: must be one of {tuple(allowed)}, got {v!r}")
-        return v
-
-    def vector(
-        self, key: str, n: int | None, default: Any = _MISSING, **bounds: Any
-    ) -> tuple[float, ...]:
-        """A list of ``n`` finite floats (any length >= 1 when n is None)."""
-        return _vector(self.raw(key, default), self.at(key), n, **bounds)
-
-    def sub(self, key: str, default: Any = _MISSING) -> _Fields | None:
-        """The nested mapping at ``key`` (None when absent and ``default`` is None)."""
-        v = self.raw(key, default)
-        return None if v is None else _Fields(v, self.at(key))
-
-    def items(self, key: str) -> list[tuple[str, Any]]:
-        """(path, element) for each element of the list at ``key`` (empty when absent)."""
-        v = self.raw(key, [])
-        if not isinstance(v, list):
-            raise ValueError(f"{self.at(key)}: must be a list, got {v!r}")
-        return [(f"{self.at(key)}[{i}]", e) for i, e in enumerate(v)]
-
-    def done(self) -> None:
-        """Refuse keys that were never read."""
-        unknown = sorted(set(self.data) - self.known)
-        if unknown:
-            raise ValueError(
-                f"{self.path or '<scene>'}: unknown key(s) {unknown}; allowed: {sorted(self.known)}"
-            )
-
-
-def _number(
-    v: Any,
-    path: str,
-    *,
-    lo: float | None = None,
-    hi: float | None = None,
-    positive: bool = False,
-) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        raise ValueError(f"{path}: must be a finite number, got {v!r}")
-    if positive and v <= 0:
-        raise ValueError(f"{path}: must be > 0, got {v!r}")
-    if (lo is not None and v < lo) or (hi is not None and v > hi):
-        raise ValueError(f"{path}: must be in [{lo}, {hi}], got {v!r}")
-    return float(v)
-
-
-def _vector(v: Any, path: str, n: int | None, **bounds: Any) -> tuple[float, ...]:
-    if isinstance(v, (int, float)) and not isinstance(v, bool) and n in (1, None):
-        v = [v]
-    if not isinstance(v, (list, tuple)) or (n is not None and len(v) != n) or not v:
-        want = f"a list of {n} numbers" if n is not None else "a non-empty list of numbers"
-        raise ValueError(f"{path}: must be {want}, got {v!r}")
-    return tuple(_number(c, f"{path}[{i}]", **bounds) for i, c in enumerate(v))
-
-
-def _build(cls: Callable[..., T], path: str, **kwargs: Any) -> T:
-    """``cls(**kwargs)``, its own ValueErrors prefixed with ``path``."""
-    try:
-        return cls(**kwargs)
-    except ValueError as e:
-        raise ValueError(f"{path}: {e}") from None
-
-
-def _texture(f: _Fields, key: str) -> TextureSpec | None:
-    t = f.sub(key, None)
-    if t is None:
-        return None
-    colors = tuple(_vector(c, p, 3, lo=0.0, hi=1.0) for p, c in t.items("colors"))
-    kw: dict[str, Any] = {
-        "kind": t.choice("kind", TEXTURE_KINDS),
-        "colors": colors,
-        "scale": t.number("scale", 24.0, positive=True),
-        "size_px": t.integer("size_px", 256, lo=8),
-        "seed": t.integer("seed", 0, lo=0),
-        "repeat": t.vector("repeat", 2, (1.0, 1.0), positive=True),
-        "tile_m": t.number("tile_m", 0.0, lo=0.0),
-    }
-    t.done()
-    return _build(TextureSpec, t.path, **kw)
-
-
-def _size(f: _Fields, shape: str) -> tuple[float, ...]:
-    n = SHAPE_SIZE_LEN[shape]
-    return f.vector("size", n, positive=True)
-
-
-def _trajectory(f: _Fields) -> TrajectoryParams:
-    kind = f.choice("kind", TRAJECTORY_KINDS)
-    params: TrajectoryParams
-    if kind == "linear_bounce":
-        kw = {
-            "start": f.vector("start", 3),
-            "velocity": f.vector("velocity", 3),
-            "bounds_min": f.vector("bounds_min", 3),
-            "bounds_max": f.vector("bounds_max", 3),
-        }
-        f.done()
-        params = _build(LinearBounceParams, f.path, **kw)
-    elif kind == "circular":
-        kw = {
-            "centre": f.vector("centre", 3),
-            "radius": f.number("radius", lo=0.0),
-            "angular_speed_rad_s": f.number("angular_speed_rad_s", 1.0),
-            "plane": f.choice("plane", PLANES, "yz"),
-            "phase_deg": f.number("phase_deg", 0.0),
-        }
-        f.done()
-        params = _build(CircularParams, f.path, **kw)
-    elif kind == "random_walk":
-        start = f.raw("start", None)
-        kw = {
-            "bounds_min": f.vector("bounds_min", 3),
-            "bounds_max": f.vector("bounds_max", 3),
-            "speed_m_s": f.number("speed_m_s", 0.2, lo=0.0),
-            "turn_rate_rad_s": f.number("turn_rate_rad_s", 2.0, lo=0.0),
-            "start": None if start is None else _vector(start, f.at("start"), 3),
-            "dt_s": f.number("dt_s", 0.005, positive=True),
-        }
-        f.done()
-        params = _build(RandomWalkParams, f.path, **kw)
-    else:
-        points = tuple(_vector(p, path, 3) for path, p in f.items("points"))
-        kw = {
-            "points": points,
-            "speed_m_s": f.number("speed_m_s", 0.2, positive=True),
-            "closed": f.boolean("closed", True),
-        }
-        f.done()
-        params = _build(WaypointsParams, f.path, **kw)
-    return params
-
-
-def _rgba(f: _Fields, default: RGBA) -> RGBA:
-    return f.vector("rgba", 4, default, lo=0.0, hi=1.0)  # type: ignore[return-value]
-
-
-def _static_object(f: _Fields) -> StaticObjectConfig:
-    shape = f.choice("shape", SHAPES)
-    obj = _build(
-        StaticObjectConfig,
-        f.path,
-        shape=shape,  # type: ignore[arg-type]
-        size=_size(f, shape),
-        position=f.vector("position", 3),  # type: ignore[arg-type]
-        euler_deg=f.vector("euler_deg", 3, (0.0, 0.0, 0.0)),  # type: ignore[arg-type]
-        rgba=_rgba(f, (0.7, 0.7, 0.7, 1.0)),
-        texture=_texture(f, "texture"),
-        name=f.string("name", ""),
-    )
-    f.done()
-    return obj
-
-
-def _moving_object(f: _Fields) -> MovingObjectConfig:
-    shape = f.choice("shape", SHAPES)
-    traj = f.sub("trajectory")
-    assert traj is not None
-    obj = _build(
-        MovingObjectConfig,
-        f.path,
-        shape=shape,  # type: ignore[arg-type]
-        size=_size(f, shape),
-        trajectory=_trajectory(traj),
-        rgba=_rgba(f, (1.0, 1.0, 1.0, 1.0)),
-        texture=_texture(f, "texture"),
-        name=f.string("name", ""),
-    )
-    f.done()
-    return obj
-
-
-def _table(f: _Fields) -> TableConfig:
-    d = TableConfig()
-    obj = TableConfig(
-        center_xy=f.vector("center_xy", 2, d.center_xy),  # type: ignore[arg-type]
-        top_size=f.vector("top_size", 2, d.top_size, positive=True),  # type: ignore[arg-type]
-        height=f.number("height", d.height, positive=True),
-        thickness=f.number("thickness", d.thickness, positive=True),
-        leg_width=f.number("leg_width", d.leg_width, positive=True),
-        rgba=_rgba(f, d.rgba),
-        texture=_texture(f, "texture"),
-    )
-    f.done()
-    if obj.thickness >= obj.height:
-        raise ValueError(f"{f.at('thickness')}: must be < height, got {obj.thickness}")
-    return obj
-
-
-def _shelf(f: _Fields) -> ShelfConfig:
-    d = ShelfConfig()
-    obj = ShelfConfig(
-        center_xy=f.vector("center_xy", 2, d.center_xy),  # type: ignore[arg-type]
-        width=f.number("width", d.width, positive=True),
-        depth=f.number("depth", d.depth, positive=True),
-        height=f.number("height", d.height, positive=True),
-        levels=f.vector("levels", None, d.levels, lo=0.0),
-        thickness=f.number("thickness", d.thickness, positive=True),
-        yaw_deg=f.number("yaw_deg", d.yaw_deg),
-        rgba=_rgba(f, d.rgba),
-        texture=_texture(f, "texture"),
-    )
-    f.done()
-    if max(obj.levels) > obj.height + 1e-9:
-        raise ValueError(f"{f.at('levels')}: must be <= height {obj.height}, got {obj.levels}")
-    return obj
-
-
-def _room(f: _Fields) -> RoomConfig:
-    d = RoomConfig()
-    obj = RoomConfig(
-        size=f.vector("size", 3, d.size, positive=True),  # type: ignore[arg-type]
-        center_xy=f.vector("center_xy", 2, d.center_xy),  # type: ignore[arg-type]
-        wall_texture=_texture(f, "wall_texture") or d.wall_texture,
-        floor_texture=_texture(f, "floor_texture") or d.floor_texture,
-        ceiling_texture=_texture(f, "ceiling_texture") or d.ceiling_texture,
-    )
-    f.done()
-    return obj
-
-
-def _lighting(f: _Fields) -> LightingConfig:
-    d = LightingConfig()
-    lights = []
-    for path, data in f.items("lights"):
-        g = _Fields(data, path)
-        lights.append(
-            LightConfig(
-                position=g.vector("position", 3, LightConfig().position),  # type: ignore[arg-type]
-                direction=g.vector("direction", 3, LightConfig().direction),  # type: ignore[arg-type]
-                diffuse=g.number("diffuse", LightConfig().diffuse, lo=0.0, hi=1.0),
-            )
-        )
-        g.done()
-        if not any(lights[-1].direction):
-            raise ValueError(f"{g.at('direction')}: must not be the zero vector")
-    obj = LightingConfig(
-        headlight_ambient=f.number("headlight_ambient", d.headlight_ambient, lo=0.0, hi=1.0),
-        headlight_diffuse=f.number("headlight_diffuse", d.headlight_diffuse, lo=0.0, hi=1.0),
-        lights=tuple(lights),
-    )
-    f.done()
-    return obj
-
-
-def _gratings(f: _Fields, hfov_deg: float) -> GratingConfig:
-    d = GratingConfig()
-    obj = _build(
-        GratingConfig,
-        f.path,
-        mode=f.choice("mode", GRATING_MODES, d.mode),  # type: ignore[arg-type]
-        distance_m=f.number("distance_m", d.distance_m, positive=True),
-        background_cycles_per_deg=f.number(
-            "background_cycles_per_deg", d.background_cycles_per_deg, positive=True
-        ),
-        background_speed_deg_s=f.number("background_speed_deg_s", d.background_speed_deg_s),
-        object_size_deg=f.number("object_size_deg", d.object_size_deg, positive=True),
-        object_cycles_per_deg=f.number(
-            "object_cycles_per_deg", d.object_cycles_per_deg, positive=True
-        ),
-        object_speed_deg_s=f.number("object_speed_deg_s", d.object_speed_deg_s),
-        profile=f.choice("profile", ("sine", "square"), d.profile),  # type: ignore[arg-type]
-        contrast=f.number("contrast", d.contrast, lo=0.0, hi=1.0),
-        mean=f.number("mean", d.mean, lo=0.0, hi=1.0),
-        margin_deg=f.number("margin_deg", d.margin_deg, lo=0.0, hi=60.0),
-        object_strips=f.integer("object_strips", d.object_strips, lo=2),
-    )
-    f.done()
-    if obj.object_size_deg >= hfov_deg:
-        raise ValueError(
-            f"{f.at('object_size_deg')}: must be smaller than the field of view "
-            f"({hfov_deg:.1f} deg), got {obj.object_size_deg}"
-        )
-    return obj
-
-
-def scene_config_from_dict(data: Any, default_name: str = "scene") -> SceneConfig:
-    """Validate a parsed YAML mapping into a :class:`SceneConfig` (ValueError naming the field)."""
-    f = _Fields(data, "")
-    cam = f.sub("camera", {})
-    assert cam is not None
-    camera = CameraConfig(
-        width=cam.integer("width", 128, lo=1),
-        height=cam.integer("height", 128, lo=1),
-        hfov_deg=cam.number("hfov_deg", SPECK_HFOV_DEG, positive=True, hi=179.0),
-        antialias_samples=cam.integer("antialias_samples", 4, lo=0),
-    )
-    cam.done()
-    ptu = f.sub("ptu", {})
-    assert ptu is not None
-    mount = PTUMountConfig(
-        position=ptu.vector("position", 3, PTUMountConfig().position),  # type: ignore[arg-type]
-        camera_forward_m=ptu.number("camera_forward_m", 0.0),
-        camera_up_m=ptu.number("camera_up_m", 0.0),
-    )
-    ptu.done()
-    lighting = f.sub("lighting", {})
-    assert lighting is not None
-    room = f.sub("room", None)
-    grat = f.sub("gratings", None)
-    cfg = SceneConfig(
-        name=f.string("name", default_name),
-        description=f.string("description", ""),
-        camera=camera,
-        ptu=mount,
-        lighting=_lighting(lighting),
-        room=None if room is None else _room(room),
-        tables=tuple(_table(_Fields(d, p)) for p, d in f.items("tables")),
-        shelves=tuple(_shelf(_Fields(d, p)) for p, d in f.items("shelves")),
-        static_objects=tuple(_static_object(_Fields(d, p)) for p, d in f.items("static_objects")),
-        moving_objects=tuple(_moving_object(_Fields(d, p)) for p, d in f.items("moving_objects")),
-        gratings=None if grat is None else _gratings(grat, camera.hfov_deg),
-    )
-    f.done()
-    if cfg.gratings is not None and cfg.moving_objects:
-        raise ValueError(
-            "moving_objects: must be empty when gratings is set (the grating patch is object 1)"
-        )
-    return cfg
+    >>> scene_config_from_dict({"camera": {"width": 64}}).camera.width
+    64
+    >>> bad = {"moving_objects": [{"shape": "box", "size": [1, 1, 1], "trajectory": {}}]}
+    >>> try:
+    ...     scene_config_from_dict(bad, where="my.yaml")
+    ... except ValueError as e:
+    ...     print(e)  # doctest: +NORMALIZE_WHITESPACE
+    my.yaml: moving_objects[0].trajectory.kind: required
+    (one of 'linear_bounce', 'circular', 'random_walk', 'waypoints')
+    """
+    if isinstance(data, Mapping) and "name" not in data:
+        data = {"name": default_name, **data}
+    return validate_paths(SceneConfig, data, where=where)

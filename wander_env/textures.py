@@ -21,10 +21,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Annotated, Literal
 
 import cv2
 import numpy as np
+import pydantic
 
 RGB = tuple[float, float, float]
 
@@ -58,7 +59,7 @@ class TextureSpec:
     size_px: int = 256
     repeat: tuple[float, float] = (1.0, 1.0)
     tile_m: float = 0.0
-    seed: int = 0
+    seed: Annotated[int, pydantic.Field(ge=0)] = 0
 
     def __post_init__(self) -> None:
         if self.kind not in TEXTURE_KINDS:
