@@ -273,11 +273,16 @@ def _quantile_linear(a: np.ndarray, q: float) -> float:
 
 
 def quantile_score(
-    pooled: torch.Tensor, quantile: float, gain: float, floor_spikes: float
+    pooled: torch.Tensor,
+    quantile: float,
+    gain: float,
+    floor_spikes: float,
+    peak_ratio: float | None = None,
 ) -> torch.Tensor:
     """``1 - norm(OMS)`` of the ``"quantile"`` norm: the pooled surround excess
-    ``pooled = G * (surround - centre)`` over ``gain`` times its ``quantile`` over the
-    whole map (at least ``floor_spikes``), clipped to [0, 1].
+    ``pooled = G * (surround - centre)`` over :func:`peak_scale` of its ``quantile`` over
+    the whole map (``gain`` times it, at least ``floor_spikes``; with ``peak_ratio``, the
+    map's peak clipped to ``[peak_ratio, gain]`` times it), clipped to [0, 1].
 
     Example:
         >>> d = torch.zeros(1, 10, 10); d[0, 0, :5] = 4.0; d[0, 1:, :] = 1.0
@@ -285,9 +290,11 @@ def quantile_score(
         >>> float(s[0, 0, 0]), float(s[0, 5, 5]), float(s[0, 0, 9])
         (1.0, 0.5, 0.0)
     """
+    a = pooled.detach().cpu().numpy().ravel()
     # a selection (introselect) where torch.quantile sorts the map: ≈10× faster here
-    q = _quantile_linear(pooled.detach().cpu().numpy().ravel(), quantile)
-    scale = max(gain * q, floor_spikes)
+    q = _quantile_linear(a, quantile)
+    peak = float(a.max(initial=0.0)) if peak_ratio is not None else 0.0
+    scale = peak_scale(q, peak, gain, peak_ratio, floor_spikes)
     return torch.clamp(pooled / scale, 0.0, 1.0)
 
 
@@ -327,10 +334,7 @@ def peak_score(
         >>> float(peak_score(torch.ones(1, 4, 4), 0.9, 3.5, 2.0, 1.0).max())  # flat: 1 / 2
         0.5
     """
-    a = pooled.detach().cpu().numpy().ravel()
-    q = _quantile_linear(a, quantile)
-    scale = peak_scale(q, float(a.max(initial=0.0)), gain, peak_ratio, floor_spikes)
-    return torch.clamp(pooled / scale, 0.0, 1.0)
+    return quantile_score(pooled, quantile, gain, floor_spikes, peak_ratio)
 
 
 class SOMS(MapLayer):
@@ -403,9 +407,7 @@ class SOMS(MapLayer):
         p = self.params
         if p.norm == "minmax":
             return oms_score(diff)
-        if p.peak_ratio is not None:
-            return peak_score(self.pool(-diff), p.quantile, p.gain, p.peak_ratio, p.floor_spikes)
-        return quantile_score(self.pool(-diff), p.quantile, p.gain, p.floor_spikes)
+        return quantile_score(self.pool(-diff), p.quantile, p.gain, p.floor_spikes, p.peak_ratio)
 
     @torch.no_grad()
     def step(self, event_map: np.ndarray | torch.Tensor) -> SOMSOutput:
