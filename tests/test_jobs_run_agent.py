@@ -80,11 +80,13 @@ def test_frame_source_reaches_the_env() -> None:
         "episode_seconds": 0.5,
         "frames": "exact",
         "keyframe_ms": 4.0,
+        "keyframe_px": 2.0,
     }
     env = gym.make("wander/Wander-v0", **kw)
     try:
         cfg = env.unwrapped.config
         assert (cfg.frames, cfg.keyframe_ms, cfg.episode_seconds) == ("exact", 4.0, 0.5)
+        assert cfg.keyframe_px == 2.0
     finally:
         env.close()
 

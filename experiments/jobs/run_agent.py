@@ -79,6 +79,7 @@ class RunConfig:
     soms_norm: str = "quantile"
     frames: str = WanderConfig.frames  # the env's frame source (keyframes or exact)
     keyframe_ms: float = WanderConfig.keyframe_ms
+    keyframe_px: float | None = WanderConfig.keyframe_px  # adaptive keys' bound (None: off)
 
     def __post_init__(self) -> None:
         if not (isinstance(self.seconds, (int, float)) and math.isfinite(self.seconds)):
@@ -426,7 +427,8 @@ def run_for_config(
 
 
 def env_kwargs(config: RunConfig) -> dict[str, Any]:
-    """The ``wander/Wander-v0`` keywords of a run: scene, DVS, length and frame source.
+    """The ``wander/Wander-v0`` keywords of a run: scene, DVS, length and frame source
+    (recorded in ``run.json`` with the rest of the config).
 
     Example:
         >>> env_kwargs(RunConfig(frames="exact", seconds=2.0))["frames"]
@@ -438,6 +440,7 @@ def env_kwargs(config: RunConfig) -> dict[str, Any]:
         "episode_seconds": config.seconds,
         "frames": config.frames,
         "keyframe_ms": config.keyframe_ms,
+        "keyframe_px": config.keyframe_px,
     }
 
 
