@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import pytest
 
@@ -27,6 +28,38 @@ class Outer:
     def __post_init__(self) -> None:
         if self.block.k < 1:
             raise ValueError(f"block.k must be >= 1, got {self.block.k}")
+
+
+@dataclass(frozen=True)
+class Renamed:
+    """Outer after a move: its former flat keys are aliases of the nested ones."""
+
+    CONFIG_ALIASES: ClassVar[dict[str, str | tuple[str, ...]]] = {
+        "alpha": "soms.alpha",
+        "step_s": ("soms.dt", "block.k"),
+    }
+
+    block: Block = field(default_factory=Block)
+    soms: SOMSParams = field(default_factory=lambda: SOMSParams(dt=0.02))
+
+
+def test_former_flat_keys_set_the_nested_fields_they_name():
+    cfg = validate(Renamed, {"alpha": 0.5, "step_s": 3}, where="c.yaml")
+    assert (cfg.soms.alpha, cfg.soms.dt, cfg.block.k, cfg.block.alpha) == (0.5, 3.0, 3, 0.8)
+    assert cfg.soms.sigma_s == 4.0  # the rest of the block keeps its defaults
+    on_base = validate(Renamed, parse_sets(["alpha=0.6"], Renamed), cfg, "--set")
+    assert (on_base.soms.alpha, on_base.soms.dt) == (0.6, 3.0)
+
+
+def test_a_former_key_with_its_new_key_is_refused_and_messages_use_the_name_given():
+    with pytest.raises(ConfigError, match=r"^c.yaml: key 'alpha' is the former name of 'soms"):
+        validate(Renamed, {"alpha": 0.5, "soms": {"alpha": 0.4}}, where="c.yaml")
+    with pytest.raises(ConfigError) as e:
+        validate(Renamed, {"alpha": "abc"}, where="--set")
+    assert str(e.value) == "--set: bad value for key 'alpha': expected float, got 'abc'"
+    with pytest.raises(ConfigError) as e:
+        validate(Renamed, {"alpa": 1.0}, where="--set")
+    assert str(e.value).endswith("; former names: alpha (soms.alpha), step_s (soms.dt, block.k)")
 
 
 def test_nested_set_changes_only_the_named_field():

@@ -126,7 +126,7 @@ def test_config_file_then_set_override_the_defaults(tmp_path):
     path = tmp_path / "c.yaml"
     path.write_text("alpha: 0.5\nrepeats: 3\n")
     cfg = resolve_config(exp, path, ["repeats=4"])
-    assert (cfg.alpha, cfg.repeats, cfg.window_s) == (0.5, 4, 0.002)
+    assert (cfg.soms.alpha, cfg.repeats, cfg.window_s) == (0.5, 4, 0.002)
     path.write_text("alpah: 0.5\n")
     with pytest.raises(ConfigError, match=rf"{path}: unknown key 'alpah'"):
         resolve_config(exp, path)
@@ -245,7 +245,10 @@ def test_cli_rejects_unknown_keys_and_bad_values_by_name():
     runner = CliRunner()
     res = runner.invoke(_app(), ["experiment", "detection", "--set", "alph=1"])
     assert res.exit_code == 2
-    assert "unknown key 'alph'" in res.output and "alpha (float)" in res.output
+    assert "unknown key 'alph'" in res.output and "soms (SOMSParams)" in res.output
+    assert "former names: step_s (soms.dt, proto.dt), kernel_size (soms.kernel_size)" in (
+        res.output
+    )
     res = runner.invoke(_app(), ["experiment", "detection", "--set", "alpha=abc"])
     assert (
         res.exit_code == 2 and "bad value for key 'alpha': expected float, got 'abc'" in res.output

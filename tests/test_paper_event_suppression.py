@@ -7,6 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from agents.soms import SOMSParams
 from experiments.framework import make_trials, resolve_config, run_spec
 from experiments.paper.event_suppression import (
     EXPERIMENT,
@@ -17,6 +18,7 @@ from experiments.paper.event_suppression import (
     is_active,
     pooled_mean_std,
 )
+from wander_env.config import ConfigError, parse_sets, validate
 from wander_env.scene_config import load_scene_config
 
 
@@ -48,18 +50,20 @@ def test_pooled_mean_std_equals_the_statistics_of_the_union():
 
 def test_the_agent_variant_uses_the_agents_soms():
     from agents.attention import AgentParams
-    from experiments.paper.event_suppression import soms_params
 
-    p = soms_params(EventSuppressionConfig(soms="agent"))
+    p = EventSuppressionConfig(soms="agent").soms_params
     assert p == replace(AgentParams().soms, dt=0.02)
-    assert soms_params(EventSuppressionConfig()).norm == "minmax"
+    assert EventSuppressionConfig().soms_params.norm == "minmax"
+    from_set = validate(EventSuppressionConfig, parse_sets(["soms=agent"], EventSuppressionConfig))
+    assert from_set.soms == p
     with pytest.raises(ValueError, match="soms"):
         EventSuppressionConfig(soms="other")  # type: ignore[arg-type]
 
 
 def test_config_checks_windows_and_steps():
     with pytest.raises(ValueError, match="whole number of windows"):
-        EventSuppressionConfig(soms_step_s=0.003)
+        validate(EventSuppressionConfig, {"soms_step_s": 0.003})  # the former name of soms.dt
+    assert validate(EventSuppressionConfig, {"alpha": 0.5}).soms == SOMSParams(alpha=0.5, dt=0.02)
     with pytest.raises(ValueError, match="shake must be"):
         EventSuppressionConfig(shake="wild")
     assert EventSuppressionConfig().windows_per_step == 10
@@ -108,3 +112,20 @@ def test_hand_hit_scores_the_box_around_the_oms_maps_densest_point():
     assert not hand_hit(np.zeros_like(oms), hand, 2.0)  # nothing kept: a miss
     with pytest.raises(ValueError, match="mask"):
         hand_hit(oms, hand[None], 2.0)
+
+
+def test_soms_is_a_block_or_a_preset_name_and_bad_values_say_which():
+    with pytest.raises(ConfigError) as e:
+        validate(EventSuppressionConfig, {"soms": "bogus"}, where="--set")
+    assert str(e.value) == (
+        "--set: bad value for key 'soms': expected SOMSParams or one of 'table', 'agent', "
+        "got 'bogus'"
+    )
+    with pytest.raises(ConfigError, match=r"^--set: unknown key 'soms.alph' for SOMSParams;"):
+        validate(EventSuppressionConfig, {"soms": {"alph": 1.0}}, where="--set")
+    cfg = validate(EventSuppressionConfig, parse_sets(["soms.alpha=0.3"], EventSuppressionConfig))
+    assert (cfg.soms_params.alpha, cfg.soms_params.norm, cfg.windows_per_step) == (
+        0.3,
+        "minmax",
+        10,
+    )

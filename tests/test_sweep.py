@@ -42,7 +42,7 @@ class CountingRunner:
     def __call__(self, spec: TrialSpec) -> dict:
         self.calls.append(spec.id)
         row = {"trial": spec.index, "trial_id": spec.id, "repeat": spec.repeat, "seed": spec.seed}
-        alpha = spec.config["alpha"]
+        alpha = spec.config["soms"]["alpha"]
         return {**row, **spec.extra, **spec.params, "value": alpha * 10 + spec.seed}
 
 

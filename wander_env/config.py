@@ -12,6 +12,8 @@ values and the bad value, e.g.
   the keys it names);
 - :func:`coerce` — one value as a type (``TypeError`` naming the type);
 - :func:`parse_sets` — ``["a.b=value", ...]`` → nested ``{"a": {"b": value}}``;
+- :func:`aliases_of` — a config's old flat key names (``CONFIG_ALIASES``, e.g.
+  ``{"alpha": "soms.alpha"}``), which :func:`validate` still reads as the nested keys;
 - :func:`check_fields` — the shared ``__post_init__`` check of numeric fields;
 - :func:`check_annotated` — a ``__post_init__`` check of a dataclass's ``Annotated``
   and ``Literal`` fields by pydantic (for instances built in code, e.g. by
@@ -48,6 +50,7 @@ import yaml
 
 __all__ = [
     "ConfigError",
+    "aliases_of",
     "allowed_keys",
     "check_annotated",
     "check_fields",
@@ -132,6 +135,44 @@ def _expand(values: Mapping[str, Any]) -> dict[str, Any]:
             node[last] = _merge(node[last], v)
         else:
             node[last] = v
+    return out
+
+
+def aliases_of(cls: Any) -> dict[str, tuple[str, ...]]:
+    """The old names a config class still reads: ``CONFIG_ALIASES``, a class-level
+    mapping of a former flat key to the dotted key (or keys) it now sets.
+
+    >>> class Old:  # a config dataclass, say, whose step and alpha moved into blocks
+    ...     CONFIG_ALIASES = {"step_s": ("a.dt", "b.dt"), "alpha": "a.alpha"}
+    >>> aliases_of(Old)
+    {'step_s': ('a.dt', 'b.dt'), 'alpha': ('a.alpha',)}
+    """
+    raw = getattr(cls, "CONFIG_ALIASES", None) or {}
+    return {k: (v,) if isinstance(v, str) else tuple(v) for k, v in raw.items()}
+
+
+def _unalias(cls: Any, values: Mapping[str, Any]) -> dict[str, Any]:
+    """``values`` (dotted keys expanded) with each old flat key moved to the nested
+    key(s) it names; an old key given together with its new key is refused."""
+    aliases = aliases_of(cls)
+    out = _expand({k: v for k, v in values.items() if k not in aliases})
+    for old, targets in aliases.items():
+        if old not in values:
+            continue
+        for target in targets:
+            *head, last = target.split(".")
+            node = out
+            for name in head:
+                node = node.setdefault(name, {})
+                if not isinstance(node, dict):
+                    raise ConfigError(
+                        f"key {old!r} (now {target!r}): {name} is set to a value already"
+                    )
+            if last in node:
+                raise ConfigError(
+                    f"key {old!r} is the former name of {target!r}; give only one of them"
+                )
+            node[last] = values[old]
     return out
 
 
@@ -242,13 +283,67 @@ def _value_at(data: Any, loc: tuple[Any, ...]) -> Any:
     return data
 
 
-def _message(cls: type, data: Any, err: Mapping[str, Any]) -> str:
-    loc = tuple(err["loc"])[1:]  # drop the list index of _run's box
+def _message(cls: type, data: Any, err: Mapping[str, Any], shown: Mapping[str, str]) -> str:
+    """One pydantic error as the project's message; ``shown`` maps a dotted key to the
+    former flat name the user gave it by (so a message names the key as it was given)."""
+    text = _raw_message(cls, data, err)
+    for target, old in shown.items():
+        text = text.replace(f"key {target!r}", f"key {old!r}")
+        if text.startswith(f"{target}: "):
+            text = f"{old}: " + text[len(target) + 2 :]
+    return text
+
+
+def _field_locs(cls: type, loc: tuple[Any, ...]) -> tuple[Any, ...]:
+    """``loc`` without pydantic's union-member tags (``("soms", "SOMSParams", "alpha")``
+    → ``("soms", "alpha")``), so that it is a path of fields and indices."""
+    out: list[Any] = []
+    owner: Any = cls
+    tp: Any = None
+    for part in loc:
+        if isinstance(part, int):
+            out.append(part)
+            continue
+        types_ = field_types(owner) if dataclasses.is_dataclass(owner) else {}
+        if part in types_:
+            out.append(part)
+            tp = types_[part]
+            inner = [a for a in (typing.get_args(tp) or (tp,)) if dataclasses.is_dataclass(a)]
+            owner = inner[0] if inner else None
+        elif tp is not None and typing.get_origin(tp) in (typing.Union, types.UnionType):
+            members = [a for a in typing.get_args(tp) if getattr(a, "__name__", None) == part]
+            owner = members[0] if members else None  # the tag of the member tried
+            tp = None
+        else:
+            out.append(part)
+    return tuple(out)
+
+
+def _union_errors_kept(cls: type, errors: list[Any]) -> list[Any]:
+    """Errors of a union field: the one from inside a member where there is one (a
+    nested mapping with a bad key says what is wrong there, not that the field is not
+    one of the other members)."""
+    locs = [_field_locs(cls, tuple(e["loc"])) for e in errors]
+    return [
+        e
+        for e, loc in zip(errors, locs, strict=True)
+        if not any(len(o) > len(loc) and o[: len(loc)] == loc for o in locs)
+    ]
+
+
+def _raw_message(cls: type, data: Any, err: Mapping[str, Any]) -> str:
+    loc = _field_locs(cls, tuple(err["loc"]))[1:]  # drop the list index of _run's box
     kind = err["type"]
     if kind == "unexpected_keyword_argument":
         key, owner, _, _ = _describe(cls, loc[:-1])
         full = f"{key}.{loc[-1]}" if key else str(loc[-1])
-        return f"unknown key {full!r} for {owner.__name__}; allowed keys: {allowed_keys(owner)}"
+        text = f"unknown key {full!r} for {owner.__name__}; allowed keys: {allowed_keys(owner)}"
+        former = aliases_of(owner)
+        if former:
+            text += "; former names: " + ", ".join(
+                f"{k} ({', '.join(v)})" for k, v in former.items()
+            )
+        return text
     if kind == "missing":
         key = _describe(cls, loc)[0]
         return f"key {key!r} is required"
@@ -278,12 +373,17 @@ def validate(cls: type, values: Mapping[str, Any], base: Any = None, where: str 
     bad = [k for k in values if not isinstance(k, str)]
     if bad:
         raise ConfigError(f"{where}: keys must be strings, got {bad!r}")
-    values = _expand(values)
+    shown = {t: old for old, ts in aliases_of(cls).items() if old in values for t in ts}
+    try:
+        values = _unalias(cls, values)
+    except ConfigError as e:
+        raise ConfigError(f"{where}: {e}") from None
     data = _merge(to_plain(base), values) if base is not None else _on_defaults(cls, values)
     try:
         return _run(cls, data)
     except pydantic.ValidationError as e:
-        msgs = list(dict.fromkeys(_message(cls, data, err) for err in e.errors()))
+        errors = _union_errors_kept(cls, e.errors())
+        msgs = list(dict.fromkeys(_message(cls, data, err, shown) for err in errors))
         raise ConfigError(f"{where}: " + "; ".join(msgs)) from None
     except (ValueError, TypeError) as e:
         raise ConfigError(f"{where}: {e}") from None

@@ -19,9 +19,9 @@ not scored. One row per trial: means over the scored windows.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -55,35 +55,50 @@ __all__ = [
 @dataclass(frozen=True)
 class DetectionConfig:
     """Defaults: the paper's sOMS / proto-object table values and its 8×8 box; scenes,
-    speed levels, sweep amplitude and trial length are ours."""
+    speed levels, sweep amplitude and trial length are ours.
+
+    ``soms`` and ``proto`` are the two stages' parameter blocks (``--set soms.alpha=0.5``);
+    their ``dt`` is the window of one step, the same in both (:attr:`step_s`). The former
+    flat keys are still read (:data:`CONFIG_ALIASES`: ``alpha`` sets ``soms.alpha``,
+    ``step_s`` both blocks' ``dt``)."""
+
+    CONFIG_ALIASES: ClassVar[dict[str, str | tuple[str, ...]]] = {
+        "step_s": ("soms.dt", "proto.dt"),
+        "kernel_size": "soms.kernel_size",
+        "sigma_c": "soms.sigma_c",
+        "sigma_s": "soms.sigma_s",
+        "tau_soms": "soms.tau_mem",
+        "alpha": "soms.alpha",
+        "r0": "proto.r0",
+        "rho": "proto.rho",
+        "w": "proto.w",
+        "levels": "proto.levels",
+        "tau_proto": "proto.tau_mem",
+        "polarity_split": "proto.polarity_split",
+    }
 
     scenes: tuple[str, ...] = ("office", "hand", "gratings")
     camera_speeds_deg_s: tuple[float, ...] = (0.0, 10.0, 30.0, 60.0)
     sweep_amplitude_deg: float = 5.0
     duration_s: float = 2.0
     warmup_s: float = 0.2
-    step_s: float = 0.02
     dvs: str = "paper"
     frames: str = WanderConfig.frames  # the env\'s frame source: keyframes or exact
     box: int = 8
     baseline_sigma_px: float = 2.0
     repeats: int = 2
-    kernel_size: int = 8
-    sigma_c: float = 1.0
-    sigma_s: float = 4.0
-    tau_soms: float = 0.02
-    alpha: float = 0.80
-    r0: float = 8.0
-    rho: float = 0.2
-    w: float = 3.0
-    levels: int = 3
-    tau_proto: float = 0.1
-    polarity_split: bool = True
+    soms: SOMSParams = field(default_factory=lambda: SOMSParams(dt=0.02))
+    proto: ProtoObjectParams = field(default_factory=lambda: ProtoObjectParams(dt=0.02))
 
     def __post_init__(self) -> None:
         if not self.duration_s > self.warmup_s >= 0:
             raise ValueError(
                 f"need duration_s > warmup_s >= 0, got {self.duration_s}, {self.warmup_s}"
+            )
+        if self.proto.dt != self.soms.dt:
+            raise ValueError(
+                f"proto.dt ({self.proto.dt}) must equal soms.dt ({self.soms.dt}): both are "
+                "the step; step_s sets both"
             )
         ticks = self.step_s * 1000.0
         if not self.step_s > 0 or abs(ticks - round(ticks)) > 1e-9:
@@ -94,7 +109,11 @@ class DetectionConfig:
             raise ValueError(f"camera_speeds_deg_s must be in [0, {top:.1f}] (the PTU), got {bad}")
         if self.repeats < 1:
             raise ValueError(f"repeats must be >= 1, got {self.repeats}")
-        _params(self)  # the sOMS and proto-object parameters validate themselves
+
+    @property
+    def step_s(self) -> float:
+        """One step (one event window), seconds: the blocks' ``dt``."""
+        return self.soms.dt
 
 
 # ----------------------------------------------------------------------------------------
@@ -128,31 +147,6 @@ class SweepPolicy:
         d_pan, d_tilt = new - self.target
         self.target = new
         return np.clip(gaze_degrees_to_action(d_pan, d_tilt), -1, 1).astype(np.float32)
-
-
-# ----------------------------------------------------------------------------------------
-# The model
-
-
-def _params(cfg: DetectionConfig) -> tuple[SOMSParams, ProtoObjectParams]:
-    soms = SOMSParams(
-        kernel_size=cfg.kernel_size,
-        sigma_c=cfg.sigma_c,
-        sigma_s=cfg.sigma_s,
-        tau_mem=cfg.tau_soms,
-        alpha=cfg.alpha,
-        dt=cfg.step_s,
-    )
-    proto = ProtoObjectParams(
-        r0=cfg.r0,
-        rho=cfg.rho,
-        w=cfg.w,
-        levels=cfg.levels,
-        tau_mem=cfg.tau_proto,
-        dt=cfg.step_s,
-        polarity_split=cfg.polarity_split,
-    )
-    return soms, proto
 
 
 # ----------------------------------------------------------------------------------------
@@ -209,13 +203,13 @@ def run_trial(cfg: DetectionConfig, spec: TrialSpec) -> dict[str, Any]:
     """One scene / speed / seed: record, then score with and without the proto stage."""
     scene, speed = str(spec.params["scene"]), float(spec.params["camera_speed_deg_s"])
     seq, speed_meas = record_sequence(cfg, scene, speed, spec.seed)
-    soms, proto = _params(cfg)
     protocol = ProtocolConfig(box=cfg.box)
     warm = round(cfg.warmup_s * 1e6)
     baseline = SaliencyPipeline(
-        soms, saliency="oms_density", density_sigma_px=cfg.baseline_sigma_px
+        cfg.soms, saliency="oms_density", density_sigma_px=cfg.baseline_sigma_px
     )
-    with_proto = _means(evaluate_sequence(seq, SaliencyPipeline(soms, proto), protocol), warm)
+    proto = SaliencyPipeline(cfg.soms, cfg.proto)
+    with_proto = _means(evaluate_sequence(seq, proto, protocol), warm)
     without = _means(evaluate_sequence(seq, baseline, protocol), warm)
     n_windows = len(seq.windows)
     return {
@@ -323,7 +317,7 @@ def plot(cfg: DetectionConfig, rows: list[Row], results_dir: Path, fig_dir: Path
     for ax in axes:
         ax.legend(fontsize=7)
     fig.suptitle(
-        f"Detection against camera speed (α = {cfg.alpha:g}, {cfg.duration_s:g} s per trial, "
+        f"Detection against camera speed (α = {cfg.soms.alpha:g}, {cfg.duration_s:g} s per trial, "
         "means over windows and repeats)",
         fontsize=10,
     )

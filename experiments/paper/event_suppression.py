@@ -21,9 +21,9 @@ events kept and of the background's events kept.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import gymnasium as gym
 import numpy as np
@@ -53,34 +53,63 @@ __all__ = [
     "hand_hit",
     "is_active",
     "pooled_mean_std",
+    "soms_preset",
 ]
+
+#: The named sOMS blocks of ``soms=...``: the paper's table, or the agent's default.
+SOMSPreset = Literal["table", "agent"]
+
+
+def soms_preset(name: str, dt: float = 0.02) -> SOMSParams:
+    """The sOMS block ``name`` at step ``dt``: ``"table"`` the paper's table (min-max norm),
+    ``"agent"`` the agent's default (:data:`agents.attention.AGENT_SOMS`).
+
+    >>> soms_preset("table").norm, soms_preset("agent").norm, soms_preset("agent").dt
+    ('minmax', 'quantile', 0.02)
+    """
+    if name == "agent":
+        from agents.attention import AGENT_SOMS
+
+        return replace(AGENT_SOMS, dt=dt)
+    if name == "table":
+        return SOMSParams(dt=dt)
+    raise ValueError(f"soms must be a parameter block or 'table' or 'agent', got {name!r}")
 
 
 @dataclass(frozen=True)
 class EventSuppressionConfig:
     """Defaults: the paper's (2 ms windows, 10 trials, sOMS table values); the scene,
-    phase lengths and trial length are ours (the paper gives none)."""
+    phase lengths and trial length are ours (the paper gives none).
+
+    ``soms`` is the sOMS block (``--set soms.alpha=0.6``) or a preset name
+    (:func:`soms_preset`: ``--set soms=agent`` runs the agent's sOMS); its ``dt`` is the
+    sOMS step, a whole number of ``window_s`` windows. The former flat keys are still
+    read (:data:`CONFIG_ALIASES`: ``alpha`` sets ``soms.alpha``, ``soms_step_s``
+    ``soms.dt``)."""
+
+    CONFIG_ALIASES: ClassVar[dict[str, str]] = {
+        "soms_step_s": "soms.dt",
+        "kernel_size": "soms.kernel_size",
+        "sigma_c": "soms.sigma_c",
+        "sigma_s": "soms.sigma_s",
+        "tau_mem": "soms.tau_mem",
+        "alpha": "soms.alpha",
+    }
 
     scene: str = "hand"
     dvs: str = "speck"
     duration_s: float = 3.0
     window_s: float = 0.002
-    soms_step_s: float = 0.02
     active_s: float = 1.0
     pause_s: float = 0.5
     shake: str = "fixational"
     repeats: int = 10
-    kernel_size: int = 8
-    sigma_c: float = 1.0
-    sigma_s: float = 4.0
-    tau_mem: float = 0.02
-    alpha: float = 0.80
-    soms: Literal["table", "agent"] = "table"
+    soms: SOMSParams | SOMSPreset = field(default_factory=lambda: soms_preset("table"))
     hit_sigma_px: float = 2.0
 
     def __post_init__(self) -> None:
-        if self.soms not in ("table", "agent"):
-            raise ValueError(f"soms must be 'table' or 'agent', got {self.soms!r}")
+        if isinstance(self.soms, str):  # a preset name: its block
+            object.__setattr__(self, "soms", soms_preset(self.soms))
         for name in ("duration_s", "window_s", "active_s", "hit_sigma_px"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
@@ -96,11 +125,20 @@ class EventSuppressionConfig:
         k = self.soms_step_s / self.window_s
         if abs(k - round(k)) > 1e-9 or round(k) < 1:
             raise ValueError(
-                f"soms_step_s={self.soms_step_s} must be a whole number of windows "
+                f"soms.dt={self.soms_step_s} must be a whole number of windows "
                 f"(window_s={self.window_s})"
             )
 
-        soms_params(self)  # the sOMS parameters validate themselves
+    @property
+    def soms_step_s(self) -> float:
+        """One sOMS step, seconds (``soms.dt``)."""
+        return self.soms_params.dt
+
+    @property
+    def soms_params(self) -> SOMSParams:
+        """The sOMS block (``soms``, a preset name resolved)."""
+        assert isinstance(self.soms, SOMSParams)
+        return self.soms
 
     @property
     def windows_per_step(self) -> int:
@@ -189,24 +227,6 @@ def hand_hit(oms: np.ndarray, hand: np.ndarray, sigma_px: float, box: int = 8) -
     return point is not None and detection_hit(point, hand, box)
 
 
-def soms_params(cfg: EventSuppressionConfig) -> SOMSParams:
-    """The sOMS of the trial: ``soms="table"`` the paper's table with this config's
-    kernel, τ and α (min-max norm); ``"agent"`` the agent's default sOMS
-    (``AgentParams().soms``, the kernel and α fields unused); ``dt`` = ``soms_step_s``."""
-    if cfg.soms == "agent":
-        from agents.attention import AgentParams
-
-        return replace(AgentParams().soms, dt=cfg.soms_step_s)
-    return SOMSParams(
-        kernel_size=cfg.kernel_size,
-        sigma_c=cfg.sigma_c,
-        sigma_s=cfg.sigma_s,
-        tau_mem=cfg.tau_mem,
-        alpha=cfg.alpha,
-        dt=cfg.soms_step_s,
-    )
-
-
 def run_trial(cfg: EventSuppressionConfig, spec: TrialSpec) -> dict[str, Any]:
     """One trial: shake + hand with pauses, sOMS per window; counts in and out."""
     n = round(cfg.duration_s / cfg.window_s)
@@ -225,7 +245,7 @@ def run_trial(cfg: EventSuppressionConfig, spec: TrialSpec) -> dict[str, Any]:
             PausedTrajectory(tr, cfg.active_s, cfg.pause_s) for tr in anim.trajectories
         )
         policy = GazePolicy(cfg.shake, spec.seed + 1, cfg.window_s, 0.5)
-        soms = SOMS(soms_params(cfg))
+        soms = SOMS(cfg.soms_params)
         ins = np.zeros(n, np.int64)
         outs = np.zeros(n, np.int64)
         obj_in = obj_out = bg_in = bg_out = 0
@@ -380,10 +400,11 @@ def plot(
     axes[1].set_xticks(range(len(rows)))
     axes[1].legend(loc="lower right")
     axes[1].set_title("events suppressed per trial", fontsize=9)
-    sp = soms_params(cfg)
-    which = (
-        "paper-literal sOMS (min-max)" if cfg.soms == "table" else f"agent's sOMS ({sp.norm} norm)"
-    )
+    sp = cfg.soms_params
+    if sp == soms_preset("agent", sp.dt):
+        which = f"agent's sOMS ({sp.norm} norm)"
+    else:
+        which = "paper-literal sOMS (min-max)" if sp.norm == "minmax" else f"sOMS ({sp.norm} norm)"
     fig.suptitle(
         f"Event suppression by the {which}, α = {sp.alpha:g}: events in and out per "
         f"{cfg.window_s * 1000:g} ms",

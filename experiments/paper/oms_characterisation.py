@@ -32,9 +32,9 @@ from __future__ import annotations
 
 import math
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -59,6 +59,7 @@ __all__ = [
     "grating_scene",
     "isi_stats",
     "mfr_stats",
+    "with_kernel",
 ]
 
 Kernel = tuple[float, float, int]
@@ -67,10 +68,23 @@ Kernel = tuple[float, float, int]
 @dataclass(frozen=True)
 class OMSCharacterisationConfig:
     """Defaults: the paper's protocol (4 s clips, sOMS updated every 20 ms, IEBCS DVS
-    settings, its kernel sweep; sOMS table values) on the ``gratings`` scene's stimulus."""
+    settings, its kernel sweep; sOMS table values) on the ``gratings`` scene's stimulus.
+
+    ``soms`` is the sOMS block (``--set soms.alpha=0.6``); its ``dt`` is the step
+    (:attr:`step_s`), and the kernel group replaces its kernel fields. The former flat keys
+    are still read (:data:`CONFIG_ALIASES`: ``alpha`` sets ``soms.alpha``, ``step_s``
+    ``soms.dt``)."""
+
+    CONFIG_ALIASES: ClassVar[dict[str, str]] = {
+        "step_s": "soms.dt",
+        "kernel_size": "soms.kernel_size",
+        "sigma_c": "soms.sigma_c",
+        "sigma_s": "soms.sigma_s",
+        "tau_mem": "soms.tau_mem",
+        "alpha": "soms.alpha",
+    }
 
     duration_s: float = 4.0
-    step_s: float = 0.02
     dvs: str = "paper"
     modes: tuple[str, ...] = GRATING_MODES
     background_cycles_per_deg: float = 0.05
@@ -108,11 +122,7 @@ class OMSCharacterisationConfig:
         (8.0, 16.0, 32),
     )
     groups: tuple[str, ...] = ("mode", "frequency", "speed", "kernel")
-    kernel_size: int = 8
-    sigma_c: float = 1.0
-    sigma_s: float = 4.0
-    tau_mem: float = 0.02
-    alpha: float = 0.80
+    soms: SOMSParams = field(default_factory=lambda: SOMSParams(dt=0.02))
     repeats: int = 1
 
     def __post_init__(self) -> None:
@@ -129,15 +139,23 @@ class OMSCharacterisationConfig:
             raise ValueError(f"groups must be among mode, frequency, speed, kernel; got {bad}")
         if self.repeats < 1:
             raise ValueError(f"repeats must be >= 1, got {self.repeats}")
-        for sc, ss, k in ((self.sigma_c, self.sigma_s, self.kernel_size), *self.kernels):
-            SOMSParams(  # validates
-                kernel_size=k,
-                sigma_c=sc,
-                sigma_s=ss,
-                tau_mem=self.tau_mem,
-                alpha=self.alpha,
-                dt=self.step_s,
-            )
+        for k in self.kernels:
+            with_kernel(self.soms, k)  # validates
+
+    @property
+    def step_s(self) -> float:
+        """One step (one sOMS update), seconds: ``soms.dt``."""
+        return self.soms.dt
+
+
+def with_kernel(params: SOMSParams, kernel: Kernel) -> SOMSParams:
+    """``params`` with the kernel ``(sigma_c, sigma_s, kernel_size)`` of the kernel group.
+
+    >>> with_kernel(SOMSParams(), (2.0, 8.0, 16)).kernel_size
+    16
+    """
+    sigma_c, sigma_s, size = kernel
+    return replace(params, sigma_c=float(sigma_c), sigma_s=float(sigma_s), kernel_size=int(size))
 
 
 # ----------------------------------------------------------------------------------------
@@ -214,7 +232,7 @@ def grid(cfg: OMSCharacterisationConfig) -> list[dict[str, Any]]:
     """The trial conditions, group by group (see the module docstring)."""
     f0 = (cfg.background_cycles_per_deg, cfg.object_cycles_per_deg)
     v0 = (cfg.background_speed_deg_s, cfg.object_speed_deg_s)
-    k0 = (cfg.sigma_c, cfg.sigma_s, cfg.kernel_size)
+    k0 = (cfg.soms.sigma_c, cfg.soms.sigma_s, cfg.soms.kernel_size)
     out: list[dict[str, Any]] = []
     for group in cfg.groups:
         if group == "mode":
@@ -251,16 +269,8 @@ def run_trial(cfg: OMSCharacterisationConfig, spec: TrialSpec) -> dict[str, Any]
         float(p["background_deg_s"]),
         float(p["object_deg_s"]),
     )
-    soms = SOMS(
-        SOMSParams(
-            kernel_size=int(p["kernel_size"]),
-            sigma_c=float(p["sigma_c"]),
-            sigma_s=float(p["sigma_s"]),
-            tau_mem=cfg.tau_mem,
-            alpha=cfg.alpha,
-            dt=cfg.step_s,
-        )
-    )
+    kernel = (float(p["sigma_c"]), float(p["sigma_s"]), int(p["kernel_size"]))
+    soms = SOMS(with_kernel(cfg.soms, kernel))
     n = round(cfg.duration_s / cfg.step_s)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "gratings_variant.yaml"
