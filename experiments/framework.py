@@ -45,7 +45,6 @@ import yaml
 
 from wander_env.config import ConfigError, coerce, parse_sets, validate
 from wander_env.runinfo import run_record, write_json
-from wander_env.viz import save_figure
 
 __all__ = [
     "EXPERIMENT_NAMES",
@@ -66,7 +65,6 @@ __all__ = [
     "resolve_config",
     "run_experiment",
     "run_spec",
-    "save_figure",
     "trial_id",
     "write_csv",
     "write_result_folder",

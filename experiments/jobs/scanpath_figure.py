@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from agents.fixation import pixel_to_rotation
-from experiments.framework import save_figure
+from wander_env.viz import save_figure
 
 
 @dataclass(frozen=True)

@@ -38,11 +38,12 @@ from experiments.benchmark.protocol import (
     evaluate_sequence,
     paper_reference,
 )
-from experiments.framework import Comparison, Experiment, Row, TrialSpec, save_figure
+from experiments.framework import Comparison, Experiment, Row, TrialSpec
 from experiments.stats import mean_std
 from wander_env.env import WanderConfig
 from wander_env.events import concatenate
 from wander_env.ptu import FLIR_RESOLUTION_ARCSEC, PTUParams
+from wander_env.viz import save_figure
 
 __all__ = [
     "EXPERIMENT",

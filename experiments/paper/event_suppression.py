@@ -34,16 +34,10 @@ import wander_env  # noqa: F401  (registers the environments)
 from agents.proto_object import saliency_argmax
 from agents.soms import SOMS, SOMSParams
 from experiments.benchmark.protocol import PAPER_SUPPRESSION
-from experiments.framework import (
-    Comparison,
-    Experiment,
-    Row,
-    TrialSpec,
-    load_artifacts,
-    save_figure,
-)
+from experiments.framework import Comparison, Experiment, Row, TrialSpec, load_artifacts
 from experiments.jobs.record import GazePolicy
 from wander_env.metrics import detection_hit
+from wander_env.viz import save_figure
 
 __all__ = [
     "EXPERIMENT",

@@ -42,16 +42,10 @@ import yaml
 
 import wander_env  # noqa: F401  (registers the environments)
 from agents.soms import SOMS, SOMSParams
-from experiments.framework import (
-    Comparison,
-    Experiment,
-    Row,
-    TrialSpec,
-    load_artifacts,
-    save_figure,
-)
+from experiments.framework import Comparison, Experiment, Row, TrialSpec, load_artifacts
 from wander_env.metrics import iou, precision
 from wander_env.scene_config import GRATING_MODES, assets_dir
+from wander_env.viz import save_figure
 
 __all__ = [
     "EXPERIMENT",

@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from agents.soms import SOMSParams
-from experiments.framework import Comparison, Experiment, Row, TrialSpec, save_figure
+from experiments.framework import Comparison, Experiment, Row, TrialSpec
 from experiments.paper.oms_family import (
     OBJECT_KEPT_BAR,
     PRECISION_BAR,
@@ -63,6 +63,7 @@ from experiments.paper.oms_stimuli import (
     family,
     split,
 )
+from wander_env.viz import save_figure
 
 __all__ = ["EXPERIMENT", "OMSScorecardConfig", "variants"]
 

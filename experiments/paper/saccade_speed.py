@@ -39,14 +39,7 @@ import numpy as np
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
 from agents.fixation import FixationParams
-from experiments.framework import (
-    Comparison,
-    Experiment,
-    Row,
-    TrialSpec,
-    load_artifacts,
-    save_figure,
-)
+from experiments.framework import Comparison, Experiment, Row, TrialSpec, load_artifacts
 from experiments.jobs.run_agent import run_closed_loop
 from experiments.paper import main_sequence
 from experiments.paper.speed_study import AXIS_LABELS, plot_surfaces
@@ -54,6 +47,7 @@ from experiments.stats import mean_ci, mean_std, paired_comparison
 from wander_env.env import WanderConfig
 from wander_env.metrics import SPECK_HFOV_DEG, focal_length_px
 from wander_env.ptu import PTUParams, degrees_to_positions, move_duration, peak_speed
+from wander_env.viz import save_figure
 
 __all__ = [
     "EXPERIMENT",

@@ -61,14 +61,7 @@ import numpy as np
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
 from experiments import scanpath_stats
-from experiments.framework import (
-    Comparison,
-    Experiment,
-    Row,
-    TrialSpec,
-    load_artifacts,
-    save_figure,
-)
+from experiments.framework import Comparison, Experiment, Row, TrialSpec, load_artifacts
 from experiments.jobs.run_agent import run_closed_loop
 from experiments.jobs.scanpath_figure import pixel_to_angles, saliency_mosaic, show_mosaic
 from experiments.stats import mean_std
@@ -76,6 +69,7 @@ from wander_env.camera import cast_pixel
 from wander_env.env import WanderConfig
 from wander_env.metrics import SPECK_HFOV_DEG, focal_length_px
 from wander_env.mjcf import object_body_name
+from wander_env.viz import save_figure
 
 __all__ = [
     "EXPERIMENT",

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from experiments.framework import save_figure
+from wander_env.viz import save_figure
 
 __all__ = ["PANELS", "Surface", "plot_surfaces", "surface"]
 
