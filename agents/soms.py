@@ -76,6 +76,7 @@ from agents.kernels import FFTConv2d, SeparableConv2d, gaussian_kernel, gaussian
 
 __all__ = [
     "SOMS",
+    "TABLE_FIELDS",
     "MapLayer",
     "SOMSOutput",
     "SOMSParams",
@@ -211,6 +212,10 @@ class SOMSParams:
         if self.conv not in ("direct", "fft"):
             raise ValueError(f"conv must be 'direct' or 'fft', got {self.conv!r}")
         tau_steps(self.tau_mem, self.dt)
+
+
+#: The :class:`SOMSParams` fields the paper's parameter table gives (with ``dt``, the step).
+TABLE_FIELDS: tuple[str, ...] = ("kernel_size", "sigma_c", "sigma_s", "tau_mem", "alpha")
 
 
 @dataclass(frozen=True)

@@ -52,6 +52,7 @@ __all__ = [
     "ConfigError",
     "aliases_of",
     "allowed_keys",
+    "block_aliases",
     "check_annotated",
     "check_fields",
     "coerce",
@@ -149,6 +150,16 @@ def aliases_of(cls: Any) -> dict[str, tuple[str, ...]]:
     """
     raw = getattr(cls, "CONFIG_ALIASES", None) or {}
     return {k: (v,) if isinstance(v, str) else tuple(v) for k, v in raw.items()}
+
+
+def block_aliases(block: str, names: Iterable[str]) -> dict[str, str]:
+    """``CONFIG_ALIASES`` entries for flat keys that moved, under the same names, into the
+    nested block ``block``.
+
+    >>> block_aliases("soms", ("alpha", "sigma_c"))
+    {'alpha': 'soms.alpha', 'sigma_c': 'soms.sigma_c'}
+    """
+    return {name: f"{block}.{name}" for name in names}
 
 
 def _unalias(cls: Any, values: Mapping[str, Any]) -> dict[str, Any]:

@@ -40,6 +40,7 @@ from experiments.benchmark.protocol import (
 )
 from experiments.framework import Comparison, Experiment, Row, TrialSpec
 from experiments.stats import mean_std
+from wander_env.config import block_aliases
 from wander_env.env import WanderConfig
 from wander_env.events import concatenate
 from wander_env.ptu import FLIR_RESOLUTION_ARCSEC, PTUParams
@@ -65,17 +66,10 @@ class DetectionConfig:
 
     CONFIG_ALIASES: ClassVar[dict[str, str | tuple[str, ...]]] = {
         "step_s": ("soms.dt", "proto.dt"),
-        "kernel_size": "soms.kernel_size",
-        "sigma_c": "soms.sigma_c",
-        "sigma_s": "soms.sigma_s",
+        **block_aliases("soms", ("kernel_size", "sigma_c", "sigma_s", "alpha")),
         "tau_soms": "soms.tau_mem",
-        "alpha": "soms.alpha",
-        "r0": "proto.r0",
-        "rho": "proto.rho",
-        "w": "proto.w",
-        "levels": "proto.levels",
+        **block_aliases("proto", ("r0", "rho", "w", "levels", "polarity_split")),
         "tau_proto": "proto.tau_mem",
-        "polarity_split": "proto.polarity_split",
     }
 
     scenes: tuple[str, ...] = ("office", "hand", "gratings")

@@ -32,10 +32,11 @@ from scipy.ndimage import gaussian_filter
 
 import wander_env  # noqa: F401  (registers the environments)
 from agents.proto_object import saliency_argmax
-from agents.soms import SOMS, SOMSParams
+from agents.soms import SOMS, TABLE_FIELDS, SOMSParams
 from experiments.benchmark.protocol import PAPER_SUPPRESSION
 from experiments.framework import Comparison, Experiment, Row, TrialSpec, load_artifacts
 from experiments.jobs.record import GazePolicy
+from wander_env.config import block_aliases
 from wander_env.metrics import detection_hit
 from wander_env.viz import save_figure
 
@@ -83,11 +84,7 @@ class EventSuppressionConfig:
 
     CONFIG_ALIASES: ClassVar[dict[str, str]] = {
         "soms_step_s": "soms.dt",
-        "kernel_size": "soms.kernel_size",
-        "sigma_c": "soms.sigma_c",
-        "sigma_s": "soms.sigma_s",
-        "tau_mem": "soms.tau_mem",
-        "alpha": "soms.alpha",
+        **block_aliases("soms", TABLE_FIELDS),
     }
 
     scene: str = "hand"

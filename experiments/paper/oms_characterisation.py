@@ -41,8 +41,9 @@ import numpy as np
 import yaml
 
 import wander_env  # noqa: F401  (registers the environments)
-from agents.soms import SOMS, SOMSParams
+from agents.soms import SOMS, TABLE_FIELDS, SOMSParams
 from experiments.framework import Comparison, Experiment, Row, TrialSpec, load_artifacts
+from wander_env.config import block_aliases
 from wander_env.metrics import iou, precision
 from wander_env.scene_config import GRATING_MODES, assets_dir
 from wander_env.viz import save_figure
@@ -71,11 +72,7 @@ class OMSCharacterisationConfig:
 
     CONFIG_ALIASES: ClassVar[dict[str, str]] = {
         "step_s": "soms.dt",
-        "kernel_size": "soms.kernel_size",
-        "sigma_c": "soms.sigma_c",
-        "sigma_s": "soms.sigma_s",
-        "tau_mem": "soms.tau_mem",
-        "alpha": "soms.alpha",
+        **block_aliases("soms", TABLE_FIELDS),
     }
 
     duration_s: float = 4.0
