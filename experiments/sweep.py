@@ -278,10 +278,12 @@ def local_executor(
                 row, secs = fut.result()
                 yield futures[fut], row, secs
     finally:
-        for fut in futures:
-            fut.cancel()
+        # End the workers first and leave the futures as they are: the pool's manager
+        # thread then fails every unfinished one with BrokenProcessPool and exits. (A
+        # future cancelled before the workers die makes that thread raise
+        # InvalidStateError on Python < 3.12, a traceback after the sweep's one line.)
         end_workers(list((getattr(pool, "_processes", None) or {}).values()))
-        pool.shutdown(wait=False, cancel_futures=True)
+        pool.shutdown(wait=False)
 
 
 def _repo_root() -> str:
