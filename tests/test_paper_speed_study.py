@@ -71,6 +71,8 @@ def test_surface_marginal_means_and_figure(tmp_path) -> None:
     assert sf.x.tolist() == [1000.0, 2000.0] and sf.y.tolist() == [1000.0, 8000.0]
     assert sf.n.tolist() == [[6, 6], [6, 6]]
     assert sf.mean[0, 0] == pytest.approx(2.01) and sf.mean[1, 1] == pytest.approx(0.635)
+    # the cell's 6 trials are 2.00, 2.01, 2.02 twice: the interval lies inside their range
+    assert 2.0 <= sf.low[0, 0] < 2.01 < sf.high[0, 0] <= 2.02
     # a sweep's cfg.<key> column is found as the factor
     w = surface(rows, "window_s", "fixational_n_steps", "detection_accuracy")
     assert w.mean.tolist() == [[pytest.approx(0.57)]]

@@ -6,7 +6,8 @@ same columns), :func:`surface` averages a measure over the repeats and the other
 for every pair of levels of two factors (the marginal response surface of the design),
 and :func:`plot_surfaces` draws them: time to foveate over PTU speed × acceleration and
 over fixational step × count, detection accuracy over the same pairs and over window ×
-fixational count; each panel's cells carry their mean and its number of trials.
+fixational count; each panel's cells carry their mean, its 95 % bootstrap interval
+over the cell's trials and their number.
 
 Example:
     >>> rows = [{"a": 1, "b": 10, "y": 0.5}, {"a": 1, "b": 10, "y": 1.5}]
@@ -14,6 +15,8 @@ Example:
     >>> s = surface(rows, "a", "b", "y")
     >>> s.x.tolist(), s.y.tolist(), s.mean.tolist(), s.n.tolist()
     ([1.0, 2.0], [10.0], [[1.0, 3.0]], [[2, 1]])
+    >>> s.low.tolist()  # one trial has no interval
+    [[0.5, nan]]
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from experiments.stats import mean_ci
 from wander_env.viz import save_figure
 
 __all__ = ["PANELS", "Surface", "plot_surfaces", "surface"]
@@ -49,12 +53,16 @@ AXIS_LABELS = {
 
 @dataclass(frozen=True)
 class Surface:
-    """``mean[i, j]`` and ``n[i, j]`` at ``y[i]``, ``x[j]`` (NaN, 0 where no trial)."""
+    """``mean[i, j]``, its 95 % bootstrap interval ``low[i, j]``..``high[i, j]`` and
+    ``n[i, j]`` trials at ``y[i]``, ``x[j]`` (NaN, 0 where no trial; no interval for
+    fewer than two)."""
 
     x: np.ndarray
     y: np.ndarray
     mean: np.ndarray
     n: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
 
 
 def _num(v: Any) -> float:
@@ -70,26 +78,26 @@ def _column(row: dict[str, Any], key: str) -> Any:
 
 
 def surface(rows: Sequence[dict[str, Any]], x: str, y: str, measure: str) -> Surface:
-    """The mean of ``measure`` (finite values) per level pair of factors ``x`` and ``y``."""
+    """The mean of ``measure`` (finite values) per level pair of factors ``x`` and ``y``,
+    with its seeded bootstrap interval over the pair's trials."""
     xs = sorted({_num(_column(r, x)) for r in rows} - {math.nan})
     ys = sorted({_num(_column(r, y)) for r in rows} - {math.nan})
-    total = np.zeros((len(ys), len(xs)))
-    n = np.zeros((len(ys), len(xs)), dtype=int)
+    cells: dict[tuple[int, int], list[float]] = {}
     for r in rows:
         v, vx, vy = _num(r.get(measure)), _num(_column(r, x)), _num(_column(r, y))
-        if not (math.isfinite(v) and vx in xs and vy in ys):
-            continue
-        i, j = ys.index(vy), xs.index(vx)
-        total[i, j] += v
-        n[i, j] += 1
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = np.where(n > 0, total / np.maximum(n, 1), np.nan)
-    return Surface(np.asarray(xs), np.asarray(ys), mean, n)
+        if math.isfinite(v) and vx in xs and vy in ys:
+            cells.setdefault((ys.index(vy), xs.index(vx)), []).append(v)
+    stats = np.full((4, len(ys), len(xs)), np.nan)  # mean, low, high, n
+    stats[3] = 0
+    for (i, j), values in cells.items():
+        stats[:, i, j] = mean_ci(values)
+    mean, low, high, n = stats
+    return Surface(np.asarray(xs), np.asarray(ys), mean, n.astype(int), low, high)
 
 
 def plot_surfaces(rows: Sequence[dict[str, Any]], path: Path, title: str = "") -> Path:
-    """The :data:`PANELS` as heat maps (a colour bar each, the cell means and trial
-    counts written in), into ``path``."""
+    """The :data:`PANELS` as heat maps (a colour bar each; in each cell its mean, 95 %
+    bootstrap interval and trial count), into ``path``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -108,13 +116,18 @@ def plot_surfaces(rows: Sequence[dict[str, Any]], path: Path, title: str = "") -
         ax.set_yticks(range(len(s.y)), [f"{v:g}" for v in s.y])
         ax.set_xlabel(AXIS_LABELS.get(fx, fx))
         ax.set_ylabel(AXIS_LABELS.get(fy, fy))
-        ax.set_title(f"{label}\nmean over repeats and the other factors", fontsize=9)
+        ax.set_title(
+            f"{label}\nmean [95 % bootstrap interval] over repeats and the other factors",
+            fontsize=9,
+        )
         finite = s.mean[np.isfinite(s.mean)]
         mid = float(np.mean(finite)) if finite.size else 0.0
         for i in range(len(s.y)):
             for j in range(len(s.x)):
                 m = s.mean[i, j]
-                text = "—" if math.isnan(m) else f"{m:.3g}\nn={s.n[i, j]}"
+                lo, hi = s.low[i, j], s.high[i, j]
+                ci = "" if math.isnan(lo) else f"\n[{lo:.3g}, {hi:.3g}]"
+                text = "—" if math.isnan(m) else f"{m:.3g}{ci}\nn={s.n[i, j]}"
                 colour = (
                     "white"
                     if (not math.isnan(m) and (m < mid) != (cmap == "viridis_r"))
