@@ -16,10 +16,10 @@ from experiments.cli.options import (
     FRAME_OPTIONS,
     DvsOpt,
     SceneOpt,
-    check_seconds,
     int_list,
     job_config,
     resolve_out,
+    seconds_option,
     with_options,
 )
 
@@ -37,9 +37,7 @@ def evaluate(
         ),
     ] = None,
     scene: SceneOpt = "office",
-    seconds: Annotated[
-        float, typer.Option(callback=check_seconds, help="Simulated seconds per seed.")
-    ] = 20.0,
+    seconds: Annotated[float, seconds_option("Simulated seconds per seed.")] = 20.0,
     seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
     dvs: DvsOpt = "ideal",
     **shared: Any,

@@ -57,6 +57,7 @@ __all__ = [
     "option",
     "resolve_out",
     "run_env_job",
+    "seconds_option",
     "with_options",
 ]
 
@@ -150,7 +151,15 @@ SceneOpt = Annotated[
     typer.Option(callback=check_scene, help="office, gratings, shelf, hand, or a scene YAML file."),
 ]
 DvsOpt = Annotated[str, typer.Option(callback=check_dvs, help="DVS preset: ideal, paper or speck.")]
-SecondsOpt = Annotated[float, typer.Option(callback=check_seconds, help="Simulated seconds.")]
+
+
+def seconds_option(help: str) -> Any:
+    """The ``--seconds`` option (checked: :func:`check_seconds`) with a command's own help,
+    for ``Annotated[float, seconds_option("...")]``."""
+    return typer.Option(callback=check_seconds, help=help)
+
+
+SecondsOpt = Annotated[float, seconds_option("Simulated seconds.")]
 RunDirOpt = Annotated[
     Path | None,
     typer.Option(

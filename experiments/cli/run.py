@@ -23,10 +23,10 @@ from experiments.cli.options import (
     SecondsOpt,
     VideoOpt,
     WindowOpt,
-    check_seconds,
     one_of,
     resolve_out,
     run_env_job,
+    seconds_option,
     with_options,
 )
 
@@ -35,9 +35,7 @@ __all__ = ["demo", "record", "run_agent", "view"]
 
 def demo(
     out: RunDirOpt = None,
-    seconds: Annotated[
-        float, typer.Option(callback=check_seconds, help="Simulated seconds of the stimulus.")
-    ] = 1.0,
+    seconds: Annotated[float, seconds_option("Simulated seconds of the stimulus.")] = 1.0,
     preset: DvsOpt = "paper",
     seed: Annotated[int, typer.Option(help="Seed of the stimulus and the emulator's noise.")] = 0,
     force: ForceOpt = False,
