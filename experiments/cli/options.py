@@ -1,6 +1,8 @@
 """Command-line options shared by the ``wander`` commands (the agent's flags, the
 env's ``--frames`` and ``--keyframe-ms``, scenes, presets, run folders): one definition
-of each flag, its help and its check.
+of each flag, its help and its check. Flags that several commands take together (the
+agent's switches, the frame source) are option groups, added to a command by
+:func:`with_options`.
 
 Every check runs while the command line is parsed (a Click callback), so a bad value
 is refused before any work starts, with one line naming the option, the allowed values
