@@ -11,7 +11,7 @@ from typing import Annotated
 import typer
 
 from experiments.cli.console import console, print_table
-from experiments.cli.options import KeyframeMsOpt, SceneOpt, check_seconds, frames_kwargs, int_list
+from experiments.cli.options import KeyframeMsOpt, SceneOpt, frames_kwargs, int_list, seconds_option
 
 __all__ = ["app"]
 
@@ -77,9 +77,7 @@ def bench_dvs(
 @app.command("env")
 def bench_env(
     scene: SceneOpt = "office",
-    seconds: Annotated[
-        float, typer.Option(callback=check_seconds, help="Simulated seconds per row.")
-    ] = 2.0,
+    seconds: Annotated[float, seconds_option("Simulated seconds per row.")] = 2.0,
     ground_truth: Annotated[bool, typer.Option(help="Render segmentation masks too.")] = True,
     antialias: Annotated[
         int | None, typer.Option(min=0, help="MSAA samples (overrides the scene's; 0 = off).")
@@ -98,17 +96,11 @@ def bench_env(
 
     km = frames_kwargs(None, keyframe_ms).get("keyframe_ms")
     counts = tuple(int_list(envs, "--envs", "env count", minimum=1))
+    # Every row's scene, length, antialiasing and keyframe interval.
+    common = {"scene": scene, "seconds": seconds, "antialias_samples": antialias, "keyframe_ms": km}
     if breakdown:
         parts = [
-            step_breakdown(
-                scene=scene,
-                dvs=d,
-                seconds=seconds,
-                antialias_samples=antialias,
-                frames=f,
-                keyframe_ms=km,
-                keyframe_px=px,
-            )
+            step_breakdown(dvs=d, frames=f, keyframe_px=px, **common)
             for d in ("ideal", "speck")
             for f, px in (("exact", None), ("keyframes", None), ("keyframes", keyframe_px))
         ]
@@ -130,15 +122,7 @@ def bench_env(
                 "other_ms": ".2f",
             },
         )
-    rows = run(
-        scene=scene,
-        seconds=seconds,
-        ground_truth=ground_truth,
-        antialias_samples=antialias,
-        keyframe_ms=km,
-        env_counts=counts,
-        keyframe_px=keyframe_px,
-    )
+    rows = run(ground_truth=ground_truth, env_counts=counts, keyframe_px=keyframe_px, **common)
     print_table(
         f"Environment, scene '{scene}': exact, keyframe and adaptive-keyframe frames "
         f"({keyframe_px:g} px), stepped in turn (real-time factor = simulated s / wall s; "
@@ -169,9 +153,7 @@ def bench_env(
 @app.command("agent")
 def bench_agent(
     scene: SceneOpt = "office",
-    seconds: Annotated[
-        float, typer.Option(callback=check_seconds, help="Simulated seconds of closed loop.")
-    ] = 5.0,
+    seconds: Annotated[float, seconds_option("Simulated seconds of closed loop.")] = 5.0,
     seed: Annotated[int, typer.Option(help="Seed of the env and the agent.")] = 0,
     keyframe_ms: KeyframeMsOpt = None,
 ) -> None:

@@ -40,6 +40,7 @@ from experiments.benchmark.runner import (
 )
 from experiments.cli.console import progress_bars
 from experiments.cli.errors import fail
+from experiments.cli.options import option, with_options
 
 app = typer.Typer(
     help="Benchmarks on real event datasets: sOMS maps against masks (IoU, precision, SSIM), "
@@ -228,20 +229,34 @@ StdOverOpt = Annotated[
 ]
 
 
-def _model_config(streamlined: bool, alpha: float | None) -> Any:
-    """The benchmark model's :class:`ModelConfig` (``alpha`` None: the paper's 0.80)."""
+# The flags of the benchmark model (every command), of the run (every command) and of the
+# dataset commands (evimo, llevos; in the order run.json lists them, threads and
+# progress aside).
+MAX_WINDOWS = option("max_windows", MaxWindowsOpt, None)
+MODEL_OPTIONS = (option("streamlined", StreamlinedOpt, False), option("alpha", AlphaOpt, None))
+RUN_OPTIONS = (option("threads", ThreadsOpt, None), option("progress", ProgressOpt, True))
+DATASET_OPTIONS = (
+    option("max_sequences", MaxSequencesOpt, None),
+    MAX_WINDOWS,
+    *MODEL_OPTIONS,
+    option("std_over", StdOverOpt, "sequences"),
+)
+
+
+def _model_config(flags: dict[str, Any]) -> Any:
+    """The benchmark model's :class:`ModelConfig` of the command's ``--streamlined`` and
+    ``--alpha`` (None: the paper's 0.80)."""
     from experiments.benchmark.model import ModelConfig
 
-    return ModelConfig(streamlined=streamlined, **({} if alpha is None else {"alpha": alpha}))
+    alpha = flags["alpha"]
+    return ModelConfig(
+        streamlined=flags["streamlined"], **({} if alpha is None else {"alpha": alpha})
+    )
 
 
 def _check_std_over(std_over: str) -> None:
     if std_over not in ("sequences", "windows"):
         raise typer.BadParameter(f"--std-over must be 'sequences' or 'windows', got {std_over!r}")
-
-
-# The options every dataset command (evimo, llevos) shares, in the order run.json lists them.
-DATASET_OPTIONS = ("max_sequences", "max_windows", "streamlined", "alpha", "std_over")
 
 
 def _score_dataset(
@@ -253,8 +268,8 @@ def _score_dataset(
 ) -> None:
     """Score a dataset's sequences with the benchmark model and write its results folder.
 
-    ``flags`` are the command's (its ``locals()``: ``path``, ``out`` and the shared
-    :data:`DATASET_OPTIONS`, ``threads``, ``progress``); ``options`` its own, for
+    ``flags`` are the command's (``path``, ``out`` and the shared :data:`DATASET_OPTIONS`
+    and :data:`RUN_OPTIONS`); ``options`` its own, for
     ``run.json``; ``load(max_sequences)`` finds the sequences and counts them.
     """
     from experiments.benchmark.protocol import ProtocolConfig
@@ -263,9 +278,9 @@ def _score_dataset(
     _check_std_over(std_over)
     started = time.monotonic()
     _set_threads(flags["threads"])
-    model = _model_config(flags["streamlined"], flags["alpha"])
+    model = _model_config(flags)
     config = {"dataset": dataset, "path": str(flags["path"]), **options}
-    config.update({k: flags[k] for k in DATASET_OPTIONS}, alpha=model.alpha)
+    config.update({p.name: flags[p.name] for p in DATASET_OPTIONS}, alpha=model.alpha)
     out = flags["out"] or Path(f"runs/benchmark-{dataset}")
     sampler = WindowSampler()
     try:
@@ -295,6 +310,7 @@ def _score_dataset(
 
 
 @app.command("evimo")
+@with_options(DATASET_OPTIONS, RUN_OPTIONS)
 def evimo(
     path: Annotated[
         Path,
@@ -315,13 +331,7 @@ def evimo(
         int | None,
         typer.Option(min=1, help="Window length in µs (default: median mask spacing)."),
     ] = None,
-    max_sequences: MaxSequencesOpt = None,
-    max_windows: MaxWindowsOpt = None,
-    streamlined: StreamlinedOpt = False,
-    alpha: AlphaOpt = None,
-    std_over: StdOverOpt = "sequences",
-    threads: ThreadsOpt = None,
-    progress: ProgressOpt = True,
+    **shared: Any,
 ) -> None:
     """EVIMO: per-subset accuracy, IoU, precision, SSIM beside the paper's Table."""
     from experiments.benchmark.datasets.evimo import find_evimo_sequences, load_evimo_sequence
@@ -333,10 +343,11 @@ def evimo(
         return (load_evimo_sequence(s, window_mode, window_us) for s in sources), len(sources)
 
     options = {"subsets": subset, "window_mode": window_mode, "window_us": window_us}
-    _score_dataset("EVIMO", "evimo", load, locals(), options)
+    _score_dataset("EVIMO", "evimo", load, {"path": path, "out": out, **shared}, options)
 
 
 @app.command("llevos")
+@with_options(DATASET_OPTIONS, RUN_OPTIONS)
 def llevos(
     path: Annotated[
         Path,
@@ -351,13 +362,7 @@ def llevos(
     ] = None,
     time_unit: Annotated[str, typer.Option(help="Unit of t in the event files.")] = "us",
     npy_columns: Annotated[str, typer.Option(help="Column order of (N, 4) event arrays.")] = "xytp",
-    max_sequences: MaxSequencesOpt = None,
-    max_windows: MaxWindowsOpt = None,
-    streamlined: StreamlinedOpt = False,
-    alpha: AlphaOpt = None,
-    std_over: StdOverOpt = "sequences",
-    threads: ThreadsOpt = None,
-    progress: ProgressOpt = True,
+    **shared: Any,
 ) -> None:
     """LLE-VOS: accuracy mean ± std over sequences beside the paper's 53.3 % ± 25.56."""
     from experiments.benchmark.datasets.llevos import (
@@ -374,10 +379,11 @@ def llevos(
         return itertools.islice(load_llevos(path, sequence, cfg), n), n
 
     options = {"sequences": sequence, "time_unit": time_unit, "npy_columns": npy_columns}
-    _score_dataset("LLE-VOS", "llevos", load, locals(), options)
+    _score_dataset("LLE-VOS", "llevos", load, {"path": path, "out": out, **shared}, options)
 
 
 @app.command("events")
+@with_options((MAX_WINDOWS, *MODEL_OPTIONS), RUN_OPTIONS)
 def events(
     file: Annotated[
         Path, typer.Argument(help="Event file: .npz, .h5, .npy (x, y, t µs, p), .aedat4, .aedat.")
@@ -407,9 +413,6 @@ def events(
         str | None,
         typer.Option(help="X,Y: place masks unscaled at this offset (default: resize)."),
     ] = None,
-    max_windows: MaxWindowsOpt = None,
-    streamlined: StreamlinedOpt = False,
-    alpha: AlphaOpt = None,
     suppression: Annotated[
         bool,
         typer.Option(
@@ -417,24 +420,24 @@ def events(
             help="Also measure the fraction of events sOMS suppresses (windows of the masks).",
         ),
     ] = True,
-    threads: ThreadsOpt = None,
-    progress: ProgressOpt = True,
+    **shared: Any,
 ) -> None:
     """Any event file + a mask folder: hit rate, IoU, precision, SSIM, sOMS suppression."""
     from experiments.benchmark.datasets.generic import load_generic
     from experiments.benchmark.protocol import ProtocolConfig
     from wander_env.events import time_window
 
+    max_windows, progress = shared["max_windows"], shared["progress"]
     started = time.monotonic()
     sensor_size = parse_sensor(sensor) if sensor else None
     offset = parse_offset(mask_offset) if mask_offset else None
     seq_name = name or default_name(file)
     out = out or Path(f"runs/benchmark-events-{seq_name}")
-    _set_threads(threads)
+    _set_threads(shared["threads"])
     try:
         seq = load_generic(file, masks, sensor_size, window_us, name=seq_name, subset="events")
         seq = limit_windows(seq, max_windows)
-        model = _model_config(streamlined, alpha)
+        model = _model_config(shared)
         sampler = WindowSampler()
         rows, notes, dts = _run_sequences(
             [seq], 1, "events", model, ProtocolConfig(mask_offset_xy=offset), None, progress,
@@ -462,7 +465,7 @@ def events(
         "window_us": window_us,
         "mask_offset_xy": offset,
         "max_windows": max_windows,
-        "streamlined": streamlined,
+        "streamlined": shared["streamlined"],
         "alpha": model.alpha,
         "suppression": suppression,
         "model_dt_s": dts,
@@ -483,6 +486,7 @@ def events(
 
 
 @app.command("suppression")
+@with_options(MODEL_OPTIONS, RUN_OPTIONS)
 def suppression(
     paths: Annotated[
         list[Path],
@@ -500,10 +504,7 @@ def suppression(
         int | None,
         typer.Option("--max-windows", "--limit", min=1, help="Only the first N steps of each."),
     ] = None,
-    streamlined: StreamlinedOpt = False,
-    alpha: AlphaOpt = None,
-    threads: ThreadsOpt = None,
-    progress: ProgressOpt = True,
+    **shared: Any,
 ) -> None:
     """Fraction of events sOMS suppresses on recordings without masks (e.g. ego-motion only)."""
     from wander_env.event_io import read_events
@@ -512,7 +513,7 @@ def suppression(
     started = time.monotonic()
     sensor_size = parse_sensor(sensor) if sensor else None
     out = out or Path("runs/benchmark-suppression")
-    _set_threads(threads)
+    _set_threads(shared["threads"])
     notes: dict[str, list[str]] = {}
     try:
         files = event_files(paths)
@@ -531,8 +532,8 @@ def suppression(
                 ev = time_window(ev, t0, t0 + max_windows * window_us)
                 notes[f.stem].append(f"limited to the first {max_windows} windows")
             recs.append((f.stem, ev, rec.sensor_size))
-        model = _model_config(streamlined, alpha)
-        results = _run_suppression(recs, window_us, model, progress)
+        model = _model_config(shared)
+        results = _run_suppression(recs, window_us, model, shared["progress"])
     except (ValueError, OSError) as err:
         raise _fail(err) from None
     config = {
@@ -541,7 +542,7 @@ def suppression(
         "sensor": {n: list(s) for n, _, s in recs},
         "window_us": window_us,
         "max_windows": max_windows,
-        "streamlined": streamlined,
+        "streamlined": shared["streamlined"],
         "alpha": model.alpha,
     }
     md = write_suppression_outputs(

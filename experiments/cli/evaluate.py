@@ -5,31 +5,29 @@ folder per seed). :mod:`experiments.cli.main` registers it.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
 from experiments.cli.console import print_table, progress_bars
 from experiments.cli.errors import long_command
 from experiments.cli.options import (
-    AgentAlphaOpt,
+    AGENT_OPTIONS,
+    FRAME_OPTIONS,
     DvsOpt,
-    ForceOpt,
-    FramesOpt,
-    KeyframeMsOpt,
     SceneOpt,
-    SomsNormOpt,
-    StreamlinedOpt,
-    check_seconds,
     int_list,
     job_config,
     resolve_out,
+    seconds_option,
+    with_options,
 )
 
 __all__ = ["evaluate"]
 
 
 @long_command("wander evaluate")
+@with_options(AGENT_OPTIONS, FRAME_OPTIONS)
 def evaluate(
     out: Annotated[
         Path | None,
@@ -39,25 +37,18 @@ def evaluate(
         ),
     ] = None,
     scene: SceneOpt = "office",
-    seconds: Annotated[
-        float, typer.Option(callback=check_seconds, help="Simulated seconds per seed.")
-    ] = 20.0,
+    seconds: Annotated[float, seconds_option("Simulated seconds per seed.")] = 20.0,
     seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
     dvs: DvsOpt = "ideal",
-    streamlined: StreamlinedOpt = False,
-    alpha: AgentAlphaOpt = None,
-    force: ForceOpt = False,
-    soms_norm: SomsNormOpt = "quantile",
-    frames: FramesOpt = None,
-    keyframe_ms: KeyframeMsOpt = None,
+    **shared: Any,
 ) -> None:
     """The agent's quality in simulation: detection accuracy, suppression, foveation error."""
     from experiments.jobs.evaluate_agent import evaluate as run_eval
     from experiments.jobs.run_agent import RunConfig
 
     seed_list = int_list(seeds, "--seeds", "seed")
-    out = resolve_out(out, "evaluate", force)
-    config = job_config(RunConfig, locals(), video=False)
+    out = resolve_out(out, "evaluate", shared["force"])
+    config = job_config(RunConfig, {**locals(), **shared}, video=False)
     with progress_bars() as bar:
         task = bar.add_task("evaluate", total=round(seconds / 0.01) * len(seed_list))
         done = {s: 0 for s in seed_list}

@@ -1,6 +1,8 @@
 """Command-line options shared by the ``wander`` commands (the agent's flags, the
 env's ``--frames`` and ``--keyframe-ms``, scenes, presets, run folders): one definition
-of each flag, its help and its check.
+of each flag, its help and its check. Flags that several commands take together (the
+agent's switches, the frame source) are option groups, added to a command by
+:func:`with_options`.
 
 Every check runs while the command line is parsed (a Click callback), so a bad value
 is refused before any work starts, with one line naming the option, the allowed values
@@ -30,6 +32,8 @@ import typer
 from experiments.cli.console import step_progress
 
 __all__ = [
+    "AGENT_OPTIONS",
+    "FRAME_OPTIONS",
     "AgentAlphaOpt",
     "DvsOpt",
     "FixationalOpt",
@@ -52,8 +56,11 @@ __all__ = [
     "int_list",
     "job_config",
     "one_of",
+    "option",
     "resolve_out",
     "run_env_job",
+    "seconds_option",
+    "with_options",
 ]
 
 
@@ -146,7 +153,15 @@ SceneOpt = Annotated[
     typer.Option(callback=check_scene, help="office, gratings, shelf, hand, or a scene YAML file."),
 ]
 DvsOpt = Annotated[str, typer.Option(callback=check_dvs, help="DVS preset: ideal, paper or speck.")]
-SecondsOpt = Annotated[float, typer.Option(callback=check_seconds, help="Simulated seconds.")]
+
+
+def seconds_option(help: str) -> Any:
+    """The ``--seconds`` option (checked: :func:`check_seconds`) with a command's own help,
+    for ``Annotated[float, seconds_option("...")]``."""
+    return typer.Option(callback=check_seconds, help=help)
+
+
+SecondsOpt = Annotated[float, seconds_option("Simulated seconds.")]
 RunDirOpt = Annotated[
     Path | None,
     typer.Option(
@@ -227,6 +242,52 @@ def agent_alpha(alpha: float | None) -> dict[str, float]:
 
 
 T = TypeVar("T")
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def option(name: str, annotation: Any, default: Any) -> inspect.Parameter:
+    """One shared flag of an option group: the keyword ``name``, its ``Annotated`` alias
+    and its default (:func:`with_options`)."""
+    kind = inspect.Parameter.KEYWORD_ONLY
+    return inspect.Parameter(name, kind, default=default, annotation=annotation)
+
+
+def with_options(*groups: Sequence[inspect.Parameter]) -> Callable[[F], F]:
+    """Give a Typer command the flags of ``groups`` after its own, in order: its
+    ``**shared`` keyword receives them (Typer reads the command's signature, which
+    this sets; the flags are defined once, in their group).
+
+    >>> @with_options((option("force", ForceOpt, False),))
+    ... def command(out: RunDirOpt = None, **shared: Any) -> dict[str, Any]:
+    ...     return {"out": out, **shared}
+    >>> list(inspect.signature(command).parameters)
+    ['out', 'force']
+    >>> command(force=True)
+    {'out': None, 'force': True}
+    """
+
+    def deco(fn: F) -> F:
+        sig = inspect.signature(fn, eval_str=True)  # the aliases, not their names
+        own = [p for p in sig.parameters.values() if p.kind is not p.VAR_KEYWORD]
+        shared = [p for group in groups for p in group]
+        fn.__signature__ = sig.replace(parameters=[*own, *shared])  # type: ignore[attr-defined]
+        return fn
+
+    return deco
+
+
+# The agent's switches (``wander run``, ``wander evaluate``) and the env's frame source
+# with the run folder's --force (``wander record``, ``run``, ``evaluate``).
+AGENT_OPTIONS = (
+    option("streamlined", StreamlinedOpt, False),
+    option("alpha", AgentAlphaOpt, None),
+    option("soms_norm", SomsNormOpt, "quantile"),
+)
+FRAME_OPTIONS = (
+    option("force", ForceOpt, False),
+    option("frames", FramesOpt, None),
+    option("keyframe_ms", KeyframeMsOpt, None),
+)
 
 # Flags named otherwise than the config field they set.
 FIELD_OF_FLAG = {"window": "window_s"}
@@ -277,11 +338,17 @@ def resolve_out(out: Path | None, command: str, force: bool) -> Path:
 
 
 def run_env_job(
-    job: Callable[..., T], config: Any, out: Path | None, command: str, force: bool, title: str
+    job: Callable[..., T],
+    cls: Callable[..., Any],
+    flags: Mapping[str, Any],
+    command: str,
+    title: str,
 ) -> tuple[Path, T]:
-    """Run ``job(folder, config, progress=...)`` in a new run folder (:func:`resolve_out`)
-    under one progress bar of ``config.seconds`` in env steps of 10 ms; returns the folder
-    and what the job returned."""
-    folder = resolve_out(out, command, force)
+    """Run ``job(folder, config, progress=...)`` with the config ``cls`` of a command's
+    ``flags`` (:func:`job_config`) in a new run folder of its ``--out`` and ``--force``
+    (:func:`resolve_out`) under one progress bar of ``config.seconds`` in env steps of
+    10 ms; returns the folder and what the job returned."""
+    config = job_config(cls, flags)
+    folder = resolve_out(flags["out"], command, flags["force"])
     with step_progress(title, round(config.seconds / 0.01)) as progress:
         return folder, job(folder, config, progress=progress)

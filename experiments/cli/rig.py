@@ -27,9 +27,9 @@ from experiments.cli.options import (
     StreamlinedOpt,
     VideoOpt,
     WindowOpt,
-    check_seconds,
     job_config,
     resolve_out,
+    seconds_option,
 )
 from wander_env.shutdown import SignalExit, exit_code, record_failure
 
@@ -96,9 +96,7 @@ def rig(
             "live camera). Ignored for a Speck."
         ),
     ] = "fast",
-    seconds: Annotated[
-        float, typer.Option(callback=check_seconds, help="Run length in seconds of camera time.")
-    ] = 10.0,
+    seconds: Annotated[float, seconds_option("Run length in seconds of camera time.")] = 10.0,
     seed: Annotated[int, typer.Option(help="Seed of the agent (walk, controller).")] = 0,
     out: RunDirOpt = None,
     window: WindowOpt = 0.124,

@@ -6,31 +6,28 @@ Rerun viewer on one. :mod:`experiments.cli.main` registers them.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
 from experiments.cli.console import console, step_progress
 from experiments.cli.errors import long_command
 from experiments.cli.options import (
-    AgentAlphaOpt,
+    AGENT_OPTIONS,
+    FRAME_OPTIONS,
     DvsOpt,
     FixationalOpt,
     ForceOpt,
-    FramesOpt,
-    KeyframeMsOpt,
     RunDirOpt,
     SceneOpt,
     SecondsOpt,
-    SomsNormOpt,
-    StreamlinedOpt,
     VideoOpt,
     WindowOpt,
-    check_seconds,
-    job_config,
     one_of,
     resolve_out,
     run_env_job,
+    seconds_option,
+    with_options,
 )
 
 __all__ = ["demo", "record", "run_agent", "view"]
@@ -38,9 +35,7 @@ __all__ = ["demo", "record", "run_agent", "view"]
 
 def demo(
     out: RunDirOpt = None,
-    seconds: Annotated[
-        float, typer.Option(callback=check_seconds, help="Simulated seconds of the stimulus.")
-    ] = 1.0,
+    seconds: Annotated[float, seconds_option("Simulated seconds of the stimulus.")] = 1.0,
     preset: DvsOpt = "paper",
     seed: Annotated[int, typer.Option(help="Seed of the stimulus and the emulator's noise.")] = 0,
     force: ForceOpt = False,
@@ -62,6 +57,7 @@ def demo(
 
 
 @long_command("wander record")
+@with_options(FRAME_OPTIONS)
 def record(
     out: RunDirOpt = None,
     scene: SceneOpt = "office",
@@ -85,20 +81,19 @@ def record(
             "(events + per-step masks) that `wander benchmark evimo` scores.",
         ),
     ] = "h5",
-    force: ForceOpt = False,
-    frames: FramesOpt = None,
-    keyframe_ms: KeyframeMsOpt = None,
+    **shared: Any,
 ) -> None:
     """Record events, ground truth and a video of the env under a simple gaze policy."""
     from experiments.jobs.record import RecordConfig
     from experiments.jobs.record import record as run
 
-    config = job_config(RecordConfig, locals())
-    out, summary = run_env_job(run, config, out, "record", force, f"record {scene}")
+    flags = {**locals(), **shared}
+    out, summary = run_env_job(run, RecordConfig, flags, "record", f"record {scene}")
     console.print(f"{summary['events']:,} events over {summary['steps']} steps -> {out}")
 
 
 @long_command("wander run")
+@with_options(AGENT_OPTIONS, FRAME_OPTIONS)
 def run_agent(
     out: RunDirOpt = None,
     scene: SceneOpt = "office",
@@ -107,20 +102,15 @@ def run_agent(
     dvs: DvsOpt = "ideal",
     window: WindowOpt = 0.124,
     fixational: FixationalOpt = True,
-    streamlined: StreamlinedOpt = False,
-    alpha: AgentAlphaOpt = None,
-    soms_norm: SomsNormOpt = "quantile",
     video: VideoOpt = True,
-    force: ForceOpt = False,
-    frames: FramesOpt = None,
-    keyframe_ms: KeyframeMsOpt = None,
+    **shared: Any,
 ) -> None:
     """Run the attention agent closed-loop in a scene; write the run folder."""
     from experiments.jobs.run_agent import RunConfig
     from experiments.jobs.run_agent import run as run_loop
 
-    config = job_config(RunConfig, locals())
-    out, result = run_env_job(run_loop, config, out, "run", force, f"agent in {scene}")
+    flags = {**locals(), **shared}
+    out, result = run_env_job(run_loop, RunConfig, flags, "run", f"agent in {scene}")
     m = result.metrics
     detection = (
         f"detection accuracy {m['detection_accuracy']:.0%} ({m['decisions_scored']} scored)"

@@ -29,6 +29,7 @@ import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
 from agents.fixation import FixationalMovements, FixationParams
+from experiments.jobs.run_agent import env_kwargs
 from experiments.jobs.run_viewer import open_run_log
 from wander_env.env import WanderConfig
 from wander_env.event_formats import write_evimo2_sequence
@@ -103,16 +104,8 @@ def record(
     recorded, writes ``run.json`` and ``metrics.json`` with the error, then raises it.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
-    env = gym.make(
-        "wander/Wander-v0",
-        scene=config.scene,
-        dvs=config.dvs,
-        render_mode="rgb_array" if config.video else None,
-        episode_seconds=config.seconds,
-        frames=config.frames,
-        keyframe_ms=config.keyframe_ms,
-        keyframe_px=config.keyframe_px,
-    )
+    render_mode = "rgb_array" if config.video else None
+    env = gym.make("wander/Wander-v0", render_mode=render_mode, **env_kwargs(config))
     try:
         return _record(out_dir, config, env, progress)
     finally:

@@ -426,9 +426,10 @@ def run_for_config(
     )
 
 
-def env_kwargs(config: RunConfig) -> dict[str, Any]:
-    """The ``wander/Wander-v0`` keywords of a run: scene, DVS, length and frame source
-    (recorded in ``run.json`` with the rest of the config).
+def env_kwargs(config: Any) -> dict[str, Any]:
+    """The ``wander/Wander-v0`` keywords of a run (a :class:`RunConfig`, or the
+    :class:`~experiments.jobs.record.RecordConfig` of ``wander record``): scene, DVS,
+    length and frame source (recorded in ``run.json`` with the rest of the config).
 
     Example:
         >>> env_kwargs(RunConfig(frames="exact", seconds=2.0))["frames"]
