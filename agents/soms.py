@@ -65,7 +65,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, ClassVar, Generic, Literal, TypeVar
 
 import numpy as np
 import sinabs.layers as sl
@@ -119,13 +119,35 @@ def lif_layer(tau_s: float, dt_s: float, spike_threshold: float = 1.0) -> sl.LIF
     return layer
 
 
-class MapLayer:
-    """Mixin for a stateful spiking layer stepped on ``(2, H, W)`` maps whose ``params``
-    have ``dt`` and ``tau_mem`` (seconds) and which builds its state for one map size in
-    ``_build(h, w)`` (``SOMS`` and ``ProtoObjectSaliency``)."""
+P = TypeVar("P")
 
-    params: Any
+
+class MapLayer(Generic[P]):
+    """Base of a stateful spiking layer stepped on ``(2, H, W)`` maps whose ``params``
+    (a ``params_type``) have ``dt`` and ``tau_mem`` (seconds): ``_setup()`` makes what
+    does not depend on the map size, ``_build(h, w)`` the state for one map size, at
+    construction when ``height`` and ``width`` are given, else at the first step
+    (``SOMS`` and ``ProtoObjectSaliency``)."""
+
+    params_type: ClassVar[type[Any]]
+    params: P
     _shape: tuple[int, int] | None
+
+    def __init__(
+        self,
+        params: P | None = None,
+        height: int | None = None,
+        width: int | None = None,
+    ) -> None:
+        self.params = params or self.params_type()
+        self._shape = None
+        self._setup()
+        if height is not None and width is not None:
+            self._build(int(height), int(width))
+
+    def _setup(self) -> None:
+        """Make the size-independent parts (kernels, LIF layers); each layer defines it."""
+        raise NotImplementedError(f"{type(self).__name__} defines no _setup")
 
     def _build(self, h: int, w: int) -> None:
         """Build (and reset) the state for maps of ``h × w``; each layer defines it."""
@@ -337,7 +359,7 @@ def peak_score(
     return quantile_score(pooled, quantile, gain, floor_spikes, peak_ratio)
 
 
-class SOMS(MapLayer):
+class SOMS(MapLayer[SOMSParams]):
     """Stateful sOMS: call :meth:`step` once per event map ``(2, H, W)`` (counts in one
     step of ``params.dt`` seconds); LIF membranes carry over between calls until
     :meth:`reset`. Any ``H, W`` works; a new size rebuilds and resets the layers.
@@ -350,14 +372,9 @@ class SOMS(MapLayer):
         0
     """
 
-    def __init__(
-        self,
-        params: SOMSParams | None = None,
-        height: int | None = None,
-        width: int | None = None,
-    ) -> None:
-        self.params = params or SOMSParams()
-        self._shape: tuple[int, int] | None = None
+    params_type = SOMSParams
+
+    def _setup(self) -> None:
         self.weight = centre_surround_weights(self.params)
         self.lif = lif_layer(self.params.tau_mem, self.params.dt, self.params.spike_threshold)
         k = self.params.kernel_size
@@ -365,8 +382,6 @@ class SOMS(MapLayer):
         self._fft: FFTConv2d | None = None
         self.pool_weight = pooling_weights(self.params.pool_sigma)
         self._pool_sep: SeparableConv2d | None = None
-        if height is not None and width is not None:
-            self._build(int(height), int(width))
 
     @property
     def v_mem(self) -> torch.Tensor | None:
