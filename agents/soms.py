@@ -73,6 +73,7 @@ import torch
 import torch.nn.functional as F
 
 from agents.kernels import FFTConv2d, SeparableConv2d, gaussian_kernel, gaussian_kernel_1d
+from wander_env.config import check_fields
 
 __all__ = [
     "SOMS",
@@ -212,10 +213,7 @@ class SOMSParams:
             raise ValueError(f"kernel_size must be >= 1, got {self.kernel_size}")
         if self.norm not in ("minmax", "quantile"):
             raise ValueError(f"norm must be 'minmax' or 'quantile', got {self.norm!r}")
-        for name in ("pool_sigma", "gain", "floor_spikes"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"SOMSParams.{name} must be a finite number > 0, got {v!r}")
+        check_fields(self, ("pool_sigma", "gain", "floor_spikes"), positive=True)
         pr = self.peak_ratio
         if pr is not None and not (
             isinstance(pr, (int, float)) and math.isfinite(pr) and 0 < pr <= self.gain
