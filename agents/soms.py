@@ -120,10 +120,10 @@ def lif_layer(tau_s: float, dt_s: float, spike_threshold: float = 1.0) -> sl.LIF
     return layer
 
 
-P = TypeVar("P")
+_Params = TypeVar("_Params")
 
 
-class MapLayer(Generic[P]):
+class MapLayer(Generic[_Params]):
     """Base of a stateful spiking layer stepped on ``(2, H, W)`` maps whose ``params``
     (a ``params_type``) have ``dt`` and ``tau_mem`` (seconds): ``_setup()`` makes what
     does not depend on the map size, ``_build(h, w)`` the state for one map size, at
@@ -131,12 +131,12 @@ class MapLayer(Generic[P]):
     (``SOMS`` and ``ProtoObjectSaliency``)."""
 
     params_type: ClassVar[type[Any]]
-    params: P
+    params: _Params
     _shape: tuple[int, int] | None
 
     def __init__(
         self,
-        params: P | None = None,
+        params: _Params | None = None,
         height: int | None = None,
         width: int | None = None,
     ) -> None:
