@@ -51,6 +51,7 @@ import numpy as np
 
 from agents.fixation import action_to_gaze_degrees
 from wander_env.closing import Closing
+from wander_env.config import check_fields
 from wander_env.metrics import SPECK_HFOV_DEG
 from wander_env.ptu import FLIR_RESOLUTION_ARCSEC, positions_to_degrees
 
@@ -186,26 +187,11 @@ class ControlParams:
             raise ValueError(
                 f"ControlParams.stepper must be 'fused' or 'nengo', got {self.stepper!r}"
             )
-        for name in ("n_neurons", "width_px", "height_px"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-                raise ValueError(f"ControlParams.{name} must be an int >= 1, got {v!r}")
-        for name in ("k_pan", "k_tilt"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v)):
-                raise ValueError(f"ControlParams.{name} must be a finite number, got {v!r}")
-        if not (isinstance(self.average_s, (int, float)) and 0 <= self.average_s < math.inf):
-            raise ValueError(f"ControlParams.average_s must be >= 0, got {self.average_s!r}")
-        if not (isinstance(self.solver_reg, (int, float)) and 0 <= self.solver_reg < math.inf):
-            raise ValueError(f"ControlParams.solver_reg must be >= 0, got {self.solver_reg!r}")
-        for name in ("radius", "dt"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"ControlParams.{name} must be a finite number > 0, got {v!r}")
-        for name in ("tau_input_s", "tau_output_s"):
-            v = getattr(self, name)
-            if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"ControlParams.{name} must be None or > 0, got {v!r}")
+        check_fields(self, ("n_neurons", "width_px", "height_px"), integer=True, minimum=1)
+        check_fields(self, ("k_pan", "k_tilt"))
+        check_fields(self, ("average_s", "solver_reg"), minimum=0)
+        check_fields(self, ("radius", "dt"), positive=True)
+        check_fields(self, ("tau_input_s", "tau_output_s"), positive=True, allow_none=True)
 
     @property
     def centre_px(self) -> tuple[float, float]:

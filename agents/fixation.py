@@ -191,16 +191,10 @@ class FixationParams:
     hfov_deg: float = SPECK_HFOV_DEG
 
     def __post_init__(self) -> None:
-        names = ("n_steps", "max_step_pos", "width_px", "height_px")
-        check_fields(self, names, integer=True, minimum=0)
-        if self.width_px < 1 or self.height_px < 1:
-            raise ValueError("FixationParams.width_px and height_px must be >= 1")
+        check_fields(self, ("n_steps", "max_step_pos"), integer=True, minimum=0)
+        check_fields(self, ("width_px", "height_px"), integer=True, minimum=1)
         check_fields(self, ("resolution_arcsec", "interval_s", "hfov_deg"), positive=True)
-        b = self.max_excursion_pos
-        if b is not None and (isinstance(b, bool) or not isinstance(b, (int, np.integer)) or b < 0):
-            raise ValueError(
-                f"FixationParams.max_excursion_pos must be None or int >= 0, got {b!r}"
-            )
+        check_fields(self, ("max_excursion_pos",), integer=True, minimum=0, allow_none=True)
 
     @property
     def deg_per_pos(self) -> float:

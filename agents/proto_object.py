@@ -250,7 +250,7 @@ class _DirectConv2d:
         return F.conv2d(x, self.weight, padding="same", groups=self.groups)
 
 
-class ProtoObjectSaliency(MapLayer):
+class ProtoObjectSaliency(MapLayer[ProtoObjectParams]):
     """Stateful SNN proto-object model: :meth:`step` once per OMS map ``(2, H, W)``
     (channel 0 OFF, 1 ON; nonzero = spike); the LIF state carries over until
     :meth:`reset`. Any ``H, W`` works (a new size rebuilds and resets).
@@ -262,13 +262,9 @@ class ProtoObjectSaliency(MapLayer):
         ((128, 128), None)
     """
 
-    def __init__(
-        self,
-        params: ProtoObjectParams | None = None,
-        height: int | None = None,
-        width: int | None = None,
-    ) -> None:
-        self.params = params or ProtoObjectParams()
+    params_type = ProtoObjectParams
+
+    def _setup(self) -> None:
         p = self.params
         self.bank = von_mises_bank(p)
         m = self.bank.shape[0]
@@ -284,10 +280,7 @@ class ProtoObjectSaliency(MapLayer):
         self._g_weight = grouping_weights(self.bank)
         self.border_lif = lif_layer(p.tau_mem, p.dt, p.spike_threshold)
         self.grouping_lif = lif_layer(p.tau_mem, p.dt, p.spike_threshold)
-        self._shape: tuple[int, int] | None = None
         self._saliency: torch.Tensor | None = None
-        if height is not None and width is not None:
-            self._build(int(height), int(width))
 
     @property
     def saliency(self) -> torch.Tensor | None:

@@ -65,7 +65,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, ClassVar, Generic, Literal, TypeVar
 
 import numpy as np
 import sinabs.layers as sl
@@ -73,6 +73,7 @@ import torch
 import torch.nn.functional as F
 
 from agents.kernels import FFTConv2d, SeparableConv2d, gaussian_kernel, gaussian_kernel_1d
+from wander_env.config import check_fields
 
 __all__ = [
     "SOMS",
@@ -120,13 +121,35 @@ def lif_layer(tau_s: float, dt_s: float, spike_threshold: float = 1.0) -> sl.LIF
     return layer
 
 
-class MapLayer:
-    """Mixin for a stateful spiking layer stepped on ``(2, H, W)`` maps whose ``params``
-    have ``dt`` and ``tau_mem`` (seconds) and which builds its state for one map size in
-    ``_build(h, w)`` (``SOMS`` and ``ProtoObjectSaliency``)."""
+_Params = TypeVar("_Params")
 
-    params: Any
+
+class MapLayer(Generic[_Params]):
+    """Base of a stateful spiking layer stepped on ``(2, H, W)`` maps whose ``params``
+    (a ``params_type``) have ``dt`` and ``tau_mem`` (seconds): ``_setup()`` makes what
+    does not depend on the map size, ``_build(h, w)`` the state for one map size, at
+    construction when ``height`` and ``width`` are given, else at the first step
+    (``SOMS`` and ``ProtoObjectSaliency``)."""
+
+    params_type: ClassVar[type[Any]]
+    params: _Params
     _shape: tuple[int, int] | None
+
+    def __init__(
+        self,
+        params: _Params | None = None,
+        height: int | None = None,
+        width: int | None = None,
+    ) -> None:
+        self.params = params or self.params_type()
+        self._shape = None
+        self._setup()
+        if height is not None and width is not None:
+            self._build(int(height), int(width))
+
+    def _setup(self) -> None:
+        """Make the size-independent parts (kernels, LIF layers); each layer defines it."""
+        raise NotImplementedError(f"{type(self).__name__} defines no _setup")
 
     def _build(self, h: int, w: int) -> None:
         """Build (and reset) the state for maps of ``h × w``; each layer defines it."""
@@ -191,10 +214,7 @@ class SOMSParams:
             raise ValueError(f"kernel_size must be >= 1, got {self.kernel_size}")
         if self.norm not in ("minmax", "quantile"):
             raise ValueError(f"norm must be 'minmax' or 'quantile', got {self.norm!r}")
-        for name in ("pool_sigma", "gain", "floor_spikes"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"SOMSParams.{name} must be a finite number > 0, got {v!r}")
+        check_fields(self, ("pool_sigma", "gain", "floor_spikes"), positive=True)
         pr = self.peak_ratio
         if pr is not None and not (
             isinstance(pr, (int, float)) and math.isfinite(pr) and 0 < pr <= self.gain
@@ -342,7 +362,7 @@ def peak_score(
     return quantile_score(pooled, quantile, gain, floor_spikes, peak_ratio)
 
 
-class SOMS(MapLayer):
+class SOMS(MapLayer[SOMSParams]):
     """Stateful sOMS: call :meth:`step` once per event map ``(2, H, W)`` (counts in one
     step of ``params.dt`` seconds); LIF membranes carry over between calls until
     :meth:`reset`. Any ``H, W`` works; a new size rebuilds and resets the layers.
@@ -355,14 +375,9 @@ class SOMS(MapLayer):
         0
     """
 
-    def __init__(
-        self,
-        params: SOMSParams | None = None,
-        height: int | None = None,
-        width: int | None = None,
-    ) -> None:
-        self.params = params or SOMSParams()
-        self._shape: tuple[int, int] | None = None
+    params_type = SOMSParams
+
+    def _setup(self) -> None:
         self.weight = centre_surround_weights(self.params)
         self.lif = lif_layer(self.params.tau_mem, self.params.dt, self.params.spike_threshold)
         k = self.params.kernel_size
@@ -370,8 +385,6 @@ class SOMS(MapLayer):
         self._fft: FFTConv2d | None = None
         self.pool_weight = pooling_weights(self.params.pool_sigma)
         self._pool_sep: SeparableConv2d | None = None
-        if height is not None and width is not None:
-            self._build(int(height), int(width))
 
     @property
     def v_mem(self) -> torch.Tensor | None:

@@ -89,10 +89,16 @@ class EventSource(Protocol):
 class EventSourceBase(Closing, ABC):
     """Context manager, state checks and window arithmetic shared by the sources."""
 
-    def __init__(self) -> None:
+    def __init__(self, sensor_size: SensorSize) -> None:
+        self._sensor_size = sensor_size
         self._started = False
         self._closed = False
         self._cursor_us = 0
+
+    @property
+    def sensor_size(self) -> SensorSize:
+        """``(W, H, 2)``."""
+        return self._sensor_size
 
     @property
     def cursor_us(self) -> int:

@@ -43,6 +43,7 @@ from typing import Any
 import serial
 
 from wander_env.closing import Closing
+from wander_env.config import check_fields
 
 try:  # the serial layer's own errors: termios.error (EIO of an unplugged adapter) is no OSError
     import termios
@@ -243,7 +244,7 @@ class FlirPTUParams:
     write_timeout_s: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in (
+        timeouts = (
             "timeout_s",
             "await_timeout_s",
             "reset_timeout_s",
@@ -251,13 +252,9 @@ class FlirPTUParams:
             "banner_timeout_s",
             "read_poll_s",
             "write_timeout_s",
-        ):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"FlirPTUParams.{name} must be > 0, got {getattr(self, name)!r}")
-        if not self.banner_quiet_s >= 0:
-            raise ValueError(
-                f"FlirPTUParams.banner_quiet_s must be >= 0, got {self.banner_quiet_s!r}"
-            )
+        )
+        check_fields(self, timeouts, positive=True)
+        check_fields(self, ("banner_quiet_s",), minimum=0)
 
 
 def open_port(url: str, params: FlirPTUParams | None = None) -> serial.SerialBase:

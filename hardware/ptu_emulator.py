@@ -47,6 +47,7 @@ import time
 import tty
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 from wander_env.ptu import (
     AxisState,
@@ -213,6 +214,12 @@ def _fmt(value: float) -> str:
     return f"{value:.6f}".rstrip("0").rstrip(".")
 
 
+def _mode_view(flag: str, doc: str) -> property:
+    """A read-only view of the mode flag attribute ``flag`` (a bool), the same flags
+    :func:`_mode_setter` sets and :func:`_mode_query` reports."""
+    return property(lambda emu: getattr(emu, flag), doc=doc)
+
+
 class PTUEmulator:
     """A FLIR PTU on a pseudo-terminal, answering in a background thread.
 
@@ -372,15 +379,12 @@ class PTUEmulator:
     @property
     def positions(self) -> tuple[int, int]:
         """(pan, tilt) step counters, as ``PP``/``TP`` report them."""
-        with self._lock:
-            self._advance()
-            return self._axes["P"].reported, self._axes["T"].reported
+        return self._both_axes("reported", advance=True)
 
     @property
     def target_positions(self) -> tuple[float, float]:
         """(pan, tilt) desired positions."""
-        with self._lock:
-            return self._axes["P"].target, self._axes["T"].target
+        return self._both_axes("target")
 
     @property
     def moving(self) -> bool:
@@ -392,34 +396,30 @@ class PTUEmulator:
     @property
     def speeds(self) -> tuple[float, float]:
         """(pan, tilt) commanded speeds (``PS``/``TS``), pos/s."""
-        with self._lock:
-            return self._axes["P"].speed, self._axes["T"].speed
+        return self._both_axes("speed")
 
     @property
     def accelerations(self) -> tuple[float, float]:
         """(pan, tilt) accelerations (``PA``/``TA``), pos/s²."""
+        return self._both_axes("accel")
+
+    echo = _mode_view("_echo", "Echo mode (``EE``/``ED``).")
+    verbose = _mode_view("_verbose", "Feedback mode: True verbose (``FV``), False terse (``FT``).")
+    slaved = _mode_view(
+        "_slaved", "Position execution mode: True slaved (``S``), False immediate (``I``)."
+    )
+    velocity_mode = _mode_view(
+        "_velocity_mode",
+        "Speed control mode: True pure velocity (``CV``), False independent (``CI``).",
+    )
+
+    def _both_axes(self, attr: str, *, advance: bool = False) -> tuple[Any, Any]:
+        """(pan, tilt) values of the axes' ``attr``, read under the lock (after bringing
+        the motion up to now when ``advance``)."""
         with self._lock:
-            return self._axes["P"].accel, self._axes["T"].accel
-
-    @property
-    def echo(self) -> bool:
-        """Echo mode (``EE``/``ED``)."""
-        return self._echo
-
-    @property
-    def verbose(self) -> bool:
-        """Feedback mode: True verbose (``FV``), False terse (``FT``)."""
-        return self._verbose
-
-    @property
-    def slaved(self) -> bool:
-        """Position execution mode: True slaved (``S``), False immediate (``I``)."""
-        return self._slaved
-
-    @property
-    def velocity_mode(self) -> bool:
-        """Speed control mode: True pure velocity (``CV``), False independent (``CI``)."""
-        return self._velocity_mode
+            if advance:
+                self._advance()
+            return getattr(self._axes["P"], attr), getattr(self._axes["T"], attr)
 
     # -- the thread -------------------------------------------------------------------
 
@@ -652,49 +652,6 @@ class PTUEmulator:
             return self._query(v, f"Current {ax.name} speed is {v} positions/sec")
         return self._speed(ax, int(ax.speed) + arg)
 
-    def _accel(self, ax: _Axis, arg: int | None) -> str:
-        if arg is None:
-            return self._query(
-                ax.accel, f"{ax.name} acceleration is {_fmt(ax.accel)} positions/sec^2"
-            )
-        if arg <= 0:
-            return "! Illegal argument"
-        ax.accel = float(arg)
-        return "*"
-
-    def _base(self, ax: _Axis, arg: int | None) -> str:
-        if arg is None:
-            return self._query(
-                ax.base, f"Current {ax.name} base speed is {_fmt(ax.base)} positions/sec"
-            )
-        if arg < 0 or arg > ax.upper:
-            return "! Illegal argument"
-        ax.base = float(arg)
-        return "*"
-
-    def _upper(self, ax: _Axis, arg: int | None) -> str:
-        if arg is None:
-            return self._query(
-                ax.upper, f"Maximum {ax.name} speed is {_fmt(ax.upper)} positions/sec"
-            )
-        if arg < max(ax.lower, 1.0):
-            return "! Illegal argument"
-        ax.upper = float(arg)
-        ax.speed = min(ax.speed, ax.upper)
-        ax.base = min(ax.base, ax.upper)
-        return "*"
-
-    def _lower(self, ax: _Axis, arg: int | None) -> str:
-        if arg is None:
-            return self._query(
-                ax.lower, f"Minimum {ax.name} speed is {_fmt(ax.lower)} positions/sec"
-            )
-        if arg < 0 or arg > ax.upper:
-            return "! Illegal argument"
-        ax.lower = float(arg)
-        ax.speed = max(ax.speed, ax.lower)
-        return "*"
-
     # unit commands: handler(self, arg) -> reply
 
     def _await(self, arg: int | None) -> str | None:
@@ -752,6 +709,41 @@ def _limit_handler(which: str) -> Callable[[PTUEmulator, _Axis, int | None], str
     return handler
 
 
+def _setting_handler(
+    attr: str,
+    text: str,
+    valid: Callable[[_Axis, int], bool],
+    then: Callable[[_Axis], None] | None = None,
+) -> Callable[[PTUEmulator, _Axis, int | None], str]:
+    """``PA``/``PB``/``PU``/``PL`` (and ``T…``): the bare command queries the axis setting
+    ``attr`` (verbose ``text``, with ``{name}`` and ``{value}``); with an argument that
+    passes ``valid`` it sets it (``then`` adjusts the others), else ``! Illegal argument``."""
+
+    def handler(emu: PTUEmulator, ax: _Axis, arg: int | None) -> str:
+        value = getattr(ax, attr)
+        if arg is None:
+            return emu._query(value, text.format(name=ax.name, value=_fmt(value)))
+        if not valid(ax, arg):
+            return "! Illegal argument"
+        setattr(ax, attr, float(arg))
+        if then is not None:
+            then(ax)
+        return "*"
+
+    return handler
+
+
+def _under_upper(ax: _Axis) -> None:
+    """A new maximum speed caps the speed and the base speed."""
+    ax.speed = min(ax.speed, ax.upper)
+    ax.base = min(ax.base, ax.upper)
+
+
+def _over_lower(ax: _Axis) -> None:
+    """A new minimum speed raises the speed to it."""
+    ax.speed = max(ax.speed, ax.lower)
+
+
 def _halt_handler(letters: str) -> Callable[[PTUEmulator, int | None], str]:
     """``H``/``HP``/``HT``: brake to a stop on the nearest reachable whole position."""
 
@@ -792,10 +784,26 @@ _AXIS_COMMANDS: dict[str, Callable[..., str]] = {
     "X": _limit_handler("Maximum"),
     "S": PTUEmulator._speed,
     "D": PTUEmulator._delta,
-    "A": PTUEmulator._accel,
-    "B": PTUEmulator._base,
-    "U": PTUEmulator._upper,
-    "L": PTUEmulator._lower,
+    "A": _setting_handler(
+        "accel", "{name} acceleration is {value} positions/sec^2", lambda ax, a: a > 0
+    ),
+    "B": _setting_handler(
+        "base",
+        "Current {name} base speed is {value} positions/sec",
+        lambda ax, a: 0 <= a <= ax.upper,
+    ),
+    "U": _setting_handler(
+        "upper",
+        "Maximum {name} speed is {value} positions/sec",
+        lambda ax, a: a >= max(ax.lower, 1.0),
+        _under_upper,
+    ),
+    "L": _setting_handler(
+        "lower",
+        "Minimum {name} speed is {value} positions/sec",
+        lambda ax, a: 0 <= a <= ax.upper,
+        _over_lower,
+    ),
 }
 
 _UNIT_COMMANDS: dict[str, Callable[..., str | None]] = {

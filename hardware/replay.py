@@ -34,7 +34,7 @@ import numpy as np
 
 from hardware.event_source import EventSourceBase
 from wander_env.event_io import EventRecording, read_events
-from wander_env.events import EVENT_DTYPE, SensorSize, empty_events, time_window
+from wander_env.events import EVENT_DTYPE, empty_events, time_window
 
 
 @dataclass(frozen=True)
@@ -70,7 +70,6 @@ class ReplaySource(EventSourceBase):
         loop: bool = False,
         t0_us: int | None = None,
     ) -> None:
-        super().__init__()
         self.params = ReplayParams(realtime=realtime, speed=speed, loop=loop, t0_us=t0_us)
         if isinstance(source, EventRecording):
             recording, origin = source, "EventRecording"
@@ -85,7 +84,7 @@ class ReplaySource(EventSourceBase):
         self._events = events[skipped:].copy()
         self._events["t"] -= offset
         self._period_us = int(self._events["t"][-1]) + 1 if len(self._events) else 0
-        self._sensor_size: SensorSize = tuple(int(v) for v in recording.sensor_size)  # type: ignore[assignment]
+        super().__init__(tuple(int(v) for v in recording.sensor_size))  # type: ignore[arg-type]
         self.metadata: dict[str, Any] = {
             **recording.metadata,
             "source": origin,
@@ -98,10 +97,6 @@ class ReplaySource(EventSourceBase):
         self._max_lateness_s = 0.0
 
     # -- EventSource ---------------------------------------------------------------
-
-    @property
-    def sensor_size(self) -> SensorSize:
-        return self._sensor_size
 
     @property
     def dropped(self) -> int:

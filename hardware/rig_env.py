@@ -79,6 +79,7 @@ from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from hardware.replay import ReplaySource
 from hardware.speck import SpeckParams, SpeckSource
 from wander_env.actions import action_to_gaze_degrees, check_action
+from wander_env.config import check_fields
 from wander_env.env_base import CameraEnv
 from wander_env.event_packet import EventPacket
 from wander_env.events import empty_events, to_frame
@@ -132,12 +133,8 @@ class RigConfig:
             raise ValueError(
                 f"RigConfig.replay must be one of {_REPLAY_MODES}, got {self.replay!r}"
             )
-        for name in ("control_period_s", "episode_seconds", "ptu_poll_s", "hfov_deg"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise ValueError(f"RigConfig.{name} must be a finite number, got {v!r}")
-            if v <= 0:
-                raise ValueError(f"RigConfig.{name} must be > 0, got {v!r}")
+        names = ("control_period_s", "episode_seconds", "ptu_poll_s", "hfov_deg")
+        check_fields(self, names, positive=True)
         if not self.hfov_deg < 180:
             raise ValueError(f"RigConfig.hfov_deg must be < 180, got {self.hfov_deg!r}")
         if abs(self.control_period_s * 1e6 - self.control_period_us) > 1e-6:

@@ -229,9 +229,9 @@ class SpeckSource(EventSourceBase):
     """
 
     def __init__(self, params: SpeckParams | None = None, **overrides: Any) -> None:
-        super().__init__()
         base = params if params is not None else SpeckParams()
         self.params = replace(base, **overrides) if overrides else base
+        super().__init__((*self.params.sensor_size_fallback, 2))
         self.device_type_name: str | None = None
         self._samna: ModuleType | None = None
         self._device: Any = None
@@ -239,7 +239,6 @@ class SpeckSource(EventSourceBase):
         self._sink: Any = None
         self._stop_watch: Any = None
         self._dvs_event_type: type | None = None
-        self._sensor_size: SensorSize = (*self.params.sensor_size_fallback, 2)
         self._sensor_size_from = "not started"
         self._cond = threading.Condition()
         self._chunks: deque[np.ndarray] = deque()
@@ -268,10 +267,6 @@ class SpeckSource(EventSourceBase):
         )
 
     # -- EventSource ---------------------------------------------------------------
-
-    @property
-    def sensor_size(self) -> SensorSize:
-        return self._sensor_size
 
     @property
     def dropped(self) -> int:

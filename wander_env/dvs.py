@@ -47,6 +47,7 @@ from dataclasses import asdict, dataclass, fields, replace
 import numba
 import numpy as np
 
+from wander_env.config import check_fields
 from wander_env.events import EVENT_DTYPE
 
 # Rec. 709 luminance weights for linear RGB.
@@ -91,13 +92,8 @@ class DVSParams:
 
     def __post_init__(self) -> None:
         positive = ("threshold_on", "threshold_off", "threshold_min", "linlog_intensity")
-        for f in fields(self):
-            v = getattr(self, f.name)
-            if not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise ValueError(f"DVSParams.{f.name} must be a finite number, got {v!r}")
-            if v < 0 or (f.name in positive and v == 0):
-                need = "> 0" if f.name in positive else ">= 0"
-                raise ValueError(f"DVSParams.{f.name} must be {need}, got {v!r}")
+        check_fields(self, positive, positive=True)
+        check_fields(self, [f.name for f in fields(self) if f.name not in positive], minimum=0)
         if self.hot_pixel_fraction > 1:
             raise ValueError(
                 f"DVSParams.hot_pixel_fraction must be <= 1, got {self.hot_pixel_fraction}"

@@ -61,15 +61,17 @@ from wander_env.event_checks import (
 )
 from wander_env.events import SensorSize, time_window
 
-# Prophesee sensors whose headers omit the geometry (older plugins), by plugin name.
+# Prophesee sensors whose headers omit the geometry (older plugins), by plugin name:
+# the Gen3/Gen3.1 sensors are VGA, the Gen4.1/IMX636 ones HD.
+_VGA, _HD = (640, 480), (1280, 720)
 PLUGIN_GEOMETRY = {
-    "hal_plugin_gen3_fx3": (640, 480),
-    "hal_plugin_gen31_fx3": (640, 480),
-    "hal_plugin_gen31_evk2": (640, 480),
-    "hal_plugin_gen41_evk2": (1280, 720),
-    "hal_plugin_gen41_evk3": (1280, 720),
-    "hal_plugin_imx636_evk3": (1280, 720),
-    "hal_plugin_imx636_evk4": (1280, 720),
+    "hal_plugin_gen3_fx3": _VGA,
+    "hal_plugin_gen31_fx3": _VGA,
+    "hal_plugin_gen31_evk2": _VGA,
+    "hal_plugin_gen41_evk2": _HD,
+    "hal_plugin_gen41_evk3": _HD,
+    "hal_plugin_imx636_evk3": _HD,
+    "hal_plugin_imx636_evk4": _HD,
 }
 ES_HEADER = b"Event Stream"
 EVT3_MAX_COORD = 2048  # 11-bit addresses (EVT 2 too)

@@ -55,6 +55,8 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
 
+from wander_env.config import check_fields
+
 ARCSEC_PER_DEG = 3600.0
 # FLIR PTU-D46/E46 resolution as reported by ``PR``/``TR`` on the paper's unit.
 FLIR_RESOLUTION_ARCSEC = 92.5714
@@ -141,18 +143,8 @@ class PTULinkParams:
     turnaround_s: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("baudrate", "bits_per_byte"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
-                raise ValueError(f"PTULinkParams.{name} must be an int > 0, got {v!r}")
-        for name in ("poll_s", "turnaround_s"):
-            v = getattr(self, name)
-            if (
-                isinstance(v, bool)
-                or not isinstance(v, (int, float))
-                or not (math.isfinite(v) and v >= 0)
-            ):
-                raise ValueError(f"PTULinkParams.{name} must be a finite number >= 0, got {v!r}")
+        check_fields(self, ("baudrate", "bits_per_byte"), integer=True, positive=True)
+        check_fields(self, ("poll_s", "turnaround_s"), minimum=0)
         if self.delimiter not in (" ", "\r", "\n"):
             raise ValueError(
                 f"PTULinkParams.delimiter must be a space, CR or LF, got {self.delimiter!r}"
@@ -274,24 +266,13 @@ class PTUParams:
             "tilt_upper_speed",
         )
         signed = ("camera_forward_m", "camera_up_m")
-        for f in fields(self):
-            v = getattr(self, f.name)
-            if f.name == "link":
-                continue
-            if f.name == "quantise":
-                if not isinstance(v, bool):
-                    raise ValueError(f"PTUParams.quantise must be a bool, got {v!r}")
-                continue
-            if f.name in ints:
-                if isinstance(v, bool) or not isinstance(v, int):
-                    raise ValueError(f"PTUParams.{f.name} must be an int, got {v!r}")
-                continue
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise ValueError(f"PTUParams.{f.name} must be a finite number, got {v!r}")
-            if f.name in positive and v <= 0:
-                raise ValueError(f"PTUParams.{f.name} must be > 0, got {v!r}")
-            if f.name not in positive and f.name not in signed and v < 0:
-                raise ValueError(f"PTUParams.{f.name} must be >= 0, got {v!r}")
+        if not isinstance(self.quantise, bool):
+            raise ValueError(f"PTUParams.quantise must be a bool, got {self.quantise!r}")
+        check_fields(self, ints, integer=True)
+        check_fields(self, positive, positive=True)
+        check_fields(self, signed)
+        named = {*ints, *positive, *signed, "quantise", "link"}
+        check_fields(self, [f.name for f in fields(self) if f.name not in named], minimum=0)
         for axis in ("pan", "tilt"):
             lo, hi = getattr(self, f"{axis}_min_pos"), getattr(self, f"{axis}_max_pos")
             if lo >= hi:

@@ -69,6 +69,17 @@ def _check_shape(shape: str, size: Sequence[float]) -> None:
         raise ValueError(f"size of a {shape} must be {n} extents > 0 (m), got {tuple(size)}")
 
 
+class _Body:
+    """Base of the prop configs: their ``shape`` and full-extent ``size`` (m), checked
+    together on construction."""
+
+    shape: str
+    size: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        _check_shape(self.shape, self.size)
+
+
 @dataclass(frozen=True)
 class CameraConfig:
     """The event camera: image size (px), horizontal field of view (deg), anti-aliasing.
@@ -183,7 +194,7 @@ class ShelfConfig:
 
 
 @dataclass(frozen=True)
-class StaticObjectConfig:
+class StaticObjectConfig(_Body):
     """A static prop: shape, full-extent size (m), centre, orientation (xyz Euler, deg)."""
 
     shape: Literal["box", "sphere", "cylinder"]
@@ -194,12 +205,9 @@ class StaticObjectConfig:
     texture: TextureSpec | None = None
     name: str = ""
 
-    def __post_init__(self) -> None:
-        _check_shape(self.shape, self.size)
-
 
 @dataclass(frozen=True)
-class MovingObjectConfig:
+class MovingObjectConfig(_Body):
     """A moving object (a mocap body): shape, full-extent size (m), look, trajectory.
 
     Object k (1-based, in list order) has id k in segmentation masks.
@@ -211,9 +219,6 @@ class MovingObjectConfig:
     rgba: RGBA = (1.0, 1.0, 1.0, 1.0)
     texture: TextureSpec | None = None
     name: str = ""
-
-    def __post_init__(self) -> None:
-        _check_shape(self.shape, self.size)
 
 
 @dataclass(frozen=True)
