@@ -24,6 +24,37 @@ from agents.attention import AgentParams, AttentionAgent
 from agents.proto_object import ProtoObjectSaliency
 from experiments.bench.env import timed
 
+# The columns of `wander bench agent`'s tables (row field -> format spec).
+LATENCY_COLUMNS: dict[str, str] = {
+    "stage": "",
+    "calls": "d",
+    "median_ms": ".2f",
+    "p95_ms": ".2f",
+    "max_ms": ".2f",
+}
+LOOP_COLUMNS: dict[str, str] = {
+    "scene": "",
+    "simulated_s": ".1f",
+    "wall_s": ".1f",
+    "env_ms_per_step": ".1f",
+    "agent_ms_per_step": ".2f",
+    "realtime_factor": ".2f",
+}
+MODES_COLUMNS: dict[str, str] = {
+    "scene": "",
+    "keyframe_ms": "g",
+    "simulated_s": ".1f",
+    "exact_rtf": ".2f",
+    "keyframes_rtf": ".2f",
+    "speedup": ".2f",
+    "exact_env_ms": ".1f",
+    "keyframes_env_ms": ".1f",
+    "exact_agent_ms": ".2f",
+    "keyframes_agent_ms": ".2f",
+    "exact_decisions": "d",
+    "keyframes_decisions": "d",
+}
+
 
 @dataclass(frozen=True)
 class LatencyRow:

@@ -45,6 +45,35 @@ NOISE_PRESET = "speck"  # every noise term on: mismatch, low-pass, refractory, l
 PEER_THRESHOLD = 0.2  # the contrast threshold every emulator gets in the peer comparison
 
 
+# The columns of `wander bench dvs`'s tables (row field -> format spec).
+DVS_COLUMNS: dict[str, str] = {
+    "sensor": "",
+    "scene": "",
+    "noise": "",
+    "frames_per_s": ",.0f",
+    "mev_per_s": ".2f",
+    "events_per_frame": ",.0f",
+    "on_frame_time_pct": ".1f",
+    "peak_mib": ".1f",
+}
+INPUT_COLUMNS: dict[str, str] = {
+    "sensor": "",
+    "input": "",
+    "frames_per_s": ",.0f",
+    "events": ",d",
+    "time_ratio": ".2f",
+}
+PEER_COLUMNS: dict[str, str] = {
+    "sensor": "",
+    "emulator": "",
+    "frames_per_s": ",.0f",
+    "wander_speedup": ".2f",
+    "events": ",d",
+    "events_diff_pct": "+.2f",
+    "note": "",
+}
+
+
 @dataclass
 class DVSBenchRow:
     sensor: str

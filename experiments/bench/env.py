@@ -23,6 +23,41 @@ import numpy as np
 import wander_env  # noqa: F401  (registers the environments)
 from wander_env.wrappers import EventPacketInfo
 
+# The columns of `wander bench env`'s tables (row field -> format spec).
+BREAKDOWN_COLUMNS: dict[str, str] = {
+    "dvs": "",
+    "frames": "",
+    "antialias_samples": "d",
+    "ms_per_step": ".2f",
+    "renders_per_step": ".1f",
+    "ms_per_render": ".2f",
+    "render_ms": ".2f",
+    "synth_ms": ".2f",
+    "dvs_ms": ".2f",
+    "segment_ms": ".2f",
+    "pose_ms": ".2f",
+    "other_ms": ".2f",
+}
+ENV_COLUMNS: dict[str, str] = {
+    "dvs": "",
+    "envs": "d",
+    "ground_truth": "",
+    "keyframe_ms": "g",
+    "exact_rtf": ".2f",
+    "keyframes_rtf": ".2f",
+    "adaptive_rtf": ".2f",
+    "speedup": ".2f",
+    "adaptive_speedup": ".2f",
+    "exact_ms_per_step": ".1f",
+    "keyframes_ms_per_step": ".1f",
+    "adaptive_ms_per_step": ".1f",
+    "exact_renders_per_step": ".1f",
+    "keyframes_renders_per_step": ".1f",
+    "adaptive_renders_per_step": ".1f",
+    "events_diff_pct": "+.2f",
+    "adaptive_events_diff_pct": "+.2f",
+}
+
 
 @dataclass
 class EnvBenchRow:

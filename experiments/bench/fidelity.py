@@ -41,6 +41,40 @@ _MODES = ("exact", "keyframes", "adaptive", "aa16")
 ADAPTIVE_PX = 2.0
 
 
+# The columns of `wander bench fidelity`'s tables (row field -> format spec).
+KEYFRAME_COLUMNS: dict[str, str] = {
+    "scene": "",
+    "motion": "",
+    "exact_events": ",d",
+    "keyframes_events": ",d",
+    "events_diff_pct": "+.2f",
+    "l1_per_event": ".3f",
+    "aa16_l1_per_event": ".3f",
+    "matched_pct": ".1f",
+    "exact_matched_pct": ".1f",
+    "aa16_matched_pct": ".1f",
+    "max_gap_exact_ms": "",
+    "max_gap_keyframes_ms": "",
+    "renders_per_step_exact": ".1f",
+    "renders_per_step_keyframes": ".1f",
+}
+ADAPTIVE_COLUMNS: dict[str, str] = {
+    "scene": "",
+    "motion": "",
+    "exact_events": ",d",
+    "adaptive_events": ",d",
+    "adaptive_events_diff_pct": "+.2f",
+    "adaptive_l1_per_event": ".3f",
+    "aa16_l1_per_event": ".3f",
+    "adaptive_matched_pct": ".1f",
+    "adaptive_exact_matched_pct": ".1f",
+    "max_gap_exact_ms": "",
+    "max_gap_adaptive_ms": "",
+    "renders_per_step_exact": ".1f",
+    "renders_per_step_adaptive": ".1f",
+}
+
+
 @dataclass(frozen=True)
 class FidelityRow:
     """One scene and motion, seeds pooled (see the module docstring)."""

@@ -26,6 +26,20 @@ from wander_env.event_io import read_events
 Decoder = Callable[[Path], np.ndarray]
 
 
+# The columns of `wander bench formats`'s table (row field -> format spec).
+COLUMNS: dict[str, str] = {
+    "file": "",
+    "decoder": "",
+    "events": ",d",
+    "ms": ".1f",
+    "mev_per_s": ".1f",
+    "reference": "",
+    "xyp_differ": ",d",
+    "t_differ": ",d",
+    "max_abs_dt_us": ",d",
+}
+
+
 def _txyp(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray) -> np.ndarray:
     out = np.empty(len(t), dtype=[("t", "<i8"), ("x", "<i4"), ("y", "<i4"), ("p", "i1")])
     out["t"], out["x"], out["y"], out["p"] = t, x, y, np.asarray(p) > 0

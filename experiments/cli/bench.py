@@ -30,7 +30,10 @@ def bench_dvs(
 ) -> None:
     """Frames/s and Mev/s of the DVS emulator at 128x128 and 346x260."""
     from experiments.bench.dvs import (
+        DVS_COLUMNS,
+        INPUT_COLUMNS,
         NOISE_PRESET,
+        PEER_COLUMNS,
         PEER_THRESHOLD,
         bench_dvs,
         bench_inputs,
@@ -41,36 +44,19 @@ def bench_dvs(
     print_table(
         f"DVS emulator ('all on' = the {NOISE_PRESET} preset, every noise term)",
         rows,
-        {
-            "sensor": "",
-            "scene": "",
-            "noise": "",
-            "frames_per_s": ",.0f",
-            "mev_per_s": ".2f",
-            "events_per_frame": ",.0f",
-            "on_frame_time_pct": ".1f",
-            "peak_mib": ".1f",
-        },
+        DVS_COLUMNS,
     )
     print_table(
         "Input paths, moving pattern, ideal (time ratio = time per frame / float32 linear's)",
         bench_inputs(n_frames=frames, repeats=repeats),
-        {"sensor": "", "input": "", "frames_per_s": ",.0f", "events": ",d", "time_ratio": ".2f"},
+        INPUT_COLUMNS,
     )
     if peers:
         print_table(
             f"Peers on the same linear frames (moving pattern, threshold {PEER_THRESHOLD}, "
             "no noise, one torch thread; wander speedup = their time / wander's)",
             bench_peers(n_frames=frames, repeats=repeats),
-            {
-                "sensor": "",
-                "emulator": "",
-                "frames_per_s": ",.0f",
-                "wander_speedup": ".2f",
-                "events": ",d",
-                "events_diff_pct": "+.2f",
-                "note": "",
-            },
+            PEER_COLUMNS,
         )
 
 
@@ -91,8 +77,8 @@ def bench_env(
 ) -> None:
     """Real-time factor of the environment: exact, keyframe and adaptive-keyframe frames
     side by side."""
+    from experiments.bench.env import BREAKDOWN_COLUMNS, ENV_COLUMNS, step_breakdown
     from experiments.bench.env import bench_env as run
-    from experiments.bench.env import step_breakdown
 
     km = frames_kwargs(None, keyframe_ms).get("keyframe_ms")
     counts = tuple(int_list(envs, "--envs", "env count", minimum=1))
@@ -107,20 +93,7 @@ def bench_env(
         print_table(
             f"One env's step, scene '{scene}' (ms per step unless named)",
             parts,
-            {
-                "dvs": "",
-                "frames": "",
-                "antialias_samples": "d",
-                "ms_per_step": ".2f",
-                "renders_per_step": ".1f",
-                "ms_per_render": ".2f",
-                "render_ms": ".2f",
-                "synth_ms": ".2f",
-                "dvs_ms": ".2f",
-                "segment_ms": ".2f",
-                "pose_ms": ".2f",
-                "other_ms": ".2f",
-            },
+            BREAKDOWN_COLUMNS,
         )
     rows = run(ground_truth=ground_truth, env_counts=counts, keyframe_px=keyframe_px, **common)
     print_table(
@@ -128,25 +101,7 @@ def bench_env(
         f"({keyframe_px:g} px), stepped in turn (real-time factor = simulated s / wall s; "
         "speedup = exact / keyframes step time)",
         rows,
-        {
-            "dvs": "",
-            "envs": "d",
-            "ground_truth": "",
-            "keyframe_ms": "g",
-            "exact_rtf": ".2f",
-            "keyframes_rtf": ".2f",
-            "adaptive_rtf": ".2f",
-            "speedup": ".2f",
-            "adaptive_speedup": ".2f",
-            "exact_ms_per_step": ".1f",
-            "keyframes_ms_per_step": ".1f",
-            "adaptive_ms_per_step": ".1f",
-            "exact_renders_per_step": ".1f",
-            "keyframes_renders_per_step": ".1f",
-            "adaptive_renders_per_step": ".1f",
-            "events_diff_pct": "+.2f",
-            "adaptive_events_diff_pct": "+.2f",
-        },
+        ENV_COLUMNS,
     )
 
 
@@ -159,45 +114,24 @@ def bench_agent(
 ) -> None:
     """Per-step latency of sOMS, proto-object, sAC and the whole agent; closed-loop RTF
     with exact and keyframe frames side by side."""
+    from experiments.bench.agent import LATENCY_COLUMNS, LOOP_COLUMNS, MODES_COLUMNS, loop_modes
     from experiments.bench.agent import bench_agent as run
-    from experiments.bench.agent import loop_modes
 
     fk = frames_kwargs(None, keyframe_ms)
     rows, loop = run(seconds=seconds, scene=scene, seed=seed, **fk)
-    ms = {"calls": "d", "median_ms": ".2f", "p95_ms": ".2f", "max_ms": ".2f"}
-    print_table("Agent latency at 128x128 (ms per call)", rows, {"stage": "", **ms})
+    print_table("Agent latency at 128x128 (ms per call)", rows, LATENCY_COLUMNS)
     print_table(
         "Closed loop (env + agent, the env's default frames; real-time factor = simulated s "
         "/ wall s)",
         [loop],
-        {
-            "scene": "",
-            "simulated_s": ".1f",
-            "wall_s": ".1f",
-            "env_ms_per_step": ".1f",
-            "agent_ms_per_step": ".2f",
-            "realtime_factor": ".2f",
-        },
+        LOOP_COLUMNS,
     )
     both = loop_modes(seconds=seconds, scene=scene, seed=seed, keyframe_ms=fk.get("keyframe_ms"))
     print_table(
         "Closed loop, exact vs keyframe frames stepped alternately (speedup = keyframes RTF / "
         "exact RTF)",
         [both],
-        {
-            "scene": "",
-            "keyframe_ms": "g",
-            "simulated_s": ".1f",
-            "exact_rtf": ".2f",
-            "keyframes_rtf": ".2f",
-            "speedup": ".2f",
-            "exact_env_ms": ".1f",
-            "keyframes_env_ms": ".1f",
-            "exact_agent_ms": ".2f",
-            "keyframes_agent_ms": ".2f",
-            "exact_decisions": "d",
-            "keyframes_decisions": "d",
-        },
+        MODES_COLUMNS,
     )
 
 
@@ -218,7 +152,7 @@ def bench_fidelity(
 ) -> None:
     """Keyframe and adaptive-keyframe frames against exact rendering on the same seeds
     (events, L1, timing)."""
-    from experiments.bench.fidelity import MOTIONS
+    from experiments.bench.fidelity import ADAPTIVE_COLUMNS, KEYFRAME_COLUMNS, MOTIONS
     from experiments.bench.fidelity import bench_fidelity as run
 
     names = [m.strip() for m in motions.split(",") if m.strip()]
@@ -242,42 +176,13 @@ def bench_fidelity(
         "for scale; matched = within 1 ms, same pixel and polarity; gap = longest event gap "
         "while the camera moves, ms)",
         rows,
-        {
-            "scene": "",
-            "motion": "",
-            "exact_events": ",d",
-            "keyframes_events": ",d",
-            "events_diff_pct": "+.2f",
-            "l1_per_event": ".3f",
-            "aa16_l1_per_event": ".3f",
-            "matched_pct": ".1f",
-            "exact_matched_pct": ".1f",
-            "aa16_matched_pct": ".1f",
-            "max_gap_exact_ms": "",
-            "max_gap_keyframes_ms": "",
-            "renders_per_step_exact": ".1f",
-            "renders_per_step_keyframes": ".1f",
-        },
+        KEYFRAME_COLUMNS,
     )
     print_table(
         f"Adaptive keys ({keyframe_px:g} px, no more than {km:g} ms apart while anything "
         "moves) vs exact frames, same runs",
         rows,
-        {
-            "scene": "",
-            "motion": "",
-            "exact_events": ",d",
-            "adaptive_events": ",d",
-            "adaptive_events_diff_pct": "+.2f",
-            "adaptive_l1_per_event": ".3f",
-            "aa16_l1_per_event": ".3f",
-            "adaptive_matched_pct": ".1f",
-            "adaptive_exact_matched_pct": ".1f",
-            "max_gap_exact_ms": "",
-            "max_gap_adaptive_ms": "",
-            "renders_per_step_exact": ".1f",
-            "renders_per_step_adaptive": ".1f",
-        },
+        ADAPTIVE_COLUMNS,
     )
 
 
@@ -290,8 +195,8 @@ def bench_formats(
     repeats: Annotated[int, typer.Option(min=1, help="Timed decodes per row (median).")] = 3,
 ) -> None:
     """Decode real event files with every installed library: speed and agreement."""
+    from experiments.bench.formats import COLUMNS, default_files
     from experiments.bench.formats import bench_formats as run
-    from experiments.bench.formats import default_files
 
     paths = files or default_files(Path(__file__).resolve().parents[3] / "shared" / "realdata")
     try:
@@ -304,15 +209,5 @@ def bench_formats(
         + (f"; not installed: {', '.join(skipped)}" if skipped else "")
         + ")",
         rows,
-        {
-            "file": "",
-            "decoder": "",
-            "events": ",d",
-            "ms": ".1f",
-            "mev_per_s": ".1f",
-            "reference": "",
-            "xyp_differ": ",d",
-            "t_differ": ",d",
-            "max_abs_dt_us": ",d",
-        },
+        COLUMNS,
     )

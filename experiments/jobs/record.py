@@ -31,6 +31,7 @@ import wander_env  # noqa: F401  (registers the environments)
 from agents.fixation import FixationalMovements, FixationParams
 from experiments.jobs.run_agent import env_kwargs
 from experiments.jobs.run_viewer import open_run_log
+from wander_env.config import check_fields
 from wander_env.env import WanderConfig
 from wander_env.event_formats import write_evimo2_sequence
 from wander_env.event_io import read_events, write_events
@@ -63,8 +64,7 @@ class RecordConfig:
             raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
         if self.format not in FORMATS:
             raise ValueError(f"format must be one of {tuple(FORMATS)}, got {self.format!r}")
-        if not self.seconds > 0:
-            raise ValueError(f"seconds must be > 0, got {self.seconds}")
+        check_fields(self, ("seconds",), positive=True)
 
 
 class GazePolicy:

@@ -42,6 +42,7 @@ from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
 from experiments.jobs.run_viewer import open_run_log
 from experiments.jobs.scanpath_figure import pixel_to_angles, plot_scanpath
+from wander_env.config import check_fields
 from wander_env.env import WanderConfig
 from wander_env.event_stream import EventStreamWriter, OutputError, VideoSink
 from wander_env.metrics import degrees_to_pixels, detection_hit, focal_length_px
@@ -82,10 +83,7 @@ class RunConfig:
     keyframe_px: float | None = WanderConfig.keyframe_px  # adaptive keys' bound (None: off)
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.seconds, (int, float)) and math.isfinite(self.seconds)):
-            raise ValueError(f"RunConfig.seconds must be a finite number, got {self.seconds!r}")
-        if self.seconds <= 0:
-            raise ValueError(f"RunConfig.seconds must be > 0, got {self.seconds}")
+        check_fields(self, ("seconds",), positive=True)
         if not (isinstance(self.alpha, (int, float)) and 0.0 <= self.alpha <= 1.0):
             raise ValueError(f"RunConfig.alpha must be in [0, 1], got {self.alpha!r}")
         if self.soms_norm not in ("quantile", "minmax"):
