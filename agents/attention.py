@@ -65,8 +65,8 @@ from agents.pipeline import SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
 from agents.torch_fork import set_torch_threads
+from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.config import check_fields
-from wander_env.metrics import SPECK_HFOV_DEG
 
 __all__ = [
     "AGENT_SOMS",

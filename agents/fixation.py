@@ -40,8 +40,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from wander_env.actions import action_to_gaze_degrees, gaze_degrees_to_action
+from wander_env.camera import SPECK_HFOV_DEG, focal_length_px
 from wander_env.config import check_fields
-from wander_env.metrics import SPECK_HFOV_DEG, focal_length_px
 from wander_env.ptu import FLIR_RESOLUTION_ARCSEC, positions_to_degrees
 
 __all__ = [

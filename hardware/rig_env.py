@@ -79,11 +79,11 @@ from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from hardware.replay import ReplaySource
 from hardware.speck import SpeckParams, SpeckSource
 from wander_env.actions import action_to_gaze_degrees, check_action
+from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.config import check_fields
 from wander_env.env_base import CameraEnv
 from wander_env.event_packet import EventPacket
 from wander_env.events import empty_events, to_frame
-from wander_env.metrics import SPECK_HFOV_DEG
 from wander_env.ptu import degrees_to_positions, positions_to_degrees, round_position
 from wander_env.viz import event_image, labelled_frame
 

@@ -30,9 +30,9 @@ from experiments.jobs.rig import RigRunConfig, RigRunError, run_rig
 from hardware.ptu_driver import PTUTimeout
 from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from hardware.speck import SpeckParams
+from wander_env.camera import SPECK_HFOV_DEG, focal_length_px
 from wander_env.event_io import EventRecording, read_events, write_events
 from wander_env.events import EVENT_DTYPE, make_events
-from wander_env.metrics import SPECK_HFOV_DEG, focal_length_px
 from wander_env.ptu import PTUParams
 
 RES = PTUParams().pan_resolution_arcsec  # 92.5714″ on both axes of the emulated unit

@@ -16,7 +16,7 @@ from agents.fixation import (
     gaze_degrees_to_action,
     positions_to_action,
 )
-from wander_env.metrics import focal_length_px, pixels_to_degrees
+from wander_env.camera import focal_length_px, pixels_to_degrees
 
 RES = 92.5714  # arcsec per PTU position (the paper's unit)
 
@@ -191,7 +191,7 @@ def test_pixel_to_rotation_puts_the_pixels_ray_on_the_optical_axis():
     """Rotate a pan-tilt camera by the returned angles: its new forward axis is the ray
     that went through the pixel (to 1e-9), for pixels anywhere and any starting tilt."""
     from agents.fixation import pixel_to_rotation
-    from wander_env.metrics import focal_length_px
+    from wander_env.camera import focal_length_px
 
     f = focal_length_px(128)
 

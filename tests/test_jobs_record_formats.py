@@ -14,8 +14,8 @@ from typer.testing import CliRunner
 from experiments.benchmark.datasets.evimo import find_evimo_sequences, load_evimo_sequence
 from experiments.cli.benchmark import app as benchmark_app
 from experiments.jobs.record import RecordConfig, record
+from wander_env.camera import focal_length_px
 from wander_env.event_io import read_events
-from wander_env.metrics import focal_length_px
 
 STEP_US = 10_000  # the env's control period: one mask per step
 

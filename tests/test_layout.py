@@ -100,7 +100,7 @@ def test_the_parser_sees_the_imports_it_must_see():
     groups = ("run", "evaluate", "bench", "benchmark", "experiment", "rig", "errors")
     assert {f"experiments.cli.{g}" for g in groups} <= main
     assert "experiments.jobs.run_agent" in {t for t, _ in GRAPH["experiments.cli.run"]}
-    assert "wander_env.metrics" in {t for t, _ in GRAPH["agents.attention"]}
+    assert "wander_env.camera" in {t for t, _ in GRAPH["agents.attention"]}
     # ``from experiments import scanpath_stats`` names the module, not the package.
     assert "experiments.scanpath_stats" in {t for t, _ in GRAPH["experiments.paper.scanpath"]}
     # A lazy import inside a function counts (wander_env.camera.cast_pixel's mjcf).

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import yaml
 
-from wander_env.metrics import focal_length_px
+from wander_env.camera import focal_length_px
 from wander_env.mjcf import (
     CAMERA_NAME,
     PAN_JOINT,

@@ -30,22 +30,10 @@ import math
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
-from wander_env.camera import (
-    SPECK_HFOV_DEG,
-    degrees_to_pixels,
-    focal_length_px,
-    pixels_to_degrees,
-)
-
-# The pinhole helpers live in wander_env.camera; imported here under their old home.
 __all__ = [
-    "SPECK_HFOV_DEG",
-    "degrees_to_pixels",
     "detection_hit",
-    "focal_length_px",
     "foveation_error_px",
     "iou",
-    "pixels_to_degrees",
     "precision",
     "recall",
     "ssim",

@@ -31,12 +31,12 @@ import wander_env  # noqa: F401  (registers the environments)
 from agents.fixation import FixationalMovements, FixationParams
 from experiments.jobs.run_agent import env_kwargs
 from experiments.jobs.run_viewer import open_run_log
+from wander_env.camera import focal_length_px
 from wander_env.config import check_fields
 from wander_env.env import WanderConfig
 from wander_env.event_formats import write_evimo2_sequence
 from wander_env.event_io import read_events, write_events
 from wander_env.event_stream import EventStreamWriter, H5Appender, VideoSink
-from wander_env.metrics import focal_length_px
 from wander_env.runinfo import run_record, write_json
 
 POLICIES = ("still", "fixational", "saccades")

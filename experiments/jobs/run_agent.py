@@ -42,10 +42,11 @@ from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
 from experiments.jobs.run_viewer import open_run_log
 from experiments.jobs.scanpath_figure import pixel_to_angles, plot_scanpath
+from wander_env.camera import degrees_to_pixels, focal_length_px
 from wander_env.config import check_fields
 from wander_env.env import WanderConfig
 from wander_env.event_stream import EventStreamWriter, OutputError, VideoSink
-from wander_env.metrics import degrees_to_pixels, detection_hit, focal_length_px
+from wander_env.metrics import detection_hit
 from wander_env.runinfo import run_record, write_json
 from wander_env.shutdown import SignalExit
 from wander_env.viz import event_image, labelled_frame, saliency_rgb

@@ -50,9 +50,9 @@ import wander_env  # noqa: F401  (registers the environments, picks the GL backe
 from agents.attention import AgentParams, AttentionAgent
 from experiments.framework import Comparison, Experiment, Row, TrialSpec
 from experiments.stats import mean_std
-from wander_env.camera import cast_pixel
+from wander_env.camera import cast_pixel, degrees_to_pixels
 from wander_env.env import WanderConfig
-from wander_env.metrics import degrees_to_pixels, foveation_error_px
+from wander_env.metrics import foveation_error_px
 from wander_env.ptu import PTUParams
 from wander_env.renderer import project_points
 from wander_env.viz import save_figure

@@ -44,8 +44,8 @@ from experiments.jobs.run_agent import run_closed_loop
 from experiments.paper import main_sequence
 from experiments.paper.speed_study import AXIS_LABELS, plot_surfaces
 from experiments.stats import mean_ci, mean_std, paired_comparison
+from wander_env.camera import SPECK_HFOV_DEG, focal_length_px
 from wander_env.env import WanderConfig
-from wander_env.metrics import SPECK_HFOV_DEG, focal_length_px
 from wander_env.ptu import PTUParams, degrees_to_positions, move_duration, peak_speed
 from wander_env.viz import save_figure
 
