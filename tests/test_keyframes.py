@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from wander_env.camera import (
+    CAMERA_NAME,
     intrinsics,
     linearise_depth,
     project,
@@ -18,8 +19,9 @@ from wander_env.camera import (
     rotation_homography,
 )
 from wander_env.dvs import DVSEmulator, DVSParams
+from wander_env.entities import PAN_JOINT
 from wander_env.keyframes import KeyframeSource, View, make_keyframe, max_flow_px, synthesize
-from wander_env.mjcf import CAMERA_NAME, PAN_JOINT, compile_scene, geom_layer_ids
+from wander_env.mjcf import compile_scene, geom_layer_ids
 from wander_env.renderer import CameraRenderer
 from wander_env.scene_config import load_scene_config
 

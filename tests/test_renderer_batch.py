@@ -19,8 +19,9 @@ import numpy as np
 import pytest
 
 import wander_env  # noqa: F401  (registers the environments)
+from wander_env.camera import CAMERA_NAME
 from wander_env.dvs import DVSEmulator, DVSParams, LogFrame
-from wander_env.mjcf import CAMERA_NAME, SceneAnimator, compile_scene, geom_object_ids
+from wander_env.mjcf import SceneAnimator, compile_scene, geom_object_ids
 from wander_env.renderer import CameraRenderer
 from wander_env.scene_config import load_scene_config
 

@@ -18,18 +18,11 @@ import numpy as np
 import pytest
 import yaml
 
-from wander_env.camera import focal_length_px
-from wander_env.mjcf import (
-    CAMERA_NAME,
-    PAN_JOINT,
-    TILT_JOINT,
-    SceneAnimator,
-    build_mjcf,
-    compile_scene,
-)
+from wander_env.camera import CAMERA_NAME, SPECK_HFOV_DEG, focal_length_px
+from wander_env.entities import PAN_JOINT, TILT_JOINT
+from wander_env.mjcf import SceneAnimator, build_mjcf, compile_scene
 from wander_env.renderer import CameraRenderer, project_points
 from wander_env.scene_config import (
-    SPECK_HFOV_DEG,
     assets_dir,
     available_scenes,
     load_scene_config,

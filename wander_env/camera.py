@@ -39,6 +39,8 @@ import numpy as np
 
 # Speck DVS: sensor width 5.12 mm behind a 1.7 mm lens -> 2·atan(5.12 / 3.4) ≈ 112.8°.
 SPECK_HFOV_DEG = math.degrees(2.0 * math.atan(5.12 / (2.0 * 1.7)))
+#: The MJCF name of the event camera (on the pan-tilt unit, wander_env.entities.PanTiltCamera).
+CAMERA_NAME = "event_camera"
 
 # MuJoCo camera axes (x right, y up, z back) -> OpenCV's (x right, y down, z forward).
 _MJ_TO_CV = np.diag([1.0, -1.0, -1.0])
@@ -207,8 +209,6 @@ def cast_pixel(
     ``xy`` of the event camera (the PTU's own geoms, group 3, are not seen); the point is
     NaN and the name empty when the ray hits nothing. ``data`` must be posed."""
     import mujoco
-
-    from wander_env.mjcf import CAMERA_NAME
 
     cam = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, CAMERA_NAME)
     origin, direction = pixel_ray(

@@ -42,6 +42,7 @@ from typing import Protocol
 import mujoco
 import numpy as np
 
+from wander_env.camera import CAMERA_NAME
 from wander_env.scene_config import (
     CameraConfig,
     GratingConfig,
@@ -67,7 +68,6 @@ from wander_env.trajectories import (
     make_trajectory,
 )
 
-CAMERA_NAME = "event_camera"
 PAN_JOINT = "pan"
 TILT_JOINT = "tilt"
 PTU_BASE_BODY = "ptu_base"

@@ -69,9 +69,10 @@ import mujoco
 import numpy as np
 
 from wander_env.actions import action_to_gaze_degrees, check_action
-from wander_env.camera import focal_length_px, intrinsics, rotation_from_mujoco
+from wander_env.camera import CAMERA_NAME, focal_length_px, intrinsics, rotation_from_mujoco
 from wander_env.config import check_fields
 from wander_env.dvs import DVSEmulator, DVSParams, LogFrame
+from wander_env.entities import PAN_JOINT, TILT_JOINT
 from wander_env.env_base import CameraEnv
 from wander_env.event_packet import EventPacket
 from wander_env.events import concatenate, to_frame
@@ -83,14 +84,7 @@ from wander_env.keyframes import (
     make_keyframe,
     view_flow_bounds_px,
 )
-from wander_env.mjcf import (
-    CAMERA_NAME,
-    PAN_JOINT,
-    TILT_JOINT,
-    SceneAnimator,
-    build_mjcf,
-    geom_layer_ids,
-)
+from wander_env.mjcf import SceneAnimator, build_mjcf, geom_layer_ids
 from wander_env.ptu import PanTiltUnit, PTUParams
 from wander_env.renderer import CameraRenderer, RenderParams, project_points
 from wander_env.scene_config import SceneConfig, load_scene_config

@@ -43,15 +43,16 @@ What the model holds (and which entity writes it):
   as single quads, coarser sphere/cylinder tessellation, multisampling from
   ``config.camera.antialias_samples``.
 
-The names and the grating geometry (:data:`CAMERA_NAME`, :func:`object_body_name`,
-:func:`grating_layout`, ...) belong to :mod:`wander_env.entities`; this module keeps
-them importable from here too.
+The names and the grating geometry (:data:`~wander_env.entities.CAMERA_NAME`,
+:func:`~wander_env.entities.object_body_name`, :func:`~wander_env.entities.grating_layout`,
+...) live in :mod:`wander_env.entities`, with the parts they name.
 
 Example:
     >>> from wander_env.scene_config import load_scene_config
     >>> arena = Arena(load_scene_config("office"))
     >>> [type(e).__name__ for e in arena.entities][:4], type(arena.entities[-1]).__name__
     (['Lights', 'Room', 'Table', 'Shelf'], 'PanTiltCamera')
+    >>> from wander_env.camera import CAMERA_NAME
     >>> model = compile_scene(load_scene_config("shelf"))
     >>> model.camera(CAMERA_NAME).id >= 0, model.nmocap
     (True, 0)
@@ -71,19 +72,8 @@ import mujoco
 import numpy as np
 
 from wander_env.entities import (
-    CAMERA_NAME,
     GRATING_BACKGROUND_BODY,
-    GRATING_STRIP_PREFIX,
-    OBJECT_BODY_PREFIX,
-    PAN_BODY,
-    PAN_JOINT,
-    PTU_BASE_BODY,
-    PTU_GEOM_GROUP,
-    SCREEN_GAP_M,
-    TILT_BODY,
-    TILT_JOINT,
     Entity,
-    GratingLayout,
     GratingMotion,
     GratingStimulus,
     Lights,
@@ -95,40 +85,19 @@ from wander_env.entities import (
     Shelf,
     StaticProp,
     Table,
-    grating_layout,
-    grating_state,
-    object_body_name,
     object_index,
-    vertical_fov_deg,
 )
 from wander_env.scene_config import SceneConfig
 from wander_env.trajectories import Trajectory
 
 __all__ = [
-    "CAMERA_NAME",
-    "GRATING_BACKGROUND_BODY",
-    "GRATING_STRIP_PREFIX",
-    "OBJECT_BODY_PREFIX",
-    "PAN_BODY",
-    "PAN_JOINT",
-    "PTU_BASE_BODY",
-    "PTU_GEOM_GROUP",
-    "SCREEN_GAP_M",
-    "TILT_BODY",
-    "TILT_JOINT",
     "Arena",
-    "GratingLayout",
     "MJCFScene",
     "SceneAnimator",
     "build_mjcf",
     "compile_scene",
     "geom_layer_ids",
     "geom_object_ids",
-    "grating_layout",
-    "grating_state",
-    "object_body_name",
-    "object_index",
-    "vertical_fov_deg",
 ]
 
 _STATISTIC_EXTENT = 4.0  # m; with znear/zfar: near clip 2 cm, far clip 40 m

@@ -38,10 +38,16 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from wander_env.camera import intrinsics, linearise_depth, project, rotation_from_mujoco
+from wander_env.camera import (
+    CAMERA_NAME,
+    intrinsics,
+    linearise_depth,
+    project,
+    rotation_from_mujoco,
+)
 from wander_env.closing import Closing
 from wander_env.gl_fork import claim_gl
-from wander_env.mjcf import CAMERA_NAME, geom_object_ids
+from wander_env.mjcf import geom_object_ids
 
 
 @dataclass(frozen=True)

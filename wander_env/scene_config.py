@@ -36,6 +36,7 @@ from typing import Annotated, Any, Literal
 import pydantic
 import yaml
 
+from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.config import check_annotated, validate_paths
 from wander_env.textures import TextureSpec
 from wander_env.trajectories import TrajectoryParams
@@ -51,9 +52,6 @@ RGBA = tuple[Unit, Unit, Unit, Unit]
 SHAPES = ("box", "sphere", "cylinder")
 SHAPE_SIZE_LEN = {"box": 3, "sphere": 1, "cylinder": 2}
 GRATING_MODES = ("eye+object", "eye-only", "object-only")
-# Speck: 5.12 mm sensor behind a 1.7 mm lens -> 2 atan(5.12 / 3.4) ≈ 112.83° horizontally
-# (f = 1.7 mm / 40 µm pixels = 42.5 px).
-SPECK_HFOV_DEG = math.degrees(2.0 * math.atan(5.12 / 3.4))
 DEFAULT_SCENE = "office"
 
 

@@ -66,8 +66,8 @@ from experiments.jobs.run_agent import run_closed_loop
 from experiments.jobs.scanpath_figure import pixel_to_angles, saliency_mosaic, show_mosaic
 from experiments.stats import mean_std
 from wander_env.camera import SPECK_HFOV_DEG, cast_pixel, focal_length_px
+from wander_env.entities import object_body_name
 from wander_env.env import WanderConfig
-from wander_env.mjcf import object_body_name
 from wander_env.viz import save_figure
 
 __all__ = [
