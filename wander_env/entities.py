@@ -68,6 +68,38 @@ from wander_env.trajectories import (
     make_trajectory,
 )
 
+__all__ = [
+    "GRATING_BACKGROUND_BODY",
+    "GRATING_STRIP_PREFIX",
+    "OBJECT_BODY_PREFIX",
+    "PAN_BODY",
+    "PAN_JOINT",
+    "PTU_BASE_BODY",
+    "PTU_GEOM_GROUP",
+    "SCREEN_GAP_M",
+    "TILT_BODY",
+    "TILT_JOINT",
+    "Entity",
+    "GratingLayout",
+    "GratingMotion",
+    "GratingStimulus",
+    "Lights",
+    "MJCFDocument",
+    "MovingProp",
+    "PanTiltCamera",
+    "PropMotion",
+    "Room",
+    "Shelf",
+    "StaticProp",
+    "Table",
+    "fmt",
+    "grating_layout",
+    "grating_state",
+    "object_body_name",
+    "object_index",
+    "vertical_fov_deg",
+]
+
 PAN_JOINT = "pan"
 TILT_JOINT = "tilt"
 PTU_BASE_BODY = "ptu_base"
