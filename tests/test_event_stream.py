@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import errno
 import json
+import signal
+import time
 
 import h5py
 import numpy as np
@@ -13,8 +15,9 @@ from typer.testing import CliRunner
 
 from experiments.cli.errors import long_command
 from wander_env.event_io import read_events
-from wander_env.event_stream import EventStreamWriter, H5Appender, OutputError
+from wander_env.event_stream import EventStreamWriter, H5Appender, OutputError, VideoSink
 from wander_env.events import make_events
+from wander_env.shutdown import SignalExit
 
 
 def step(k: int, n: int = 100) -> np.ndarray:
@@ -119,3 +122,58 @@ def test_long_command_turns_a_write_failure_into_one_line_and_marks_the_folder(t
     metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
     assert metrics["incomplete"] is True and metrics["error"].startswith("OutputError: ")
     assert (tmp_path / "run" / "INCOMPLETE").read_text().startswith("cannot write ")
+
+
+def test_video_sink_writes_the_frames_it_is_given(tmp_path):
+    import imageio.v2 as imageio
+
+    path = tmp_path / "v.mp4"
+    sink = VideoSink(path, fps=10)
+    for k in range(5):
+        sink.append(np.full((24, 32, 3), 40 * k, np.uint8))
+    assert sink.finish(None) is None
+    frames = imageio.mimread(path, memtest=False)
+    assert len(frames) == 5 and frames[0].shape == (24, 32, 3)
+    assert [int(np.median(f)) for f in frames] == pytest.approx([0, 40, 80, 120, 160], abs=3)
+
+
+def test_video_sink_refuses_a_frame_of_another_size_or_type(tmp_path):
+    sink = VideoSink(tmp_path / "v.mp4", fps=10)
+    sink.append(np.zeros((16, 16, 3), np.uint8))
+    with pytest.raises(ValueError, match=r"v.mp4: frame of 32x16 px after frames of 16x16 px"):
+        sink.append(np.zeros((16, 32, 3), np.uint8))
+    with pytest.raises(ValueError, match=r"must be \(H, W, 3\) uint8, got \(16, 16, 3\) float64"):
+        sink.append(np.zeros((16, 16, 3)))
+    assert sink.finish(None) is None
+
+
+def test_a_hung_ffmpeg_is_ended_after_the_close_timeout_and_the_video_named(tmp_path, monkeypatch):
+    """ffmpeg that never exits (here a stand-in that reads its input, then sleeps): the
+    close gives up after close_timeout_s and says the video is incomplete."""
+    fake = tmp_path / "ffmpeg"
+    fake.write_text("#!/bin/sh\ncat > /dev/null\nexec sleep 600\n")
+    fake.chmod(0o755)
+    monkeypatch.setenv("IMAGEIO_FFMPEG_EXE", str(fake))
+    sink = VideoSink(tmp_path / "v.mp4", fps=10, close_timeout_s=1.0)
+    sink.append(np.zeros((16, 16, 3), np.uint8))
+    t0 = time.monotonic()
+    err = sink.finish(None)
+    assert time.monotonic() - t0 < 60.0  # bounded (1 s, plus a loaded machine's slack)
+    assert isinstance(err, OutputError)
+    assert str(err) == (
+        f"cannot write {tmp_path / 'v.mp4'}: ffmpeg did not finish the video within 1 s and "
+        "was ended; the file is incomplete"
+    )
+    run_error = RuntimeError("the run's own")
+    assert VideoSink(tmp_path / "w.mp4", fps=10).finish(run_error) is run_error  # no frames
+
+
+def test_a_signal_while_the_video_closes_is_handed_back_not_raised(tmp_path):
+    class SignalledClose:
+        def close(self):
+            raise SignalExit(signal.SIGTERM)
+
+    sink = VideoSink(tmp_path / "v.mp4", fps=10)
+    sink._frames = SignalledClose()  # a SIGTERM lands while ffmpeg finishes the file
+    err = sink.finish(None)
+    assert isinstance(err, SignalExit) and err.name == "SIGTERM"

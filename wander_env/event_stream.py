@@ -342,12 +342,15 @@ class EventStreamWriter(_StreamFile):
 
 
 class VideoSink:
-    """An MP4 (imageio's ffmpeg writer) written frame by frame, its failures named.
+    """An MP4 written frame by frame through imageio-ffmpeg, its failures named.
 
     :meth:`append` turns a failed write into :class:`OutputError` naming the file (ENOSPC
     with the free bytes when the disk is full: ffmpeg's pipe shows a full disk as a broken
     pipe); :meth:`finish` closes it and hands back the run's error, or the close's own
-    when the run had none.
+    when the run had none. The close is bounded: ffmpeg gets ``close_timeout_s`` to finish
+    the file and is then ended (an :class:`OutputError` says the video is incomplete), so
+    a hung encoder cannot keep the run folder from being written; a signal that arrives
+    while ffmpeg finishes is handed back the same way, not raised past the folder.
 
     Example:
         >>> import tempfile
@@ -359,24 +362,66 @@ class VideoSink:
         (True, True)
     """
 
-    def __init__(self, path: str | os.PathLike, fps: int) -> None:
-        import imageio.v2 as imageio
-
+    def __init__(self, path: str | os.PathLike, fps: int, close_timeout_s: float = 60.0) -> None:
+        if not close_timeout_s > 0:
+            raise ValueError(f"VideoSink.close_timeout_s must be > 0, got {close_timeout_s!r}")
         self.path = Path(path)
-        self._writer = imageio.get_writer(self.path, fps=fps, macro_block_size=1)
+        self.fps = fps
+        self.close_timeout_s = float(close_timeout_s)
+        self._size: tuple[int, int] | None = None  # (width, height) of the first frame
+        self._frames: Any = None  # imageio-ffmpeg's frame generator, from the first frame
 
     def append(self, frame: np.ndarray) -> None:
-        """Write one RGB frame ``(H, W, 3)`` uint8."""
+        """Write one RGB frame ``(H, W, 3)`` uint8 (every frame the first one's size)."""
+        frame = np.asarray(frame)
+        if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
+            raise ValueError(
+                f"{self.path}: a video frame must be (H, W, 3) uint8, got {frame.shape} "
+                f"{frame.dtype}"
+            )
+        size = (frame.shape[1], frame.shape[0])
+        if self._size is not None and size != self._size:
+            raise ValueError(
+                f"{self.path}: frame of {size[0]}x{size[1]} px after frames of "
+                f"{self._size[0]}x{self._size[1]} px"
+            )
         try:
-            self._writer.append_data(frame)
+            if self._frames is None:
+                import imageio_ffmpeg
+
+                self._size = size
+                self._frames = imageio_ffmpeg.write_frames(
+                    str(self.path),
+                    size,
+                    fps=self.fps,
+                    quality=None,  # libx264's own default rate control, as imageio's writer
+                    macro_block_size=1,
+                    ffmpeg_log_level="warning",
+                    ffmpeg_timeout=self.close_timeout_s,
+                )
+                self._frames.send(None)  # starts ffmpeg
+            self._frames.send(np.ascontiguousarray(frame))
         except Exception as err:
             check_space(self.path, frame.nbytes)
             raise OutputError(self.path, err) from err
 
     def finish(self, error: BaseException | None) -> BaseException | None:
-        """Close the file; return ``error``, or the close's :class:`OutputError` if none."""
+        """Close the file; return ``error``, or the close's error if none: an
+        :class:`OutputError` (a failed or timed-out close) or the signal that came."""
+        frames, self._frames = self._frames, None
+        if frames is None:
+            return error
+        start = time.monotonic()
         try:
-            self._writer.close()
+            frames.close()
         except Exception as err:
             return error or OutputError(self.path, err)
+        except BaseException as stop:  # a signal while ffmpeg finishes: write the folder first
+            return error or stop
+        if time.monotonic() - start >= self.close_timeout_s:
+            late = TimeoutError(
+                f"ffmpeg did not finish the video within {self.close_timeout_s:g} s and was "
+                "ended; the file is incomplete"
+            )
+            return error or OutputError(self.path, late)
         return error
