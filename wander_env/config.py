@@ -162,29 +162,33 @@ def block_aliases(block: str, names: Iterable[str]) -> dict[str, str]:
     return {name: f"{block}.{name}" for name in names}
 
 
+def _has_path(data: Mapping[str, Any], dotted: str) -> bool:
+    """Whether nested mapping ``data`` sets the dotted key ``dotted``."""
+    node: Any = data
+    for name in dotted.split("."):
+        if not isinstance(node, Mapping) or name not in node:
+            return False
+        node = node[name]
+    return True
+
+
 def _unalias(cls: Any, values: Mapping[str, Any]) -> dict[str, Any]:
     """``values`` (dotted keys expanded) with each old flat key moved to the nested
     key(s) it names; an old key given together with its new key is refused."""
     aliases = aliases_of(cls)
-    out = _expand({k: v for k, v in values.items() if k not in aliases})
+    current = {k: v for k, v in values.items() if k not in aliases}
+    given = _expand(current)
+    moved: dict[str, Any] = {}
     for old, targets in aliases.items():
         if old not in values:
             continue
         for target in targets:
-            *head, last = target.split(".")
-            node = out
-            for name in head:
-                node = node.setdefault(name, {})
-                if not isinstance(node, dict):
-                    raise ConfigError(
-                        f"key {old!r} (now {target!r}): {name} is set to a value already"
-                    )
-            if last in node:
+            if _has_path(given, target):
                 raise ConfigError(
                     f"key {old!r} is the former name of {target!r}; give only one of them"
                 )
-            node[last] = values[old]
-    return out
+            moved[target] = values[old]
+    return _expand({**current, **moved})
 
 
 def _on_defaults(cls: Any, values: Mapping[str, Any]) -> dict[str, Any]:
@@ -297,7 +301,11 @@ def _value_at(data: Any, loc: tuple[Any, ...]) -> Any:
 def _message(cls: type, data: Any, err: Mapping[str, Any], shown: Mapping[str, str]) -> str:
     """One pydantic error as the project's message; ``shown`` maps a dotted key to the
     former flat name the user gave it by (so a message names the key as it was given)."""
-    text = _raw_message(cls, data, err)
+    return _as_given(_raw_message(cls, data, err), shown)
+
+
+def _as_given(text: str, shown: Mapping[str, str]) -> str:
+    """``text`` naming each dotted key of ``shown`` by the former name it was given by."""
     for target, old in shown.items():
         text = text.replace(f"key {target!r}", f"key {old!r}")
         if text.startswith(f"{target}: "):
@@ -388,7 +396,7 @@ def validate(cls: type, values: Mapping[str, Any], base: Any = None, where: str 
     try:
         values = _unalias(cls, values)
     except ConfigError as e:
-        raise ConfigError(f"{where}: {e}") from None
+        raise ConfigError(f"{where}: {_as_given(str(e), shown)}") from None
     data = _merge(to_plain(base), values) if base is not None else _on_defaults(cls, values)
     try:
         return _run(cls, data)
