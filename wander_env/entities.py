@@ -586,13 +586,9 @@ class PropMotion:
         """World position (m) at time t (s)."""
         return self.trajectory.position(t)
 
-    def place(self, data: mujoco.MjData, position: np.ndarray) -> None:
-        """Write ``position`` into ``data.mocap_pos``."""
-        data.mocap_pos[self.mocap_id] = position
-
     def apply(self, data: mujoco.MjData, t: float) -> None:
         """Write the position at time t into ``data.mocap_pos``."""
-        self.place(data, self.position(t))
+        data.mocap_pos[self.mocap_id] = self.position(t)
 
 
 @dataclass(frozen=True)

@@ -249,6 +249,8 @@ class SceneAnimator:
         self.motions: tuple[PropMotion, ...] = tuple(
             p.motion(model, rng) for p in arena.moving_props
         )
+        # the props' mocap slots, in object order (one vectorised write per pose)
+        self._mocap = np.array([m.mocap_id for m in self.motions], dtype=int)
         self._positions: dict[float, np.ndarray] = {}  # recent times' object positions
         self._gratings: GratingMotion | None = (
             arena.gratings.motion(model) if arena.gratings is not None else None
@@ -302,8 +304,7 @@ class SceneAnimator:
 
     def apply(self, data: mujoco.MjData, t: float) -> None:
         """Set mocap positions (and grating colours) for time t (s)."""
-        if self.motions:
-            for motion, position in zip(self.motions, self.object_positions(t), strict=True):
-                motion.place(data, position)
+        if len(self._mocap):
+            data.mocap_pos[self._mocap] = self.object_positions(t)
         if self._gratings is not None:
             self._gratings.apply(data, t)
