@@ -260,8 +260,7 @@ def run_trial(cfg: OMSCharacterisationConfig, spec: TrialSpec) -> dict[str, Any]
         float(p["background_deg_s"]),
         float(p["object_deg_s"]),
     )
-    kernel = (float(p["sigma_c"]), float(p["sigma_s"]), int(p["kernel_size"]))
-    soms = SOMS(with_kernel(cfg.soms, kernel))
+    soms = SOMS(with_kernel(cfg.soms, (p["sigma_c"], p["sigma_s"], p["kernel_size"])))
     n = round(cfg.duration_s / cfg.step_s)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "gratings_variant.yaml"
