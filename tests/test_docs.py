@@ -9,7 +9,6 @@ from pathlib import Path
 
 import pytest
 import yaml
-
 from test_tutorial import python_blocks
 
 ROOT = Path(__file__).resolve().parents[1]
