@@ -29,7 +29,7 @@ import numpy as np
 import torch
 
 from agents.soms import SOMS, SOMSParams, peak_scale
-from experiments.paper.oms_stimuli import Recording, Stimulus, prediction, render
+from experiments.paper.oms_stimuli import Recording, Stimulus, render
 
 __all__ = [
     "CLAIM_GROUPS",
@@ -259,45 +259,3 @@ def tune(
         rows.append((k, claims_passed(c), margin(c), c))
     rows.sort(key=lambda r: (-r[1], -r[2]))
     return rows
-
-
-def prediction_counts(stimuli: Sequence[Stimulus]) -> dict[str, int]:
-    """How many stimuli carry each of the paper's predictions."""
-    out: dict[str, int] = {}
-    for s in stimuli:
-        out[prediction(s)] = out.get(prediction(s), 0) + 1
-    return out
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m experiments.paper.oms_family [--every N]``: the parameter search of the
-    agent's sOMS — every :func:`candidates` setting and the paper-literal sOMS scored on
-    the even-seed half of the family (every N-th stimulus of it), best first."""
-    import argparse
-
-    from experiments.paper.oms_stimuli import family, split
-
-    ap = argparse.ArgumentParser(prog="python -m experiments.paper.oms_family")
-    ap.add_argument("--every", type=int, default=1, help="score every N-th stimulus")
-    args = ap.parse_args(argv)
-    if args.every < 1:
-        ap.error(f"--every must be >= 1, got {args.every}")
-    torch.set_num_threads(1)
-    train, _ = split(family())
-    base = SOMSParams(conv="fft")
-    rows = tune(train[:: args.every], {"paper-literal": base, **candidates(base)})
-    print(f"{len(train[:: args.every])} stimuli of the even-seed half")
-    print("| setting | claims passed | margin | eye-only supp. | e+o prec./kept | o-o prec./kept |")
-    print("|---|---:|---:|---:|---:|---:|")
-    for name, n, m, c in rows:
-        eo, eb, oo = c["eye-only"], c["eye+object"], c["object-only"]
-        print(
-            f"| {name} | {n} | {m:+.3f} | {100 * float(eo['suppressed']):.1f} % | "
-            f"{float(eb['precision']):.2f} / {100 * float(eb['object_kept']):.0f} % | "
-            f"{float(oo['precision']):.2f} / {100 * float(oo['object_kept']):.0f} % |"
-        )
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -46,7 +46,7 @@ Example:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Literal
 
 import cv2
@@ -371,8 +371,3 @@ def family(
 def split(stimuli: list[Stimulus]) -> tuple[list[Stimulus], list[Stimulus]]:
     """(even seeds: the half parameters are chosen on, odd seeds: the held-out half)."""
     return [s for s in stimuli if s.seed % 2 == 0], [s for s in stimuli if s.seed % 2 == 1]
-
-
-def with_seed(s: Stimulus, seed: int) -> Stimulus:
-    """The same stimulus drawn with another seed."""
-    return replace(s, seed=seed)
