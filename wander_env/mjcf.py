@@ -78,6 +78,7 @@ from wander_env.entities import (
     GratingStimulus,
     Lights,
     MJCFDocument,
+    MJCFInclude,
     MovingProp,
     PanTiltCamera,
     PropMotion,
@@ -115,15 +116,20 @@ _NUM_STACKS = 10
 
 @dataclass
 class MJCFScene:
-    """An MJCF document: XML text, its in-memory assets, and the config it came from."""
+    """An MJCF document: XML text, its in-memory assets, the MJCF files it includes
+    (attached when it compiles), and the config it came from."""
 
     xml: str
     assets: dict[str, bytes]
     config: SceneConfig
+    includes: tuple[MJCFInclude, ...] = ()
 
     def compile(self) -> mujoco.MjModel:
-        """Compile to a ``mujoco.MjModel``."""
-        return mujoco.MjModel.from_xml_string(self.xml, self.assets)
+        """Compile to a ``mujoco.MjModel`` (with the included files' bodies)."""
+        spec = mujoco.MjSpec.from_string(self.xml, assets=self.assets)
+        for include in self.includes:
+            include.attach_spec(spec)
+        return spec.compile()
 
 
 class Arena:
@@ -142,6 +148,7 @@ class Arena:
         )
         g = config.gratings
         self.gratings = GratingStimulus(g, self.ptu) if g is not None else None
+        self.includes = tuple(MJCFInclude(i, inc) for i, inc in enumerate(config.mjcf_includes))
         self.entities: tuple[Entity, ...] = (
             Lights(config.lighting),
             *((Room(config.room),) if config.room is not None else ()),
@@ -190,7 +197,7 @@ class Arena:
         doc.open_world()
         for entity in self.entities:
             entity.attach(doc)
-        return MJCFScene(doc.text(), doc.assets, self.config)
+        return MJCFScene(doc.text(), doc.assets, self.config, self.includes)
 
 
 def build_mjcf(config: SceneConfig) -> MJCFScene:

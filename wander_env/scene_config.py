@@ -28,11 +28,14 @@ from __future__ import annotations
 
 import importlib.resources
 import math
+import stat
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, TypeVar
 
+import mujoco
+import numpy as np
 import pydantic
 import yaml
 
@@ -49,33 +52,149 @@ Vec2 = tuple[float, float]
 Vec3 = tuple[float, float, float]
 RGBA = tuple[Unit, Unit, Unit, Unit]
 
-SHAPES = ("box", "sphere", "cylinder")
-SHAPE_SIZE_LEN = {"box": 3, "sphere": 1, "cylinder": 2}
+SHAPES = ("box", "sphere", "cylinder", "mesh")
+SHAPE_SIZE_LEN = {"box": 3, "sphere": 1, "cylinder": 2, "mesh": 0}
+MESH_SUFFIXES = (".obj", ".stl")
+MAX_MESH_BYTES = 32 * 2**20  # an OBJ of ~10^6 vertices; MuJoCo's STL reader takes 200000 faces
+MAX_MJCF_BYTES = 8 * 2**20
+# Scene size limits (validated): the work holds these.
+MAX_CAMERA_SIDE = 4096  # px, each side (within llvmpipe's 16384 offscreen limit)
+MAX_CAMERA_PIXELS = 2048 * 2048  # the env takes ~0.3 kB a pixel: 2048^2 is ~1.7 GB
+MAX_MATERIALS = 1000  # MuJoCo's renderer refuses a model with more (mjMAXMATERIAL)
+MAX_TEXTURES = 1000  # likewise (mjMAXTEXTURE)
+MAX_PARTS = MAX_MATERIALS  # each table, shelf and prop takes one material
+MAX_LIGHTS = 100  # mjMAXLIGHT
 GRATING_MODES = ("eye+object", "eye-only", "object-only")
 DEFAULT_SCENE = "office"
+T = TypeVar("T")
 
 
 # ----------------------------------------------------------------------------------------
 # Dataclasses
 
 
-def _check_shape(shape: str, size: Sequence[float]) -> None:
+def _check_shape(shape: str, size: Sequence[float], mesh: MeshConfig | None) -> None:
     if shape not in SHAPES:
         raise ValueError(f"shape must be one of {SHAPES}, got {shape!r}")
+    if shape == "mesh":
+        if mesh is None:
+            raise ValueError("mesh: required when shape is 'mesh'")
+        if size:
+            raise ValueError(
+                f"size: not used by a mesh (its size is the file's times mesh.scale), got {size}"
+            )
+        return
+    if mesh is not None:
+        raise ValueError(f"mesh: only for shape 'mesh', got shape {shape!r}")
     n = SHAPE_SIZE_LEN[shape]
     if len(size) != n or not all(math.isfinite(v) and v > 0 for v in size):
         raise ValueError(f"size of a {shape} must be {n} extents > 0 (m), got {tuple(size)}")
 
 
+def checked_file(file: str, suffixes: tuple[str, ...], max_bytes: int) -> Path:
+    """The absolute path of an existing regular ``file`` (relative paths: to the current
+    directory) with one of ``suffixes`` and at most ``max_bytes``; ValueError
+    ``file: what is wrong, got value`` otherwise (nothing is read)."""
+    path = Path(file).expanduser()
+    if path.suffix.lower() not in suffixes:
+        raise ValueError(f"file: must end in {' or '.join(suffixes)}, got {file!r}")
+    try:
+        path = path.resolve()
+        st = path.stat()
+    except (OSError, RuntimeError) as e:
+        raise ValueError(f"file: cannot be read ({e.strerror or e}), got {file!r}") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise ValueError(f"file: not a regular file, got {file!r}")
+    if st.st_size > max_bytes:
+        raise ValueError(
+            f"file: larger than {max_bytes // 2**20} MiB ({st.st_size} bytes), got {file!r}"
+        )
+    return path
+
+
+def _mujoco_error(e: Exception) -> str:
+    """MuJoCo's compile error as one line (its first, without the ``Error:`` lead)."""
+    return str(e).strip().splitlines()[0].removeprefix("Error: ").strip()
+
+
+def mesh_bounds(path: Path, scale: Vec3) -> tuple[np.ndarray, np.ndarray]:
+    """(min, max) corners (m) of the bounding box of mesh file ``path`` (OBJ or STL) in
+    its file's frame, times ``scale``, as MuJoCo reads it; ValueError ``file: ...``
+    when MuJoCo cannot read it."""
+    spec = mujoco.MjSpec()
+    spec.add_mesh(
+        name="probe",
+        file=str(path),
+        scale=scale,
+        inertia=mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL,
+    )
+    body = spec.worldbody.add_body(mocap=True)
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname="probe", contype=0, conaffinity=0)
+    try:
+        model = spec.compile()
+    except ValueError as e:
+        raise ValueError(
+            f"file: MuJoCo cannot read the mesh ({_mujoco_error(e)}), got {str(path)!r}"
+        ) from None
+    adr, num = int(model.mesh_vertadr[0]), int(model.mesh_vertnum[0])
+    rot = np.zeros(9)
+    mujoco.mju_quat2Mat(rot, model.geom_quat[0])
+    verts = model.mesh_vert[adr : adr + num].astype(float) @ rot.reshape(3, 3).T + model.geom_pos[0]
+    if not np.isfinite(verts).all():
+        raise ValueError(f"file: the mesh has vertices that are not finite, got {str(path)!r}")
+    return verts.min(axis=0), verts.max(axis=0)
+
+
+def mjcf_counts(path: Path) -> tuple[int, int]:
+    """(materials, textures) of the MJCF file ``path`` as MuJoCo compiles it alone;
+    ValueError ``file: ...`` when MuJoCo cannot."""
+    try:
+        model = mujoco.MjSpec.from_file(str(path)).compile()
+    except ValueError as e:
+        raise ValueError(
+            f"file: MuJoCo cannot read the MJCF ({_mujoco_error(e)}), got {str(path)!r}"
+        ) from None
+    return int(model.nmat), int(model.ntex)
+
+
+@dataclass(frozen=True)
+class MeshConfig:
+    """A mesh file (Wavefront OBJ or STL) that MuJoCo reads, and its scale.
+
+    The file's coordinates times ``scale`` are metres; the object's ``position`` is the
+    centre of the scaled mesh's bounding box. OBJ texture coordinates are not used: a
+    ``texture`` is wrapped round the mesh as a cube map.
+    """
+
+    file: str
+    scale: Positive | tuple[Positive, Positive, Positive] = 1.0
+
+    def __post_init__(self) -> None:
+        path = checked_file(self.file, MESH_SUFFIXES, MAX_MESH_BYTES)
+        object.__setattr__(self, "file", str(path))
+        self.bounds()
+
+    @property
+    def scale_xyz(self) -> Vec3:
+        """``scale`` per axis."""
+        s = self.scale
+        return (s, s, s) if isinstance(s, (int, float)) else s
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(min, max) corners (m) of the scaled mesh's bounding box in its file's frame."""
+        return mesh_bounds(Path(self.file), self.scale_xyz)
+
+
 class _Body:
-    """Base of the prop configs: their ``shape`` and full-extent ``size`` (m), checked
-    together on construction."""
+    """Base of the prop configs: their ``shape``, full-extent ``size`` (m) and ``mesh``,
+    checked together on construction."""
 
     shape: str
     size: tuple[float, ...]
+    mesh: MeshConfig | None
 
     def __post_init__(self) -> None:
-        _check_shape(self.shape, self.size)
+        _check_shape(self.shape, self.size, self.mesh)
 
 
 @dataclass(frozen=True)
@@ -87,10 +206,18 @@ class CameraConfig:
     sensor; 0 renders about twice as fast on a CPU (llvmpipe).
     """
 
-    width: Annotated[int, pydantic.Field(ge=1)] = 128
-    height: Annotated[int, pydantic.Field(ge=1)] = 128
+    width: Annotated[int, pydantic.Field(ge=1, le=MAX_CAMERA_SIDE)] = 128
+    height: Annotated[int, pydantic.Field(ge=1, le=MAX_CAMERA_SIDE)] = 128
     hfov_deg: Annotated[float, pydantic.Field(gt=0, le=179)] = SPECK_HFOV_DEG
-    antialias_samples: Annotated[int, pydantic.Field(ge=0)] = 4
+    antialias_samples: Annotated[int, pydantic.Field(ge=0, le=16)] = 4
+
+    def __post_init__(self) -> None:
+        check_annotated(self)
+        if self.width * self.height > MAX_CAMERA_PIXELS:
+            raise ValueError(
+                f"width: width x height must be <= {MAX_CAMERA_PIXELS} pixels (2048 x 2048; "
+                f"the env takes ~0.3 kB a pixel), got {self.width} x {self.height}"
+            )
 
 
 @dataclass(frozen=True)
@@ -126,7 +253,7 @@ class LightingConfig:
 
     headlight_ambient: Unit = 0.35
     headlight_diffuse: Unit = 0.35
-    lights: tuple[LightConfig, ...] = ()
+    lights: Annotated[tuple[LightConfig, ...], pydantic.Field(max_length=MAX_LIGHTS)] = ()
 
 
 @dataclass(frozen=True)
@@ -191,12 +318,18 @@ class ShelfConfig:
             raise ValueError(f"levels: must be <= height ({self.height}), got {self.levels}")
 
 
-@dataclass(frozen=True)
-class StaticObjectConfig(_Body):
-    """A static prop: shape, full-extent size (m), centre, orientation (xyz Euler, deg)."""
+Shape = Literal["box", "sphere", "cylinder", "mesh"]
+Size = Annotated[tuple[Positive, ...], pydantic.Field(max_length=3)]
 
-    shape: Literal["box", "sphere", "cylinder"]
-    size: Annotated[tuple[Positive, ...], pydantic.Field(min_length=1)]
+
+@dataclass(frozen=True, kw_only=True)
+class StaticObjectConfig(_Body):
+    """A static prop: shape, full-extent size (m) or mesh, centre, orientation (xyz
+    Euler, deg)."""
+
+    shape: Shape
+    size: Size = ()
+    mesh: MeshConfig | None = None
     position: Vec3
     euler_deg: Vec3 = (0.0, 0.0, 0.0)
     rgba: RGBA = (0.7, 0.7, 0.7, 1.0)
@@ -204,19 +337,44 @@ class StaticObjectConfig(_Body):
     name: str = ""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class MovingObjectConfig(_Body):
-    """A moving object (a mocap body): shape, full-extent size (m), look, trajectory.
+    """A moving object (a mocap body): shape, full-extent size (m) or mesh, look,
+    trajectory.
 
     Object k (1-based, in list order) has id k in segmentation masks.
     """
 
-    shape: Literal["box", "sphere", "cylinder"]
-    size: Annotated[tuple[Positive, ...], pydantic.Field(min_length=1)]
+    shape: Shape
+    size: Size = ()
+    mesh: MeshConfig | None = None
     trajectory: Annotated[TrajectoryParams, pydantic.Field(discriminator="kind")]
     rgba: RGBA = (1.0, 1.0, 1.0, 1.0)
     texture: TextureSpec | None = None
     name: str = ""
+
+
+@dataclass(frozen=True, kw_only=True)
+class MJCFIncludeConfig:
+    """The bodies of an existing MJCF file's worldbody, attached to the scene as static
+    parts (their joints are removed; nothing of theirs moves) under a frame at
+    ``position`` turned by ``euler_deg``, their names prefixed ``NAME/``. Their
+    materials and textures count towards MuJoCo's limits; geoms in groups above 2 are
+    not rendered by the camera; mask id 0 (not an object)."""
+
+    file: str
+    position: Vec3 = (0.0, 0.0, 0.0)
+    euler_deg: Vec3 = (0.0, 0.0, 0.0)
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        path = checked_file(self.file, (".xml", ".mjcf"), MAX_MJCF_BYTES)
+        object.__setattr__(self, "file", str(path))
+        self.counts()
+
+    def counts(self) -> tuple[int, int]:
+        """(materials, textures) the file brings."""
+        return mjcf_counts(Path(self.file))
 
 
 @dataclass(frozen=True)
@@ -272,6 +430,9 @@ class GratingConfig:
         return self.background_speed_deg_s, self.object_speed_deg_s
 
 
+Parts = Annotated[tuple[T, ...], pydantic.Field(max_length=MAX_PARTS)]
+
+
 @dataclass(frozen=True)
 class SceneConfig:
     """One scene: everything :func:`wander_env.mjcf.build_mjcf` needs."""
@@ -282,10 +443,11 @@ class SceneConfig:
     ptu: PTUMountConfig = field(default_factory=PTUMountConfig)
     lighting: LightingConfig = field(default_factory=LightingConfig)
     room: RoomConfig | None = None
-    tables: tuple[TableConfig, ...] = ()
-    shelves: tuple[ShelfConfig, ...] = ()
-    static_objects: tuple[StaticObjectConfig, ...] = ()
-    moving_objects: tuple[MovingObjectConfig, ...] = ()
+    tables: Parts[TableConfig] = ()
+    shelves: Parts[ShelfConfig] = ()
+    static_objects: Parts[StaticObjectConfig] = ()
+    moving_objects: Parts[MovingObjectConfig] = ()
+    mjcf_includes: Parts[MJCFIncludeConfig] = ()
     gratings: GratingConfig | None = None
 
     def __post_init__(self) -> None:
@@ -298,6 +460,34 @@ class SceneConfig:
                 "gratings.object_size_deg: must be smaller than the field of view "
                 f"({self.camera.hfov_deg:.1f} deg), got {self.gratings.object_size_deg}"
             )
+        included = [inc.counts() for inc in self.mjcf_includes]
+        materials = self.own_materials() + sum(m for m, _ in included)
+        if materials > MAX_MATERIALS:
+            raise ValueError(
+                f"static_objects: the scene needs {materials} materials, MuJoCo renders at most "
+                f"{MAX_MATERIALS} (one a table, shelf and object, 6 for a room, 1 for the "
+                "pan-tilt unit, 2 for gratings, and the mjcf_includes' own): use fewer parts"
+            )
+        textures = self.own_textures() + sum(t for _, t in included)
+        if textures > MAX_TEXTURES:
+            raise ValueError(
+                f"static_objects: the scene needs {textures} textures, MuJoCo renders at most "
+                f"{MAX_TEXTURES} (one a textured part, 6 for a room, 1 for gratings, and the "
+                "mjcf_includes' own): use fewer textured parts"
+            )
+
+    def own_materials(self) -> int:
+        """Materials the scene's own parts make (without the mjcf_includes')."""
+        parts = (self.tables, self.shelves, self.static_objects, self.moving_objects)
+        room = 6 if self.room is not None else 0
+        return room + sum(len(p) for p in parts) + 1 + (2 if self.gratings is not None else 0)
+
+    def own_textures(self) -> int:
+        """Textures the scene's own parts make (without the mjcf_includes')."""
+        parts = (*self.tables, *self.shelves, *self.static_objects, *self.moving_objects)
+        room = 6 if self.room is not None else 0
+        textured = sum(p.texture is not None for p in parts)
+        return room + textured + (1 if self.gratings is not None else 0)
 
     @property
     def num_objects(self) -> int:
@@ -327,21 +517,68 @@ def available_scenes() -> tuple[str, ...]:
     return tuple(sorted(p.stem for p in (assets_dir() / "scenes").glob("*.yaml")))
 
 
-def load_scene_config(path_or_name: str | Path = DEFAULT_SCENE) -> SceneConfig:
-    """Load a scene by name (``assets/scenes/NAME.yaml``) or from a YAML file path."""
-    text = str(path_or_name)
-    is_path = isinstance(path_or_name, Path) or text.endswith((".yaml", ".yml")) or "/" in text
+def load_scene_config(
+    scene: str | Path | Mapping[str, Any] | SceneConfig = DEFAULT_SCENE,
+) -> SceneConfig:
+    """The scene ``scene`` names: a :class:`SceneConfig` as it is, a mapping (a parsed
+    scene document) validated, a name (``assets/scenes/NAME.yaml``) or a YAML file path.
+
+    Relative mesh and MJCF file paths in a YAML file are relative to its folder.
+    """
+    if isinstance(scene, SceneConfig):
+        return scene
+    if isinstance(scene, Mapping):
+        return scene_config_from_dict(scene)
+    text = str(scene)
+    is_path = isinstance(scene, Path) or text.endswith((".yaml", ".yml")) or "/" in text
     if is_path:
-        path = Path(path_or_name)
-        if not path.is_file():
+        path = Path(scene)
+        try:
+            found = path.is_file()
+        except OSError as e:  # a name too long for the file system, say
+            raise FileNotFoundError(
+                f"scene file not readable: {text[:200]!r}: {e.strerror}"
+            ) from None
+        if not found:
             raise FileNotFoundError(f"scene file not found: {path}")
     else:
         path = assets_dir() / "scenes" / f"{text}.yaml"
-        if not path.is_file():
-            raise ValueError(f"unknown scene {text!r}; available: {', '.join(available_scenes())}")
+        if len(text) > 255 or not path.is_file():
+            raise ValueError(
+                f"unknown scene {text[:200]!r}; available: {', '.join(available_scenes())}"
+            )
     with open(path, encoding="utf-8") as f:
         data = yaml.safe_load(f)
+    data = _files_relative_to(data, path.parent)
     return scene_config_from_dict(data, default_name=path.stem, where=str(path))
+
+
+def _files_relative_to(data: Any, folder: Path) -> Any:
+    """``data`` (a parsed scene document, not yet validated) with the relative ``file``
+    paths of its meshes and MJCF includes made relative to ``folder``."""
+    if not isinstance(data, Mapping):
+        return data
+
+    def rebase(block: Any) -> Any:
+        file = block.get("file") if isinstance(block, Mapping) else None
+        if not isinstance(file, str) or Path(file).expanduser().is_absolute():
+            return block
+        return {**block, "file": str(folder / file)}
+
+    def with_mesh(item: Any) -> Any:
+        return (
+            {**item, "mesh": rebase(item["mesh"])}
+            if isinstance(item, Mapping) and "mesh" in item
+            else item
+        )
+
+    out = dict(data)
+    for key in ("static_objects", "moving_objects"):
+        if isinstance(out.get(key), list):
+            out[key] = [with_mesh(item) for item in out[key]]
+    if isinstance(out.get("mjcf_includes"), list):
+        out["mjcf_includes"] = [rebase(item) for item in out["mjcf_includes"]]
+    return out
 
 
 # ----------------------------------------------------------------------------------------
