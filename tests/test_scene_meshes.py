@@ -219,7 +219,7 @@ def test_a_mesh_mujoco_cannot_read_is_one_line(tmp_path):
     msg = _mesh_error(tmp_path, {"file": "junk.obj"})
     assert msg.endswith(
         "moving_objects[0].mesh.file: MuJoCo cannot read the mesh (at least 4 vertices "
-        f"required), got {str(tmp_path / 'junk.obj')!r}"
+        f"required; Element name 'junk.obj', id 0), got {str(tmp_path / 'junk.obj')!r}"
     )
     (tmp_path / "junk.stl").write_bytes(b"\0" * 80 + struct.pack("<I", 10**6))
     msg = _mesh_error(tmp_path, {"file": "junk.stl"})

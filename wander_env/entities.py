@@ -645,6 +645,8 @@ class MJCFInclude:
         child = mujoco.MjSpec.from_file(inc.file)
         for joint in list(child.joints):
             child.delete(joint)
+        for key in list(child.keys):  # their qpos sizes no longer fit
+            child.delete(key)
         quat = np.zeros(4)
         mujoco.mju_euler2Quat(quat, np.radians(inc.euler_deg), "xyz")
         frame = spec.worldbody.add_frame(name=self.prefix[:-1], pos=inc.position, quat=quat)

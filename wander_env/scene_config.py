@@ -40,7 +40,7 @@ import pydantic
 import yaml
 
 from wander_env.camera import SPECK_HFOV_DEG
-from wander_env.config import check_annotated, validate_paths
+from wander_env.config import ConfigError, check_annotated, validate_paths
 from wander_env.textures import TextureSpec
 from wander_env.trajectories import TrajectoryParams
 
@@ -67,6 +67,7 @@ MAX_LIGHTS = 100  # mjMAXLIGHT
 GRATING_MODES = ("eye+object", "eye-only", "object-only")
 DEFAULT_SCENE = "office"
 T = TypeVar("T")
+_PART_LISTS = ("tables", "shelves", "static_objects", "moving_objects", "mjcf_includes")
 
 
 # ----------------------------------------------------------------------------------------
@@ -113,8 +114,11 @@ def checked_file(file: str, suffixes: tuple[str, ...], max_bytes: int) -> Path:
 
 
 def _mujoco_error(e: Exception) -> str:
-    """MuJoCo's compile error as one line (its first, without the ``Error:`` lead)."""
-    return str(e).strip().splitlines()[0].removeprefix("Error: ").strip()
+    """MuJoCo's error as one line (its lines joined by ``; ``, no ``Error:`` lead, at
+    most 300 characters)."""
+    lines = [line.strip() for line in str(e).removeprefix("Error: ").splitlines()]
+    text = "; ".join(line for line in lines if line)
+    return text if len(text) <= 300 else text[:297] + "..."
 
 
 def mesh_bounds(path: Path, scale: Vec3) -> tuple[np.ndarray, np.ndarray]:
@@ -123,13 +127,13 @@ def mesh_bounds(path: Path, scale: Vec3) -> tuple[np.ndarray, np.ndarray]:
     when MuJoCo cannot read it."""
     spec = mujoco.MjSpec()
     spec.add_mesh(
-        name="probe",
+        name=path.name,
         file=str(path),
         scale=scale,
         inertia=mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL,
     )
     body = spec.worldbody.add_body(mocap=True)
-    body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname="probe", contype=0, conaffinity=0)
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=path.name, contype=0, conaffinity=0)
     try:
         model = spec.compile()
     except ValueError as e:
@@ -373,7 +377,8 @@ class MJCFIncludeConfig:
         self.counts()
 
     def counts(self) -> tuple[int, int]:
-        """(materials, textures) the file brings."""
+        """(materials, textures) the file brings, counted as it compiles alone (an upper
+        bound: assets its bodies do not use stay behind)."""
         return mjcf_counts(Path(self.file))
 
 
@@ -604,4 +609,23 @@ def scene_config_from_dict(
     """
     if isinstance(data, Mapping) and "name" not in data:
         data = {"name": default_name, **data}
+    _check_lengths(data, where)
     return validate_paths(SceneConfig, data, where=where)
+
+
+def _check_lengths(data: Any, where: str | None) -> None:
+    """The lists of parts and lights within their limits, checked on the parsed document
+    before it is validated (so that a million objects cost no more than the file).
+    ConfigError ``where: key: ...``."""
+    if not isinstance(data, Mapping):
+        return
+    lighting = data.get("lighting")
+    why = f"MuJoCo renders at most {MAX_MATERIALS} materials, one a part"
+    lists = {key: (data.get(key), MAX_PARTS, why) for key in _PART_LISTS}
+    if isinstance(lighting, Mapping):
+        lights = lighting.get("lights")
+        lists["lighting.lights"] = (lights, MAX_LIGHTS, f"MuJoCo's limit is {MAX_LIGHTS}")
+    head = f"{where}: " if where else ""
+    for key, (items, limit, reason) in lists.items():
+        if isinstance(items, list) and len(items) > limit:
+            raise ConfigError(f"{head}{key}: at most {limit} items ({reason}), got {len(items)}")
