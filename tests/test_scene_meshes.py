@@ -6,6 +6,8 @@ import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: headless rendering
 
+import math
+import pickle
 import struct
 from pathlib import Path
 
@@ -30,7 +32,7 @@ from wander_env.scene_config import (
     scene_config_from_dict,
 )
 from wander_env.textures import TextureSpec
-from wander_env.trajectories import LinearBounceParams
+from wander_env.trajectories import LinearBounceParams, ScriptedParams, make_trajectory
 
 # A unit cube with one corner at the origin (its bounding box's centre is (0.5, 0.5, 0.5)).
 _CORNERS = [(x, y, z) for x in (0, 1) for y in (0, 1) for z in (0, 1)]
@@ -275,5 +277,72 @@ def test_a_moving_mesh_is_rendered_segmented_and_makes_events_in_the_env(tmp_pat
         near = cv2.dilate((mask == 1).astype(np.uint8), np.ones((7, 7), np.uint8)) > 0
         on, off = _events_near(info["events"].events, near)
         assert on > 20 and off == 0
+    finally:
+        env.close()
+
+
+# ----------------------------------------------------------------------------------------
+# A Python callable as a trajectory
+
+
+def _wave(t: float) -> tuple[float, float, float]:
+    return (1.0, 0.3 * math.sin(4.0 * t), 1.0)
+
+
+def test_a_callable_trajectory_moves_an_object_in_the_env(tmp_path):
+    obj = write_cube_obj(tmp_path / "cube.obj")
+    cube = MovingObjectConfig(
+        name="scripted_cube",
+        shape="mesh",
+        mesh=MeshConfig(file=str(obj), scale=0.2),
+        trajectory=ScriptedParams(_wave),
+    )
+    cfg = SceneConfig(name="scripted", moving_objects=(cube,))
+    env = gym.make("wander/Wander-v0", scene=cfg, frames="keyframes")
+    try:
+        env.reset(seed=0)
+        for _ in range(3):
+            _, _, _, _, info = env.step(np.zeros(2, np.float32))
+        animator = env.unwrapped.animator
+        np.testing.assert_allclose(animator.object_positions(0.03)[0], _wave(0.03))
+        assert info["objects"][0]["visible"] and info["events"].events.size > 0
+    finally:
+        env.close()
+
+
+def test_a_callable_trajectory_is_checked_at_t_0():
+    with pytest.raises(ValueError, match=r"^position: at t = 0 s: expected 3 finite numbers"):
+        ScriptedParams(lambda t: (1.0, 2.0))
+    with pytest.raises(
+        ValueError, match=r"^position: at t = 0 s: ZeroDivisionError: float division by zero$"
+    ):
+        ScriptedParams(lambda t: (1.0 / t, 0.0, 0.0))
+    with pytest.raises(ValueError, match=r"^position: must be a callable t -> \(x, y, z\)"):
+        ScriptedParams((1.0, 2.0, 3.0))  # type: ignore[arg-type]
+    bad_later = make_trajectory(ScriptedParams(lambda t: (t, 0.0, math.nan if t > 1 else 0.0)))
+    with pytest.raises(ValueError, match=r"^scripted trajectory at t = 2.0 s: expected 3 finite"):
+        bad_later.position(2.0)
+
+
+def test_a_scene_file_cannot_hold_a_callable(tmp_path):
+    path = tmp_path / "scene.yaml"
+    obj = {"shape": "box", "size": [0.1, 0.1, 0.1], "trajectory": {"kind": "scripted"}}
+    obj["trajectory"]["position"] = "os:system"
+    path.write_text(yaml.safe_dump({"moving_objects": [obj]}))
+    with pytest.raises(ConfigError) as info:
+        load_scene_config(path)
+    assert str(info.value) == (
+        f"{path}: moving_objects[0].trajectory.position: input should be callable, got 'os:system'"
+    )
+
+
+def test_an_env_of_a_scene_config_with_a_mesh_pickles(tmp_path):
+    obj = write_cube_obj(tmp_path / "cube.obj")
+    cfg = scene_config_from_dict({"name": "mesh_scene", "moving_objects": [_moving_cube(obj)]})
+    env = gym.make("wander/Wander-v0", scene=cfg)
+    try:
+        clone = pickle.loads(pickle.dumps(env.unwrapped))
+        assert clone.scene == cfg
+        clone.close()
     finally:
         env.close()

@@ -605,7 +605,8 @@ def scene_config_from_dict(
     ... except ValueError as e:
     ...     print(e)  # doctest: +NORMALIZE_WHITESPACE
     my.yaml: moving_objects[0].trajectory.kind: required
-    (one of 'linear_bounce', 'circular', 'random_walk', 'waypoints')
+    (one of 'linear_bounce', 'circular', 'random_walk', 'waypoints',
+    'scripted')
     """
     if isinstance(data, Mapping) and "name" not in data:
         data = {"name": default_name, **data}

@@ -26,14 +26,16 @@ Example:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Literal, Protocol
+from typing import Annotated, Literal, Protocol
 
 import numpy as np
+import pydantic
 
 Vec3 = tuple[float, float, float]
 
-TRAJECTORY_KINDS = ("linear_bounce", "circular", "random_walk", "waypoints")
+TRAJECTORY_KINDS = ("linear_bounce", "circular", "random_walk", "waypoints", "scripted")
 PLANES = ("xy", "xz", "yz")
 _PLANE_AXES = {"xy": (0, 1), "xz": (0, 2), "yz": (1, 2)}
 
@@ -161,7 +163,37 @@ class WaypointsParams:
             raise ValueError(f"speed_m_s must be > 0, got {self.speed_m_s!r}")
 
 
-TrajectoryParams = LinearBounceParams | CircularParams | RandomWalkParams | WaypointsParams
+@dataclass(frozen=True)
+class ScriptedParams:
+    """A Python callable ``position(t)``: t (s, >= 0) -> (x, y, z) (m, world frame).
+
+    For users who script motion in Python (a SceneConfig built in code; a scene file
+    cannot hold one). It is called once at t = 0 when constructed, to check it; the
+    env calls it at every time it renders, in any order, so it should be a pure
+    function of t. A scene with one cannot be written to YAML or ``run.json`` unless
+    the callable itself can be (it is kept as the object it is).
+    """
+
+    position: Annotated[
+        Callable[[float], Sequence[float]],
+        pydantic.WithJsonSchema({"type": "string", "description": "a Python callable"}),
+    ]
+    kind: Literal["scripted"] = "scripted"
+
+    def __post_init__(self) -> None:
+        if not callable(self.position):
+            raise ValueError(f"position: must be a callable t -> (x, y, z), got {self.position!r}")
+        try:
+            scripted_position(self.position, 0.0)
+        except ValueError as e:
+            raise ValueError(f"position: at t = 0 s: {e}") from None
+        except Exception as e:  # the user's code: any error is a bad value here
+            raise ValueError(f"position: at t = 0 s: {type(e).__name__}: {e}") from None
+
+
+TrajectoryParams = (
+    LinearBounceParams | CircularParams | RandomWalkParams | WaypointsParams | ScriptedParams
+)
 
 
 # ----------------------------------------------------------------------------------------
@@ -225,6 +257,14 @@ def waypoint_arrival_times(points: np.ndarray, speed: float) -> np.ndarray:
     """Times at which a constant-speed walk along ``points`` reaches each one (first = 0)."""
     seg = np.linalg.norm(np.diff(np.asarray(points, float), axis=0), axis=1)
     return np.concatenate([[0.0], np.cumsum(seg)]) / speed
+
+
+def scripted_position(position: Callable[[float], Sequence[float]], t: float) -> np.ndarray:
+    """``position(t)`` as a (3,) float array; ValueError unless it is 3 finite numbers."""
+    p = np.asarray(position(t), dtype=float)
+    if p.shape != (3,) or not np.isfinite(p).all():
+        raise ValueError(f"expected 3 finite numbers (m), got {p.tolist()!r}")
+    return p
 
 
 # ----------------------------------------------------------------------------------------
@@ -348,8 +388,24 @@ class RandomWalk:
         return s[i] + frac * (s[i + 1] - s[i])
 
 
+class Scripted:
+    """Evaluator of :class:`ScriptedParams`: the callable, its value checked."""
+
+    def __init__(self, params: ScriptedParams) -> None:
+        self.params = params
+
+    def position(self, t: float) -> np.ndarray:
+        """Position at time t (s); ValueError naming t when the callable's value is bad."""
+        try:
+            return scripted_position(self.params.position, t)
+        except ValueError as e:
+            raise ValueError(f"scripted trajectory at t = {t} s: {e}") from None
+
+
 def make_trajectory(params: TrajectoryParams, rng: np.random.Generator | None = None) -> Trajectory:
     """The evaluator for ``params``; ``rng`` is required by (and only used by) random walks."""
+    if isinstance(params, ScriptedParams):
+        return Scripted(params)
     if isinstance(params, LinearBounceParams):
         return LinearBounce(params)
     if isinstance(params, CircularParams):
