@@ -6,53 +6,17 @@ import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: headless rendering
 
-from pathlib import Path
 
 import mujoco
 import numpy as np
 import pytest
 import yaml
+from scene_files import write_arm
 
 from wander_env.config import ConfigError
 from wander_env.mjcf import compile_scene, geom_object_ids
 from wander_env.renderer import CameraRenderer
 from wander_env.scene_config import load_scene_config, scene_config_from_dict
-
-# A robot-like file with its own conventions: degrees, a material, a mesh beside it
-# (relative path), joints, an actuator and a keyframe.
-_ARM = """<mujoco model="arm">
-  <compiler angle="degree"/>
-  <asset>
-    <material name="red" rgba="0.9 0.1 0.1 1"/>
-    <mesh name="tetra" file="tetra.obj"/>
-  </asset>
-  <worldbody>
-    <light name="lamp" pos="0 0 3"/>
-    <body name="base" pos="0 0 0">
-      <geom name="base_geom" type="box" size="0.1 0.1 0.1" material="red"/>
-      <body name="link" pos="0 0 0.2" euler="0 0 90">
-        <joint name="hinge" type="hinge" axis="0 0 1"/>
-        <geom name="link_geom" type="box" size="0.2 0.02 0.02" pos="0.2 0 0"/>
-      </body>
-    </body>
-    <body name="tool" pos="0 0.5 0">
-      <freejoint/>
-      <geom name="tool_geom" type="mesh" mesh="tetra"/>
-    </body>
-  </worldbody>
-  <actuator><motor joint="hinge"/></actuator>
-  <sensor><jointpos joint="hinge"/><framepos objtype="body" objname="tool"/></sensor>
-  <keyframe><key name="home" qpos="0.3 0 0.5 0 1 0 0 0"/></keyframe>
-</mujoco>
-"""
-_TETRA = "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
-
-
-def write_arm(folder: Path) -> Path:
-    (folder / "tetra.obj").write_text(_TETRA)
-    path = folder / "arm.xml"
-    path.write_text(_ARM)
-    return path
 
 
 def test_an_included_mjcf_file_is_attached_static_at_its_frame(tmp_path):

@@ -17,6 +17,7 @@ import mujoco
 import numpy as np
 import pytest
 import yaml
+from scene_files import write_cube_obj, write_cube_stl
 
 import wander_env  # noqa: F401  (registers the envs)
 from wander_env.config import ConfigError
@@ -33,28 +34,6 @@ from wander_env.scene_config import (
 )
 from wander_env.textures import TextureSpec
 from wander_env.trajectories import LinearBounceParams, ScriptedParams, make_trajectory
-
-# A unit cube with one corner at the origin (its bounding box's centre is (0.5, 0.5, 0.5)).
-_CORNERS = [(x, y, z) for x in (0, 1) for y in (0, 1) for z in (0, 1)]
-_QUADS = [(1, 3, 4, 2), (5, 6, 8, 7), (1, 2, 6, 5), (3, 7, 8, 4), (1, 5, 7, 3), (2, 4, 8, 6)]
-
-
-def write_cube_obj(path: Path) -> Path:
-    """A Wavefront OBJ of the unit cube [0, 1]^3 (quad faces)."""
-    lines = [f"v {x} {y} {z}" for x, y, z in _CORNERS]
-    lines += ["f " + " ".join(str(i) for i in q) for q in _QUADS]
-    path.write_text("\n".join(lines) + "\n")
-    return path
-
-
-def write_cube_stl(path: Path) -> Path:
-    """A binary STL of the unit cube [0, 1]^3 (12 triangles)."""
-    tris = [(q[0], q[1], q[2]) for q in _QUADS] + [(q[0], q[2], q[3]) for q in _QUADS]
-    body = b"".join(
-        struct.pack("<12fH", 0, 0, 0, *(c for i in t for c in _CORNERS[i - 1]), 0) for t in tris
-    )
-    path.write_bytes(b"\0" * 80 + struct.pack("<I", len(tris)) + body)
-    return path
 
 
 def _moving_cube(obj: Path, **changes) -> dict:

@@ -41,7 +41,8 @@ import yaml
 
 from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.config import ConfigError, check_annotated, validate_paths
-from wander_env.textures import TextureSpec
+from wander_env.field_doc import field_doc
+from wander_env.textures import GRATING_PROFILES, TextureSpec
 from wander_env.trajectories import TrajectoryParams
 
 Finite = Annotated[float, pydantic.Field(allow_inf_nan=False)]
@@ -170,8 +171,22 @@ class MeshConfig:
     ``texture`` is wrapped round the mesh as a cube map.
     """
 
-    file: str
-    scale: Positive | tuple[Positive, Positive, Positive] = 1.0
+    file: Annotated[
+        str,
+        field_doc(
+            "Path of a Wavefront OBJ or STL file of at most 32 MiB that MuJoCo reads; "
+            "relative: to the scene file's folder (in Python, to the current directory)",
+            example="meshes/bunny.obj",
+        ),
+    ]
+    scale: Annotated[
+        Positive | tuple[Positive, Positive, Positive],
+        field_doc(
+            "Multiplies the file's coordinates into metres: one factor, or one per axis",
+            unit="m per file unit",
+            example=0.001,
+        ),
+    ] = 1.0
 
     def __post_init__(self) -> None:
         path = checked_file(self.file, MESH_SUFFIXES, MAX_MESH_BYTES)
@@ -210,10 +225,30 @@ class CameraConfig:
     sensor; 0 renders about twice as fast on a CPU (llvmpipe).
     """
 
-    width: Annotated[int, pydantic.Field(ge=1, le=MAX_CAMERA_SIDE)] = 128
-    height: Annotated[int, pydantic.Field(ge=1, le=MAX_CAMERA_SIDE)] = 128
-    hfov_deg: Annotated[float, pydantic.Field(gt=0, le=179)] = SPECK_HFOV_DEG
-    antialias_samples: Annotated[int, pydantic.Field(ge=0, le=16)] = 4
+    width: Annotated[
+        int,
+        field_doc(
+            "Image width; width x height at most 2048 x 2048 pixels",
+            unit="px",
+            ge=1,
+            le=MAX_CAMERA_SIDE,
+        ),
+    ] = 128
+    height: Annotated[int, field_doc("Image height", unit="px", ge=1, le=MAX_CAMERA_SIDE)] = 128
+    hfov_deg: Annotated[
+        float,
+        field_doc("Horizontal field of view (the Speck's by default)", unit="deg", gt=0, le=179),
+    ] = SPECK_HFOV_DEG
+    antialias_samples: Annotated[
+        int,
+        field_doc(
+            "MuJoCo's offscreen multisampling: 4 grades edge coverage, so sub-pixel motion "
+            "changes pixels smoothly; 0 renders about twice as fast on a CPU",
+            unit="samples",
+            ge=0,
+            le=16,
+        ),
+    ] = 4
 
     def __post_init__(self) -> None:
         check_annotated(self)
@@ -233,18 +268,33 @@ class PTUMountConfig:
     above it (at tilt 0) from the hinge, as in :class:`wander_env.ptu.PTUParams`.
     """
 
-    position: Vec3 = (0.0, 0.0, 1.0)
-    camera_forward_m: float = 0.0
-    camera_up_m: float = 0.0
+    position: Annotated[
+        Vec3, field_doc("The tilt hinge in the world (on the pan axis)", unit="m")
+    ] = (
+        0.0,
+        0.0,
+        1.0,
+    )
+    camera_forward_m: Annotated[
+        float, field_doc("Camera centre ahead of the hinge along the optical axis", unit="m")
+    ] = 0.0
+    camera_up_m: Annotated[
+        float, field_doc("Camera centre above the hinge (at tilt 0)", unit="m")
+    ] = 0.0
 
 
 @dataclass(frozen=True)
 class LightConfig:
     """A directional light shining along ``direction`` (``position`` only places it)."""
 
-    position: Vec3 = (0.0, 0.0, 2.5)
-    direction: Vec3 = (0.0, 0.0, -1.0)
-    diffuse: Unit = 0.5
+    position: Annotated[
+        Vec3,
+        field_doc("Where the light is (a directional light shines alike everywhere)", unit="m"),
+    ] = (0.0, 0.0, 2.5)
+    direction: Annotated[
+        Vec3, field_doc("Direction it shines along (not the zero vector)", unit="vector")
+    ] = (0.0, 0.0, -1.0)
+    diffuse: Annotated[Unit, field_doc("Diffuse intensity (grey)")] = 0.5
 
     def __post_init__(self) -> None:
         if not any(self.direction):
@@ -255,9 +305,14 @@ class LightConfig:
 class LightingConfig:
     """Headlight (follows the camera) intensities and extra lights (no shadows)."""
 
-    headlight_ambient: Unit = 0.35
-    headlight_diffuse: Unit = 0.35
-    lights: Annotated[tuple[LightConfig, ...], pydantic.Field(max_length=MAX_LIGHTS)] = ()
+    headlight_ambient: Annotated[
+        Unit, field_doc("Ambient intensity of the headlight (it follows the camera)")
+    ] = 0.35
+    headlight_diffuse: Annotated[Unit, field_doc("Diffuse intensity of the headlight")] = 0.35
+    lights: Annotated[
+        tuple[LightConfig, ...],
+        field_doc("Directional lights (no shadows), MuJoCo's 100 at most", max_length=MAX_LIGHTS),
+    ] = ()
 
 
 @dataclass(frozen=True)
@@ -267,26 +322,45 @@ class RoomConfig:
     Set a texture's ``tile_m`` to fix how many metres one image spans on the surfaces.
     """
 
-    size: tuple[Positive, Positive, Positive] = (4.0, 4.0, 2.6)
-    center_xy: Vec2 = (1.0, 0.0)
-    wall_texture: TextureSpec = field(default_factory=lambda: TextureSpec(tile_m=1.0))
-    floor_texture: TextureSpec = field(
+    size: Annotated[
+        tuple[Positive, Positive, Positive],
+        field_doc("Full extents (x, y, z): the floor at z = 0, the ceiling at z", unit="m"),
+    ] = (4.0, 4.0, 2.6)
+    center_xy: Annotated[Vec2, field_doc("Centre of the floor (x, y)", unit="m")] = (1.0, 0.0)
+    wall_texture: Annotated[TextureSpec, field_doc("Texture of the four walls")] = field(
+        default_factory=lambda: TextureSpec(tile_m=1.0)
+    )
+    floor_texture: Annotated[TextureSpec, field_doc("Texture of the floor")] = field(
         default_factory=lambda: TextureSpec(kind="checker", tile_m=1.0)
     )
-    ceiling_texture: TextureSpec = field(default_factory=lambda: TextureSpec(kind="plain"))
+    ceiling_texture: Annotated[TextureSpec, field_doc("Texture of the ceiling")] = field(
+        default_factory=lambda: TextureSpec(kind="plain")
+    )
 
 
 @dataclass(frozen=True)
 class TableConfig:
     """A table: top ``top_size`` (x, y) at ``height`` (top surface), four legs."""
 
-    center_xy: Vec2 = (1.0, 0.0)
-    top_size: tuple[Positive, Positive] = (0.8, 1.4)
-    height: Positive = 0.72
-    thickness: Positive = 0.04
-    leg_width: Positive = 0.05
-    rgba: RGBA = (1.0, 1.0, 1.0, 1.0)
-    texture: TextureSpec | None = None
+    center_xy: Annotated[Vec2, field_doc("Centre of the top (x, y)", unit="m")] = (1.0, 0.0)
+    top_size: Annotated[
+        tuple[Positive, Positive], field_doc("Extents of the top (x, y)", unit="m")
+    ] = (0.8, 1.4)
+    height: Annotated[Positive, field_doc("Height of the top surface", unit="m")] = 0.72
+    thickness: Annotated[Positive, field_doc("Thickness of the top (< height)", unit="m")] = 0.04
+    leg_width: Annotated[
+        Positive,
+        field_doc("Side of the legs' square section; set in by it from the corners", unit="m"),
+    ] = 0.05
+    rgba: Annotated[RGBA, field_doc("Colour (red, green, blue, alpha), times the texture's")] = (
+        1.0,
+        1.0,
+        1.0,
+        1.0,
+    )
+    texture: Annotated[TextureSpec | None, field_doc("A procedural texture (none: rgba alone)")] = (
+        None
+    )
 
     def __post_init__(self) -> None:
         if self.thickness >= self.height:
@@ -301,21 +375,35 @@ class ShelfConfig:
     about z (0 = facing -x).
     """
 
-    center_xy: Vec2 = (2.0, 0.0)
-    width: Positive = 1.6
-    depth: Positive = 0.35
-    height: Positive = 1.8
-    levels: Annotated[tuple[NonNegative, ...], pydantic.Field(min_length=1)] = (
+    center_xy: Annotated[Vec2, field_doc("Centre on the floor (x, y)", unit="m")] = (2.0, 0.0)
+    width: Annotated[Positive, field_doc("Width (along y at yaw 0)", unit="m")] = 1.6
+    depth: Annotated[Positive, field_doc("Depth (along x at yaw 0)", unit="m")] = 0.35
+    height: Annotated[Positive, field_doc("Height of the sides and back", unit="m")] = 1.8
+    levels: Annotated[
+        tuple[NonNegative, ...],
+        field_doc("Heights of the boards' top surfaces (each <= height)", unit="m", min_length=1),
+    ] = (
         0.05,
         0.5,
         0.95,
         1.4,
         1.8,
     )
-    thickness: Positive = 0.03
-    yaw_deg: float = 0.0
-    rgba: RGBA = (1.0, 1.0, 1.0, 1.0)
-    texture: TextureSpec | None = None
+    thickness: Annotated[Positive, field_doc("Thickness of boards, sides and back", unit="m")] = (
+        0.03
+    )
+    yaw_deg: Annotated[
+        float, field_doc("Turn about z (0: it faces -x, towards a PTU at the origin)", unit="deg")
+    ] = 0.0
+    rgba: Annotated[RGBA, field_doc("Colour (red, green, blue, alpha), times the texture's")] = (
+        1.0,
+        1.0,
+        1.0,
+        1.0,
+    )
+    texture: Annotated[TextureSpec | None, field_doc("A procedural texture (none: rgba alone)")] = (
+        None
+    )
 
     def __post_init__(self) -> None:
         if self.levels and max(self.levels) > self.height + 1e-9:
@@ -331,14 +419,40 @@ class StaticObjectConfig(_Body):
     """A static prop: shape, full-extent size (m) or mesh, centre, orientation (xyz
     Euler, deg)."""
 
-    shape: Shape
-    size: Size = ()
-    mesh: MeshConfig | None = None
-    position: Vec3
-    euler_deg: Vec3 = (0.0, 0.0, 0.0)
-    rgba: RGBA = (0.7, 0.7, 0.7, 1.0)
-    texture: TextureSpec | None = None
-    name: str = ""
+    shape: Annotated[Shape, field_doc("box, sphere, cylinder, or mesh (then give mesh, not size)")]
+    size: Annotated[
+        Size,
+        field_doc(
+            "Full extents: a box [x, y, z], a sphere [diameter], a cylinder [diameter, height] "
+            "(axis along z); none for a mesh",
+            unit="m",
+        ),
+    ] = ()
+    mesh: Annotated[
+        MeshConfig | None, field_doc("The mesh file and its scale (shape mesh only)")
+    ] = None
+    position: Annotated[
+        Vec3,
+        field_doc(
+            "Centre (a mesh: its bounding box's centre)", unit="m", example=[1.0, 0.45, 0.775]
+        ),
+    ]
+    euler_deg: Annotated[Vec3, field_doc("Orientation, xyz Euler angles", unit="deg")] = (
+        0.0,
+        0.0,
+        0.0,
+    )
+    rgba: Annotated[RGBA, field_doc("Colour (red, green, blue, alpha), times the texture's")] = (
+        0.7,
+        0.7,
+        0.7,
+        1.0,
+    )
+    texture: Annotated[
+        TextureSpec | None,
+        field_doc("A procedural texture (none: rgba alone); cube-mapped except on a box"),
+    ] = None
+    name: Annotated[str, field_doc("Its geom's name (default static_i, i from 0)")] = ""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -349,13 +463,36 @@ class MovingObjectConfig(_Body):
     Object k (1-based, in list order) has id k in segmentation masks.
     """
 
-    shape: Shape
-    size: Size = ()
-    mesh: MeshConfig | None = None
-    trajectory: Annotated[TrajectoryParams, pydantic.Field(discriminator="kind")]
-    rgba: RGBA = (1.0, 1.0, 1.0, 1.0)
-    texture: TextureSpec | None = None
-    name: str = ""
+    shape: Annotated[Shape, field_doc("box, sphere, cylinder, or mesh (then give mesh, not size)")]
+    size: Annotated[
+        Size,
+        field_doc(
+            "Full extents: a box [x, y, z], a sphere [diameter], a cylinder [diameter, height] "
+            "(axis along z); none for a mesh",
+            unit="m",
+        ),
+    ] = ()
+    mesh: Annotated[
+        MeshConfig | None, field_doc("The mesh file and its scale (shape mesh only)")
+    ] = None
+    trajectory: Annotated[
+        TrajectoryParams,
+        field_doc("Where its centre is at time t: one of the kinds below, chosen by kind"),
+        pydantic.Field(discriminator="kind"),
+    ]
+    rgba: Annotated[RGBA, field_doc("Colour (red, green, blue, alpha), times the texture's")] = (
+        1.0,
+        1.0,
+        1.0,
+        1.0,
+    )
+    texture: Annotated[
+        TextureSpec | None,
+        field_doc("A procedural texture (none: rgba alone); cube-mapped except on a box"),
+    ] = None
+    name: Annotated[
+        str, field_doc("Its name in the ground truth and results (its body is object_k)")
+    ] = ""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -366,10 +503,29 @@ class MJCFIncludeConfig:
     materials and textures count towards MuJoCo's limits; geoms in groups above 2 are
     not rendered by the camera; mask id 0 (not an object)."""
 
-    file: str
-    position: Vec3 = (0.0, 0.0, 0.0)
-    euler_deg: Vec3 = (0.0, 0.0, 0.0)
-    name: str = ""
+    file: Annotated[
+        str,
+        field_doc(
+            "Path of an MJCF file (.xml, .mjcf) of at most 8 MiB that MuJoCo compiles alone; "
+            "relative: to the scene file's folder (in Python, to the current directory)",
+            example="robots/arm.xml",
+        ),
+    ]
+    position: Annotated[Vec3, field_doc("Where the file's world origin goes", unit="m")] = (
+        0.0,
+        0.0,
+        0.0,
+    )
+    euler_deg: Annotated[
+        Vec3, field_doc("Turn of the file's world, xyz Euler angles", unit="deg")
+    ] = (0.0, 0.0, 0.0)
+    name: Annotated[
+        str,
+        field_doc(
+            "Prefix of the names it brings, NAME/... (default include_i, i from 0)",
+            example="arm",
+        ),
+    ] = ""
 
     def __post_init__(self) -> None:
         path = checked_file(self.file, (".xml", ".mjcf"), MAX_MJCF_BYTES)
@@ -405,20 +561,49 @@ class GratingConfig:
     - ``object-only``: the background is static, the patch's grating drifts.
     """
 
-    mode: Literal["eye+object", "eye-only", "object-only"] = "eye+object"
-    distance_m: Positive = 1.0
-    background_cycles_per_deg: Positive = 0.05
-    background_speed_deg_s: Finite = 10.0
-    object_size_deg: Positive = 40.0
-    object_cycles_per_deg: Positive = 0.1
-    object_speed_deg_s: Finite = 30.0
-    profile: Literal["sine", "square"] = "square"
-    contrast: Unit = 1.0
-    mean: Unit = 0.5
-    margin_deg: Annotated[float, pydantic.Field(ge=0, le=60)] = 20.0
-    object_strips: Annotated[int, pydantic.Field(ge=2)] = 128
+    mode: Annotated[
+        Literal["eye+object", "eye-only", "object-only"],
+        field_doc(
+            "Which parts move: eye+object (the background and the patch's grating drift at "
+            "their speeds), eye-only (the whole screen drifts at the background speed), "
+            "object-only (only the patch's grating drifts)"
+        ),
+    ] = "eye+object"
+    distance_m: Annotated[Positive, field_doc("Screen distance ahead of the camera", unit="m")] = (
+        1.0
+    )
+    background_cycles_per_deg: Annotated[
+        Positive, field_doc("Background spatial frequency", unit="cycles/deg")
+    ] = 0.05
+    background_speed_deg_s: Annotated[
+        Finite, field_doc("Background drift (positive: bars move right in the image)", unit="deg/s")
+    ] = 10.0
+    object_size_deg: Annotated[
+        Positive, field_doc("Side of the square central patch (< the field of view)", unit="deg")
+    ] = 40.0
+    object_cycles_per_deg: Annotated[
+        Positive, field_doc("Patch grating's spatial frequency", unit="cycles/deg")
+    ] = 0.1
+    object_speed_deg_s: Annotated[
+        Finite, field_doc("Patch grating's drift (positive: to the right)", unit="deg/s")
+    ] = 30.0
+    profile: Annotated[Literal["sine", "square"], field_doc("Bar profile")] = "square"
+    contrast: Annotated[Unit, field_doc("Contrast of the bars about the mean")] = 1.0
+    mean: Annotated[Unit, field_doc("Mean intensity")] = 0.5
+    margin_deg: Annotated[
+        float, field_doc("Screen beyond the field of view on each side", unit="deg", ge=0, le=60)
+    ] = 20.0
+    object_strips: Annotated[
+        int, field_doc("Vertical strips the patch is drawn with (each narrower than a pixel)", ge=2)
+    ] = 128
 
     def __post_init__(self) -> None:
+        # the Literal fields first: check_annotated names an Annotated[Literal] "Annotated"
+        for name, allowed in (("mode", GRATING_MODES), ("profile", GRATING_PROFILES)):
+            value = getattr(self, name)
+            if value not in allowed:
+                options = ", ".join(repr(a) for a in allowed)
+                raise ValueError(f"{name}: expected one of {options}, got {value!r}")
         check_annotated(self)
 
     @property
@@ -442,18 +627,40 @@ Parts = Annotated[tuple[T, ...], pydantic.Field(max_length=MAX_PARTS)]
 class SceneConfig:
     """One scene: everything :func:`wander_env.mjcf.build_mjcf` needs."""
 
-    name: str
-    description: str = ""
-    camera: CameraConfig = field(default_factory=CameraConfig)
-    ptu: PTUMountConfig = field(default_factory=PTUMountConfig)
-    lighting: LightingConfig = field(default_factory=LightingConfig)
-    room: RoomConfig | None = None
-    tables: Parts[TableConfig] = ()
-    shelves: Parts[ShelfConfig] = ()
-    static_objects: Parts[StaticObjectConfig] = ()
-    moving_objects: Parts[MovingObjectConfig] = ()
-    mjcf_includes: Parts[MJCFIncludeConfig] = ()
-    gratings: GratingConfig | None = None
+    name: Annotated[str, field_doc("The scene's name (default: the file's name)", example="office")]
+    description: Annotated[str, field_doc("One line about the scene")] = ""
+    camera: Annotated[CameraConfig, field_doc("The event camera")] = field(
+        default_factory=CameraConfig
+    )
+    ptu: Annotated[PTUMountConfig, field_doc("The pan-tilt unit's mount")] = field(
+        default_factory=PTUMountConfig
+    )
+    lighting: Annotated[LightingConfig, field_doc("Headlight and lights")] = field(
+        default_factory=LightingConfig
+    )
+    room: Annotated[
+        RoomConfig | None, field_doc("A closed, textured room (none: black beyond the parts)")
+    ] = None
+    tables: Annotated[Parts[TableConfig], field_doc("Tables")] = ()
+    shelves: Annotated[Parts[ShelfConfig], field_doc("Open shelves")] = ()
+    static_objects: Annotated[
+        Parts[StaticObjectConfig], field_doc("Static props: boxes, spheres, cylinders, meshes")
+    ] = ()
+    moving_objects: Annotated[
+        Parts[MovingObjectConfig],
+        field_doc(
+            "Props on trajectories; object k (from 1, in list order) has id k in the "
+            "segmentation masks"
+        ),
+    ] = ()
+    mjcf_includes: Annotated[
+        Parts[MJCFIncludeConfig],
+        field_doc("MJCF files whose worldbody bodies are attached as static parts"),
+    ] = ()
+    gratings: Annotated[
+        GratingConfig | None,
+        field_doc("The sOMS characterisation stimulus (then no moving_objects)"),
+    ] = None
 
     def __post_init__(self) -> None:
         if self.gratings is not None and self.moving_objects:
