@@ -21,7 +21,7 @@ from scene_files import write_cube_obj, write_cube_stl
 
 import wander_env  # noqa: F401  (registers the envs)
 from wander_env.config import ConfigError
-from wander_env.mjcf import SceneAnimator, build_mjcf, compile_scene
+from wander_env.mjcf import SceneAnimator, build_mjcf, compile_scene, geom_layer_radii
 from wander_env.renderer import CameraRenderer
 from wander_env.scene_config import (
     MAX_MESH_BYTES,
@@ -325,3 +325,15 @@ def test_an_env_of_a_scene_config_with_a_mesh_pickles(tmp_path):
         clone.close()
     finally:
         env.close()
+
+
+def test_layer_radii_bound_a_mesh_and_match_the_primitives_sizes(tmp_path):
+    obj = write_cube_obj(tmp_path / "cube.obj")
+    cfg = scene_config_from_dict({"moving_objects": [_moving_cube(obj)]})
+    radii = geom_layer_radii(compile_scene(cfg))
+    np.testing.assert_allclose(radii, [np.inf, 0.1 * math.sqrt(3)], rtol=1e-6)
+    for name in ("office", "hand"):  # the sizes' half-diagonals, as the env computes them
+        cfg = load_scene_config(name)
+        want = [0.5 * math.hypot(*o.size) for o in cfg.moving_objects]
+        np.testing.assert_allclose(geom_layer_radii(compile_scene(cfg))[1:], want, rtol=1e-9)
+    assert geom_layer_radii(compile_scene(load_scene_config("gratings"))).tolist() == [np.inf] * 3

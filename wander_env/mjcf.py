@@ -98,6 +98,7 @@ __all__ = [
     "build_mjcf",
     "compile_scene",
     "geom_layer_ids",
+    "geom_layer_radii",
     "geom_object_ids",
 ]
 
@@ -229,6 +230,26 @@ def geom_layer_ids(model: mujoco.MjModel) -> np.ndarray:
     if bg >= 0:
         ids[np.asarray(model.geom_bodyid) == bg] = int(ids.max(initial=0)) + 1
     return ids
+
+
+def geom_layer_radii(model: mujoco.MjModel) -> np.ndarray:
+    """Bounding radius (m) of each motion layer about its position, (layers,) float64:
+    for object k the farthest its geoms reach from body ``object_k``'s origin (a geom's
+    distance plus its bounding-sphere radius: meshes included); ``inf`` for the static
+    world and, in a gratings model, for every layer (a sliding screen has no bound).
+
+    >>> from wander_env.scene_config import load_scene_config
+    >>> geom_layer_radii(compile_scene(load_scene_config("office"))).round(4).tolist()
+    [inf, 0.2078, 0.28]
+    """
+    layers = geom_layer_ids(model)
+    radii = np.full(int(layers.max(initial=0)) + 1, np.inf)
+    if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, GRATING_BACKGROUND_BODY) >= 0:
+        return radii
+    reach = np.linalg.norm(model.geom_pos, axis=1) + model.geom_rbound
+    for k in range(1, len(radii)):
+        radii[k] = reach[layers == k].max()
+    return radii
 
 
 # ----------------------------------------------------------------------------------------
