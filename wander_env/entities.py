@@ -12,7 +12,10 @@ when things happen and asks a moving entity's runtime for its state at time t.
   ``pan`` and ``tilt``, camera ``event_camera``; it answers the camera's world position
   at pan = tilt = 0 and its MuJoCo ``fovy``.
 - :class:`Lights`, :class:`Room`, :class:`Table`, :class:`Shelf`, :class:`StaticProp`:
-  static fragments.
+  static fragments (a prop's mesh goes in as an in-memory ``<mesh>`` asset, centred on
+  its bounding box: :meth:`MJCFDocument.shape_geom`).
+- :class:`MJCFInclude`: an MJCF file's worldbody bodies, attached to the compiled
+  scene's ``MjSpec`` (not to the XML) as static parts.
 - :class:`MovingProp`: mocap body ``object_k``; :meth:`MovingProp.motion` gives its
   runtime (:class:`PropMotion`: its trajectory and mocap id; writes its position at t).
 - :class:`GratingStimulus`: the self-luminous screen and the patch strips;

@@ -6,8 +6,9 @@ part, each owning its MJCF fragment) in document order: lights, room, tables, sh
 static props, moving props, the gratings stimulus, the pan-tilt camera. It writes the
 document's header itself (compiler, options, visual quality, headlight) and lets each
 entity attach its fragment. :func:`build_mjcf` returns the XML string plus an assets
-dict (procedural textures as in-memory PNGs); :func:`compile_scene` compiles it to a
-``mujoco.MjModel``. The env (the task) owns timing: it calls
+dict (procedural textures as in-memory PNGs, mesh files' bytes) and the MJCF includes;
+:func:`compile_scene` compiles it to a ``mujoco.MjModel`` through ``mujoco.MjSpec``,
+attaching the included files' bodies. The env (the task) owns timing: it calls
 :meth:`SceneAnimator.apply` with the time it wants shown.
 
 What the model holds (and which entity writes it):
@@ -27,7 +28,10 @@ What the model holds (and which entity writes it):
   horizontal FOV and aspect (112.83° both ways for the 128 × 128 Speck).
 - **Moving objects** (:class:`~wander_env.entities.MovingProp`): mocap bodies
   ``object_1`` .. ``object_n`` (1-based, config order), one geom each named like its
-  body; their segmentation id is k.
+  body (a primitive or a mesh); their segmentation id is k; :func:`geom_layer_radii`
+  bounds each from the compiled model.
+- **Included MJCF bodies** (:class:`~wander_env.entities.MJCFInclude`): under a frame
+  ``NAME``, their names prefixed ``NAME/``, no joints; segmentation id 0.
 - **The gratings screen** (:class:`~wander_env.entities.GratingStimulus`,
   ``config.gratings``): a self-luminous (emission 1) plane on mocap body
   ``grating_background`` textured with one background period tiled across it; it

@@ -2,8 +2,16 @@
 
 A :class:`SceneConfig` describes one world: the pan-tilt unit's mount and camera, the
 lighting, an optional textured room, tables and shelves, static clutter, the moving
-objects (each with a trajectory, see :mod:`wander_env.trajectories`) and, for the
-``gratings`` scene, a :class:`GratingConfig`. :mod:`wander_env.mjcf` turns it into MJCF.
+objects (each with a trajectory, see :mod:`wander_env.trajectories`), the bodies of
+existing MJCF files (:class:`MJCFIncludeConfig`) and, for the ``gratings`` scene, a
+:class:`GratingConfig`. A static or moving prop is a box, sphere, cylinder or a mesh
+(:class:`MeshConfig`: an OBJ or STL file that MuJoCo reads, with a scale).
+:mod:`wander_env.mjcf` turns it into MJCF. :func:`load_scene_config` takes a name, a
+YAML file, a parsed mapping or a :class:`SceneConfig` (so ``gymnasium.make(
+"wander/Wander-v0", scene=SceneConfig(...))`` works).
+
+Every field carries its description, unit and example (``field_doc``):
+``docs/gen_scene_reference.py`` writes the reference page ``docs/scenes.md`` from them.
 
 Conventions: metres, degrees, seconds; the world frame has z up, and the PTU looks along
 +x at pan = tilt = 0 (+y is to its left, i.e. the image's left). Sizes are full extents
@@ -17,6 +25,16 @@ checks, and a trajectory is a union tagged by its ``kind``. A bad value, a missi
 required key or an unknown key raises :class:`wander_env.config.ConfigError` (a
 ``ValueError``) whose message starts with the field's path, e.g.
 ``moving_objects[1].trajectory.kind: expected one of 'circular', ..., got 'zigzag'``.
+Mesh and MJCF files are checked when validated (a regular file of at most
+:data:`MAX_MESH_BYTES` / :data:`MAX_MJCF_BYTES` that MuJoCo reads; relative paths in a
+YAML file are relative to its folder).
+
+Size limits (what the work holds, checked at validation; the lists' lengths before the
+rest, so that a million objects cost no more than the file): camera sides
+<= :data:`MAX_CAMERA_SIDE` px and at most :data:`MAX_CAMERA_PIXELS` pixels; at most
+:data:`MAX_PARTS` tables, shelves, static or moving objects or includes and
+:data:`MAX_LIGHTS` lights; at most :data:`MAX_MATERIALS` materials and
+:data:`MAX_TEXTURES` textures in all (MuJoCo's renderer's limits).
 
 Example:
     >>> cfg = load_scene_config("office")
