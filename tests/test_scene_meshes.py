@@ -184,7 +184,7 @@ def test_a_mesh_file_over_the_cap_is_refused_unread(tmp_path):
         f.truncate(MAX_MESH_BYTES + 1)  # sparse: nothing to read
     msg = _mesh_error(tmp_path, {"file": "big.obj"})
     assert msg.endswith(
-        f"moving_objects[0].mesh.file: larger than 32 MiB ({MAX_MESH_BYTES + 1} bytes), "
+        f"moving_objects[0].mesh.file: larger than 16 MiB ({MAX_MESH_BYTES + 1} bytes), "
         f"got {str(big)!r}"
     )
 

@@ -50,7 +50,7 @@ import stat
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any, Literal, TypeVar
+from typing import Annotated, Any, ClassVar, Literal, TypeVar
 
 import mujoco
 import numpy as np
@@ -74,7 +74,9 @@ RGBA = tuple[Unit, Unit, Unit, Unit]
 SHAPES = ("box", "sphere", "cylinder", "mesh")
 SHAPE_SIZE_LEN = {"box": 3, "sphere": 1, "cylinder": 2, "mesh": 0}
 MESH_SUFFIXES = (".obj", ".stl")
-MAX_MESH_BYTES = 32 * 2**20  # an OBJ of ~10^6 vertices; MuJoCo's STL reader takes 200000 faces
+# an OBJ of ~3.5 10^5 vertices, which MuJoCo reads in ~10-20 s here (its STL reader takes
+# 200000 faces, 9.5 MiB)
+MAX_MESH_BYTES = 16 * 2**20
 MAX_MJCF_BYTES = 8 * 2**20
 # Scene size limits (validated): the work holds these.
 MAX_CAMERA_SIDE = 4096  # px, each side (within llvmpipe's 16384 offscreen limit)
@@ -189,10 +191,13 @@ class MeshConfig:
     ``texture`` is wrapped round the mesh as a cube map.
     """
 
+    # the bounds read by __post_init__, an instance attribute (ClassVar keeps it out of
+    # the fields, so it is no part of the config's value, repr, schema or asdict)
+    _bounds: ClassVar[tuple[np.ndarray, np.ndarray]]
     file: Annotated[
         str,
         field_doc(
-            "Path of a Wavefront OBJ or STL file of at most 32 MiB that MuJoCo reads; "
+            "Path of a Wavefront OBJ or STL file of at most 16 MiB that MuJoCo reads; "
             "relative: to the scene file's folder (in Python, to the current directory)",
             example="meshes/bunny.obj",
         ),
@@ -207,9 +212,11 @@ class MeshConfig:
     ] = 1.0
 
     def __post_init__(self) -> None:
+        check_annotated(self)
         path = checked_file(self.file, MESH_SUFFIXES, MAX_MESH_BYTES)
         object.__setattr__(self, "file", str(path))
-        self.bounds()
+        # read once, here: the build uses these bounds
+        object.__setattr__(self, "_bounds", mesh_bounds(path, self.scale_xyz))
 
     @property
     def scale_xyz(self) -> Vec3:
@@ -218,8 +225,10 @@ class MeshConfig:
         return (s, s, s) if isinstance(s, (int, float)) else s
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """(min, max) corners (m) of the scaled mesh's bounding box in its file's frame."""
-        return mesh_bounds(Path(self.file), self.scale_xyz)
+        """(min, max) corners (m) of the scaled mesh's bounding box in its file's frame,
+        as read when the config was made."""
+        lo, hi = self._bounds
+        return lo.copy(), hi.copy()
 
 
 class _Body:
