@@ -530,6 +530,9 @@ class MJCFIncludeConfig:
     materials and textures count towards MuJoCo's limits; geoms in groups above 2 are
     not rendered by the camera; mask id 0 (not an object)."""
 
+    # (materials, textures) of the file, an instance attribute set by __post_init__
+    # (ClassVar keeps it out of the fields)
+    _counts: ClassVar[tuple[int, int]]
     file: Annotated[
         str,
         field_doc(
@@ -555,14 +558,15 @@ class MJCFIncludeConfig:
     ] = ""
 
     def __post_init__(self) -> None:
+        check_annotated(self)
         path = checked_file(self.file, (".xml", ".mjcf"), MAX_MJCF_BYTES)
         object.__setattr__(self, "file", str(path))
-        self.counts()
+        object.__setattr__(self, "_counts", mjcf_counts(path))  # compiled once, here
 
     def counts(self) -> tuple[int, int]:
-        """(materials, textures) the file brings, counted as it compiles alone (an upper
-        bound: assets its bodies do not use stay behind)."""
-        return mjcf_counts(Path(self.file))
+        """(materials, textures) the file brings, counted as it compiled alone when the
+        config was made (an upper bound: assets its bodies do not use stay behind)."""
+        return self._counts
 
 
 @dataclass(frozen=True)
