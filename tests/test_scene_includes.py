@@ -91,3 +91,14 @@ def test_a_bad_include_is_one_line_naming_file_field_and_value(tmp_path, name, c
     assert "\n" not in msg
     assert msg.startswith(f"{scene}: mjcf_includes[0].file: {expected}"), msg
     assert msg.endswith(f"got {str(tmp_path / name)!r}")
+
+
+def test_two_includes_of_one_name_are_refused(tmp_path):
+    arm = str(write_arm(tmp_path))
+    includes = [{"file": arm, "name": "arm"}, {"file": arm}, {"file": arm, "name": "arm"}]
+    with pytest.raises(ConfigError) as info:
+        scene_config_from_dict({"mjcf_includes": includes}, where="s.yaml")
+    assert str(info.value) == "s.yaml: mjcf_includes: names must differ, got arm twice"
+    # the default names are the list positions: include_1 here
+    cfg = scene_config_from_dict({"mjcf_includes": includes[:2]})
+    assert compile_scene(cfg).body("include_1/base").id > 0

@@ -63,6 +63,9 @@ def test_too_many_objects_are_refused_before_validation(n):
     )
     # nothing allocated in proportion to n (the list itself holds n references)
     assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 50_000  # kB
+    assert _error({"moving_objects": (_BOX,) * n}).startswith(
+        "s.yaml: moving_objects: at most 1000 items"
+    )
 
 
 def test_too_many_lights_are_refused():

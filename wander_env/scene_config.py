@@ -703,6 +703,10 @@ class SceneConfig:
                 "gratings.object_size_deg: must be smaller than the field of view "
                 f"({self.camera.hfov_deg:.1f} deg), got {self.gratings.object_size_deg}"
             )
+        prefixes = [inc.name or f"include_{i}" for i, inc in enumerate(self.mjcf_includes)]
+        twice = sorted({p for p in prefixes if prefixes.count(p) > 1})
+        if twice:
+            raise ValueError(f"mjcf_includes: names must differ, got {', '.join(twice)} twice")
         included = [inc.counts() for inc in self.mjcf_includes]
         materials = self.own_materials() + sum(m for m, _ in included)
         if materials > MAX_MATERIALS:
@@ -866,5 +870,5 @@ def _check_lengths(data: Any, where: str | None) -> None:
         lists["lighting.lights"] = (lights, MAX_LIGHTS, f"MuJoCo's limit is {MAX_LIGHTS}")
     head = f"{where}: " if where else ""
     for key, (items, limit, reason) in lists.items():
-        if isinstance(items, list) and len(items) > limit:
+        if isinstance(items, (list, tuple)) and len(items) > limit:
             raise ConfigError(f"{head}{key}: at most {limit} items ({reason}), got {len(items)}")
