@@ -59,6 +59,7 @@ from wander_env.scene_config import (
     ShelfConfig,
     StaticObjectConfig,
     TableConfig,
+    include_name,
 )
 from wander_env.textures import (
     TextureSpec,
@@ -640,7 +641,7 @@ class MJCFInclude:
     @property
     def prefix(self) -> str:
         """``NAME/``, the prefix of everything it brings."""
-        return f"{self.include.name or f'include_{self.index}'}/"
+        return f"{include_name(self.index, self.include)}/"
 
     def attach_spec(self, spec: mujoco.MjSpec) -> None:
         """Attach the file's bodies to ``spec``'s worldbody (static: no joints)."""

@@ -72,7 +72,7 @@ Vec3 = tuple[float, float, float]
 RGBA = tuple[Unit, Unit, Unit, Unit]
 
 SHAPES = ("box", "sphere", "cylinder", "mesh")
-SHAPE_SIZE_LEN = {"box": 3, "sphere": 1, "cylinder": 2, "mesh": 0}
+SHAPE_SIZE_LEN = {"box": 3, "sphere": 1, "cylinder": 2}
 MESH_SUFFIXES = (".obj", ".stl")
 # an OBJ of ~3.5 10^5 vertices, which MuJoCo reads in ~10-20 s here (its STL reader takes
 # 200000 faces, 9.5 MiB)
@@ -651,6 +651,11 @@ class GratingConfig:
         return self.background_speed_deg_s, self.object_speed_deg_s
 
 
+def include_name(index: int, include: MJCFIncludeConfig) -> str:
+    """The name of include ``index`` (from 0) in a scene: its own, else ``include_i``."""
+    return include.name or f"include_{index}"
+
+
 Parts = Annotated[tuple[T, ...], pydantic.Field(max_length=MAX_PARTS)]
 
 
@@ -703,7 +708,7 @@ class SceneConfig:
                 "gratings.object_size_deg: must be smaller than the field of view "
                 f"({self.camera.hfov_deg:.1f} deg), got {self.gratings.object_size_deg}"
             )
-        prefixes = [inc.name or f"include_{i}" for i, inc in enumerate(self.mjcf_includes)]
+        prefixes = [include_name(i, inc) for i, inc in enumerate(self.mjcf_includes)]
         twice = sorted({p for p in prefixes if prefixes.count(p) > 1})
         if twice:
             raise ValueError(f"mjcf_includes: names must differ, got {', '.join(twice)} twice")
