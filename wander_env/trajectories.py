@@ -145,7 +145,11 @@ class RandomWalkParams:
     ] = 2.0
     start: Annotated[
         Vec3 | None,
-        field_doc("Position at t = 0 (none: drawn uniformly inside the bounds)", unit="m"),
+        field_doc(
+            "Position at t = 0 (none: drawn uniformly inside the bounds)",
+            unit="m",
+            example=[0.9, 0.0, 1.0],
+        ),
     ] = None
     dt_s: Annotated[
         float, field_doc("Step of the internal grid (linearly interpolated between)", unit="s")
