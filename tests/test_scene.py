@@ -234,7 +234,7 @@ def _bad_mode(d):
         (
             lambda d: d["moving_objects"][1]["trajectory"].pop("kind"),
             "moving_objects[1].trajectory.kind: required",
-            ("'linear_bounce', 'circular', 'random_walk', 'waypoints')",),
+            ("'linear_bounce', 'circular', 'random_walk', 'waypoints', 'scripted')",),
         ),
         (
             lambda d: d["moving_objects"][0].__setitem__("rgba", [0.2, 2, 1, 1]),

@@ -12,7 +12,10 @@ when things happen and asks a moving entity's runtime for its state at time t.
   ``pan`` and ``tilt``, camera ``event_camera``; it answers the camera's world position
   at pan = tilt = 0 and its MuJoCo ``fovy``.
 - :class:`Lights`, :class:`Room`, :class:`Table`, :class:`Shelf`, :class:`StaticProp`:
-  static fragments.
+  static fragments (a prop's mesh goes in as an in-memory ``<mesh>`` asset, centred on
+  its bounding box: :meth:`MJCFDocument.shape_geom`).
+- :class:`MJCFInclude`: an MJCF file's worldbody bodies, attached to the compiled
+  scene's ``MjSpec`` (not to the XML) as static parts.
 - :class:`MovingProp`: mocap body ``object_k``; :meth:`MovingProp.motion` gives its
   runtime (:class:`PropMotion`: its trajectory and mocap id; writes its position at t).
 - :class:`GratingStimulus`: the self-luminous screen and the patch strips;
@@ -37,6 +40,7 @@ import re
 import xml.etree.ElementTree as ET
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Protocol
 
 import mujoco
@@ -47,12 +51,15 @@ from wander_env.scene_config import (
     CameraConfig,
     GratingConfig,
     LightingConfig,
+    MeshConfig,
+    MJCFIncludeConfig,
     MovingObjectConfig,
     PTUMountConfig,
     RoomConfig,
     ShelfConfig,
     StaticObjectConfig,
     TableConfig,
+    include_name,
 )
 from wander_env.textures import (
     TextureSpec,
@@ -85,6 +92,7 @@ __all__ = [
     "GratingStimulus",
     "Lights",
     "MJCFDocument",
+    "MJCFInclude",
     "MovingProp",
     "PanTiltCamera",
     "PropMotion",
@@ -163,8 +171,9 @@ def _half_size(shape: str, size: Sequence[float]) -> tuple[float, ...]:
 
 
 def _texture_face(shape: str, size: Sequence[float]) -> tuple[float, float]:
-    """The face size (m) a texture's ``tile_m`` is measured against, per shape."""
-    if shape == "box":
+    """The face size (m) a texture's ``tile_m`` is measured against, per shape (a mesh:
+    its bounding box's extents, as a box)."""
+    if shape in ("box", "mesh"):
         s = sorted(size, reverse=True)
         return (s[0], s[1])
     if shape == "sphere":
@@ -266,6 +275,7 @@ class MJCFDocument:
         self.assets: dict[str, bytes] = {}
         self._world: ET.Element | None = None
         self._n_materials = 0
+        self._n_meshes = 0
 
     def open_world(self) -> ET.Element:
         """Append the ``<worldbody>`` (after the header sections) and return it."""
@@ -295,6 +305,50 @@ class MJCFDocument:
         """An in-memory PNG asset and the ``<texture>`` that names it."""
         file = add_png_asset(self.assets, name, image)
         ET.SubElement(self.asset, "texture", name=name, type=ttype, file=file)
+
+    def mesh(self, mesh: MeshConfig) -> tuple[str, np.ndarray, np.ndarray]:
+        """A ``<mesh>`` asset of ``mesh`` (its file's bytes in memory, ``mesh_N.EXT``):
+        (its name, the (min, max) corners (m) of its scaled bounding box in its frame)."""
+        self._n_meshes += 1
+        name = f"mesh_{self._n_meshes}"
+        path = Path(mesh.file)
+        file = f"{name}{path.suffix.lower()}"
+        self.assets[file] = path.read_bytes()
+        lo, hi = mesh.bounds()
+        # "shell" inertia: MuJoCo then also takes open and flat meshes (nothing here has mass)
+        self.element(
+            self.asset, "mesh", name=name, file=file, scale=mesh.scale_xyz, inertia="shell"
+        )
+        return name, lo, hi
+
+    def shape_geom(
+        self,
+        parent: ET.Element,
+        shape: str,
+        size: Sequence[float],
+        mesh: MeshConfig | None,
+        rgba: Sequence[float],
+        texture: TextureSpec | None,
+        **attrs: object,
+    ) -> ET.Element:
+        """A prop's geom and its material: a box, sphere or cylinder of full extents
+        ``size``, or ``mesh`` with its bounding box's centre at the geom's ``pos``
+        (default the parent's origin), turned by ``euler`` (rad, when given)."""
+        if mesh is None:
+            mat = self.material(rgba, texture, _texture_face(shape, size), cube=shape != "box")
+            return self.geom(
+                parent, type=shape, size=_half_size(shape, size), material=mat, **attrs
+            )
+        name, lo, hi = self.mesh(mesh)
+        mat = self.material(rgba, texture, _texture_face("mesh", hi - lo), cube=True)
+        centre = (lo + hi) / 2.0
+        quat = np.array([1.0, 0.0, 0.0, 0.0])
+        if "euler" in attrs:
+            mujoco.mju_euler2Quat(quat, np.asarray(attrs["euler"], float), "xyz")
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, quat)
+        pos = np.asarray(attrs.pop("pos", (0.0, 0.0, 0.0)), float) - rot.reshape(3, 3) @ centre
+        return self.geom(parent, type="mesh", mesh=name, pos=pos, material=mat, **attrs)
 
     def material(
         self,
@@ -557,18 +611,53 @@ class StaticProp:
     prop: StaticObjectConfig
 
     def attach(self, doc: MJCFDocument) -> None:
-        """Write the geom and its material."""
+        """Write the geom and its material (and mesh)."""
         o = self.prop
-        mat = doc.material(o.rgba, o.texture, _texture_face(o.shape, o.size), cube=o.shape != "box")
-        doc.geom(
+        doc.shape_geom(
             doc.world,
+            o.shape,
+            o.size,
+            o.mesh,
+            o.rgba,
+            o.texture,
             name=o.name or f"static_{self.index}",
-            type=o.shape,
             pos=o.position,
             euler=tuple(math.radians(a) for a in o.euler_deg),
-            size=_half_size(o.shape, o.size),
-            material=mat,
         )
+
+
+@dataclass(frozen=True)
+class MJCFInclude:
+    """The worldbody bodies of an MJCF file, joints removed, under frame ``NAME`` (or
+    ``include_i``) at ``position`` turned by ``euler_deg``, names prefixed ``NAME/``.
+
+    It attaches to the compiled scene's :class:`mujoco.MjSpec` (MuJoCo keeps the file's
+    own compiler settings, asset paths and defaults), not to the XML document.
+    """
+
+    index: int
+    include: MJCFIncludeConfig
+
+    @property
+    def prefix(self) -> str:
+        """``NAME/``, the prefix of everything it brings."""
+        return f"{include_name(self.index, self.include)}/"
+
+    def attach_spec(self, spec: mujoco.MjSpec) -> None:
+        """Attach the file's bodies to ``spec``'s worldbody (static: no joints)."""
+        inc = self.include
+        child = mujoco.MjSpec.from_file(inc.file)
+        for joint in list(child.joints):
+            child.delete(joint)
+        for key in list(child.keys):  # their qpos sizes no longer fit
+            child.delete(key)
+        quat = np.zeros(4)
+        mujoco.mju_euler2Quat(quat, np.radians(inc.euler_deg), "xyz")
+        frame = spec.worldbody.add_frame(name=self.prefix[:-1], pos=inc.position, quat=quat)
+        body = child.worldbody.first_body()
+        while body is not None:
+            frame.attach_body(body, self.prefix, "")
+            body = child.worldbody.next_body(body)
 
 
 # ----------------------------------------------------------------------------------------
@@ -605,13 +694,12 @@ class MovingProp:
         return object_body_name(self.index)
 
     def attach(self, doc: MJCFDocument) -> None:
-        """Write the mocap body, its geom and material."""
+        """Write the mocap body, its geom and material (and mesh)."""
         o, name = self.prop, self.body_name
         body = doc.element(
             doc.world, "body", name=name, mocap="true", pos=_initial_position(o.trajectory)
         )
-        mat = doc.material(o.rgba, o.texture, _texture_face(o.shape, o.size), cube=o.shape != "box")
-        doc.geom(body, name=name, type=o.shape, size=_half_size(o.shape, o.size), material=mat)
+        doc.shape_geom(body, o.shape, o.size, o.mesh, o.rgba, o.texture, name=name)
 
     def motion(self, model: mujoco.MjModel, rng: np.random.Generator) -> PropMotion:
         """The runtime in a compiled ``model`` (random walks draw from ``rng``)."""

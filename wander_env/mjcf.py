@@ -6,8 +6,9 @@ part, each owning its MJCF fragment) in document order: lights, room, tables, sh
 static props, moving props, the gratings stimulus, the pan-tilt camera. It writes the
 document's header itself (compiler, options, visual quality, headlight) and lets each
 entity attach its fragment. :func:`build_mjcf` returns the XML string plus an assets
-dict (procedural textures as in-memory PNGs); :func:`compile_scene` compiles it to a
-``mujoco.MjModel``. The env (the task) owns timing: it calls
+dict (procedural textures as in-memory PNGs, mesh files' bytes) and the MJCF includes;
+:func:`compile_scene` compiles it to a ``mujoco.MjModel`` through ``mujoco.MjSpec``,
+attaching the included files' bodies. The env (the task) owns timing: it calls
 :meth:`SceneAnimator.apply` with the time it wants shown.
 
 What the model holds (and which entity writes it):
@@ -27,7 +28,10 @@ What the model holds (and which entity writes it):
   horizontal FOV and aspect (112.83° both ways for the 128 × 128 Speck).
 - **Moving objects** (:class:`~wander_env.entities.MovingProp`): mocap bodies
   ``object_1`` .. ``object_n`` (1-based, config order), one geom each named like its
-  body; their segmentation id is k.
+  body (a primitive or a mesh); their segmentation id is k; :func:`geom_layer_radii`
+  bounds each from the compiled model.
+- **Included MJCF bodies** (:class:`~wander_env.entities.MJCFInclude`): under a frame
+  ``NAME``, their names prefixed ``NAME/``, no joints; segmentation id 0.
 - **The gratings screen** (:class:`~wander_env.entities.GratingStimulus`,
   ``config.gratings``): a self-luminous (emission 1) plane on mocap body
   ``grating_background`` textured with one background period tiled across it; it
@@ -78,6 +82,7 @@ from wander_env.entities import (
     GratingStimulus,
     Lights,
     MJCFDocument,
+    MJCFInclude,
     MovingProp,
     PanTiltCamera,
     PropMotion,
@@ -97,6 +102,7 @@ __all__ = [
     "build_mjcf",
     "compile_scene",
     "geom_layer_ids",
+    "geom_layer_radii",
     "geom_object_ids",
 ]
 
@@ -115,15 +121,20 @@ _NUM_STACKS = 10
 
 @dataclass
 class MJCFScene:
-    """An MJCF document: XML text, its in-memory assets, and the config it came from."""
+    """An MJCF document: XML text, its in-memory assets, the MJCF files it includes
+    (attached when it compiles), and the config it came from."""
 
     xml: str
     assets: dict[str, bytes]
     config: SceneConfig
+    includes: tuple[MJCFInclude, ...] = ()
 
     def compile(self) -> mujoco.MjModel:
-        """Compile to a ``mujoco.MjModel``."""
-        return mujoco.MjModel.from_xml_string(self.xml, self.assets)
+        """Compile to a ``mujoco.MjModel`` (with the included files' bodies)."""
+        spec = mujoco.MjSpec.from_string(self.xml, assets=self.assets)
+        for include in self.includes:
+            include.attach_spec(spec)
+        return spec.compile()
 
 
 class Arena:
@@ -142,6 +153,7 @@ class Arena:
         )
         g = config.gratings
         self.gratings = GratingStimulus(g, self.ptu) if g is not None else None
+        self.includes = tuple(MJCFInclude(i, inc) for i, inc in enumerate(config.mjcf_includes))
         self.entities: tuple[Entity, ...] = (
             Lights(config.lighting),
             *((Room(config.room),) if config.room is not None else ()),
@@ -190,7 +202,7 @@ class Arena:
         doc.open_world()
         for entity in self.entities:
             entity.attach(doc)
-        return MJCFScene(doc.text(), doc.assets, self.config)
+        return MJCFScene(doc.text(), doc.assets, self.config, self.includes)
 
 
 def build_mjcf(config: SceneConfig) -> MJCFScene:
@@ -222,6 +234,26 @@ def geom_layer_ids(model: mujoco.MjModel) -> np.ndarray:
     if bg >= 0:
         ids[np.asarray(model.geom_bodyid) == bg] = int(ids.max(initial=0)) + 1
     return ids
+
+
+def geom_layer_radii(model: mujoco.MjModel) -> np.ndarray:
+    """Bounding radius (m) of each motion layer about its position, (layers,) float64:
+    for object k the farthest its geoms reach from body ``object_k``'s origin (a geom's
+    distance plus its bounding-sphere radius: meshes included); ``inf`` for the static
+    world and, in a gratings model, for every layer (a sliding screen has no bound).
+
+    >>> from wander_env.scene_config import load_scene_config
+    >>> geom_layer_radii(compile_scene(load_scene_config("office"))).round(4).tolist()
+    [inf, 0.2078, 0.28]
+    """
+    layers = geom_layer_ids(model)
+    radii = np.full(int(layers.max(initial=0)) + 1, np.inf)
+    if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, GRATING_BACKGROUND_BODY) >= 0:
+        return radii
+    reach = np.linalg.norm(model.geom_pos, axis=1) + model.geom_rbound
+    for k in range(1, len(radii)):
+        radii[k] = reach[layers == k].max()
+    return radii
 
 
 # ----------------------------------------------------------------------------------------

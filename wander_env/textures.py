@@ -25,7 +25,8 @@ from typing import Annotated, Literal
 
 import cv2
 import numpy as np
-import pydantic
+
+from wander_env.field_doc import field_doc
 
 RGB = tuple[float, float, float]
 
@@ -53,13 +54,33 @@ class TextureSpec:
     ``texrepeat``); ``seed`` seeds its randomness.
     """
 
-    kind: Literal["blobs", "noise", "bricks", "checker", "grating", "plain"] = "blobs"
-    colors: tuple[RGB, ...] = ()
-    scale: float = 24.0
-    size_px: int = 256
-    repeat: tuple[float, float] = (1.0, 1.0)
-    tile_m: float = 0.0
-    seed: Annotated[int, pydantic.Field(ge=0)] = 0
+    kind: Annotated[
+        Literal["blobs", "noise", "bricks", "checker", "grating", "plain"],
+        field_doc(
+            "blobs (crisp patches), noise (smooth, e.g. wood), bricks, checker, grating "
+            "(vertical bars) or plain"
+        ),
+    ] = "blobs"
+    colors: Annotated[
+        tuple[RGB, ...], field_doc("RGB colours in [0, 1] (none: the kind's defaults)")
+    ] = ()
+    scale: Annotated[
+        float,
+        field_doc(
+            "Feature size: blob and noise correlation length, brick length, checker cell, "
+            "grating period",
+            unit="texels",
+        ),
+    ] = 24.0
+    size_px: Annotated[int, field_doc("Side of the square image (8 to 4096)", unit="px")] = 256
+    repeat: Annotated[
+        tuple[float, float],
+        field_doc("Times the image tiles across each face (MuJoCo texrepeat) when tile_m is 0"),
+    ] = (1.0, 1.0)
+    tile_m: Annotated[
+        float, field_doc("Metres one image spans on the surface (0: use repeat)", unit="m")
+    ] = 0.0
+    seed: Annotated[int, field_doc("Seed of its randomness", ge=0)] = 0
 
     def __post_init__(self) -> None:
         if self.kind not in TEXTURE_KINDS:

@@ -1,18 +1,12 @@
-"""Scripted trajectories of the moving objects: a 3D position (metres, world frame) at time t.
+"""Trajectories of the moving objects: a 3D position (metres, world frame) at time t.
 
-Four kinds, each a frozen params dataclass (validated on construction) plus a small
-evaluator built by :func:`make_trajectory`:
-
-- ``linear_bounce`` (:class:`LinearBounceParams`): constant velocity inside an
-  axis-aligned box, reflecting off its faces (closed form, :func:`bounce_position`);
-- ``circular`` (:class:`CircularParams`): a circle in an axis plane at constant
-  angular speed (:func:`circle_position`);
-- ``random_walk`` (:class:`RandomWalkParams`): a smooth random walk at constant speed
-  whose heading diffuses, reflecting off the bounds; integrated on a fixed internal
-  grid from a ``numpy.random.Generator``, so it is deterministic for a seed whatever
-  the query times;
-- ``waypoints`` (:class:`WaypointsParams`): piecewise linear through the waypoints at
-  constant speed, looping (:func:`polyline_position`).
+Five kinds, each a frozen params dataclass (validated on construction) plus a small
+evaluator built by :func:`make_trajectory`: ``linear_bounce``
+(:class:`LinearBounceParams`), ``circular`` (:class:`CircularParams`), ``random_walk``
+(:class:`RandomWalkParams`), ``waypoints`` (:class:`WaypointsParams`) and ``scripted``
+(:class:`ScriptedParams`, a Python callable). What each kind does and what its fields
+mean is written on the fields (``field_doc``), from which ``docs/gen_scene_reference.py``
+generates the scene reference page, ``docs/scenes.md``.
 
 Every evaluator has ``position(t) -> np.ndarray`` of shape (3,), for any t >= 0 (the
 closed-form ones for any t, in any order).
@@ -26,14 +20,18 @@ Example:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Literal, Protocol
+from typing import Annotated, Literal, Protocol
 
 import numpy as np
+import pydantic
+
+from wander_env.field_doc import field_doc
 
 Vec3 = tuple[float, float, float]
 
-TRAJECTORY_KINDS = ("linear_bounce", "circular", "random_walk", "waypoints")
+TRAJECTORY_KINDS = ("linear_bounce", "circular", "random_walk", "waypoints", "scripted")
 PLANES = ("xy", "xz", "yz")
 _PLANE_AXES = {"xy": (0, 1), "xz": (0, 2), "yz": (1, 2)}
 
@@ -61,16 +59,30 @@ def _check_inside(name: str, p: Vec3, lo: Vec3, hi: Vec3) -> None:
 
 @dataclass(frozen=True)
 class LinearBounceParams:
-    """Constant velocity (m/s) from ``start``, reflecting inside ``bounds_min..bounds_max``.
+    """Params of a ``linear_bounce`` trajectory (its fields say what it does)."""
 
-    An axis with zero extent keeps its coordinate; its velocity must then be 0.
-    """
-
-    start: Vec3
-    velocity: Vec3
-    bounds_min: Vec3
-    bounds_max: Vec3
-    kind: Literal["linear_bounce"] = "linear_bounce"
+    start: Annotated[
+        Vec3, field_doc("Position at t = 0 (inside the bounds)", unit="m", example=[0.5, 0.2, 1.0])
+    ]
+    velocity: Annotated[
+        Vec3,
+        field_doc("Velocity (0 on an axis of zero extent)", unit="m/s", example=[0.0, -0.12, 0.05]),
+    ]
+    bounds_min: Annotated[
+        Vec3,
+        field_doc("Lower corner of the box it bounces in", unit="m", example=[0.5, -0.45, 0.92]),
+    ]
+    bounds_max: Annotated[
+        Vec3,
+        field_doc("Upper corner of the box it bounces in", unit="m", example=[0.5, 0.45, 1.12]),
+    ]
+    kind: Annotated[
+        Literal["linear_bounce"],
+        field_doc(
+            "Constant velocity from start, reflecting off the faces of the box "
+            "bounds_min..bounds_max (closed form)"
+        ),
+    ] = "linear_bounce"
 
     def __post_init__(self) -> None:
         _check_vec3("start", self.start)
@@ -85,18 +97,24 @@ class LinearBounceParams:
 
 @dataclass(frozen=True)
 class CircularParams:
-    """A circle of ``radius`` (m) about ``centre`` in ``plane``.
+    """Params of a ``circular`` trajectory (its fields say what it does)."""
 
-    The position is centre + r (cos θ e1 + sin θ e2), θ = phase + ω t, with (e1, e2) the
-    plane's axes in order ("yz": e1 = y, e2 = z). ``angular_speed_rad_s`` may be negative.
-    """
-
-    centre: Vec3
-    radius: float
-    angular_speed_rad_s: float = 1.0
-    plane: Literal["xy", "xz", "yz"] = "yz"
-    phase_deg: float = 0.0
-    kind: Literal["circular"] = "circular"
+    centre: Annotated[Vec3, field_doc("Centre of the circle", unit="m", example=[0.9, -0.2, 1.3])]
+    radius: Annotated[float, field_doc("Radius (>= 0)", unit="m", example=0.22)]
+    angular_speed_rad_s: Annotated[
+        float, field_doc("Angular speed (negative: the other way round)", unit="rad/s")
+    ] = 1.0
+    plane: Annotated[
+        Literal["xy", "xz", "yz"],
+        field_doc(
+            "Plane of the circle: position = centre + radius (cos θ e1 + sin θ e2), "
+            "θ = phase + ω t, (e1, e2) the plane's axes in order (yz: e1 = y, e2 = z)"
+        ),
+    ] = "yz"
+    phase_deg: Annotated[float, field_doc("Angle θ at t = 0", unit="deg")] = 0.0
+    kind: Annotated[
+        Literal["circular"], field_doc("A circle at constant angular speed (closed form)")
+    ] = "circular"
 
     def __post_init__(self) -> None:
         _check_vec3("centre", self.centre)
@@ -110,21 +128,41 @@ class CircularParams:
 
 @dataclass(frozen=True)
 class RandomWalkParams:
-    """Smooth random walk at ``speed_m_s`` inside the bounds.
+    """Params of a ``random_walk`` trajectory (its fields say what it does)."""
 
-    The heading is a unit vector diffusing with ``turn_rate_rad_s`` (the rms angle it
-    turns in one second is about that), reflecting off the bounds; axes of zero extent
-    are frozen. Integrated on a fixed grid of ``dt_s``, linearly interpolated between.
-    ``start`` None draws a uniform start inside the bounds.
-    """
-
-    bounds_min: Vec3
-    bounds_max: Vec3
-    speed_m_s: float = 0.2
-    turn_rate_rad_s: float = 2.0
-    start: Vec3 | None = None
-    dt_s: float = 0.005
-    kind: Literal["random_walk"] = "random_walk"
+    bounds_min: Annotated[
+        Vec3, field_doc("Lower corner of the box it walks in", unit="m", example=[0.6, -0.4, 0.8])
+    ]
+    bounds_max: Annotated[
+        Vec3, field_doc("Upper corner of the box it walks in", unit="m", example=[1.2, 0.4, 1.3])
+    ]
+    speed_m_s: Annotated[float, field_doc("Constant speed (>= 0)", unit="m/s")] = 0.2
+    turn_rate_rad_s: Annotated[
+        float,
+        field_doc(
+            "How fast the heading diffuses: about the rms angle it turns in 1 s", unit="rad/s"
+        ),
+    ] = 2.0
+    start: Annotated[
+        Vec3 | None,
+        field_doc(
+            "Position at t = 0 (none: drawn uniformly inside the bounds)",
+            unit="m",
+            example=[0.9, 0.0, 1.0],
+        ),
+    ] = None
+    dt_s: Annotated[
+        float, field_doc("Step of the internal grid (linearly interpolated between)", unit="s")
+    ] = 0.005
+    kind: Annotated[
+        Literal["random_walk"],
+        field_doc(
+            "A smooth random walk at constant speed whose heading diffuses, reflecting off "
+            "the bounds (axes of zero extent frozen); integrated on a fixed grid from the "
+            "env's random generator, so it is deterministic for a seed whatever the query "
+            "times"
+        ),
+    ] = "random_walk"
 
     def __post_init__(self) -> None:
         _check_bounds(self.bounds_min, self.bounds_max)
@@ -141,16 +179,24 @@ class RandomWalkParams:
 
 @dataclass(frozen=True)
 class WaypointsParams:
-    """Piecewise linear through ``points`` at ``speed_m_s``, starting at the first point.
+    """Params of a ``waypoints`` trajectory (its fields say what it does)."""
 
-    ``closed`` True loops back from the last point to the first; False goes back and
-    forth along the path (ping-pong).
-    """
-
-    points: tuple[Vec3, ...]
-    speed_m_s: float = 0.2
-    closed: bool = True
-    kind: Literal["waypoints"] = "waypoints"
+    points: Annotated[
+        tuple[Vec3, ...],
+        field_doc(
+            "The waypoints (at least 2); it starts at the first",
+            unit="m",
+            example=[[0.25, 0.15, 1.0], [0.25, -0.15, 1.0]],
+        ),
+    ]
+    speed_m_s: Annotated[float, field_doc("Constant speed (> 0)", unit="m/s")] = 0.2
+    closed: Annotated[
+        bool, field_doc("true: loop from the last point to the first; false: back and forth")
+    ] = True
+    kind: Annotated[
+        Literal["waypoints"],
+        field_doc("Piecewise linear through the points at constant speed, looping (closed form)"),
+    ] = "waypoints"
 
     def __post_init__(self) -> None:
         if len(self.points) < 2:
@@ -161,7 +207,42 @@ class WaypointsParams:
             raise ValueError(f"speed_m_s must be > 0, got {self.speed_m_s!r}")
 
 
-TrajectoryParams = LinearBounceParams | CircularParams | RandomWalkParams | WaypointsParams
+@dataclass(frozen=True)
+class ScriptedParams:
+    """Params of a ``scripted`` trajectory: a Python callable (its fields say more)."""
+
+    position: Annotated[
+        Callable[[float], Sequence[float]],
+        pydantic.WithJsonSchema({"type": "string", "format": "python-callable"}),
+        field_doc(
+            "A Python callable t (s) -> (x, y, z) (m), called once at t = 0 to check it",
+            example="lambda t: (1.0, 0.3 * math.sin(4 * t), 1.0)",
+        ),
+    ]
+    kind: Annotated[
+        Literal["scripted"],
+        field_doc(
+            "Python only (a SceneConfig built in code, not a scene file): the callable "
+            "gives the position; it should be a pure function of t (the env asks for "
+            "times in any order); a scene holding one is not serialisable into YAML or "
+            "run.json unless the callable is"
+        ),
+    ] = "scripted"
+
+    def __post_init__(self) -> None:
+        if not callable(self.position):
+            raise ValueError(f"position: must be a callable t -> (x, y, z), got {self.position!r}")
+        try:
+            scripted_position(self.position, 0.0)
+        except ValueError as e:
+            raise ValueError(f"position: at t = 0 s: {e}") from None
+        except Exception as e:  # the user's code: any error is a bad value here
+            raise ValueError(f"position: at t = 0 s: {type(e).__name__}: {e}") from None
+
+
+TrajectoryParams = (
+    LinearBounceParams | CircularParams | RandomWalkParams | WaypointsParams | ScriptedParams
+)
 
 
 # ----------------------------------------------------------------------------------------
@@ -225,6 +306,14 @@ def waypoint_arrival_times(points: np.ndarray, speed: float) -> np.ndarray:
     """Times at which a constant-speed walk along ``points`` reaches each one (first = 0)."""
     seg = np.linalg.norm(np.diff(np.asarray(points, float), axis=0), axis=1)
     return np.concatenate([[0.0], np.cumsum(seg)]) / speed
+
+
+def scripted_position(position: Callable[[float], Sequence[float]], t: float) -> np.ndarray:
+    """``position(t)`` as a (3,) float array; ValueError unless it is 3 finite numbers."""
+    p = np.asarray(position(t), dtype=float)
+    if p.shape != (3,) or not np.isfinite(p).all():
+        raise ValueError(f"expected 3 finite numbers (m), got {p.tolist()!r}")
+    return p
 
 
 # ----------------------------------------------------------------------------------------
@@ -348,8 +437,24 @@ class RandomWalk:
         return s[i] + frac * (s[i + 1] - s[i])
 
 
+class Scripted:
+    """Evaluator of :class:`ScriptedParams`: the callable, its value checked."""
+
+    def __init__(self, params: ScriptedParams) -> None:
+        self.params = params
+
+    def position(self, t: float) -> np.ndarray:
+        """Position at time t (s); ValueError naming t when the callable's value is bad."""
+        try:
+            return scripted_position(self.params.position, t)
+        except ValueError as e:
+            raise ValueError(f"scripted trajectory at t = {t} s: {e}") from None
+
+
 def make_trajectory(params: TrajectoryParams, rng: np.random.Generator | None = None) -> Trajectory:
     """The evaluator for ``params``; ``rng`` is required by (and only used by) random walks."""
+    if isinstance(params, ScriptedParams):
+        return Scripted(params)
     if isinstance(params, LinearBounceParams):
         return LinearBounce(params)
     if isinstance(params, CircularParams):
