@@ -41,9 +41,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from wander_env.config import ConfigError, coerce, parse_sets, validate
+from wander_env.config import ConfigError, coerce, load_yaml, parse_sets, validate
 from wander_env.runinfo import run_record, write_json
 
 __all__ = [
@@ -164,9 +162,12 @@ def config_to_dict(config: Any) -> dict[str, Any]:
     return json.loads(json.dumps(asdict(config)))
 
 
-def load_yaml_mapping(path: Path) -> dict[str, Any]:
-    """A YAML file holding a mapping (empty file -> {})."""
-    data = yaml.safe_load(Path(path).read_text()) or {}
+def load_yaml_mapping(path: Path, what: str = "config file") -> dict[str, Any]:
+    """A YAML file holding a mapping (empty file -> {}), read by
+    :func:`wander_env.config.load_yaml` (bounded; ConfigError on one line)."""
+    data = load_yaml(path, what)
+    if data is None:
+        return {}
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: expected a mapping of key: value, got {type(data).__name__}")
     return data

@@ -34,10 +34,9 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import pydantic
-import yaml
 
 from wander_env.camera import SPECK_HFOV_DEG
-from wander_env.config import check_annotated, validate_paths
+from wander_env.config import check_annotated, load_yaml, validate_paths
 from wander_env.textures import TextureSpec
 from wander_env.trajectories import TrajectoryParams
 
@@ -339,8 +338,7 @@ def load_scene_config(path_or_name: str | Path = DEFAULT_SCENE) -> SceneConfig:
         path = assets_dir() / "scenes" / f"{text}.yaml"
         if not path.is_file():
             raise ValueError(f"unknown scene {text!r}; available: {', '.join(available_scenes())}")
-    with open(path, encoding="utf-8") as f:
-        data = yaml.safe_load(f)
+    data = load_yaml(path, "scene file")
     return scene_config_from_dict(data, default_name=path.stem, where=str(path))
 
 
