@@ -59,6 +59,7 @@ from experiments.framework import (
     get_experiment,
     load_yaml_mapping,
     make_trials,
+    real_time_factor,
     run_spec,
     serial_executor,
     split_artifacts,
@@ -109,6 +110,7 @@ class SweepResult:
     ran: int
     skipped: int
     out_dir: Path
+    real_time_factor: float | None = None  # of the trials run now (None: no simulated time)
 
 
 def _check_keys(data: Mapping[str, Any], allowed: Sequence[str], where: str) -> None:
@@ -155,8 +157,9 @@ def sweep_from_dict(data: Mapping[str, Any], where: str = "sweep") -> SweepConfi
 
 
 def load_sweep(path: Path) -> SweepConfig:
-    """Read and validate a sweep file."""
-    return sweep_from_dict(load_yaml_mapping(path), where=str(path))
+    """Read and validate a sweep file (:func:`wander_env.config.load_yaml`: bounded;
+    ConfigError on one line)."""
+    return sweep_from_dict(load_yaml_mapping(path, "sweep file"), where=str(path))
 
 
 def _column_value(v: Any) -> Any:
@@ -366,8 +369,10 @@ def _stored(out_dir: Path, spec: TrialSpec) -> bool:
         rec = json.loads(path.read_text())
         if not isinstance(rec, dict) or not isinstance(rec.get("row"), dict):
             raise ValueError("no 'row' object")
+        if rec["row"].get("trial_id") != spec.id:
+            raise ValueError(f"its row has no 'trial_id' {spec.id!r}")
         return True
-    except (OSError, ValueError, UnicodeDecodeError) as err:
+    except (OSError, ValueError, RecursionError) as err:  # RecursionError: nested too deep
         aside = path.with_name(path.name + ".corrupt")
         k = 1
         while aside.exists():
@@ -381,6 +386,33 @@ def _stored(out_dir: Path, spec: TrialSpec) -> bool:
             stacklevel=2,
         )
         return False
+
+
+def _take_stop(out_dir: Path) -> None:
+    """Before a sweep resumes in ``out_dir``: the stop a former run recorded there
+    (``metrics.json``'s error and signal, an ``INCOMPLETE`` marker) moved to the history
+    of stops in ``run.json`` (``{"stops": [...]}``), so that the folder says only how
+    this run ends."""
+    metrics, marker, record = out_dir / "metrics.json", out_dir / "INCOMPLETE", out_dir / "run.json"
+    stop: dict[str, Any] = {}
+    if metrics.is_file():
+        try:
+            data = json.loads(metrics.read_text())
+        except (ValueError, RecursionError):
+            data = {"error": "unreadable metrics.json"}
+        stop.update(data if isinstance(data, dict) else {"error": str(data)[:200]})
+    if marker.is_file():
+        stop["incomplete"] = marker.read_text(errors="replace").strip() or True
+    if not stop:
+        return
+    try:
+        history = json.loads(record.read_text()) if record.is_file() else {}
+    except (ValueError, RecursionError):
+        history = {}
+    stops = history.get("stops") if isinstance(history, dict) else None
+    write_json(record, {"stops": [*(stops if isinstance(stops, list) else []), stop]})
+    metrics.unlink(missing_ok=True)
+    marker.unlink(missing_ok=True)
 
 
 def _load_row(out_dir: Path, spec: TrialSpec) -> Row:
@@ -411,6 +443,7 @@ def run_sweep(
     todo = [s for s in specs if not _stored(out_dir, s)]
     skipped = len(specs) - len(todo)
     out_dir.mkdir(parents=True, exist_ok=True)
+    _take_stop(out_dir)
     t0 = time.perf_counter()
     if backend == "serial":
         stream = serial_executor(todo, runner)
@@ -431,13 +464,17 @@ def run_sweep(
         stream.close()  # ends the workers at once, whatever stopped the loop
     rows = [_load_row(out_dir, s) for s in specs]
     write_csv(rows, out_dir / "results.csv")
+    seconds = time.perf_counter() - t0
+    ran_ids = {s.id for s in todo}
+    rtf = real_time_factor([r for r in rows if r["trial_id"] in ran_ids], seconds)
     rec = run_record(command or f"wander sweep (backend {backend})", asdict(sweep), None)
     rec.update(
         backend=backend,
         trials=len(specs),
         ran=len(todo),
         skipped=skipped,
-        seconds=round(time.perf_counter() - t0, 3),
+        seconds=round(seconds, 3),
+        real_time_factor=rtf,
     )
     write_json(out_dir / "sweep.json", rec)
-    return SweepResult(rows, len(todo), skipped, out_dir)
+    return SweepResult(rows, len(todo), skipped, out_dir, rtf)

@@ -481,13 +481,15 @@ def _field_locs(cls: type, loc: tuple[Any, ...]) -> tuple[Any, ...]:
 
 def _union_errors_kept(cls: type, errors: list[Any]) -> list[Any]:
     """Errors of a union field: the one from inside a member where there is one (a
-    nested mapping with a bad key says what is wrong there, not that the field is not
-    one of the other members)."""
+    nested mapping with a bad key, or one a member's own check refused, says what is
+    wrong there, not that the field is not one of the other members)."""
     locs = [_field_locs(cls, tuple(e["loc"])) for e in errors]
+    checked = {loc for e, loc in zip(errors, locs, strict=True) if e["type"] == "value_error"}
     return [
         e
         for e, loc in zip(errors, locs, strict=True)
         if not any(len(o) > len(loc) and o[: len(loc)] == loc for o in locs)
+        and (e["type"] == "value_error" or loc not in checked)
     ]
 
 
