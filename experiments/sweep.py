@@ -51,6 +51,8 @@ from pathlib import Path
 from typing import Any
 
 from experiments.framework import (
+    MAX_SEED,
+    MAX_TRIALS,
     ConfigError,
     Row,
     TrialSpec,
@@ -125,19 +127,26 @@ def sweep_from_dict(data: Mapping[str, Any], where: str = "sweep") -> SweepConfi
         raise ConfigError(f"{where}: expected a mapping")
     _check_keys(data, ("name", "seeds", "experiments"), where)
     name = data.get("name")
-    if not isinstance(name, str) or not name or "/" in name:
-        raise ConfigError(f"{where}.name: must be a non-empty string without '/', got {name!r}")
+    if not isinstance(name, str) or name in ("", ".", "..") or "/" in name or "\0" in name:
+        raise ConfigError(
+            f"{where}.name: must be a folder name (no '/', not '.' or '..'), got {name!r}"
+        )
     seeds = data.get("seeds", [0])
     if (
         not isinstance(seeds, list)
         or not seeds
-        or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds)
+        or not all(
+            isinstance(s, int) and not isinstance(s, bool) and 0 <= s <= MAX_SEED for s in seeds
+        )
     ):
-        raise ConfigError(f"{where}.seeds: must be a non-empty list of integers, got {seeds!r}")
+        raise ConfigError(
+            f"{where}.seeds: must be a non-empty list of integers in [0, {MAX_SEED}], got {seeds!r}"
+        )
     entries = []
     raw = data.get("experiments")
     if not isinstance(raw, list) or not raw:
         raise ConfigError(f"{where}.experiments: must be a non-empty list")
+    points = 0
     for i, e in enumerate(raw):
         at = f"{where}.experiments[{i}]"
         if not isinstance(e, Mapping):
@@ -151,7 +160,19 @@ def sweep_from_dict(data: Mapping[str, Any], where: str = "sweep") -> SweepConfi
         for k, v in grid.items():
             if not isinstance(v, list) or not v:
                 raise ConfigError(f"{at}.grid.{k}: must be a non-empty list, got {v!r}")
-        config_from_dict(exp.config_type, {**sets, **{k: v[0] for k, v in grid.items()}}, where=at)
+        points += math.prod(len(v) for v in grid.values())
+        if points * len(seeds) > MAX_TRIALS:  # before any point is expanded
+            raise ConfigError(
+                f"{at}.grid: {points} grid points x {len(seeds)} seeds; at most "
+                f"{MAX_TRIALS} trials in a sweep"
+            )
+        first = {k: v[0] for k, v in grid.items()}
+        config_from_dict(exp.config_type, {**sets, **first}, where=at)
+        for k, values in grid.items():  # each value once (their combinations: expand)
+            for j, v in enumerate(values[1:], 1):
+                config_from_dict(
+                    exp.config_type, {**sets, **first, k: v}, where=f"{at}.grid.{k}[{j}]"
+                )
         entries.append(SweepEntry(exp.name, dict(sets), {k: list(v) for k, v in grid.items()}))
     return SweepConfig(name, tuple(seeds), tuple(entries))
 
@@ -190,6 +211,11 @@ def expand(sweep: SweepConfig) -> list[TrialSpec]:
                         continue
                     seen.add(spec.id)
                     specs.append(replace(spec, index=len(specs)))
+                    if len(specs) > MAX_TRIALS:
+                        raise ConfigError(
+                            f"sweep {sweep.name!r}: more than {MAX_TRIALS} trials "
+                            "(grid points x seeds x repeats)"
+                        )
     return specs
 
 

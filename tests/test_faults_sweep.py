@@ -28,6 +28,8 @@ ROOT = HERE.parent
         (b'{"spec": {"experiment": "event_suppr', "Unterminated string"),
         (b"\x00\xff garbage \xfe", "utf-8"),
         (b'{"spec": {}, "row": 3}', "no 'row' object"),
+        (b'{"row": {}}', "its row has no 'trial_id'"),  # crashed every resume
+        (b"[" * 3000 + b"]" * 3000, "maximum recursion depth exceeded"),
     ],
 )
 def test_a_damaged_trial_file_is_named_set_aside_and_rerun(tmp_path, damage, why):
