@@ -4,6 +4,7 @@ nothing written, before anything runs; alias bombs stay within 1 GB."""
 
 from __future__ import annotations
 
+import importlib
 import itertools
 import json
 import os
@@ -11,6 +12,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -237,6 +239,17 @@ CASES = [
         "[0, 4294967295], got -1",
     ),
     (
+        ["sweep", "s.yaml", "--workers", "100000"],
+        {},
+        "wander sweep: Invalid value for '--workers': must be an integer in [1, 256], got 100000",
+    ),
+    (
+        ["sweep", "s.yaml", "--timeout", "nan"],
+        {},
+        "wander sweep: Invalid value for '--timeout': must be a finite number of seconds > 0, "
+        "got nan",
+    ),
+    (
         ["run", "--seconds", "1e308"],
         {},
         "wander run: Invalid value for '--seconds': must be a finite number of seconds in "
@@ -362,3 +375,32 @@ def test_a_sweep_whose_trials_simulate_no_time_has_no_real_time_factor(tmp_path)
     res = run_sweep(sweep_from_dict(TOY_SWEEP), tmp_path, backend="serial", runner=CountingRunner())
     assert res.real_time_factor is None
     assert json.loads((tmp_path / "sweep.json").read_text())["real_time_factor"] is None
+
+
+def test_experiment_and_sweep_print_the_real_time_factor(tmp_path, monkeypatch):
+    """Trials that report ``simulated_s`` (here 0.5 s each, faked): both commands end
+    with the factor, the one run.json / sweep.json records."""
+    module = importlib.import_module("experiments.paper.event_suppression")
+
+    def fake(config, spec):
+        return {"simulated_s": 0.5}
+
+    monkeypatch.setattr(
+        module, "EXPERIMENT", replace(module.EXPERIMENT, run_trial=fake, plot=None, compare=None)
+    )
+    monkeypatch.chdir(tmp_path)
+    args = ["experiment", "event_suppression", "--set", "repeats=2", "--out", "e"]
+    res = runner.invoke(app, args, prog_name="wander")
+    assert res.exit_code == 0, res.output
+    rtf = json.loads((tmp_path / "e" / "run.json").read_text())["timing"]["real_time_factor"]
+    assert rtf > 0
+    line = f"real-time factor: {rtf:.3g} (simulated seconds per wall second)"
+    assert res.stdout.splitlines()[-1] == line
+    (tmp_path / "s.yaml").write_text(
+        "name: s\nexperiments: [{experiment: event_suppression, set: {repeats: 2}}]\n"
+    )
+    res = runner.invoke(app, ["sweep", "s.yaml", "--backend", "serial", "--out", "s"])
+    assert res.exit_code == 0, res.output
+    rtf = json.loads((tmp_path / "s" / "sweep.json").read_text())["real_time_factor"]
+    line = f"real-time factor: {rtf:.3g} (simulated seconds per wall second)"
+    assert rtf > 0 and res.stdout.splitlines()[-1] == line

@@ -15,7 +15,7 @@ import typer
 
 from experiments.cli.console import console, progress_bars
 from experiments.cli.errors import fail, long_command
-from experiments.cli.options import SeedOpt, one_of
+from experiments.cli.options import SeedOpt, check_wait, check_workers, one_of
 from experiments.framework import EXPERIMENT_NAMES, ConfigError
 from experiments.sweep import BACKENDS
 from wander_env.shutdown import record_failure
@@ -42,7 +42,9 @@ def experiment(
     out: Annotated[
         Path | None, typer.Option(help="Result folder (default: results/NAME/<time>-seedN).")
     ] = None,
-    workers: Annotated[int, typer.Option(min=1, help="Worker processes (1 = this process).")] = 1,
+    workers: Annotated[
+        int, typer.Option(callback=check_workers, help="Worker processes (1 = this process).")
+    ] = 1,
     show_config: Annotated[
         bool, typer.Option("--show-config", help="Print the resolved config and stop.")
     ] = False,
@@ -115,7 +117,9 @@ def sweep(
     ] = "local",
     workers: Annotated[
         int | None,
-        typer.Option(min=1, help="Processes (local) or CPUs of a local Ray instance."),
+        typer.Option(
+            callback=check_workers, help="Processes (local) or CPUs of a local Ray instance."
+        ),
     ] = None,
     address: Annotated[
         str | None, typer.Option(help="Ray cluster address (default: start a local Ray).")
@@ -125,7 +129,10 @@ def sweep(
     ] = None,
     timeout: Annotated[
         float,
-        typer.Option(help="Seconds to wait for the next trial to finish before giving up."),
+        typer.Option(
+            callback=check_wait,
+            help="Seconds to wait for the next trial to finish before giving up.",
+        ),
     ] = 6 * 3600.0,
 ) -> None:
     """Run a grid of (experiment, parameters, seeds); reruns skip finished trials."""

@@ -36,6 +36,7 @@ __all__ = [
     "AGENT_OPTIONS",
     "FRAME_OPTIONS",
     "MAX_SECONDS",
+    "MAX_WORKERS",
     "AgentAlphaOpt",
     "DvsOpt",
     "FixationalOpt",
@@ -56,6 +57,8 @@ __all__ = [
     "check_scene",
     "check_seconds",
     "check_seed",
+    "check_wait",
+    "check_workers",
     "frames_kwargs",
     "int_list",
     "job_config",
@@ -96,6 +99,22 @@ def check_seed(value: int) -> int:
     if not 0 <= value <= MAX_SEED:
         raise typer.BadParameter(f"must be an integer in [0, {MAX_SEED}], got {value}")
     return value
+
+
+#: The most worker processes (or local Ray CPUs) a command may start.
+MAX_WORKERS = 256
+
+
+def check_workers(value: int | None) -> int | None:
+    """A number of worker processes: 1 to :data:`MAX_WORKERS` (None: the default)."""
+    if value is not None and not 1 <= value <= MAX_WORKERS:
+        raise typer.BadParameter(f"must be an integer in [1, {MAX_WORKERS}], got {value}")
+    return value
+
+
+def check_wait(value: float) -> float:
+    """A wait (wall seconds): finite and > 0."""
+    return check_positive(value, "seconds")  # type: ignore[return-value]
 
 
 def check_window(value: float) -> float:
