@@ -18,7 +18,15 @@ hash of (experiment, resolved config, parameters, seed): :func:`trial_id`.
 
 A result folder holds ``results.csv`` (one row per trial, in grid order; same seed ->
 same bytes), ``config.json`` (the resolved config), ``run.json`` (command, seed, git
-revision, versions, timings), ``summary.md`` (paper vs ours) and the plots.
+revision, versions, timings), ``summary.md`` (paper vs ours) and the plots. A trial that
+simulates time returns ``simulated_s`` among its metrics; the timings then hold the
+real-time factor (simulated seconds per wall second, :func:`real_time_factor`).
+
+Config fields that name something or size the work use the checked types of this module
+(:data:`SceneName`, :data:`DvsPreset`, :data:`PtuPreset`, :data:`FrameMode`,
+:data:`TrialSeconds`, :data:`Repeats`): an unknown name or a value out of range is a
+ConfigError when the config is validated, before any trial runs; one run holds at most
+:data:`MAX_TRIALS` trials.
 
 Example:
     >>> exp = get_experiment("event_suppression")

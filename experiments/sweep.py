@@ -14,9 +14,18 @@ Each grid point is resolved to a full config (defaults <- ``configs/NAME.yaml`` 
 keyed by :func:`experiments.framework.trial_id` — a hash of (experiment, resolved config,
 parameters, seed) — and, once run, stored as ``trials/<id>.json`` (written atomically).
 A rerun skips every trial whose file exists, so an interrupted sweep resumes where it
-stopped and an edited sweep runs only what is new. At the end all rows are gathered into
+stopped and an edited sweep runs only what is new; the stop a former run recorded in the
+folder (``metrics.json``'s error and signal, an ``INCOMPLETE`` marker) moves to the
+history of stops in ``run.json`` (``{"stops": [...]}``) when the sweep resumes, so a
+finished folder holds no stale error. At the end all rows are gathered into
 ``results.csv`` (one row per trial, grid order; columns ``experiment`` and ``cfg.<key>``
-for the grid keys, then the experiment's columns) and ``sweep.json`` (provenance).
+for the grid keys, then the experiment's columns) and ``sweep.json`` (provenance, and the
+real-time factor of the trials run now when they report ``simulated_s``).
+
+Limits, checked before anything runs: seeds in [0, 2**32 - 1], at most
+:data:`experiments.framework.MAX_TRIALS` trials (grid points x seeds x repeats); every
+grid value is validated on its own (naming the file, ``grid.KEY[i]``), their
+combinations when expanded.
 
 Backends: ``serial`` (this process), ``local`` (worker processes, spawn context), ``ray``
 (one task per trial; ``ray.init(address=...)`` joins a cluster — wander must be
@@ -28,8 +37,8 @@ SIGKILL — whenever the sweep stops (finished, failed, signalled); if the sweep
 killed with SIGKILL they die with it (``PR_SET_PDEATHSIG`` on Linux, and a thread that
 watches the parent elsewhere). Every wait on a worker or a Ray task is bounded by
 ``timeout_s`` (no trial finishing for that long is an error saying so). A trial file that
-is empty, truncated or garbled is named in a warning, set aside (``*.json.corrupt``) and
-its trial is run again.
+is empty, truncated, garbled, nested too deep or holds a row that is not its trial's is
+named in a warning, set aside (``*.json.corrupt``) and its trial is run again.
 """
 
 from __future__ import annotations

@@ -29,7 +29,10 @@ values and the bad value, e.g.
   (``Annotated[A | B, pydantic.Field(discriminator="kind")]``) included.
 
 Numbers: ints are accepted for floats; bools are not numbers; a string such as ``1e-3``
-(YAML 1.1 reads it as a string) is read as the float it spells.
+(YAML 1.1 reads it as a string) is read as the float it spells; infinities and NaN are
+refused (``1e400`` is one). A field's range (``Annotated[float, pydantic.Field(le=...)]``)
+is checked with its type: ``bad value for key 'x': input should be less than or equal to
+3600, got 7200``.
 
 Example:
     >>> from wander_env.scene_config import RoomConfig
