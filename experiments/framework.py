@@ -24,9 +24,9 @@ real-time factor (simulated seconds per wall second, :func:`real_time_factor`).
 
 Config fields that name something or size the work use the checked types of this module
 (:data:`SceneName`, :data:`DvsPreset`, :data:`PtuPreset`, :data:`FrameMode`,
-:data:`TrialSeconds`, :data:`Repeats`): an unknown name or a value out of range is a
-ConfigError when the config is validated, before any trial runs; one run holds at most
-:data:`MAX_TRIALS` trials.
+:data:`TrialSeconds`, :data:`Repeats`, :data:`RadiusDeg`, :data:`GridStepDeg`): an
+unknown name or a value out of range is a ConfigError when the config is validated,
+before any trial runs; one run holds at most :data:`MAX_TRIALS` trials.
 
 Example:
     >>> exp = get_experiment("event_suppression")
@@ -65,7 +65,9 @@ __all__ = [
     "DvsPreset",
     "Experiment",
     "FrameMode",
+    "GridStepDeg",
     "PtuPreset",
+    "RadiusDeg",
     "Repeats",
     "SceneName",
     "TrialSeconds",
@@ -205,6 +207,11 @@ PtuPreset = Annotated[str, pydantic.AfterValidator(_ptu_preset)]
 TrialSeconds = Annotated[float, pydantic.Field(gt=0, le=MAX_TRIAL_S)]
 #: Repeats of each grid point: 1 to :data:`MAX_REPEATS`.
 Repeats = Annotated[int, pydantic.Field(ge=1, le=MAX_REPEATS)]
+#: A radius on the pan-tilt plane, degrees: in (0, 180].
+RadiusDeg = Annotated[float, pydantic.Field(gt=0, le=180)]
+#: A grid step on the pan-tilt plane, degrees: in [0.05, 10] (a finer grid of the
+#: PTU's range outgrows memory).
+GridStepDeg = Annotated[float, pydantic.Field(ge=0.05, le=10)]
 
 
 # ----------------------------------------------------------------------------------------

@@ -207,6 +207,18 @@ CASES = [
         f"input should be less than or equal to 1000, got {10**26}",
     ),
     (
+        ["experiment", "scanpath", "--set", "mosaic_step_deg=1e-6"],
+        {},
+        "wander experiment: error: --set: bad value for key 'mosaic_step_deg': "
+        "input should be greater than or equal to 0.05, got '1e-6'",
+    ),
+    (
+        ["experiment", "scanpath", "--set", "radius_deg=1e6"],
+        {},
+        "wander experiment: error: --set: bad value for key 'radius_deg': "
+        "input should be less than or equal to 180, got '1e6'",
+    ),
+    (
         ["experiment", "event_suppression", "--set", "soms.kernel_size=100000"],
         {},
         "wander experiment: error: --set: soms: kernel_size must be in [1, 128], got 100000",

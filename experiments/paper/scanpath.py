@@ -66,6 +66,8 @@ from experiments.framework import (
     DvsPreset,
     Experiment,
     FrameMode,
+    GridStepDeg,
+    RadiusDeg,
     Repeats,
     Row,
     SceneName,
@@ -109,8 +111,8 @@ class ScanpathConfig:
     saccades_fixational: bool = True
     repeats: Repeats = 10
     box: int = 8
-    radius_deg: float = 5.0
-    mosaic_step_deg: float = 0.5
+    radius_deg: RadiusDeg = 5.0
+    mosaic_step_deg: GridStepDeg = 0.5
     dvs: DvsPreset = "ideal"
     frames: FrameMode = WanderConfig.frames  # the env\'s frame source: keyframes or exact
     # MultiMatch normalises lengths and positions by a "screen": the camera's field of
