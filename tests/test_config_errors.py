@@ -62,6 +62,11 @@ CASES = [
     ),
     (
         CONFIG,
+        {"c.yaml": b"repeats: 1\x01\n"},
+        "wander experiment: error: c.yaml: a control character (U+0001) at offset 10",
+    ),
+    (
+        CONFIG,
         {"c.yaml": "repeats: 1\n".encode("utf-16")},
         "wander experiment: error: c.yaml: UTF-16 text; save it as UTF-8",
     ),

@@ -148,6 +148,9 @@ def _yaml_value(text: str) -> Any:
 
 def _yaml_problem(err: yaml.YAMLError) -> str:
     """A PyYAML error as ``line L, column C: what`` on one line."""
+    if isinstance(err, yaml.reader.ReaderError):
+        code = err.character if isinstance(err.character, int) else ord(err.character)
+        return f"a control character (U+{code:04X}) at offset {err.position}"
     if isinstance(err, yaml.MarkedYAMLError):
         mark = err.problem_mark or err.context_mark
         what = " ".join(p for p in (err.context, err.problem) if p) or "invalid YAML"
