@@ -80,6 +80,7 @@ from wander_env.runinfo import dumps_strict, run_record, write_json
 
 __all__ = [
     "BACKENDS",
+    "MAX_TRIAL_FILE_BYTES",
     "SweepConfig",
     "SweepEntry",
     "SweepResult",
@@ -381,6 +382,10 @@ def ray_executor(
 # Running
 
 
+#: The largest trial file read back (bytes); a larger one is damaged.
+MAX_TRIAL_FILE_BYTES = 1 << 24
+
+
 def _trial_file(out_dir: Path, spec: TrialSpec) -> Path:
     return out_dir / "trials" / f"{spec.id}.json"
 
@@ -401,6 +406,9 @@ def _stored(out_dir: Path, spec: TrialSpec) -> bool:
     if not path.exists():
         return False
     try:
+        size = path.stat().st_size
+        if size > MAX_TRIAL_FILE_BYTES:  # a row is a few kB: not read into memory
+            raise ValueError(f"{size} bytes; at most {MAX_TRIAL_FILE_BYTES}")
         rec = json.loads(path.read_text())
         if not isinstance(rec, dict) or not isinstance(rec.get("row"), dict):
             raise ValueError("no 'row' object")
