@@ -58,6 +58,7 @@ import pydantic
 import yaml
 
 __all__ = [
+    "MAX_KEY_PARTS",
     "MAX_NUMBER_CHARS",
     "MAX_YAML_BYTES",
     "MAX_YAML_DEPTH",
