@@ -76,6 +76,7 @@ from agents.kernels import FFTConv2d, SeparableConv2d, gaussian_kernel, gaussian
 from wander_env.config import check_fields
 
 __all__ = [
+    "MAX_KERNEL_PX",
     "SOMS",
     "TABLE_FIELDS",
     "MapLayer",
@@ -172,6 +173,11 @@ class MapLayer(Generic[_Params]):
         return x
 
 
+#: The largest sOMS kernel side (pixels): the sensor's side; a kernel beyond it sees
+#: only padding.
+MAX_KERNEL_PX = 128
+
+
 @dataclass(frozen=True)
 class SOMSParams:
     """sOMS parameters; defaults are the paper's (table "params").
@@ -210,8 +216,8 @@ class SOMSParams:
     peak_ratio: float | None = None
 
     def __post_init__(self) -> None:
-        if self.kernel_size < 1:
-            raise ValueError(f"kernel_size must be >= 1, got {self.kernel_size}")
+        if not 1 <= self.kernel_size <= MAX_KERNEL_PX:
+            raise ValueError(f"kernel_size must be in [1, {MAX_KERNEL_PX}], got {self.kernel_size}")
         if self.norm not in ("minmax", "quantile"):
             raise ValueError(f"norm must be 'minmax' or 'quantile', got {self.norm!r}")
         check_fields(self, ("pool_sigma", "gain", "floor_spikes"), positive=True)

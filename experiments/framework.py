@@ -18,7 +18,15 @@ hash of (experiment, resolved config, parameters, seed): :func:`trial_id`.
 
 A result folder holds ``results.csv`` (one row per trial, in grid order; same seed ->
 same bytes), ``config.json`` (the resolved config), ``run.json`` (command, seed, git
-revision, versions, timings), ``summary.md`` (paper vs ours) and the plots.
+revision, versions, timings), ``summary.md`` (paper vs ours) and the plots. A trial that
+simulates time returns ``simulated_s`` among its metrics; the timings then hold the
+real-time factor (simulated seconds per wall second, :func:`real_time_factor`).
+
+Config fields that name something or size the work use the checked types of this module
+(:data:`SceneName`, :data:`DvsPreset`, :data:`PtuPreset`, :data:`FrameMode`,
+:data:`TrialSeconds`, :data:`Repeats`, :data:`RadiusDeg`, :data:`GridStepDeg`): an
+unknown name or a value out of range is a ConfigError when the config is validated,
+before any trial runs; one run holds at most :data:`MAX_TRIALS` trials.
 
 Example:
     >>> exp = get_experiment("event_suppression")
@@ -39,18 +47,30 @@ import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
-import yaml
+import pydantic
 
-from wander_env.config import ConfigError, coerce, parse_sets, validate
+from wander_env.config import ConfigError, coerce, load_yaml, parse_sets, validate
 from wander_env.runinfo import run_record, write_json
 
 __all__ = [
     "EXPERIMENT_NAMES",
+    "MAX_REPEATS",
+    "MAX_SEED",
+    "MAX_TRIALS",
+    "MAX_TRIAL_S",
     "Comparison",
     "ConfigError",
+    "DvsPreset",
     "Experiment",
+    "FrameMode",
+    "GridStepDeg",
+    "PtuPreset",
+    "RadiusDeg",
+    "Repeats",
+    "SceneName",
+    "TrialSeconds",
     "TrialSpec",
     "coerce",
     "config_from_dict",
@@ -61,6 +81,7 @@ __all__ = [
     "make_trials",
     "parse_sets",
     "read_csv",
+    "real_time_factor",
     "render_summary",
     "resolve_config",
     "run_experiment",
@@ -127,6 +148,73 @@ class TrialSpec:
 
 
 # ----------------------------------------------------------------------------------------
+# Checked field types of the experiments' configs: names checked and numbers bounded when
+# the config is validated (pydantic, :func:`config_from_dict`), before anything runs.
+
+#: The longest trial (simulated seconds).
+MAX_TRIAL_S = 3600.0
+#: The most repeats of a grid point.
+MAX_REPEATS = 1000
+#: The most trials of one experiment run or one sweep.
+MAX_TRIALS = 100_000
+#: The largest seed (``--seed``, a sweep's ``seeds``); repeat ``r`` uses ``seed + r``.
+MAX_SEED = 2**32 - 1
+
+
+def _scene_name(name: str) -> str:
+    from wander_env.scene_config import available_scenes, load_scene_config
+
+    try:
+        load_scene_config(name)
+    except FileNotFoundError as err:
+        raise ValueError(
+            f"{err}; allowed: {', '.join(available_scenes())} or a scene .yaml file"
+        ) from None
+    return name
+
+
+def _dvs_preset(name: str) -> str:
+    from wander_env.dvs import DVSParams
+
+    DVSParams.preset(name)  # ValueError naming the presets
+    return name
+
+
+def _frame_mode(name: str) -> str:
+    from wander_env.env import FRAME_MODES
+
+    if name not in FRAME_MODES:
+        raise ValueError(f"unknown frame mode {name!r}; allowed: {', '.join(FRAME_MODES)}")
+    return name
+
+
+def _ptu_preset(name: str) -> str:
+    from wander_env.ptu import PTUParams
+
+    PTUParams.preset(name)  # ValueError naming the presets
+    return name
+
+
+#: A scene: a name of ``assets/scenes`` or a scene file that loads.
+SceneName = Annotated[str, pydantic.AfterValidator(_scene_name)]
+#: A DVS preset (:meth:`wander_env.dvs.DVSParams.preset`).
+DvsPreset = Annotated[str, pydantic.AfterValidator(_dvs_preset)]
+#: The env's frame source (:data:`wander_env.env.FRAME_MODES`).
+FrameMode = Annotated[str, pydantic.AfterValidator(_frame_mode)]
+#: A PTU preset (:meth:`wander_env.ptu.PTUParams.preset`).
+PtuPreset = Annotated[str, pydantic.AfterValidator(_ptu_preset)]
+#: A trial's simulated length, seconds: in (0, :data:`MAX_TRIAL_S`].
+TrialSeconds = Annotated[float, pydantic.Field(gt=0, le=MAX_TRIAL_S)]
+#: Repeats of each grid point: 1 to :data:`MAX_REPEATS`.
+Repeats = Annotated[int, pydantic.Field(ge=1, le=MAX_REPEATS)]
+#: A radius on the pan-tilt plane, degrees: in (0, 180].
+RadiusDeg = Annotated[float, pydantic.Field(gt=0, le=180)]
+#: A grid step on the pan-tilt plane, degrees: in [0.05, 10] (a finer grid of the
+#: PTU's range outgrows memory).
+GridStepDeg = Annotated[float, pydantic.Field(ge=0.05, le=10)]
+
+
+# ----------------------------------------------------------------------------------------
 # Registry
 
 
@@ -164,9 +252,12 @@ def config_to_dict(config: Any) -> dict[str, Any]:
     return json.loads(json.dumps(asdict(config)))
 
 
-def load_yaml_mapping(path: Path) -> dict[str, Any]:
-    """A YAML file holding a mapping (empty file -> {})."""
-    data = yaml.safe_load(Path(path).read_text()) or {}
+def load_yaml_mapping(path: Path, what: str = "config file") -> dict[str, Any]:
+    """A YAML file holding a mapping (empty file -> {}), read by
+    :func:`wander_env.config.load_yaml` (bounded; ConfigError on one line)."""
+    data = load_yaml(path, what)
+    if data is None:
+        return {}
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: expected a mapping of key: value, got {type(data).__name__}")
     return data
@@ -218,8 +309,14 @@ def make_trials(
     """The grid times ``config.repeats`` (seed + r), in grid order."""
     cfg = config_to_dict(config)
     repeats = int(getattr(config, "repeats", 1))
+    grid = experiment.grid(config)
+    if len(grid) * repeats > MAX_TRIALS:
+        raise ConfigError(
+            f"{experiment.name}: {len(grid)} grid points x {repeats} repeats = "
+            f"{len(grid) * repeats} trials; at most {MAX_TRIALS}"
+        )
     specs = []
-    for params in experiment.grid(config):
+    for params in grid:
         for r in range(repeats):
             specs.append(
                 TrialSpec(
@@ -247,6 +344,24 @@ def run_spec(spec: TrialSpec) -> Row:
                 raise ValueError(f"{spec.experiment}: column {k!r} appears twice in a row")
             row[k] = v
     return row
+
+
+def real_time_factor(rows: Sequence[Mapping[str, Any]], wall_s: float) -> float | None:
+    """Simulated seconds per wall second: the sum of the rows' ``simulated_s`` column
+    (a trial that simulates time reports it among its metrics) over ``wall_s``; None when
+    no row has one (the work simulated no time, or does not say).
+
+    >>> real_time_factor([{"simulated_s": 2.0}, {"simulated_s": 1.0}], 6.0)
+    0.5
+    >>> real_time_factor([{"events": 3}], 6.0) is None
+    True
+    """
+    sims = [r.get("simulated_s") for r in rows]
+    sims = [float(v) for v in sims if isinstance(v, (int, float)) and not isinstance(v, bool)]
+    sims = [v for v in sims if math.isfinite(v)]
+    if not sims or not wall_s > 0:
+        return None
+    return round(sum(sims) / wall_s, 4)
 
 
 Executor = Callable[[Sequence[TrialSpec]], Iterator[tuple[TrialSpec, Row, float]]]
@@ -409,10 +524,12 @@ def run_experiment(
         if progress is not None:
             progress(done, len(specs))
     rows = [by_index[i] for i in range(len(specs))]
+    total = time.perf_counter() - t0
     timings = {
-        "total_s": round(time.perf_counter() - t0, 3),
+        "total_s": round(total, 3),
         "trials": len(specs),
         "trial_s": [seconds[i] for i in range(len(specs))],
+        "real_time_factor": real_time_factor(rows, total),
     }
     cmd = command or f"wander experiment {name} --seed {seed}"
     files = write_result_folder(out_dir, exp, config, rows, seed, cmd, timings)

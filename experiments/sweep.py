@@ -14,9 +14,18 @@ Each grid point is resolved to a full config (defaults <- ``configs/NAME.yaml`` 
 keyed by :func:`experiments.framework.trial_id` — a hash of (experiment, resolved config,
 parameters, seed) — and, once run, stored as ``trials/<id>.json`` (written atomically).
 A rerun skips every trial whose file exists, so an interrupted sweep resumes where it
-stopped and an edited sweep runs only what is new. At the end all rows are gathered into
+stopped and an edited sweep runs only what is new; the stop a former run recorded in the
+folder (``metrics.json``'s error and signal, an ``INCOMPLETE`` marker) moves to the
+history of stops in ``run.json`` (``{"stops": [...]}``) when the sweep resumes, so a
+finished folder holds no stale error. At the end all rows are gathered into
 ``results.csv`` (one row per trial, grid order; columns ``experiment`` and ``cfg.<key>``
-for the grid keys, then the experiment's columns) and ``sweep.json`` (provenance).
+for the grid keys, then the experiment's columns) and ``sweep.json`` (provenance, and the
+real-time factor of the trials run now when they report ``simulated_s``).
+
+Limits, checked before anything runs: seeds in [0, 2**32 - 1], at most
+:data:`experiments.framework.MAX_TRIALS` trials (grid points x seeds x repeats); every
+grid value is validated on its own (naming the file, ``grid.KEY[i]``), their
+combinations when expanded.
 
 Backends: ``serial`` (this process), ``local`` (worker processes, spawn context), ``ray``
 (one task per trial; ``ray.init(address=...)`` joins a cluster — wander must be
@@ -28,8 +37,8 @@ SIGKILL — whenever the sweep stops (finished, failed, signalled); if the sweep
 killed with SIGKILL they die with it (``PR_SET_PDEATHSIG`` on Linux, and a thread that
 watches the parent elsewhere). Every wait on a worker or a Ray task is bounded by
 ``timeout_s`` (no trial finishing for that long is an error saying so). A trial file that
-is empty, truncated or garbled is named in a warning, set aside (``*.json.corrupt``) and
-its trial is run again.
+is empty, truncated, garbled, nested too deep or holds a row that is not its trial's is
+named in a warning, set aside (``*.json.corrupt``) and its trial is run again.
 """
 
 from __future__ import annotations
@@ -51,6 +60,8 @@ from pathlib import Path
 from typing import Any
 
 from experiments.framework import (
+    MAX_SEED,
+    MAX_TRIALS,
     ConfigError,
     Row,
     TrialSpec,
@@ -59,6 +70,7 @@ from experiments.framework import (
     get_experiment,
     load_yaml_mapping,
     make_trials,
+    real_time_factor,
     run_spec,
     serial_executor,
     split_artifacts,
@@ -68,6 +80,7 @@ from wander_env.runinfo import dumps_strict, run_record, write_json
 
 __all__ = [
     "BACKENDS",
+    "MAX_TRIAL_FILE_BYTES",
     "SweepConfig",
     "SweepEntry",
     "SweepResult",
@@ -109,6 +122,7 @@ class SweepResult:
     ran: int
     skipped: int
     out_dir: Path
+    real_time_factor: float | None = None  # of the trials run now (None: no simulated time)
 
 
 def _check_keys(data: Mapping[str, Any], allowed: Sequence[str], where: str) -> None:
@@ -123,19 +137,26 @@ def sweep_from_dict(data: Mapping[str, Any], where: str = "sweep") -> SweepConfi
         raise ConfigError(f"{where}: expected a mapping")
     _check_keys(data, ("name", "seeds", "experiments"), where)
     name = data.get("name")
-    if not isinstance(name, str) or not name or "/" in name:
-        raise ConfigError(f"{where}.name: must be a non-empty string without '/', got {name!r}")
+    if not isinstance(name, str) or name in ("", ".", "..") or "/" in name or "\0" in name:
+        raise ConfigError(
+            f"{where}.name: must be a folder name (no '/', not '.' or '..'), got {name!r}"
+        )
     seeds = data.get("seeds", [0])
     if (
         not isinstance(seeds, list)
         or not seeds
-        or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds)
+        or not all(
+            isinstance(s, int) and not isinstance(s, bool) and 0 <= s <= MAX_SEED for s in seeds
+        )
     ):
-        raise ConfigError(f"{where}.seeds: must be a non-empty list of integers, got {seeds!r}")
+        raise ConfigError(
+            f"{where}.seeds: must be a non-empty list of integers in [0, {MAX_SEED}], got {seeds!r}"
+        )
     entries = []
     raw = data.get("experiments")
     if not isinstance(raw, list) or not raw:
         raise ConfigError(f"{where}.experiments: must be a non-empty list")
+    points = 0
     for i, e in enumerate(raw):
         at = f"{where}.experiments[{i}]"
         if not isinstance(e, Mapping):
@@ -149,14 +170,27 @@ def sweep_from_dict(data: Mapping[str, Any], where: str = "sweep") -> SweepConfi
         for k, v in grid.items():
             if not isinstance(v, list) or not v:
                 raise ConfigError(f"{at}.grid.{k}: must be a non-empty list, got {v!r}")
-        config_from_dict(exp.config_type, {**sets, **{k: v[0] for k, v in grid.items()}}, where=at)
+        points += math.prod(len(v) for v in grid.values())
+        if points * len(seeds) > MAX_TRIALS:  # before any point is expanded
+            raise ConfigError(
+                f"{at}.grid: {points} grid points x {len(seeds)} seeds; at most "
+                f"{MAX_TRIALS} trials in a sweep"
+            )
+        first = {k: v[0] for k, v in grid.items()}
+        config_from_dict(exp.config_type, {**sets, **first}, where=at)
+        for k, values in grid.items():  # each value once (their combinations: expand)
+            for j, v in enumerate(values[1:], 1):
+                config_from_dict(
+                    exp.config_type, {**sets, **first, k: v}, where=f"{at}.grid.{k}[{j}]"
+                )
         entries.append(SweepEntry(exp.name, dict(sets), {k: list(v) for k, v in grid.items()}))
     return SweepConfig(name, tuple(seeds), tuple(entries))
 
 
 def load_sweep(path: Path) -> SweepConfig:
-    """Read and validate a sweep file."""
-    return sweep_from_dict(load_yaml_mapping(path), where=str(path))
+    """Read and validate a sweep file (:func:`wander_env.config.load_yaml`: bounded;
+    ConfigError on one line)."""
+    return sweep_from_dict(load_yaml_mapping(path, "sweep file"), where=str(path))
 
 
 def _column_value(v: Any) -> Any:
@@ -187,6 +221,11 @@ def expand(sweep: SweepConfig) -> list[TrialSpec]:
                         continue
                     seen.add(spec.id)
                     specs.append(replace(spec, index=len(specs)))
+                    if len(specs) > MAX_TRIALS:
+                        raise ConfigError(
+                            f"sweep {sweep.name!r}: more than {MAX_TRIALS} trials "
+                            "(grid points x seeds x repeats)"
+                        )
     return specs
 
 
@@ -343,6 +382,10 @@ def ray_executor(
 # Running
 
 
+#: The largest trial file read back (bytes); a larger one is damaged.
+MAX_TRIAL_FILE_BYTES = 1 << 24
+
+
 def _trial_file(out_dir: Path, spec: TrialSpec) -> Path:
     return out_dir / "trials" / f"{spec.id}.json"
 
@@ -363,11 +406,16 @@ def _stored(out_dir: Path, spec: TrialSpec) -> bool:
     if not path.exists():
         return False
     try:
+        size = path.stat().st_size
+        if size > MAX_TRIAL_FILE_BYTES:  # a row is a few kB: not read into memory
+            raise ValueError(f"{size} bytes; at most {MAX_TRIAL_FILE_BYTES}")
         rec = json.loads(path.read_text())
         if not isinstance(rec, dict) or not isinstance(rec.get("row"), dict):
             raise ValueError("no 'row' object")
+        if rec["row"].get("trial_id") != spec.id:
+            raise ValueError(f"its row has no 'trial_id' {spec.id!r}")
         return True
-    except (OSError, ValueError, UnicodeDecodeError) as err:
+    except (OSError, ValueError, RecursionError) as err:  # RecursionError: nested too deep
         aside = path.with_name(path.name + ".corrupt")
         k = 1
         while aside.exists():
@@ -381,6 +429,33 @@ def _stored(out_dir: Path, spec: TrialSpec) -> bool:
             stacklevel=2,
         )
         return False
+
+
+def _take_stop(out_dir: Path) -> None:
+    """Before a sweep resumes in ``out_dir``: the stop a former run recorded there
+    (``metrics.json``'s error and signal, an ``INCOMPLETE`` marker) moved to the history
+    of stops in ``run.json`` (``{"stops": [...]}``), so that the folder says only how
+    this run ends."""
+    metrics, marker, record = out_dir / "metrics.json", out_dir / "INCOMPLETE", out_dir / "run.json"
+    stop: dict[str, Any] = {}
+    if metrics.is_file():
+        try:
+            data = json.loads(metrics.read_text())
+        except (ValueError, RecursionError):
+            data = {"error": "unreadable metrics.json"}
+        stop.update(data if isinstance(data, dict) else {"error": str(data)[:200]})
+    if marker.is_file():
+        stop["incomplete"] = marker.read_text(errors="replace").strip() or True
+    if not stop:
+        return
+    try:
+        history = json.loads(record.read_text()) if record.is_file() else {}
+    except (ValueError, RecursionError):
+        history = {}
+    stops = history.get("stops") if isinstance(history, dict) else None
+    write_json(record, {"stops": [*(stops if isinstance(stops, list) else []), stop]})
+    metrics.unlink(missing_ok=True)
+    marker.unlink(missing_ok=True)
 
 
 def _load_row(out_dir: Path, spec: TrialSpec) -> Row:
@@ -411,6 +486,7 @@ def run_sweep(
     todo = [s for s in specs if not _stored(out_dir, s)]
     skipped = len(specs) - len(todo)
     out_dir.mkdir(parents=True, exist_ok=True)
+    _take_stop(out_dir)
     t0 = time.perf_counter()
     if backend == "serial":
         stream = serial_executor(todo, runner)
@@ -431,13 +507,17 @@ def run_sweep(
         stream.close()  # ends the workers at once, whatever stopped the loop
     rows = [_load_row(out_dir, s) for s in specs]
     write_csv(rows, out_dir / "results.csv")
+    seconds = time.perf_counter() - t0
+    ran_ids = {s.id for s in todo}
+    rtf = real_time_factor([r for r in rows if r["trial_id"] in ran_ids], seconds)
     rec = run_record(command or f"wander sweep (backend {backend})", asdict(sweep), None)
     rec.update(
         backend=backend,
         trials=len(specs),
         ran=len(todo),
         skipped=skipped,
-        seconds=round(time.perf_counter() - t0, 3),
+        seconds=round(seconds, 3),
+        real_time_factor=rtf,
     )
     write_json(out_dir / "sweep.json", rec)
-    return SweepResult(rows, len(todo), skipped, out_dir)
+    return SweepResult(rows, len(todo), skipped, out_dir, rtf)

@@ -49,12 +49,12 @@ def test_run_with_an_unknown_scene_prints_one_line_and_exits_2():
         (
             ["run", "--seconds", "-1"],
             "wander run: Invalid value for '--seconds': must be a "
-            "finite number of seconds > 0, got -1.0",
+            "finite number of seconds in (0, 86400], got -1.0",
         ),
         (
             ["run", "--seconds", "nan"],
             "wander run: Invalid value for '--seconds': must be a "
-            "finite number of seconds > 0, got nan",
+            "finite number of seconds in (0, 86400], got nan",
         ),
         (
             ["run", "--window", "0"],

@@ -15,7 +15,7 @@ import pytest
 from test_sweep import TOY_SWEEP, CountingRunner
 
 from experiments.framework import TrialSpec
-from experiments.sweep import local_executor, run_sweep, sweep_from_dict
+from experiments.sweep import MAX_TRIAL_FILE_BYTES, local_executor, run_sweep, sweep_from_dict
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -28,6 +28,8 @@ ROOT = HERE.parent
         (b'{"spec": {"experiment": "event_suppr', "Unterminated string"),
         (b"\x00\xff garbage \xfe", "utf-8"),
         (b'{"spec": {}, "row": 3}', "no 'row' object"),
+        (b'{"row": {}}', "its row has no 'trial_id'"),  # crashed every resume
+        (b"[" * 3000 + b"]" * 3000, "maximum recursion depth exceeded"),
     ],
 )
 def test_a_damaged_trial_file_is_named_set_aside_and_rerun(tmp_path, damage, why):
@@ -47,6 +49,21 @@ def test_a_damaged_trial_file_is_named_set_aside_and_rerun(tmp_path, damage, why
     assert runner.calls == [victim] and (res.ran, res.skipped) == (1, len(first.rows) - 1)
     assert (tmp_path / "trials" / f"{victim}.json.corrupt").read_bytes() == damage
     assert (tmp_path / "results.csv").read_bytes() == table  # the rerun row is the same
+
+
+def test_a_trial_file_too_large_is_set_aside_unread(tmp_path):
+    sweep = sweep_from_dict(TOY_SWEEP)
+    first = run_sweep(sweep, tmp_path, backend="serial", runner=CountingRunner())
+    victim = first.rows[2]["trial_id"]
+    path = tmp_path / "trials" / f"{victim}.json"
+    os.truncate(path, MAX_TRIAL_FILE_BYTES + 1)  # sparse: no disk space, no read
+    with pytest.warns(RuntimeWarning) as warned:
+        res = run_sweep(sweep, tmp_path, backend="serial", runner=CountingRunner())
+    assert [str(w.message) for w in warned] == [
+        f"{path}: damaged trial file ({MAX_TRIAL_FILE_BYTES + 1} bytes; at most "
+        f"{MAX_TRIAL_FILE_BYTES}); set aside as {victim}.json.corrupt, the trial is rerun"
+    ]
+    assert (res.ran, res.skipped) == (1, len(first.rows) - 1)
 
 
 def test_no_trial_finishing_within_the_timeout_is_an_error_and_ends_the_workers(

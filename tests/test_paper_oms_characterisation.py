@@ -66,7 +66,7 @@ def test_config_refuses_a_bad_mode_group_or_kernel():
         OMSCharacterisationConfig(modes=("eye",))
     with pytest.raises(ValueError, match="groups must be among"):
         OMSCharacterisationConfig(groups=("sizes",))
-    with pytest.raises(ValueError, match="kernel_size must be >= 1, got 0"):
+    with pytest.raises(ValueError, match=r"kernel_size must be in \[1, 128\], got 0"):
         OMSCharacterisationConfig(kernels=((1.0, 4.0, 0),))
 
 

@@ -18,13 +18,21 @@ values and the bad value, e.g.
 - :func:`check_annotated` — a ``__post_init__`` check of a dataclass's ``Annotated``
   and ``Literal`` fields by pydantic (for instances built in code, e.g. by
   ``dataclasses.replace``);
+- :func:`load_yaml` / :func:`parse_yaml` — the one YAML reader of every config, scene
+  and sweep file (and ``--set`` value): bounded (:data:`MAX_YAML_BYTES`,
+  :data:`MAX_YAML_DEPTH`), plain data only (no anchors or aliases, no tags), UTF-8 text;
+  every refusal and syntax error one :class:`ConfigError` line naming the file, the line
+  and the column;
 - :func:`validate_paths` — a dataclass instance from a whole document (a scene file),
   finite numbers only, every message led by the field's path
   (``moving_objects[1].trajectory.kind: expected one of ...``), tagged unions
   (``Annotated[A | B, pydantic.Field(discriminator="kind")]``) included.
 
 Numbers: ints are accepted for floats; bools are not numbers; a string such as ``1e-3``
-(YAML 1.1 reads it as a string) is read as the float it spells.
+(YAML 1.1 reads it as a string) is read as the float it spells; infinities and NaN are
+refused (``1e400`` is one). A field's range (``Annotated[float, pydantic.Field(le=...)]``)
+is checked with its type: ``bad value for key 'x': input should be less than or equal to
+3600, got 7200``.
 
 Example:
     >>> from wander_env.scene_config import RoomConfig
@@ -42,6 +50,7 @@ import re
 import types
 import typing
 from collections.abc import Iterable, Mapping
+from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
@@ -49,6 +58,10 @@ import pydantic
 import yaml
 
 __all__ = [
+    "MAX_KEY_PARTS",
+    "MAX_NUMBER_CHARS",
+    "MAX_YAML_BYTES",
+    "MAX_YAML_DEPTH",
     "ConfigError",
     "aliases_of",
     "allowed_keys",
@@ -57,7 +70,9 @@ __all__ = [
     "check_fields",
     "coerce",
     "field_types",
+    "load_yaml",
     "parse_sets",
+    "parse_yaml",
     "to_plain",
     "type_name",
     "validate",
@@ -70,6 +85,139 @@ class ConfigError(ValueError):
 
 
 _STRICT = pydantic.ConfigDict(strict=True, extra="forbid")
+_FINITE = pydantic.ConfigDict(strict=True, extra="forbid", allow_inf_nan=False)
+
+
+#: The largest YAML file read (bytes): configs, scenes and sweeps are a few kB.
+MAX_YAML_BYTES = 1 << 20
+#: The deepest nesting of lists and mappings in a YAML document (or a ``--set`` value).
+MAX_YAML_DEPTH = 64
+#: The longest plain scalar read as a number (characters): no setting needs more digits.
+MAX_NUMBER_CHARS = 100
+#: The most parts of a dotted ``--set`` key.
+MAX_KEY_PARTS = MAX_YAML_DEPTH
+
+
+class _Refused(yaml.MarkedYAMLError):
+    """A YAML document refused by :class:`_PlainLoader` (not a syntax error)."""
+
+
+class _PlainLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, bounded: nesting depth, no anchors, aliases or tags, no
+    over-long numbers; each refusal a ``yaml.MarkedYAMLError`` at the node."""
+
+    def __init__(self, stream: str) -> None:
+        super().__init__(stream)
+        self.depth = 0
+
+    def _refuse(self, event: Any, problem: str) -> _Refused:
+        return _Refused(problem=problem, problem_mark=event.start_mark)
+
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        event = self.peek_event()
+        if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None:
+            raise self._refuse(event, "anchors and aliases (&name, *name) are not allowed")
+        tag = getattr(event, "tag", None)
+        if tag not in (None, "!"):
+            raise self._refuse(event, f"tags are not allowed, got {tag!r}")
+        if isinstance(event, yaml.ScalarEvent) and len(event.value) > MAX_NUMBER_CHARS:
+            resolved = self.resolve(yaml.ScalarNode, event.value, event.implicit)
+            if resolved.endswith((":int", ":float")):
+                raise self._refuse(
+                    event,
+                    f"a number of {len(event.value)} characters; at most {MAX_NUMBER_CHARS}",
+                )
+        if not isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+            return super().compose_node(parent, index)
+        self.depth += 1
+        if self.depth > MAX_YAML_DEPTH:
+            raise self._refuse(event, f"nested deeper than {MAX_YAML_DEPTH} levels")
+        try:
+            return super().compose_node(parent, index)
+        finally:
+            self.depth -= 1
+
+
+def _yaml_value(text: str) -> Any:
+    """``text`` parsed by :class:`_PlainLoader` (yaml.YAMLError on any problem)."""
+    loader = _PlainLoader(text)
+    try:
+        return loader.get_single_data()
+    finally:
+        loader.dispose()
+
+
+def _yaml_problem(err: yaml.YAMLError) -> str:
+    """A PyYAML error as ``line L, column C: what`` on one line."""
+    if isinstance(err, yaml.reader.ReaderError):
+        code = err.character if isinstance(err.character, int) else ord(err.character)
+        return f"a control character (U+{code:04X}) at offset {err.position}"
+    if isinstance(err, yaml.MarkedYAMLError):
+        mark = err.problem_mark or err.context_mark
+        what = " ".join(p for p in (err.context, err.problem) if p) or "invalid YAML"
+        at = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
+        return at + " ".join(what.split())
+    return " ".join(str(err).split())
+
+
+def parse_yaml(text: str | bytes, where: str) -> Any:
+    """The data of YAML ``text`` (bytes must be UTF-8), bounded as :func:`load_yaml`;
+    ConfigError ``where: ...`` on one line.
+
+    >>> parse_yaml("size: [0.2, 1]", "a.yaml")
+    {'size': [0.2, 1]}
+    >>> parse_yaml("size: [0.2", "a.yaml")
+    Traceback (most recent call last):
+    ...
+    wander_env.config.ConfigError: a.yaml: line 1, column 11: while parsing a flow sequence expected ',' or ']', but got '<stream end>'
+    >>> parse_yaml("a: &x [1]\\nb: *x", "a.yaml")
+    Traceback (most recent call last):
+    ...
+    wander_env.config.ConfigError: a.yaml: line 1, column 4: anchors and aliases (&name, *name) are not allowed
+    """  # noqa: E501
+    if isinstance(text, bytes):
+        if len(text) > MAX_YAML_BYTES:
+            raise ConfigError(f"{where}: larger than {MAX_YAML_BYTES} bytes (the limit)")
+        if text.startswith((b"\xff\xfe", b"\xfe\xff")):
+            raise ConfigError(f"{where}: UTF-16 text; save it as UTF-8")
+        try:
+            text = text.decode("utf-8-sig")
+        except UnicodeDecodeError as err:
+            raise ConfigError(
+                f"{where}: not UTF-8 text (byte 0x{err.object[err.start]:02x} at offset "
+                f"{err.start})"
+            ) from None
+    nul = text.find("\x00")
+    if nul >= 0:
+        raise ConfigError(f"{where}: a NUL character at offset {nul} (not a text file)")
+    if len(text) > MAX_YAML_BYTES:
+        raise ConfigError(f"{where}: larger than {MAX_YAML_BYTES} bytes (the limit)")
+    try:
+        return _yaml_value(text)
+    except yaml.YAMLError as err:
+        raise ConfigError(f"{where}: {_yaml_problem(err)}") from None
+    except (ValueError, RecursionError) as err:  # a constructor's own refusal
+        raise ConfigError(f"{where}: {' '.join(str(err).split())}") from None
+
+
+def load_yaml(path: str | Path, what: str = "config file") -> Any:
+    """The data of the YAML file ``path`` (``what`` names it in messages): at most
+    :data:`MAX_YAML_BYTES` of UTF-8 text, lists and mappings nested at most
+    :data:`MAX_YAML_DEPTH` deep, numbers of at most :data:`MAX_NUMBER_CHARS` characters,
+    no anchors or aliases (``&a``/``*a``), no tags (``!!python/...``), no NUL; an empty
+    file is None. ConfigError on one line naming the file (and the line and column).
+    """
+    path = Path(path)
+    try:
+        with path.open("rb") as f:
+            data = f.read(MAX_YAML_BYTES + 1)
+    except FileNotFoundError:
+        raise ConfigError(f"{what} not found: {path}") from None
+    except IsADirectoryError:
+        raise ConfigError(f"{path}: a folder, not a {what}") from None
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot read the {what}: {err.strerror or err}") from None
+    return parse_yaml(data, str(path))
 
 
 def type_name(tp: Any) -> str:
@@ -340,14 +488,33 @@ def _field_locs(cls: type, loc: tuple[Any, ...]) -> tuple[Any, ...]:
 
 def _union_errors_kept(cls: type, errors: list[Any]) -> list[Any]:
     """Errors of a union field: the one from inside a member where there is one (a
-    nested mapping with a bad key says what is wrong there, not that the field is not
-    one of the other members)."""
+    nested mapping with a bad key, or one a member's own check refused, says what is
+    wrong there, not that the field is not one of the other members)."""
     locs = [_field_locs(cls, tuple(e["loc"])) for e in errors]
+    checked = {loc for e, loc in zip(errors, locs, strict=True) if e["type"] == "value_error"}
     return [
         e
         for e, loc in zip(errors, locs, strict=True)
         if not any(len(o) > len(loc) and o[: len(loc)] == loc for o in locs)
+        and (e["type"] == "value_error" or loc not in checked)
     ]
+
+
+#: pydantic's errors for a value of the right type out of its field's range.
+_RANGE_KINDS = frozenset(
+    ("greater_than", "greater_than_equal", "less_than", "less_than_equal", "finite_number")
+)
+_SHOWN_CHARS = 200
+
+
+def _shown(value: Any) -> str:
+    """``repr(value)``, cut to :data:`_SHOWN_CHARS` characters (a message stays a line)."""
+    text = repr(value)
+    return text if len(text) <= _SHOWN_CHARS else text[: _SHOWN_CHARS - 3] + "..."
+
+
+def _lower(msg: str) -> str:
+    return msg[:1].lower() + msg[1:]
 
 
 def _raw_message(cls: type, data: Any, err: Mapping[str, Any]) -> str:
@@ -376,10 +543,12 @@ def _raw_message(cls: type, data: Any, err: Mapping[str, Any]) -> str:
     cut = fields_only[-1] + 1 if fields_only else len(loc)
     key, _, tp, _ = _describe(cls, loc[:cut])
     got = _value_at(data, loc[:cut])
-    text = f"bad value for key {key!r}: expected {type_name(tp)}, got {got!r}"
+    if kind in _RANGE_KINDS and not loc[cut:]:  # the right type, out of range
+        return f"bad value for key {key!r}: {_lower(err['msg'])}, got {_shown(got)}"
+    text = f"bad value for key {key!r}: expected {type_name(tp)}, got {_shown(got)}"
     if loc[cut:]:
         inner = key + "".join(f"[{p}]" for p in loc[cut:])
-        text += f" ({inner}: {err['msg']}, got {err['input']!r})"
+        text += f" ({inner}: {err['msg']}, got {_shown(err['input'])})"
     return text
 
 
@@ -399,7 +568,7 @@ def validate(cls: type, values: Mapping[str, Any], base: Any = None, where: str 
         raise ConfigError(f"{where}: {_as_given(str(e), shown)}") from None
     data = _merge(to_plain(base), values) if base is not None else _on_defaults(cls, values)
     try:
-        return _run(cls, data)
+        return _run(cls, data, _FINITE)
     except pydantic.ValidationError as e:
         errors = _union_errors_kept(cls, e.errors())
         msgs = list(dict.fromkeys(_message(cls, data, err, shown) for err in errors))
@@ -421,6 +590,21 @@ def _type_at(cls: type, path: list[str]) -> Any:
     return tp
 
 
+def _set_value(key: str, text: str) -> Any:
+    """A ``--set`` value read as YAML (bounded as :func:`parse_yaml`); text that is no
+    YAML stays text (pydantic then names the type it should be)."""
+    if not text.strip():
+        return text
+    if len(text) > MAX_YAML_BYTES:
+        raise ConfigError(f"--set {key}: larger than {MAX_YAML_BYTES} bytes (the limit)")
+    try:
+        return _yaml_value(text)
+    except _Refused as err:
+        raise ConfigError(f"--set {key}: {_yaml_problem(err)}") from None
+    except yaml.YAMLError:
+        return text
+
+
 def parse_sets(sets: Iterable[str], cls: type) -> dict[str, Any]:
     """``["key=value", "block.key=value", ...]`` -> ``{key: value, block: {key: value}}``;
     values read as YAML (``[1, 2]``, ``true``, ``0.5``) except for plain string fields,
@@ -439,13 +623,12 @@ def parse_sets(sets: Iterable[str], cls: type) -> dict[str, Any]:
                 f"--set {item!r}: expected key=value or block.key=value; allowed keys: "
                 f"{allowed_keys(cls)}"
             )
+        if len(path) > MAX_KEY_PARTS:
+            raise ConfigError(f"--set: a key of {len(path)} parts; at most {MAX_KEY_PARTS}")
         if _type_at(cls, path) is str:
             value: Any = text
         else:
-            try:
-                value = yaml.safe_load(text) if text.strip() else text
-            except yaml.YAMLError:
-                value = text
+            value = _set_value(key.strip(), text)
         node = out
         for i, name in enumerate(path[:-1]):
             nxt = node.setdefault(name, {})
@@ -507,7 +690,6 @@ def check_fields(
 # ----------------------------------------------------------------------------------------
 # Whole documents, path-first messages
 
-_FINITE = pydantic.ConfigDict(strict=True, extra="forbid", allow_inf_nan=False)
 _LEADING_FIELD = re.compile(r"^(?:\w+\.)?(\w+)((?:\[\d+\])*)(:?) ")
 
 
@@ -578,7 +760,7 @@ def _path_message(cls: Any, err: Mapping[str, Any]) -> str:
         return _at(path, f"unknown key {loc[-1]!r} for {name}; allowed keys: {allowed}")
     if kind == "missing" and loc and isinstance(loc[-1], int):  # a list too short
         path, tp = _walk(cls, loc[:-1])
-        return _at(path, f"expected {type_name(_bare(tp))}, got {err['input']!r}")
+        return _at(path, f"expected {type_name(_bare(tp))}, got {_shown(err['input'])}")
     path, tp = _walk(cls, loc)
     if kind == "missing":
         return _at(path, "required")
@@ -602,9 +784,8 @@ def _path_message(cls: Any, err: Mapping[str, Any]) -> str:
                 text = text[m.end() :]
         return _at(path, text)
     if kind == "literal_error":
-        return _at(path, f"expected {type_name(_bare(tp))}, got {err['input']!r}")
-    msg = err["msg"][:1].lower() + err["msg"][1:]
-    return _at(path, f"{msg}, got {err['input']!r}")
+        return _at(path, f"expected {type_name(_bare(tp))}, got {_shown(err['input'])}")
+    return _at(path, f"{_lower(err['msg'])}, got {_shown(err['input'])}")
 
 
 def validate_paths(cls: type, data: Any, where: str | None = None) -> Any:

@@ -55,10 +55,9 @@ from typing import Annotated, Any, ClassVar, Literal, TypeVar
 import mujoco
 import numpy as np
 import pydantic
-import yaml
 
 from wander_env.camera import SPECK_HFOV_DEG
-from wander_env.config import ConfigError, check_annotated, validate_paths
+from wander_env.config import ConfigError, check_annotated, load_yaml, validate_paths
 from wander_env.field_doc import field_doc
 from wander_env.textures import GRATING_PROFILES, TextureSpec
 from wander_env.trajectories import TrajectoryParams
@@ -799,9 +798,7 @@ def load_scene_config(
             raise ValueError(
                 f"unknown scene {text[:200]!r}; available: {', '.join(available_scenes())}"
             )
-    with open(path, encoding="utf-8") as f:
-        data = yaml.safe_load(f)
-    data = _files_relative_to(data, path.parent)
+    data = _files_relative_to(load_yaml(path, "scene file"), path.parent)
     return scene_config_from_dict(data, default_name=path.stem, where=str(path))
 
 

@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+import json
 import shlex
 import sys
 from pathlib import Path
@@ -14,7 +15,7 @@ import typer
 
 from experiments.cli.console import console, progress_bars
 from experiments.cli.errors import fail, long_command
-from experiments.cli.options import one_of
+from experiments.cli.options import SeedOpt, check_wait, check_workers, one_of
 from experiments.framework import EXPERIMENT_NAMES, ConfigError
 from experiments.sweep import BACKENDS
 from wander_env.shutdown import record_failure
@@ -37,11 +38,13 @@ def experiment(
         Path | None,
         typer.Option(help="Config file (default: experiments/paper/configs/NAME.yaml)."),
     ] = None,
-    seed: Annotated[int, typer.Option(help="Base seed (repeat r uses seed + r).")] = 0,
+    seed: SeedOpt = 0,
     out: Annotated[
         Path | None, typer.Option(help="Result folder (default: results/NAME/<time>-seedN).")
     ] = None,
-    workers: Annotated[int, typer.Option(min=1, help="Worker processes (1 = this process).")] = 1,
+    workers: Annotated[
+        int, typer.Option(callback=check_workers, help="Worker processes (1 = this process).")
+    ] = 1,
     show_config: Annotated[
         bool, typer.Option("--show-config", help="Print the resolved config and stop.")
     ] = False,
@@ -62,13 +65,13 @@ def experiment(
     try:
         exp = get_experiment(name)
         cfg = resolve_config(exp, config, set_ or [])
+        n = len(make_trials(exp, cfg, seed))
     except ConfigError as e:
         raise fail(str(e)) from None
     if show_config:
         console.print_json(dumps_strict(config_to_dict(cfg)))
         return
     folder = out or default_out_dir(name, seed)
-    n = len(make_trials(exp, cfg, seed))
 
     streams: list = []
 
@@ -96,6 +99,14 @@ def experiment(
                 stream.close()  # the workers end now, not when their trials do
     console.print(f"{len(rows)} trials -> {folder}/results.csv ({len(files)} files)")
     console.print((folder / "summary.md").read_text(), markup=False, highlight=False)
+    timing = json.loads((folder / "run.json").read_text())["timing"]
+    _print_rtf(timing.get("real_time_factor"))
+
+
+def _print_rtf(rtf: float | None) -> None:
+    """The real-time factor line (nothing when the work simulated no time)."""
+    if rtf is not None:
+        console.print(f"real-time factor: {rtf:.3g} (simulated seconds per wall second)")
 
 
 @long_command("wander sweep")
@@ -106,7 +117,9 @@ def sweep(
     ] = "local",
     workers: Annotated[
         int | None,
-        typer.Option(min=1, help="Processes (local) or CPUs of a local Ray instance."),
+        typer.Option(
+            callback=check_workers, help="Processes (local) or CPUs of a local Ray instance."
+        ),
     ] = None,
     address: Annotated[
         str | None, typer.Option(help="Ray cluster address (default: start a local Ray).")
@@ -116,7 +129,10 @@ def sweep(
     ] = None,
     timeout: Annotated[
         float,
-        typer.Option(help="Seconds to wait for the next trial to finish before giving up."),
+        typer.Option(
+            callback=check_wait,
+            help="Seconds to wait for the next trial to finish before giving up.",
+        ),
     ] = 6 * 3600.0,
 ) -> None:
     """Run a grid of (experiment, parameters, seeds); reruns skip finished trials."""
@@ -125,7 +141,7 @@ def sweep(
     try:
         sw = load_sweep(config)
         n = len(expand(sw))
-    except (ConfigError, FileNotFoundError) as e:
+    except ConfigError as e:
         raise fail(str(e)) from None
     folder = out or Path("results") / "sweeps" / sw.name
     with progress_bars() as bar:
@@ -153,6 +169,7 @@ def sweep(
         f"{len(res.rows)} trials ({res.ran} run, {res.skipped} already done) -> "
         f"{folder}/results.csv"
     )
+    _print_rtf(res.real_time_factor)
 
 
 def report(

@@ -16,7 +16,7 @@ Example:
     >>> check_seconds(-1.0)
     Traceback (most recent call last):
     ...
-    typer._click.exceptions.BadParameter: must be a finite number of seconds > 0, got -1.0
+    typer._click.exceptions.BadParameter: must be a finite number of seconds in (0, 86400], got -1.0
 """
 
 from __future__ import annotations
@@ -30,10 +30,13 @@ from typing import Annotated, Any, TypeVar
 import typer
 
 from experiments.cli.console import step_progress
+from experiments.framework import MAX_SEED
 
 __all__ = [
     "AGENT_OPTIONS",
     "FRAME_OPTIONS",
+    "MAX_SECONDS",
+    "MAX_WORKERS",
     "AgentAlphaOpt",
     "DvsOpt",
     "FixationalOpt",
@@ -43,6 +46,7 @@ __all__ = [
     "RunDirOpt",
     "SceneOpt",
     "SecondsOpt",
+    "SeedOpt",
     "SomsNormOpt",
     "StreamlinedOpt",
     "VideoOpt",
@@ -52,6 +56,9 @@ __all__ = [
     "check_positive",
     "check_scene",
     "check_seconds",
+    "check_seed",
+    "check_wait",
+    "check_workers",
     "frames_kwargs",
     "int_list",
     "job_config",
@@ -64,18 +71,49 @@ __all__ = [
 ]
 
 
-def check_positive(value: float | None, unit: str = "") -> float | None:
-    """A finite number > 0 (``None`` passes: an unset optional)."""
+#: The longest run a ``--seconds`` may ask for (simulated seconds: a day).
+MAX_SECONDS = 86400.0
+
+
+def check_positive(
+    value: float | None, unit: str = "", maximum: float | None = None
+) -> float | None:
+    """A finite number > 0 and <= ``maximum`` when given (``None`` passes: an unset
+    optional)."""
     if value is None:
         return None
-    if not (math.isfinite(value) and value > 0):
-        what = f"a finite number of {unit} > 0" if unit else "a finite number > 0"
-        raise typer.BadParameter(f"must be {what}, got {value!r}")
+    if not (math.isfinite(value) and value > 0 and (maximum is None or value <= maximum)):
+        of = f" of {unit}" if unit else ""
+        bound = f" in (0, {maximum:g}]" if maximum is not None else " > 0"
+        raise typer.BadParameter(f"must be a finite number{of}{bound}, got {value!r}")
     return value
 
 
 def check_seconds(value: float) -> float:
-    """Simulated or run seconds: finite and > 0."""
+    """Simulated or run seconds: finite, > 0 and at most :data:`MAX_SECONDS`."""
+    return check_positive(value, "seconds", MAX_SECONDS)  # type: ignore[return-value]
+
+
+def check_seed(value: int) -> int:
+    """A seed: an integer in [0, :data:`experiments.framework.MAX_SEED`]."""
+    if not 0 <= value <= MAX_SEED:
+        raise typer.BadParameter(f"must be an integer in [0, {MAX_SEED}], got {value}")
+    return value
+
+
+#: The most worker processes (or local Ray CPUs) a command may start.
+MAX_WORKERS = 256
+
+
+def check_workers(value: int | None) -> int | None:
+    """A number of worker processes: 1 to :data:`MAX_WORKERS` (None: the default)."""
+    if value is not None and not 1 <= value <= MAX_WORKERS:
+        raise typer.BadParameter(f"must be an integer in [1, {MAX_WORKERS}], got {value}")
+    return value
+
+
+def check_wait(value: float) -> float:
+    """A wait (wall seconds): finite and > 0."""
     return check_positive(value, "seconds")  # type: ignore[return-value]
 
 
@@ -162,6 +200,9 @@ def seconds_option(help: str) -> Any:
 
 
 SecondsOpt = Annotated[float, seconds_option("Simulated seconds.")]
+SeedOpt = Annotated[
+    int, typer.Option(callback=check_seed, help="Base seed (repeat r uses seed + r).")
+]
 RunDirOpt = Annotated[
     Path | None,
     typer.Option(

@@ -38,7 +38,17 @@ from experiments.benchmark.protocol import (
     evaluate_sequence,
     paper_reference,
 )
-from experiments.framework import Comparison, Experiment, Row, TrialSpec
+from experiments.framework import (
+    Comparison,
+    DvsPreset,
+    Experiment,
+    FrameMode,
+    Repeats,
+    Row,
+    SceneName,
+    TrialSeconds,
+    TrialSpec,
+)
 from experiments.stats import mean_std
 from wander_env.config import block_aliases
 from wander_env.env import WanderConfig
@@ -72,16 +82,16 @@ class DetectionConfig:
         "tau_proto": "proto.tau_mem",
     }
 
-    scenes: tuple[str, ...] = ("office", "hand", "gratings")
+    scenes: tuple[SceneName, ...] = ("office", "hand", "gratings")
     camera_speeds_deg_s: tuple[float, ...] = (0.0, 10.0, 30.0, 60.0)
     sweep_amplitude_deg: float = 5.0
-    duration_s: float = 2.0
+    duration_s: TrialSeconds = 2.0
     warmup_s: float = 0.2
-    dvs: str = "paper"
-    frames: str = WanderConfig.frames  # the env\'s frame source: keyframes or exact
+    dvs: DvsPreset = "paper"
+    frames: FrameMode = WanderConfig.frames  # the env\'s frame source: keyframes or exact
     box: int = 8
     baseline_sigma_px: float = 2.0
-    repeats: int = 2
+    repeats: Repeats = 2
     soms: SOMSParams = field(default_factory=lambda: SOMSParams(dt=0.02))
     proto: ProtoObjectParams = field(default_factory=lambda: ProtoObjectParams(dt=0.02))
 

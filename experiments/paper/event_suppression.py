@@ -34,7 +34,17 @@ import wander_env  # noqa: F401  (registers the environments)
 from agents.proto_object import saliency_argmax
 from agents.soms import SOMS, TABLE_FIELDS, SOMSParams
 from experiments.benchmark.protocol import PAPER_SUPPRESSION
-from experiments.framework import Comparison, Experiment, Row, TrialSpec, load_artifacts
+from experiments.framework import (
+    Comparison,
+    DvsPreset,
+    Experiment,
+    Repeats,
+    Row,
+    SceneName,
+    TrialSeconds,
+    TrialSpec,
+    load_artifacts,
+)
 from experiments.jobs.record import GazePolicy
 from wander_env.config import block_aliases
 from wander_env.metrics import detection_hit
@@ -87,14 +97,14 @@ class EventSuppressionConfig:
         **block_aliases("soms", TABLE_FIELDS),
     }
 
-    scene: str = "hand"
-    dvs: str = "speck"
-    duration_s: float = 3.0
+    scene: SceneName = "hand"
+    dvs: DvsPreset = "speck"
+    duration_s: TrialSeconds = 3.0
     window_s: float = 0.002
     active_s: float = 1.0
     pause_s: float = 0.5
     shake: str = "fixational"
-    repeats: int = 10
+    repeats: Repeats = 10
     soms: SOMSParams | SOMSPreset = field(default_factory=lambda: soms_preset("table"))
     hit_sigma_px: float = 2.0
 

@@ -42,7 +42,16 @@ import yaml
 
 import wander_env  # noqa: F401  (registers the environments)
 from agents.soms import SOMS, TABLE_FIELDS, SOMSParams
-from experiments.framework import Comparison, Experiment, Row, TrialSpec, load_artifacts
+from experiments.framework import (
+    Comparison,
+    DvsPreset,
+    Experiment,
+    Repeats,
+    Row,
+    TrialSeconds,
+    TrialSpec,
+    load_artifacts,
+)
 from wander_env.config import block_aliases
 from wander_env.metrics import iou, precision
 from wander_env.scene_config import GRATING_MODES, assets_dir
@@ -75,8 +84,8 @@ class OMSCharacterisationConfig:
         **block_aliases("soms", TABLE_FIELDS),
     }
 
-    duration_s: float = 4.0
-    dvs: str = "paper"
+    duration_s: TrialSeconds = 4.0
+    dvs: DvsPreset = "paper"
     modes: tuple[str, ...] = GRATING_MODES
     background_cycles_per_deg: float = 0.05
     object_cycles_per_deg: float = 0.1
@@ -114,7 +123,7 @@ class OMSCharacterisationConfig:
     )
     groups: tuple[str, ...] = ("mode", "frequency", "speed", "kernel")
     soms: SOMSParams = field(default_factory=lambda: SOMSParams(dt=0.02))
-    repeats: int = 1
+    repeats: Repeats = 1
 
     def __post_init__(self) -> None:
         if not self.duration_s > 0 or not self.step_s > 0:

@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from agents.soms import SOMSParams
-from experiments.framework import Comparison, Experiment, Row, TrialSpec
+from experiments.framework import Comparison, Experiment, Repeats, Row, TrialSeconds, TrialSpec
 from experiments.paper.oms_family import (
     OBJECT_KEPT_BAR,
     PRECISION_BAR,
@@ -82,12 +82,12 @@ class OMSScorecardConfig:
     periods: tuple[int, ...] = PERIODS_PX
     motions: tuple[str, ...] = MOTIONS
     presets: tuple[str, ...] = PRESETS
-    replicates: int = 2
-    duration_s: float = 0.3
+    replicates: Repeats = 2
+    duration_s: TrialSeconds = 0.3
     real_dir: str = "../shared/realdata/uzh_poster_egomotion"
     real_bins_ms: tuple[int, ...] = (2, 10, 20)
-    hand_repeats: int = 10
-    hand_duration_s: float = 3.0
+    hand_repeats: Repeats = 10
+    hand_duration_s: TrialSeconds = 3.0
     office_results: tuple[str, ...] = ()
     office_results_paper: tuple[str, ...] = ()
     reuse: tuple[str, ...] = ()

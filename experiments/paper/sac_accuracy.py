@@ -48,7 +48,17 @@ import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
-from experiments.framework import Comparison, Experiment, Row, TrialSpec
+from experiments.framework import (
+    Comparison,
+    DvsPreset,
+    Experiment,
+    FrameMode,
+    Repeats,
+    Row,
+    SceneName,
+    TrialSeconds,
+    TrialSpec,
+)
 from experiments.stats import mean_std
 from wander_env.camera import cast_pixel, degrees_to_pixels
 from wander_env.env import WanderConfig
@@ -76,19 +86,19 @@ class SacAccuracyConfig:
     """Defaults: the paper's 10 trials; the scene, target range and the mechanics of the
     ``backlash_offset`` condition are ours (see the module docstring)."""
 
-    scene: str = "shelf"
+    scene: SceneName = "shelf"
     conditions: tuple[Condition, ...] = ("ideal", "backlash_offset")
-    repeats: int = 10
+    repeats: Repeats = 10
     target_range_x_px: float = 24.0
     target_range_y_px: float = 10.0
     pan_backlash_pos: float = 4.0
     tilt_backlash_pos: float = 20.0
     camera_forward_m: float = 0.03
     camera_up_m: float = 0.05
-    max_saccade_s: float = 3.0
+    max_saccade_s: TrialSeconds = 3.0
     render_rate_hz: float = 100.0
-    dvs: str = "ideal"
-    frames: str = WanderConfig.frames  # the env\'s frame source: keyframes or exact
+    dvs: DvsPreset = "ideal"
+    frames: FrameMode = WanderConfig.frames  # the env\'s frame source: keyframes or exact
 
     def __post_init__(self) -> None:
         if self.repeats < 1:

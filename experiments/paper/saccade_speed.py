@@ -39,7 +39,19 @@ import numpy as np
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
 from agents.fixation import FixationParams
-from experiments.framework import Comparison, Experiment, Row, TrialSpec, load_artifacts
+from experiments.framework import (
+    Comparison,
+    DvsPreset,
+    Experiment,
+    FrameMode,
+    PtuPreset,
+    Repeats,
+    Row,
+    SceneName,
+    TrialSeconds,
+    TrialSpec,
+    load_artifacts,
+)
 from experiments.jobs.run_agent import run_closed_loop
 from experiments.paper import main_sequence
 from experiments.paper.speed_study import AXIS_LABELS, plot_surfaces
@@ -89,13 +101,13 @@ class SaccadeSpeedConfig:
     count × window, the other factors at the baseline). Every setting runs ``repeats``
     seeds (``seed + r``: paired across settings)."""
 
-    scene: str = "office"
-    duration_s: float = 3.0
+    scene: SceneName = "office"
+    duration_s: TrialSeconds = 3.0
     window_s: float = 0.124
     design: Literal["one_at_a_time", "factorial"] = "one_at_a_time"
     ptu: Literal["ideal", "flir"] = "flir"
     windows_s: tuple[float, ...] = (0.05, 0.124, 0.25)
-    ptu_presets: tuple[str, ...] = ("flir", "ideal")
+    ptu_presets: tuple[PtuPreset, ...] = ("flir", "ideal")
     speeds_pos_s: tuple[float, ...] = (1000.0, 2000.0, 2902.0)
     accels_pos_s2: tuple[float, ...] = (1000.0, 2000.0, 8000.0)
     fixational_steps_pos: tuple[int, ...] = (20, 60, 120)
@@ -112,10 +124,10 @@ class SaccadeSpeedConfig:
         30.0,
         40.0,
     )
-    main_sequence_scene: str = "shelf"
-    repeats: int = 10
-    dvs: str = "ideal"
-    frames: str = WanderConfig.frames  # the env\'s frame source: keyframes or exact
+    main_sequence_scene: SceneName = "shelf"
+    repeats: Repeats = 10
+    dvs: DvsPreset = "ideal"
+    frames: FrameMode = WanderConfig.frames  # the env\'s frame source: keyframes or exact
 
     def __post_init__(self) -> None:
         if not self.duration_s > 0:

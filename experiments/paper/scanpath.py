@@ -61,7 +61,20 @@ import numpy as np
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
 from experiments import scanpath_stats
-from experiments.framework import Comparison, Experiment, Row, TrialSpec, load_artifacts
+from experiments.framework import (
+    Comparison,
+    DvsPreset,
+    Experiment,
+    FrameMode,
+    GridStepDeg,
+    RadiusDeg,
+    Repeats,
+    Row,
+    SceneName,
+    TrialSeconds,
+    TrialSpec,
+    load_artifacts,
+)
 from experiments.jobs.run_agent import run_closed_loop
 from experiments.jobs.scanpath_figure import pixel_to_angles, saliency_mosaic, show_mosaic
 from experiments.stats import mean_std
@@ -90,18 +103,18 @@ class ScanpathConfig:
     """Defaults: the paper's two windows (10 ms, 124 ms) and 8×8 box, the shelf scene;
     the office scene, trial length, radii and DVS preset are ours."""
 
-    scenes: tuple[str, ...] = ("shelf", "office")
+    scenes: tuple[SceneName, ...] = ("shelf", "office")
     conditions: tuple[Condition, ...] = ("saccades", "fixational")
-    duration_s: float = 5.0
+    duration_s: TrialSeconds = 5.0
     saccades_window_s: float = 0.01
     fixational_window_s: float = 0.124
     saccades_fixational: bool = True
-    repeats: int = 10
+    repeats: Repeats = 10
     box: int = 8
-    radius_deg: float = 5.0
-    mosaic_step_deg: float = 0.5
-    dvs: str = "ideal"
-    frames: str = WanderConfig.frames  # the env\'s frame source: keyframes or exact
+    radius_deg: RadiusDeg = 5.0
+    mosaic_step_deg: GridStepDeg = 0.5
+    dvs: DvsPreset = "ideal"
+    frames: FrameMode = WanderConfig.frames  # the env\'s frame source: keyframes or exact
     # MultiMatch normalises lengths and positions by a "screen": the camera's field of
     # view (degrees; Speck's 112.8° both ways by default).
     multimatch_screen_deg: tuple[float, float] = (SPECK_HFOV_DEG, SPECK_HFOV_DEG)
