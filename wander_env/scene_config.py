@@ -801,7 +801,8 @@ def load_scene_config(
             )
     with open(path, encoding="utf-8") as f:
         data = yaml.safe_load(f)
-    return scene_config_from_dict(data, default_name=path.stem, where=str(path), folder=path.parent)
+    data = _files_relative_to(data, path.parent)
+    return scene_config_from_dict(data, default_name=path.stem, where=str(path))
 
 
 def _files_relative_to(data: Any, folder: Path) -> Any:
@@ -837,12 +838,11 @@ def _files_relative_to(data: Any, folder: Path) -> Any:
 
 
 def scene_config_from_dict(
-    data: Any, default_name: str = "scene", where: str | None = None, folder: Path | None = None
+    data: Any, default_name: str = "scene", where: str | None = None
 ) -> SceneConfig:
     """Validate a parsed YAML mapping into a :class:`SceneConfig` (``name`` defaults to
-    ``default_name``; relative mesh and MJCF file paths are relative to ``folder``, by
-    default the current directory); ConfigError (a ValueError) starting with
-    ``where: `` (the file) when given, then the field's path.
+    ``default_name``); ConfigError (a ValueError) starting with ``where: `` (the file)
+    when given, then the field's path.
 
     >>> scene_config_from_dict({"camera": {"width": 64}}).camera.width
     64
@@ -858,8 +858,6 @@ def scene_config_from_dict(
     if isinstance(data, Mapping) and "name" not in data:
         data = {"name": default_name, **data}
     _check_lengths(data, where)
-    if folder is not None:
-        data = _files_relative_to(data, folder)
     return validate_paths(SceneConfig, data, where=where)
 
 
