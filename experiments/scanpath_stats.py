@@ -1,8 +1,8 @@
 """Scanpath statistics (pure functions over fixation and saccade tables).
 
-Fixations are rows ``(pan_deg, tilt_deg, start_s, duration_s)`` — the standard
-fixation-table columns that scanpath-comparison tools (MultiMatch, ScanMatch) read, in
-degrees of the pan-tilt unit.
+Fixations are rows ``(pan_deg, tilt_deg, t_start_s, duration_s)``: the fixation table of
+:mod:`experiments.fixation_table` (degrees of the pan-tilt unit, + = left and up;
+seconds), the columns that scanpath-comparison tools (MultiMatch, ScanMatch) read.
 
 Example:
     >>> import numpy as np
@@ -18,9 +18,8 @@ import math
 
 import numpy as np
 
+from experiments.fixation_table import FIXATION_COLUMNS
 from experiments.stats import mean_std
-
-FIXATION_COLUMNS = ("pan_deg", "tilt_deg", "start_s", "duration_s")
 
 
 def _table(fixations: np.ndarray) -> np.ndarray:

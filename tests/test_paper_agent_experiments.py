@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import wander_env  # noqa: F401
+from experiments.fixation_table import FIXATION_COLUMNS
 from experiments.framework import make_trials, resolve_config, run_experiment, run_spec
 from experiments.paper import sac_accuracy, saccade_speed, scanpath
 from wander_env.camera import cast_pixel
@@ -111,11 +112,6 @@ def test_merge_windows_joins_the_windows_between_saccades():
         scanpath.merge_windows(w[:3], [True, True])
 
 
-def test_export_table_uses_screen_axes_in_degrees(tmp_path):
-    path = scanpath.write_export(np.array([[10.0, 5.0, 0.25, 0.5]]), tmp_path / "f.csv")
-    assert path.read_text() == "x,y,start,duration\n-10.0,-5.0,0.25,0.5\n"
-
-
 def test_scanpath_trial_exports_one_row_per_fixation(tmp_path):
     sets = ["scenes=[shelf]", "conditions=[fixational]", "duration_s=1.2", "repeats=1"]
     cfg = resolve_config(scanpath.EXPERIMENT, sets=sets)
@@ -124,7 +120,10 @@ def test_scanpath_trial_exports_one_row_per_fixation(tmp_path):
     # with the agent's peak-clipped sOMS (two with the former divisor, whose first
     # saccade was a 31° one)
     assert (row["decisions"], row["fixations"], row["saccades"]) == (3, 3, 2)
-    assert row["fixation_duration_mean_s"] == pytest.approx(0.13)
+    # the first window starts at the reset (t = 0, not one step before), then 130 ms each;
+    # times to the microsecond
+    assert row["fixation_duration_mean_s"] == 0.126667
+    assert json.loads(row["scanpath_json"])[0][2:] == [0.0, 0.12]
     # the agent's sOMS suppresses much of the still shelf under fixational motion
     # (eye-only), so two of the three decisions land on an object (the same one)
     assert row["object_hit_rate"] == pytest.approx(2 / 3) and row["objects_visited"] == 1
@@ -133,8 +132,12 @@ def test_scanpath_trial_exports_one_row_per_fixation(tmp_path):
     assert len(json.loads(row["aois_json"])) == 3
     with (tmp_path / "fixations" / "shelf_fixational_seed0.csv").open() as fh:
         table = list(csv.DictReader(fh))
-    assert list(table[0]) == list(scanpath.EXPORT_COLUMNS)
+    assert list(table[0]) == [*FIXATION_COLUMNS, "aoi"]
     assert len(table) == row["fixations"]
+    assert [[float(f[k]) for k in FIXATION_COLUMNS] for f in table] == json.loads(
+        row["scanpath_json"]
+    )
+    assert [f["aoi"] for f in table] == json.loads(row["aois_json"])
     assert {p.name for p in files} >= {"scanpath.png", "scanpath_stats.png", "results.csv"}
 
 
