@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 
 import gymnasium as gym
 import numpy as np
@@ -239,3 +240,16 @@ def test_main_sequence_durations_grow_with_amplitude():
     assert vel == pytest.approx(theory_v, abs=1.0)
     assert np.all(dur >= theory_t - 0.01) and np.all(dur <= theory_t + 0.1)
     assert row["events_per_s"] > 0 and row["factor"] == "baseline"
+    # three amplitudes fit the two-parameter curves but leave one residual degree of
+    # freedom: no intervals, and the summary says why
+    assert row["ms_amplitudes"] == 3 and math.isfinite(row["ms_v_vmax"])
+    assert math.isnan(row["ms_v_vmax_low"]) and math.isnan(row["ms_d_k_high"])
+    text = saccade_speed._ms_text(row)
+    assert text.endswith("; n too small for an interval (3 amplitudes; an interval needs ≥ 4)")
+    assert "∞" not in text and "nan" not in text
+
+
+def test_main_sequence_summary_says_when_there_are_too_few_amplitudes():
+    two = {"ms_amplitudes": 2, "ms_v_vmax": math.nan, "ms_d_k": math.nan}
+    assert saccade_speed._ms_text(two) == "n too small for a fit (2 amplitudes; a fit needs ≥ 3)"
+    assert saccade_speed._ms_text({"ms_v_vmax": math.nan}) == ""  # no main sequence run

@@ -67,7 +67,7 @@ from experiments.fixation_table import normalise, write_fixations
 from experiments.framework import Comparison, Experiment, Row, TrialSpec, load_artifacts
 from experiments.jobs.run_agent import run_closed_loop
 from experiments.jobs.scanpath_figure import pixel_to_angles, saliency_mosaic, show_mosaic
-from experiments.stats import mean_std
+from experiments.stats import ci_text, mean_std
 from wander_env.camera import SPECK_HFOV_DEG, cast_pixel, focal_length_px
 from wander_env.entities import object_body_name
 from wander_env.env import WanderConfig
@@ -355,17 +355,17 @@ def _by(rows: list[Row], scene: str, condition: str, metric: str) -> tuple[float
 def _metrics(cfg: ScanpathConfig) -> list[tuple[str, str, str]]:
     """(label, column, format) of the per-trial measures summarised and tested."""
     return [
-        ("object hit rate", "object_hit_rate", "{:.0%}"),
-        (f"object hit rate, {cfg.box}×{cfg.box} box", "object_hit_rate_box", "{:.0%}"),
-        ("moving-object detection accuracy", "detection_accuracy_moving", "{:.0%}"),
-        ("objects visited", "objects_visited", "{:.1f}"),
-        ("fixations", "fixations", "{:.1f}"),
-        ("fixation duration (s)", "fixation_duration_mean_s", "{:.3f}"),
-        ("saccade amplitude (°)", "saccade_amplitude_mean_deg", "{:.1f}"),
-        ("revisits", "revisits", "{:.1f}"),
-        (f"coverage (deg², {cfg.radius_deg:g}° radius)", "coverage_deg2", "{:.0f}"),
-        ("AOI stationary entropy (normalised)", "aoi_stationary_entropy", "{:.2f}"),
-        ("AOI transition entropy (normalised)", "aoi_transition_entropy", "{:.2f}"),
+        ("object hit rate", "object_hit_rate", ".0%"),
+        (f"object hit rate, {cfg.box}×{cfg.box} box", "object_hit_rate_box", ".0%"),
+        ("moving-object detection accuracy", "detection_accuracy_moving", ".0%"),
+        ("objects visited", "objects_visited", ".1f"),
+        ("fixations", "fixations", ".1f"),
+        ("fixation duration (s)", "fixation_duration_mean_s", ".3f"),
+        ("saccade amplitude (°)", "saccade_amplitude_mean_deg", ".1f"),
+        ("revisits", "revisits", ".1f"),
+        (f"coverage (deg², {cfg.radius_deg:g}° radius)", "coverage_deg2", ".0f"),
+        ("AOI stationary entropy (normalised)", "aoi_stationary_entropy", ".2f"),
+        ("AOI transition entropy (normalised)", "aoi_transition_entropy", ".2f"),
     ]
 
 
@@ -377,15 +377,6 @@ PAPER_SCANPATH = {
     ),
     "stability": "fixational eye movements are needed for stable scanpaths (figure)",
 }
-
-
-def _ci_text(v: tuple[float, float, float, int], fmt: str) -> str:
-    m, lo, hi, n = v
-    if math.isnan(m):
-        return "—"
-    if math.isnan(lo):
-        return f"{fmt.format(m)} (n = {n})"
-    return f"{fmt.format(m)} [{fmt.format(lo)}, {fmt.format(hi)}] (n = {n})"
 
 
 def compare(cfg: ScanpathConfig, rows: list[Row]) -> list[Comparison]:
@@ -405,7 +396,7 @@ def compare(cfg: ScanpathConfig, rows: list[Row]) -> list[Comparison]:
     out = []
     for s in scenes:
         for label, key, fmt in metrics:
-            parts = [f"{c} {_ci_text(summ[(s, c, key)], fmt)}" for c in conditions]
+            parts = [f"{c} {ci_text(summ[(s, c, key)], fmt)}" for c in conditions]
             t = tests.get((s, key))
             note = f"fixational − saccades: {t.text('.3g')}; {per}" if t is not None else per
             out.append(
@@ -415,7 +406,7 @@ def compare(cfg: ScanpathConfig, rows: list[Row]) -> list[Comparison]:
         screen = tuple(cfg.multimatch_screen_deg)
         for t in sa.similarity_table(rows, screen):
             parts = [
-                f"{k} {_ci_text((t[k], t[k + '_low'], t[k + '_high'], t[k + '_n']), '{:.3f}')}"
+                f"{k} {ci_text((t[k], t[k + '_low'], t[k + '_high'], t[k + '_n']), '.3f')}"
                 for k in sa.SIMILARITY_MEASURES
             ]
             n = max(t[k + "_n"] for k in sa.SIMILARITY_MEASURES)
