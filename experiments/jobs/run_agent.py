@@ -10,7 +10,7 @@ writes the run folder:
   window — with ground truth only), sOMS event suppression, foveation error of the
   saccades (reached minus intended gaze, in pixels at the fovea), scanpath statistics,
   wall time and real-time factor;
-- ``fixations.csv``: the fixation table (:mod:`experiments.fixation_table`: ``pan_deg``,
+- ``fixations.csv``: the fixation table (:mod:`experiments.scanpath_stats`: ``pan_deg``,
   ``tilt_deg`` (+ = left, up), ``t_start_s``, ``duration_s``) plus each window's ``P``,
   hit and the moving object hit (named as in the scene file);
 - ``scanpath.png``: cumulative saliency on the pan-tilt sphere with fixations, saccade
@@ -40,7 +40,6 @@ import numpy as np
 from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent, Phase
 from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
-from experiments.fixation_table import normalise, write_fixations
 from experiments.jobs.run_viewer import open_run_log
 from experiments.jobs.scanpath_figure import pixel_to_angles, plot_scanpath
 from wander_env.camera import degrees_to_pixels, focal_length_px
@@ -342,7 +341,7 @@ def _fixation_columns(
     agent: AttentionAgent, log: _Log, targets_deg: list[tuple[float, float] | None]
 ) -> dict[str, list[object]]:
     """``fixations.csv``'s columns after the fixation table's four (module doc of
-    :mod:`experiments.fixation_table`); ``None`` where a window has no ``P`` or no score."""
+    :mod:`experiments.scanpath_stats`); ``None`` where a window has no ``P`` or no score."""
     fx, n = agent.fixations, len(agent.fixations)
     hits = [log.hits[k] if k < len(log.hits) else None for k in range(n)]
     objects = [log.hit_objects[k] if k < len(log.hit_objects) else "" for k in range(n)]
@@ -376,9 +375,11 @@ def _write_folder(
         pixel_to_angles(fx.target_px, fx.gaze_deg, f, centre) if fx.target_px else None
         for fx in agent.fixations
     ]
-    table = normalise([[*fx.gaze_deg, fx.t_start, fx.t_end - fx.t_start] for fx in agent.fixations])
+    table = scanpath_stats.normalise_fixations(
+        [[*fx.gaze_deg, fx.t_start, fx.t_end - fx.t_start] for fx in agent.fixations]
+    )
     if agent.fixations:
-        write_fixations(
+        scanpath_stats.write_fixations(
             out_dir / "fixations.csv", table, _fixation_columns(agent, log, targets_deg)
         )
     scored = [h for h in log.hits if h is not None]

@@ -41,7 +41,7 @@ moves). Per trial:
   MultiMatch and AOI-string (Levenshtein) similarity within and between conditions;
 - the fixation table for scanpath-comparison tools (MultiMatch, ScanMatch), written by
   :func:`plot` as ``fixations/<scene>_<condition>_seed<N>.csv`` in the result folder:
-  the columns, units and signs of :mod:`experiments.fixation_table` (``pan_deg``,
+  the columns, units and signs of :mod:`experiments.scanpath_stats` (``pan_deg``,
   ``tilt_deg``: + = left, up; ``t_start_s``, ``duration_s``) and each fixation's
   ``aoi``.
 """
@@ -63,7 +63,6 @@ import numpy as np
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
 from experiments import scanpath_stats
-from experiments.fixation_table import normalise, write_fixations
 from experiments.framework import Comparison, Experiment, Row, TrialSpec, load_artifacts
 from experiments.jobs.run_agent import run_closed_loop
 from experiments.jobs.scanpath_figure import pixel_to_angles, saliency_mosaic, show_mosaic
@@ -278,7 +277,7 @@ def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
         [[*w.gaze_deg, w.t_start, w.t_end - w.t_start] for w in fx], dtype=np.float64
     ).reshape(-1, 4)
     ends = [w.target_px is not None for w in fx]
-    table = normalise(merge_windows(windows, ends))
+    table = scanpath_stats.normalise_fixations(merge_windows(windows, ends))
     aois = scanpath_stats.fixation_aois(agent.fovea_labels, ends)
     hits = [bool(centre) for centre, _ in agent.labels]
     box_hits = [bool(box) for _, box in agent.labels]
@@ -434,7 +433,7 @@ def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path)
     """The scanpath figure (a panel per scene and condition: the saliency mosaic, the
     fixations sized by duration, the saccade lines, the salient points green on an
     object, red off), a bar chart of the statistics, and the fixation tables
-    ``results_dir/fixations/*.csv`` (:func:`experiments.fixation_table.write_fixations`,
+    ``results_dir/fixations/*.csv`` (:func:`experiments.scanpath_stats.write_fixations`,
     with each fixation's ``aoi``)."""
     import matplotlib
 
@@ -450,7 +449,9 @@ def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path)
         arts = load_artifacts(results_dir, r)
         if "fixations" in arts:
             aois = {"aoi": json.loads(str(r["aois_json"]))}
-            write_fixations(results_dir / "fixations" / _export_name(r), arts["fixations"], aois)
+            scanpath_stats.write_fixations(
+                results_dir / "fixations" / _export_name(r), arts["fixations"], aois
+            )
     from wander_env.ptu import PTUParams  # the env's unit (the trials use its default)
 
     unit = PTUParams()
