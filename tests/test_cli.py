@@ -68,6 +68,19 @@ def test_bench_dvs_prints_every_row():
     assert result.output.count("128x128") == 7
     assert result.output.count("346x260") == 7
     assert result.output.count("uint8 sRGB") == 2
+    # headers keep their units' capitals
+    assert "Mev/s" in result.output and "peak MiB" in result.output
+    assert "mev per s" not in result.output and "peak mib" not in result.output
+
+
+def test_markdown_tables_are_printed_as_tables():
+    from experiments.cli.console import console, print_markdown
+
+    with console.capture() as captured:
+        print_markdown("# title\n\n| result | ours |\n|---|---|\n| hit rate | 94% |\n")
+    text = captured.get()
+    assert "title" in text and "hit rate" in text and "94%" in text
+    assert "|" not in text and "───" in text  # drawn by rich, not the raw pipes
 
 
 @pytest.mark.slow
