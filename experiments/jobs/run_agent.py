@@ -14,7 +14,9 @@ writes the run folder:
   ``tilt_deg`` (+ = left, up), ``t_start_s``, ``duration_s``) plus each window's ``P``,
   hit and the moving object hit (named as in the scene file);
 - ``scanpath.png``: cumulative saliency on the pan-tilt sphere with fixations, saccade
-  lines and the salient points; gaze over time;
+  lines and the salient points; gaze over time (a camera whose view does not follow the
+  gaze, a replayed recording, ``record["fixed_view"]``: saliency and ``P`` in the
+  sensor's frame, and the note saying so);
 - ``run.mp4``: events | OMS | saliency | camera, with the fovea (green) and ``P``
   (magenta 8×8 box) marked;
 - ``events.h5``: every event of the run, written as the run goes
@@ -411,7 +413,12 @@ def _write_folder(
             out_dir / "scanpath.png",
             log.maps[:n],
             [
-                {"gaze_deg": fx.gaze_deg, "duration_s": fx.t_end - fx.t_start, "target_deg": tg}
+                {
+                    "gaze_deg": fx.gaze_deg,
+                    "duration_s": fx.t_end - fx.t_start,
+                    "target_deg": tg,
+                    "target_px": fx.target_px,
+                }
                 for fx, tg in zip(agent.fixations[:n], targets_deg, strict=False)
             ],
             f,
@@ -419,6 +426,7 @@ def _write_folder(
             title=f"scanpath ({len(agent.fixations)} fixations, {len(agent.saccades)} saccades)",
             object_paths=_object_paths(log.sightings, f, centre),
             limits_deg=_ptu_limits(env),
+            fixed_view=record.get("fixed_view"),  # a replayed recording (wander rig)
         )
     rec = record | {"agent": asdict(p), "summary": {k: metrics[k] for k in ("steps", "events")}}
     stream.close(rec)
