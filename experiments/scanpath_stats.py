@@ -30,9 +30,10 @@ Each file adds columns of its own after these four:
   ``target_tilt_deg`` (``P``'s direction, same signs as the gaze), ``hit`` (1/0: the 8×8
   box around ``P`` touches a moving object's mask, the union over the window; empty
   where nothing was scored: no ``P``, no moving object in view, no ground truth),
-  ``target_object`` (the moving object most of that box sees, named as in the scene
-  file; empty for none), ``events`` and ``oms_events`` (events in the window, all and
-  kept by sOMS); the ``target_*`` cells are empty where the window had no ``P``;
+  ``target_object`` (the moving objects that box touches, named as in the scene file,
+  ``+``-joined should there be several; empty for none), ``events`` and
+  ``oms_events`` (events in the window, all and kept by sOMS); the ``target_*`` cells
+  are empty where the window had no ``P``;
 - the scanpath experiment's ``fixations/*.csv``: ``aoi``, the scene object under the
   fovea during the fixation, named as in the scene file (static and moving objects
   alike; ``-`` for none: walls, floor, furniture), as in the row's ``aois_json``.

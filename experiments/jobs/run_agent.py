@@ -155,7 +155,7 @@ class _Log:
     gaze: list[tuple[float, float, float]] = field(default_factory=list)
     maps: list[np.ndarray] = field(default_factory=list)  # saliency per decision
     hits: list[bool | None] = field(default_factory=list)  # per decision
-    hit_objects: list[str] = field(default_factory=list)  # per decision: the object hit
+    hit_objects: list[str] = field(default_factory=list)  # per decision: the objects hit
     clipped: list[bool] = field(default_factory=list)  # per saccade
     steps: int = 0
     sightings: list[tuple] = field(default_factory=list)  # ground truth (run_viewer)
@@ -211,7 +211,7 @@ def run_closed_loop(
                 hit, hit_object = None, ""
                 if window_mask is not None and window_mask.any() and agent.target is not None:
                     hit = detection_hit(agent.target, window_mask > 0)
-                    hit_object = _object_in_box(agent.target, window_mask, info)
+                    hit_object = _objects_hit(agent.target, window_mask, info)
                 log.hits.append(hit)
                 log.hit_objects.append(hit_object)
                 window_mask = None
@@ -256,22 +256,13 @@ def run_closed_loop(
     return result
 
 
-def _object_in_box(target: tuple[int, int], ids: np.ndarray, info: dict, box: int = 8) -> str:
-    """The name (as in the scene file) of the moving object most of the ``box``×``box``
-    square around ``target`` sees in the mask of object ids ``ids`` (the box of
-    :func:`~wander_env.metrics.detection_hit`); "" when it sees none."""
-    h, w = ids.shape
-    px, py = (math.floor(float(c) + 0.5) for c in target)
-    half = box // 2
-    seen = ids[
-        max(py - half, 0) : min(py - half + box, h), max(px - half, 0) : min(px - half + box, w)
-    ]
-    counts = np.bincount(seen[seen > 0].ravel().astype(np.int64))
-    if not counts.any():
-        return ""
-    k = int(counts.argmax())
+def _objects_hit(target: tuple[int, int], ids: np.ndarray, info: dict) -> str:
+    """The moving objects (named as in the scene file, ``+``-joined in id order) whose
+    masks in ``ids`` (object ids, 0 = none) the detection box around ``target`` touches
+    (:func:`~wander_env.metrics.detection_hit`); "" for none."""
     names = {o["id"]: str(o["name"]) for o in info.get("objects", ())}
-    return names.get(k) or object_body_name(k)
+    hit = [int(k) for k in np.unique(ids[ids > 0]) if detection_hit(target, ids == k)]
+    return "+".join(names.get(k) or object_body_name(k) for k in hit)
 
 
 def _frame_for(agent: AttentionAgent, obs: dict, base: Any, info: dict) -> np.ndarray:
