@@ -177,7 +177,7 @@ def object_names(scene: SceneConfig) -> dict[str, str]:
     >>> names["object_1"], names["object_2"], names["mug"]
     ('cube', 'beach_ball', 'mug')
     """
-    names = {}
+    names: dict[str, str] = {}
     for i, o in enumerate(scene.static_objects):
         geom = o.name or f"static_{i}"
         names[geom] = geom
