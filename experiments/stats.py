@@ -20,7 +20,11 @@ What a reviewer asks of a figure made from repeats, in one place:
 
 Every random draw is seeded (``seed``); NaN values (a trial with nothing to score) are
 dropped before anything is computed, and a pair is dropped when either side is NaN.
-Results are plain floats (NaN where a quantity is undefined, e.g. fewer than two values).
+Results are plain floats, never infinite: NaN where a quantity is undefined — fewer than
+:data:`MIN_N` values (pairs; on each side when unpaired) for a spread, an interval or a
+test, or no spread for a standardised effect. The texts (:meth:`Comparison2.text`,
+:func:`ci_text`) say which: ``n too small`` below the minimum, ``no spread`` where the
+values do not vary.
 
 Example:
     >>> a = [0.9, 0.8, 0.85, 0.95, 0.7, 0.9, 0.8, 0.75, 0.9, 0.85]
@@ -40,8 +44,10 @@ import numpy as np
 from scipy import stats as _st
 
 __all__ = [
+    "MIN_N",
     "Comparison2",
     "bootstrap_ci",
+    "ci_text",
     "cliffs_delta",
     "cohens_d",
     "cohens_dz",
@@ -56,6 +62,7 @@ __all__ = [
 
 CONFIDENCE = 0.95
 N_RESAMPLES = 9999
+MIN_N = 2  # values (pairs) a spread, an interval or a test needs
 
 
 def finite(values: Iterable[float]) -> np.ndarray:
@@ -72,7 +79,7 @@ def mean_std(values: Iterable[float], ddof: int = 0) -> tuple[float, float]:
     """Mean and standard deviation of the finite values (NaN are skipped).
 
     ``(nan, nan)`` without finite values; the std is ``nan`` when there are no more
-    values than ``ddof``.
+    values than ``ddof``. (Equal values give a std of exactly 0, not a rounding residue.)
 
     >>> mean_std([1.0, 3.0, float("nan")])
     (2.0, 1.0)
@@ -80,7 +87,9 @@ def mean_std(values: Iterable[float], ddof: int = 0) -> tuple[float, float]:
     v = finite(values)
     if v.size == 0:
         return math.nan, math.nan
-    std = float(np.std(v, ddof=ddof)) if v.size > ddof else math.nan
+    if v.size <= ddof:
+        return float(np.mean(v)), math.nan
+    std = 0.0 if np.all(v == v[0]) else float(np.std(v, ddof=ddof))
     return float(np.mean(v)), std
 
 
@@ -108,8 +117,8 @@ def bootstrap_ci(
 ) -> tuple[float, float]:
     """Seeded BCa bootstrap interval of ``statistic`` over the finite values.
 
-    (nan, nan) with fewer than two values; (v, v) when all values are equal (the
-    bootstrap distribution is a point).
+    (nan, nan) with fewer than :data:`MIN_N` values; (v, v) when all values are equal
+    (the bootstrap distribution is a point).
 
     >>> bootstrap_ci([1.0, 1.0, 1.0])
     (1.0, 1.0)
@@ -118,7 +127,7 @@ def bootstrap_ci(
     (True, 5.0)
     """
     v = finite(values)
-    if v.size < 2:
+    if v.size < MIN_N:
         return math.nan, math.nan
     if np.all(v == v[0]):
         s = float(statistic(v))
@@ -153,6 +162,22 @@ def mean_ci(
     return (float(v.mean()) if v.size else math.nan), lo, hi, int(v.size)
 
 
+def ci_text(summary: tuple[float, float, float, int], spec: str) -> str:
+    """A :func:`mean_ci` result as text, the numbers formatted by ``spec``: ``m [lo, hi]
+    (n = k)``; ``—`` without values; below :data:`MIN_N` the mean and ``n too small``
+    for an interval.
+
+    >>> ci_text((0.5, 0.25, 0.75, 10), ".2f"), ci_text((0.5, math.nan, math.nan, 1), ".0%")
+    ('0.50 [0.25, 0.75] (n = 10)', '50% (n = 1: n too small for an interval)')
+    """
+    m, lo, hi, n = summary
+    if math.isnan(m):
+        return "—"
+    if n < MIN_N or math.isnan(lo) or math.isnan(hi):
+        return f"{m:{spec}} (n = {n}: n too small for an interval)"
+    return f"{m:{spec}} [{lo:{spec}}, {hi:{spec}}] (n = {n})"
+
+
 # ----------------------------------------------------------------------------------------
 # Effect sizes
 
@@ -160,35 +185,38 @@ def mean_ci(
 def cohens_dz(diffs: Iterable[float]) -> float:
     """Paired effect size: mean of the differences over their std (``ddof = 1``).
 
-    NaN with fewer than two differences; ±inf when all differences are equal and
-    non-zero (no spread), 0 when they are all zero.
+    NaN with fewer than :data:`MIN_N` differences, and when all differences are equal and
+    non-zero (no spread: the effect is not a finite number of standard deviations); 0
+    when they are all zero.
 
-    >>> cohens_dz([1.0, 2.0, 3.0])
-    2.0
+    >>> cohens_dz([1.0, 2.0, 3.0]), cohens_dz([0.5, 0.5])
+    (2.0, nan)
     """
     d = finite(diffs)
-    if d.size < 2:
+    if d.size < MIN_N:
         return math.nan
-    sd = float(np.std(d, ddof=1))
     m = float(np.mean(d))
-    if sd == 0:
-        return 0.0 if m == 0 else math.copysign(math.inf, m)
-    return m / sd
+    if np.all(d == d[0]):
+        return 0.0 if m == 0 else math.nan
+    return m / float(np.std(d, ddof=1))
 
 
 def cohens_d(a: Iterable[float], b: Iterable[float]) -> float:
     """Unpaired effect size: difference of means over the pooled std (``ddof = 1``).
 
-    >>> round(cohens_d([1.0, 2.0, 3.0], [2.0, 3.0, 4.0]), 3)
-    -1.0
+    NaN with fewer than :data:`MIN_N` values on a side, and when neither side varies but
+    their means differ (no spread); 0 when all values are equal.
+
+    >>> round(cohens_d([1.0, 2.0, 3.0], [2.0, 3.0, 4.0]), 3), cohens_d([1.0, 1.0], [2.0, 2.0])
+    (-1.0, nan)
     """
     x, y = finite(a), finite(b)
-    if x.size < 2 or y.size < 2:
+    if x.size < MIN_N or y.size < MIN_N:
         return math.nan
-    pooled = ((x.size - 1) * x.var(ddof=1) + (y.size - 1) * y.var(ddof=1)) / (x.size + y.size - 2)
     m = float(x.mean() - y.mean())
-    if pooled == 0:
-        return 0.0 if m == 0 else math.copysign(math.inf, m)
+    if np.all(x == x[0]) and np.all(y == y[0]):
+        return 0.0 if m == 0 else math.nan
+    pooled = ((x.size - 1) * x.var(ddof=1) + (y.size - 1) * y.var(ddof=1)) / (x.size + y.size - 2)
     return m / math.sqrt(pooled)
 
 
@@ -249,34 +277,25 @@ class Comparison2:
         return {f"{prefix}{k}": v for k, v in asdict(self).items()}
 
     def text(self, fmt: str = ".3f") -> str:
-        """One line: difference [interval], p, d, r."""
+        """One line: difference [interval], p, d, r; below :data:`MIN_N` pairs (values on
+        a side, unpaired) the difference and ``n too small``; a standardised effect
+        without spread ``— (no spread)``, a rank effect without a non-zero difference
+        ``—``."""
         if self.n == 0 or math.isnan(self.mean_diff):
             return "no data"
-        d_name = "d_z" if self.test == "paired" else "d"
-        r_name = "r_rb" if self.test == "paired" else "Cliff's δ"
-        interval = (
-            f" [{self.diff_low:{fmt}}, {self.diff_high:{fmt}}]"
-            if math.isfinite(self.diff_low) and math.isfinite(self.diff_high)
-            else ""
-        )
+        paired = self.test == "paired"
+        delta = f"Δ = {self.mean_diff:{fmt}}"
+        if math.isnan(self.p_value):  # only below the minimum: every test has a p
+            need = f"{MIN_N} pairs" if paired else f"{MIN_N} values on each side"
+            return f"{delta} (n = {self.n}: n too small for a test, which needs {need})"
+        d_name = "d_z" if paired else "d"
+        r_name = "r_rb" if paired else "Cliff's δ"
+        d = "— (no spread)" if math.isnan(self.effect_d) else f"{self.effect_d:.2f}"
+        r = "—" if math.isnan(self.rank_biserial) else f"{self.rank_biserial:.2f}"
         return (
-            f"Δ = {self.mean_diff:{fmt}}{interval}, "
-            f"p = {_p(self.p_value)}, {d_name} = {_num(self.effect_d, '.2f')}, "
-            f"{r_name} = {_num(self.rank_biserial, '.2f')} (n = {self.n})"
+            f"{delta} [{self.diff_low:{fmt}}, {self.diff_high:{fmt}}], "
+            f"p = {self.p_value:.3g}, {d_name} = {d}, {r_name} = {r} (n = {self.n})"
         )
-
-
-def _p(p: float) -> str:
-    return "—" if math.isnan(p) else f"{p:.3g}"
-
-
-def _num(v: float, fmt: str) -> str:
-    """``v`` formatted, "—" where it is undefined (NaN); ±inf as "±∞" (no spread)."""
-    if math.isnan(v):
-        return "—"
-    if math.isinf(v):
-        return "+∞" if v > 0 else "−∞"
-    return format(v, fmt)
 
 
 def _mean_diff(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
@@ -298,7 +317,7 @@ def paired_comparison(
     n = int(d.size)
     mean_a = float(x.mean()) if n else math.nan
     mean_b = float(y.mean()) if n else math.nan
-    if n < 2:
+    if n < MIN_N:
         diff = float(d.mean()) if n else math.nan
         return Comparison2("paired", n, mean_a, mean_b, diff, *(math.nan,) * 5)
     if np.all(d == 0):
@@ -347,7 +366,7 @@ def independent_comparison(
     n = int(x.size + y.size)
     mean_a = float(x.mean()) if x.size else math.nan
     mean_b = float(y.mean()) if y.size else math.nan
-    if x.size < 2 or y.size < 2:
+    if x.size < MIN_N or y.size < MIN_N:
         diff = mean_a - mean_b
         return Comparison2("independent", n, mean_a, mean_b, diff, *(math.nan,) * 5)
     both = np.concatenate([x, y])

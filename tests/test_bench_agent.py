@@ -11,7 +11,9 @@ from typer.testing import CliRunner
 
 from experiments.bench.agent import bench_agent, latency_row
 from experiments.cli.main import app
+from experiments.framework import read_csv
 from experiments.jobs.evaluate_agent import QualityRow, detection_interval, pooled
+from wander_env.runinfo import to_strict_json
 
 
 def test_latency_row_percentiles() -> None:
@@ -36,10 +38,11 @@ def test_bench_agent_times_every_stage_call() -> None:
 
 
 def test_pooled_quality() -> None:
-    a = QualityRow(0, 10, 8, 6, 0.75, 0.9, 1.0, 2.0, 4)
-    b = QualityRow(1, 5, 2, 2, 1.0, 0.8, 3.0, 4.0, 1)
+    a = QualityRow(0, 10, 8, 6, 0.75, 0.9, 1.0, 2.0, 4, 2.0, 8.0)
+    b = QualityRow(1, 5, 2, 2, 1.0, 0.8, 3.0, 4.0, 1, 2.0, 2.0)
     p = pooled([a, b], kept=[10, 30], seen=[100, 100])
-    assert (p.decisions, p.scored, p.hits, p.saccades) == (15, 10, 8, 5)
+    assert (p.seed, p.decisions, p.scored, p.hits, p.saccades) == ("all", 15, 10, 8, 5)
+    assert (a.real_time_factor, p.simulated_s, p.wall_s, p.real_time_factor) == (0.25, 4, 10, 0.4)
     assert p.detection_accuracy == pytest.approx(0.8) and p.soms_suppression == pytest.approx(0.8)
     assert p.foveation_error_x_px == pytest.approx((4 * 1.0 + 3.0) / 5)
     # 95 % Wilson interval of 8 / 10: (0.490, 0.943); none without scored decisions.
@@ -54,8 +57,15 @@ def test_evaluate_cli_two_seeds(tmp_path: Path) -> None:
     )  # fmt: skip
     assert res.exit_code == 0, res.output
     q = json.loads((tmp_path / "quality.json").read_text())
-    assert [r["seed"] for r in q["rows"]] == [0, 1] and q["pooled"]["seed"] == -1
+    assert [r["seed"] for r in q["rows"]] == [0, 1] and q["pooled"]["seed"] == "all"
     assert q["pooled"]["decisions"] == sum(r["decisions"] for r in q["rows"])
+    assert q["pooled"]["simulated_s"] == pytest.approx(0.6)
+    # quality.csv: the same rows, one line each, the pooled one last
+    table = read_csv(tmp_path / "quality.csv")
+    assert [r["seed"] for r in table] == [0, 1, "all"]
+    assert to_strict_json(table[:2]) == q["rows"]  # NaN there, null here
+    assert table[2]["real_time_factor"] == q["pooled"]["real_time_factor"] > 0
+    assert "real-time factor" in res.output and "quality.csv" in res.output
     assert (tmp_path / "seed-0" / "metrics.json").exists()
     bad = CliRunner().invoke(app, ["evaluate", "--seeds", "a,b"])
     assert bad.exit_code == 2

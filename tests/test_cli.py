@@ -68,6 +68,19 @@ def test_bench_dvs_prints_every_row():
     assert result.output.count("128x128") == 7
     assert result.output.count("346x260") == 7
     assert result.output.count("uint8 sRGB") == 2
+    # headers keep their units' capitals
+    assert "Mev/s" in result.output and "peak MiB" in result.output
+    assert "mev per s" not in result.output and "peak mib" not in result.output
+
+
+def test_markdown_tables_are_printed_as_tables():
+    from experiments.cli.console import console, print_markdown
+
+    with console.capture() as captured:
+        print_markdown("# title\n\n| result | ours |\n|---|---|\n| hit rate | 94% |\n")
+    text = captured.get()
+    assert "title" in text and "hit rate" in text and "94%" in text
+    assert "|" not in text and "───" in text  # drawn by rich, not the raw pipes
 
 
 @pytest.mark.slow
@@ -77,3 +90,56 @@ def test_bench_dvs_peers_prints_a_row_per_peer_and_sensor():
     assert result.exit_code == 0, result.output
     assert result.output.count("ESIM") == 2
     assert result.output.count("EventEmulator") == 2
+
+
+def test_version_prints_the_version_and_the_git_revision():
+    from importlib.metadata import version
+
+    from wander_env.runinfo import git_revision
+
+    result = runner.invoke(app, ["--version"])
+    assert result.exit_code == 0, result.output
+    assert result.output == f"wander {version('wander')} (git {git_revision()})\n"
+
+
+def test_run_reads_a_config_file_and_flags_override_it(tmp_path):
+    config = tmp_path / "run.yaml"
+    config.write_text(
+        "scene: shelf\nseconds: 0.3\nseed: 3\nwindow_s: 0.05\nvideo: false\nsoms_norm: minmax\n"
+    )
+    out = tmp_path / "run"
+    args = ["run", "--config", str(config), "--seed", "5", "--out", str(out)]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    got = json.loads((out / "run.json").read_text())["config"]
+    assert {k: got[k] for k in ("scene", "seconds", "seed", "window_s", "video", "soms_norm")} == {
+        "scene": "shelf",
+        "seconds": 0.3,
+        "seed": 5,  # the flag given on the command line wins
+        "window_s": 0.05,
+        "video": False,
+        "soms_norm": "minmax",
+    }
+    assert got["dvs"] == "ideal" and got["alpha"] == 0.8  # neither file nor flag: defaults
+    assert not (out / "run.mp4").exists() and "real-time factor" in result.output
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("scen: shelf\n", "unknown key 'scen' for RunConfig; allowed keys: scene (str), "),
+        ("seconds: abc\n", "bad value for key 'seconds': expected float, got 'abc'"),
+        ("scene: offce\n", "bad value for key 'scene': unknown scene 'offce'; allowed: "),
+        ("frames: abc\n", "bad value for key 'frames': 'abc' is not allowed; allowed: keyframes,"),
+        ("seconds: -1\n", "RunConfig.seconds must be a finite number > 0, got -1.0"),
+    ],
+)
+def test_run_refuses_a_bad_config_file_in_one_line(tmp_path, text, message):
+    config = tmp_path / "run.yaml"
+    config.write_text(text)
+    result = runner.invoke(app, ["run", "--config", str(config), "--out", str(tmp_path / "r")])
+    assert result.exit_code == 2
+    assert f" run: error: {config}: {message}" in result.output  # the test runner names it root
+    assert result.output.count("\n") == 1 and not (tmp_path / "r").exists()
+    missing = runner.invoke(app, ["run", "--config", str(tmp_path / "no.yaml")])
+    assert missing.exit_code == 2 and "'--config': file" in missing.output

@@ -185,6 +185,15 @@ def test_emulated_ptu_and_replay_end_to_end(app, square, tmp_path, monkeypatch):
         "t_offset_us": T_OFFSET,
     }  # fmt: skip
     assert run["agent"]["width_px"] == 128 and run["agent"]["step_s"] == 0.01
+    # The field of view assumed (the Speck's by default) and the replay's fixed view,
+    # which the scanpath figure draws in the sensor's frame.
+    assert run["rig"]["hfov_deg"] == run["agent"]["hfov_deg"] == SPECK_HFOV_DEG
+    assert run["rig"]["hfov_from"] == "the Speck's lens, the default"
+    assert run["fixed_view"] == (
+        "replayed recording 'square.npz': its view is fixed (the recorded camera did not\n"
+        "turn with the PTU), so saliency and P are drawn in the sensor's frame;\n"
+        "field of view 112.8° (the Speck's lens, the default)"
+    )
     # The agent decided on the square and drove the PTU.
     rig = metrics["rig"]
     assert rig["dropped_events"] == 0 and rig["ptu_error"] is None
@@ -196,6 +205,19 @@ def test_emulated_ptu_and_replay_end_to_end(app, square, tmp_path, monkeypatch):
     assert len(moves(emulator)) >= 1 and emulator.positions != (0, 0)
     assert result.output.count("\n") >= 1
     assert summary_line(metrics, out) in result.output.replace("\n", "")
+
+
+def test_hfov_option_reaches_the_env_the_agent_and_run_json(app, square, tmp_path):
+    camera, _ = square
+    out = tmp_path / "run"
+    result = invoke(app, "--ptu", "emulate", "--camera", camera, "--seconds", "0.2",
+                    "--hfov", "64", "--no-video", "--out", str(out))  # fmt: skip
+    assert result.exit_code == 0, result.output
+    _, run, _ = read_folder(out)
+    assert run["config"]["hfov_deg"] == run["rig"]["hfov_deg"] == run["agent"]["hfov_deg"] == 64
+    assert run["rig"]["hfov_from"] == "--hfov" and run["fixed_view"].endswith("64.0° (--hfov)")
+    bad = invoke(app, "--ptu", "emulate", "--camera", camera, "--hfov", "200")
+    assert bad.exit_code == 2 and "'--hfov'" in bad.output and "must be < 180" in bad.output
 
 
 def test_a_saccade_moves_the_ptu_to_the_chosen_point(app, square, emu, tmp_path):

@@ -53,7 +53,8 @@ def test_run_folder_contents(run_dir: Path) -> None:
     with open(run_dir / "fixations.csv") as fh:
         rows = list(csv.DictReader(fh))
     assert len(rows) == m["decisions"]
-    assert float(rows[0]["duration_s"]) == pytest.approx(0.13)
+    # the first window starts at the reset (t = 0) and lasts 12 steps of the run
+    assert (rows[0]["t_start_s"], rows[0]["duration_s"]) == ("0.0", "0.12")
 
 
 def test_alpha_is_checked_and_reaches_the_agent() -> None:

@@ -130,6 +130,37 @@ def test_ssim_matches_a_direct_implementation():
     assert 0.0 < ssim(a, b) < 1.0
 
 
+def _maps() -> list[tuple[str, np.ndarray, np.ndarray, float]]:
+    """Pairs of maps as the detection scoring compares them: noise, a salient blob and
+    the same blob moved, a binary mask and a blurred saliency of it, a wider value range."""
+    rng = np.random.default_rng(3)
+    yy, xx = np.mgrid[0:64, 0:80]
+
+    def blob(cx: float, cy: float, s: float) -> np.ndarray:
+        return np.exp(-((xx - cx) ** 2 + (yy - cy) ** 2) / (2 * s**2))
+
+    mask = ((xx - 40) ** 2 + (yy - 30) ** 2 < 12**2).astype(float)
+    noisy = np.clip(mask + rng.normal(0, 0.2, mask.shape), 0, 1)
+    a = rng.random((24, 30))
+    return [
+        ("noise", a, np.clip(a + rng.normal(0, 0.1, a.shape), 0, 1), 1.0),
+        ("moved blob", blob(30, 30, 6), blob(36, 28, 6), 1.0),
+        ("mask vs saliency", mask, noisy, 1.0),
+        ("range 2", 2 * rng.random((16, 16)), 2 * rng.random((16, 16)), 2.0),
+    ]
+
+
+@pytest.mark.parametrize(("name", "a", "b", "data_range"), _maps(), ids=lambda v: str(v)[:16])
+def test_ssim_matches_scikit_image(name, a, b, data_range):
+    from skimage.metrics import structural_similarity
+
+    kwargs = {"gaussian_weights": True, "sigma": 1.5, "use_sample_covariance": False}
+    mean, full = structural_similarity(a, b, data_range=data_range, full=True, **kwargs)
+    # scikit-image averages its map over the positions whose window lies inside the map
+    np.testing.assert_allclose(ssim_map(a, b, data_range), full[5:-5, 5:-5], rtol=1e-9, atol=1e-12)
+    assert ssim(a, b, data_range) == pytest.approx(mean, rel=1e-9, abs=1e-12)
+
+
 def test_ssim_properties():
     rng = np.random.default_rng(3)
     a, b = rng.random((20, 20)), rng.random((20, 20))

@@ -5,17 +5,23 @@ from __future__ import annotations
 
 import csv
 import json
+import math
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 import pytest
+from typer.testing import CliRunner
 
 import wander_env  # noqa: F401
+from experiments import scanpath_stats
+from experiments.cli.main import app
 from experiments.framework import make_trials, resolve_config, run_experiment, run_spec
 from experiments.paper import sac_accuracy, saccade_speed, scanpath
 from wander_env.camera import cast_pixel
 from wander_env.ptu import PTUParams
 from wander_env.renderer import project_points
+from wander_env.scene_config import load_scene_config
 
 # ----------------------------------------------------------------------------------------
 # sac_accuracy
@@ -111,11 +117,6 @@ def test_merge_windows_joins_the_windows_between_saccades():
         scanpath.merge_windows(w[:3], [True, True])
 
 
-def test_export_table_uses_screen_axes_in_degrees(tmp_path):
-    path = scanpath.write_export(np.array([[10.0, 5.0, 0.25, 0.5]]), tmp_path / "f.csv")
-    assert path.read_text() == "x,y,start,duration\n-10.0,-5.0,0.25,0.5\n"
-
-
 def test_scanpath_trial_exports_one_row_per_fixation(tmp_path):
     sets = ["scenes=[shelf]", "conditions=[fixational]", "duration_s=1.2", "repeats=1"]
     cfg = resolve_config(scanpath.EXPERIMENT, sets=sets)
@@ -124,7 +125,10 @@ def test_scanpath_trial_exports_one_row_per_fixation(tmp_path):
     # with the agent's peak-clipped sOMS (two with the former divisor, whose first
     # saccade was a 31° one)
     assert (row["decisions"], row["fixations"], row["saccades"]) == (3, 3, 2)
-    assert row["fixation_duration_mean_s"] == pytest.approx(0.13)
+    # the first window starts at the reset (t = 0, not one step before), then 130 ms each;
+    # times to the microsecond
+    assert row["fixation_duration_mean_s"] == 0.126667
+    assert json.loads(row["scanpath_json"])[0][2:] == [0.0, 0.12]
     # the agent's sOMS suppresses much of the still shelf under fixational motion
     # (eye-only), so two of the three decisions land on an object (the same one)
     assert row["object_hit_rate"] == pytest.approx(2 / 3) and row["objects_visited"] == 1
@@ -133,8 +137,12 @@ def test_scanpath_trial_exports_one_row_per_fixation(tmp_path):
     assert len(json.loads(row["aois_json"])) == 3
     with (tmp_path / "fixations" / "shelf_fixational_seed0.csv").open() as fh:
         table = list(csv.DictReader(fh))
-    assert list(table[0]) == list(scanpath.EXPORT_COLUMNS)
+    assert list(table[0]) == [*scanpath_stats.FIXATION_COLUMNS, "aoi"]
     assert len(table) == row["fixations"]
+    assert [[float(f[k]) for k in scanpath_stats.FIXATION_COLUMNS] for f in table] == json.loads(
+        row["scanpath_json"]
+    )
+    assert [f["aoi"] for f in table] == json.loads(row["aois_json"])
     assert {p.name for p in files} >= {"scanpath.png", "scanpath_stats.png", "results.csv"}
 
 
@@ -236,3 +244,79 @@ def test_main_sequence_durations_grow_with_amplitude():
     assert vel == pytest.approx(theory_v, abs=1.0)
     assert np.all(dur >= theory_t - 0.01) and np.all(dur <= theory_t + 0.1)
     assert row["events_per_s"] > 0 and row["factor"] == "baseline"
+    # three amplitudes fit the two-parameter curves but leave one residual degree of
+    # freedom: no intervals, and the summary says why
+    assert row["ms_amplitudes"] == 3 and math.isfinite(row["ms_v_vmax"])
+    assert math.isnan(row["ms_v_vmax_low"]) and math.isnan(row["ms_d_k_high"])
+    text = saccade_speed._ms_text(row)
+    assert text.endswith("; n too small for an interval (3 amplitudes; an interval needs ≥ 4)")
+    assert "∞" not in text and "nan" not in text
+
+
+def test_main_sequence_summary_says_when_there_are_too_few_amplitudes():
+    two = {"ms_amplitudes": 2, "ms_v_vmax": math.nan, "ms_d_k": math.nan}
+    assert saccade_speed._ms_text(two) == "n too small for a fit (2 amplitudes; a fit needs ≥ 3)"
+    assert saccade_speed._ms_text({"ms_v_vmax": math.nan}) == ""  # no main sequence run
+
+
+# ----------------------------------------------------------------------------------------
+# One naming and one sign convention: wander run and the scanpath experiment
+
+
+def _csv(path: Path) -> list[dict[str, str]]:
+    with path.open() as fh:
+        return list(csv.DictReader(fh))
+
+
+@pytest.fixture(scope="module")
+def folders(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """One short ``wander run`` and one short scanpath experiment, office, seed 4."""
+    root = tmp_path_factory.mktemp("naming")
+    run, exp = root / "run", root / "exp"
+    args = ["run", "--out", str(run), "--seconds", "1.5", "--seed", "4", "--no-video"]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    sets = ["scenes=[office]", "conditions=[fixational]", "repeats=1", "duration_s=1.5"]
+    args = ["experiment", "scanpath", "--out", str(exp), "--seed", "4"]
+    result = CliRunner().invoke(app, args + [x for s in sets for x in ("--set", s)])
+    assert result.exit_code == 0, result.output
+    return run, exp
+
+
+def test_run_and_experiment_share_names_signs_and_units(folders: tuple[Path, Path]) -> None:
+    run, exp = folders
+    scene = load_scene_config("office")
+    names = {o.name for o in (*scene.static_objects, *scene.moving_objects)}
+    moving = {o.name for o in scene.moving_objects}
+    assert moving == {"cube", "beach_ball"}
+
+    run_rows = _csv(run / "fixations.csv")
+    exp_rows = _csv(exp / "fixations" / "office_fixational_seed4.csv")
+    (result,) = _csv(exp / "results.csv")
+    assert list(run_rows[0])[:4] == list(exp_rows[0])[:4] == list(scanpath_stats.FIXATION_COLUMNS)
+    assert list(exp_rows[0]) == [*scanpath_stats.FIXATION_COLUMNS, "aoi"]
+
+    # Object names: the scene file's, in every file (never the model's object_k).
+    run_objects = [r["target_object"] for r in run_rows]
+    exp_aois = [r["aoi"] for r in exp_rows]
+    assert exp_aois == json.loads(result["aois_json"]) == ["-", "cube"]
+    assert run_objects == ["cube", "beach_ball"]
+    assert set(run_objects) | set(exp_aois) <= names | {"-"}
+
+    # One sign convention and the same units: the same agent and seed give the same
+    # fixations in both files and in results.csv (each window here ended in a saccade).
+    table = [[float(r[k]) for k in scanpath_stats.FIXATION_COLUMNS] for r in exp_rows]
+    assert table == [[float(r[k]) for k in scanpath_stats.FIXATION_COLUMNS] for r in run_rows]
+    assert table == json.loads(result["scanpath_json"])
+    assert table == [[0.0, 0.0, 0.0, 0.12], [23.322849, 1.105714, 0.71, 0.13]]
+    # + pan = left, + tilt = up: a P left of / above the fovea lies at a larger pan / tilt.
+    for r in run_rows:
+        x, y = float(r["target_x_px"]), float(r["target_y_px"])
+        dpan = float(r["target_pan_deg"]) - float(r["pan_deg"])
+        dtilt = float(r["target_tilt_deg"]) - float(r["tilt_deg"])
+        assert (x < 63.5) == (dpan > 0) and (y < 63.5) == (dtilt > 0)
+    # Times to the microsecond in results.csv too (no 9e-17 spread of equal durations).
+    assert (result["fixation_duration_mean_s"], result["fixation_duration_std_s"]) == (
+        "0.125",
+        "0.005",
+    )

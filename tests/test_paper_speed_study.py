@@ -198,6 +198,7 @@ def test_saturating_fit_of_a_constant_peak_leaves_c_undefined() -> None:
     assert math.isnan(fit.params["c"]) and all(math.isnan(x) for x in fit.intervals["c"])
     assert fit.n == 9 and fit.rmse == 0.0 and math.isnan(fit.r2)
     row = fit.as_dict("ms_v_") | fit_linear(amps, 0.1 + 0.0374 * amps).as_dict("ms_d_")
+    row["ms_amplitudes"] = fit.n
     text = saccade_speed._ms_text(row)
     assert text.startswith("V = Vmax(1 − e^(−A/C)): Vmax 25.7 [25.7, 25.7] °/s, ")
     assert "C — (not identifiable) (R² —)" in text and "k 0.0374 [0.0374, 0.0374] s/°" in text

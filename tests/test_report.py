@@ -51,6 +51,7 @@ def test_studies_section_shows_the_flir_main_sequence_and_the_links_cost(tmp_pat
     amps = np.array(cfg.main_sequence_amplitudes_deg)
     v, d = saccade_speed.theory_main_sequence(amps, PTUParams())
     fits = fit_saturating(amps, v).as_dict("ms_v_") | fit_linear(amps, d).as_dict("ms_d_")
+    fits["ms_amplitudes"] = len(amps)
     rows = []
     for factor, ptu, ttf in (("baseline", "flir", 0.75), ("ptu_link", "ideal", 0.5)):
         for seed in range(10):
@@ -70,5 +71,5 @@ def test_studies_section_shows_the_flir_main_sequence_and_the_links_cost(tmp_pat
     assert len(ms) == 2 and "flir PTU" in ms[0] and "— (future work)" in ms[0]
     assert "D = D0 + k·A: D0 " in ms[0] and "k 0.0255 [" in ms[0]
     link = next(line for line in lines if line.startswith("| time to foveate (s): FLIR link"))
-    # FLIR − ideal: exactly 0.25 s on every seed: p = 2/1024, no spread (d_z infinite)
-    assert "Δ = 0.25 [0.25, 0.25], p = 0.00195, d_z = +∞, r_rb = 1.00 (n = 10) |" in link
+    # FLIR − ideal: exactly 0.25 s on every seed: p = 2/1024, no spread (d_z undefined)
+    assert "Δ = 0.25 [0.25, 0.25], p = 0.00195, d_z = — (no spread), r_rb = 1.00 (n = 10) |" in link

@@ -172,3 +172,30 @@ def test_statistics_figure_draws_the_intervals_and_the_test(tmp_path, monkeypatc
     assert texts == ["fix − sac: Δ = +0.64\np = 0.002, d_z = 21.30"]
     assert "10 seeded repeats" in fig._suptitle.get_text()
     real_close(fig)
+
+
+# ----------------------------------------------------------------------------------------
+# The fixation table
+
+
+def test_times_start_at_zero_and_are_rounded_to_the_microsecond() -> None:
+    assert scanpath_stats.fixation_times(-0.01, 0.13) == (0.0, 0.12)  # the end is kept
+    assert scanpath_stats.fixation_times(0.7100000000000001, 0.9099999999999999) == (0.71, 0.91)
+    got = scanpath_stats.normalise_fixations(
+        np.array([[1.23456789, -0.5, -0.01, 0.13], [-2.0, 3.0, 0.5, 0.2]])
+    )
+    assert got.tolist() == [[1.234568, -0.5, 0.0, 0.12], [-2.0, 3.0, 0.5, 0.2]]
+
+
+def test_write_fixations_writes_the_four_columns_then_the_extra_ones(tmp_path: Path) -> None:
+    fx = np.array([[10.0, 5.0, -0.01, 0.26], [-3.0, 0.0, 0.25, 0.5]])
+    path = scanpath_stats.write_fixations(
+        tmp_path / "f.csv", fx, {"aoi": ["mug", "-"], "hit": [1, None]}
+    )
+    assert path.read_text() == (
+        "pan_deg,tilt_deg,t_start_s,duration_s,aoi,hit\n"
+        "10.0,5.0,0.0,0.25,mug,1\n"
+        "-3.0,0.0,0.25,0.5,-,\n"
+    )
+    with pytest.raises(ValueError, match="column 'aoi' has 1 values for 2 rows"):
+        scanpath_stats.write_fixations(tmp_path / "g.csv", fx, {"aoi": ["mug"]})

@@ -10,6 +10,7 @@ from scipy import stats as st
 
 from experiments.stats import (
     bootstrap_ci,
+    ci_text,
     cliffs_delta,
     cohens_d,
     cohens_dz,
@@ -43,7 +44,10 @@ def test_bootstrap_degenerate_cases() -> None:
 
 def test_effect_sizes_by_hand() -> None:
     assert cohens_dz([1.0, 2.0, 3.0]) == pytest.approx(2.0)
-    assert cohens_dz([0.5, 0.5]) == math.inf and cohens_dz([0.0, 0.0]) == 0.0
+    # no spread: undefined (NaN), never infinite; no effect at all: 0
+    assert math.isnan(cohens_dz([0.5, 0.5])) and cohens_dz([0.0, 0.0]) == 0.0
+    assert math.isnan(cohens_d([1.0, 1.0], [2.0, 2.0])) and cohens_d([1.0, 1.0], [1.0, 1.0]) == 0
+    assert math.isnan(cohens_dz([0.5])) and math.isnan(cohens_d([1.0], [2.0, 3.0]))
     # pooled sd of [1,2,3] and [3,4,5] is 1: d = -2
     assert cohens_d([1, 2, 3], [3, 4, 5]) == pytest.approx(-2.0)
     # 9 pairs: 8 a > b, 0 a < b, one tie (3 vs 3)
@@ -76,12 +80,26 @@ def test_paired_permutation_test_is_exact_for_ten_pairs() -> None:
 
 def test_comparison_text_says_undefined_quantities_without_nan() -> None:
     one = paired_comparison([1.0], [0.5])
-    assert one.text(".3g") == "Δ = 0.5, p = —, d_z = —, r_rb = — (n = 1)"
+    assert one.text(".3g") == "Δ = 0.5 (n = 1: n too small for a test, which needs 2 pairs)"
     same = paired_comparison([1.0, 2.0], [1.0, 2.0])
     assert same.text(".2f") == "Δ = 0.00 [0.00, 0.00], p = 1, d_z = 0.00, r_rb = — (n = 2)"
     shift = paired_comparison([2.0, 3.0, 4.0], [1.0, 2.0, 3.0])
-    assert "d_z = +∞, r_rb = 1.00 (n = 3)" in shift.text()
-    assert "nan" not in one.text() + same.text() + shift.text()
+    assert (
+        shift.text()
+        == "Δ = 1.000 [1.000, 1.000], p = 0.25, d_z = — (no spread), r_rb = 1.00 (n = 3)"
+    )
+    lone = independent_comparison([1.0], [2.0, 3.0])
+    text = lone.text(".1f")
+    assert text == "Δ = -1.5 (n = 3: n too small for a test, which needs 2 values on each side)"
+    texts = " ".join(x.text() for x in (one, same, shift, lone))
+    assert "nan" not in texts and "inf" not in texts and "∞" not in texts
+
+
+def test_ci_text_says_when_n_is_too_small() -> None:
+    assert ci_text(mean_ci([1.0, 2.0, 3.0, 4.0]), ".2f").endswith("(n = 4)")
+    assert ci_text(mean_ci([0.25]), ".0%") == "25% (n = 1: n too small for an interval)"
+    assert ci_text(mean_ci([float("nan")]), ".1f") == "—"
+    assert mean_std([0.13, 0.13, 0.13]) == (0.13, 0.0)  # no 9e-17 spread of equal values
 
 
 def test_independent_permutation_test_matches_a_t_test_on_separated_samples() -> None:

@@ -9,7 +9,7 @@ from typing import Annotated, Any
 
 import typer
 
-from experiments.cli.console import print_table, progress_bars
+from experiments.cli.console import console, print_table, progress_bars
 from experiments.cli.errors import long_command
 from experiments.cli.options import (
     AGENT_OPTIONS,
@@ -59,10 +59,10 @@ def evaluate(
 
         rows = run_eval(out, config, seed_list, progress=tick)
     print_table(
-        f"Agent quality in '{scene}' ({seconds:g} s per seed; seed -1 = all seeds pooled)",
+        f"Agent quality in '{scene}' ({seconds:g} s per seed; all = the seeds pooled)",
         rows,
         {
-            "seed": "d",
+            "seed": "",
             "decisions": "d",
             "scored": "d",
             "hits": "d",
@@ -73,5 +73,11 @@ def evaluate(
             "foveation_error_x_px": ".2f",
             "foveation_error_y_px": ".2f",
             "saccades": "d",
+            "real_time_factor": ".2f",
         },
+    )
+    total = rows[-1]
+    console.print(
+        f"{total.simulated_s:g} simulated s in {total.wall_s:.1f} wall s: real-time factor "
+        f"{total.real_time_factor:.2f} -> {out}/quality.csv, {out}/quality.json"
     )

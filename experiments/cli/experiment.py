@@ -13,7 +13,7 @@ from typing import Annotated
 
 import typer
 
-from experiments.cli.console import console, progress_bars
+from experiments.cli.console import console, print_markdown, progress_bars
 from experiments.cli.errors import fail, long_command
 from experiments.cli.options import SeedOpt, check_wait, check_workers, one_of
 from experiments.framework import EXPERIMENT_NAMES, ConfigError
@@ -98,7 +98,7 @@ def experiment(
             for stream in streams:
                 stream.close()  # the workers end now, not when their trials do
     console.print(f"{len(rows)} trials -> {folder}/results.csv ({len(files)} files)")
-    console.print((folder / "summary.md").read_text(), markup=False, highlight=False)
+    print_markdown((folder / "summary.md").read_text())
     timing = json.loads((folder / "run.json").read_text())["timing"]
     _print_rtf(timing.get("real_time_factor"))
 

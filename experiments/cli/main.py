@@ -1,15 +1,18 @@
 """The ``wander`` command line: the app and every command group. ``wander --help`` lists
-the commands; each group lives in its own module of :mod:`experiments.cli`.
+the commands; each group lives in its own module of :mod:`experiments.cli`;
+``wander --version`` prints the version and the git revision.
 """
 
 from __future__ import annotations
+
+from typing import Annotated
 
 import typer
 
 from experiments.cli import bench, benchmark, evaluate, experiment, rig, run
 from experiments.cli.errors import OneLineErrors
 
-__all__ = ["app", "main"]
+__all__ = ["app", "main", "version_text"]
 
 app = typer.Typer(
     help="wander: a simulated active-vision laboratory for event cameras.",
@@ -18,6 +21,37 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     cls=OneLineErrors,
 )
+
+
+def version_text() -> str:
+    """``wander <version> (git <revision>)``: the installed distribution's version and the
+    checkout's commit (``-dirty`` with uncommitted changes; ``unknown`` outside git)."""
+    from wander_env.runinfo import git_revision, package_versions
+
+    return f"wander {package_versions(('wander',))['wander']} (git {git_revision()})"
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        typer.echo(version_text())
+        raise typer.Exit()
+
+
+@app.callback()
+def _options(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version",
+            callback=_print_version,
+            is_eager=True,
+            help="Print the version and the git revision, and exit.",
+        ),
+    ] = False,
+) -> None:
+    """The options before a command (``wander --version``)."""
+
+
 app.add_typer(bench.app, name="bench")
 app.add_typer(benchmark.app, name="benchmark")
 app.command()(run.demo)

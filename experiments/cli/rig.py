@@ -31,6 +31,7 @@ from experiments.cli.options import (
     resolve_out,
     seconds_option,
 )
+from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.shutdown import SignalExit, exit_code, record_failure
 
 
@@ -97,6 +98,15 @@ def rig(
         ),
     ] = "fast",
     seconds: Annotated[float, seconds_option("Run length in seconds of camera time.")] = 10.0,
+    hfov_deg: Annotated[
+        float,
+        typer.Option(
+            "--hfov",
+            help="The lens's horizontal field of view in degrees (default: the Speck's, "
+            "2·atan(5.12/3.4) = 112.8°). A recording from another camera (e.g. a DVS128) "
+            "needs its own lens's; run.json records the value used.",
+        ),
+    ] = SPECK_HFOV_DEG,
     seed: Annotated[int, typer.Option(help="Seed of the agent (walk, controller).")] = 0,
     out: RunDirOpt = None,
     window: WindowOpt = 0.124,
@@ -113,7 +123,8 @@ def rig(
         config = job_config(RigRunConfig, locals())
     except ValueError as err:
         field = re.match(r"Rig(?:Run)?Config\.(\w+)", str(err))
-        hint = f"'--{field.group(1)}'" if field else None
+        flags = {"hfov_deg": "hfov", "window_s": "window"}  # fields named otherwise
+        hint = f"'--{flags.get(field.group(1), field.group(1))}'" if field else None
         raise typer.BadParameter(str(err), param_hint=hint) from None
     replay_file = Path(camera[len("replay:") :]) if camera.startswith("replay:") else None
     if replay_file is not None and not replay_file.is_file():

@@ -9,18 +9,25 @@ Runs :func:`experiments.jobs.run_agent.run` once per seed (each a full run folde
   its 95 % Wilson interval (:func:`detection_interval`);
 - sOMS event suppression (the paper: ≈ 85 %);
 - foveation error after a saccade, x and y, pixels at the fovea (reached minus intended
-  gaze; the paper's real PTU: 4.64 ± 1.49 px and 11.76 ± 2.58 px).
+  gaze; the paper's real PTU: 4.64 ± 1.49 px and 11.76 ± 2.58 px);
+- the real-time factor: simulated seconds over wall seconds of the runs.
+
+One row per seed and the pooled row, whose ``seed`` is ``all``, go to ``quality.csv`` (one
+line a row, the columns of :class:`QualityRow`; floats exact, an undefined figure empty)
+and ``quality.json`` (with the run record: config, seeds, git revision, versions).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 
+from experiments.framework import write_csv
 from experiments.jobs.run_agent import RunConfig, run
 from experiments.stats import wilson_interval
 from wander_env.runinfo import run_record, write_json
@@ -40,10 +47,11 @@ def detection_interval(hits: int, scored: int, confidence: float = 0.95) -> tupl
 
 @dataclass(frozen=True)
 class QualityRow:
-    """One seed's figures (or the pooled ones, ``seed = -1``); the 95 % interval of the
-    detection accuracy is derived from ``hits`` and ``scored``."""
+    """One seed's figures (or the pooled ones, ``seed = "all"``); the 95 % interval of the
+    detection accuracy is derived from ``hits`` and ``scored``, the real-time factor from
+    ``simulated_s`` and ``wall_s``."""
 
-    seed: int
+    seed: int | Literal["all"]
     decisions: int
     scored: int
     hits: int
@@ -52,13 +60,18 @@ class QualityRow:
     foveation_error_x_px: float
     foveation_error_y_px: float
     saccades: int
+    simulated_s: float
+    wall_s: float
     detection_ci_low: float = field(init=False)
     detection_ci_high: float = field(init=False)
+    real_time_factor: float = field(init=False)
 
     def __post_init__(self) -> None:
         low, high = detection_interval(self.hits, self.scored)
         object.__setattr__(self, "detection_ci_low", low)
         object.__setattr__(self, "detection_ci_high", high)
+        rtf = self.simulated_s / self.wall_s if self.wall_s > 0 else math.nan
+        object.__setattr__(self, "real_time_factor", rtf)
 
 
 def _row(seed: int, m: dict) -> QualityRow:
@@ -74,12 +87,15 @@ def _row(seed: int, m: dict) -> QualityRow:
         foveation_error_x_px=m.get("foveation_error_x_px_mean", math.nan),
         foveation_error_y_px=m.get("foveation_error_y_px_mean", math.nan),
         saccades=int(m["saccades"]),
+        simulated_s=float(m["simulated_s"]),
+        wall_s=float(m["wall_s"]),
     )
 
 
 def pooled(rows: list[QualityRow], kept: list[int], seen: list[int]) -> QualityRow:
-    """All seeds together: hits / scored decisions, suppression over all events, and the
-    saccade-weighted mean foveation errors."""
+    """All seeds together (``seed = "all"``): hits / scored decisions, suppression over all
+    events, the saccade-weighted mean foveation errors, and the simulated and wall seconds
+    summed."""
     scored = sum(r.scored for r in rows)
     hits = sum(r.hits for r in rows)
     sac = [r for r in rows if r.saccades and not math.isnan(r.foveation_error_x_px)]
@@ -89,7 +105,7 @@ def pooled(rows: list[QualityRow], kept: list[int], seen: list[int]) -> QualityR
         return float(np.average(vals, weights=w)) if len(sac) else math.nan
 
     return QualityRow(
-        seed=-1,
+        seed="all",
         decisions=sum(r.decisions for r in rows),
         scored=scored,
         hits=hits,
@@ -98,6 +114,8 @@ def pooled(rows: list[QualityRow], kept: list[int], seen: list[int]) -> QualityR
         foveation_error_x_px=wmean([r.foveation_error_x_px for r in sac]),
         foveation_error_y_px=wmean([r.foveation_error_y_px for r in sac]),
         saccades=sum(r.saccades for r in rows),
+        simulated_s=sum(r.simulated_s for r in rows),
+        wall_s=sum(r.wall_s for r in rows),
     )
 
 
@@ -107,7 +125,8 @@ def evaluate(
     seeds: list[int],
     progress: Callable[[int, int, int], None] | None = None,
 ) -> list[QualityRow]:
-    """One run per seed (``config`` with its ``seed`` replaced); per-seed rows + pooled."""
+    """One run per seed (``config`` with its ``seed`` replaced); per-seed rows + pooled,
+    written to ``quality.csv`` and ``quality.json``."""
     if not seeds:
         raise ValueError("evaluate needs at least one seed")
     rows, kept, seen = [], [], []
@@ -122,6 +141,7 @@ def evaluate(
     rec = run_record("wander evaluate", {"run": config.__dict__, "seeds": seeds}, None)
     write_json(
         out_dir / "quality.json",
-        rec | {"rows": [r.__dict__ for r in rows], "pooled": total.__dict__},
+        rec | {"rows": [asdict(r) for r in rows], "pooled": asdict(total)},
     )
+    write_csv([asdict(r) for r in (*rows, total)], out_dir / "quality.csv")
     return [*rows, total]

@@ -7,7 +7,13 @@ same :class:`~agents.attention.AttentionAgent` as ``wander run`` through
 :func:`experiments.jobs.run_agent.run_closed_loop`, and adds what only the rig has:
 
 - ``run.json`` (and the ``events.h5`` metadata): the config, plus ``rig``: the PTU's
-  resolution and limits and the sensor size, as the devices reported them;
+  resolution and limits and the sensor size, as the devices reported them, and the
+  lens's field of view the run assumed (``hfov_deg``, ``hfov_from``: the ``--hfov``
+  given or the Speck's lens by default — a recording from another camera, e.g. a
+  DVS128, is scored with the field of view given here);
+- with a replayed recording, ``fixed_view`` in ``run.json``: the recorded camera did not
+  turn with the PTU, so ``scanpath.png`` draws saliency and ``P`` in the sensor's frame
+  (not on the pan-tilt sphere) and says so;
 - ``metrics.json``: ``rig``: events the camera dropped (queue overflow, late, off the
   sensor), the PTU command latency (mean and max over the acknowledged commands seen at
   step boundaries), commands sent and replaced, polls, the largest lag behind the
@@ -25,7 +31,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -38,9 +44,10 @@ from hardware.ptu_driver import FlirPTUParams, PTUError, PTUPortError, PTUTimeou
 from hardware.ptu_emulator import PTUEmulatorParams
 from hardware.rig_env import RigConfig
 from hardware.speck import SpeckParams
+from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.runinfo import run_record, to_strict_json, write_json
 
-__all__ = ["RigRunConfig", "RigRunError", "run_rig"]
+__all__ = ["RigRunConfig", "RigRunError", "fixed_view_note", "run_rig"]
 
 
 @dataclass(frozen=True)
@@ -52,9 +59,12 @@ class RigRunConfig:
     file>"``; ``replay``: ``"fast"`` (windows advance in stream time: the events of
     every step are fixed by the file) or ``"realtime"`` (paced by the wall clock, as a
     live camera); ignored for a Speck. ``seconds``: run length (a replay that ends
-    earlier ends the run); ``seed``, ``window_s``, ``fixational``, ``streamlined``,
-    ``video``: as ``wander run``. ``driver``, ``emulator``, ``speck``: the device
-    parameter blocks handed to :class:`~hardware.rig_env.RigConfig`.
+    earlier ends the run); ``hfov_deg``: the lens's horizontal field of view in degrees
+    (the Speck's 112.8° by default; a recording from another camera needs its lens's):
+    the agent's and the env's pixel-to-angle geometry; ``seed``, ``window_s``,
+    ``fixational``, ``streamlined``, ``video``: as ``wander run``. ``driver``,
+    ``emulator``, ``speck``: the device parameter blocks handed to
+    :class:`~hardware.rig_env.RigConfig`.
 
     >>> RigRunConfig(ptu="emulate", camera="replay:walk.npz").env_kwargs()["episode_seconds"]
     10.0
@@ -64,6 +74,7 @@ class RigRunConfig:
     camera: str = ""
     replay: str = "fast"
     seconds: float = 10.0
+    hfov_deg: float = SPECK_HFOV_DEG
     seed: int = 0
     window_s: float = 0.124
     fixational: bool = True
@@ -89,13 +100,15 @@ class RigRunConfig:
             "camera": self.camera,
             "replay": self.replay,
             "episode_seconds": float(self.seconds),
+            "hfov_deg": self.hfov_deg,
             "driver": self.driver,
             "emulator": self.emulator,
             "speck": self.speck,
         }
 
     def agent_params(self, env: Any) -> AgentParams:
-        """The agent of ``wander run`` with these switches, matched to the rig's sensor."""
+        """The agent of ``wander run`` with these switches, matched to the rig's sensor and
+        lens."""
         run = RunConfig(
             seconds=self.seconds,
             seed=self.seed,
@@ -104,7 +117,7 @@ class RigRunConfig:
             streamlined=self.streamlined,
             alpha=self.alpha,
         )
-        return run.agent_params(env)
+        return replace(run.agent_params(env), hfov_deg=self.hfov_deg)
 
 
 class RigRunError(RuntimeError):
@@ -183,6 +196,7 @@ def device_record(base: Any) -> dict[str, Any]:
     else:
         cam |= {"device_type_name": camera.device_type_name, "serial_number": arg or None}
         cam["sensor_size_from"] = camera.stats.get("sensor_size_from")
+    hfov = base.config.hfov_deg
     return {
         "ptu": {
             "url": ptu.url,
@@ -193,8 +207,28 @@ def device_record(base: Any) -> dict[str, Any]:
         },
         "camera": cam,
         "control_period_s": base.config.control_period_s,
-        "hfov_deg": base.config.hfov_deg,
+        "hfov_deg": hfov,
+        "hfov_from": "the Speck's lens, the default" if hfov == SPECK_HFOV_DEG else "--hfov",
     }
+
+
+def fixed_view_note(rig: dict[str, Any]) -> str | None:
+    """What ``scanpath.png`` says of a replayed recording (None for a live camera): its
+    view is fixed, so the figure is in the sensor's frame; and the field of view assumed.
+
+    >>> rig = {"camera": {"kind": "replay", "file": "/d/walk.h5"}, "hfov_deg": 112.83,
+    ...        "hfov_from": "--hfov"}
+    >>> fixed_view_note(rig).splitlines()[0]
+    "replayed recording 'walk.h5': its view is fixed (the recorded camera did not"
+    """
+    camera = rig["camera"]
+    if camera["kind"] != "replay":
+        return None
+    return (
+        f"replayed recording {Path(camera['file']).name!r}: its view is fixed (the recorded "
+        "camera did not\nturn with the PTU), so saliency and P are drawn in the sensor's "
+        f"frame;\nfield of view {rig['hfov_deg']:.1f}° ({rig['hfov_from']})"
+    )
 
 
 def _device(err: BaseException, config: RigRunConfig) -> str | None:
@@ -265,6 +299,7 @@ def run_rig(
         agent = AttentionAgent(config.agent_params(env), seed=config.seed)
         record = run_record("wander rig", asdict(config), config.seed)
         record["rig"] = device_record(base)
+        record["fixed_view"] = fixed_view_note(record["rig"])
         try:
             result = run_for_config(counters, agent, config, out_dir, record, progress)
         except BaseException as err:

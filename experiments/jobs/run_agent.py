@@ -10,10 +10,13 @@ writes the run folder:
   window — with ground truth only), sOMS event suppression, foveation error of the
   saccades (reached minus intended gaze, in pixels at the fovea), scanpath statistics,
   wall time and real-time factor;
-- ``fixations.csv``: the fixation table (pan, tilt, start, duration; degrees, seconds)
-  plus each fixation's ``P`` and hit;
+- ``fixations.csv``: the fixation table (:mod:`experiments.scanpath_stats`: ``pan_deg``,
+  ``tilt_deg`` (+ = left, up), ``t_start_s``, ``duration_s``) plus each window's ``P``,
+  hit and the moving object hit (named as in the scene file);
 - ``scanpath.png``: cumulative saliency on the pan-tilt sphere with fixations, saccade
-  lines and the salient points; gaze over time;
+  lines and the salient points; gaze over time (a camera whose view does not follow the
+  gaze, a replayed recording, ``record["fixed_view"]``: saliency and ``P`` in the
+  sensor's frame, and the note saying so);
 - ``run.mp4``: events | OMS | saliency | camera, with the fovea (green) and ``P``
   (magenta 8×8 box) marked;
 - ``events.h5``: every event of the run, written as the run goes
@@ -27,7 +30,6 @@ the signal); the exception is raised after it is written.
 
 from __future__ import annotations
 
-import csv
 import math
 import time
 from collections.abc import Callable
@@ -44,6 +46,7 @@ from experiments.jobs.run_viewer import open_run_log
 from experiments.jobs.scanpath_figure import pixel_to_angles, plot_scanpath
 from wander_env.camera import degrees_to_pixels, focal_length_px
 from wander_env.config import check_fields
+from wander_env.entities import object_body_name
 from wander_env.env import WanderConfig
 from wander_env.event_stream import EventStreamWriter, OutputError, VideoSink
 from wander_env.metrics import detection_hit
@@ -152,6 +155,7 @@ class _Log:
     gaze: list[tuple[float, float, float]] = field(default_factory=list)
     maps: list[np.ndarray] = field(default_factory=list)  # saliency per decision
     hits: list[bool | None] = field(default_factory=list)  # per decision
+    hit_objects: list[str] = field(default_factory=list)  # per decision: the objects hit
     clipped: list[bool] = field(default_factory=list)  # per saccade
     steps: int = 0
     sightings: list[tuple] = field(default_factory=list)  # ground truth (run_viewer)
@@ -198,15 +202,18 @@ def run_closed_loop(
             action = agent.act(obs, info)
             mask = info.get("object_mask")
             if mask is not None and phase_before is Phase.FIXATE:  # step went into the window
-                window_mask = mask > 0 if window_mask is None else window_mask | (mask > 0)
+                # object ids (1, 2, ...), the latest step's on top
+                window_mask = mask if window_mask is None else np.where(mask > 0, mask, window_mask)
             if len(agent.saccades) > n_sacc:  # a saccade ended at this step
                 log.clipped.append(saccade_clipped)
             if agent.decided:
                 log.maps.append(agent.saliency.copy())
-                hit = None
+                hit, hit_object = None, ""
                 if window_mask is not None and window_mask.any() and agent.target is not None:
-                    hit = detection_hit(agent.target, window_mask)
+                    hit = detection_hit(agent.target, window_mask > 0)
+                    hit_object = _objects_hit(agent.target, window_mask, info)
                 log.hits.append(hit)
+                log.hit_objects.append(hit_object)
                 window_mask = None
                 saccade_clipped = False
             obs, _, terminated, truncated, info = env.step(action)
@@ -247,6 +254,15 @@ def run_closed_loop(
     if error is not None:
         raise error
     return result
+
+
+def _objects_hit(target: tuple[int, int], ids: np.ndarray, info: dict) -> str:
+    """The moving objects (named as in the scene file, ``+``-joined in id order) whose
+    masks in ``ids`` (object ids, 0 = none) the detection box around ``target`` touches
+    (:func:`~wander_env.metrics.detection_hit`); "" for none."""
+    names = {o["id"]: str(o["name"]) for o in info.get("objects", ())}
+    hit = [int(k) for k in np.unique(ids[ids > 0]) if detection_hit(target, ids == k)]
+    return "+".join(names.get(k) or object_body_name(k) for k in hit)
 
 
 def _frame_for(agent: AttentionAgent, obs: dict, base: Any, info: dict) -> np.ndarray:
@@ -314,6 +330,26 @@ def _mean(values: list[float]) -> float:
     return float(np.mean(values)) if values else math.nan
 
 
+def _fixation_columns(
+    agent: AttentionAgent, log: _Log, targets_deg: list[tuple[float, float] | None]
+) -> dict[str, list[object]]:
+    """``fixations.csv``'s columns after the fixation table's four (module doc of
+    :mod:`experiments.scanpath_stats`); ``None`` where a window has no ``P`` or no score."""
+    fx, n = agent.fixations, len(agent.fixations)
+    hits = [log.hits[k] if k < len(log.hits) else None for k in range(n)]
+    objects = [log.hit_objects[k] if k < len(log.hit_objects) else "" for k in range(n)]
+    return {
+        "target_x_px": [f.target_px[0] if f.target_px else None for f in fx],
+        "target_y_px": [f.target_px[1] if f.target_px else None for f in fx],
+        "target_pan_deg": [round(t[0], 6) if t else None for t in targets_deg],
+        "target_tilt_deg": [round(t[1], 6) if t else None for t in targets_deg],
+        "hit": [None if h is None else int(h) for h in hits],
+        "target_object": objects,
+        "events": [f.events for f in fx],
+        "oms_events": [f.oms_events for f in fx],
+    }
+
+
 def _write_folder(
     out_dir: Path,
     env: Any,
@@ -332,32 +368,13 @@ def _write_folder(
         pixel_to_angles(fx.target_px, fx.gaze_deg, f, centre) if fx.target_px else None
         for fx in agent.fixations
     ]
-    fix_rows = []
-    for k, (fx, target_deg) in enumerate(zip(agent.fixations, targets_deg, strict=True)):
-        hit = log.hits[k] if k < len(log.hits) else None
-        fix_rows.append(
-            {
-                "pan_deg": fx.gaze_deg[0],
-                "tilt_deg": fx.gaze_deg[1],
-                "start_s": fx.t_start,
-                "duration_s": fx.t_end - fx.t_start,
-                "target_x_px": fx.target_px[0] if fx.target_px else "",
-                "target_y_px": fx.target_px[1] if fx.target_px else "",
-                "target_pan_deg": target_deg[0] if target_deg else "",
-                "target_tilt_deg": target_deg[1] if target_deg else "",
-                "hit": "" if hit is None else int(hit),
-                "events": fx.events,
-                "oms_events": fx.oms_events,
-            }
+    table = scanpath_stats.normalise_fixations(
+        [[*fx.gaze_deg, fx.t_start, fx.t_end - fx.t_start] for fx in agent.fixations]
+    )
+    if agent.fixations:
+        scanpath_stats.write_fixations(
+            out_dir / "fixations.csv", table, _fixation_columns(agent, log, targets_deg)
         )
-    if fix_rows:
-        with open(out_dir / "fixations.csv", "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=list(fix_rows[0]))
-            w.writeheader()
-            w.writerows(fix_rows)
-    table = np.array(
-        [[r["pan_deg"], r["tilt_deg"], r["start_s"], r["duration_s"]] for r in fix_rows]
-    ).reshape(-1, 4)
     scored = [h for h in log.hits if h is not None]
     sim_s = log.steps * dt
     metrics: dict[str, Any] = {
@@ -387,7 +404,12 @@ def _write_folder(
             out_dir / "scanpath.png",
             log.maps[:n],
             [
-                {"gaze_deg": fx.gaze_deg, "duration_s": fx.t_end - fx.t_start, "target_deg": tg}
+                {
+                    "gaze_deg": fx.gaze_deg,
+                    "duration_s": fx.t_end - fx.t_start,
+                    "target_deg": tg,
+                    "target_px": fx.target_px,
+                }
                 for fx, tg in zip(agent.fixations[:n], targets_deg, strict=False)
             ],
             f,
@@ -395,6 +417,7 @@ def _write_folder(
             title=f"scanpath ({len(agent.fixations)} fixations, {len(agent.saccades)} saccades)",
             object_paths=_object_paths(log.sightings, f, centre),
             limits_deg=_ptu_limits(env),
+            fixed_view=record.get("fixed_view"),  # a replayed recording (wander rig)
         )
     rec = record | {"agent": asdict(p), "summary": {k: metrics[k] for k in ("steps", "events")}}
     stream.close(rec)

@@ -183,26 +183,98 @@ def plot_scanpath(
     title: str = "scanpath",
     object_paths: dict[str, np.ndarray] | None = None,
     limits_deg: tuple[tuple[float, float], tuple[float, float]] | None = None,
+    fixed_view: str | None = None,
 ) -> Path:
     """Write the scanpath figure (PNG).
 
-    ``fixations``: dicts with ``gaze_deg`` (pan, tilt at the window), ``duration_s``
-    and ``target_deg`` (the salient point's world angles or None); ``maps`` the
-    saliency map of each fixation (same order). ``gaze_trace`` (n, 3) = t, pan, tilt
-    adds a panel with the gaze over time. ``object_paths``: name -> (n, 3) t, pan, tilt
-    of each moving object from ground truth (drawn as its path). ``limits_deg``: the
-    PTU's (pan, tilt) ranges of the gaze; salient points beyond them are marked, counted
-    and said in a note.
+    ``fixations``: dicts with ``gaze_deg`` (pan, tilt at the window), ``duration_s``,
+    ``target_deg`` (the salient point's world angles or None) and ``target_px`` (its
+    pixel or None); ``maps`` the saliency map of each fixation (same order).
+    ``gaze_trace`` (n, 3) = t, pan, tilt adds a panel with the gaze over time.
+    ``object_paths``: name -> (n, 3) t, pan, tilt of each moving object from ground truth
+    (drawn as its path). ``limits_deg``: the PTU's (pan, tilt) ranges of the gaze;
+    salient points beyond them are marked, counted and said in a note. ``fixed_view``: a
+    camera whose view does not follow the gaze (a replayed recording): the saliency and
+    the salient points are drawn in the sensor's frame (:func:`draw_sensor_frame`),
+    this text saying why.
     """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Rectangle
 
     panels = 2 if gaze_trace is not None and len(gaze_trace) else 1
     fig, axes = plt.subplots(1, panels, figsize=(7.2 * panels, 5.8), squeeze=False)
-    ax = axes[0, 0]
+    if fixed_view is not None:
+        draw_sensor_frame(axes[0, 0], maps, fixations, title, fixed_view)
+    else:
+        _draw_sphere(axes[0, 0], maps, fixations, focal_px, title, object_paths, limits_deg)
+    if panels == 2:
+        ax2 = axes[0, 1]
+        ax2.plot(gaze_trace[:, 0], gaze_trace[:, 1], label="pan")
+        ax2.plot(gaze_trace[:, 0], gaze_trace[:, 2], label="tilt")
+        if limits_deg is not None:
+            for lim in limits_deg[1]:
+                ax2.axhline(lim, color="C1", ls=":", lw=0.8)
+            ax2.plot([], [], color="C1", ls=":", lw=0.8, label="tilt limits")
+        ax2.set_xlabel("simulated time (s)" if fixed_view is None else "time (s)")
+        ax2.set_ylabel("gaze (°; + pan = left, + tilt = up)")
+        ax2.set_title(
+            "gaze over time"
+            if fixed_view is None
+            else "the PTU's gaze over time (the replayed view does not follow it)"
+        )
+        ax2.legend(fontsize=7)
+    save_figure(fig, path)
+    return path
+
+
+def draw_sensor_frame(
+    ax: Any, maps: Sequence[np.ndarray], fixations: Sequence[dict], title: str, note: str
+) -> None:
+    """The scanpath of a camera whose view stays fixed (a replayed recording): the
+    saliency (max over decisions, each map over its peak) on the sensor's pixel grid, each
+    salient point ``P`` at its pixel (numbered by fixation), the fovea, and ``note``."""
+    h, w = np.asarray(maps[0]).shape if maps else (0, 0)
+    if maps:
+        peaks = [np.asarray(m, np.float64) / m.max() for m in maps if np.max(m) > 0]
+        values = np.max(peaks, axis=0) if peaks else np.zeros((h, w))
+        image = ax.imshow(values, cmap="magma", vmin=0.0, vmax=1.0, interpolation="nearest",
+                          extent=(-0.5, w - 0.5, h - 0.5, -0.5))  # fmt: skip
+        bar = ax.figure.colorbar(image, ax=ax, fraction=0.046, pad=0.02)
+        bar.set_label("saliency (max over decisions, each map / its peak)", fontsize=8)
+        ax.plot((w - 1) / 2, (h - 1) / 2, "+", color="cyan", ms=12, mew=1.5,
+                label="fovea (sensor centre)")  # fmt: skip
+    points = [(k, f["target_px"]) for k, f in enumerate(fixations) if f.get("target_px")]
+    if points:
+        xy = np.array([p for _, p in points], dtype=np.float64)
+        ax.scatter(xy[:, 0], xy[:, 1], marker="x", c="lime", s=30, zorder=4,
+                   label=f"P(x, y), salient point ({len(points)})")  # fmt: skip
+        for k, (x, y) in points:
+            ax.annotate(str(k), (x, y), color="white", fontsize=7, xytext=(3, 3),
+                        textcoords="offset points")  # fmt: skip
+    ax.set_xlabel("x (px, right)")
+    ax.set_ylabel("y (px, down)")
+    ax.set_title(f"{title}, in the sensor's frame", fontsize=10)
+    if maps or points:
+        ax.legend(loc="lower right", fontsize=6.5, framealpha=0.8)
+    ax.text(0.01, 0.99, note, transform=ax.transAxes, va="top", fontsize=7, color="white",
+            wrap=True, bbox={"facecolor": "black", "alpha": 0.6, "edgecolor": "cyan"})  # fmt: skip
+
+
+def _draw_sphere(
+    ax: Any,
+    maps: Sequence[np.ndarray],
+    fixations: Sequence[dict],
+    focal_px: float,
+    title: str,
+    object_paths: dict[str, np.ndarray] | None,
+    limits_deg: tuple[tuple[float, float], tuple[float, float]] | None,
+) -> None:
+    """The scanpath on the pan-tilt sphere: the saliency mosaic, the objects' paths, the
+    PTU's limits, fixations, saccades and the salient points."""
+    from matplotlib.patches import Rectangle
+
     gazes = [f["gaze_deg"] for f in fixations]
     if maps:
         grid = saliency_mosaic(maps, gazes, focal_px)
@@ -276,17 +348,3 @@ def plot_scanpath(
     if note:
         ax.text(0.01, 0.99, note, transform=ax.transAxes, va="top", fontsize=7, color="white",
                 bbox={"facecolor": "black", "alpha": 0.6, "edgecolor": "red"})  # fmt: skip
-    if panels == 2:
-        ax2 = axes[0, 1]
-        ax2.plot(gaze_trace[:, 0], gaze_trace[:, 1], label="pan")
-        ax2.plot(gaze_trace[:, 0], gaze_trace[:, 2], label="tilt")
-        if limits_deg is not None:
-            for lim in limits_deg[1]:
-                ax2.axhline(lim, color="C1", ls=":", lw=0.8)
-            ax2.plot([], [], color="C1", ls=":", lw=0.8, label="tilt limits")
-        ax2.set_xlabel("simulated time (s)")
-        ax2.set_ylabel("gaze (°; + pan = left, + tilt = up)")
-        ax2.set_title("gaze over time")
-        ax2.legend(fontsize=7)
-    save_figure(fig, path)
-    return path

@@ -55,7 +55,7 @@ from experiments.framework import (
 from experiments.jobs.run_agent import run_closed_loop
 from experiments.paper import main_sequence
 from experiments.paper.speed_study import AXIS_LABELS, plot_surfaces
-from experiments.stats import mean_ci, mean_std, paired_comparison
+from experiments.stats import ci_text, mean_ci, mean_std, paired_comparison
 from wander_env.camera import SPECK_HFOV_DEG, focal_length_px
 from wander_env.env import WanderConfig
 from wander_env.ptu import PTUParams, degrees_to_positions, move_duration, peak_speed
@@ -85,6 +85,11 @@ FACTORS = {
 }
 # The numeric factors (one plot column each); ``ptu_link`` is compared by a test.
 NUMERIC_FACTORS = {k: v for k, v in FACTORS.items() if k != "ptu_link"}
+# A main-sequence fit has two parameters: it needs a residual (3 amplitudes; fewer leave
+# its columns empty) and, for its 95 % intervals, two residual degrees of freedom (4: with
+# one, Student's t is 12.7 and a Vmax interval spans e.g. [−38, 120] °/s).
+MIN_FIT_AMPLITUDES = 3
+MIN_INTERVAL_AMPLITUDES = 4
 # The factorial design's factors (object speed and the link stay at the baseline).
 FACTORIAL = ("ptu_speed", "ptu_accel", "fixational_amplitude", "fixational_count", "window")
 PTU_FACTORS = ("baseline", "ptu_speed", "ptu_accel", "ptu_link")
@@ -350,15 +355,24 @@ def _main_sequence(cfg: SaccadeSpeedConfig, ptu: PTUParams, seed: int) -> dict[s
     vfit = main_sequence.fit_saturating(amp, vpeak)
     dfit = main_sequence.fit_linear(amp, dur)
     return {
+        "ms_amplitudes": vfit.n,
         "_ms_amplitude_deg": np.asarray(amp),
         "_ms_peak_velocity_deg_s": np.asarray(vpeak),
         "_ms_duration_s": np.asarray(dur),
         "ms_peak_velocity_max_deg_s": max(vpeak) if vpeak else math.nan,
         "ms_duration_max_s": max(dur) if dur else math.nan,
         # The main-sequence fits (parameters and 95 % intervals), per PTU setting.
-        **vfit.as_dict("ms_v_"),
-        **dfit.as_dict("ms_d_"),
+        **_fit_columns(vfit, "ms_v_"),
+        **_fit_columns(dfit, "ms_d_"),
     }
+
+
+def _fit_columns(fit: main_sequence.MainSequenceFit, prefix: str) -> dict[str, float]:
+    """A fit's columns; the intervals NaN below :data:`MIN_INTERVAL_AMPLITUDES`."""
+    out = fit.as_dict(prefix)
+    if fit.n < MIN_INTERVAL_AMPLITUDES:
+        out |= {k: math.nan for k in out if k.endswith(("_low", "_high"))}
+    return out
 
 
 def run_trial(cfg: SaccadeSpeedConfig, spec: TrialSpec) -> dict[str, Any]:
@@ -445,10 +459,18 @@ def _label(r: Row) -> str:
     return "baseline (paper's values)" if factor == "baseline" else f"{factor} = {v}"
 
 
+def _too_few(n: int, minimum: int, what: str) -> str:
+    return f"n too small for {what} ({n} amplitudes; {what} needs ≥ {minimum})"
+
+
 def _ms_text(r: Row) -> str:
-    """The main-sequence fits stored in a row, as text ('' when none)."""
-    if math.isnan(float(r.get("ms_v_vmax", math.nan))):
+    """The main-sequence fits stored in a row, as text ('' when the row has none); below
+    :data:`MIN_FIT_AMPLITUDES` or :data:`MIN_INTERVAL_AMPLITUDES` amplitudes it says so."""
+    n = float(r.get("ms_amplitudes", math.nan))
+    if math.isnan(n):
         return ""
+    if n < MIN_FIT_AMPLITUDES:
+        return _too_few(int(n), MIN_FIT_AMPLITUDES, "a fit")
 
     def part(name: str, unit: str, fmt: str) -> str:
         v, lo, hi = (float(r.get(f"{name}{x}", math.nan)) for x in ("", "_low", "_high"))
@@ -458,12 +480,15 @@ def _ms_text(r: Row) -> str:
             return f"{v:{fmt}} {unit}"
         return f"{v:{fmt}} [{lo:{fmt}}, {hi:{fmt}}] {unit}"
 
-    return (
+    text = (
         f"V = Vmax(1 − e^(−A/C)): Vmax {part('ms_v_vmax', '°/s', '.1f')}, "
         f"C {part('ms_v_c', '°', '.2f')} (R² {_f(r, 'ms_v_r2')}); D = D0 + k·A: "
         f"D0 {part('ms_d_d0', 's', '.3f')}, k {part('ms_d_k', 's/°', '.4f')} "
         f"(R² {_f(r, 'ms_d_r2')})"
     )
+    if n < MIN_INTERVAL_AMPLITUDES:
+        text += f"; {_too_few(int(n), MIN_INTERVAL_AMPLITUDES, 'an interval')}"
+    return text
 
 
 def _pairs(a: list[Row], b: list[Row], key: str) -> tuple[list[float], list[float]]:
@@ -536,12 +561,7 @@ def compare(cfg: SaccadeSpeedConfig, rows: list[Row]) -> list[Comparison]:
 
 
 def _ci(rows: list[Row], key: str, fmt: str) -> str:
-    m, lo, hi, n = mean_ci(float(r[key]) for r in rows)
-    if math.isnan(m):
-        return "—"
-    if math.isnan(lo):
-        return f"{m:{fmt}} (n = {n})"
-    return f"{m:{fmt}} [{lo:{fmt}}, {hi:{fmt}}] (n = {n})"
+    return ci_text(mean_ci(float(r[key]) for r in rows), fmt)
 
 
 def _row_fits(r: Row) -> tuple[tuple[float, float] | None, tuple[float, float] | None]:
@@ -617,6 +637,14 @@ def plot(cfg: SaccadeSpeedConfig, rows: list[Row], results_dir: Path, fig_dir: P
         if dfit is not None:
             d_label = f"fit: D0 {dfit[0]:.3f} s, k {dfit[1]:.4f} s/° (R² {_f(r, 'ms_d_r2')})"
             axes[1].plot(amps, main_sequence.linear(amps, *dfit), "-", label=d_label, **fit_style)
+        if len(ms_amp) < MIN_FIT_AMPLITUDES:  # say so in the legends: no line is drawn
+            for ax in axes:
+                ax.plot(
+                    [],
+                    [],
+                    " ",
+                    label=f"no fit: {_too_few(len(ms_amp), MIN_FIT_AMPLITUDES, 'a fit')}",
+                )
         k += 1
     axes[0].set(xlabel="saccade amplitude (°)", ylabel="peak pan velocity (°/s)")
     axes[0].set_title("peak velocity: V = Vmax(1 − e^(−A/C))", fontsize=9)

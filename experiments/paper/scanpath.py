@@ -32,20 +32,22 @@ moves). Per trial:
   too;
 - the areas of interest: per decision the scene object under the fovea (ray cast), per
   fixation its most frequent one (``aois_json``; ``-`` = none), their stationary and
-  transition entropy; the fixation table itself rides in the row (``scanpath_json``);
+  transition entropy; objects are named as in the scene file (static and moving alike,
+  e.g. ``mug``, ``cube``, ``beach_ball``); the fixation table itself rides in the row
+  (``scanpath_json``);
 - over the repeats (``repeats`` = 10 seeds, paired across conditions):
   :mod:`experiments.paper.scanpath_analysis` — bootstrap 95 % intervals per cell, the
   fixational − saccades differences tested (permutation test, d_z, rank-biserial),
   MultiMatch and AOI-string (Levenshtein) similarity within and between conditions;
 - the fixation table for scanpath-comparison tools (MultiMatch, ScanMatch), written by
-  :func:`plot` as ``fixations/<scene>_<condition>_seed<N>.csv`` in the result folder
-  with the columns ``x, y, start, duration``: degrees (``x = −pan``, positive to the
-  right, ``y = −tilt``, positive down, as on a screen) and seconds.
+  :func:`plot` as ``fixations/<scene>_<condition>_seed<N>.csv`` in the result folder:
+  the columns, units and signs of :mod:`experiments.scanpath_stats` (``pan_deg``,
+  ``tilt_deg``: + = left, up; ``t_start_s``, ``duration_s``) and each fixation's
+  ``aoi``.
 """
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import tempfile
@@ -77,24 +79,22 @@ from experiments.framework import (
 )
 from experiments.jobs.run_agent import run_closed_loop
 from experiments.jobs.scanpath_figure import pixel_to_angles, saliency_mosaic, show_mosaic
-from experiments.stats import mean_std
+from experiments.stats import ci_text, mean_std
 from wander_env.camera import SPECK_HFOV_DEG, cast_pixel, focal_length_px
 from wander_env.entities import object_body_name
 from wander_env.env import WanderConfig
+from wander_env.scene_config import SceneConfig
 from wander_env.viz import save_figure
 
 __all__ = [
     "EXPERIMENT",
-    "EXPORT_COLUMNS",
     "ScanpathAgent",
     "ScanpathConfig",
     "agent_params",
-    "export_table",
     "merge_windows",
-    "write_export",
+    "object_names",
 ]
 
-EXPORT_COLUMNS = ("x", "y", "start", "duration")
 Condition = Literal["saccades", "fixational"]
 
 
@@ -172,31 +172,6 @@ def merge_windows(windows: np.ndarray, ends_fixation: Sequence[bool]) -> np.ndar
     return np.array(out, dtype=np.float64).reshape(-1, 4)
 
 
-def export_table(fixations: np.ndarray) -> list[dict[str, float]]:
-    """Fixations ``(pan, tilt, start, duration)`` -> rows of :data:`EXPORT_COLUMNS`:
-    ``x = −pan`` (right), ``y = −tilt`` (down), degrees; start and duration in seconds.
-
-    >>> export_table(np.array([[2.0, -1.0, 0.5, 0.25]]))
-    [{'x': -2.0, 'y': 1.0, 'start': 0.5, 'duration': 0.25}]
-    """
-    f = np.asarray(fixations, dtype=np.float64).reshape(-1, 4)
-    return [
-        {"x": -float(p) + 0.0, "y": -float(t) + 0.0, "start": float(s), "duration": float(d)}
-        for p, t, s, d in f
-    ]
-
-
-def write_export(fixations: np.ndarray, path: Path) -> Path:
-    """Write :func:`export_table` as CSV (floats exact)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(EXPORT_COLUMNS), lineterminator="\n")
-        w.writeheader()
-        for row in export_table(fixations):
-            w.writerow({k: repr(v) for k, v in row.items()})
-    return path
-
-
 def _export_name(row: Row) -> str:
     return f"{row['scene']}_{row['condition']}_seed{row['seed']}.csv"
 
@@ -205,16 +180,33 @@ def _export_name(row: Row) -> str:
 # The agent, watched
 
 
+def object_names(scene: SceneConfig) -> dict[str, str]:
+    """The scene's objects by their geom's name in the model -> their name in the scene
+    file (a moving object's geom is ``object_k``; an object the file leaves unnamed keeps
+    its geom's name).
+
+    >>> from wander_env.scene_config import load_scene_config
+    >>> names = object_names(load_scene_config("office"))
+    >>> names["object_1"], names["object_2"], names["mug"]
+    ('cube', 'beach_ball', 'mug')
+    """
+    names: dict[str, str] = {}
+    for i, o in enumerate(scene.static_objects):
+        geom = o.name or f"static_{i}"
+        names[geom] = geom
+    for k, o in enumerate(scene.moving_objects, 1):
+        names[object_body_name(k)] = o.name or object_body_name(k)
+    return names
+
+
 class ScanpathAgent(AttentionAgent):
     """The attention agent, also keeping per decision the saliency map, the gaze and
-    which scene object the box around ``P`` sees (ray casts in ``env``'s current pose)."""
+    which scene object the box around ``P`` sees (ray casts in ``env``'s current pose;
+    objects named as in the scene file, :func:`object_names`)."""
 
     def __init__(self, params: AgentParams, seed: int, env: Any, box: int = 8) -> None:
         self._env, self._box = env.unwrapped, box
-        scene = self._env.scene
-        names = {o.name or f"static_{i}" for i, o in enumerate(scene.static_objects)}
-        names |= {object_body_name(k) for k in range(1, len(scene.moving_objects) + 1)}
-        self._objects = names
+        self._objects = object_names(self._env.scene)
         super().__init__(params, seed=seed)
 
     def reset(self, seed: int | None = None) -> None:
@@ -240,8 +232,8 @@ class ScanpathAgent(AttentionAgent):
 
     def _object(self, xy: tuple[int, int]) -> str:
         p = self.params
-        name = cast_pixel(self._env.model, self._env.data, xy, p.width_px, p.height_px)[2]
-        return name if name in self._objects else ""
+        geom = cast_pixel(self._env.model, self._env.data, xy, p.width_px, p.height_px)[2]
+        return self._objects.get(geom, "")
 
     def _objects_at(self, xy: tuple[int, int]) -> tuple[str, str]:
         """(the object under ``xy``, the object most of the box's pixels see)."""
@@ -298,7 +290,7 @@ def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
         [[*w.gaze_deg, w.t_start, w.t_end - w.t_start] for w in fx], dtype=np.float64
     ).reshape(-1, 4)
     ends = [w.target_px is not None for w in fx]
-    table = merge_windows(windows, ends)
+    table = scanpath_stats.normalise_fixations(merge_windows(windows, ends))
     aois = scanpath_stats.fixation_aois(agent.fovea_labels, ends)
     hits = [bool(centre) for centre, _ in agent.labels]
     box_hits = [bool(box) for _, box in agent.labels]
@@ -320,8 +312,8 @@ def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
         "decisions": len(fx),
         "decisions_with_target": len(agent.labels),
         "fixations": len(table),
-        "fixation_duration_mean_s": mean_std(table[:, 3])[0],
-        "fixation_duration_std_s": mean_std(table[:, 3])[1],
+        "fixation_duration_mean_s": _us(mean_std(table[:, 3])[0]),
+        "fixation_duration_std_s": _us(mean_std(table[:, 3])[1]),
         "saccades": len(agent.saccades),
         "saccade_amplitude_mean_deg": mean_std(amps)[0],
         "saccade_amplitude_std_deg": mean_std(amps)[1],
@@ -337,7 +329,7 @@ def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
         "events_per_s": m["events"] / m["simulated_s"],
         "soms_suppression": m["soms_suppression"],
         # The scanpath itself, for the pairwise comparisons and the user's own analysis.
-        "scanpath_json": json.dumps([[round(float(v), 6) for v in f] for f in table]),
+        "scanpath_json": json.dumps(table.tolist()),
         "aois_json": json.dumps(aois),
         "_fixations": table,
         "_targets_deg": targets,
@@ -351,6 +343,11 @@ def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
             "_mosaic": grid_.values.astype(np.float32),
         }
     return out
+
+
+def _us(seconds: float) -> float:
+    """A time in seconds rounded to the microsecond (NaN kept)."""
+    return round(seconds, 6) + 0.0 if math.isfinite(seconds) else seconds
 
 
 def grid(cfg: ScanpathConfig) -> list[dict[str, Any]]:
@@ -370,17 +367,17 @@ def _by(rows: list[Row], scene: str, condition: str, metric: str) -> tuple[float
 def _metrics(cfg: ScanpathConfig) -> list[tuple[str, str, str]]:
     """(label, column, format) of the per-trial measures summarised and tested."""
     return [
-        ("object hit rate", "object_hit_rate", "{:.0%}"),
-        (f"object hit rate, {cfg.box}×{cfg.box} box", "object_hit_rate_box", "{:.0%}"),
-        ("moving-object detection accuracy", "detection_accuracy_moving", "{:.0%}"),
-        ("objects visited", "objects_visited", "{:.1f}"),
-        ("fixations", "fixations", "{:.1f}"),
-        ("fixation duration (s)", "fixation_duration_mean_s", "{:.3f}"),
-        ("saccade amplitude (°)", "saccade_amplitude_mean_deg", "{:.1f}"),
-        ("revisits", "revisits", "{:.1f}"),
-        (f"coverage (deg², {cfg.radius_deg:g}° radius)", "coverage_deg2", "{:.0f}"),
-        ("AOI stationary entropy (normalised)", "aoi_stationary_entropy", "{:.2f}"),
-        ("AOI transition entropy (normalised)", "aoi_transition_entropy", "{:.2f}"),
+        ("object hit rate", "object_hit_rate", ".0%"),
+        (f"object hit rate, {cfg.box}×{cfg.box} box", "object_hit_rate_box", ".0%"),
+        ("moving-object detection accuracy", "detection_accuracy_moving", ".0%"),
+        ("objects visited", "objects_visited", ".1f"),
+        ("fixations", "fixations", ".1f"),
+        ("fixation duration (s)", "fixation_duration_mean_s", ".3f"),
+        ("saccade amplitude (°)", "saccade_amplitude_mean_deg", ".1f"),
+        ("revisits", "revisits", ".1f"),
+        (f"coverage (deg², {cfg.radius_deg:g}° radius)", "coverage_deg2", ".0f"),
+        ("AOI stationary entropy (normalised)", "aoi_stationary_entropy", ".2f"),
+        ("AOI transition entropy (normalised)", "aoi_transition_entropy", ".2f"),
     ]
 
 
@@ -392,15 +389,6 @@ PAPER_SCANPATH = {
     ),
     "stability": "fixational eye movements are needed for stable scanpaths (figure)",
 }
-
-
-def _ci_text(v: tuple[float, float, float, int], fmt: str) -> str:
-    m, lo, hi, n = v
-    if math.isnan(m):
-        return "—"
-    if math.isnan(lo):
-        return f"{fmt.format(m)} (n = {n})"
-    return f"{fmt.format(m)} [{fmt.format(lo)}, {fmt.format(hi)}] (n = {n})"
 
 
 def compare(cfg: ScanpathConfig, rows: list[Row]) -> list[Comparison]:
@@ -420,7 +408,7 @@ def compare(cfg: ScanpathConfig, rows: list[Row]) -> list[Comparison]:
     out = []
     for s in scenes:
         for label, key, fmt in metrics:
-            parts = [f"{c} {_ci_text(summ[(s, c, key)], fmt)}" for c in conditions]
+            parts = [f"{c} {ci_text(summ[(s, c, key)], fmt)}" for c in conditions]
             t = tests.get((s, key))
             note = f"fixational − saccades: {t.text('.3g')}; {per}" if t is not None else per
             out.append(
@@ -430,7 +418,7 @@ def compare(cfg: ScanpathConfig, rows: list[Row]) -> list[Comparison]:
         screen = tuple(cfg.multimatch_screen_deg)
         for t in sa.similarity_table(rows, screen):
             parts = [
-                f"{k} {_ci_text((t[k], t[k + '_low'], t[k + '_high'], t[k + '_n']), '{:.3f}')}"
+                f"{k} {ci_text((t[k], t[k + '_low'], t[k + '_high'], t[k + '_n']), '.3f')}"
                 for k in sa.SIMILARITY_MEASURES
             ]
             n = max(t[k + "_n"] for k in sa.SIMILARITY_MEASURES)
@@ -458,7 +446,8 @@ def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path)
     """The scanpath figure (a panel per scene and condition: the saliency mosaic, the
     fixations sized by duration, the saccade lines, the salient points green on an
     object, red off), a bar chart of the statistics, and the fixation tables
-    ``results_dir/fixations/*.csv`` (:func:`write_export`)."""
+    ``results_dir/fixations/*.csv`` (:func:`experiments.scanpath_stats.write_fixations`,
+    with each fixation's ``aoi``)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -472,7 +461,10 @@ def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path)
         firsts.setdefault((str(r["scene"]), str(r["condition"])), r)
         arts = load_artifacts(results_dir, r)
         if "fixations" in arts:
-            write_export(arts["fixations"], results_dir / "fixations" / _export_name(r))
+            aois = {"aoi": json.loads(str(r["aois_json"]))}
+            scanpath_stats.write_fixations(
+                results_dir / "fixations" / _export_name(r), arts["fixations"], aois
+            )
     from wander_env.ptu import PTUParams  # the env's unit (the trials use its default)
 
     unit = PTUParams()
