@@ -311,6 +311,7 @@ def _closed_loop(cfg: SaccadeSpeedConfig, p: dict[str, Any], seed: int) -> dict[
         "foveation_error_y_px": m.get("foveation_error_y_px_mean", math.nan),
         "detection_accuracy": m["detection_accuracy"],
         "decisions_scored": m["decisions_scored"],
+        "simulated_s": m["simulated_s"],
         "events_per_s": m["events"] / m["simulated_s"],
         "soms_suppression": m["soms_suppression"],
     }

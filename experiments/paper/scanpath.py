@@ -326,6 +326,7 @@ def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
         "aoi_stationary_entropy": scanpath_stats.stationary_entropy(aois),
         "aoi_transition_entropy": scanpath_stats.transition_entropy(aois),
         "detection_accuracy_moving": m["detection_accuracy"],
+        "simulated_s": m["simulated_s"],
         "events_per_s": m["events"] / m["simulated_s"],
         "soms_suppression": m["soms_suppression"],
         # The scanpath itself, for the pairwise comparisons and the user's own analysis.
