@@ -11,7 +11,8 @@ Pixel values: palette (``P``) / grey (``L``, ``I``) / 1-bit PNGs give the stored
 (0/1, 0/255 or object ids) as the label; RGB(A) PNGs give the long id
 ``R + 256·G + 65536·B`` (the DAVIS/Cutie convention). Any label > 0 is object.
 
-Resolution: the masks are read at their own size. :func:`mask_fit` says how a mask
+Resolution: the masks are read at their own size, at most :data:`MAX_MASK_PIXELS` (checked
+from the PNG header, before the image is decompressed). :func:`mask_fit` says how a mask
 relates to the sensor grid and :func:`fit_mask` puts it there — by nearest-neighbour
 resizing (the default; the maps are never stretched, the *mask* is) or, given the
 crop offset of the mask inside the sensor, by padding/cropping without any scaling.
@@ -42,6 +43,8 @@ from wander_env.events import SensorSize
 
 MASK_NAME = re.compile(r"^(?:(\d+)_)?(\d+)\.png$", re.IGNORECASE)
 MASK_NAME_HELP = "NNNNNN_T.png or T.png (T = window end time in µs)"
+#: The largest mask image read (4096×4096): its labels take up to 8 bytes a pixel.
+MAX_MASK_PIXELS = 4096 * 4096
 
 
 def read_mask_png(path: str | os.PathLike) -> np.ndarray:
@@ -51,6 +54,11 @@ def read_mask_png(path: str | os.PathLike) -> np.ndarray:
     path = Path(path)
     try:
         with Image.open(path) as im:
+            w, h = im.size
+            if w * h > MAX_MASK_PIXELS:
+                raise DatasetLayoutError(
+                    path, f"mask image of {w}x{h} pixels; at most {MAX_MASK_PIXELS:,} are read"
+                )
             im.load()
             mode = im.mode
             arr = np.asarray(im)
