@@ -267,17 +267,29 @@ def _png_header(path: Path, w: int, h: int) -> Path:
     return path
 
 
-def test_a_15000_px_mask_png_is_one_line(tmp_path):
+@pytest.mark.parametrize(
+    ("side", "problem"),
+    [
+        (5000, "mask image of 5000x5000 pixels; at most 16,777,216 are read"),
+        (
+            15000,
+            "mask image too large (Image size (225000000 pixels) exceeds limit of 178956970 "
+            "pixels, could be decompression bomb DOS attack.)",
+        ),
+        (
+            10000,
+            "mask image too large (Image size (100000000 pixels) exceeds limit of 89478485 "
+            "pixels, could be decompression bomb DOS attack.)",
+        ),
+    ],
+)
+def test_a_huge_mask_png_is_one_line(tmp_path, side, problem):
     path = tmp_path / "ev.h5"
     write_events(path, EventRecording(events(), (16, 16, 2)))
     folder = tmp_path / "masks"
     folder.mkdir()
-    mask = _png_header(folder / "000000_2000.png", 15000, 15000)
+    mask = _png_header(folder / "000000_2000.png", side, side)
     got = wander("benchmark", "events", path, "--masks", folder, "--out", tmp_path / "out",
                  "--window-us", "1000", "--no-progress")  # fmt: skip
-    one_line(
-        got,
-        "wander benchmark events",
-        f"error: {mask}: mask image of 15000x15000 pixels; at most 16,777,216 are read",
-    )
+    one_line(got, "wander benchmark events", f"error: {mask}: {problem}")
     assert not (tmp_path / "out").exists()

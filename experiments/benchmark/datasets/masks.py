@@ -33,6 +33,7 @@ from __future__ import annotations
 import itertools
 import os
 import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -53,17 +54,25 @@ def read_mask_png(path: str | os.PathLike) -> np.ndarray:
 
     path = Path(path)
     try:
-        with Image.open(path) as im:
-            w, h = im.size
-            if w * h > MAX_MASK_PIXELS:
-                raise DatasetLayoutError(
-                    path, f"mask image of {w}x{h} pixels; at most {MAX_MASK_PIXELS:,} are read"
-                )
+        with warnings.catch_warnings():  # PIL's bomb warning as an error: one line, not two
+            warnings.simplefilter("error", Image.DecompressionBombWarning)
+            im = Image.open(path)
+    except (Image.DecompressionBombError, Image.DecompressionBombWarning) as err:
+        raise DatasetLayoutError(path, f"mask image too large ({err})") from None
+    except (OSError, UnidentifiedImageError, ValueError) as err:
+        raise DatasetLayoutError(path, f"unreadable mask image ({err})") from None
+    with im:
+        w, h = im.size
+        if w * h > MAX_MASK_PIXELS:
+            raise DatasetLayoutError(
+                path, f"mask image of {w}x{h} pixels; at most {MAX_MASK_PIXELS:,} are read"
+            )
+        try:
             im.load()
             mode = im.mode
             arr = np.asarray(im)
-    except (OSError, UnidentifiedImageError, ValueError) as err:
-        raise DatasetLayoutError(path, f"unreadable mask image ({err})") from None
+        except (OSError, ValueError) as err:
+            raise DatasetLayoutError(path, f"unreadable mask image ({err})") from None
     if arr.ndim == 2:
         return arr.astype(np.uint8) if mode == "1" else arr
     if arr.ndim == 3 and arr.shape[2] in (3, 4):
