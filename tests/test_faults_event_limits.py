@@ -293,3 +293,23 @@ def test_a_huge_mask_png_is_one_line(tmp_path, side, problem):
                  "--window-us", "1000", "--no-progress")  # fmt: skip
     one_line(got, "wander benchmark events", f"error: {mask}: {problem}")
     assert not (tmp_path / "out").exists()
+
+
+class PanicException(BaseException):
+    """Stands in for ``pyo3_runtime.PanicException``: a Rust panic, not an ``Exception``."""
+
+
+def test_a_decoder_panic_becomes_one_event_file_error_and_nothing_broader():
+    from wander_env.event_formats import _decoding
+
+    path = Path("x.raw")
+    with pytest.raises(EventFileError) as info, _decoding(path, "EVT2 decoding"):
+        raise PanicException("index out of bounds")
+    assert str(info.value) == (
+        "x.raw: EVT2 decoding failed: the decoder gave up on this file (index out of bounds)"
+    )
+    with pytest.raises(EventFileError, match=r"damaged or truncated \(out of range\)"):
+        with _decoding(path, "DAT decoding"):
+            raise OverflowError("out of range")
+    with pytest.raises(KeyboardInterrupt), _decoding(path, "EVT2 decoding"):
+        raise KeyboardInterrupt
