@@ -6,14 +6,26 @@ then by folder name); its figures are drawn again into ``<report dir>/report_fig
 and a section gives the command, seed, git revision and run time that produced it and the
 experiment's comparison table (``Experiment.compare``). Sweeps found under
 ``results/sweeps/*`` are listed with their tables.
+
+Result folders are read as untrusted input: every file the report uses (``run.json``,
+``config.json``, ``results.csv``, ``sweep.json``) is read and checked, and every comparison
+computed, before anything is written; a damaged one (cut short, random bytes, a row with
+too few or too many cells, ``abc`` in a number column, rows the experiment cannot use) is a
+:class:`ReportInputError` naming the file, and nothing is written.
 """
 
 from __future__ import annotations
 
+import csv
 import json
+import math
 import os
+import shutil
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from experiments.framework import (
     EXPERIMENT_NAMES,
@@ -22,7 +34,19 @@ from experiments.framework import (
     read_csv,
 )
 
-__all__ = ["PAPER_REFERENCE", "build_report", "latest_result", "render_report"]
+__all__ = [
+    "PAPER_REFERENCE",
+    "LoadedResult",
+    "ReportInputError",
+    "build_report",
+    "latest_result",
+    "load_result",
+    "read_json",
+    "read_rows",
+    "render_report",
+    "report_path",
+]
+_T = TypeVar("_T")
 
 #: The paper whose results the report sets ours beside (title and authors as published).
 PAPER_REFERENCE = (
@@ -32,12 +56,82 @@ PAPER_REFERENCE = (
 )
 
 
+class ReportInputError(ValueError):
+    """A result file the report cannot use: names the file and what is wrong with it."""
+
+    def __init__(self, path: Path, problem: str) -> None:
+        self.path = str(path)
+        super().__init__(f"{path}: {problem}")
+
+
+def read_json(path: Path) -> dict[str, Any]:
+    """A JSON object from ``path``, or :class:`ReportInputError`."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ReportInputError(path, "missing") from None
+    except UnicodeDecodeError as err:
+        raise ReportInputError(path, f"not UTF-8 text ({err.reason} at byte {err.start})") from None
+    except json.JSONDecodeError as err:
+        raise ReportInputError(path, f"not valid JSON, cut short or damaged ({err})") from None
+    except RecursionError:
+        raise ReportInputError(path, "JSON nested too deep") from None
+    if not isinstance(data, dict):
+        raise ReportInputError(path, f"expected a JSON object, got {type(data).__name__}")
+    return data
+
+
+def read_rows(path: Path) -> list[dict[str, Any]]:
+    """The rows of a ``results.csv`` (:func:`experiments.framework.read_csv`), checked first:
+    UTF-8 text, every row as many cells as the header, and no column that mixes numbers
+    with text (``abc`` where the other rows hold numbers); :class:`ReportInputError`
+    otherwise."""
+    try:
+        with path.open(encoding="utf-8", newline="") as f:
+            table = list(csv.reader(f))
+    except UnicodeDecodeError as err:
+        raise ReportInputError(path, f"not UTF-8 text ({err.reason} at byte {err.start})") from None
+    except csv.Error as err:
+        raise ReportInputError(path, f"not a CSV table ({err})") from None
+    if not table or not table[0]:
+        raise ReportInputError(path, "empty: no header row")
+    header = table[0]
+    for i, cells in enumerate(table[1:], start=2):
+        if len(cells) != len(header):
+            raise ReportInputError(
+                path, f"line {i} has {len(cells)} cells, the header {len(header)} (cut or damaged)"
+            )
+    rows = read_csv(path)
+    for col in header:
+        kinds = {
+            "text" if isinstance(r[col], str) else "number"
+            for r in rows
+            if not (isinstance(r[col], float) and math.isnan(r[col]))
+        }
+        if len(kinds) > 1:
+            i, bad = next((i, r[col]) for i, r in enumerate(rows) if isinstance(r[col], str))
+            raise ReportInputError(
+                path, f"column {col!r}, line {i + 2}: {bad!r} where the other rows hold numbers"
+            )
+    return rows
+
+
+def _checked(path: Path, what: str, fn: Callable[..., _T], *args: Any, **kwargs: Any) -> _T:
+    """``fn(*args, **kwargs)`` on the rows of ``path``: a failure that their values cause is
+    a :class:`ReportInputError` naming the file (the experiment's own code reads them)."""
+    try:
+        return fn(*args, **kwargs)
+    except (ValueError, TypeError, KeyError, IndexError, ZeroDivisionError) as err:
+        problem = f"{what} failed on its rows ({type(err).__name__}: {err})"
+        raise ReportInputError(path, " ".join(problem.split())) from None
+
+
 def _created(folder: Path) -> tuple[str, str]:
     try:
         run = json.loads((folder / "run.json").read_text())
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):
         return ("", folder.name)
-    return (str(run.get("created", "")), folder.name)
+    return (str(run.get("created", "")) if isinstance(run, dict) else "", folder.name)
 
 
 def latest_result(root: Path, name: str) -> Path | None:
@@ -51,6 +145,34 @@ def latest_result(root: Path, name: str) -> Path | None:
     return max(done, key=_created) if done else None
 
 
+@dataclass(frozen=True)
+class LoadedResult:
+    """A result folder read and checked: ``run.json``, the config, the rows and the
+    experiment's comparisons with the paper."""
+
+    folder: Path
+    run: dict[str, Any]
+    config: Any
+    rows: list[dict[str, Any]]
+    comparisons: list[Any]
+
+
+def load_result(folder: Path, name: str) -> LoadedResult:
+    """Read and check the result folder ``folder`` of experiment ``name``
+    (:class:`ReportInputError` naming the damaged file)."""
+    exp = get_experiment(name)
+    run = read_json(folder / "run.json")
+    cfg_path = folder / "config.json"
+    cfg_data = read_json(cfg_path)
+    cfg_data.pop("experiment", None)
+    config = config_from_dict(exp.config_type, cfg_data, where=str(cfg_path))  # ConfigError
+    csv_path = folder / "results.csv"
+    rows = read_rows(csv_path)
+    compare = exp.compare
+    comps = _checked(csv_path, f"{name}'s comparison", compare, config, rows) if compare else []
+    return LoadedResult(folder, run, config, rows, comps)
+
+
 def _rel(path: Path, start: Path) -> str:
     return Path(os.path.relpath(path.resolve(), start.resolve())).as_posix()
 
@@ -60,42 +182,60 @@ def _seconds(value: Any) -> str:
     return "? s" if value is None else f"{float(value):.0f} s"
 
 
-def _section(name: str, folder: Path | None, report_dir: Path) -> list[str]:
+def _figure_link(path: Path, figures: Path) -> str:
+    """The report's link to a figure written under ``figures`` (``report_figures/`` there)."""
+    return f"![{path.stem}](report_figures/{path.relative_to(figures).as_posix()})"
+
+
+def _section(name: str, result: LoadedResult | None, report_dir: Path, figures: Path) -> list[str]:
     exp = get_experiment(name)
     lines = [f"## {name}", "", exp.description, ""]
-    if folder is None:
+    if result is None:
         return [*lines, f"Not run yet: `wander experiment {name}`.", ""]
-    run: dict[str, Any] = json.loads((folder / "run.json").read_text())
-    cfg_data = json.loads((folder / "config.json").read_text())
-    cfg_data.pop("experiment", None)
-    config = config_from_dict(exp.config_type, cfg_data, where=str(folder / "config.json"))
-    rows = read_csv(folder / "results.csv")
-    timing = run.get("timing", {})
+    run, folder, rows = result.run, result.folder, result.rows
+    timing = run.get("timing")
+    total = timing.get("total_s") if isinstance(timing, dict) else None
     lines += [
         f"- command: `{run.get('command', '')}`",
         f"- seed {run.get('seed')}, git revision `{run.get('git_revision', 'unknown')}`, "
         f"created {run.get('created', '?')}",
-        f"- {len(rows)} trials in {_seconds(timing.get('total_s'))}; table: "
+        f"- {len(rows)} trials in {_seconds(total)}; table: "
         f"[{_rel(folder / 'results.csv', report_dir)}]({_rel(folder / 'results.csv', report_dir)})",
         "",
     ]
-    comps = exp.compare(config, rows) if exp.compare else []
-    if comps:
+    if result.comparisons:
         lines += ["| result | paper | ours | note |", "|---|---|---|---|"]
-        lines += [f"| {c.result} | {c.paper} | {c.ours} | {c.note} |" for c in comps]
+        lines += [f"| {c.result} | {c.paper} | {c.ours} | {c.note} |" for c in result.comparisons]
         lines.append("")
     if exp.plot is not None:
-        figs = exp.plot(config, rows, folder, report_dir / "report_figures" / name)
-        lines += [f"![{p.stem}]({_rel(p, report_dir)})" for p in figs]
+        plot = exp.plot
+        csv_path = folder / "results.csv"
+        figs = _checked(
+            csv_path, f"{name}'s figures", plot, result.config, rows, folder, figures / name
+        )
+        lines += [_figure_link(p, figures) for p in figs]
         lines.append("")
     return lines
 
 
-def _sweeps(root: Path, report_dir: Path) -> list[str]:
+def _sweep_folders(root: Path) -> list[tuple[Path, dict[str, Any]]]:
+    """The sweeps under ``root/sweeps`` with their ``sweep.json`` (checked)."""
     base = root / "sweeps"
     found = (
         sorted(d for d in base.iterdir() if (d / "sweep.json").is_file()) if base.is_dir() else []
     )
+    return [(d, read_json(d / "sweep.json")) for d in found]
+
+
+def _speed_sweeps(root: Path) -> list[tuple[Path, list[dict[str, Any]]]]:
+    """The speed sweeps under ``root/sweeps`` that have a table, with its rows (checked)."""
+    sweeps = root / "sweeps"
+    found = sorted(sweeps.glob("speed*")) if sweeps.is_dir() else []
+    return [(d, read_rows(d / "results.csv")) for d in found if (d / "results.csv").is_file()]
+
+
+def _sweeps(root: Path, report_dir: Path) -> list[str]:
+    found = _sweep_folders(root)
     if not found:
         return []
     lines = [
@@ -104,8 +244,7 @@ def _sweeps(root: Path, report_dir: Path) -> list[str]:
         "| sweep | trials | backend | command | table |",
         "|---|---:|---|---|---|",
     ]
-    for d in found:
-        s = json.loads((d / "sweep.json").read_text())
+    for d, s in found:
         table = _rel(d / "results.csv", report_dir)
         lines.append(
             f"| {d.name} | {s.get('trials')} | {s.get('backend')} | `{s.get('command', '')}` "
@@ -114,63 +253,68 @@ def _sweeps(root: Path, report_dir: Path) -> list[str]:
     return [*lines, ""]
 
 
-def _load(folder: Path, name: str) -> tuple[Any, list[dict[str, Any]]]:
-    exp = get_experiment(name)
-    cfg_data = json.loads((folder / "config.json").read_text())
-    cfg_data.pop("experiment", None)
-    config = config_from_dict(exp.config_type, cfg_data, where=str(folder / "config.json"))
-    return config, read_csv(folder / "results.csv")
-
-
-def studies_section(root: Path, report_dir: Path) -> list[str]:
-    """The scanpath and speed studies' tested statements beside the paper's: the
-    fixational − saccades difference in object hit rate (paired test, effect size),
-    the scanpaths' repeatability, the FLIR main-sequence fits, the command latency's
-    effect on time to foveate, and the speed sweeps' response surfaces."""
-    from experiments.paper import saccade_speed, scanpath
+def _studies_table(root: Path, report_dir: Path) -> list[str]:
+    """The rows of the studies' table (computed, nothing written)."""
     from experiments.stats import paired_comparison
 
-    lines = ["## Scanpath and speed studies: the statements tested", ""]
     rows_out = ["| statement | paper | ours | from |", "|---|---|---|---|"]
     folder = latest_result(root, "scanpath")
     if folder is not None:
-        cfg, rows = _load(folder, "scanpath")
+        loaded = load_result(folder, "scanpath")
         src = _rel(folder / "results.csv", report_dir)
-        for c in scanpath.compare(cfg, rows):
+        for c in loaded.comparisons:
             if c.result.endswith(": object hit rate") or "repeatability" in c.result:
                 ours = c.ours + (f"; {c.note}" if c.note.startswith("fixational") else "")
                 rows_out.append(f"| {c.result} | {c.paper} | {ours} | [{src}]({src}) |")
     folder = latest_result(root, "saccade_speed")
     if folder is not None:
-        cfg, rows = _load(folder, "saccade_speed")
+        loaded = load_result(folder, "saccade_speed")
         src = _rel(folder / "results.csv", report_dir)
-        for c in saccade_speed.compare(cfg, rows):
+        for c in loaded.comparisons:
             if c.result.startswith("main sequence, 2000 pos/s, 2000 pos/s²"):
                 rows_out.append(f"| {c.result} | {c.paper} | {c.ours} | [{src}]({src}) |")
-        base = [r for r in rows if r["factor"] == "baseline"]
-        ideal = [r for r in rows if r["factor"] == "ptu_link" and r["ptu"] == "ideal"]
-        if base and ideal and base[0]["ptu"] == "flir":
+
+        def link_cost() -> str | None:
+            rows = loaded.rows
+            base = [r for r in rows if r["factor"] == "baseline"]
+            ideal = [r for r in rows if r["factor"] == "ptu_link" and r["ptu"] == "ideal"]
+            if not (base and ideal and base[0]["ptu"] == "flir"):
+                return None
             by = {int(r["seed"]): float(r["time_to_foveate_s"]) for r in ideal}
             pairs = [(float(r["time_to_foveate_s"]), by[int(r["seed"])]) for r in base
                      if int(r["seed"]) in by]  # fmt: skip
-            t = paired_comparison([a for a, _ in pairs], [b for _, b in pairs])
+            return paired_comparison([a for a, _ in pairs], [b for _, b in pairs]).text(".3g")
+
+        cost = _checked(folder / "results.csv", "the PTU link's comparison", link_cost)
+        if cost is not None:
             rows_out.append(
                 f"| time to foveate (s): FLIR link (9600 baud) − ideal PTU | — (the paper's "
-                f"rig talks to the PTU at 9600 baud) | {t.text('.3g')} | [{src}]({src}) |"
+                f"rig talks to the PTU at 9600 baud) | {cost} | [{src}]({src}) |"
             )
-    if len(rows_out) > 2:
-        lines += [*rows_out, ""]
-    sweeps = root / "sweeps"
-    for d in sorted(sweeps.glob("speed*")) if sweeps.is_dir() else []:
-        if (d / "results.csv").is_file():
-            from experiments.paper.speed_study import plot_surfaces
+    return rows_out if len(rows_out) > 2 else []
 
-            fig = plot_surfaces(
-                read_csv(d / "results.csv"),
-                report_dir / "report_figures" / f"sweep_{d.name}_surfaces.png",
-                title=f"sweep {d.name}: response surfaces",
-            )
-            lines += [f"![{fig.stem}]({_rel(fig, report_dir)})", ""]
+
+def studies_section(root: Path, report_dir: Path, figures: Path | None = None) -> list[str]:
+    """The scanpath and speed studies' tested statements beside the paper's: the
+    fixational − saccades difference in object hit rate (paired test, effect size),
+    the scanpaths' repeatability, the FLIR main-sequence fits, the command latency's
+    effect on time to foveate, and the speed sweeps' response surfaces (drawn into
+    ``figures``, default ``report_dir/report_figures``)."""
+    figures = report_dir / "report_figures" if figures is None else figures
+    lines = ["## Scanpath and speed studies: the statements tested", ""]
+    table = _studies_table(root, report_dir)
+    speed = _speed_sweeps(root)
+    if table:
+        lines += [*table, ""]
+    for d, rows in speed:
+        from experiments.paper.speed_study import plot_surfaces
+
+        fig = _checked(
+            d / "results.csv", "the response surfaces",
+            plot_surfaces, rows, figures / f"sweep_{d.name}_surfaces.png",
+            title=f"sweep {d.name}: response surfaces",
+        )  # fmt: skip
+        lines += [_figure_link(fig, figures), ""]
     if len(lines) == 2:
         lines += [
             "Not run yet: `wander experiment scanpath`, `wander experiment saccade_speed`.",
@@ -179,8 +323,23 @@ def studies_section(root: Path, report_dir: Path) -> list[str]:
     return lines
 
 
-def render_report(root: Path = Path("results"), report_dir: Path = Path(".")) -> str:
-    """The Markdown text (figures are written under ``report_dir/report_figures``)."""
+def render_report(
+    root: Path = Path("results"), report_dir: Path = Path("."), figures: Path | None = None
+) -> str:
+    """The Markdown text of a report in ``report_dir``; its figures are written under
+    ``figures`` (default ``report_dir/report_figures``) and linked as ``report_figures/``.
+
+    Every result file is read and checked, and every comparison computed, before the first
+    figure is drawn: a damaged file is a :class:`ReportInputError` naming it.
+    """
+    figures = report_dir / "report_figures" if figures is None else figures
+    results = {}
+    for name in EXPERIMENT_NAMES:
+        folder = latest_result(root, name)
+        results[name] = None if folder is None else load_result(folder, name)
+    _studies_table(root, report_dir)
+    _speed_sweeps(root)
+    sweeps = _sweeps(root, report_dir)
     lines = [
         "# wander: the paper's results and ours",
         "",
@@ -191,14 +350,37 @@ def render_report(root: Path = Path("results"), report_dir: Path = Path(".")) ->
         "",
     ]
     for name in EXPERIMENT_NAMES:
-        lines += _section(name, latest_result(root, name), report_dir)
-    lines += studies_section(root, report_dir)
-    lines += _sweeps(root, report_dir)
+        lines += _section(name, results[name], report_dir, figures)
+    lines += studies_section(root, report_dir, figures)
+    lines += sweeps
     return "\n".join(lines).rstrip() + "\n"
 
 
+def report_path(out: Path) -> Path:
+    """The report file of ``--out``: ``out`` itself, or ``out/REPORT.md`` when ``out`` is an
+    existing folder.
+
+    >>> report_path(Path("docs/results.md")).as_posix(), report_path(Path("/")).as_posix()
+    ('docs/results.md', '/REPORT.md')
+    """
+    return out / "REPORT.md" if out.is_dir() else out
+
+
 def build_report(root: Path = Path("results"), out: Path = Path("REPORT.md")) -> Path:
-    """Write ``out`` (and its figures next to it); returns its path."""
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(render_report(root, out.parent))
+    """Write ``out`` (a file, or a folder: :func:`report_path`) and its figures in
+    ``report_figures/`` beside it; returns the report's path.
+
+    The figures are drawn in a temporary folder and moved beside the report once all of
+    them are: a damaged result file (:class:`ReportInputError`) leaves nothing written.
+    """
+    out = report_path(out)
+    with tempfile.TemporaryDirectory(prefix="wander-report-") as tmp:
+        text = render_report(root, out.parent, Path(tmp))
+        figures = out.parent / "report_figures"
+        for f in sorted(Path(tmp).rglob("*")):
+            if f.is_file():
+                dest = figures / f.relative_to(tmp)
+                dest.parent.mkdir(parents=True, exist_ok=True)
+                shutil.move(f, dest)
+    out.write_text(text)
     return out

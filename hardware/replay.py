@@ -11,6 +11,12 @@ end of the file reads return empty arrays and ``finished`` is true, unless
 ``loop`` is set: then the recording repeats, each lap shifted by the recording's
 length so that timestamps keep increasing.
 
+What it plays feeds the agent, whose maps take about 1.2 KB a pixel: a sensor larger than
+:data:`~wander_env.event_checks.MAX_SENSOR_PIXELS` is refused, and a file is read within
+the event limit of :func:`~wander_env.event_io.read_events`
+(:data:`~wander_env.event_checks.MAX_EVENTS`), both with an
+:class:`~wander_env.event_checks.EventFileError` naming the file.
+
 Example:
     >>> from wander_env.events import make_events
     >>> from wander_env.event_io import EventRecording
@@ -33,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from hardware.event_source import EventSourceBase
+from wander_env.event_checks import check_sensor_area
 from wander_env.event_io import EventRecording, read_events
 from wander_env.events import EVENT_DTYPE, empty_events, time_window
 
@@ -75,13 +82,16 @@ class ReplaySource(EventSourceBase):
             recording, origin = source, "EventRecording"
         else:
             recording, origin = read_events(source), str(Path(source))
+        check_sensor_area(origin, recording.sensor_size)
         events = np.asarray(recording.events).astype(EVENT_DTYPE, copy=False)
         if t0_us is not None:
             offset = int(t0_us)
         else:
             offset = int(events["t"][0]) if len(events) else 0
         skipped = int(np.searchsorted(events["t"], offset, side="left"))
-        self._events = events[skipped:].copy()
+        # A file's events are this replay's own: rebased in place; a caller's are copied.
+        own = events is not recording.events or not isinstance(source, EventRecording)
+        self._events = events[skipped:] if own else events[skipped:].copy()
         self._events["t"] -= offset
         self._period_us = int(self._events["t"][-1]) + 1 if len(self._events) else 0
         super().__init__(tuple(int(v) for v in recording.sensor_size))  # type: ignore[arg-type]

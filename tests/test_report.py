@@ -1,11 +1,16 @@
-"""wander report's studies section, from a scanpath result folder made by hand."""
+"""wander report: its studies section, from a scanpath result folder made by hand; where it
+writes; damaged result folders (one line naming the file, exit 2, nothing written)."""
 
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
+import pytest
 from test_scanpath_metrics import _rows
+from typer.testing import CliRunner
 
+from experiments.cli.main import app
 from experiments.framework import config_to_dict, write_csv
 from experiments.paper import scanpath
 from experiments.report import studies_section
@@ -73,3 +78,141 @@ def test_studies_section_shows_the_flir_main_sequence_and_the_links_cost(tmp_pat
     link = next(line for line in lines if line.startswith("| time to foveate (s): FLIR link"))
     # FLIR − ideal: exactly 0.25 s on every seed: p = 2/1024, no spread (d_z undefined)
     assert "Δ = 0.25 [0.25, 0.25], p = 0.00195, d_z = — (no spread), r_rb = 1.00 (n = 10) |" in link
+
+
+# ----------------------------------------------------------------------------------------
+# Damaged result folders: one line naming the file, exit 2, nothing written
+
+
+def _scanpath_folder(root: Path) -> Path:
+    """A complete scanpath result folder under ``root/scanpath/x`` (made by hand)."""
+    cfg = scanpath.ScanpathConfig(scenes=("shelf",))
+    folder = root / "scanpath" / "x"
+    rows = []
+    for i, r in enumerate(_rows()):
+        extra = {k: 1.0 for _, k, _ in scanpath._metrics(cfg) if k != "object_hit_rate"}
+        rows.append({"trial": i, "trial_id": f"t{i}", "repeat": r["seed"], **r, **extra})
+    write_csv(rows, folder / "results.csv")
+    (folder / "config.json").write_text(
+        json.dumps({"experiment": "scanpath", **config_to_dict(cfg)})
+    )
+    (folder / "run.json").write_text(json.dumps({"created": "2026-01-01T00:00:00"}))
+    return folder
+
+
+def _lines(path: Path) -> list[str]:
+    return path.read_text().splitlines()
+
+
+def _cut_row(csv_path: Path) -> None:
+    lines = _lines(csv_path)
+    lines[-1] = ",".join(lines[-1].split(",")[:-2])
+    csv_path.write_text("\n".join(lines) + "\n")
+
+
+def _cut_header(csv_path: Path) -> None:
+    lines = _lines(csv_path)
+    lines[0] = ",".join(lines[0].split(",")[:-1])
+    csv_path.write_text("\n".join(lines) + "\n")
+
+
+def _abc(csv_path: Path, rows: range) -> None:
+    lines = _lines(csv_path)
+    col = lines[0].split(",").index("object_hit_rate")
+    for k in rows:
+        cells = lines[k].split(",")
+        cells[col] = "abc"
+        lines[k] = ",".join(cells)
+    csv_path.write_text("\n".join(lines) + "\n")
+
+
+RANDOM = bytes(range(128, 256)) * 8  # not UTF-8 anywhere
+DAMAGE = {
+    "a row cut short": (
+        "results.csv", _cut_row, "line 21 has 17 cells, the header 19 (cut or damaged)"
+    ),
+    "the header cut short": (
+        "results.csv", _cut_header, "line 2 has 19 cells, the header 18 (cut or damaged)"
+    ),
+    "abc in a number column": (
+        "results.csv", lambda p: _abc(p, range(3, 4)),
+        "column 'object_hit_rate', line 4: 'abc' where the other rows hold numbers",
+    ),
+    "abc in every row of a number column": (
+        "results.csv", lambda p: _abc(p, range(1, 21)),
+        "scanpath's figures failed on its rows (ValueError: could not convert string to "
+        "float: 'abc')",
+    ),
+    "random bytes for the table": (
+        "results.csv", lambda p: p.write_bytes(RANDOM),
+        "not UTF-8 text (invalid start byte at byte 0)",
+    ),
+    "an empty table": ("results.csv", lambda p: p.write_text(""), "empty: no header row"),
+    "run.json cut short": (
+        "run.json", lambda p: p.write_bytes(p.read_bytes()[:9]),
+        "not valid JSON, cut short or damaged (Unterminated string starting at: line 1 "
+        "column 2 (char 1))",
+    ),
+    "random bytes for run.json": (
+        "run.json", lambda p: p.write_bytes(RANDOM),
+        "not UTF-8 text (invalid start byte at byte 0)",
+    ),
+    "run.json not an object": (
+        "run.json", lambda p: p.write_text("[1]"), "expected a JSON object, got list"
+    ),
+    "config.json cut short": (
+        "config.json", lambda p: p.write_bytes(p.read_bytes()[:9]),
+        "not valid JSON, cut short or damaged (Unterminated string starting at: line 1 "
+        "column 2 (char 1))",
+    ),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", list(DAMAGE))
+def test_a_damaged_result_folder_is_one_line_and_nothing_is_written(tmp_path, case) -> None:
+    name, damage, problem = DAMAGE[case]
+    folder = _scanpath_folder(tmp_path / "results")
+    damage(folder / name)
+    out = tmp_path / "docs" / "REPORT.md"
+    result = CliRunner().invoke(app, ["report", "--results", str(tmp_path / "results"),
+                                      "--out", str(out)], prog_name="wander")  # fmt: skip
+    assert result.exit_code == 2, result.output
+    assert result.stderr.splitlines() == [f"wander report: error: {folder / name}: {problem}"]
+    assert not (tmp_path / "docs").exists()
+
+
+def test_a_damaged_sweep_file_is_named(tmp_path) -> None:
+    sweep = tmp_path / "results" / "sweeps" / "s1"
+    sweep.mkdir(parents=True)
+    (sweep / "sweep.json").write_text('{"trials": 3')
+    args = ["report", "--results", str(tmp_path / "results"), "--out", str(tmp_path / "R.md")]
+    result = CliRunner().invoke(app, args, prog_name="wander")
+    assert result.exit_code == 2
+    assert result.stderr.splitlines() == [
+        f"wander report: error: {sweep / 'sweep.json'}: not valid JSON, cut short or damaged "
+        "(Expecting ',' delimiter: line 1 column 13 (char 12))"
+    ]
+    assert not (tmp_path / "R.md").exists()
+
+
+def test_report_figures_go_beside_the_report_not_the_cwd(tmp_path, monkeypatch) -> None:
+    _scanpath_folder(tmp_path / "results")
+    cwd = tmp_path / "cwd"
+    (cwd / "reports").mkdir(parents=True)
+    monkeypatch.chdir(cwd)
+    runner = CliRunner()
+    args = ["report", "--results", str(tmp_path / "results")]
+    assert runner.invoke(app, [*args, "--out", "reports"]).exit_code == 0  # a folder
+    assert runner.invoke(app, [*args, "--out", "../docs/R.md"]).exit_code == 0  # a file
+    figures = ["scanpath/scanpath.png", "scanpath/scanpath_stats.png"]
+    for report in (cwd / "reports" / "REPORT.md", tmp_path / "docs" / "R.md"):
+        text = report.read_text()
+        for fig in figures:
+            assert (report.parent / "report_figures" / fig).is_file()
+            assert f"(report_figures/{fig})" in text
+    assert sorted(p.name for p in cwd.iterdir()) == ["reports"]
+
+
+def test_report_help_shows_no_double_backticks() -> None:
+    result = CliRunner().invoke(app, ["report", "--help"])
+    assert result.exit_code == 0 and "``" not in result.output and "--force" in result.output

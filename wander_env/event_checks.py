@@ -7,11 +7,16 @@ raises :class:`EventFileError` naming the file, the field and the offending valu
   ``max_side`` (:data:`MAX_SENSOR_SIDE` unless the caller raises it) per side;
 - :func:`check_claim`: a count a header claims, against the bytes the file really
   holds (a 3 KB file cannot hold 2^27 events);
+- :meth:`ReadLimits.check_count`: the events a file holds (its header's claim, or what a
+  decoder has produced so far), at most ``max_events`` (:data:`MAX_EVENTS`): a
+  compressed file of a few MB can hold 2^27 events, which decompress to GBs;
+- :func:`check_sensor_area`: the sensor area the agent and the benchmark model will
+  process, at most :data:`MAX_SENSOR_PIXELS` (their maps take about 1.2 KB a pixel);
 - :func:`fill_events`: the columns copied in chunks of :data:`CHUNK_EVENTS` into the
   shared event dtype, each chunk checked first: integer (or whole, finite float)
   values, inside the sensor and the dtype (no silent cast: ``x = 65541`` is an
   error, not 5), polarity 0 or 1, ``t`` finite and sorted;
-- :func:`parse_metadata`: a JSON object.
+- :func:`parse_metadata`: a JSON object, nested at most :data:`MAX_METADATA_DEPTH` deep.
 
 Example:
     >>> import numpy as np
@@ -42,6 +47,14 @@ from wander_env.events import EVENT_DTYPE, SensorSize
 
 #: The largest sensor side a reader accepts unless its caller raises the limit.
 MAX_SENSOR_SIDE = 8192
+#: The most events a reader returns unless its caller raises the limit: 218 MB as events;
+#: a replay or a benchmark of this many events stays within about 1.5 GB.
+MAX_EVENTS = 1 << 24
+#: The largest sensor area (W×H) the agent and the benchmark model process: the HD sensor of
+#: Prophesee's Gen4 / IMX636 (1280×720); their maps take about 1.2 KB a pixel, 1.1 GB here.
+MAX_SENSOR_PIXELS = 1280 * 720
+#: The deepest nesting of a file's JSON metadata that is read.
+MAX_METADATA_DEPTH = 64
 #: Events checked and copied at a time.
 CHUNK_EVENTS = 1 << 20
 _FIELDS = ("x", "y", "t", "p")
@@ -109,6 +122,59 @@ def check_sensor_size(
     return (w, h, 2)
 
 
+@dataclass(frozen=True)
+class ReadLimits:
+    """What a reader accepts: ``max_side`` pixels per sensor side, ``max_events`` events.
+
+    >>> ReadLimits(max_events=10).check_count("f.h5", "events/t", 11)
+    Traceback (most recent call last):
+    ...
+    wander_env.event_checks.EventFileError: f.h5: field 'events/t': holds at least 11 events; \
+at most 10 are read (the max_events of read_events)
+    """
+
+    max_side: int = MAX_SENSOR_SIDE
+    max_events: int = MAX_EVENTS
+
+    def check_count(self, path: str | os.PathLike, field: str, count: int) -> None:
+        """``count`` events (claimed, or decoded so far) must not pass ``max_events``."""
+        if count > self.max_events:
+            raise EventFileError(
+                path,
+                f"holds at least {count:,} events; at most {self.max_events:,} are read "
+                "(the max_events of read_events)",
+                field,
+                count,
+            )
+
+
+def check_sensor_area(
+    path: str | os.PathLike,
+    sensor_size: SensorSize,
+    max_pixels: int = MAX_SENSOR_PIXELS,
+    field: str = "sensor_size",
+) -> None:
+    """The agent's and the benchmark model's maps cost about 1.2 KB a pixel: a sensor of
+    more than ``max_pixels`` is refused before they are allocated.
+
+    >>> check_sensor_area("f.h5", (8192, 8192, 2))
+    Traceback (most recent call last):
+    ...
+    wander_env.event_checks.EventFileError: f.h5: field 'sensor_size': 8192x8192 is \
+67,108,864 pixels; the agent and the benchmark model process at most 921,600 (about 1.2 KB \
+of maps a pixel)
+    """
+    w, h = int(sensor_size[0]), int(sensor_size[1])
+    if w * h > max_pixels:
+        raise EventFileError(
+            path,
+            f"{w}x{h} is {w * h:,} pixels; the agent and the benchmark model process at most "
+            f"{max_pixels:,} (about 1.2 KB of maps a pixel)",
+            field,
+            [w, h],
+        )
+
+
 def check_claim(
     path: str | os.PathLike, field: str, count: int, itemsize: int, available: int
 ) -> None:
@@ -137,13 +203,34 @@ def parse_metadata(path: str | os.PathLike, raw: Any, field: str = "metadata") -
             raise EventFileError(path, f"not UTF-8 text ({err})", field) from None
     if not isinstance(raw, str):
         raise EventFileError(path, f"expected JSON text, got {type(raw).__name__}", field)
+    too_deep = f"nested deeper than {MAX_METADATA_DEPTH} levels"
     try:
         meta = json.loads(raw)
     except json.JSONDecodeError as err:
         raise EventFileError(path, f"not valid JSON ({err}): {raw[:80]!r}", field) from None
+    except RecursionError:
+        raise EventFileError(path, too_deep, field) from None
     if not isinstance(meta, dict):
         raise EventFileError(path, f"expected a JSON object, got {type(meta).__name__}", field)
+    if json_depth(meta) > MAX_METADATA_DEPTH:
+        raise EventFileError(path, too_deep, field)
     return meta
+
+
+def json_depth(value: Any) -> int:
+    """How deep lists and objects nest in ``value`` (walked without recursion).
+
+    >>> json_depth({"a": [1, {"b": []}]}), json_depth(3)
+    (4, 0)
+    """
+    deepest, stack = 0, [(value, 1)]
+    while stack:
+        v, depth = stack.pop()
+        items = v.values() if isinstance(v, dict) else v if isinstance(v, list) else None
+        if items is not None:
+            deepest = max(deepest, depth)
+            stack.extend((item, depth + 1) for item in items)
+    return deepest
 
 
 def _limits(name: str, sensor_size: SensorSize | None, max_side: int) -> tuple[int, int]:
@@ -316,12 +403,15 @@ def checked_recording(
     columns: dict[str, Any],
     sensor_size: SensorSize | None,
     metadata: dict[str, Any],
-    max_side: int,
+    limits: ReadLimits,
     n: int | None = None,
 ) -> EventRecording:
-    """The recording of a reader's raw ``columns``: check the sensor size (or infer it
-    from the largest coordinates), then copy the columns in checked chunks."""
+    """The recording of a reader's raw ``columns``: check the count against the limits and
+    the sensor size (or infer it from the largest coordinates), then copy the columns in
+    checked chunks."""
     count = n_rows(path, columns) if n is None else n
+    limits.check_count(path, "events", count)
+    max_side = limits.max_side
     if sensor_size is None:
         if count == 0:
             raise EventFileError(path, "no events and no sensor size: pass sensor_size")

@@ -7,7 +7,8 @@ dispatch here by suffix:
 suffix      read   write  through
 ==========  =====  =====  ================================================================
 ``.raw``    yes    yes    Prophesee EVT 3.0: read by ``evt3`` (OpenEB-exact timestamps),
-                          written by ``faery``; EVT 2.0 / 2.1: read by ``faery``
+                          written by ``faery``; EVT 2.0: read by ``faery`` (EVT 2.1 is
+                          refused: ``faery`` has no decoder for it yet)
 ``.dat``    yes    no     Prophesee DAT 2 (CD events) by ``faery``
 ``.es``     yes    no     Event Stream 2.0, DVS type (neuromorphicsystems/sepia) by ``faery``
 ``.aedat4`` (1)    yes    AEDAT 4.0 written by ``faery`` (LZ4); read by ``aedat`` (1)
@@ -24,8 +25,10 @@ AEDAT4 and EVT3.
 
 Every reader checks its input before trusting it — the header declares the format, the
 body is a whole number of words/events, decoded coordinates fall inside the sensor,
-polarities are 0/1 and time never runs backwards — and raises
-:class:`~wander_env.event_io.EventFileError` naming the file. What a format cannot hold
+polarities are 0/1, time never runs backwards and the events decoded stay within the
+reader's event limit (counted as a decoder produces them, before the file is held in full)
+— and raises :class:`~wander_env.event_io.EventFileError` naming the file. A decoder's
+failure, a Rust panic inside ``faery`` included, becomes that one error. What a format cannot hold
 (wander's JSON metadata, in EVT3 and AEDAT4) is said here and in the README, not lost
 silently: write an ``.h5`` beside it to keep it.
 
@@ -47,16 +50,18 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from wander_env.event_checks import (
-    MAX_SENSOR_SIDE,
     EventFileError,
     EventRecording,
+    ReadLimits,
+    check_sensor_size,
     checked_recording,
 )
 from wander_env.events import SensorSize, time_window
@@ -81,8 +86,20 @@ EVT3_CLOCK_US = 1 << 24  # TIME_HIGH + TIME_LOW: 24 bits of µs before the first
 MS_TO_IDX_ZERO_OFFSET_LIMIT_US = 60_000_000
 
 
-def _fail(path: Path, what: str, err: BaseException) -> EventFileError:
-    return EventFileError(path, f"{what} failed, file damaged or truncated ({err})")
+@contextmanager
+def _decoding(path: Path, what: str) -> Iterator[None]:
+    """A decoder's failure as one :class:`EventFileError`. ``faery`` is Rust: a panic in it
+    arrives as ``pyo3_runtime.PanicException``, a ``BaseException`` that ``except
+    Exception`` would miss; it is caught here, by its name, and nothing broader."""
+    try:
+        yield
+    except (OSError, RuntimeError, ValueError, OverflowError) as err:
+        raise EventFileError(path, f"{what} failed, file damaged or truncated ({err})") from None
+    except BaseException as err:
+        if type(err).__name__ != "PanicException":
+            raise
+        problem = f"{what} failed: the decoder gave up on this file ({err})"
+        raise EventFileError(path, problem) from None
 
 
 # ----------------------------------------------------------------------------------------
@@ -133,17 +150,34 @@ def _evt_version(fields: dict[str, str]) -> str | None:
 
 
 def _sensor(
-    path: Path, given: SensorSize | None, fields: dict[str, str], meta: dict[str, Any]
+    path: Path,
+    given: SensorSize | None,
+    fields: dict[str, str],
+    meta: dict[str, Any],
+    limits: ReadLimits,
 ) -> SensorSize | None:
-    """The sensor size: the caller's, else the header's; None: ``checked_recording`` infers
-    it."""
+    """The sensor size: the caller's, else the header's (checked: a decoder is handed it);
+    None: ``checked_recording`` infers it."""
     if given is not None:
-        return given
+        return check_sensor_size(path, given, limits.max_side)
     geometry = _header_geometry(fields)
     if geometry is None:
         return None
     meta["sensor_size_from"] = "header"
-    return (geometry[0], geometry[1], 2)
+    return check_sensor_size(path, geometry, limits.max_side, "header geometry")
+
+
+def evt3_event_count(words: np.ndarray) -> int:
+    """The CD events an EVT 3.0 body of 16-bit ``words`` holds: one per ``EVT_ADDR_X``
+    (type 0x2), one per set bit of a ``VECT_12`` (0x4) or ``VECT_8`` (0x5) word.
+
+    >>> evt3_event_count(np.array([0x2005, 0x4FFF, 0x50F0, 0x8001], np.uint16))
+    17
+    """
+    kind = words >> 12
+    vect12 = np.bitwise_count(words[kind == 0x4] & 0xFFF).sum(dtype=np.int64)
+    vect8 = np.bitwise_count(words[kind == 0x5] & 0xFF).sum(dtype=np.int64)
+    return int(np.count_nonzero(kind == 0x2) + vect12 + vect8)
 
 
 # ----------------------------------------------------------------------------------------
@@ -151,9 +185,10 @@ def _sensor(
 
 
 def read_prophesee_raw(
-    path: Path, sensor_size: SensorSize | None = None, max_side: int = MAX_SENSOR_SIDE
+    path: Path, sensor_size: SensorSize | None = None, limits: ReadLimits | None = None
 ) -> EventRecording:
-    """Prophesee ``.raw``: EVT 3.0 through ``evt3``, EVT 2.0/2.1 through ``faery``."""
+    """Prophesee ``.raw``: EVT 3.0 through ``evt3``, EVT 2.0 through ``faery``."""
+    limits = limits or ReadLimits()
     data = path.read_bytes()
     fields, start = prophesee_header(data)
     version = _evt_version(fields)
@@ -163,7 +198,11 @@ def read_prophesee_raw(
             "no Prophesee header declaring the encoding ('% evt 3.0', '% evt 2.0' or "
             f"'% format EVT3'); found header fields {sorted(fields)}",
         )
-    word = {"evt3": 2, "evt2": 4, "evt2.1": 8}[version]
+    if version == "evt2.1":
+        raise EventFileError(
+            path, "EVT 2.1 is not read (faery has no decoder for it yet); convert it to EVT 3.0"
+        )
+    word = {"evt3": 2, "evt2": 4}[version]
     body = len(data) - start
     if body % word:
         raise EventFileError(
@@ -172,19 +211,19 @@ def read_prophesee_raw(
             f"{word}-byte words",
         )
     meta: dict[str, Any] = {"source_format": version, "header": fields}
-    size = _sensor(path, sensor_size, fields, meta)
+    size = _sensor(path, sensor_size, fields, meta, limits)
     if version == "evt3":
         import evt3
 
+        words = np.frombuffer(data, dtype="<u2", offset=start)
+        limits.check_count(path, "events", evt3_event_count(words))  # before decoding
         # Events before the first TIME_HIGH have no time: OpenEB (and evt3) skip them.
-        words = np.frombuffer(data, dtype="<u2", offset=start) >> 12
-        first_th = np.flatnonzero(words == 0x8)
-        before = words[: first_th[0] if first_th.size else words.size]
+        kind = words >> 12
+        first_th = np.flatnonzero(kind == 0x8)
+        before = kind[: first_th[0] if first_th.size else kind.size]
         meta["event_words_before_first_time_high"] = int(np.isin(before, (2, 3, 4, 5)).sum())
-        try:
+        with _decoding(path, "EVT 3.0 decoding"):
             dec = evt3.decode_file(str(path))
-        except (OSError, RuntimeError, ValueError) as err:
-            raise _fail(path, "EVT 3.0 decoding", err) from None
         t = np.asarray(dec.t, dtype=np.int64)
         if "t0" in fields:  # faery's header line for streams written relative to t0
             try:
@@ -198,19 +237,29 @@ def read_prophesee_raw(
 
         # Without a known geometry: decode the full 11-bit range; checked_recording infers the size.
         fallback = (size[0], size[1]) if size else (EVT3_MAX_COORD, EVT3_MAX_COORD)
-        chunks, triggers = [], 0
-        try:
+        chunks, triggers, decoded = [], 0, 0
+        with _decoding(path, f"{version.upper()} decoding"):
             with faery.evt.Decoder(path, fallback, version) as dec:
                 for packet in dec:
                     if "events" in packet:
                         chunks.append(packet["events"])
+                        decoded += len(packet["events"])
+                        limits.check_count(path, "events", decoded)
                     triggers += len(packet.get("triggers", ()))
-        except (OSError, RuntimeError, ValueError) as err:
-            raise _fail(path, f"{version.upper()} decoding", err) from None
         raw = np.concatenate(chunks) if chunks else np.zeros(0, faery.EVENTS_DTYPE)
         columns = {"x": raw["x"], "y": raw["y"], "t": raw["t"], "p": raw["on"]}
         meta["trigger_events"] = triggers
-    return checked_recording(path, _checked(path, columns), size, meta, max_side)
+    return checked_recording(path, _checked(path, columns), size, meta, limits)
+
+
+def _decoded(path: Path, decoder: Any, limits: ReadLimits) -> list[np.ndarray]:
+    """A ``faery`` decoder's event chunks, counted against the limit as they come."""
+    chunks, decoded = [], 0
+    for chunk in decoder:
+        chunks.append(chunk)
+        decoded += len(chunk)
+        limits.check_count(path, "events", decoded)
+    return chunks
 
 
 def _checked(path: Path, columns: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -223,9 +272,10 @@ def _checked(path: Path, columns: dict[str, np.ndarray]) -> dict[str, np.ndarray
 
 
 def read_dat(
-    path: Path, sensor_size: SensorSize | None = None, max_side: int = MAX_SENSOR_SIDE
+    path: Path, sensor_size: SensorSize | None = None, limits: ReadLimits | None = None
 ) -> EventRecording:
     """Prophesee DAT 2 (CD events) through ``faery``."""
+    limits = limits or ReadLimits()
     import faery
 
     data = path.read_bytes()
@@ -247,14 +297,12 @@ def read_dat(
             path, f"truncated: {body} bytes of events is not a whole number of 8-byte events"
         )
     meta: dict[str, Any] = {"source_format": "dat", "header": fields}
-    size = _sensor(path, sensor_size, fields, meta)
+    size = _sensor(path, sensor_size, fields, meta, limits)
+    limits.check_count(path, "events", body // 8)
     # Without a known geometry: decode the full 14-bit range; checked_recording infers the size.
     fallback = (size[0], size[1]) if size else (DAT_MAX_COORD, DAT_MAX_COORD)
-    try:
-        with faery.dat.Decoder(path, fallback, "dat2") as dec:
-            chunks = list(dec)
-    except (OSError, RuntimeError, ValueError) as err:
-        raise _fail(path, "DAT decoding", err) from None
+    with _decoding(path, "DAT decoding"), faery.dat.Decoder(path, fallback, "dat2") as dec:
+        chunks = _decoded(path, dec, limits)
     raw = np.concatenate(chunks) if chunks else np.zeros(0, [("t", "<u8"), ("payload", "u1")])
     columns = {
         "x": raw["x"] if len(raw) else np.zeros(0),
@@ -262,7 +310,7 @@ def read_dat(
         "t": raw["t"],
         "p": raw["payload"],
     }
-    return checked_recording(path, _checked(path, columns), size, meta, max_side)
+    return checked_recording(path, _checked(path, columns), size, meta, limits)
 
 
 def es_expected_bytes(t: np.ndarray) -> int:
@@ -284,7 +332,7 @@ def es_expected_bytes(t: np.ndarray) -> int:
 def read_es(
     path: Path,
     sensor_size: SensorSize | None = None,
-    max_side: int = MAX_SENSOR_SIDE,
+    limits: ReadLimits | None = None,
     *,
     flip_y: bool = True,
 ) -> EventRecording:
@@ -295,6 +343,7 @@ def read_es(
     (for files converted without the flip, e.g. the EED sequence in
     ``../shared/realdata``, whose README says so).
     """
+    limits = limits or ReadLimits()
     import faery
 
     data = path.read_bytes()
@@ -309,12 +358,9 @@ def read_es(
         raise EventFileError(path, f"Event Stream version {version}; 2.x is read")
     if kind != "dvs":
         raise EventFileError(path, f"Event Stream of type {kind!r}; the DVS type is read")
-    try:
-        with faery.es.Decoder(path=path, t0=0) as dec:
-            width, height = dec.dimensions
-            chunks = list(dec)
-    except (OSError, RuntimeError, ValueError) as err:
-        raise _fail(path, "Event Stream decoding", err) from None
+    with _decoding(path, "Event Stream decoding"), faery.es.Decoder(path=path, t0=0) as dec:
+        width, height = dec.dimensions
+        chunks = _decoded(path, dec, limits)
     raw = np.concatenate(chunks) if chunks else np.zeros(0, faery.EVENTS_DTYPE)
     spare = len(data) - 20 - es_expected_bytes(raw["t"])
     tail = data[len(data) - spare :] if spare > 0 else b""
@@ -328,7 +374,7 @@ def read_es(
     columns = {"x": raw["x"], "y": height - 1 - y if flip_y else y, "t": raw["t"], "p": raw["on"]}
     meta = {"source_format": "es", "es_version": ".".join(map(str, version)), "flip_y": flip_y}
     size = sensor_size or (width, height, 2)
-    return checked_recording(path, _checked(path, columns), size, meta, max_side)
+    return checked_recording(path, _checked(path, columns), size, meta, limits)
 
 
 # ----------------------------------------------------------------------------------------
@@ -410,7 +456,7 @@ def write_evt3(path: Path, recording: EventRecording) -> None:
             enc.write({"events": events[i : i + (1 << 16)]})
 
 
-READERS: dict[str, Callable[[Path, SensorSize | None, int], EventRecording]] = {
+READERS: dict[str, Callable[[Path, SensorSize | None, ReadLimits], EventRecording]] = {
     ".raw": read_prophesee_raw,
     ".dat": read_dat,
     ".es": read_es,

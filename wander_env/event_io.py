@@ -45,9 +45,11 @@ from typing import Any
 import numpy as np
 
 from wander_env.event_checks import (
+    MAX_EVENTS,
     MAX_SENSOR_SIDE,
     EventFileError,
     EventRecording,
+    ReadLimits,
     check_claim,
     check_sensor_size,
     checked_recording,
@@ -60,8 +62,12 @@ from wander_env.runinfo import dumps_strict
 FORMAT_TAG = "wander-events/1"
 
 
-def _npy_header(path: Path, fh: Any, available: int, what: str) -> tuple[tuple, np.dtype]:
-    """Shape and dtype of an ``.npy`` stream, checked against the bytes that follow."""
+def _npy_header(
+    path: Path, fh: Any, available: int, what: str, limits: ReadLimits
+) -> tuple[tuple, np.dtype]:
+    """Shape and dtype of an ``.npy`` stream, checked against the bytes that follow and the
+    event limit (an ``.npz`` member is compressed: its claim is checked before it is
+    inflated)."""
     try:
         version = np.lib.format.read_magic(fh)
         read = (
@@ -76,15 +82,17 @@ def _npy_header(path: Path, fh: Any, available: int, what: str) -> tuple[tuple, 
         raise EventFileError(path, f"dtype {dtype} holds Python objects", what, str(dtype))
     count = int(np.prod(shape, dtype=np.int64)) if shape else 1
     check_claim(path, what, count, dtype.itemsize, available - fh.tell())
+    limits.check_count(path, what, count)
     return shape, dtype
 
 
-def _read_npz(path: Path, sensor_size: SensorSize | None, max_side: int) -> EventRecording:
+def _read_npz(path: Path, sensor_size: SensorSize | None, limits: ReadLimits) -> EventRecording:
     try:
         with zipfile.ZipFile(path) as zf:
             for info in zf.infolist():  # headers against the stored sizes, before np.load
                 with zf.open(info) as fh:
-                    _npy_header(path, fh, info.file_size, info.filename.removesuffix(".npy"))
+                    what = info.filename.removesuffix(".npy")
+                    _npy_header(path, fh, info.file_size, what, limits)
         with np.load(path, allow_pickle=False) as data:
             keys = set(data.files)
             if "events" in keys:
@@ -95,18 +103,18 @@ def _read_npz(path: Path, sensor_size: SensorSize | None, max_side: int) -> Even
             else:
                 columns = {f: data[f] for f in ("x", "y", "t", "p") if f in keys}
             if sensor_size is None and "sensor_size" in keys:
-                sensor_size = check_sensor_size(path, data["sensor_size"], max_side)
+                sensor_size = check_sensor_size(path, data["sensor_size"], limits.max_side)
             metadata = parse_metadata(path, data["metadata"]) if "metadata" in keys else {}
     except EventFileError:
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as err:
         raise EventFileError(path, f"not a readable .npz file ({err})") from None
-    return checked_recording(path, columns, sensor_size, metadata, max_side)
+    return checked_recording(path, columns, sensor_size, metadata, limits)
 
 
-def _read_npy(path: Path, sensor_size: SensorSize | None, max_side: int) -> EventRecording:
+def _read_npy(path: Path, sensor_size: SensorSize | None, limits: ReadLimits) -> EventRecording:
     with open(path, "rb") as fh:
-        _npy_header(path, fh, path.stat().st_size, "array")
+        _npy_header(path, fh, path.stat().st_size, "array", limits)
     try:
         arr = np.load(path, mmap_mode="r", allow_pickle=False)  # read in chunks below
     except (OSError, ValueError, EOFError) as err:
@@ -114,7 +122,7 @@ def _read_npy(path: Path, sensor_size: SensorSize | None, max_side: int) -> Even
     if arr.dtype.names is None:
         raise EventFileError(path, f"expected a structured array with x, y, t, p; got {arr.dtype}")
     columns = {f: arr[f] for f in arr.dtype.names}
-    return checked_recording(path, columns, sensor_size, {}, max_side)
+    return checked_recording(path, columns, sensor_size, {}, limits)
 
 
 def _h5_column(path: Path, group: Any, name: str) -> Any:
@@ -151,7 +159,7 @@ def _h5_column(path: Path, group: Any, name: str) -> Any:
     return ds
 
 
-def _read_h5(path: Path, sensor_size: SensorSize | None, max_side: int) -> EventRecording:
+def _read_h5(path: Path, sensor_size: SensorSize | None, limits: ReadLimits) -> EventRecording:
     import h5py
 
     try:
@@ -165,10 +173,10 @@ def _read_h5(path: Path, sensor_size: SensorSize | None, max_side: int) -> Event
                 )
             columns = {k: _h5_column(path, g, k) for k in ("x", "y", "t", "p") if k in g}
             if sensor_size is None and "sensor_size" in f.attrs:
-                sensor_size = check_sensor_size(path, f.attrs["sensor_size"], max_side)
+                sensor_size = check_sensor_size(path, f.attrs["sensor_size"], limits.max_side)
             metadata = parse_metadata(path, f.attrs["metadata"]) if "metadata" in f.attrs else {}
             n, metadata = stream_state(path, f.attrs, n_rows(path, columns), metadata)
-            return checked_recording(path, columns, sensor_size, metadata, max_side, n=n)
+            return checked_recording(path, columns, sensor_size, metadata, limits, n=n)
     except EventFileError:
         raise
     except (OSError, KeyError, TypeError, ValueError) as err:
@@ -189,7 +197,7 @@ def stream_state(
     return n, {**metadata, "incomplete": incomplete}
 
 
-def _read_aedat4(path: Path, sensor_size: SensorSize | None, max_side: int) -> EventRecording:
+def _read_aedat4(path: Path, sensor_size: SensorSize | None, limits: ReadLimits) -> EventRecording:
     import aedat
 
     with open(path, "rb") as fh:
@@ -201,9 +209,12 @@ def _read_aedat4(path: Path, sensor_size: SensorSize | None, max_side: int) -> E
         streams = decoder.id_to_stream()
         chunks: list[np.ndarray] = []
         other: dict[str, int] = {}
-        for packet in decoder:
+        decoded = 0
+        for packet in decoder:  # LZ4-compressed: counted as it inflates
             if "events" in packet:
                 chunks.append(packet["events"])
+                decoded += len(packet["events"])
+                limits.check_count(path, "events", decoded)
             else:
                 kind = streams.get(packet["stream_id"], {}).get("type", "unknown")
                 other[kind] = other.get(kind, 0) + 1
@@ -217,7 +228,7 @@ def _read_aedat4(path: Path, sensor_size: SensorSize | None, max_side: int) -> E
     if sensor_size is None:
         stream = event_streams[0]
         size = (stream.get("width"), stream.get("height"))
-        sensor_size = check_sensor_size(path, size, max_side, "event stream width/height")
+        sensor_size = check_sensor_size(path, size, limits.max_side, "event stream width/height")
     raw = np.concatenate(chunks) if chunks else np.zeros(0, dtype=[("t", "<u8")])
     empty = np.zeros(0, np.int64)
     columns = {
@@ -227,10 +238,10 @@ def _read_aedat4(path: Path, sensor_size: SensorSize | None, max_side: int) -> E
         "p": raw["on"] if len(raw) else empty,
     }
     metadata = {"source_format": "aedat4", "other_stream_packets": other}
-    return checked_recording(path, columns, sensor_size, metadata, max_side)
+    return checked_recording(path, columns, sensor_size, metadata, limits)
 
 
-def _read_aedat2(path: Path, sensor_size: SensorSize | None, max_side: int) -> EventRecording:
+def _read_aedat2(path: Path, sensor_size: SensorSize | None, limits: ReadLimits) -> EventRecording:
     """jAER AEDAT 2.0, DVS128 addresses (big-endian int32 address, int32 timestamp)."""
     size = path.stat().st_size
     with open(path, "rb") as fh:
@@ -255,6 +266,7 @@ def _read_aedat2(path: Path, sensor_size: SensorSize | None, max_side: int) -> E
             path, f"truncated: {body} bytes of events is not a whole number of 8-byte events"
         )
     n = body // 8
+    limits.check_count(path, "events", n)
     words = (
         np.memmap(path, dtype=">i4", mode="r", offset=pos, shape=(n, 2))
         if n
@@ -276,7 +288,7 @@ def _read_aedat2(path: Path, sensor_size: SensorSize | None, max_side: int) -> E
     del words
     columns = {f: np.concatenate(v) if v else np.zeros(0, np.int64) for f, v in parts.items()}
     metadata = {"source_format": "aedat2", "special_events": special_n}
-    return checked_recording(path, columns, sensor_size or (128, 128, 2), metadata, max_side)
+    return checked_recording(path, columns, sensor_size or (128, 128, 2), metadata, limits)
 
 
 _READERS = {
@@ -293,6 +305,7 @@ def read_events(
     path: str | os.PathLike,
     sensor_size: SensorSize | None = None,
     max_sensor_side: int = MAX_SENSOR_SIDE,
+    max_events: int = MAX_EVENTS,
 ) -> EventRecording:
     """Read an event file of any supported format (see the module docstring).
 
@@ -300,7 +313,8 @@ def read_events(
     is inferred from the largest coordinates and ``metadata["sensor_size_inferred"]``
     is set. The file is untrusted (:mod:`wander_env.event_checks`): a sensor side above
     ``max_sensor_side``, a count the file cannot hold, a value that does not fit its
-    field are :class:`EventFileError` before anything large is allocated. A file that
+    field, more than ``max_events`` events (counted before a compressed file is inflated)
+    are :class:`EventFileError` before anything large is allocated. A file that
     :class:`~wander_env.event_stream.EventStreamWriter` did not finish (a killed run) is
     read up to its last flushed chunk; ``metadata["incomplete"]`` says where it stops.
     """
@@ -313,7 +327,7 @@ def read_events(
         raise EventFileError(path, f"unknown suffix {path.suffix!r}; readable: {sorted(readers)}")
     if not path.is_file():
         raise EventFileError(path, "no such file")
-    return reader(path, sensor_size, max_sensor_side)
+    return reader(path, sensor_size, ReadLimits(max_sensor_side, max_events))
 
 
 def write_events(path: str | os.PathLike, recording: EventRecording) -> None:

@@ -91,10 +91,13 @@ def run_sequences(
     ``sampler`` (a :class:`experiments.benchmark.figure.WindowSampler`) keeps a few
     windows' maps for ``maps_vs_masks.png``; ``progress`` sees every window
     (:class:`experiments.benchmark.protocol.ProgressEvent`), ``sequence_done`` is called
-    after each scored sequence.
+    after each scored sequence. A sensor larger than
+    :data:`~wander_env.event_checks.MAX_SENSOR_PIXELS` is refused before the model
+    allocates its maps (:class:`~wander_env.event_checks.EventFileError`).
     """
     from experiments.benchmark.model import nominal_dt_s
     from experiments.benchmark.protocol import evaluate_sequence
+    from wander_env.event_checks import check_sensor_area
 
     rows: list[Any] = []
     notes: dict[str, list[str]] = {}
@@ -106,6 +109,7 @@ def run_sequences(
         if not seq.windows:
             notes[key].append("no mask window: nothing scored")
             continue
+        check_sensor_area(seq.source or key, seq.sensor_size)  # before the model's maps
         dt = nominal_dt_s(seq.windows)
         dts[key] = dt
         model = dataclasses.replace(model_config, dt=dt).pipeline()
@@ -206,9 +210,11 @@ def run_suppression(
     (``model_config`` with the step ``window_us``); ``progress(name, event)`` sees every
     window."""
     from experiments.benchmark.protocol import event_suppression
+    from wander_env.event_checks import check_sensor_area
 
     results = []
     for name, events, sensor in recordings:
+        check_sensor_area(name, sensor)  # before the model's maps
         cb = None if progress is None else functools.partial(progress, name)
         model = dataclasses.replace(model_config, dt=window_us / 1e6).pipeline()
         results.append(event_suppression(events, sensor, model, window_us, cb, name))

@@ -507,6 +507,7 @@ def suppression(
     **shared: Any,
 ) -> None:
     """Fraction of events sOMS suppresses on recordings without masks (e.g. ego-motion only)."""
+    from wander_env.event_checks import check_sensor_area
     from wander_env.event_io import read_events
     from wander_env.events import time_window
 
@@ -520,6 +521,7 @@ def suppression(
         recs = []
         for f in files:
             rec = read_events(f, sensor_size)
+            check_sensor_area(f, rec.sensor_size)  # before the next file is read
             ev = rec.events
             notes[f.stem] = []
             if rec.metadata.get("sensor_size_inferred"):

@@ -175,22 +175,32 @@ def sweep(
 def report(
     results: Annotated[Path, typer.Option(help="Folder of result folders.")] = Path("results"),
     out: Annotated[
-        Path, typer.Option(help="Report file (its figures go to report_figures/ beside it).")
+        Path,
+        typer.Option(
+            help="Report file, or a folder to hold REPORT.md; its figures go to "
+            "report_figures/ beside the report."
+        ),
     ] = Path("REPORT.md"),
     force: Annotated[bool, typer.Option("--force", help="Overwrite an existing report.")] = False,
 ) -> None:
     """Build REPORT.md (and its figures) from the latest results of each experiment.
 
-    An existing report file is never overwritten without ``--force``.
-    """
-    from experiments.report import build_report
+    An existing report is never overwritten without --force.
 
-    if out.exists() and not force:
+    A damaged result file is named on one line; nothing is then written.
+    """
+    from experiments.report import build_report, report_path
+
+    if report_path(out).exists() and not force:
         raise typer.BadParameter(
-            f"{str(out)!r} exists: pass --force to overwrite it, or --out another file",
+            f"{str(report_path(out))!r} exists: pass --force to overwrite it, or --out "
+            "another file",
             param_hint="'--out'",
         )
-    path = build_report(results, out)
+    try:
+        path = build_report(results, out)
+    except ValueError as err:  # ReportInputError, ConfigError: a damaged result file
+        raise fail(err, "wander report") from None
     console.print(f"-> {path}")
 
 

@@ -3,9 +3,11 @@
 :func:`register` adds it to the main ``wander`` app. It runs
 :func:`experiments.jobs.rig.run_rig` and writes the same run folder as ``wander run``. A
 device failure prints one line on stderr (what failed, the port or device, the unit's
-message; the run folder when the run had started) and exits with code 1; a bad option
-exits with code 2; Ctrl-C, SIGTERM or SIGHUP halt the PTU, leave the folder with what was
-recorded (``metrics.json`` names the signal) and exit with 128 + the signal (130, 143, 129).
+message; the run folder when the run had started) and exits with code 1; a bad option, or
+a replayed event file that is refused (damaged, too many events, a sensor over the agent's
+pixel budget), exits with code 2; Ctrl-C, SIGTERM or SIGHUP halt the PTU, leave the
+folder with what was recorded (``metrics.json`` names the signal) and exit with 128 + the
+signal (130, 143, 129).
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from experiments.cli.options import (
     seconds_option,
 )
 from wander_env.camera import SPECK_HFOV_DEG
+from wander_env.event_checks import EventFileError
 from wander_env.shutdown import SignalExit, exit_code, record_failure
 
 
@@ -137,7 +140,8 @@ def rig(
             result = run_rig(out, config, progress=progress)
     except RigRunError as err:
         typer.echo(f"wander rig: {err}", err=True)
-        raise typer.Exit(1) from err
+        bad_file = isinstance(err.__cause__, EventFileError)  # a replay file refused: input
+        raise typer.Exit(2 if bad_file else 1) from err
     except KeyboardInterrupt as err:  # Ctrl-C, SIGTERM, SIGHUP (wander_env.shutdown)
         record_failure(out, err)
         what = str(err) if isinstance(err, SignalExit) else "interrupted"

@@ -34,7 +34,7 @@ class DatasetLayoutError(ValueError):
         self.expected = expected
         msg = f"{self.path}: {problem}"
         if expected:
-            msg += f"\nexpected: {expected}"
+            msg += f"; expected: {expected}"
         super().__init__(msg)
 
 

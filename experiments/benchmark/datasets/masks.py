@@ -11,7 +11,8 @@ Pixel values: palette (``P``) / grey (``L``, ``I``) / 1-bit PNGs give the stored
 (0/1, 0/255 or object ids) as the label; RGB(A) PNGs give the long id
 ``R + 256·G + 65536·B`` (the DAVIS/Cutie convention). Any label > 0 is object.
 
-Resolution: the masks are read at their own size. :func:`mask_fit` says how a mask
+Resolution: the masks are read at their own size, at most :data:`MAX_MASK_PIXELS` (checked
+from the PNG header, before the image is decompressed). :func:`mask_fit` says how a mask
 relates to the sensor grid and :func:`fit_mask` puts it there — by nearest-neighbour
 resizing (the default; the maps are never stretched, the *mask* is) or, given the
 crop offset of the mask inside the sensor, by padding/cropping without any scaling.
@@ -32,6 +33,7 @@ from __future__ import annotations
 import itertools
 import os
 import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,6 +44,8 @@ from wander_env.events import SensorSize
 
 MASK_NAME = re.compile(r"^(?:(\d+)_)?(\d+)\.png$", re.IGNORECASE)
 MASK_NAME_HELP = "NNNNNN_T.png or T.png (T = window end time in µs)"
+#: The largest mask image read (4096×4096): its labels take up to 8 bytes a pixel.
+MAX_MASK_PIXELS = 4096 * 4096
 
 
 def read_mask_png(path: str | os.PathLike) -> np.ndarray:
@@ -50,12 +54,25 @@ def read_mask_png(path: str | os.PathLike) -> np.ndarray:
 
     path = Path(path)
     try:
-        with Image.open(path) as im:
+        with warnings.catch_warnings():  # PIL's bomb warning as an error: one line, not two
+            warnings.simplefilter("error", Image.DecompressionBombWarning)
+            im = Image.open(path)
+    except (Image.DecompressionBombError, Image.DecompressionBombWarning) as err:
+        raise DatasetLayoutError(path, f"mask image too large ({err})") from None
+    except (OSError, UnidentifiedImageError, ValueError) as err:
+        raise DatasetLayoutError(path, f"unreadable mask image ({err})") from None
+    with im:
+        w, h = im.size
+        if w * h > MAX_MASK_PIXELS:
+            raise DatasetLayoutError(
+                path, f"mask image of {w}x{h} pixels; at most {MAX_MASK_PIXELS:,} are read"
+            )
+        try:
             im.load()
             mode = im.mode
             arr = np.asarray(im)
-    except (OSError, UnidentifiedImageError, ValueError) as err:
-        raise DatasetLayoutError(path, f"unreadable mask image ({err})") from None
+        except (OSError, ValueError) as err:
+            raise DatasetLayoutError(path, f"unreadable mask image ({err})") from None
     if arr.ndim == 2:
         return arr.astype(np.uint8) if mode == "1" else arr
     if arr.ndim == 3 and arr.shape[2] in (3, 4):
