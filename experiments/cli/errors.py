@@ -20,7 +20,14 @@ import typer
 from typer import _click as click
 from typer.core import TyperGroup
 
-from wander_env.shutdown import SignalExit, describe, handle_signals, record_failure, write_failure
+from wander_env.shutdown import (
+    Received,
+    SignalExit,
+    describe,
+    handle_signals,
+    record_failure,
+    write_failure,
+)
 
 __all__ = ["OneLineErrors", "fail", "long_command", "one_line"]
 
@@ -60,16 +67,20 @@ def long_command(name: str, folder_arg: str | None = "out") -> Callable[[_F], _F
         @functools.wraps(fn)
         def wrapper(*args: Any, **kwargs: Any) -> Any:
             folder = kwargs.get(folder_arg) if folder_arg else None
+            received = Received()
             try:
-                with handle_signals():
+                with handle_signals() as received:
                     return fn(*args, **kwargs)
-            except SignalExit as stop:
-                record_failure(folder, stop)
-                where = f"; {str(folder)!r} holds what was recorded" if folder else ""
-                typer.echo(f"{name}: {stop}{where}", err=True)
-                raise typer.Exit(stop.exit_code) from None
-            except OSError as err:
-                if write_failure(err) is None:
+            except BaseException as err:
+                stop = err if isinstance(err, SignalExit) else received.first()
+                if stop is not None:
+                    if stop is not err:  # foreign code turned the raised signal into `err`
+                        stop.__cause__ = err
+                    record_failure(folder, stop)
+                    where = f"; {str(folder)!r} holds what was recorded" if folder else ""
+                    typer.echo(f"{name}: {stop}{where}", err=True)
+                    raise typer.Exit(stop.exit_code) from None
+                if not isinstance(err, OSError) or write_failure(err) is None:
                     raise
                 record_failure(folder, err)
                 marked = folder is not None and (Path(folder) / "INCOMPLETE").exists()
