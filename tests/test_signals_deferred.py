@@ -128,6 +128,16 @@ def test_long_command_reports_a_signal_that_foreign_code_turned_into_another_err
     assert exit_code_of(lambda: self_signalling_abs()(-3)) == 143
 
 
+def test_long_command_reports_a_signal_that_foreign_code_dropped():
+    def drops_it() -> None:
+        try:
+            self_signalling_abs()(-3)
+        except ctypes.ArgumentError:  # as a library that logs and goes on would
+            pass
+
+    assert exit_code_of(drops_it) == 143
+
+
 # ----------------------------------------------------------------------------------------
 # The video
 

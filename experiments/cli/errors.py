@@ -58,7 +58,8 @@ _F = TypeVar("_F", bound=Callable[..., Any])
 def long_command(name: str, folder_arg: str | None = "out") -> Callable[[_F], _F]:
     """Decorate a Typer command: signals handled (:func:`wander_env.shutdown.handle_signals`),
     failures as one line and an exit code (the module docstring of
-    :mod:`wander_env.shutdown`).
+    :mod:`wander_env.shutdown`). A signal that came ends the command with its code even
+    when foreign code turned it into another error or dropped it.
 
     ``folder_arg`` names the keyword holding the result folder (gets the error).
     """
@@ -70,7 +71,11 @@ def long_command(name: str, folder_arg: str | None = "out") -> Callable[[_F], _F
             received = Received()
             try:
                 with handle_signals() as received:
-                    return fn(*args, **kwargs)
+                    result = fn(*args, **kwargs)
+                    dropped = received.first()
+                    if dropped is not None:  # raised where foreign code dropped it
+                        raise dropped
+                    return result
             except BaseException as err:
                 stop = err if isinstance(err, SignalExit) else received.first()
                 if stop is not None:
