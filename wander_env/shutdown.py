@@ -25,7 +25,9 @@ SIGINT, 143 SIGTERM, 129 SIGHUP; also when foreign code turned the raised signal
 another exception: the :class:`Received` record says it came), a result file that
 cannot be written (disk full, read-only or unwritable folder) → 1, after
 :func:`record_failure` has added the error to the folder's ``metrics.json`` (strict
-JSON) and, for a write failure, marked the folder with an ``INCOMPLETE`` file.
+JSON) and, for a write failure, marked the folder with an ``INCOMPLETE`` file
+(:func:`mark_incomplete`; the run jobs mark a run stopped by a signal the same way,
+saying when it stopped).
 
 Example:
     >>> import os, signal

@@ -76,6 +76,8 @@ def long_command(name: str, folder_arg: str | None = "out") -> Callable[[_F], _F
                     if dropped is not None:  # raised where foreign code dropped it
                         raise dropped
                     return result
+            except typer.Exit:  # the command said what happened (the rig: its signal line)
+                raise
             except BaseException as err:
                 stop = err if isinstance(err, SignalExit) else received.first()
                 if stop is not None:
