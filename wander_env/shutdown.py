@@ -17,7 +17,8 @@ another exception (``ctypes.ArgumentError``) or leave the library half-way. Insi
 :meth:`DeferredSignals.check` between steps, which raises it there through the handler
 it deferred (:class:`SignalExit` under :func:`handle_signals`), and the end of the block
 raises one that came after the loop (while the run folder was written), so the folder
-is finished first.
+is finished first. The waits in a step are bounded (device timeouts); a second signal
+before the loop took up the first is raised at once, wherever the main thread waits.
 
 :func:`experiments.cli.errors.long_command` wraps a command in it and turns the ways a long run ends
 badly into one line on stderr and an exit code: a signal → ``128 + signal`` (130
@@ -157,11 +158,14 @@ class DeferredSignals:
     block raises a signal that was not taken up yet (one that came after the loop, while
     its results were written), after the block's writes. Only signals with a Python
     handler are deferred (a signal left at its default still ends the process at once);
-    outside the main thread the block defers nothing. A second signal is reported and
-    ignored, a third ends the process at once, as under :func:`handle_signals`.
+    outside the main thread the block defers nothing.
 
-    Every wait inside the block must be bounded (a step's device reads and the devices'
-    timeouts, the video's close): a deferred signal does not wake it.
+    A deferred signal does not wake a wait: every wait inside the block is bounded (a
+    step's device reads and the devices' timeouts, the video's close). A second signal
+    that comes before the first was taken up is raised at once, where the main thread is,
+    to wake a wait that takes too long (the rig's PTU settling at ``reset``); one after it
+    was taken up is reported and ignored; a third ends the process at once, as under
+    :func:`handle_signals`.
 
     ``signum``: the first signal that came (``None``: none); ``pending``: it came and was
     not raised yet.
@@ -191,6 +195,8 @@ class DeferredSignals:
         self._count += 1
         if self._count == 1:
             self.signum = signum
+        elif not self._raised:  # the first is still waiting for the loop: raise it now
+            self.check()
         else:
             _repeated(signum, self._count)
 
