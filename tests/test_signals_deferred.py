@@ -404,3 +404,44 @@ def test_view_without_a_display_prints_the_web_viewer_command_and_the_copy_hint(
         "or in a browser (the viewer prints the address to open):",
         f"or copy {rrd} to a machine with a display and open it there with: rerun run.rrd",
     ]
+
+
+# ----------------------------------------------------------------------------------------
+# wander rig
+
+
+@pytest.mark.slow
+def test_a_signal_halts_the_rig_before_its_folder_is_written(tmp_path, monkeypatch):
+    from experiments.jobs import run_agent
+    from experiments.jobs.rig import RigRunConfig, run_rig
+    from hardware.ptu_emulator import PTUEmulator
+    from wander_env.event_io import EventRecording, write_events
+    from wander_env.events import make_events
+
+    rng = np.random.default_rng(0)
+    n = 30_000
+    t = np.sort(rng.integers(0, 3_000_000, n))
+    events = make_events(rng.integers(60, 70, n), rng.integers(60, 70, n), t, rng.integers(0, 2, n))
+    write_events(tmp_path / "walk.npz", EventRecording(events, (128, 128, 2)))
+    halts_when_written: list[int] = []
+    write_json = run_agent.write_json
+    with PTUEmulator() as emu:
+
+        def noting(path: Path, data: dict) -> None:
+            if path.name == "metrics.json":
+                halts_when_written.append(emu.commands.count("H"))
+            write_json(path, data)
+
+        def stop_at_step_20(k: int, total: int) -> None:
+            if k == 20:
+                os.kill(os.getpid(), signal.SIGTERM)
+
+        monkeypatch.setattr(run_agent, "write_json", noting)
+        out = tmp_path / "rig"
+        config = RigRunConfig(ptu=emu.port, camera=f"replay:{tmp_path / 'walk.npz'}", video=False)
+        assert exit_code_of(lambda: run_rig(out, config, progress=stop_at_step_20)) == 143
+    assert halts_when_written == [1]  # halted as the loop stopped, before the folder
+    m = strict_json(out / "metrics.json")
+    assert (m["steps"], m["signal"], m["error"]) == (20, "SIGTERM", STOPPED)
+    assert m["rig"]["ptu_halt"] == "halt (H) acknowledged"
+    assert (out / "INCOMPLETE").read_text() == f"{STOPPED[12:]} after 20 of 1000 steps\n"
