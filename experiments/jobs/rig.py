@@ -20,7 +20,8 @@ wrong; when the run had started the run folder is written first with what was re
 (``metrics.json`` then has ``error`` and the ``steps`` done). A fault or a signal in the
 loop halts the PTU (``H``) as soon as the loop stops, before the video and the folder are
 written; a signal is taken up between two steps (every wait in a step is bounded by a
-control period or a device timeout), never inside a device read.
+control period or a device timeout), not inside a device read (a second signal before
+that is raised at once, to wake a wait: :class:`~wander_env.shutdown.DeferredSignals`).
 """
 
 from __future__ import annotations
@@ -270,7 +271,8 @@ def run_rig(
         record["rig"] = device_record(base)
         try:
             # A fault or a signal in the loop halts the PTU at once (halt), before the
-            # folder is written; one outside the loop halts it here.
+            # folder is written; a failure outside the loop halts it here (after the
+            # loop's halt this sends a second H, harmless).
             result = run_for_config(
                 counters, agent, config, out_dir, record, progress, halt=base.halt_after_failure
             )
