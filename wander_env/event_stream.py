@@ -34,6 +34,7 @@ import errno
 import json
 import os
 import shutil
+import struct
 import time
 from collections.abc import Mapping
 from pathlib import Path
@@ -341,6 +342,48 @@ class EventStreamWriter(_StreamFile):
             self._abandon()
 
 
+def mp4_complete(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is a whole MP4 file: its top-level boxes fill it exactly and one of
+    them is ``moov``, the index a player needs (ffmpeg writes it when it finishes; a
+    killed ffmpeg leaves the frames without it).
+
+    Example:
+        >>> import tempfile
+        >>> path = Path(tempfile.mkdtemp()) / "v.mp4"
+        >>> box = lambda kind, body: struct.pack(">I4s", 8 + len(body), kind) + body
+        >>> _ = path.write_bytes(box(b"ftyp", b"isom") + box(b"mdat", b"frames"))
+        >>> mp4_complete(path)  # the frames, no index
+        False
+        >>> _ = path.write_bytes(box(b"ftyp", b"isom") + box(b"moov", b"") + box(b"mdat", b"x"))
+        >>> mp4_complete(path), mp4_complete(path.with_name("none.mp4"))
+        (True, False)
+    """
+    kinds: set[bytes] = set()
+    try:
+        size = os.path.getsize(path)
+        with open(path, "rb") as fh:
+            pos = 0
+            while pos < size:
+                fh.seek(pos)
+                head = fh.read(16)
+                if len(head) < 8:
+                    return False
+                n, kind = struct.unpack(">I4s", head[:8])
+                if n == 1:  # a 64-bit size follows the type
+                    if len(head) < 16:
+                        return False
+                    (n,) = struct.unpack(">Q", head[8:16])
+                elif n == 0:  # the box runs to the end of the file
+                    n = size - pos
+                if n < 8:
+                    return False
+                kinds.add(kind)
+                pos += n
+    except OSError:
+        return False
+    return pos == size and b"moov" in kinds
+
+
 class VideoSink:
     """An MP4 written frame by frame through imageio-ffmpeg, its failures named.
 
@@ -350,7 +393,11 @@ class VideoSink:
     when the run had none. The close is bounded: ffmpeg gets ``close_timeout_s`` to finish
     the file and is then ended (an :class:`OutputError` says the video is incomplete), so
     a hung encoder cannot keep the run folder from being written; a signal that arrives
-    while ffmpeg finishes is handed back the same way, not raised past the folder.
+    while ffmpeg finishes is handed back the same way, not raised past the folder (a run
+    loop defers signals, :class:`wander_env.shutdown.DeferredSignals`, so that none
+    interrupts a frame's write or the close: ffmpeg would be killed). After
+    :meth:`finish`, ``complete`` says whether the file is a whole MP4
+    (:func:`mp4_complete`: playable to its last frame; ``None``: no frame, no file).
 
     Example:
         >>> import tempfile
@@ -358,8 +405,8 @@ class VideoSink:
         >>> sink = VideoSink(path, fps=10)
         >>> for _ in range(3):
         ...     sink.append(np.zeros((16, 16, 3), np.uint8))
-        >>> sink.finish(None) is None, path.stat().st_size > 0
-        (True, True)
+        >>> sink.finish(None) is None, path.stat().st_size > 0, sink.complete
+        (True, True, True)
     """
 
     def __init__(self, path: str | os.PathLike, fps: int, close_timeout_s: float = 60.0) -> None:
@@ -370,6 +417,7 @@ class VideoSink:
         self.close_timeout_s = float(close_timeout_s)
         self._size: tuple[int, int] | None = None  # (width, height) of the first frame
         self._frames: Any = None  # imageio-ffmpeg's frame generator, from the first frame
+        self.complete: bool | None = None  # set by finish
 
     def append(self, frame: np.ndarray) -> None:
         """Write one RGB frame ``(H, W, 3)`` uint8 (every frame the first one's size)."""
@@ -418,6 +466,8 @@ class VideoSink:
             return error or OutputError(self.path, err)
         except BaseException as stop:  # a signal while ffmpeg finishes: write the folder first
             return error or stop
+        finally:
+            self.complete = mp4_complete(self.path)
         if time.monotonic() - start >= self.close_timeout_s:
             late = TimeoutError(
                 f"ffmpeg did not finish the video within {self.close_timeout_s:g} s and was "

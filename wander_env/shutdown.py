@@ -4,17 +4,31 @@ Schedulers (Slurm, systemd, Ray, ``docker stop``) send SIGTERM, a closed termina
 SIGHUP, Ctrl-C SIGINT. Inside :func:`handle_signals` each of them raises
 :class:`SignalExit` in the main thread, a ``KeyboardInterrupt``, so the code that
 already cleans up after Ctrl-C (halting the PTU, closing the camera, flushing and
-closing the run's files, writing ``metrics.json`` with the error) runs for all three.
-Further signals while that clean-up runs are reported and ignored (it is bounded by
-the devices' timeouts); a third ends the process at once. A signal that lands where
-Python drops exceptions (a ``__del__``, a weakref callback) is delivered again.
+closing the run's files, writing ``metrics.json`` with the error) runs for all three,
+and a sleep or a wait in Python code wakes up. Further signals while that clean-up
+runs are reported and ignored (it is bounded by the devices' timeouts); a third ends
+the process at once. A signal that lands where Python drops exceptions (a ``__del__``,
+a weakref callback) is delivered again.
+
+A step loop does not take a signal where it lands: an exception raised inside foreign
+code (a ctypes call into EGL, a C extension's callback, ffmpeg's pipe) can come out as
+another exception (``ctypes.ArgumentError``) or leave the library half-way. Inside
+:class:`DeferredSignals` (the loop owns it) a signal only sets a flag: the loop calls
+:meth:`DeferredSignals.check` between steps, which raises it there through the handler
+it deferred (:class:`SignalExit` under :func:`handle_signals`), and the end of the block
+raises one that came after the loop (while the run folder was written), so the folder
+is finished first. The waits in a step are bounded (device timeouts); a second signal
+before the loop took up the first is raised at once, wherever the main thread waits.
 
 :func:`experiments.cli.errors.long_command` wraps a command in it and turns the ways a long run ends
 badly into one line on stderr and an exit code: a signal → ``128 + signal`` (130
-SIGINT, 143 SIGTERM, 129 SIGHUP), a result file that cannot be written (disk full,
-read-only or unwritable folder) → 1, after :func:`record_failure` has added the error
-to the folder's ``metrics.json`` (strict JSON) and, for a write failure, marked the
-folder with an ``INCOMPLETE`` file.
+SIGINT, 143 SIGTERM, 129 SIGHUP; also when foreign code turned the raised signal into
+another exception: the :class:`Received` record says it came), a result file that
+cannot be written (disk full, read-only or unwritable folder) → 1, after
+:func:`record_failure` has added the error to the folder's ``metrics.json`` (strict
+JSON) and, for a write failure, marked the folder with an ``INCOMPLETE`` file
+(:func:`mark_incomplete`; the run jobs mark a run stopped by a signal the same way,
+saying when it stopped).
 
 Example:
     >>> import os, signal
@@ -25,6 +39,17 @@ Example:
     ... except SignalExit as stop:
     ...     print(stop.name, stop.exit_code)
     SIGTERM 143
+    >>> steps = []
+    >>> try:
+    ...     with handle_signals(), DeferredSignals() as signals:
+    ...         for k in range(3):
+    ...             signals.check()  # between steps
+    ...             steps.append(k)
+    ...             if k == 1:
+    ...                 os.kill(os.getpid(), signal.SIGTERM)  # lands in step 1: only noted
+    ... except SignalExit as stop:
+    ...     print(stop.name, steps)
+    SIGTERM [0, 1]
 """
 
 from __future__ import annotations
@@ -36,9 +61,10 @@ import os
 import signal
 import sys
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from types import TracebackType
 from typing import Any
 
 SIGNALS: tuple[signal.Signals, ...] = tuple(
@@ -60,24 +86,43 @@ class SignalExit(KeyboardInterrupt):
         super().__init__(f"stopped by {self.name} (signal {self.signum})")
 
 
+class Received:
+    """The signals :func:`handle_signals` received, in order (``signums``)."""
+
+    def __init__(self) -> None:
+        self.signums: list[int] = []
+
+    def first(self) -> SignalExit | None:
+        """The first signal as a :class:`SignalExit` (``None``: none came)."""
+        return SignalExit(self.signums[0]) if self.signums else None
+
+
+def _repeated(signum: int, count: int) -> None:
+    """The ``count``-th signal (2 or more) while shutting down: say so; the third ends the
+    process at once."""
+    name = signal.Signals(signum).name
+    if count >= 3:
+        os.write(2, f"{name} again: exiting without finishing the clean-up\n".encode())
+        os._exit(128 + signum)
+    os.write(2, f"{name}: already shutting down (a third signal exits at once)\n".encode())
+
+
 @contextmanager
-def handle_signals(signals: tuple[int, ...] = SIGNALS) -> Iterator[None]:
+def handle_signals(signals: tuple[int, ...] = SIGNALS) -> Iterator[Received]:
     """Raise :class:`SignalExit` for ``signals`` inside the block (main thread only;
-    elsewhere the block runs with the handlers as they are)."""
+    elsewhere the block runs with the handlers as they are). Yields the
+    :class:`Received` record of the signals that came."""
+    received = Received()
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield received
         return
-    seen: list[int] = []
+    seen = received.signums
 
     def handler(signum: int, frame: Any) -> None:
         seen.append(signum)
         if len(seen) == 1:
             raise SignalExit(signum)
-        name = signal.Signals(signum).name
-        if len(seen) >= 3:
-            os.write(2, f"{name} again: exiting without finishing the clean-up\n".encode())
-            os._exit(128 + signum)
-        os.write(2, f"{name}: already shutting down (a third signal exits at once)\n".encode())
+        _repeated(signum, len(seen))
 
     hook = sys.unraisablehook
 
@@ -97,11 +142,79 @@ def handle_signals(signals: tuple[int, ...] = SIGNALS) -> Iterator[None]:
         signal.signal(s, handler)
     sys.unraisablehook = unraisable
     try:
-        yield
+        yield received
     finally:
         sys.unraisablehook = hook
         for s, h in previous.items():
             signal.signal(s, h if h is not None else signal.SIG_DFL)
+
+
+class DeferredSignals:
+    """Inside ``with DeferredSignals() as signals:`` a termination signal only sets a flag.
+
+    The loop that owns the block calls :meth:`check` between steps: a signal that came is
+    raised there, by the handler it deferred (:func:`handle_signals`' raises
+    :class:`SignalExit`; Python's own SIGINT handler ``KeyboardInterrupt``). Leaving the
+    block raises a signal that was not taken up yet (one that came after the loop, while
+    its results were written), after the block's writes. Only signals with a Python
+    handler are deferred (a signal left at its default still ends the process at once);
+    outside the main thread the block defers nothing.
+
+    A deferred signal does not wake a wait: every wait inside the block is bounded (a
+    step's device reads and the devices' timeouts, the video's close). A second signal
+    that comes before the first was taken up is raised at once, where the main thread is,
+    to wake a wait that takes too long (the rig's PTU settling at ``reset``); one after it
+    was taken up is reported and ignored; a third ends the process at once, as under
+    :func:`handle_signals`.
+
+    ``signum``: the first signal that came (``None``: none); ``pending``: it came and was
+    not raised yet.
+    """
+
+    def __init__(self, signals: tuple[int, ...] = SIGNALS) -> None:
+        self.signals = signals
+        self.signum: int | None = None
+        self._count = 0
+        self._raised = False
+        self._previous: dict[int, Callable[[int, Any], Any]] = {}
+
+    @property
+    def pending(self) -> bool:
+        return self.signum is not None and not self._raised
+
+    def __enter__(self) -> DeferredSignals:
+        if threading.current_thread() is threading.main_thread():
+            for s in self.signals:
+                handler = signal.getsignal(s)
+                if callable(handler):
+                    self._previous[s] = handler
+                    signal.signal(s, self._note)
+        return self
+
+    def _note(self, signum: int, frame: Any) -> None:
+        self._count += 1
+        if self._count == 1:
+            self.signum = signum
+        elif not self._raised:  # the first is still waiting for the loop: raise it now
+            self.check()
+        else:
+            _repeated(signum, self._count)
+
+    def check(self) -> None:
+        """Raise the signal that came, if it was not raised yet (call between steps)."""
+        if self.signum is not None and not self._raised:
+            self._raised = True
+            self._previous[self.signum](self.signum, None)
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        for s, handler in self._previous.items():
+            signal.signal(s, handler)
+        self.check()
 
 
 def write_failure(err: BaseException) -> OSError | None:
@@ -130,6 +243,17 @@ def _strict(value: Any) -> Any:
     return value
 
 
+def mark_incomplete(folder: str | os.PathLike, why: str) -> None:
+    """Mark ``folder`` with an ``INCOMPLETE`` file holding ``why`` (one line): a disk too
+    full for the text still gets the empty file. Never raises."""
+    path = Path(folder) / "INCOMPLETE"
+    try:
+        path.touch()  # an empty file needs no free blocks
+        path.write_text(f"{' '.join(why.split())}\n")
+    except OSError:
+        pass
+
+
 def record_failure(folder: str | os.PathLike | None, err: BaseException) -> None:
     """Add ``err`` (and the signal) to ``folder/metrics.json``; mark a write failure
     with ``folder/INCOMPLETE``. A signal that came before the folder existed (during
@@ -146,11 +270,7 @@ def record_failure(folder: str | os.PathLike | None, err: BaseException) -> None
         return
     failed_write = write_failure(err)
     if failed_write is not None:
-        try:
-            (folder / "INCOMPLETE").touch()  # an empty file needs no free blocks
-            (folder / "INCOMPLETE").write_text(f"{describe(err)}\n")
-        except OSError:
-            pass
+        mark_incomplete(folder, describe(err))
     path = folder / "metrics.json"
     try:
         metrics = json.loads(path.read_text()) if path.is_file() else {}
@@ -193,10 +313,13 @@ def exit_code(err: BaseException) -> int:
 
 __all__ = [
     "SIGNALS",
+    "DeferredSignals",
+    "Received",
     "SignalExit",
     "describe",
     "exit_code",
     "handle_signals",
+    "mark_incomplete",
     "record_failure",
     "write_failure",
 ]

@@ -20,7 +20,14 @@ import typer
 from typer import _click as click
 from typer.core import TyperGroup
 
-from wander_env.shutdown import SignalExit, describe, handle_signals, record_failure, write_failure
+from wander_env.shutdown import (
+    Received,
+    SignalExit,
+    describe,
+    handle_signals,
+    record_failure,
+    write_failure,
+)
 
 __all__ = ["OneLineErrors", "fail", "long_command", "one_line"]
 
@@ -51,7 +58,8 @@ _F = TypeVar("_F", bound=Callable[..., Any])
 def long_command(name: str, folder_arg: str | None = "out") -> Callable[[_F], _F]:
     """Decorate a Typer command: signals handled (:func:`wander_env.shutdown.handle_signals`),
     failures as one line and an exit code (the module docstring of
-    :mod:`wander_env.shutdown`).
+    :mod:`wander_env.shutdown`). A signal that came ends the command with its code even
+    when foreign code turned it into another error or dropped it.
 
     ``folder_arg`` names the keyword holding the result folder (gets the error).
     """
@@ -60,16 +68,26 @@ def long_command(name: str, folder_arg: str | None = "out") -> Callable[[_F], _F
         @functools.wraps(fn)
         def wrapper(*args: Any, **kwargs: Any) -> Any:
             folder = kwargs.get(folder_arg) if folder_arg else None
+            received = Received()
             try:
-                with handle_signals():
-                    return fn(*args, **kwargs)
-            except SignalExit as stop:
-                record_failure(folder, stop)
-                where = f"; {str(folder)!r} holds what was recorded" if folder else ""
-                typer.echo(f"{name}: {stop}{where}", err=True)
-                raise typer.Exit(stop.exit_code) from None
-            except OSError as err:
-                if write_failure(err) is None:
+                with handle_signals() as received:
+                    result = fn(*args, **kwargs)
+                    dropped = received.first()
+                    if dropped is not None:  # raised where foreign code dropped it
+                        raise dropped
+                    return result
+            except typer.Exit:  # the command said what happened (the rig: its signal line)
+                raise
+            except BaseException as err:
+                stop = err if isinstance(err, SignalExit) else received.first()
+                if stop is not None:
+                    if stop is not err:  # foreign code turned the raised signal into `err`
+                        stop.__cause__ = err
+                    record_failure(folder, stop)
+                    where = f"; {str(folder)!r} holds what was recorded" if folder else ""
+                    typer.echo(f"{name}: {stop}{where}", err=True)
+                    raise typer.Exit(stop.exit_code) from None
+                if not isinstance(err, OSError) or write_failure(err) is None:
                     raise
                 record_failure(folder, err)
                 marked = folder is not None and (Path(folder) / "INCOMPLETE").exists()

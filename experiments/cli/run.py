@@ -197,5 +197,12 @@ def view(
     if what == "spawned":
         typer.echo(f"opened {run_dir / 'run.rrd'} in the Rerun viewer", err=True)
     else:
+        rrd = command[-1]
         typer.echo("no display (DISPLAY unset); open the recording with:", err=True)
         typer.echo(command_text(command))
+        typer.echo("or in a browser (the viewer prints the address to open):", err=True)
+        typer.echo(command_text([*command[:-1], "--web-viewer", rrd]))
+        typer.echo(
+            f"or copy {rrd} to a machine with a display and open it there with: rerun run.rrd",
+            err=True,
+        )

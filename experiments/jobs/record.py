@@ -38,6 +38,7 @@ from wander_env.event_formats import write_evimo2_sequence
 from wander_env.event_io import read_events, write_events
 from wander_env.event_stream import EventStreamWriter, H5Appender, VideoSink
 from wander_env.runinfo import run_record, write_json
+from wander_env.shutdown import DeferredSignals, SignalExit, mark_incomplete, record_failure
 
 POLICIES = ("still", "fixational", "saccades")
 # --format: the events file (events.h5 / .aedat4 / .raw) beside ground_truth.h5, or the
@@ -102,18 +103,36 @@ def record(
     Events and ground truth go to disk as they are made (memory does not grow with
     ``seconds``). A failure or a signal mid-way still closes both files with what was
     recorded, writes ``run.json`` and ``metrics.json`` with the error, then raises it.
+    A signal only sets a flag (:class:`~wander_env.shutdown.DeferredSignals`), taken up
+    between two steps: ffmpeg finishes ``video.mp4`` (``video_complete`` in the summary);
+    one that comes after the loop waits until ``run.json`` is written. A recording
+    stopped by a signal is marked with an ``INCOMPLETE`` file saying when it stopped.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     render_mode = "rgb_array" if config.video else None
     env = gym.make("wander/Wander-v0", render_mode=render_mode, **env_kwargs(config))
     try:
-        return _record(out_dir, config, env, progress)
+        with DeferredSignals() as signals:  # a signal sets a flag; the loop takes it up
+            summary = _record(out_dir, config, env, progress, signals)
+            if signals.pending:  # it came after the loop: the folder is finished
+                stop = SignalExit(signals.signum)
+                mark_incomplete(
+                    out_dir,
+                    f"{stop} while the folder was written, after the recording's "
+                    f"{summary['steps']} steps; every file was finished",
+                )
+                record_failure(out_dir, stop)
+        return summary  # unless the pending signal, raised on leaving the block
     finally:
         env.close()
 
 
 def _record(
-    out_dir: Path, config: RecordConfig, env: Any, progress: Callable[[int, int], None] | None
+    out_dir: Path,
+    config: RecordConfig,
+    env: Any,
+    progress: Callable[[int, int], None] | None,
+    signals: DeferredSignals,
 ) -> dict[str, Any]:
     base = env.unwrapped
     dt = base.config.control_period_s
@@ -146,6 +165,7 @@ def _record(
         rrlog = open_run_log(out_dir, env, "wander record")  # run.rrd
         try:
             for k in range(steps):
+                signals.check()  # a signal that came during the last step stops here
                 obs, _, _, _, info = env.step(policy.act(info))
                 rrlog.step(obs, info)
                 events.append(info["events"].events)
@@ -173,15 +193,20 @@ def _record(
             if writer is not None:
                 error = writer.finish(error)
         n_events = events.events_written
-        summary = {"events": n_events, "steps": done}
+        summary: dict[str, Any] = {"events": n_events, "steps": done}
+        if writer is not None and writer.complete is not None:
+            summary["video_complete"] = writer.complete
         events.close({**rec, "summary": summary})
         truth.close()
     if error is None and config.format != "h5":
         _convert(out_dir, config.format, base, dt)
+    if isinstance(error, KeyboardInterrupt):  # a signal, Ctrl-C
+        mark_incomplete(out_dir, f"{str(error) or 'interrupted'} after {done} of {steps} steps")
     summary["files"] = sorted({p.name for p in out_dir.iterdir()} | {"run.json"})
     if error is not None:
         message = f"{type(error).__name__}: {error}"
-        write_json(out_dir / "metrics.json", {**summary, "error": message})
+        stopped_by = {"signal": error.name} if isinstance(error, SignalExit) else {}
+        write_json(out_dir / "metrics.json", {**summary, "error": message, **stopped_by})
         write_json(out_dir / "run.json", rec | {"summary": summary, "error": message})
         raise error
     write_json(out_dir / "run.json", rec | {"summary": summary})

@@ -23,7 +23,11 @@ same :class:`~agents.attention.AttentionAgent` as ``wander run`` through
 
 A device that fails raises :class:`RigRunError` naming the device and saying what went
 wrong; when the run had started the run folder is written first with what was recorded
-(``metrics.json`` then has ``error`` and the ``steps`` done).
+(``metrics.json`` then has ``error`` and the ``steps`` done). A fault or a signal in the
+loop halts the PTU (``H``) as soon as the loop stops, before the video and the folder are
+written; a signal is taken up between two steps (every wait in a step is bounded by a
+control period or a device timeout), not inside a device read (a second signal before
+that is raised at once, to wake a wait: :class:`~wander_env.shutdown.DeferredSignals`).
 """
 
 from __future__ import annotations
@@ -301,9 +305,14 @@ def run_rig(
         record["rig"] = device_record(base)
         record["fixed_view"] = fixed_view_note(record["rig"])
         try:
-            result = run_for_config(counters, agent, config, out_dir, record, progress)
+            # A fault or a signal in the loop halts the PTU at once (halt), before the
+            # folder is written; a failure outside the loop halts it here (after the
+            # loop's halt this sends a second H, harmless).
+            result = run_for_config(
+                counters, agent, config, out_dir, record, progress, halt=base.halt_after_failure
+            )
         except BaseException as err:
-            base.halt_after_failure()  # a signal, a camera fault: halt, and record it
+            base.halt_after_failure()
             metrics = _add_metrics(out_dir, counters.summary())
             is_device = _device(err, config) is not None or (
                 isinstance(err, (RuntimeError, OSError)) and _camera_failed(base)

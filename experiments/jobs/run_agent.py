@@ -25,7 +25,13 @@ writes the run folder:
 
 A fault mid-run (a device that stops answering, a signal: :mod:`wander_env.shutdown`)
 still leaves the folder with what was recorded, ``metrics.json`` naming the error (and
-the signal); the exception is raised after it is written.
+the signal); the exception is raised after it is written. A signal only sets a flag
+(:class:`~wander_env.shutdown.DeferredSignals`): the loop takes it up between two steps,
+so it never interrupts a render, a device read or a video frame's write; the video is
+then finished by ffmpeg (``metrics.json`` ``video_complete`` says whether ``run.mp4``
+is a whole MP4). A signal that comes while the folder is written waits until the
+folder is finished. A run stopped by a signal is marked with an ``INCOMPLETE`` file
+saying when it stopped.
 """
 
 from __future__ import annotations
@@ -51,7 +57,7 @@ from wander_env.env import WanderConfig
 from wander_env.event_stream import EventStreamWriter, OutputError, VideoSink
 from wander_env.metrics import detection_hit
 from wander_env.runinfo import run_record, write_json
-from wander_env.shutdown import SignalExit
+from wander_env.shutdown import DeferredSignals, SignalExit, mark_incomplete, record_failure
 from wander_env.viz import event_image, labelled_frame, saliency_rgb
 
 __all__ = [
@@ -158,7 +164,9 @@ class _Log:
     hit_objects: list[str] = field(default_factory=list)  # per decision: the objects hit
     clipped: list[bool] = field(default_factory=list)  # per saccade
     steps: int = 0
+    asked: int = 0  # the steps the run was to take
     sightings: list[tuple] = field(default_factory=list)  # ground truth (run_viewer)
+    video_complete: bool | None = None  # run.mp4 a whole MP4 (None: no video written)
 
 
 def run_closed_loop(
@@ -170,14 +178,46 @@ def run_closed_loop(
     video: bool = True,
     progress: Callable[[int, int], None] | None = None,
     seed: int | None = None,
+    halt: Callable[[], None] | None = None,
 ) -> RunResult:
-    """Run ``agent`` on ``env`` for ``seconds`` and write the run folder (module doc)."""
-    out_dir = Path(out_dir)
+    """Run ``agent`` on ``env`` for ``seconds`` and write the run folder (module doc).
+
+    ``halt`` (the rig: halt the PTU; it must not raise) is called as soon as the loop ends
+    on an error or a signal, before the video is closed and the folder written.
+    """
+    with DeferredSignals() as signals:  # a signal sets a flag; the loop takes it up
+        result = _run(
+            env, agent, seconds, Path(out_dir), record, video, progress, seed, halt, signals
+        )
+        if signals.pending:  # it came while the folder was written: the folder is finished
+            stop = SignalExit(signals.signum)
+            mark_incomplete(
+                out_dir,
+                f"{stop} while the run folder was written, after the run's "
+                f"{result.metrics['steps']} steps; every file was finished",
+            )
+            record_failure(out_dir, stop)
+    return result  # unless the pending signal, raised on leaving the block
+
+
+def _run(
+    env: Any,
+    agent: AttentionAgent,
+    seconds: float,
+    out_dir: Path,
+    record: dict[str, Any],
+    video: bool,
+    progress: Callable[[int, int], None] | None,
+    seed: int | None,
+    halt: Callable[[], None] | None,
+    signals: DeferredSignals,
+) -> RunResult:
+    """The loop and the folder of :func:`run_closed_loop`, inside its ``signals`` block."""
     out_dir.mkdir(parents=True, exist_ok=True)
     base = env.unwrapped
     dt = float(getattr(getattr(base, "config", None), "control_period_s", agent.params.step_s))
     n_steps = max(1, round(seconds / dt))
-    log = _Log()
+    log = _Log(asked=n_steps)
     p = agent.params
     stream = EventStreamWriter(out_dir / "events.h5", (p.width_px, p.height_px, 2), record)
     writer = None
@@ -197,6 +237,7 @@ def run_closed_loop(
         obs, info = env.reset(seed=seed)
         agent.reset()
         for k in range(n_steps):
+            signals.check()  # a signal that came during the last step stops the run here
             phase_before = agent.phase
             n_sacc = len(agent.saccades)
             action = agent.act(obs, info)
@@ -233,11 +274,14 @@ def run_closed_loop(
                 break
     except BaseException as exc:
         error = exc
+        if halt is not None:
+            halt()
     finally:
         rrlog.close()
         log.sightings = rrlog.sightings
         if writer is not None:
             error = writer.finish(error)
+            log.video_complete = writer.complete
     wall = time.perf_counter() - t_wall
     try:
         result = _write_folder(out_dir, env, agent, log, stream, record, dt, wall, error)
@@ -393,10 +437,16 @@ def _write_folder(
         **_saccade_metrics(agent, log.clipped),
         "scanpath": scanpath_stats.summary(table) if len(table) else {},
     }
+    if log.video_complete is not None:
+        metrics["video_complete"] = log.video_complete
     if error is not None:
         metrics["error"] = f"{type(error).__name__}: {error}"
         if isinstance(error, SignalExit):
             metrics["signal"] = error.name
+    if isinstance(error, KeyboardInterrupt):  # a signal, Ctrl-C
+        mark_incomplete(
+            out_dir, f"{str(error) or 'interrupted'} after {log.steps} of {log.asked} steps"
+        )
     write_json(out_dir / "metrics.json", metrics)
     if agent.fixations and log.maps:
         n = min(len(log.maps), len(agent.fixations))
@@ -433,6 +483,7 @@ def run_for_config(
     out_dir: Path,
     record: dict[str, Any],
     progress: Callable[[int, int], None] | None = None,
+    halt: Callable[[], None] | None = None,
 ) -> RunResult:
     """:func:`run_closed_loop` for a run config's ``seconds``, ``video`` and ``seed``
     (``wander run``'s :class:`RunConfig` and ``wander rig``'s config)."""
@@ -445,6 +496,7 @@ def run_for_config(
         video=config.video,
         progress=progress,
         seed=config.seed,
+        halt=halt,
     )
 
 
@@ -505,6 +557,7 @@ def _stopped_in_setup(
     EventStreamWriter(out_dir / "events.h5", (camera.width, camera.height, 2)).close(rec)
     metrics: dict[str, Any] = {**summary, "stage": "set-up"}
     metrics["error"] = f"{type(stop).__name__}: {stop} (while setting up)"
+    mark_incomplete(out_dir, f"{str(stop) or 'interrupted'} while setting up, before any step")
     if isinstance(stop, SignalExit):
         metrics["signal"] = stop.name
     write_json(out_dir / "metrics.json", metrics)
