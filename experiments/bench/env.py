@@ -252,18 +252,18 @@ def step_breakdown(
     u = env.unwrapped
     keys = ("render", "dvs", "segment", "pose", "synth", "geometry")
     acc: dict[str, list[float]] = {k: [] for k in keys}
-    u.renderer.render = timed(u.renderer.render, acc, "render")
-    u.renderer.segment = timed(u.renderer.segment, acc, "segment")
-    u.renderer.segment_depth_current = timed(u.renderer.segment_depth_current, acc, "segment")
-    if u._keys is not None:  # synthesis, less the keys' layers and depth drawn inside it
-        u._keys.frame = timed(u._keys.frame, acc, "synth")
-        u._keys.geometry = timed(u._keys.geometry, acc, "geometry")
+    stage, renderer = u.stage, u.stage.renderer
+    renderer.render = timed(renderer.render, acc, "render")
+    renderer.segment = timed(renderer.segment, acc, "segment")
+    renderer.segment_depth_current = timed(renderer.segment_depth_current, acc, "segment")
+    keyframes = getattr(u.source, "keys", None)
+    if keyframes is not None:  # synthesis, less the keys' layers and depth drawn inside it
+        keyframes.frame = timed(keyframes.frame, acc, "synth")
+        keyframes.geometry = timed(keyframes.geometry, acc, "geometry")
     for name in ("prepare", "log_change", "step"):
-        if hasattr(u.dvs, name):  # prepare: since the fused log input
-            setattr(u.dvs, name, timed(getattr(u.dvs, name), acc, "dvs"))
-    u._pose_angles = timed(u._pose_angles, acc, "pose")  # every full pose goes through it
-    if hasattr(u, "_camera_view"):  # keyframes: the camera alone, for a tick's view
-        u._camera_view = timed(u._camera_view, acc, "pose")
+        setattr(u.dvs, name, timed(getattr(u.dvs, name), acc, "dvs"))
+    stage.pose = timed(stage.pose, acc, "pose")  # every full pose goes through it
+    stage.camera_view = timed(stage.camera_view, acc, "pose")  # the camera alone
     env.reset(seed=seed)
     action = np.zeros(2, np.float32)
     env.step(action)  # warm-up
