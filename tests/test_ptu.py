@@ -521,10 +521,12 @@ def test_trajectory_equals_stepping_the_unit_tick_by_tick(params):
                 for j in (1, 2, 3):
                     start.step(250e-6)
                     inside.append((start.camera_pan_deg, start.camera_tilt_deg))
-                assert tr.within(i, times) == inside
+                assert tr.at(times) == inside
             angles.append(tr.angles(i))
         ends.append((unit.positions, twin.positions, unit.time_s, twin.time_s))
     assert all(a == b and ta == tb for a, b, ta, tb in ends)
     assert len(set(angles)) > 50  # it moved all along
     with pytest.raises(ValueError, match="tick_us > 0"):
         unit.trajectory(0, 0, 1000)
+    with pytest.raises(ValueError, match="not inside"):
+        tr.at([tr.t0_us])

@@ -4,9 +4,9 @@ One :meth:`WanderEnv.step` is one control period (10 ms by default). Inside it t
 PTU moves toward its target under its speed and acceleration limits, the scene's
 objects move along their trajectories, the camera renders at the render rate
 (1 kHz by default) plus extra frames wherever the DVS emulator reports a large
-log-intensity change (adaptive sampling: a render tick whose largest change
-exceeds ``adaptive_log_change`` is split into up to ``max_subframes`` frames),
-and the emulator turns the frames into events.
+log-intensity change (adaptive sampling: a frame whose largest change exceeds
+``adaptive_log_change`` is preceded by up to ``max_subframes - 1`` frames splitting the
+span since the previous frame), and the emulator turns the frames into events.
 
 The step runs on one timeline: the PTU's :meth:`~wander_env.ptu.PanTiltUnit.trajectory`
 (the unit stepped once per tick) is computed at the step's start and the frame source
@@ -14,14 +14,17 @@ The step runs on one timeline: the PTU's :meth:`~wander_env.ptu.PanTiltUnit.traj
 env itself only turns frames into events (this module) and commands into targets
 (:class:`~wander_env.env_base.CameraEnv`, shared with the rig).
 
-Frames (``frames``): ``"keyframes"`` (the default) renders the camera at each step's end
-and, while anything in view moves, every ``keyframe_ms`` (2 ms) or sooner where the
-predicted image motion since the last key would pass ``keyframe_px`` (2 px; one key a
-step while nothing moves; ``keyframe_px=None``: every ``keyframe_ms`` always), and makes
-the frames in between from the two neighbouring keys with the scene's geometry
-(:mod:`wander_env.keyframes`: the camera's rotation homography, each moving object's
-rigid motion from the keys' depth and motion layers, reprojection with depth where the
-camera centre moves); the keys are rendered at the start of the step from the PTU's own
+Frames (``frames``): ``"keyframes"`` (the default) renders keys where the image motion
+predicted from the poses (the camera's rotation along the PTU's trajectory, the objects'
+known motion) since the last key would pass ``keyframe_px`` (2 px): the step's end when
+less moves, more keys in a fast saccade, none while nothing moves at all (the last key
+stands); every ``keyframe_ms`` where the motion has no bound (a camera centre that
+moves, a sliding screen) or with ``keyframe_px=None``. It makes the frames in between
+from the two neighbouring keys with the scene's geometry (:mod:`wander_env.keyframes`:
+the camera's rotation homography, each moving object's rigid motion from the keys' depth
+and motion layers, reprojection with depth where the camera centre moves), and hands
+the DVS no frame at a tick where nothing moves by half a pixel (it interpolates between
+the frames around it). The keys are rendered at the start of the step from the PTU's own
 trajectory, so nothing waits for a later frame.
 ``"exact"`` renders every frame (every tick and sub-frame): the reference.
 ``renders_in_step`` counts the RGB renders of the last step.
@@ -79,7 +82,7 @@ from wander_env.event_packet import EventPacket
 from wander_env.events import concatenate
 from wander_env.frames import FRAME_SOURCES, FrameParams, Stage
 from wander_env.mjcf import SceneAnimator, build_mjcf
-from wander_env.ptu import PanTiltUnit, PTUParams, Trajectory
+from wander_env.ptu import PanTiltUnit, PTUParams
 from wander_env.renderer import RenderParams, project_points
 from wander_env.scene_config import SceneConfig, load_scene_config
 from wander_env.viz import event_image, labelled_frame
@@ -105,20 +108,19 @@ class WanderConfig:
     # bigger per-pixel log changes, so more adaptive sub-frames (office: ~1.5x the frames
     # with a still camera) and ~5 % more events. The scenes' default is 4.
     antialias_samples: int | None = None
-    # How the frames between control steps are made: "exact" renders every one (every
-    # render tick and adaptive sub-frame); "keyframes" renders every keyframe_ms and at
-    # each step's end and synthesises the frames in between from the keys' depth and
-    # motion layers (see wander_env.keyframes).
+    # How the frames between control steps are made (wander_env.frames.FRAME_SOURCES):
+    # "exact" renders every one (every render tick and adaptive sub-frame); "keyframes"
+    # renders keys and synthesises the frames in between from the keys' depth and motion
+    # layers (see wander_env.keyframes).
     frames: str = "keyframes"
+    # Keys every keyframe_ms (and at each step's end) where the image motion has no
+    # bound (a camera centre that moves, a sliding screen), or always with
+    # keyframe_px=None.
     keyframe_ms: float = 2.0
-    # Adaptive keys (frames="keyframes"): when given, a step's keys are its end and the
-    # ticks where the image motion predicted since the last key (the camera's rotation
-    # along the PTU's own trajectory, the objects' known motion) would pass keyframe_px
-    # pixels, no more than keyframe_ms apart while anything moves and one a step while
-    # nothing does (wander_env.keyframes.adaptive_key_ticks); every keyframe_ms where the
-    # motion has no bound (a camera centre that moves, a sliding screen). None: every
-    # keyframe_ms. Default 2 px: `wander bench fidelity` meets every bar with it (the
-    # README's table), and a step where nothing moves renders once instead of 5 times.
+    # Keys where motion asks (frames="keyframes"): a step's keys are the ticks where the
+    # image motion predicted since the last key (the camera's rotation along the PTU's
+    # own trajectory, the objects' known motion) would pass keyframe_px pixels, and its
+    # end; none while nothing moves (wander_env.keyframes.adaptive_key_ticks).
     keyframe_px: float | None = 2.0
     # Render at this many times the resolution and average blocks (see RenderParams): the
     # finer-antialiased reference of the fidelity benchmark (2 = 16 samples a pixel).
@@ -246,40 +248,36 @@ class WanderEnv(CameraEnv):
         self.__init__(render_mode=state["render_mode"], **cfg)
 
     # -- the step ----------------------------------------------------------------------
-    def _tick(self, trajectory: Trajectory, i: int) -> tuple[list[np.ndarray], int]:
-        """Tick ``i`` of the step: its event chunks and the frames it took."""
-        t1 = trajectory.t_us[i]
-        t0 = trajectory.t_us[i - 1] if i else trajectory.t0_us
-        frame = self.source.frame(t1, trajectory.angles(i))
-        prepared = frame if isinstance(frame, LogFrame) else self.dvs.prepare(frame)
-        change = self.dvs.log_change(prepared)
-        m = 1
-        if change > self.config.adaptive_log_change:
-            m = min(self.config.max_subframes, math.ceil(change / self.config.adaptive_log_change))
-        chunks = []
-        if m > 1:
-            times = [t0 + (t1 - t0) * j // m for j in range(1, m)]
-            for tj, angles in zip(times, trajectory.within(i, times), strict=True):
-                chunks.append(self.dvs.step(self.source.frame(tj, angles), tj))
-        chunks.append(self.dvs.step(prepared, t1))
-        return chunks, m
-
     def collect(self, clipped: bool) -> tuple[np.ndarray, StepInfo]:
+        """The step's frames from the source, along the PTU's trajectory, into events;
+        a frame whose largest log change passes ``adaptive_log_change`` is preceded by
+        sub-frames splitting the span since the previous frame."""
         c = self.config
         t1 = self._t_us + c.ticks_per_step * c.tick_us
         trajectory = self.ptu.trajectory(self._t_us, t1, c.tick_us)
         self.stage.renders = 0
         self.source.plan(trajectory)
         chunks: list[np.ndarray] = []
-        frames = 0
-        for i in range(len(trajectory.t_us)):
-            tick_chunks, m = self._tick(trajectory, i)
-            chunks.extend(tick_chunks)
-            frames += m
+        frames = extra = 0
+        t_prev = self._t_us
+        for i, t in enumerate(trajectory.t_us):
+            if self.source.interpolated(t):  # nothing moves by half a pixel
+                continue
+            frame = self.source.frame(t, trajectory.angles(i))
+            prepared = frame if isinstance(frame, LogFrame) else self.dvs.prepare(frame)
+            change = self.dvs.log_change(prepared)
+            m = 1
+            if change > c.adaptive_log_change:
+                m = min(c.max_subframes, math.ceil(change / c.adaptive_log_change))
+            times = [t_prev + (t - t_prev) * j // m for j in range(1, m)]
+            for tj, angles in zip(times, trajectory.at(times), strict=True):
+                chunks.append(self.dvs.step(self.source.frame(tj, angles), tj))
+            chunks.append(self.dvs.step(prepared, t))
+            frames, extra, t_prev = frames + m, extra + m - 1, t
         self._t_us = t1
         self.source.finish(t1, trajectory.angles(-1))
         events = concatenate(chunks)
-        return events, self._info(events, frames, frames - c.ticks_per_step, clipped)
+        return events, self._info(events, frames, extra, clipped)
 
     def truncated(self, info: StepInfo) -> bool:
         return self._t_us * 1e-6 >= self.config.episode_seconds - 1e-9

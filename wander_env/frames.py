@@ -22,10 +22,11 @@ frame mode is one more subclass, named in :data:`FRAME_SOURCES`.
 
 from __future__ import annotations
 
+import bisect
 import math
 import os
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
@@ -35,8 +36,9 @@ from wander_env.dvs import DVSEmulator, LogFrame
 from wander_env.entities import PAN_JOINT, TILT_JOINT
 from wander_env.gl_fork import ForkedGLError, fork_error_message
 from wander_env.keyframes import (
+    SUBPIXEL_PX,
     Keyframe,
-    KeyframeSource,
+    KeyPair,
     View,
     adaptive_key_ticks,
     make_keyframe,
@@ -137,13 +139,6 @@ class Stage:
         """(motion layers int32, depth m) of the last frame drawn, from one draw."""
         return self.renderer.segment_depth_current(self.layer_lut)
 
-    def geometry_at(self, t_us: int, pan_deg: float, tilt_deg: float) -> tuple[np.ndarray, ...]:
-        """(depth m, motion layers) of the model posed at ``t_us`` and these angles."""
-        self.pose(t_us, pan_deg, tilt_deg)
-        self.renderer.update(self.data)
-        layers, depth = self.geometry()
-        return depth, layers
-
     def object_mask(self) -> np.ndarray:
         """Object ids (H, W) int32 of the posed model (0 = background)."""
         return self.renderer.segment(self.data)
@@ -188,6 +183,11 @@ class FrameSource(ABC):
     def frame(self, t_us: int, angles: Angles) -> np.ndarray | LogFrame:
         """The frame at ``t_us`` (a tick of the planned step or a time inside one)."""
 
+    def interpolated(self, t_us: int) -> bool:
+        """Whether the DVS may go without the frame of this tick of the planned step and
+        interpolate over it (nothing in it moves but by a fraction of a pixel)."""
+        return False
+
     def finish(self, t_us: int, angles: Angles) -> None:
         """The step's end: the model posed there (ground truth reads it)."""
         self.stage.pose(t_us, *angles)
@@ -216,102 +216,120 @@ class ExactFrames(FrameSource):
 
 
 class KeyframeFrames(FrameSource):
-    """Keys rendered at the step's start along the trajectory (each step's end, and where
-    motion asks: :func:`~wander_env.keyframes.adaptive_key_ticks`, else every
-    ``keyframe_us``); frames between them synthesised (:mod:`wander_env.keyframes`)."""
+    """Keys rendered at the step's start along the trajectory where the predicted image
+    motion asks for them (:func:`~wander_env.keyframes.adaptive_key_ticks`: as few as one
+    a step, none while nothing moves; every ``keyframe_us`` where the motion has no
+    bound); the frames between them synthesised (:class:`~wander_env.keyframes.KeyPair`),
+    and none where nothing moves by half a pixel: the DVS interpolates there."""
 
     def __init__(self, stage: Stage, dvs: DVSEmulator, params: FrameParams) -> None:
         super().__init__(stage, dvs, params)
-        self.keys = KeyframeSource(stage.k, stage.layer_radii(), self._key_geometry)
-        self._key_angles: dict[int, Angles] = {}  # key t_us -> camera angles
-        self._key_inputs: dict[int, LogFrame] = {}  # key t_us -> its prepared DVS input
-        self._tick_views: dict[int, View] = {}  # tick t_us -> its view (this step)
-        self._tick_bounds: dict[int, float] = {}  # t_us -> flow bound from its two keys
-        self._key_mask: tuple[int, np.ndarray] | None = None  # (t_us, object mask) of a key
-        self._t0_us = 0
+        self.radii = stage.layer_radii()
+        self.keys: list[Keyframe] = []  # the key at the step's start, then the step's
+        self._inputs: dict[int, LogFrame] = {}  # key t_us -> its prepared DVS input
+        self._views: dict[int, View] = {}  # tick t_us -> its view (this step)
+        self._interpolated: set[int] = set()  # ticks the DVS interpolates over
+        self._pairs: dict[int, KeyPair] = {}  # later key's t_us -> the pair ending there
+        self._mask: tuple[int, np.ndarray] | None = None  # (t_us, object mask) of a key
 
-    def _key_geometry(self, key: Keyframe) -> tuple[np.ndarray, np.ndarray]:
-        """(depth, layers) of a key rendered earlier, drawn again at its pose."""
-        return self.stage.geometry_at(key.t_us, *self._key_angles[key.t_us])
-
-    def reset(self, t_us: int, angles: Angles) -> np.ndarray:
-        self.keys.reset()
-        self._key_inputs, self._key_angles, self._tick_views = {}, {}, {}
-        self._t0_us = t_us
-        self.stage.pose(t_us, *angles)
-        self._render_key(t_us, angles, self.stage.view(t_us), self.params.ground_truth)
-        return self.keys.keys[0].lum
-
-    def _render_key(self, t_us: int, angles: Angles, view: View, geometry: bool) -> None:
-        """Render a key of the posed model; with ``geometry`` its layers and depth too
-        (else they are drawn when a frame needs them)."""
+    def _render_key(self, t_us: int, angles: Angles, view: View) -> Keyframe:
+        """Render a key of the model posed at ``t_us`` and ``angles``: its colour, then
+        its layers and depth (one more draw), which give the ground truth's mask too."""
         stage = self.stage
+        stage.pose(t_us, *angles)
         rgb = stage.render()
         prepared = self.dvs.prepare(rgb)
-        self._key_inputs = {t: p for t, p in self._key_inputs.items() if t >= self._t0_us}
-        self._key_inputs[t_us] = prepared  # the DVS input of the key's own tick
-        self._key_angles = {t: a for t, a in self._key_angles.items() if t >= self._t0_us}
-        self._key_angles[t_us] = angles
+        layers, depth = stage.geometry()
         lum = prepared.lum.reshape(stage.height, stage.width)
-        if geometry:
-            layers, depth = stage.geometry()
-            self.keys.add(make_keyframe(t_us, lum, view, depth, layers))
-            mask = np.where(layers <= stage.scene.num_objects, layers, 0).astype(np.int32)
-            self._key_mask = (t_us, mask)
-        else:
-            self.keys.add(make_keyframe(t_us, lum, view))
+        key = make_keyframe(t_us, lum, view, depth, layers)
+        self._inputs[t_us] = prepared
+        mask = np.where(layers <= stage.scene.num_objects, layers, 0).astype(np.int32)
+        self._mask = (t_us, mask)
         self.camera_frame = rgb
+        return key
+
+    def reset(self, t_us: int, angles: Angles) -> np.ndarray:
+        self._inputs, self._views, self._pairs, self._interpolated = {}, {}, {}, set()
+        self.stage.pose(t_us, *angles)
+        self.keys = [self._render_key(t_us, angles, self.stage.view(t_us))]
+        return self.keys[0].lum
 
     def plan(self, trajectory: Trajectory) -> None:
-        """The step's keys: at its end and every ``keyframe_us`` (or, with
-        ``keyframe_px``, where the predicted motion asks); each tick's view is kept."""
         p, stage = self.params, self.stage
-        self._t0_us = trajectory.t0_us
-        t1 = trajectory.t_us[-1]
         ticks = trajectory.t_us
         angles = [trajectory.angles(i) for i in range(len(ticks))]
         views = [stage.camera_view(t, *a) for t, a in zip(ticks, angles, strict=True)]
-        self._tick_views = dict(zip(ticks, views, strict=True))
-        shape = (stage.height, stage.width)
-        k, radii = self.keys.k, self.keys.radii
-        chosen = None
+        self._views = dict(zip(ticks, views, strict=True))
+        ref = self.keys[-1]
+        self._inputs = {ref.t_us: self._inputs[ref.t_us]}
+        self.keys, self._pairs = [ref], {}
+        shape, k = (stage.height, stage.width), stage.k
+        idx = None
         if p.keyframe_px is not None:
-            ref = self.keys.keys[-1].view  # the key at t0 (the last step's end)
-            idx = adaptive_key_ticks(
-                ref, views, k, radii, shape, p.keyframe_px,
-                max_ticks=max(p.keyframe_us // p.tick_us, 1),
-            )  # fmt: skip
-            chosen = None if idx is None else {ticks[i] for i in idx}
-        if chosen is None:
-            chosen = {t for t in ticks if t == t1 or t % p.keyframe_us == 0}
-        for t, a, view in zip(ticks, angles, views, strict=True):
-            if t in chosen:
-                stage.pose(t, *a)
-                self._render_key(t, a, view, geometry=t == t1 and p.ground_truth)
-        # Each synthesised tick's flow bound from its two keys, for all ticks at once.
-        between = [(t, v) for t, v in zip(ticks, views, strict=True) if t not in chosen]
-        self._tick_bounds = {}
+            idx = adaptive_key_ticks(ref.view, views, k, self.radii, shape, p.keyframe_px)
+        if idx is None:
+            idx = [i for i, t in enumerate(ticks) if t == ticks[-1] or t % p.keyframe_us == 0]
+        if not idx:  # nothing moves: the start's key is the step's end too
+            end = replace(ref, t_us=ticks[-1], view=views[-1])
+            self.keys.append(end)
+            self._inputs[end.t_us] = self._inputs[ref.t_us]
+            self._mask = (end.t_us, self._mask[1].copy())  # a new array in each info
+        for i in idx:
+            self.keys.append(self._render_key(ticks[i], angles[i], views[i]))
+        # The ticks between keys whose content moves by less than half a pixel from both.
+        key_times = {key.t_us for key in self.keys}
+        between = [(t, v) for t, v in zip(ticks, views, strict=True) if t not in key_times]
+        self._interpolated = set()
         if between:
-            pairs = [self.keys.neighbours(t) for t, _ in between]
+            pairs = [self._pair(t) for t, _ in between]
             tv = [v for _, v in between]
-            ba = view_flow_bounds_px([q[0].view for q in pairs], tv, k, radii, shape)
-            bb = view_flow_bounds_px([q[1].view for q in pairs], tv, k, radii, shape)
-            both = zip(between, np.maximum(ba, bb), strict=True)
-            self._tick_bounds = {t: float(b) for (t, _), b in both}
+            ba = view_flow_bounds_px([q.a.view for q in pairs], tv, k, self.radii, shape)
+            bb = view_flow_bounds_px([q.b.view for q in pairs], tv, k, self.radii, shape)
+            bounds = np.maximum(ba, bb)
+            self._interpolated = {
+                t for (t, _), b in zip(between, bounds, strict=True) if b < SUBPIXEL_PX
+            }
+
+    def _pair(self, t_us: int) -> KeyPair:
+        """The keys just before and at-or-after ``t_us`` (inside the planned step)."""
+        i = bisect.bisect_left([key.t_us for key in self.keys], t_us)
+        later = self.keys[i]
+        pair = self._pairs.get(later.t_us)
+        if pair is None:
+            pair = self._pairs[later.t_us] = KeyPair(self.keys[i - 1], later, self.stage.k)
+        return pair
+
+    def interpolated(self, t_us: int) -> bool:
+        return t_us in self._interpolated
 
     def frame(self, t_us: int, angles: Angles) -> np.ndarray | LogFrame:
-        prepared = self._key_inputs.get(t_us)
-        if prepared is not None:  # a key's own tick
+        """A key's own input at its tick; the keys' blend where nothing moves by half a
+        pixel; else a synthesised frame."""
+        prepared = self._inputs.get(t_us)
+        if prepared is not None:
             return prepared
-        view = self._tick_views.get(t_us)
-        if view is not None:
-            return self.keys.frame(t_us, view, bound_px=self._tick_bounds.get(t_us))
-        return self.keys.frame(t_us, self.stage.camera_view(t_us, *angles))
+        pair = self._pair(t_us)
+        w = pair.weight(t_us)
+        if t_us in self._interpolated:
+            return pair.blend(w)
+        view = self._views.get(t_us)
+        if view is None:  # a sub-frame inside a tick
+            view = self.stage.camera_view(t_us, *angles)
+            shape, k = (self.stage.height, self.stage.width), self.stage.k
+            refs = [pair.a.view, pair.b.view]
+            bound = view_flow_bounds_px(refs, [view, view], k, self.radii, shape).max()
+            if bound < SUBPIXEL_PX:
+                return pair.blend(w)
+        return self.synthesize(pair, view, w)
+
+    def synthesize(self, pair: KeyPair, view: View, w: float) -> np.ndarray:
+        """An in-between frame (a method of its own, for profiling)."""
+        return pair.frame(view, w)
 
     def object_mask(self, t_us: int) -> np.ndarray:
-        km = self._key_mask
-        if km is not None and km[0] == t_us:
-            return km[1]
+        mask = self._mask
+        if mask is not None and mask[0] == t_us:
+            return mask[1]
         return super().object_mask(t_us)
 
 

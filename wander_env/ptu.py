@@ -50,6 +50,7 @@ Example:
 
 from __future__ import annotations
 
+import bisect
 import copy
 import math
 from collections.abc import Mapping
@@ -678,7 +679,7 @@ class Trajectory:
     ``t_us[i]`` is the end of tick ``i`` (tick 0 starts at ``t0_us``) and ``pan_deg[i]``,
     ``tilt_deg[i]`` the camera's angles there (after backlash); ``starts[i]`` is the unit
     as it was at the start of tick ``i`` (a copy, never stepped), from which
-    :meth:`within` evaluates angles at times inside the tick (adaptive sub-frames).
+    :meth:`at` evaluates angles at times inside the span (adaptive sub-frames).
     """
 
     t0_us: int
@@ -691,14 +692,19 @@ class Trajectory:
         """Camera (pan, tilt) in degrees at the end of tick ``i``."""
         return self.pan_deg[i], self.tilt_deg[i]
 
-    def within(self, i: int, times_us: list[int]) -> list[tuple[float, float]]:
-        """Camera (pan, tilt) at increasing ``times_us`` inside tick ``i``: a copy of the
-        unit at the tick's start stepped from one time to the next (the unit that made
-        the trajectory is not touched)."""
-        unit = self.starts[i].copy()
-        t_prev = self.t_us[i - 1] if i else self.t0_us
+    def at(self, times_us: list[int]) -> list[tuple[float, float]]:
+        """Camera (pan, tilt) at increasing ``times_us`` inside the span (adaptive
+        sub-frames): per tick, a copy of the unit at its start stepped from one time to
+        the next (the unit that made the trajectory is not touched)."""
         out = []
+        tick, unit, t_prev = -1, self.starts[0], self.t0_us
         for t in times_us:
+            i = bisect.bisect_left(self.t_us, t)
+            if not (i < len(self.t_us) and (self.t_us[i - 1] if i else self.t0_us) < t):
+                raise ValueError(f"t={t} µs is not inside ({self.t0_us}, {self.t_us[-1]}]")
+            if i != tick:
+                tick, unit = i, self.starts[i].copy()
+                t_prev = self.t_us[i - 1] if i else self.t0_us
             unit.step((t - t_prev) * 1e-6)
             t_prev = t
             out.append((unit.camera_pan_deg, unit.camera_tilt_deg))

@@ -250,16 +250,14 @@ def step_breakdown(
         kw["keyframe_ms"] = keyframe_ms
     env = _make(scene, dvs, True, antialias_samples, **kw)()
     u = env.unwrapped
-    keys = ("render", "dvs", "segment", "pose", "synth", "geometry")
+    keys = ("render", "dvs", "segment", "pose", "synth")
     acc: dict[str, list[float]] = {k: [] for k in keys}
     stage, renderer = u.stage, u.stage.renderer
     renderer.render = timed(renderer.render, acc, "render")
     renderer.segment = timed(renderer.segment, acc, "segment")
     renderer.segment_depth_current = timed(renderer.segment_depth_current, acc, "segment")
-    keyframes = getattr(u.source, "keys", None)
-    if keyframes is not None:  # synthesis, less the keys' layers and depth drawn inside it
-        keyframes.frame = timed(keyframes.frame, acc, "synth")
-        keyframes.geometry = timed(keyframes.geometry, acc, "geometry")
+    if hasattr(u.source, "synthesize"):  # in-between frames (keyframes)
+        u.source.synthesize = timed(u.source.synthesize, acc, "synth")
     for name in ("prepare", "log_change", "step"):
         setattr(u.dvs, name, timed(getattr(u.dvs, name), acc, "dvs"))
     stage.pose = timed(stage.pose, acc, "pose")  # every full pose goes through it
@@ -276,7 +274,7 @@ def step_breakdown(
     wall = time.perf_counter() - t0
     env.close()
     ms = {k: 1e3 * sum(v) / steps for k, v in acc.items()}
-    synth = ms["synth"] - ms["geometry"]
+    synth = ms["synth"]
     parts = ms["render"] + synth + ms["dvs"] + ms["segment"] + ms["pose"]
     return StepBreakdown(
         scene=scene,
