@@ -115,20 +115,23 @@ class Stage:
     def camera_view(self, t_us: int, pan_deg: float, tilt_deg: float) -> View:
         """The :class:`View` at ``t_us`` with the camera at these angles; only the PTU's
         joints and the camera are moved (the model is no longer posed at one time)."""
-        self.data.qpos[self._pan_adr] = math.radians(pan_deg)
-        self.data.qpos[self._tilt_adr] = math.radians(tilt_deg)
-        mujoco.mj_kinematics(self.model, self.data)
-        mujoco.mj_camlight(self.model, self.data)
-        self.posed = None
-        return self.view(t_us)
+        return self.camera_views([t_us], [(pan_deg, tilt_deg)])[0]
 
-    def view(self, t_us: int) -> View:
-        """The camera pose of the model and the motion layers at ``t_us``."""
-        return View(
-            rotation_from_mujoco(self.data.cam_xmat[self._cam_id]),
-            self.data.cam_xpos[self._cam_id].copy(),
-            self.animator.layer_positions(t_us * 1e-6),
-        )
+    def camera_views(self, times_us: list[int], angles: list[Angles]) -> list[View]:
+        """:meth:`camera_view` at each time and angles; the camera is posed again only
+        where the angles change."""
+        views, last = [], None
+        for t, a in zip(times_us, angles, strict=True):
+            if a != last:
+                self.data.qpos[self._pan_adr] = math.radians(a[0])
+                self.data.qpos[self._tilt_adr] = math.radians(a[1])
+                mujoco.mj_kinematics(self.model, self.data)
+                mujoco.mj_camlight(self.model, self.data)
+                rotation = rotation_from_mujoco(self.data.cam_xmat[self._cam_id])
+                centre, last = self.data.cam_xpos[self._cam_id].copy(), a
+            views.append(View(rotation, centre, self.animator.layer_positions(t * 1e-6)))
+        self.posed = None
+        return views
 
     def render(self) -> np.ndarray:
         """RGB uint8 (H, W, 3) of the posed model."""
@@ -250,15 +253,14 @@ class KeyframeFrames(FrameSource):
 
     def reset(self, t_us: int, angles: Angles) -> np.ndarray:
         self._inputs, self._views, self._pairs, self._interpolated = {}, {}, {}, set()
-        self.stage.pose(t_us, *angles)
-        self.keys = [self._render_key(t_us, angles, self.stage.view(t_us))]
+        self.keys = [self._render_key(t_us, angles, self.stage.camera_view(t_us, *angles))]
         return self.keys[0].lum
 
     def plan(self, trajectory: Trajectory) -> None:
         p, stage = self.params, self.stage
         ticks = trajectory.t_us
         angles = [trajectory.angles(i) for i in range(len(ticks))]
-        views = [stage.camera_view(t, *a) for t, a in zip(ticks, angles, strict=True)]
+        views = stage.camera_views(list(ticks), angles)
         self._views = dict(zip(ticks, views, strict=True))
         ref = self.keys[-1]
         self._inputs = {ref.t_us: self._inputs[ref.t_us]}
@@ -283,9 +285,9 @@ class KeyframeFrames(FrameSource):
         if between:
             pairs = [self._pair(t) for t, _ in between]
             tv = [v for _, v in between]
-            ba = view_flow_bounds_px([q.a.view for q in pairs], tv, k, self.radii, shape)
-            bb = view_flow_bounds_px([q.b.view for q in pairs], tv, k, self.radii, shape)
-            bounds = np.maximum(ba, bb)
+            refs = [q.a.view for q in pairs] + [q.b.view for q in pairs]
+            both = view_flow_bounds_px(refs, tv + tv, k, self.radii, shape)
+            bounds = np.maximum(both[: len(tv)], both[len(tv) :])
             self._interpolated = {
                 t for (t, _), b in zip(between, bounds, strict=True) if b < SUBPIXEL_PX
             }

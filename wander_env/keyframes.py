@@ -53,12 +53,10 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
-import cv2
 import numba
 import numpy as np
-
-from wander_env.camera import relative_pose
 
 __all__ = [
     "SUBPIXEL_PX",
@@ -146,35 +144,53 @@ def make_keyframe(
     return Keyframe(int(t_us), lum, view, inv, layers, present, boxes, rho_median, rho_max)
 
 
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _key_params(
-    key: Keyframe, view: View, k: np.ndarray, k_inv: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """For all layers of ``key`` at once, toward ``view``: the target-to-source
-    homography (3, 3), each layer's ``b = H⁻¹ K t`` (L, 3) (see
+    k,
+    k_inv,
+    key_rot,
+    key_centre,
+    key_layers,
+    key_boxes,
+    rho_max,
+    rot,
+    centre,
+    layers,
+    h,
+    w,
+    hinv,
+    bvec,
+    moving,
+    boxes,
+):
+    """For all layers of a key (rotation, centre, layer positions, boxes, largest inverse
+    depths) toward a view (rotation, centre, layer positions): fill the target-to-source
+    homography ``hinv`` (3, 3), each layer's ``b = H⁻¹ K t`` (L, 3) (see
     :func:`~wander_env.camera.source_pixels`), whether it moves relative to the camera
-    (L,), and the target box (L, 4) it can reach (layer 0: the whole image)."""
-    h, w = key.lum.shape
-    r_rel, t_rel = relative_pose(key.view.rotation, key.view.centre, view.rotation, view.centre)
+    (L,) and the target box (L, 4) it can reach (layer 0: the whole image)."""
+    r_rel = rot.T @ key_rot  # target-from-key camera rotation
+    t_rel = rot.T @ (key_centre - centre)
     back = k @ r_rel.T
-    hinv = back @ k_inv
-    t_l = t_rel[None, :] + (view.layer_positions - key.view.layer_positions) @ view.rotation
-    b = t_l @ back.T
-    moving = (b != 0).any(axis=1)
-    xs, ys = key.boxes[:, [2, 3, 2, 3]], key.boxes[:, [0, 0, 1, 1]]  # (L, 4) corners
+    hinv[:] = back @ k_inv
     hom = k @ r_rel @ k_inv
-    z = hom[2, 0] * xs + hom[2, 1] * ys + hom[2, 2]
-    u = (hom[0, 0] * xs + hom[0, 1] * ys + hom[0, 2]) / z
-    v = (hom[1, 0] * xs + hom[1, 1] * ys + hom[1, 2]) / z
-    # |Δq| <= f·ρ·(|t_xy| + |t_z|·r/f) at image radius r (<= 1.5 f here): bounded by 4 f ρ |t|
-    pad = _PAD_PX + 4.0 * k[0, 0] * np.sqrt((t_l * t_l).sum(axis=1)) * key.rho_max
-    boxes = np.empty((len(pad), 4))
-    boxes[:, 0] = np.floor(v.min(axis=1) - pad)
-    boxes[:, 1] = np.ceil(v.max(axis=1) + pad) + 1
-    boxes[:, 2] = np.floor(u.min(axis=1) - pad)
-    boxes[:, 3] = np.ceil(u.max(axis=1) + pad) + 1
-    boxes = np.clip(boxes, 0, [h, h, w, w]).astype(np.int64)
-    boxes[0] = (0, h, 0, w)
-    return hinv, b, moving, boxes
+    for ll in range(len(key_layers)):
+        t_l = t_rel + rot.T @ (layers[ll] - key_layers[ll])
+        bvec[ll] = back @ t_l
+        moving[ll] = bvec[ll, 0] != 0 or bvec[ll, 1] != 0 or bvec[ll, 2] != 0
+        # |Δq| <= f·ρ·(|t_xy| + |t_z|·r/f) at image radius r (<= 1.5 f here): <= 4 f ρ |t|
+        pad = _PAD_PX + 4.0 * k[0, 0] * math.sqrt(t_l @ t_l) * rho_max[ll]
+        u0, u1, v0, v1 = np.inf, -np.inf, np.inf, -np.inf
+        for x in (key_boxes[ll, 2], key_boxes[ll, 3]):
+            for y in (key_boxes[ll, 0], key_boxes[ll, 1]):
+                z = hom[2, 0] * x + hom[2, 1] * y + hom[2, 2]
+                u = (hom[0, 0] * x + hom[0, 1] * y + hom[0, 2]) / z
+                v = (hom[1, 0] * x + hom[1, 1] * y + hom[1, 2]) / z
+                u0, u1, v0, v1 = min(u0, u), max(u1, u), min(v0, v), max(v1, v)
+        boxes[ll, 0] = min(max(math.floor(v0 - pad), 0), h)
+        boxes[ll, 1] = min(max(math.ceil(v1 + pad) + 1, 0), h)
+        boxes[ll, 2] = min(max(math.floor(u0 - pad), 0), w)
+        boxes[ll, 3] = min(max(math.ceil(u1 + pad) + 1, 0), w)
+    boxes[0, 0], boxes[0, 1], boxes[0, 2], boxes[0, 3] = 0, h, 0, w
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -255,6 +271,35 @@ def _synth_kernel(
                 out[y, x] = lum[near, _nearest(py, h), _nearest(px, w)]
 
 
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _static_kernel(out, weights, near, lum, hinv):
+    """Fill ``out`` (H, W) with both keys (index 0, 1) warped by their target-to-source
+    homographies ``hinv`` (nearest pixel) and blended with ``weights``, each where it
+    sees the pixel; a pixel neither sees takes key ``near``'s nearest edge pixel."""
+    h, w = out.shape
+    for y in range(h):
+        for x in range(w):
+            num = 0.0
+            den = 0.0
+            for kk in range(2):
+                wk = weights[kk]
+                if wk <= 0.0:
+                    continue
+                az = hinv[kk, 2, 0] * x + hinv[kk, 2, 1] * y + hinv[kk, 2, 2]
+                px = (hinv[kk, 0, 0] * x + hinv[kk, 0, 1] * y + hinv[kk, 0, 2]) / az
+                py = (hinv[kk, 1, 0] * x + hinv[kk, 1, 1] * y + hinv[kk, 1, 2]) / az
+                if -0.5 <= px < w - 0.5 and -0.5 <= py < h - 0.5:
+                    num += wk * lum[kk, _nearest(py, h), _nearest(px, w)]
+                    den += wk
+            if den > 0.0:
+                out[y, x] = num / den
+            else:
+                az = hinv[near, 2, 0] * x + hinv[near, 2, 1] * y + hinv[near, 2, 2]
+                px = (hinv[near, 0, 0] * x + hinv[near, 0, 1] * y + hinv[near, 0, 2]) / az
+                py = (hinv[near, 1, 0] * x + hinv[near, 1, 1] * y + hinv[near, 1, 2]) / az
+                out[y, x] = lum[near, _nearest(py, h), _nearest(px, w)]
+
+
 class KeyPair:
     """Two consecutive keys and the frames between them: their pixels stacked once for
     the kernel; per frame, only the views' homographies and the layers' motion."""
@@ -265,12 +310,16 @@ class KeyPair:
         self.a, self.b = a, b
         self.k = np.asarray(k, dtype=np.float64)
         self._k_inv = np.linalg.inv(self.k)
-        self._lum = np.stack([a.lum, b.lum])
-        self._layers = np.stack([a.layers, b.layers])
-        self._inv = np.stack([a.inv_depth, b.inv_depth])
-        self._present = np.stack([a.present, b.present])
-        self._rho0 = np.stack([a.rho_median, b.rho_median])
-        self._lum1 = [np.dstack([key.lum, np.ones_like(key.lum)]) for key in (a, b)]
+
+    @cached_property
+    def _stacked(self) -> tuple[np.ndarray, ...]:
+        """Both keys' luminance, layers, inverse depth, layer presence and median inverse
+        depth, stacked for the kernel (made when a frame first needs them)."""
+        keys = (self.a, self.b)
+        return tuple(
+            np.stack([getattr(key, name) for key in keys])
+            for name in ("lum", "layers", "inv_depth", "present", "rho_median")
+        )
 
     def weight(self, t_us: int) -> float:
         """The time fraction of ``t_us``: 0 at key ``a``, 1 at key ``b``."""
@@ -283,23 +332,32 @@ class KeyPair:
     def frame(self, view: View, w: float) -> np.ndarray:
         """The frame (H, W) float32 linear luminance of ``view`` at time fraction ``w``.
 
-        Where the camera only rotates, the static world is one nearest-pixel warp of each
-        key (OpenCV) and the kernel runs over the moving layers' boxes alone; where its
-        centre moves (parallax), the kernel runs over the whole image."""
+        Where the camera only rotates, the static world is one nearest-pixel warp of both
+        keys (:func:`_static_kernel`) and the layers' kernel runs over the moving layers'
+        boxes alone; where its centre moves (parallax), over the whole image."""
         if not 0.0 <= w <= 1.0:
             raise ValueError(f"time fraction w must be in [0, 1], got {w!r}")
-        pa = _key_params(self.a, view, self.k, self._k_inv)
-        pb = _key_params(self.b, view, self.k, self._k_inv)
-        hinv, bvec, moving, boxes = (np.stack([x, y]) for x, y in zip(pa, pb, strict=True))
-        weights = np.array([1.0 - w, w])
+        n = len(view.layer_positions)
+        hinv, bvec = np.empty((2, 3, 3)), np.empty((2, n, 3))
+        moving, boxes = np.empty((2, n), np.bool_), np.empty((2, n, 4), np.int64)
         h, wd = self.a.lum.shape
+        for i, key in enumerate((self.a, self.b)):
+            kv = key.view
+            _key_params(
+                self.k, self._k_inv, kv.rotation, kv.centre, kv.layer_positions, key.boxes,
+                key.rho_max, view.rotation, view.centre, view.layer_positions, h, wd,
+                hinv[i], bvec[i], moving[i], boxes[i],
+            )  # fmt: skip
+        weights = np.array([1.0 - w, w])
         near = int(w > 0.5)
+        lum, layers, inv, present, rho0 = self._stacked
         if moving[:, 0].any():  # the camera centre moved: parallax everywhere
             out = np.empty_like(self.a.lum)
             region = np.array([0, h, 0, wd])
         else:
-            out = self._static(hinv, weights, near)
-            inside = self._present[:, 1:] & (boxes[:, 1:, 1] > boxes[:, 1:, 0])
+            out = np.empty_like(self.a.lum)
+            _static_kernel(out, weights, near, lum, hinv)
+            inside = present[:, 1:] & (boxes[:, 1:, 1] > boxes[:, 1:, 0])
             inside &= boxes[:, 1:, 3] > boxes[:, 1:, 2]
             if not inside.any():
                 return out
@@ -307,35 +365,9 @@ class KeyPair:
             region = np.array([b[:, 0].min(), b[:, 1].max(), b[:, 2].min(), b[:, 3].max()])
             near = -1
         _synth_kernel(
-            out, region, weights, near, self._lum, self._layers, self._inv, self._present,
-            boxes, hinv, bvec, self._rho0, moving,
+            out, region, weights, near, lum, layers, inv, present, boxes, hinv, bvec, rho0,
+            moving,
         )  # fmt: skip
-        return out
-
-    def _static(self, hinv: np.ndarray, weights: np.ndarray, near: int) -> np.ndarray:
-        """Both keys warped by their rotation homographies (nearest pixel) and blended
-        with ``weights``, each where it sees the pixel; the nearer key's edge elsewhere."""
-        h, wd = self.a.lum.shape
-        flags = cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
-        num = np.zeros((h, wd), np.float32)
-        den = np.zeros((h, wd), np.float32)
-        for i in (0, 1):  # the two keys
-            if weights[i] <= 0:
-                continue
-            if np.abs(hinv[i] - np.eye(3)).max() < 1e-12:
-                m = self._lum1[i]
-            else:
-                m = cv2.warpPerspective(self._lum1[i], hinv[i], (wd, h), flags=flags)
-            num += np.float32(weights[i]) * m[..., 0]
-            den += np.float32(weights[i]) * m[..., 1]
-        seen = den > 1e-6
-        out = np.divide(num, den, out=num, where=seen)
-        if not seen.all():
-            edge = cv2.warpPerspective(
-                self._lum[near], hinv[near], (wd, h), flags=flags,
-                borderMode=cv2.BORDER_REPLICATE,
-            )  # fmt: skip
-            out[~seen] = edge[~seen]
         return out
 
 
