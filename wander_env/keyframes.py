@@ -202,73 +202,75 @@ def _nearest(v: float, n: int) -> int:
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _synth_kernel(
-    out, region, weights, near, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
+    out, regions, weights, near, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
 ):
-    """Fill ``out`` (H, W) inside ``region`` (y0, y1, x0, x1): per pixel and key (index
-    0, 1), the nearest layer candidate (see the module docstring), blended with
-    ``weights``. A pixel neither key sees takes key ``near``'s nearest edge pixel, or,
-    with ``near`` < 0, keeps its value."""
+    """Fill ``out`` (H, W) inside each of ``regions`` (R, 4) (y0, y1, x0, x1; a pixel in
+    two is computed twice, to the same value): per pixel and key (index 0, 1), the
+    nearest layer candidate (see the module docstring), blended with ``weights``. A
+    pixel neither key sees takes key ``near``'s nearest edge pixel, or, with ``near`` < 0,
+    keeps its value."""
     h, w = out.shape
     n_layers = present.shape[1]
-    for y in range(region[0], region[1]):
-        for x in range(region[2], region[3]):
-            num = 0.0
-            den = 0.0
-            for kk in range(2):
-                wk = weights[kk]
-                if wk <= 0.0:
-                    continue
-                ax = hinv[kk, 0, 0] * x + hinv[kk, 0, 1] * y + hinv[kk, 0, 2]
-                ay = hinv[kk, 1, 0] * x + hinv[kk, 1, 1] * y + hinv[kk, 1, 2]
-                az = hinv[kk, 2, 0] * x + hinv[kk, 2, 1] * y + hinv[kk, 2, 2]
-                best_v = 0.0
-                best_r = -1.0
-                for ll in range(n_layers):
-                    if not present[kk, ll]:
+    for r in range(len(regions)):
+        for y in range(regions[r, 0], regions[r, 1]):
+            for x in range(regions[r, 2], regions[r, 3]):
+                num = 0.0
+                den = 0.0
+                for kk in range(2):
+                    wk = weights[kk]
+                    if wk <= 0.0:
                         continue
-                    if y < boxes[kk, ll, 0] or y >= boxes[kk, ll, 1]:
-                        continue
-                    if x < boxes[kk, ll, 2] or x >= boxes[kk, ll, 3]:
-                        continue
-                    b0, b1, b2 = bvec[kk, ll, 0], bvec[kk, ll, 1], bvec[kk, ll, 2]
-                    rho = rho0[kk, ll]
-                    mov = moving[kk, ll]
-                    if mov:
-                        for _ in range(_ITERATIONS):
-                            lam = (1.0 + rho * b2) / az
-                            ix = _nearest(lam * ax - rho * b0, w)
-                            iy = _nearest(lam * ay - rho * b1, h)
-                            if layers[kk, iy, ix] == ll:
-                                rho = inv[kk, iy, ix]
-                    lam = (1.0 + rho * b2) / az
-                    px = lam * ax - rho * b0
-                    py = lam * ay - rho * b1
-                    if not (-0.5 < px < w - 0.5 and -0.5 < py < h - 0.5):
-                        continue
-                    ix = _nearest(px, w)
-                    iy = _nearest(py, h)
-                    if layers[kk, iy, ix] != ll:
-                        continue
-                    src = inv[kk, iy, ix]
-                    if mov:
-                        if abs(src - rho) * math.hypot(b0, b1) >= 0.5:
-                            continue  # the depth assumed is not the source's: not converged
-                    else:
-                        rho = src
-                    r_t = rho / lam
-                    if r_t > best_r:
-                        best_r = r_t
-                        best_v = lum[kk, iy, ix]
-                if best_r > 0.0:
-                    num += wk * best_v
-                    den += wk
-            if den > 0.0:
-                out[y, x] = num / den
-            elif near >= 0:  # seen by neither key: the nearer key's nearest edge pixel
-                az = hinv[near, 2, 0] * x + hinv[near, 2, 1] * y + hinv[near, 2, 2]
-                px = (hinv[near, 0, 0] * x + hinv[near, 0, 1] * y + hinv[near, 0, 2]) / az
-                py = (hinv[near, 1, 0] * x + hinv[near, 1, 1] * y + hinv[near, 1, 2]) / az
-                out[y, x] = lum[near, _nearest(py, h), _nearest(px, w)]
+                    ax = hinv[kk, 0, 0] * x + hinv[kk, 0, 1] * y + hinv[kk, 0, 2]
+                    ay = hinv[kk, 1, 0] * x + hinv[kk, 1, 1] * y + hinv[kk, 1, 2]
+                    az = hinv[kk, 2, 0] * x + hinv[kk, 2, 1] * y + hinv[kk, 2, 2]
+                    best_v = 0.0
+                    best_r = -1.0
+                    for ll in range(n_layers):
+                        if not present[kk, ll]:
+                            continue
+                        if y < boxes[kk, ll, 0] or y >= boxes[kk, ll, 1]:
+                            continue
+                        if x < boxes[kk, ll, 2] or x >= boxes[kk, ll, 3]:
+                            continue
+                        b0, b1, b2 = bvec[kk, ll, 0], bvec[kk, ll, 1], bvec[kk, ll, 2]
+                        rho = rho0[kk, ll]
+                        mov = moving[kk, ll]
+                        if mov:
+                            for _ in range(_ITERATIONS):
+                                lam = (1.0 + rho * b2) / az
+                                ix = _nearest(lam * ax - rho * b0, w)
+                                iy = _nearest(lam * ay - rho * b1, h)
+                                if layers[kk, iy, ix] == ll:
+                                    rho = inv[kk, iy, ix]
+                        lam = (1.0 + rho * b2) / az
+                        px = lam * ax - rho * b0
+                        py = lam * ay - rho * b1
+                        if not (-0.5 < px < w - 0.5 and -0.5 < py < h - 0.5):
+                            continue
+                        ix = _nearest(px, w)
+                        iy = _nearest(py, h)
+                        if layers[kk, iy, ix] != ll:
+                            continue
+                        src = inv[kk, iy, ix]
+                        if mov:
+                            if abs(src - rho) * math.hypot(b0, b1) >= 0.5:
+                                continue  # the depth assumed is not the source's: not converged
+                        else:
+                            rho = src
+                        r_t = rho / lam
+                        if r_t > best_r:
+                            best_r = r_t
+                            best_v = lum[kk, iy, ix]
+                    if best_r > 0.0:
+                        num += wk * best_v
+                        den += wk
+                if den > 0.0:
+                    out[y, x] = num / den
+                elif near >= 0:  # seen by neither key: the nearer key's nearest edge pixel
+                    az = hinv[near, 2, 0] * x + hinv[near, 2, 1] * y + hinv[near, 2, 2]
+                    px = (hinv[near, 0, 0] * x + hinv[near, 0, 1] * y + hinv[near, 0, 2]) / az
+                    py = (hinv[near, 1, 0] * x + hinv[near, 1, 1] * y + hinv[near, 1, 2]) / az
+                    out[y, x] = lum[near, _nearest(py, h), _nearest(px, w)]
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -351,21 +353,22 @@ class KeyPair:
         weights = np.array([1.0 - w, w])
         near = int(w > 0.5)
         lum, layers, inv, present, rho0 = self._stacked
+        out = np.empty_like(self.a.lum)
         if moving[:, 0].any():  # the camera centre moved: parallax everywhere
-            out = np.empty_like(self.a.lum)
-            region = np.array([0, h, 0, wd])
+            regions = np.array([[0, h, 0, wd]])
         else:
-            out = np.empty_like(self.a.lum)
             _static_kernel(out, weights, near, lum, hinv)
-            inside = present[:, 1:] & (boxes[:, 1:, 1] > boxes[:, 1:, 0])
-            inside &= boxes[:, 1:, 3] > boxes[:, 1:, 2]
-            if not inside.any():
+            # Each moving layer's box: the union of its boxes from the keys that have it.
+            pres = present[:, 1:, None]
+            lo = np.where(pres, boxes[:, 1:], [h, 0, wd, 0]).min(axis=0)
+            hi = np.where(pres, boxes[:, 1:], [0, 0, 0, 0]).max(axis=0)
+            regions = np.stack([lo[:, 0], hi[:, 1], lo[:, 2], hi[:, 3]], axis=1)
+            regions = regions[(regions[:, 1] > regions[:, 0]) & (regions[:, 3] > regions[:, 2])]
+            if not len(regions):
                 return out
-            b = boxes[:, 1:][inside]
-            region = np.array([b[:, 0].min(), b[:, 1].max(), b[:, 2].min(), b[:, 3].max()])
             near = -1
         _synth_kernel(
-            out, region, weights, near, lum, layers, inv, present, boxes, hinv, bvec, rho0,
+            out, regions, weights, near, lum, layers, inv, present, boxes, hinv, bvec, rho0,
             moving,
         )  # fmt: skip
         return out
