@@ -89,3 +89,22 @@ def test_keys_and_exact_frames_give_nearly_the_same_events():
     ev_e, renders_e, _ = _run("office", 8, frames="exact")
     assert abs(len(ev_k) / len(ev_e) - 1) < 0.05
     assert sum(renders_k) == 8 and sum(renders_e) >= 80
+
+
+@pytest.mark.slow
+def test_keyframe_max_ms_spaces_keys_while_anything_moves():
+    """keyframe_max_ms=5: two keys a step in the office (its objects always move), still
+    none on the shelf (nothing moves)."""
+    _, renders, _ = _run("office", 3, keyframe_max_ms=5.0)
+    _, still, _ = _run("shelf", 3, keyframe_max_ms=5.0)
+    assert renders == [2, 2, 2] and still == [0, 0, 0]
+
+
+def test_keyframe_max_ms_is_checked():
+    from wander_env.env import WanderConfig
+
+    assert WanderConfig().keyframe_max_ms is None
+    with pytest.raises(ValueError, match=r"keyframe_max_ms=2\.5 must be a whole number"):
+        WanderConfig(keyframe_max_ms=2.5)
+    with pytest.raises(ValueError, match="keyframe_max_ms must be a finite number > 0"):
+        WanderConfig(keyframe_max_ms=0.0)

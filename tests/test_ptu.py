@@ -518,7 +518,7 @@ def test_trajectory_equals_stepping_the_unit_tick_by_tick(params):
             if i == 4:  # three sub-frames inside the tick
                 times = [t0 + 4000 + 250 * j for j in (1, 2, 3)]
                 inside = []
-                for j in (1, 2, 3):
+                for _ in range(3):
                     start.step(250e-6)
                     inside.append((start.camera_pan_deg, start.camera_tilt_deg))
                 assert tr.at(times) == inside

@@ -122,6 +122,10 @@ class WanderConfig:
     # own trajectory, the objects' known motion) would pass keyframe_px pixels, and its
     # end; none while nothing moves (wander_env.keyframes.adaptive_key_ticks).
     keyframe_px: float | None = 2.0
+    # With keyframe_px: keys no more than this far apart while anything moves (None: no
+    # limit, as few as one key a step). 5 brings the events of slowly moving textures
+    # 1.5-2 points closer to the exact mode's (office, hand) at two keys a step.
+    keyframe_max_ms: float | None = None
     # Render at this many times the resolution and average blocks (see RenderParams): the
     # finer-antialiased reference of the fidelity benchmark (2 = 16 samples a pixel).
     supersample: int = 1
@@ -145,17 +149,23 @@ class WanderConfig:
             raise ValueError(
                 f"WanderConfig.frames must be one of {FRAME_MODES}, got {self.frames!r}"
             )
-        k = self.keyframe_ms
-        if isinstance(k, bool) or not (isinstance(k, (int, float)) and math.isfinite(k) and k > 0):
-            raise ValueError(f"WanderConfig.keyframe_ms must be a finite number > 0, got {k!r}")
-        # Keys are the render ticks at multiples of keyframe_ms (and each step's end):
-        # keyframe_ms must be a whole number of ticks, or divide a tick (every tick a key).
-        key_us, tick_us = round(k * 1e3), round(1e6 / self.render_rate_hz)
-        if abs(k * 1e3 - key_us) > 1e-6 or key_us < 1 or (key_us % tick_us and tick_us % key_us):
-            raise ValueError(
-                f"WanderConfig.keyframe_ms={k} must be a whole number of render periods or "
-                f"divide one (render_rate_hz={self.render_rate_hz}: {tick_us} µs)"
-            )
+        intervals = {"keyframe_ms": self.keyframe_ms, "keyframe_max_ms": self.keyframe_max_ms}
+        for name, k in intervals.items():
+            if k is None and name == "keyframe_max_ms":
+                continue
+            if isinstance(k, bool) or not (
+                isinstance(k, (int, float)) and math.isfinite(k) and k > 0
+            ):
+                raise ValueError(f"WanderConfig.{name} must be a finite number > 0, got {k!r}")
+            # Keys are render ticks (and each step's end): an interval must be a whole
+            # number of ticks, or divide a tick (every tick a key).
+            key_us, tick_us = round(k * 1e3), round(1e6 / self.render_rate_hz)
+            whole = abs(k * 1e3 - key_us) <= 1e-6 and key_us >= 1
+            if not whole or (key_us % tick_us and tick_us % key_us):
+                raise ValueError(
+                    f"WanderConfig.{name}={k} must be a whole number of render periods or "
+                    f"divide one (render_rate_hz={self.render_rate_hz}: {tick_us} µs)"
+                )
         px = self.keyframe_px
         if px is not None and (
             isinstance(px, bool) or not (isinstance(px, (int, float)) and math.isfinite(px))
@@ -211,7 +221,10 @@ class WanderEnv(CameraEnv):
         )
         self.f_px = focal_length_px(self.width, self.hfov_deg)
         self.dvs = DVSEmulator(self.width, self.height, self.dvs_params)
-        params = FrameParams(c.tick_us, c.keyframe_us, c.keyframe_px, c.ground_truth)
+        max_ticks = None
+        if c.keyframe_max_ms is not None:
+            max_ticks = max(round(c.keyframe_max_ms * 1e3) // c.tick_us, 1)
+        params = FrameParams(c.tick_us, c.keyframe_us, c.keyframe_px, max_ticks, c.ground_truth)
         self.source = FRAME_SOURCES[c.frames](self.stage, self.dvs, params)
         self._t_us = 0
 

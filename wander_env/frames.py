@@ -160,6 +160,7 @@ class FrameParams:
     tick_us: int = 1000
     keyframe_us: int = 2000
     keyframe_px: float | None = 2.0
+    key_max_ticks: int | None = None  # keys no more ticks apart while anything moves
     ground_truth: bool = True
 
 
@@ -268,7 +269,9 @@ class KeyframeFrames(FrameSource):
         shape, k = (stage.height, stage.width), stage.k
         idx = None
         if p.keyframe_px is not None:
-            idx = adaptive_key_ticks(ref.view, views, k, self.radii, shape, p.keyframe_px)
+            idx = adaptive_key_ticks(
+                ref.view, views, k, self.radii, shape, p.keyframe_px, p.key_max_ticks
+            )
         if idx is None:
             idx = [i for i, t in enumerate(ticks) if t == ticks[-1] or t % p.keyframe_us == 0]
         if not idx:  # nothing moves: the start's key is the step's end too

@@ -454,16 +454,19 @@ def adaptive_key_ticks(
     radii: np.ndarray,
     shape: tuple[int, int],
     bound_px: float,
+    max_ticks: int | None = None,
 ) -> list[int] | None:
     """Indices of the ticks of a step (``views``, the last one the step's end) to
     render as keys, after the key ``ref`` at the step's start.
 
     Between two consecutive keys no pixel's content moves more than ``bound_px``
     (:func:`view_flow_bounds_px`; each key as late as that allows; where one tick alone
-    moves more, every tick is a key); the step's end is a key, unless nothing moves at
-    all: then there is none (``[]``; the key at the start is the frame all along).
-    ``None`` when the motion has no finite bound (a moving camera centre, a layer
-    without a bounded radius): the caller keeps a fixed interval.
+    moves more, every tick is a key) and, with ``max_ticks``, where anything moves keys
+    are no more than ``max_ticks`` ticks apart (spread evenly over the span the motion
+    bound set); the step's end is a key, unless nothing moves at all: then there is none
+    (``[]``; the key at the start is the frame all along). ``None`` when the motion has
+    no finite bound (a moving camera centre, a layer without a bounded radius): the
+    caller keeps a fixed interval.
 
     >>> from wander_env.camera import intrinsics
     >>> k = intrinsics(128, 128, 90.0)
@@ -474,13 +477,18 @@ def adaptive_key_ticks(
     [2, 5, 8, 9]
     >>> adaptive_key_ticks(v[0], v[1:], k, radii, (128, 128), 10.0)
     [9]
-    >>> adaptive_key_ticks(v[0], [v[0]] * 10, k, radii, (128, 128), 0.3)
+    >>> adaptive_key_ticks(v[0], v[1:], k, radii, (128, 128), 10.0, max_ticks=4)
+    [2, 6, 9]
+    >>> adaptive_key_ticks(v[0], [v[0]] * 10, k, radii, (128, 128), 0.3, max_ticks=2)
     []
     """
     if not bound_px > 0:
         raise ValueError(f"bound_px must be > 0, got {bound_px!r}")
+    if max_ticks is not None and max_ticks < 1:
+        raise ValueError(f"max_ticks must be >= 1, got {max_ticks!r}")
     n = len(views)
     keys: list[int] = []
+    parts: list[int] = []  # keys spread over the span ending at each key
     start = 0
     while start < n:
         bounds = view_flow_bounds_px(ref, views[start:], k, radii, shape)
@@ -490,6 +498,15 @@ def adaptive_key_ticks(
             return []
         over = np.flatnonzero(bounds > bound_px)
         j = n - 1 if not len(over) else start + max(int(over[0]) - 1, 0)
+        moving = bool(bounds[: j - start + 1].max() > 0)
+        span = j - start + 1
+        parts.append(-(-span // max_ticks) if moving and max_ticks is not None else 1)
         keys.append(j)
         ref, start = views[j], j + 1
-    return keys
+    spread: list[int] = []
+    prev = -1
+    for j, m in zip(keys, parts, strict=True):
+        spread.extend(prev + round((j - prev) * i / m) for i in range(1, m))
+        spread.append(j)
+        prev = j
+    return spread

@@ -261,7 +261,7 @@ def step_breakdown(
     for name in ("prepare", "log_change", "step"):
         setattr(u.dvs, name, timed(getattr(u.dvs, name), acc, "dvs"))
     stage.pose = timed(stage.pose, acc, "pose")  # every full pose goes through it
-    stage.camera_view = timed(stage.camera_view, acc, "pose")  # the camera alone
+    stage.camera_views = timed(stage.camera_views, acc, "pose")  # the camera alone
     env.reset(seed=seed)
     action = np.zeros(2, np.float32)
     env.step(action)  # warm-up
