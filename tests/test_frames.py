@@ -108,3 +108,16 @@ def test_keyframe_max_ms_is_checked():
         WanderConfig(keyframe_max_ms=2.5)
     with pytest.raises(ValueError, match="keyframe_max_ms must be a finite number > 0"):
         WanderConfig(keyframe_max_ms=0.0)
+
+
+def test_quality_fine_renders_16_samples_a_pixel():
+    from wander_env.env import WanderConfig
+
+    assert WanderConfig().quality == "fast" and WanderConfig().render_supersample == 1
+    env = gym.make("wander/Wander-v0", quality="fine").unwrapped
+    assert env.stage.params.supersample == 2 and env.scene.camera.antialias_samples == 4
+    env.close()
+    with pytest.raises(ValueError, match="quality must be one of"):
+        WanderConfig(quality="best")
+    with pytest.raises(ValueError, match="not both"):
+        WanderConfig(quality="fine", supersample=2)

@@ -29,27 +29,11 @@ trajectory, so nothing waits for a later frame.
 ``"exact"`` renders every frame (every tick and sub-frame): the reference.
 ``renders_in_step`` counts the RGB renders of the last step.
 
-Action: ``Box(-1, 1, (2,))``, a gaze offset in units of the half sensor: the
-action that brings pixel P to the fovea is ``(P - centre) / (W/2, H/2)``. It is
-converted to angles with the camera's pinhole model (offset d pixels ->
-``atan(d / f_px)``) and added to the PTU's current target, so relative commands
-are integrated (at rest the target is where the camera looks; a zero action
-lets a move under way go on). A NaN, infinite or
-out-of-range action raises ``ValueError`` (the agent clips its own actions); a
-target beyond the PTU's limits is clipped to them and ``info["target_clipped"]``
-says so.
-
-Observation: ``{"events": (2, H, W) float32 per-polarity counts of the step
-(channel 1 = ON), "gaze": (pan, tilt) in degrees}``.
-
-``info``: ``events`` (the step's raw events, every one of them: an
-:class:`~wander_env.event_packet.EventPacket`, whose ``.events`` is the structured array;
-as a packet it passes through vector envs, ``check_env`` and pickling), ``t`` (simulated s),
-``ptu_positions``, ``ptu_target_positions`` (and ``ptu_target_deg``), ``moving``,
-``target_clipped``, ``frames`` and ``extra_frames`` made in the step (rendered or
-synthesised), and, with ground truth on, ``object_mask`` ((H, W) int32 object ids,
-0 = background) and ``objects`` (per moving object: id, name, pixel centre of its
-projection, mask pixels, visible).
+Action, observation and ``info``: :class:`~wander_env.env_base.CameraEnv` (shared with
+the rig). The sim's ``info`` adds ``frames`` and ``extra_frames`` (frames handed to the DVS
+in the step, and how many of them were adaptive sub-frames) and, with ground truth on,
+``object_mask`` ((H, W) int32 object ids, 0 = background) and ``objects`` (per moving
+object: id, name, pixel centre of its projection, mask pixels, visible).
 
 Processes: the renderer (an OpenGL context) is created at the first ``reset``, in the
 process that renders; constructing an env touches no GL, so ``AsyncVectorEnv`` with the
@@ -129,6 +113,11 @@ class WanderConfig:
     # Render at this many times the resolution and average blocks (see RenderParams): the
     # finer-antialiased reference of the fidelity benchmark (2 = 16 samples a pixel).
     supersample: int = 1
+    # "fast": frames with the scene's antialiasing (MSAA 4); "fine": every rendered frame
+    # (a key, or in exact mode every frame) with 16 samples a pixel (supersample 2 ×
+    # MSAA 4): closer to a photodiode that integrates its whole area, at about twice the
+    # cost of a render.
+    quality: str = "fast"
 
     def __post_init__(self) -> None:
         names = ("control_period_s", "render_rate_hz", "adaptive_log_change", "episode_seconds")
@@ -177,6 +166,12 @@ class WanderConfig:
         ss = self.supersample
         if isinstance(ss, bool) or not isinstance(ss, int) or ss < 1:
             raise ValueError(f"WanderConfig.supersample must be an int >= 1, got {ss!r}")
+        if self.quality not in QUALITIES:
+            raise ValueError(
+                f"WanderConfig.quality must be one of {QUALITIES}, got {self.quality!r}"
+            )
+        if self.quality == "fine" and ss != 1:
+            raise ValueError("give WanderConfig.quality='fine' or a supersample, not both")
         aa = self.antialias_samples
         if aa is not None and (isinstance(aa, bool) or not isinstance(aa, int) or aa < 0):
             raise ValueError(f"WanderConfig.antialias_samples must be an int >= 0, got {aa!r}")
@@ -193,8 +188,14 @@ class WanderConfig:
     def keyframe_us(self) -> int:
         return round(self.keyframe_ms * 1e3)
 
+    @property
+    def render_supersample(self) -> int:
+        """The renderer's supersampling: ``supersample``, or 2 with ``quality="fine"``."""
+        return 2 if self.quality == "fine" else self.supersample
+
 
 FRAME_MODES = tuple(FRAME_SOURCES)
+QUALITIES = ("fast", "fine")
 
 
 class WanderEnv(CameraEnv):
@@ -211,7 +212,7 @@ class WanderEnv(CameraEnv):
         self.scene: SceneConfig = scene
         self.hfov_deg = scene.camera.hfov_deg
         self.stage = Stage(
-            build_mjcf(scene).compile(), scene, RenderParams(supersample=c.supersample)
+            build_mjcf(scene).compile(), scene, RenderParams(supersample=c.render_supersample)
         )
         self.model, self.data = self.stage.model, self.stage.data
         self.ptu = PanTiltUnit(c.ptu)

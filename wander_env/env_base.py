@@ -8,6 +8,20 @@ limits), asks the env for the step's events (:meth:`~CameraEnv.collect`: the one
 each backend does its own way), and assembles the observation: per-polarity counts and
 the gaze. :class:`StepInfo` is the ``info`` both give.
 
+Action: ``Box(-1, 1, (2,))``, a gaze offset in units of the half sensor: the action that
+brings pixel P to the fovea is ``(P - centre) / (W/2, H/2)``. It is converted to angles
+with the camera's pinhole model (offset d pixels -> ``atan(d / f_px)``) and added to the
+PTU's current target, so relative commands are integrated (at rest the target is where
+the camera looks; a zero action lets a move under way go on). A NaN, infinite or
+out-of-range action raises ``ValueError`` (the agent clips its own actions); a target
+beyond the PTU's limits is clipped to them and ``info["target_clipped"]`` says so.
+
+Observation: ``{"events": (2, H, W) float32 per-polarity counts of the step (channel
+1 = ON), "gaze": (pan, tilt) in degrees}``. ``info["events"]`` holds the step's raw
+events, every one of them, as an :class:`~wander_env.event_packet.EventPacket` (whose
+``.events`` is the structured array; as a packet it passes through vector envs,
+``check_env`` and pickling).
+
 Example:
     >>> env = CameraEnv()
     >>> env.init_render("rgb_array", 0.02)
