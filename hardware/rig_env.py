@@ -497,11 +497,7 @@ class RigEnv(CameraEnv):
         gaze = (options or {}).get("gaze_deg", self.config.start_gaze_deg)
         clipped = False
         if gaze is not None:
-            want = tuple(float(v) for v in gaze)
-            target = self.clip_target(*want)
-            clipped = bool(np.abs(np.subtract(target, want)).max() > 1e-9)
-            self._target = self._link.to_positions(target)
-            self._link.command(self._target)
+            clipped = self.aim(*(float(v) for v in gaze))
             self.settle()
         cam = self.camera
         try:

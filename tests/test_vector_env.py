@@ -117,7 +117,7 @@ def test_the_fork_hook_notes_an_egl_display_initialised_outside_claim_gl(monkeyp
 
 
 def test_a_renderer_inherited_through_fork_is_refused(monkeypatch):
-    env = gym.make("wander/Wander-v0", scene="shelf").unwrapped
+    env = gym.make("wander/Wander-v0", scene="office").unwrapped  # objects move: a key a step
     env.reset(seed=0)
     monkeypatch.setattr(env.stage, "_renderer_pid", os.getpid() + 1)  # as in a forked child
     with pytest.raises(ForkedGLError, match="spawn"):

@@ -153,10 +153,14 @@ class CameraEnv(gym.Env):
             check_action(action), self.width, self.height, self.hfov_deg
         )
         pan0, tilt0 = self.target_deg
-        want = (pan0 + d_pan, tilt0 + d_tilt)
-        target = self.clip_target(*want)
+        return self.aim(pan0 + d_pan, tilt0 + d_tilt)
+
+    def aim(self, pan_deg: float, tilt_deg: float) -> bool:
+        """Set the PTU's target to (pan, tilt) degrees clipped to its limits; True when
+        the limits clipped it."""
+        target = self.clip_target(pan_deg, tilt_deg)
         self.set_target(*target)
-        return bool(np.abs(np.subtract(target, want)).max() > 1e-9)
+        return bool(np.abs(np.subtract(target, (pan_deg, tilt_deg))).max() > 1e-9)
 
     def observe(self, events: np.ndarray | None) -> dict[str, np.ndarray]:
         """The observation: the events' per-polarity counts (none: zeros) and the gaze."""

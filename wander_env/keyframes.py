@@ -22,8 +22,10 @@ one pass of a compiled kernel (:func:`synthesize` for a single frame):
   not see (disoccluded, or outside its view) comes from the other alone; one neither
   sees takes the nearer key's nearest edge pixel.
 
-Per frame, Python computes only each key's 3 × 3 homography and each layer's
-translation and box, for all layers at once (NumPy); the pixels are the kernel's.
+Per frame, each key's 3 × 3 homography and each layer's translation and box come from a
+small compiled function too; where the camera only rotates, the static world is one
+nearest-pixel warp of both keys (:func:`_static_kernel`) and the layers' kernel runs
+over the moving layers' boxes alone.
 
 Sampling is nearest-pixel. The renderer's multisampled pixels change as an edge crosses
 their samples; bilinear resampling instead leaks a bright neighbour into a dark pixel
