@@ -8,7 +8,7 @@ change while the key is used is computed once, when the key is made: each layer'
 presence, pixel box and inverse depth (median and largest).
 
 :class:`KeyPair` makes the frame of a view at a time between two keys, every pixel in
-one pass of a compiled kernel (:func:`synthesize` for a single frame):
+compiled (numba) kernels (:func:`synthesize` for a single frame):
 
 - per key, each target pixel is looked up per layer by reprojection: the static world
   (layer 0) by the camera's rotation homography ``K R K⁻¹`` (when the camera centre
