@@ -70,7 +70,6 @@ import time
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 
 from hardware.event_source import EventSource
@@ -78,12 +77,11 @@ from hardware.ptu_driver import FlirPTU, FlirPTUParams, PTUError, PTUTimeout
 from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from hardware.replay import ReplaySource
 from hardware.speck import SpeckParams, SpeckSource
-from wander_env.actions import action_to_gaze_degrees, check_action
 from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.config import check_fields
-from wander_env.env_base import CameraEnv
+from wander_env.env_base import CameraEnv, StepInfo
 from wander_env.event_packet import EventPacket
-from wander_env.events import empty_events, to_frame
+from wander_env.events import empty_events
 from wander_env.ptu import degrees_to_positions, positions_to_degrees, round_position
 from wander_env.viz import event_image, labelled_frame
 
@@ -361,28 +359,18 @@ class RigEnv(CameraEnv):
             self.close()
             raise
         atexit.register(self.close)  # an env left open still halts the PTU at exit
-        w, h = self.sensor_size[0], self.sensor_size[1]
-        self.width, self.height = w, h
-        lo_pan, hi_pan = self.ptu.pan_limits_deg
-        lo_tilt, hi_tilt = self.ptu.tilt_limits_deg
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
-        self.observation_space = gym.spaces.Dict(
-            {
-                "events": gym.spaces.Box(0.0, np.inf, (2, h, w), np.float32),
-                "gaze": gym.spaces.Box(
-                    np.array([lo_pan, lo_tilt], np.float32),
-                    np.array([hi_pan, hi_tilt], np.float32),
-                    dtype=np.float32,
-                ),
-            }
-        )
+        self.hfov_deg = c.hfov_deg
+        self.init_spaces(
+            self.sensor_size[0], self.sensor_size[1], self.ptu.pan_limits_deg,
+            self.ptu.tilt_limits_deg,
+        )  # fmt: skip
         self._target: tuple[int, int] = self._link.snapshot()["acked"]
+        self._positions: tuple[int, int] = self._link.snapshot()["positions"]
         self._t0_us = 0
         self._dropped_at_reset = 0
         self._discarded_at_reset = 0
         self._steps = 0
         self._ready = False
-        self._last_counts = np.zeros((2, h, w), np.float32)
 
     # -- opening and closing --------------------------------------------------------------
 
@@ -434,11 +422,6 @@ class RigEnv(CameraEnv):
     def sensor_size(self) -> tuple[int, int, int]:
         """``(W, H, 2)`` as the camera reports it."""
         return tuple(int(v) for v in self.camera.sensor_size)  # type: ignore[return-value]
-
-    @property
-    def target_deg(self) -> tuple[float, float]:
-        """The commanded (pan, tilt) target in degrees."""
-        return self._link.to_degrees(self._target)
 
     @property
     def stats(self) -> dict[str, Any]:
@@ -514,9 +497,7 @@ class RigEnv(CameraEnv):
         gaze = (options or {}).get("gaze_deg", self.config.start_gaze_deg)
         clipped = False
         if gaze is not None:
-            target, clipped = self._clip(*(float(v) for v in gaze))
-            self._target = target
-            self._link.command(target)
+            clipped = self.aim(*(float(v) for v in gaze))
             self.settle()
         cam = self.camera
         try:
@@ -529,25 +510,17 @@ class RigEnv(CameraEnv):
         self._dropped_at_reset = cam.dropped
         self._steps = 0
         self._ready = True
-        self._last_counts = np.zeros((2, self.height, self.width), np.float32)
-        obs = {"events": self._last_counts.copy(), "gaze": self._gaze()}
-        return obs, self._info(empty_events(), clipped, lag_s=0.0)
+        info = self._info(empty_events(), clipped, lag_s=0.0)
+        return self.observe(None), info
 
-    def step(
-        self, action: np.ndarray
-    ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
-        """Hand the new target to the PTU thread, then collect the step window's events."""
+    def check_ready(self) -> None:
         self._check_open()
         if not self._ready:
             raise RuntimeError("call reset() before step()")
-        d_pan, d_tilt = self._action_to_degrees(action)
         self._raise_if_faulted()
-        pan0, tilt0 = self.target_deg
-        want = (pan0 + d_pan, tilt0 + d_tilt)
-        target, clipped = self._clip(*want)
-        if target != self._target:
-            self._target = target
-            self._link.command(target)
+
+    def collect(self, clipped: bool) -> tuple[np.ndarray, StepInfo]:
+        """Collect the step window's events (the new target is with the PTU thread)."""
         cam = self.camera
         try:
             events = cam.read(duration_us=self.config.control_period_us)
@@ -557,51 +530,51 @@ class RigEnv(CameraEnv):
         self._steps += 1
         self._raise_if_faulted()
         lag_s = max(0.0, (cam.now_us() - cam.cursor_us) * 1e-6)
-        self._last_counts = to_frame(events, self.sensor_size)
-        info = self._info(events, clipped, lag_s)  # one snapshot: gaze and `moving` agree
-        pan, tilt = self._link.to_degrees(info["ptu_positions"])
-        obs = {"events": self._last_counts.copy(), "gaze": np.array([pan, tilt], np.float32)}
-        truncated = info["t"] >= self.config.episode_seconds - 1e-9 or bool(
-            getattr(cam, "finished", False)
-        )
-        return obs, 0.0, False, truncated, info
+        return events, self._info(events, clipped, lag_s)  # one snapshot: gaze and `moving`
 
-    # -- helpers ----------------------------------------------------------------------------
+    def truncated(self, info: StepInfo) -> bool:
+        end = info["t"] >= self.config.episode_seconds - 1e-9
+        return end or bool(getattr(self.camera, "finished", False))
 
-    def _action_to_degrees(self, action: np.ndarray) -> tuple[float, float]:
-        a = check_action(action)
-        return action_to_gaze_degrees(a, self.width, self.height, self.config.hfov_deg)
+    # -- the target -------------------------------------------------------------------------
 
-    def _clip(self, pan_deg: float, tilt_deg: float) -> tuple[tuple[int, int], bool]:
-        """A (pan, tilt) target in degrees as whole positions inside the unit's limits.
+    @property
+    def target_deg(self) -> tuple[float, float]:
+        """The commanded (pan, tilt) target in degrees."""
+        return self._link.to_degrees(self._target)
 
-        Also says whether the limits clipped it (as the simulated env does).
-        """
+    def clip_target(self, pan_deg: float, tilt_deg: float) -> tuple[float, float]:
         (plo, phi), (tlo, thi) = self.ptu.pan_limits_deg, self.ptu.tilt_limits_deg
-        pan = min(max(pan_deg, plo), phi)
-        tilt = min(max(tilt_deg, tlo), thi)
-        clipped = max(abs(pan - pan_deg), abs(tilt - tilt_deg)) > 1e-9
-        return self._link.to_positions((pan, tilt)), clipped
+        return min(max(pan_deg, plo), phi), min(max(tilt_deg, tlo), thi)
 
-    def _gaze(self) -> np.ndarray:
-        pan, tilt = self._link.to_degrees(self._link.snapshot()["positions"])
+    def set_target(self, pan_deg: float, tilt_deg: float) -> None:
+        """Hand the target (as whole positions) to the PTU thread when it changed."""
+        target = self._link.to_positions((pan_deg, tilt_deg))
+        if target != self._target:
+            self._target = target
+            self._link.command(target)
+
+    def gaze(self) -> np.ndarray:
+        """The PTU position of the latest ``info`` (the last poll) in degrees."""
+        pan, tilt = self._link.to_degrees(self._positions)
         return np.array([pan, tilt], np.float32)
 
-    def _info(self, events: np.ndarray, clipped: bool, lag_s: float) -> dict[str, Any]:
+    def _info(self, events: np.ndarray, clipped: bool, lag_s: float) -> StepInfo:
         events["t"] -= self._t0_us
         snap = self._link.snapshot()
-        return {
-            "events": EventPacket(events),
-            "t": (self.camera.cursor_us - self._t0_us) / 1e6,
-            "ptu_positions": snap["positions"],
-            "ptu_target_positions": self._target,
-            "ptu_target_deg": self._link.to_degrees(self._target),
-            "moving": self._link.moving(self._target, snap),
-            "target_clipped": clipped,
-            "command_latency_s": snap["latency_s"],
-            "dropped_events": self.camera.dropped - self._dropped_at_reset,
-            "lag_s": lag_s,
-        }
+        self._positions = snap["positions"]
+        return StepInfo(
+            events=EventPacket(events),
+            t=(self.camera.cursor_us - self._t0_us) / 1e6,
+            ptu_positions=snap["positions"],
+            ptu_target_positions=self._target,
+            ptu_target_deg=self._link.to_degrees(self._target),
+            moving=self._link.moving(self._target, snap),
+            target_clipped=clipped,
+            command_latency_s=snap["latency_s"],
+            dropped_events=self.camera.dropped - self._dropped_at_reset,
+            lag_s=lag_s,
+        )
 
     def render(self) -> np.ndarray | None:
         """The event frame of the last step (3x), named, with the time stamp and the
@@ -609,7 +582,7 @@ class RigEnv(CameraEnv):
         if self.render_mode != "rgb_array":
             return None
         t = (self.camera.cursor_us - self._t0_us) / 1e6
-        panel = [("events (last step)", event_image(self._last_counts))]
+        panel = [("events (last step)", event_image(self.last_counts))]
         return labelled_frame(panel, 3, f"t = {t:5.2f} s", keys=("polarity", "fovea"))
 
 

@@ -68,11 +68,11 @@ def test_info_events_are_a_packet_of_every_event_of_the_step():
 
 def test_constructing_the_env_creates_no_renderer():
     env = make()
-    assert env.unwrapped._renderer is None  # what AsyncVectorEnv's parent builds: no GL
+    assert env.unwrapped.stage._renderer is None  # what AsyncVectorEnv's parent builds: no GL
     env.reset(seed=0)
-    assert env.unwrapped._renderer is not None
+    assert env.unwrapped.stage._renderer is not None
     env.close()
-    assert env.unwrapped._renderer is None
+    assert env.unwrapped.stage._renderer is None
 
 
 def test_same_seed_same_events_and_ground_truth():

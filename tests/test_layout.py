@@ -212,3 +212,20 @@ def test_no_import_circle_between_packages():
 def test_the_cycle_finder_finds_a_circle():
     assert sorted(set(_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}))) == ["a", "b", "c"]
     assert _cycle({"a": {"b"}, "b": set()}) == []
+
+
+def test_the_frame_sources_sit_between_the_renderer_and_the_env():
+    """wander_env.frames (the frame sources) draws through the renderer and reads the PTU's
+    trajectory; the env picks a source and never the other way round; the rig shares
+    only the CameraEnv base with the sim."""
+    frames = {t for t, _ in GRAPH["wander_env.frames"]}
+    assert {"wander_env.renderer", "wander_env.keyframes", "wander_env.ptu"} <= frames
+    assert "wander_env.env" not in frames and "wander_env.env_base" not in frames
+    assert "wander_env.frames" in {t for t, _ in GRAPH["wander_env.env"]}
+    rig = {t for t, _ in GRAPH["hardware.rig_env"]}
+    assert "wander_env.env_base" in rig and "wander_env.env" not in rig
+    assert {t for t, _ in GRAPH["wander_env.env_base"]} <= {
+        "wander_env.actions",
+        "wander_env.event_packet",
+        "wander_env.events",
+    }

@@ -491,3 +491,42 @@ def test_docstring_examples_run():
     import wander_env.ptu
 
     assert doctest.testmod(wander_env.ptu).failed == 0
+
+
+@pytest.mark.parametrize(
+    "params", [PTUParams(), PTUParams.preset("flir"), PTUParams(tilt_backlash_pos=12.0)]
+)
+def test_trajectory_equals_stepping_the_unit_tick_by_tick(params):
+    """A 20 degree pan and a tilt reversal: the trajectory's angles at every tick and the
+    unit it leaves behind are those of stepping a twin 1 ms at a time; the angles inside a
+    tick are those of a twin stepped from the tick's start."""
+    unit, twin = PanTiltUnit(params), PanTiltUnit(params)
+    angles, ends = [], []
+    for u in (unit, twin):
+        u.set_target(20.0, 2.0)
+    for step in range(6):
+        if step == 3:
+            unit.set_target(20.0, -1.0)
+            twin.set_target(20.0, -1.0)
+        t0 = step * 10_000
+        tr = unit.trajectory(t0, t0 + 10_000, 1000)
+        assert tr.t_us == tuple(range(t0 + 1000, t0 + 10_001, 1000))
+        for i in range(10):
+            start = twin.copy()
+            twin.step(1e-3)
+            assert tr.angles(i) == (twin.camera_pan_deg, twin.camera_tilt_deg)
+            if i == 4:  # three sub-frames inside the tick
+                times = [t0 + 4000 + 250 * j for j in (1, 2, 3)]
+                inside = []
+                for _ in range(3):
+                    start.step(250e-6)
+                    inside.append((start.camera_pan_deg, start.camera_tilt_deg))
+                assert tr.at(times) == inside
+            angles.append(tr.angles(i))
+        ends.append((unit.positions, twin.positions, unit.time_s, twin.time_s))
+    assert all(a == b and ta == tb for a, b, ta, tb in ends)
+    assert len(set(angles)) > 50  # it moved all along
+    with pytest.raises(ValueError, match="tick_us > 0"):
+        unit.trajectory(0, 0, 1000)
+    with pytest.raises(ValueError, match="not inside"):
+        tr.at([tr.t0_us])

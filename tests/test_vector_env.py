@@ -117,9 +117,9 @@ def test_the_fork_hook_notes_an_egl_display_initialised_outside_claim_gl(monkeyp
 
 
 def test_a_renderer_inherited_through_fork_is_refused(monkeypatch):
-    env = gym.make("wander/Wander-v0", scene="shelf").unwrapped
+    env = gym.make("wander/Wander-v0", scene="office").unwrapped  # objects move: a key a step
     env.reset(seed=0)
-    monkeypatch.setattr(env, "_renderer_pid", os.getpid() + 1)  # as in a forked child
+    monkeypatch.setattr(env.stage, "_renderer_pid", os.getpid() + 1)  # as in a forked child
     with pytest.raises(ForkedGLError, match="spawn"):
         env.step(np.zeros(2, np.float32))
     monkeypatch.undo()
@@ -136,7 +136,8 @@ def test_importing_and_constructing_creates_no_gl_and_no_thread():
         "import gymnasium as gym, wander_env, wander_env.env, agents\n"
         "env = gym.make('wander/Wander-v0')\n"
         "egl = sys.modules.get('mujoco.egl')\n"
-        "print(n() - before, getattr(egl, 'EGL_DISPLAY', None) is None, env.unwrapped._renderer)\n"
+        "stage = env.unwrapped.stage\n"
+        "print(n() - before, getattr(egl, 'EGL_DISPLAY', None) is None, stage._renderer)\n"
     )
     if not Path("/proc/self/task").is_dir():
         pytest.skip("needs Linux's /proc")

@@ -50,6 +50,7 @@ Example:
 
 from __future__ import annotations
 
+import bisect
 import copy
 import math
 from collections.abc import Mapping
@@ -671,6 +672,45 @@ class CommandLink:
 # The stateful unit
 
 
+@dataclass(frozen=True)
+class Trajectory:
+    """The camera's angles over one span of ticks, from :meth:`PanTiltUnit.trajectory`.
+
+    ``t_us[i]`` is the end of tick ``i`` (tick 0 starts at ``t0_us``) and ``pan_deg[i]``,
+    ``tilt_deg[i]`` the camera's angles there (after backlash); ``starts[i]`` is the unit
+    as it was at the start of tick ``i`` (a copy, never stepped), from which
+    :meth:`at` evaluates angles at times inside the span (adaptive sub-frames).
+    """
+
+    t0_us: int
+    t_us: tuple[int, ...]
+    pan_deg: tuple[float, ...]
+    tilt_deg: tuple[float, ...]
+    starts: tuple[PanTiltUnit, ...]
+
+    def angles(self, i: int) -> tuple[float, float]:
+        """Camera (pan, tilt) in degrees at the end of tick ``i``."""
+        return self.pan_deg[i], self.tilt_deg[i]
+
+    def at(self, times_us: list[int]) -> list[tuple[float, float]]:
+        """Camera (pan, tilt) at increasing ``times_us`` inside the span (adaptive
+        sub-frames): per tick, a copy of the unit at its start stepped from one time to
+        the next (the unit that made the trajectory is not touched)."""
+        out = []
+        tick, unit, t_prev = -1, self.starts[0], self.t0_us
+        for t in times_us:
+            i = bisect.bisect_left(self.t_us, t)
+            if not (i < len(self.t_us) and (self.t_us[i - 1] if i else self.t0_us) < t):
+                raise ValueError(f"t={t} µs is not inside ({self.t0_us}, {self.t_us[-1]}]")
+            if i != tick:
+                tick, unit = i, self.starts[i].copy()
+                t_prev = self.t_us[i - 1] if i else self.t0_us
+            unit.step((t - t_prev) * 1e-6)
+            t_prev = t
+            out.append((unit.camera_pan_deg, unit.camera_tilt_deg))
+        return out
+
+
 class PanTiltUnit:
     """A two-axis PTU: targets in degrees, :meth:`step` advances the motion model.
 
@@ -709,7 +749,7 @@ class PanTiltUnit:
         )
 
     def copy(self) -> PanTiltUnit:
-        """An independent unit in the same state (for stepping ahead and rolling back)."""
+        """An independent unit in the same state."""
         twin = copy.copy(self)
         twin._target, twin._drive, twin._speed, twin._camera = (
             list(self._target), list(self._drive), list(self._speed), list(self._camera)
@@ -792,6 +832,31 @@ class PanTiltUnit:
             self.link.fire(self)
         self._advance(max(t_end - self._time_s, 0.0))
         self._time_s = t_end
+
+    def trajectory(self, t0_us: int, t1_us: int, tick_us: int) -> Trajectory:
+        """Step the unit from ``t0_us`` to ``t1_us`` once per tick of ``tick_us`` (the last
+        tick ends at ``t1_us``) and return the camera's angles at every tick's end: the
+        one motion of a control step, which every frame source reads.
+
+        >>> ptu = PanTiltUnit()
+        >>> ptu.set_target(pan_deg=1.0)
+        >>> tr = ptu.trajectory(0, 3000, 1000)
+        >>> tr.t_us, round(tr.pan_deg[-1], 6) == round(ptu.camera_pan_deg, 6)
+        ((1000, 2000, 3000), True)
+        """
+        if tick_us <= 0 or t1_us <= t0_us:
+            raise ValueError(f"need tick_us > 0 and t1_us > t0_us, got {tick_us}, {t0_us}, {t1_us}")
+        times, pans, tilts, starts = [], [], [], []
+        t = t0_us
+        while t < t1_us:
+            t_next = min(t + tick_us, t1_us)
+            starts.append(self.copy())
+            self.step((t_next - t) * 1e-6)
+            t = t_next
+            times.append(t)
+            pans.append(self.camera_pan_deg)
+            tilts.append(self.camera_tilt_deg)
+        return Trajectory(t0_us, tuple(times), tuple(pans), tuple(tilts), tuple(starts))
 
     def _advance(self, dt_s: float) -> None:
         p = self.params

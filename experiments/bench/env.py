@@ -250,20 +250,18 @@ def step_breakdown(
         kw["keyframe_ms"] = keyframe_ms
     env = _make(scene, dvs, True, antialias_samples, **kw)()
     u = env.unwrapped
-    keys = ("render", "dvs", "segment", "pose", "synth", "geometry")
+    keys = ("render", "dvs", "segment", "pose", "synth")
     acc: dict[str, list[float]] = {k: [] for k in keys}
-    u.renderer.render = timed(u.renderer.render, acc, "render")
-    u.renderer.segment = timed(u.renderer.segment, acc, "segment")
-    u.renderer.segment_depth_current = timed(u.renderer.segment_depth_current, acc, "segment")
-    if u._keys is not None:  # synthesis, less the keys' layers and depth drawn inside it
-        u._keys.frame = timed(u._keys.frame, acc, "synth")
-        u._keys.geometry = timed(u._keys.geometry, acc, "geometry")
+    stage, renderer = u.stage, u.stage.renderer
+    renderer.render = timed(renderer.render, acc, "render")
+    renderer.segment = timed(renderer.segment, acc, "segment")
+    renderer.segment_depth_current = timed(renderer.segment_depth_current, acc, "segment")
+    if hasattr(u.source, "synthesize"):  # in-between frames (keyframes)
+        u.source.synthesize = timed(u.source.synthesize, acc, "synth")
     for name in ("prepare", "log_change", "step"):
-        if hasattr(u.dvs, name):  # prepare: since the fused log input
-            setattr(u.dvs, name, timed(getattr(u.dvs, name), acc, "dvs"))
-    u._pose_angles = timed(u._pose_angles, acc, "pose")  # every full pose goes through it
-    if hasattr(u, "_camera_view"):  # keyframes: the camera alone, for a tick's view
-        u._camera_view = timed(u._camera_view, acc, "pose")
+        setattr(u.dvs, name, timed(getattr(u.dvs, name), acc, "dvs"))
+    stage.pose = timed(stage.pose, acc, "pose")  # every full pose goes through it
+    stage.camera_views = timed(stage.camera_views, acc, "pose")  # the camera alone
     env.reset(seed=seed)
     action = np.zeros(2, np.float32)
     env.step(action)  # warm-up
@@ -276,7 +274,7 @@ def step_breakdown(
     wall = time.perf_counter() - t0
     env.close()
     ms = {k: 1e3 * sum(v) / steps for k, v in acc.items()}
-    synth = ms["synth"] - ms["geometry"]
+    synth = ms["synth"]
     parts = ms["render"] + synth + ms["dvs"] + ms["segment"] + ms["pose"]
     return StepBreakdown(
         scene=scene,

@@ -1,0 +1,342 @@
+"""Where the camera's frames come from: the posed scene (:class:`Stage`) and the frame
+sources that read one PTU trajectory per step.
+
+:class:`Stage` owns what draws: the MuJoCo model and data, the scene's animator and the
+camera's renderer (created in the process that renders). It poses the world at a time and
+camera angles, renders a colour frame, a frame's geometry (motion layers and depth) and
+the ground truth's object mask.
+
+A :class:`FrameSource` turns a step's :class:`~wander_env.ptu.Trajectory` (the PTU stepped
+once per tick, computed once per step) into the frames the DVS sees:
+
+- :meth:`~FrameSource.plan` at the step's start, with the whole trajectory (a source
+  may render its keys there: everything it needs is known, nothing waits for later);
+- :meth:`~FrameSource.frame` at each render tick and adaptive sub-frame, with that
+  time's camera angles;
+- :meth:`~FrameSource.object_mask` at the step's end (ground truth).
+
+:class:`ExactFrames` renders every frame. :class:`KeyframeFrames` renders keys and makes
+the frames between them from the keys' geometry (:mod:`wander_env.keyframes`). A new
+frame mode is one more subclass, named in :data:`FRAME_SOURCES`.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+import os
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, replace
+
+import mujoco
+import numpy as np
+
+from wander_env.camera import CAMERA_NAME, intrinsics, rotation_from_mujoco
+from wander_env.dvs import DVSEmulator, LogFrame
+from wander_env.entities import PAN_JOINT, TILT_JOINT
+from wander_env.gl_fork import ForkedGLError, fork_error_message
+from wander_env.keyframes import (
+    SUBPIXEL_PX,
+    Keyframe,
+    KeyPair,
+    View,
+    adaptive_key_ticks,
+    make_keyframe,
+    view_flow_bounds_px,
+)
+from wander_env.mjcf import SceneAnimator, geom_layer_ids
+from wander_env.ptu import Trajectory
+from wander_env.renderer import CameraRenderer, RenderParams
+from wander_env.scene_config import SceneConfig
+
+__all__ = [
+    "FRAME_SOURCES",
+    "ExactFrames",
+    "FrameParams",
+    "FrameSource",
+    "KeyframeFrames",
+    "Stage",
+]
+
+Angles = tuple[float, float]  # camera (pan, tilt) in degrees
+
+
+class Stage:
+    """A scene's model and data, its animator (set at each reset) and the camera's
+    renderer: the world posed at a time and camera angles, and what the camera sees."""
+
+    def __init__(self, model: mujoco.MjModel, scene: SceneConfig, params: RenderParams) -> None:
+        self.model, self.scene, self.params = model, scene, params
+        self.data = mujoco.MjData(model)
+        self.width, self.height = scene.camera.width, scene.camera.height
+        self._pan_adr = int(model.joint(PAN_JOINT).qposadr[0])
+        self._tilt_adr = int(model.joint(TILT_JOINT).qposadr[0])
+        self._cam_id = int(model.camera(CAMERA_NAME).id)
+        self.k = intrinsics(self.width, self.height, float(model.cam_fovy[self._cam_id]))
+        self.layer_lut = geom_layer_ids(model)
+        self.animator: SceneAnimator | None = None
+        self._renderer: CameraRenderer | None = None  # created where it renders: .renderer
+        self._renderer_pid: int | None = None
+        self.posed: tuple[int, float, float] | None = None  # (t_us, pan, tilt) of the model
+        self.renders = 0  # colour frames rendered since the counter was last zeroed
+
+    @property
+    def renderer(self) -> CameraRenderer:
+        """The camera's renderer, created on first use in this process."""
+        r = self._renderer
+        if r is None:
+            r = self._renderer = CameraRenderer(
+                self.model, self.width, self.height, params=self.params
+            )
+            self._renderer_pid = os.getpid()
+        elif self._renderer_pid != os.getpid():
+            raise ForkedGLError(fork_error_message(self._renderer_pid, os.getpid()))
+        return r
+
+    def layer_radii(self) -> np.ndarray:
+        """Bounding radius (m) of each motion layer about its position (inf: a screen)."""
+        radii = np.full(int(self.layer_lut.max(initial=0)) + 1, np.inf)
+        if self.scene.gratings is None:
+            for k, obj in enumerate(self.scene.moving_objects, 1):
+                radii[k] = 0.5 * math.hypot(*obj.size) * 1.01
+        return radii
+
+    def pose(self, t_us: int, pan_deg: float, tilt_deg: float) -> None:
+        """The camera at these angles and the objects at ``t_us`` into the model."""
+        if self.posed == (t_us, pan_deg, tilt_deg):
+            return
+        self.data.qpos[self._pan_adr] = math.radians(pan_deg)
+        self.data.qpos[self._tilt_adr] = math.radians(tilt_deg)
+        self.animator.apply(self.data, t_us * 1e-6)
+        mujoco.mj_kinematics(self.model, self.data)
+        mujoco.mj_camlight(self.model, self.data)
+        self.posed = (t_us, pan_deg, tilt_deg)
+
+    def camera_view(self, t_us: int, pan_deg: float, tilt_deg: float) -> View:
+        """The :class:`View` at ``t_us`` with the camera at these angles; only the PTU's
+        joints and the camera are moved (the model is no longer posed at one time)."""
+        return self.camera_views([t_us], [(pan_deg, tilt_deg)])[0]
+
+    def camera_views(self, times_us: list[int], angles: list[Angles]) -> list[View]:
+        """:meth:`camera_view` at each time and angles; the camera is posed again only
+        where the angles change."""
+        views, last = [], None
+        for t, a in zip(times_us, angles, strict=True):
+            if a != last:
+                self.data.qpos[self._pan_adr] = math.radians(a[0])
+                self.data.qpos[self._tilt_adr] = math.radians(a[1])
+                mujoco.mj_kinematics(self.model, self.data)
+                mujoco.mj_camlight(self.model, self.data)
+                rotation = rotation_from_mujoco(self.data.cam_xmat[self._cam_id])
+                centre, last = self.data.cam_xpos[self._cam_id].copy(), a
+            views.append(View(rotation, centre, self.animator.layer_positions(t * 1e-6)))
+        self.posed = None
+        return views
+
+    def render(self) -> np.ndarray:
+        """RGB uint8 (H, W, 3) of the posed model."""
+        self.renders += 1
+        return self.renderer.render(self.data)
+
+    def geometry(self) -> tuple[np.ndarray, np.ndarray]:
+        """(motion layers int32, depth m) of the last frame drawn, from one draw."""
+        return self.renderer.segment_depth_current(self.layer_lut)
+
+    def object_mask(self) -> np.ndarray:
+        """Object ids (H, W) int32 of the posed model (0 = background)."""
+        return self.renderer.segment(self.data)
+
+    def close(self) -> None:
+        # Freeing is safe in a forked child too (only creating and drawing hang there).
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+
+@dataclass(frozen=True)
+class FrameParams:
+    """What a frame source needs of the env's configuration (see ``WanderConfig``)."""
+
+    tick_us: int = 1000
+    keyframe_us: int = 2000
+    keyframe_px: float | None = 2.0
+    key_max_ticks: int | None = None  # keys no more ticks apart while anything moves
+    ground_truth: bool = True
+
+
+class FrameSource(ABC):
+    """The camera frames of a stream (see the module docstring).
+
+    ``dvs`` is the emulator the frames are for: a source that converts a frame to its
+    input anyway (:meth:`DVSEmulator.prepare`) hands back the :class:`LogFrame`.
+    """
+
+    def __init__(self, stage: Stage, dvs: DVSEmulator, params: FrameParams) -> None:
+        self.stage, self.dvs, self.params = stage, dvs, params
+        self.camera_frame: np.ndarray | None = None  # the latest colour frame rendered
+
+    @abstractmethod
+    def reset(self, t_us: int, angles: Angles) -> np.ndarray:
+        """Start a stream at ``t_us``; the first frame (for the DVS's reset)."""
+
+    @abstractmethod
+    def plan(self, trajectory: Trajectory) -> None:
+        """A step's start: the camera's trajectory through the step."""
+
+    @abstractmethod
+    def frame(self, t_us: int, angles: Angles) -> np.ndarray | LogFrame:
+        """The frame at ``t_us`` (a tick of the planned step or a time inside one)."""
+
+    def interpolated(self, t_us: int) -> bool:
+        """Whether the DVS may go without the frame of this tick of the planned step and
+        interpolate over it (nothing in it moves but by a fraction of a pixel)."""
+        return False
+
+    def finish(self, t_us: int, angles: Angles) -> None:
+        """The step's end: the model posed there (ground truth reads it)."""
+        self.stage.pose(t_us, *angles)
+
+    def object_mask(self, t_us: int) -> np.ndarray:
+        """Object ids (H, W) int32 at the step's end ``t_us``."""
+        return self.stage.object_mask()
+
+
+class ExactFrames(FrameSource):
+    """Every frame rendered: the reference."""
+
+    def reset(self, t_us: int, angles: Angles) -> np.ndarray:
+        self._latest_us = t_us
+        return self.frame(t_us, angles)
+
+    def plan(self, trajectory: Trajectory) -> None:
+        pass
+
+    def frame(self, t_us: int, angles: Angles) -> np.ndarray:
+        self.stage.pose(t_us, *angles)
+        rgb = self.stage.render()
+        if t_us >= self._latest_us:
+            self._latest_us, self.camera_frame = t_us, rgb
+        return rgb
+
+
+class KeyframeFrames(FrameSource):
+    """Keys rendered at the step's start along the trajectory where the predicted image
+    motion asks for them (:func:`~wander_env.keyframes.adaptive_key_ticks`: as few as one
+    a step, none while nothing moves; every ``keyframe_us`` where the motion has no
+    bound); the frames between them synthesised (:class:`~wander_env.keyframes.KeyPair`),
+    and none where nothing moves by half a pixel: the DVS interpolates there."""
+
+    def __init__(self, stage: Stage, dvs: DVSEmulator, params: FrameParams) -> None:
+        super().__init__(stage, dvs, params)
+        self.radii = stage.layer_radii()
+        self.keys: list[Keyframe] = []  # the key at the step's start, then the step's
+        self._inputs: dict[int, LogFrame] = {}  # key t_us -> its prepared DVS input
+        self._views: dict[int, View] = {}  # tick t_us -> its view (this step)
+        self._interpolated: set[int] = set()  # ticks the DVS interpolates over
+        self._pairs: dict[int, KeyPair] = {}  # later key's t_us -> the pair ending there
+        self._mask: tuple[int, np.ndarray] | None = None  # (t_us, object mask) of a key
+
+    def _render_key(self, t_us: int, angles: Angles, view: View) -> Keyframe:
+        """Render a key of the model posed at ``t_us`` and ``angles``: its colour, then
+        its layers and depth (one more draw), which give the ground truth's mask too."""
+        stage = self.stage
+        stage.pose(t_us, *angles)
+        rgb = stage.render()
+        prepared = self.dvs.prepare(rgb)
+        layers, depth = stage.geometry()
+        lum = prepared.lum.reshape(stage.height, stage.width)
+        key = make_keyframe(t_us, lum, view, depth, layers)
+        self._inputs[t_us] = prepared
+        mask = np.where(layers <= stage.scene.num_objects, layers, 0).astype(np.int32)
+        self._mask = (t_us, mask)
+        self.camera_frame = rgb
+        return key
+
+    def reset(self, t_us: int, angles: Angles) -> np.ndarray:
+        self._inputs, self._views, self._pairs, self._interpolated = {}, {}, {}, set()
+        self.keys = [self._render_key(t_us, angles, self.stage.camera_view(t_us, *angles))]
+        return self.keys[0].lum
+
+    def plan(self, trajectory: Trajectory) -> None:
+        p, stage = self.params, self.stage
+        ticks = trajectory.t_us
+        angles = [trajectory.angles(i) for i in range(len(ticks))]
+        views = stage.camera_views(list(ticks), angles)
+        self._views = dict(zip(ticks, views, strict=True))
+        ref = self.keys[-1]
+        self._inputs = {ref.t_us: self._inputs[ref.t_us]}
+        self.keys, self._pairs = [ref], {}
+        shape, k = (stage.height, stage.width), stage.k
+        idx = None
+        if p.keyframe_px is not None:
+            idx = adaptive_key_ticks(
+                ref.view, views, k, self.radii, shape, p.keyframe_px, p.key_max_ticks
+            )
+        if idx is None:
+            idx = [i for i, t in enumerate(ticks) if t == ticks[-1] or t % p.keyframe_us == 0]
+        if not idx:  # nothing moves: the start's key is the step's end too
+            end = replace(ref, t_us=ticks[-1], view=views[-1])
+            self.keys.append(end)
+            self._inputs[end.t_us] = self._inputs[ref.t_us]
+            self._mask = (end.t_us, self._mask[1].copy())  # a new array in each info
+        for i in idx:
+            self.keys.append(self._render_key(ticks[i], angles[i], views[i]))
+        # The ticks between keys whose content moves by less than half a pixel from both.
+        key_times = {key.t_us for key in self.keys}
+        between = [(t, v) for t, v in zip(ticks, views, strict=True) if t not in key_times]
+        self._interpolated = set()
+        if between:
+            pairs = [self._pair(t) for t, _ in between]
+            tv = [v for _, v in between]
+            refs = [q.a.view for q in pairs] + [q.b.view for q in pairs]
+            both = view_flow_bounds_px(refs, tv + tv, k, self.radii, shape)
+            bounds = np.maximum(both[: len(tv)], both[len(tv) :])
+            self._interpolated = {
+                t for (t, _), b in zip(between, bounds, strict=True) if b < SUBPIXEL_PX
+            }
+
+    def _pair(self, t_us: int) -> KeyPair:
+        """The keys just before and at-or-after ``t_us`` (inside the planned step)."""
+        i = bisect.bisect_left([key.t_us for key in self.keys], t_us)
+        later = self.keys[i]
+        pair = self._pairs.get(later.t_us)
+        if pair is None:
+            pair = self._pairs[later.t_us] = KeyPair(self.keys[i - 1], later, self.stage.k)
+        return pair
+
+    def interpolated(self, t_us: int) -> bool:
+        return t_us in self._interpolated
+
+    def frame(self, t_us: int, angles: Angles) -> np.ndarray | LogFrame:
+        """A key's own input at its tick; the keys' blend where nothing moves by half a
+        pixel; else a synthesised frame."""
+        prepared = self._inputs.get(t_us)
+        if prepared is not None:
+            return prepared
+        pair = self._pair(t_us)
+        w = pair.weight(t_us)
+        if t_us in self._interpolated:
+            return pair.blend(w)
+        view = self._views.get(t_us)
+        if view is None:  # a sub-frame inside a tick
+            view = self.stage.camera_view(t_us, *angles)
+            shape, k = (self.stage.height, self.stage.width), self.stage.k
+            refs = [pair.a.view, pair.b.view]
+            bound = view_flow_bounds_px(refs, [view, view], k, self.radii, shape).max()
+            if bound < SUBPIXEL_PX:
+                return pair.blend(w)
+        return self.synthesize(pair, view, w)
+
+    def synthesize(self, pair: KeyPair, view: View, w: float) -> np.ndarray:
+        """An in-between frame (a method of its own, for profiling)."""
+        return pair.frame(view, w)
+
+    def object_mask(self, t_us: int) -> np.ndarray:
+        mask = self._mask
+        if mask is not None and mask[0] == t_us:
+            return mask[1]
+        return super().object_mask(t_us)
+
+
+#: The frame sources by ``WanderConfig.frames`` name.
+FRAME_SOURCES: dict[str, type[FrameSource]] = {"keyframes": KeyframeFrames, "exact": ExactFrames}
