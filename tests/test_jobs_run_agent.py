@@ -211,3 +211,16 @@ def test_metrics_and_run_json_are_strict_json_with_versions(run_dir: Path) -> No
         "python", "numpy", "mujoco", "torch", "sinabs", "nengo", "gymnasium", "wander"
     }  # fmt: skip
     assert all(versions[k] for k in versions if k != "wander")
+
+
+def test_quality_reaches_the_env_and_a_bad_one_is_one_line(tmp_path):
+    from typer.testing import CliRunner
+
+    from experiments.cli.main import app
+    from experiments.jobs.run_agent import RunConfig, env_kwargs
+
+    assert env_kwargs(RunConfig())["quality"] == "fast"
+    assert env_kwargs(RunConfig(quality="fine"))["quality"] == "fine"
+    result = CliRunner().invoke(app, ["run", "--quality", "best", "--out", str(tmp_path / "r")])
+    assert result.exit_code == 2 and "'--quality'" in result.output and "best" in result.output
+    assert not (tmp_path / "r").exists()

@@ -53,7 +53,7 @@ Example:
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
@@ -76,7 +76,7 @@ from wander_env.viz import event_image, labelled_frame
 class WanderConfig:
     """Everything that defines an environment instance (pickled with it)."""
 
-    scene: str = "office"
+    scene: str | SceneConfig = "office"
     control_period_s: float = 0.01
     render_rate_hz: float = 1000.0
     dvs: str = "ideal"
@@ -251,15 +251,13 @@ class WanderEnv(CameraEnv):
 
     # -- pickling: the configuration, not the GL context --------------------------------
     def __getstate__(self) -> dict[str, Any]:
-        return {"render_mode": self.render_mode, "config": asdict(self.config)}
+        return {"render_mode": self.render_mode, "config": self.config}
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         cfg = state["config"]
-        cfg["ptu"] = PTUParams(**cfg["ptu"])
-        if cfg["dvs_params"] is not None:
-            cfg["dvs_params"] = DVSParams(**cfg["dvs_params"])
-        cfg["start_gaze_deg"] = tuple(cfg["start_gaze_deg"])
-        self.__init__(render_mode=state["render_mode"], **cfg)
+        self.__init__(
+            render_mode=state["render_mode"], **{f.name: getattr(cfg, f.name) for f in fields(cfg)}
+        )
 
     # -- the step ----------------------------------------------------------------------
     def collect(self, clipped: bool) -> tuple[np.ndarray, StepInfo]:

@@ -44,7 +44,7 @@ from wander_env.keyframes import (
     make_keyframe,
     view_flow_bounds_px,
 )
-from wander_env.mjcf import SceneAnimator, geom_layer_ids
+from wander_env.mjcf import SceneAnimator, geom_layer_ids, geom_layer_radii
 from wander_env.ptu import Trajectory
 from wander_env.renderer import CameraRenderer, RenderParams
 from wander_env.scene_config import SceneConfig
@@ -94,12 +94,9 @@ class Stage:
         return r
 
     def layer_radii(self) -> np.ndarray:
-        """Bounding radius (m) of each motion layer about its position (inf: a screen)."""
-        radii = np.full(int(self.layer_lut.max(initial=0)) + 1, np.inf)
-        if self.scene.gratings is None:
-            for k, obj in enumerate(self.scene.moving_objects, 1):
-                radii[k] = 0.5 * math.hypot(*obj.size) * 1.01
-        return radii
+        """Bounding radius (m) of each motion layer about its position, 1 % beyond the
+        geoms' reach (meshes included; inf: the static world or a sliding screen)."""
+        return geom_layer_radii(self.model) * 1.01
 
     def pose(self, t_us: int, pan_deg: float, tilt_deg: float) -> None:
         """The camera at these angles and the objects at ``t_us`` into the model."""

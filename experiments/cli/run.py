@@ -124,7 +124,12 @@ def flags_with_config_file(ctx: typer.Context, flags: Mapping[str, Any]) -> dict
         return out
     try:
         base = config_from_dict(RunConfig, load_yaml_mapping(path), where=str(path))
-        checks = (("scene", check_scene), ("dvs", check_dvs), ("frames", one_of(FRAME_MODES)))
+        checks = (
+            ("scene", check_scene),
+            ("dvs", check_dvs),
+            ("frames", one_of(FRAME_MODES)),
+            ("quality", one_of(("fast", "fine"))),
+        )
         for key, check in checks:
             try:
                 check(getattr(base, key))

@@ -59,6 +59,7 @@ class RecordConfig:
     frames: str = WanderConfig.frames  # the env's frame source (keyframes or exact)
     keyframe_ms: float = WanderConfig.keyframe_ms
     keyframe_px: float | None = WanderConfig.keyframe_px  # adaptive keys' bound (None: off)
+    quality: str = WanderConfig.quality  # fast, or fine: keys with 16 samples a pixel
 
     def __post_init__(self) -> None:
         if self.policy not in POLICIES:

@@ -91,6 +91,7 @@ class RunConfig:
     frames: str = WanderConfig.frames  # the env's frame source (keyframes or exact)
     keyframe_ms: float = WanderConfig.keyframe_ms
     keyframe_px: float | None = WanderConfig.keyframe_px  # adaptive keys' bound (None: off)
+    quality: str = WanderConfig.quality  # fast, or fine: keys with 16 samples a pixel
 
     def __post_init__(self) -> None:
         check_fields(self, ("seconds",), positive=True)
@@ -516,6 +517,7 @@ def env_kwargs(config: Any) -> dict[str, Any]:
         "frames": config.frames,
         "keyframe_ms": config.keyframe_ms,
         "keyframe_px": config.keyframe_px,
+        "quality": config.quality,
     }
 
 
