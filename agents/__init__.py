@@ -4,7 +4,7 @@ fixational eye movements, and the composed :class:`AttentionAgent`.
 ``agents.AttentionAgent`` and ``agents.AgentParams`` are loaded on first use, so that
 importing a light module (e.g. ``agents.fixation``) does not pull in torch and nengo.
 
-Example:
+Examples:
     >>> import agents
     >>> agents.AgentParams().window_s
     0.124

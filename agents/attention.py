@@ -36,7 +36,7 @@ What it exposes for plots and metrics: ``event_map``, ``oms_map`` (window sums),
 ``scanpath`` (:class:`Fixation` and :class:`Saccade` records) and event counters for the
 suppression figure.
 
-Example:
+Examples:
     >>> import numpy as np
     >>> agent = AttentionAgent(AgentParams(window_s=0.02), seed=0)
     >>> obs = {"events": np.zeros((2, 128, 128), np.float32), "gaze": np.zeros(2)}

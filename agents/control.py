@@ -33,7 +33,7 @@ probes are used — the output node stores the latest filtered decoded value and
 sum over the averaging window — so memory stays constant however long it runs. The
 simulator is built once; :meth:`reset` only resets its state.
 
-Example:
+Examples:
     >>> ctrl = AttentionController(ControlParams(seed=0))
     >>> for _ in range(10):  # 100 ms with the target 32 px right of and 16 px above the fovea
     ...     u = ctrl.step((63.5 + 32, 63.5 - 16), 0.01)

@@ -21,7 +21,7 @@ positive y looks DOWN), converted with the pinhole model (pixel offset ``d`` ↔
 ``atan(d / f_px)``) — see :func:`gaze_degrees_to_action`, the exact inverse of the
 env's action → angle mapping :func:`action_to_gaze_degrees`.
 
-Example:
+Examples:
     >>> import numpy as np
     >>> fix = FixationalMovements(FixationParams(), np.random.default_rng(0))
     >>> fix.start()
@@ -101,9 +101,10 @@ def positions_to_action(
 ) -> np.ndarray:
     """Relative PTU positions ``(pan, tilt)`` -> env action units (positions -> ° -> action).
 
-    >>> a = positions_to_action((-60, 60))  # 60 positions (≈ 1.54°) right and up
-    >>> [round(float(v), 5) for v in a]
-    [0.01789, -0.01789]
+    Examples:
+        >>> a = positions_to_action((-60, 60))  # 60 positions (≈ 1.54°) right and up
+        >>> [round(float(v), 5) for v in a]
+        [0.01789, -0.01789]
     """
     p, t = (float(v) for v in np.asarray(delta_pos, dtype=np.float64).reshape(2))
     return gaze_degrees_to_action(

@@ -18,7 +18,7 @@ computes (a cross-correlation with zero padding; for an even kernel torch pads
 ``(k - 1) // 2`` before and ``k // 2`` after, so kernel index ``(k - 1) // 2`` sits on the
 output pixel) by multiplying precomputed spectra: large kernels cost the same as small ones.
 
-Example:
+Examples:
     >>> import torch
     >>> g = gaussian_kernel(8, 1.0)
     >>> round(float(g.sum()), 6), g.shape
@@ -57,7 +57,7 @@ def kernel_coordinates(size: int) -> tuple[np.ndarray, np.ndarray]:
     """``(x, y)`` grids of shape ``(size, size)``: offsets from the kernel centre
     ``(size - 1) / 2``; ``x`` grows to the right (columns), ``y`` downwards (rows).
 
-    Example:
+    Examples:
         >>> x, y = kernel_coordinates(4)
         >>> x[0].tolist(), y[:, 0].tolist()
         ([-1.5, -0.5, 0.5, 1.5], [-1.5, -0.5, 0.5, 1.5])
@@ -73,7 +73,7 @@ def gaussian_kernel(size: int = 8, sigma: float = 1.0) -> np.ndarray:
     """Isotropic Gaussian ``exp(-(x² + y²) / (2 σ²))`` on a ``size × size`` grid centred at
     ``(size - 1) / 2`` (``mu = (0, 0)`` in kernel coordinates), normalised to sum 1.
 
-    Example:
+    Examples:
         >>> k = gaussian_kernel(3, 1.0)
         >>> round(float(k[1, 1] / k[0, 0]), 6) == round(float(np.exp(1.0)), 6)
         True
@@ -90,7 +90,7 @@ def gaussian_kernel_1d(size: int = 8, sigma: float = 1.0) -> np.ndarray:
     points centred at ``(size - 1) / 2``, normalised to sum 1, so that
     ``np.outer(g, g)`` is ``gaussian_kernel(size, sigma)`` (to float64 rounding).
 
-    Example:
+    Examples:
         >>> g = gaussian_kernel_1d(7, 1.5)
         >>> bool(np.allclose(np.outer(g, g), gaussian_kernel(7, 1.5), rtol=1e-12, atol=0))
         True
@@ -108,7 +108,7 @@ def von_mises_radius(r0: float = 8.0, tol: float = 0.01) -> int:
     """Half-width (px) of a von Mises kernel: the ring ``1 / I0(r - R0)`` has fallen below
     ``tol`` of its peak (``I0(0) = 1``) at ``r = R0 + d``; returns ``ceil(R0 + d)``.
 
-    Example:
+    Examples:
         >>> von_mises_radius(8.0)
         15
     """
@@ -139,7 +139,7 @@ def von_mises_kernel(
     ``(R0 cos θ, -R0 sin θ)``). ``size`` defaults to ``2 * von_mises_radius(r0) + 1`` (odd,
     so the centre is a pixel).
 
-    Example:
+    Examples:
         >>> k = von_mises_kernel(8.0, 0.2, 0.0)
         >>> k.shape, np.unravel_index(k.argmax(), k.shape)  # peak 8 px right of the centre
         ((31, 31), (np.int64(15), np.int64(23)))
@@ -171,7 +171,7 @@ def same_fft_shape(height: int, width: int, kh: int, kw: int) -> tuple[int, int]
     lands only on rows and columns that are cropped away, so the result is the same as
     on the full ``height + kh - 1`` grid (to float rounding) at less cost.
 
-    Example:
+    Examples:
         >>> same_fft_shape(128, 128, 31, 31), same_fft_shape(32, 32, 31, 31)
         ((144, 144), (48, 48))
     """
@@ -190,7 +190,7 @@ class FFTConv2d:
     Inputs may also be given as spectra (:meth:`spectrum`, :meth:`from_spectrum`) so one
     input FFT can feed several kernel banks of the same padded size.
 
-    Example:
+    Examples:
         >>> import torch
         >>> w = torch.randn(3, 1, 31, 31)
         >>> conv = FFTConv2d(w, 128, 128)
@@ -280,7 +280,7 @@ class SeparableConv2d:
     Inputs are ``(C, H, W)`` or ``(H, W)`` arrays or tensors (any float dtype, computed
     in float32); the result is a float32 numpy array of the same shape.
 
-    Example:
+    Examples:
         >>> g = gaussian_kernel_1d(5, 1.0)
         >>> conv = SeparableConv2d(g, g)
         >>> x = np.zeros((1, 9, 9), np.float32); x[0, 0, 0] = 1.0

@@ -32,7 +32,7 @@ one). :meth:`SaliencyPipeline.reset` goes back to the nominal steps.
 
 The pipeline is deterministic: it draws no random numbers, so there is no seed.
 
-Example:
+Examples:
     >>> pipe = SaliencyPipeline(SOMSParams(dt=0.01), ProtoObjectParams(dt=0.01))
     >>> maps = pipe.process(np.zeros((2, 32, 32), np.float32), 0.01)
     >>> maps.oms.shape, maps.saliency.shape, maps.point_xy

@@ -54,7 +54,7 @@ Design decisions:
   direction's of the other polarity as inhibition (instead of convolving every one of
   the 2 · 2n lines with its own two-channel kernel).
 
-Example:
+Examples:
     >>> import numpy as np
     >>> po = ProtoObjectSaliency()
     >>> oms = np.zeros((2, 64, 64), np.float32)
@@ -197,7 +197,7 @@ def saliency_argmax(saliency: torch.Tensor) -> tuple[int, int] | None:
     """``(x, y)`` of the maximum of ``saliency`` ``(H, W)`` (x right, y down, origin top
     left); among tied maxima the one nearest their centroid; None if no value is > 0.
 
-    Example:
+    Examples:
         >>> s = torch.zeros(5, 7); s[1, 2:5] = 3.0
         >>> saliency_argmax(s)
         (3, 1)
@@ -255,7 +255,7 @@ class ProtoObjectSaliency(MapLayer[ProtoObjectParams]):
     (channel 0 OFF, 1 ON; nonzero = spike); the LIF state carries over until
     :meth:`reset`. Any ``H, W`` works (a new size rebuilds and resets).
 
-    Example:
+    Examples:
         >>> po = ProtoObjectSaliency(ProtoObjectParams(polarity_split=False))
         >>> out = po.step(np.zeros((2, 128, 128), np.float32))
         >>> tuple(out.saliency.shape), po.argmax()

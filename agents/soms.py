@@ -50,7 +50,7 @@ Design decisions (each checked against the paper and its public code):
 * Polarity channels keep the input order (``wander_env.events.to_frame``: 0 = OFF,
   1 = ON); each polarity is filtered separately.
 
-Example:
+Examples:
     >>> import numpy as np
     >>> soms = SOMS(SOMSParams(dt=0.01))
     >>> ev = np.zeros((2, 32, 32), np.float32)
@@ -95,7 +95,7 @@ __all__ = [
 def tau_steps(tau_s: float, dt_s: float) -> float:
     """A time constant in simulation steps: ``tau / dt`` (sinabs counts time in steps).
 
-    Example:
+    Examples:
         >>> tau_steps(0.02, 0.01)
         2.0
     """
@@ -108,7 +108,7 @@ def lif_layer(tau_s: float, dt_s: float, spike_threshold: float = 1.0) -> sl.LIF
     """A sinabs ``LIF`` layer (input ``(batch, time, ...)``) with ``tau_mem`` in steps,
     ``MultiSpike``, subtractive reset, ``norm_input=False``, no gradients.
 
-    Example:
+    Examples:
         >>> lif = lif_layer(0.02, 0.01)
         >>> round(float(lif.alpha_mem_calculated), 4)  # exp(-dt / tau)
         0.6065
@@ -277,7 +277,7 @@ def pooling_weights(sigma: float) -> torch.Tensor:
     """Unit-sum Gaussian ``(1, 1, k, k)``, ``k = 2 ceil(3 sigma) + 1``: the pooling of
     the ``"quantile"`` norm.
 
-    Example:
+    Examples:
         >>> w = pooling_weights(1.0)
         >>> tuple(w.shape), round(float(w.sum()), 6)
         ((1, 1, 7, 7), 1.0)
@@ -315,7 +315,7 @@ def quantile_score(
     the whole map (``gain`` times it, at least ``floor_spikes``; with ``peak_ratio``, the
     map's peak clipped to ``[peak_ratio, gain]`` times it), clipped to [0, 1].
 
-    Example:
+    Examples:
         >>> d = torch.zeros(1, 10, 10); d[0, 0, :5] = 4.0; d[0, 1:, :] = 1.0
         >>> s = quantile_score(d, 0.9, 2.0, 1.0)   # 90th percentile 1 -> scale 2
         >>> float(s[0, 0, 0]), float(s[0, 5, 5]), float(s[0, 0, 9])
@@ -336,7 +336,7 @@ def peak_scale(
     its ``peak``: ``gain · q`` when ``peak_ratio`` is None, else the peak clipped to
     ``[peak_ratio · q, gain · q]``; at least ``floor_spikes``.
 
-    Example:
+    Examples:
         >>> peak_scale(2.0, 5.0, 2.5, None, 1.0), peak_scale(2.0, 5.0, 3.5, 2.0, 1.0)
         (5.0, 5.0)
         >>> peak_scale(2.0, 9.0, 3.5, 2.0, 1.0), peak_scale(2.0, 2.2, 3.5, 2.0, 1.0)
@@ -357,7 +357,7 @@ def peak_score(
     when the peak lies between 2 and 3.5 × the quantile, 2.8 × the quantile above that,
     and above the peak (nothing kept) when the peak is below 2 × the quantile.
 
-    Example:
+    Examples:
         >>> d = torch.zeros(1, 10, 10); d[0, 0, :5] = 3.0; d[0, 1:, :] = 1.0
         >>> s = peak_score(d, 0.9, 3.5, 2.0, 1.0)   # q 1, peak 3 -> scale 3
         >>> float(s[0, 0, 0]), round(float(s[0, 5, 5]), 4)
@@ -373,7 +373,7 @@ class SOMS(MapLayer[SOMSParams]):
     step of ``params.dt`` seconds); LIF membranes carry over between calls until
     :meth:`reset`. Any ``H, W`` works; a new size rebuilds and resets the layers.
 
-    Example:
+    Examples:
         >>> import numpy as np
         >>> soms = SOMS()
         >>> out = soms.step(np.zeros((2, 128, 128), np.float32))

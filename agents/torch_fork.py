@@ -11,7 +11,7 @@ Importing this module registers an ``os.register_at_fork`` hook that sets one th
 every forked child, and :func:`set_torch_threads` (what the agent calls) refuses more
 than one there, naming the fix. Processes started with ``"spawn"`` are fresh: any number.
 
-Example:
+Examples:
     >>> set_torch_threads(1)
     >>> torch.get_num_threads()
     1

@@ -28,7 +28,7 @@ Config fields that name something or size the work use the checked types of this
 unknown name or a value out of range is a ConfigError when the config is validated,
 before any trial runs; one run holds at most :data:`MAX_TRIALS` trials.
 
-Example:
+Examples:
     >>> exp = get_experiment("event_suppression")
     >>> cfg = resolve_config(exp, sets=["repeats=2"])
     >>> cfg.repeats

@@ -38,7 +38,7 @@ Each file adds columns of its own after these four:
   fovea during the fixation, named as in the scene file (static and moving objects
   alike; ``-`` for none: walls, floor, furniture), as in the row's ``aois_json``.
 
-Example:
+Examples:
     >>> import numpy as np
     >>> fx = np.array([[0, 0, 0.0, 0.1], [10, 0, 0.5, 0.1], [0.5, 0, 1.0, 0.1]])
     >>> saccade_amplitudes(fx).round(2).tolist(), revisits(fx, radius_deg=2.0)

@@ -26,7 +26,7 @@ test, or no spread for a standardised effect. The texts (:meth:`Comparison2.text
 :func:`ci_text`) say which: ``n too small`` below the minimum, ``no spread`` where the
 values do not vary.
 
-Example:
+Examples:
     >>> a = [0.9, 0.8, 0.85, 0.95, 0.7, 0.9, 0.8, 0.75, 0.9, 0.85]
     >>> b = [0.5, 0.6, 0.4, 0.55, 0.5, 0.65, 0.45, 0.5, 0.6, 0.4]
     >>> r = paired_comparison(a, b, seed=0)

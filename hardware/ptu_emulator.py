@@ -25,7 +25,7 @@ kept, in order, for after it, except the halts ``H``/``HP``/``HT``, which the
 emulator lets through (so a driver can always stop the unit). In slaved mode (``S``)
 position commands are stored and executed by the next ``A``.
 
-Example:
+Examples:
     >>> import serial
     >>> quiet = PTUEmulatorParams(banner="")  # no power-up banner to read past
     >>> with PTUEmulator(quiet) as emu, serial.Serial(emu.port, timeout=1) as port:

@@ -17,7 +17,7 @@ the event limit of :func:`~wander_env.event_io.read_events`
 (:data:`~wander_env.event_checks.MAX_EVENTS`), both with an
 :class:`~wander_env.event_checks.EventFileError` naming the file.
 
-Example:
+Examples:
     >>> from wander_env.events import make_events
     >>> from wander_env.event_io import EventRecording
     >>> ev = make_events(x=[1, 2, 3], y=[0, 0, 0], t=[100, 150, 400], p=[1, 0, 1])

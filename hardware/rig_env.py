@@ -43,7 +43,9 @@ the halt was acknowledged. A camera failure halts the PTU before it propagates.
 opening failures (port missing or busy, samna missing, no Speck) close what was
 already open before raising.
 
-Example (the PTU emulator and a replayed recording):
+The PTU emulator and a replayed recording:
+
+Examples:
     >>> import tempfile, gymnasium, wander_env
     >>> from wander_env.event_io import EventRecording, write_events
     >>> from wander_env.events import make_events

@@ -6,7 +6,7 @@ down): the pixel offset ``d = a·(W/2, H/2)`` is turned into the PTU rotation
 ``atan(d / f)`` per axis with the pinhole focal length ``f``, in PTU signs (positive
 pan turns left, positive tilt looks up).
 
-Example:
+Examples:
     >>> check_action([0.5, -0.25]).tolist()
     [0.5, -0.25]
     >>> pan, tilt = action_to_gaze_degrees((0.5, 0.0))

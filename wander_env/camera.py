@@ -20,7 +20,7 @@ camera's axes in world coordinates) and ``c`` the camera centre in world coordin
   surface it meets in a posed MuJoCo scene (the one function here that takes MuJoCo's
   model and data; it imports ``mujoco`` when called).
 
-Example:
+Examples:
     >>> import numpy as np
     >>> K = intrinsics(128, 128, 90.0)
     >>> round(float(K[0, 0]), 9), float(K[0, 2])

@@ -1,6 +1,6 @@
 """Context-manager support for anything with a ``close()`` method.
 
-Example:
+Examples:
     >>> class Port(Closing):
     ...     closed = False
     ...     def close(self) -> None:

@@ -34,7 +34,7 @@ refused (``1e400`` is one). A field's range (``Annotated[float, pydantic.Field(l
 is checked with its type: ``bad value for key 'x': input should be less than or equal to
 3600, got 7200``.
 
-Example:
+Examples:
     >>> from wander_env.scene_config import RoomConfig
     >>> room = validate(RoomConfig, parse_sets(["wall_texture.tile_m=2"], RoomConfig))
     >>> room.wall_texture.tile_m, room.floor_texture.kind  # the other blocks keep defaults

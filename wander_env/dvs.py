@@ -29,7 +29,7 @@ The pixel model, one named parameter per term (see :class:`DVSParams`):
 Every noise term is off unless asked for; ``DVSParams.preset("paper")`` gives
 the IEBCS settings the paper used and ``"speck"`` plausible Speck-like ones.
 
-Example:
+Examples:
     >>> import numpy as np
     >>> from wander_env.dvs import DVSEmulator, DVSParams
     >>> emu = DVSEmulator(4, 1, DVSParams(threshold_on=0.1, threshold_off=0.1))

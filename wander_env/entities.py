@@ -22,7 +22,7 @@ when things happen and asks a moving entity's runtime for its state at time t.
   :meth:`GratingStimulus.motion` gives its runtime (:class:`GratingMotion`: slides the
   screen, recolours the strips).
 
-Example:
+Examples:
     >>> from wander_env.scene_config import load_scene_config
     >>> cfg = load_scene_config("office")
     >>> ptu = PanTiltCamera(cfg.ptu, cfg.camera)

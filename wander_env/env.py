@@ -41,7 +41,7 @@ default ("fork") start method works. A process forked after its parent rendered 
 render: there ``reset`` raises :class:`~wander_env.gl_fork.ForkedGLError`, which says to
 use ``context="spawn"`` (see :mod:`wander_env.gl_fork`).
 
-Example:
+Examples:
     >>> import gymnasium, wander_env
     >>> env = gymnasium.make("wander/Wander-v0", scene="shelf")
     >>> obs, info = env.reset(seed=0)

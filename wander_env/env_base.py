@@ -22,7 +22,7 @@ events, every one of them, as an :class:`~wander_env.event_packet.EventPacket` (
 ``.events`` is the structured array; as a packet it passes through vector envs,
 ``check_env`` and pickling).
 
-Example:
+Examples:
     >>> env = CameraEnv()
     >>> env.init_render("rgb_array", 0.02)
     >>> env.render_mode, env.metadata["render_fps"]

@@ -18,7 +18,7 @@ raises :class:`EventFileError` naming the file, the field and the offending valu
   error, not 5), polarity 0 or 1, ``t`` finite and sorted;
 - :func:`parse_metadata`: a JSON object, nested at most :data:`MAX_METADATA_DEPTH` deep.
 
-Example:
+Examples:
     >>> import numpy as np
     >>> cols = {"x": np.array([1, 2]), "y": np.array([0, 3]), "t": np.array([5, 9]),
     ...         "p": np.array([1, 0])}

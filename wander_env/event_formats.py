@@ -35,7 +35,7 @@ silently: write an ``.h5`` beside it to keep it.
 HDF5 files carry the DSEC ``ms_to_idx`` index (:func:`ms_to_idx`), which
 :func:`read_h5_window` uses to read one time window without loading the file.
 
-Example:
+Examples:
     >>> import tempfile, pathlib
     >>> from wander_env.events import make_events
     >>> from wander_env.event_io import EventRecording, read_events, write_events

@@ -24,7 +24,7 @@ format of :mod:`wander_env.events`, validated against the sensor size. A file th
 is truncated, of the wrong format, or has unsorted timestamps raises
 :class:`EventFileError` (a ``ValueError``) naming the file and the problem.
 
-Example:
+Examples:
     >>> import tempfile, pathlib
     >>> from wander_env.events import make_events
     >>> from wander_env.event_io import EventRecording, read_events, write_events

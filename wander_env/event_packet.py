@@ -11,7 +11,7 @@ object array, ``check_env`` compares two with ``==`` (event for event), and it p
 The packet has no capacity: every event of the step is in it, nothing is padded or
 dropped. ``packet.events`` (or ``np.asarray(packet)``) is the array itself.
 
-Example:
+Examples:
     >>> import numpy as np
     >>> from wander_env.events import make_events
     >>> packet = EventPacket(make_events(x=[1, 2], y=[3, 4], t=[10, 20], p=[1, 0]))

@@ -15,7 +15,7 @@ the file says ``complete = False`` and how far it got (``events_flushed``,
 write the free space is checked: a full disk (or an unwritable folder) raises
 :class:`OutputError` naming the file, never a half-written HDF5 structure.
 
-Example:
+Examples:
     >>> import tempfile, pathlib
     >>> from wander_env.events import make_events
     >>> from wander_env.event_io import read_events
@@ -347,7 +347,7 @@ def mp4_complete(path: str | os.PathLike) -> bool:
     them is ``moov``, the index a player needs (ffmpeg writes it when it finishes; a
     killed ffmpeg leaves the frames without it).
 
-    Example:
+    Examples:
         >>> import tempfile
         >>> path = Path(tempfile.mkdtemp()) / "v.mp4"
         >>> box = lambda kind, body: struct.pack(">I4s", 8 + len(body), kind) + body
@@ -399,7 +399,7 @@ class VideoSink:
     :meth:`finish`, ``complete`` says whether the file is a whole MP4
     (:func:`mp4_complete`: playable to its last frame; ``None``: no frame, no file).
 
-    Example:
+    Examples:
         >>> import tempfile
         >>> path = Path(tempfile.mkdtemp()) / "v.mp4"
         >>> sink = VideoSink(path, fps=10)

@@ -5,7 +5,7 @@ coordinates, origin top-left, y down), ``t`` (int64 microseconds) and ``p``
 (int8, 1 = ON, 0 = OFF), sorted by ``t``: the Tonic convention. A sensor is
 described by ``sensor_size = (W, H, 2)``.
 
-Example:
+Examples:
     >>> import numpy as np
     >>> from wander_env.events import make_events, to_frame
     >>> ev = make_events(x=[1, 2], y=[0, 0], t=[10, 20], p=[1, 0])

@@ -5,7 +5,7 @@ pydantic carries the text into the JSON schema (``description``, ``examples`` an
 extra key ``unit``), from which ``docs/gen_scene_reference.py`` writes the scene
 reference page. Constraints (``ge``, ``max_length``, ...) go in the same call.
 
-Example:
+Examples:
     >>> import pydantic
     >>> from typing import Annotated
     >>> schema = pydantic.TypeAdapter(

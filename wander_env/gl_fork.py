@@ -19,7 +19,7 @@ place: the pid that created a context through :func:`claim_gl`, or, where someth
 (``mujoco.Renderer``, the user's own code) initialised MuJoCo's EGL display, the parent's
 pid, noted by an ``os.register_at_fork`` hook in the child.
 
-Example:
+Examples:
     >>> claim_gl()  # this process may create GL contexts (it was not forked after GL)
     >>> gl_owner_pid() == os.getpid()
     True

@@ -37,7 +37,7 @@ with a still camera, this one -1.8 %, both with 5 ms keys).
 the poses alone, and :func:`adaptive_key_ticks` places a step's keys where that bound
 would pass a number of pixels.
 
-Example:
+Examples:
     >>> import numpy as np
     >>> from wander_env.camera import intrinsics
     >>> k = intrinsics(8, 8, 90.0)

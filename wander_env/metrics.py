@@ -15,7 +15,7 @@ Each returns ``nan`` when its denominator is empty (nothing to score), so that
 averages over trials can skip such trials explicitly (``np.nanmean``) instead of
 counting them as perfect or as failures.
 
-Example:
+Examples:
     >>> import numpy as np
     >>> pred = np.zeros((4, 4), bool); pred[0, :2] = True
     >>> mask = np.zeros((4, 4), bool); mask[0, 1:4] = True

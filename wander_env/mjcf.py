@@ -51,7 +51,7 @@ The names and the grating geometry (:data:`~wander_env.entities.CAMERA_NAME`,
 :func:`~wander_env.entities.object_body_name`, :func:`~wander_env.entities.grating_layout`,
 ...) live in :mod:`wander_env.entities`, with the parts they name.
 
-Example:
+Examples:
     >>> from wander_env.scene_config import load_scene_config
     >>> arena = Arena(load_scene_config("office"))
     >>> [type(e).__name__ for e in arena.entities][:4], type(arena.entities[-1]).__name__

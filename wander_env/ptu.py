@@ -38,7 +38,7 @@ Conventions: positive pan turns the camera left (counter-clockwise seen from abo
 FLIR: ``PO828`` pans 21.3° left); positive tilt raises it. The PTU frame has its
 origin on the tilt hinge, x forward (optical axis at pan = tilt = 0), y left, z up.
 
-Example:
+Examples:
     >>> from wander_env.ptu import PanTiltUnit, PTUParams
     >>> ptu = PanTiltUnit(PTUParams(pan_base_speed=0.0, pan_speed=1000.0))
     >>> ptu.set_target(pan_deg=1000 * ptu.params.pan_deg_per_pos, tilt_deg=0.0)
@@ -530,8 +530,9 @@ def camera_position(
     hinge (positive tilt raises the optical axis), panning rotates it about z
     (positive pan to the left, +y). The hinge is taken to lie on the pan axis.
 
-    >>> [round(c, 6) + 0.0 for c in camera_position(90.0, forward_m=0.05, up_m=0.02)]
-    [-0.02, 0.0, 0.05]
+    Examples:
+        >>> [round(c, 6) + 0.0 for c in camera_position(90.0, forward_m=0.05, up_m=0.02)]
+        [-0.02, 0.0, 0.05]
     """
     th, ph = math.radians(tilt_deg), math.radians(pan_deg)
     r = forward_m * math.cos(th) - up_m * math.sin(th)  # horizontal reach

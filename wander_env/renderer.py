@@ -13,7 +13,7 @@ skybox, fog and haze off, and renders from the camera ``event_camera``:
 :func:`project_points` maps world points to pixel coordinates (x right, y down, pixel
 centres at integers; the sensor centre is ((W-1)/2, (H-1)/2)).
 
-Example:
+Examples:
     >>> import mujoco
     >>> from wander_env.mjcf import compile_scene
     >>> from wander_env.scene_config import load_scene_config

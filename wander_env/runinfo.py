@@ -4,7 +4,7 @@ JSON is written strictly (:func:`to_strict_json`): a missing or undefined figure
 ±inf) is ``null``, NumPy scalars and arrays become plain numbers and lists, so every
 file parses with a strict parser (``json.loads(text, parse_constant=...)`` raising).
 
-Example:
+Examples:
     >>> import math, numpy as np
     >>> to_strict_json({"a": math.nan, "b": np.float32(0.5), "c": [np.inf, 1]})
     {'a': None, 'b': 0.5, 'c': [None, 1]}

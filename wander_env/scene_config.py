@@ -36,7 +36,7 @@ rest, so that a million objects cost no more than the file): camera sides
 :data:`MAX_LIGHTS` lights; at most :data:`MAX_MATERIALS` materials and
 :data:`MAX_TEXTURES` textures in all (MuJoCo's renderer's limits).
 
-Example:
+Examples:
     >>> cfg = load_scene_config("office")
     >>> cfg.name, len(cfg.moving_objects)
     ('office', 2)

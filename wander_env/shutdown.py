@@ -30,7 +30,7 @@ JSON) and, for a write failure, marked the folder with an ``INCOMPLETE`` file
 (:func:`mark_incomplete`; the run jobs mark a run stopped by a signal the same way,
 saying when it stopped).
 
-Example:
+Examples:
     >>> import os, signal
     >>> try:
     ...     with handle_signals():

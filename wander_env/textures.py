@@ -11,7 +11,7 @@ repeat them (``texrepeat``).
 :func:`make_texture` renders one, and :func:`add_png_asset` puts a texture into a
 MuJoCo assets dict as in-memory PNG bytes so that MJCF can say ``file="NAME.png"``.
 
-Example:
+Examples:
     >>> img = make_texture(TextureSpec(kind="checker", size_px=64, scale=16))
     >>> img.shape, img.dtype, sorted(set(img[..., 0].ravel().tolist()))
     ((64, 64, 3), dtype('uint8'), [38, 217])

@@ -11,7 +11,7 @@ generates the scene reference page, ``docs/scenes.md``.
 Every evaluator has ``position(t) -> np.ndarray`` of shape (3,), for any t >= 0 (the
 closed-form ones for any t, in any order).
 
-Example:
+Examples:
     >>> traj = make_trajectory(CircularParams(centre=(1.0, 0.0, 1.0), radius=0.2))
     >>> traj.position(0.0).round(6).tolist()
     [1.0, 0.2, 1.0]

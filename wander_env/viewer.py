@@ -21,7 +21,7 @@ entity                      what (logged at each step where it exists)
 The polarity and object labels carry their names and colours (an ``AnnotationContext``,
 red ON, blue OFF as in :mod:`wander_env.viz`), so the viewer shows its own key.
 
-Example:
+Examples:
     >>> import numpy as np
     >>> counts = np.zeros((2, 2, 2)); counts[1, 0, 0] = 2; counts[0, 0, 0] = 1; counts[0, 1, 1] = 1
     >>> polarity_labels(counts).tolist()

@@ -1,6 +1,6 @@
 """Pictures of events and maps (pure functions returning uint8 RGB arrays).
 
-Example:
+Examples:
     >>> import numpy as np
     >>> from wander_env.viz import event_image
     >>> counts = np.zeros((2, 2, 2)); counts[1, 0, 0] = 1; counts[0, 1, 1] = 3

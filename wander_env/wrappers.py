@@ -6,7 +6,7 @@ and pickling need no wrapper. :class:`EventPacketInfo` is kept for code that sti
 it: it boxes a bare structured array (an env of one's own that returns one) and leaves a
 packet as it is.
 
-Example:
+Examples:
     >>> import gymnasium, wander_env
     >>> from wander_env.wrappers import EventPacketInfo
     >>> env = EventPacketInfo(gymnasium.make("wander/Wander-v0", scene="shelf"))

@@ -8,7 +8,7 @@ the proto-object model once per fixation window (at the decision), the whole
 env's step. The streamlined proto-object model (no polarity split) is timed afterwards
 on the same OMS maps.
 
-Example:
+Examples:
     >>> rows, loop = bench_agent(seconds=0.3, scene="shelf")  # doctest: +SKIP
 """
 

@@ -20,7 +20,7 @@ is found when importable, e.g. installed from its GitHub repository), all with
 threshold 0.2 ON and OFF and every noise term, low-pass and refractory period off, on
 one torch thread. A peer that cannot be imported gets a row saying why.
 
-Example:
+Examples:
     >>> rows = bench_inputs(n_frames=5, repeats=1)  # doctest: +SKIP
 """
 

@@ -17,7 +17,7 @@ mode's events with an event of the other at the same pixel and polarity within
 ``tol_us``, both ways, and of the 16-sample events in the exact ones); and the longest
 gap between consecutive events while the camera moves.
 
-Example:
+Examples:
     >>> rows = bench_fidelity(scenes=("shelf",), motions=("still",), seeds=(0,),
     ...                       seconds=0.02)  # doctest: +SKIP
 """

@@ -6,7 +6,7 @@ experiment (:mod:`experiments.paper.detection`) score the one sOMS → saliency 
 ``--alpha``, the dataset's window as the nominal step: :func:`nominal_dt_s`) onto the
 pipeline's parameter blocks.
 
-Example:
+Examples:
     >>> pipe = ModelConfig(dt=0.01).pipeline()
     >>> maps = pipe.process(np.zeros((2, 32, 32), np.float32), 0.01)
     >>> maps.oms.shape, maps.saliency.shape, maps.point_xy

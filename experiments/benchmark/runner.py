@@ -3,7 +3,7 @@ them by the protocol and write the results folder; the same for sOMS event suppr
 recordings. The ``wander benchmark`` commands (:mod:`experiments.cli.benchmark`) parse
 the options and show progress bars through the ``progress`` callbacks.
 
-Example:
+Examples:
     >>> import numpy as np
     >>> from experiments.benchmark.datasets.base import MaskWindow, SequenceData
     >>> windows = [MaskWindow(t, t + 10, np.zeros((4, 4), np.int32)) for t in (0, 10, 20)]

@@ -7,7 +7,7 @@ nothing), and the command that runs it turns the calls into a bar here
 (an experiment's ``summary.md``) is printed by :func:`print_markdown`, its tables as
 tables that fit the terminal.
 
-Example:
+Examples:
     >>> from dataclasses import dataclass
     >>> @dataclass
     ... class Row:

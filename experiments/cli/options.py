@@ -8,7 +8,7 @@ Every check runs while the command line is parsed (a Click callback), so a bad v
 is refused before any work starts, with one line naming the option, the allowed values
 and the value (:mod:`experiments.cli.errors`).
 
-Example:
+Examples:
     >>> agent_alpha(None), agent_alpha(0.8)
     ({}, {'alpha': 0.8})
     >>> check_seconds(2.5), check_dvs("speck"), check_scene("office")

@@ -37,7 +37,7 @@ def detection_interval(hits: int, scored: int, confidence: float = 0.95) -> tupl
     """Wilson score interval of a hit rate ``hits / scored`` (nan, nan when nothing was
     scored): how far the detection accuracy of a few dozen decisions can be trusted.
 
-    Example:
+    Examples:
         >>> low, high = detection_interval(124, 140)
         >>> round(low, 3), round(high, 3)
         (0.822, 0.928)

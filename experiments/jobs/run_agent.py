@@ -506,7 +506,7 @@ def env_kwargs(config: Any) -> dict[str, Any]:
     :class:`~experiments.jobs.record.RecordConfig` of ``wander record``): scene, DVS,
     length and frame source (recorded in ``run.json`` with the rest of the config).
 
-    Example:
+    Examples:
         >>> env_kwargs(RunConfig(frames="exact", seconds=2.0))["frames"]
         'exact'
     """

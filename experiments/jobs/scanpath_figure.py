@@ -10,7 +10,7 @@ salient points ``P`` that triggered the saccades (those beyond the PTU's reach m
 and counted), the PTU's limits and, from ground truth, the moving objects' paths — the
 paper's scanpath figure on the pan-tilt unit's sphere.
 
-Example:
+Examples:
     >>> import numpy as np
     >>> grid = saliency_mosaic([np.ones((8, 8))], [(0.0, 0.0)], focal_px=4.0, step_deg=5.0)
     >>> grid.values.shape[0] > 0 and float(grid.values.max())

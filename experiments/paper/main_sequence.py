@@ -12,7 +12,7 @@ fit's covariance (Student's t with ``n − 2`` degrees of freedom), the RMS resi
 R². A PTU's trapezoid is not an exponential: the residuals say how far it is from the
 eye's shape.
 
-Example:
+Examples:
     >>> import numpy as np
     >>> a = np.array([1.0, 2, 5, 10, 20, 40])
     >>> fit = fit_saturating(a, 50 * (1 - np.exp(-a / 8)))

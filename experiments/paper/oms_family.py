@@ -9,7 +9,7 @@ the object's events in and kept (the central window's mask); from them the suppr
 share, the precision (object events kept / events kept, 0 when nothing is kept) and
 the share of the object's events kept.
 
-Example:
+Examples:
     >>> from agents.soms import SOMSParams
     >>> from experiments.paper.oms_stimuli import Stimulus
     >>> s = Stimulus("sine", "patch", 16, "still", "ideal", duration_s=0.05)
@@ -226,7 +226,7 @@ def candidates(
     ``gains``, and the peak-clipped one (``peak_ratio`` set) over ``peak_quantiles`` ×
     ``peak_gains`` × ``peak_ratios``; each for every ``pool_sigmas``.
 
-    Example:
+    Examples:
         >>> len(candidates(SOMSParams()))
         36
     """

@@ -36,7 +36,7 @@ fast as or faster than the object (its experiments 10–16); ``fail`` labels tho
 an even (``r = 0``) or odd seed, so :func:`split` halves it by seed with every cell in
 both halves.
 
-Example:
+Examples:
     >>> s = Stimulus("sine", "patch", 16, "eye-only", "ideal", seed=0, duration_s=0.05)
     >>> rec = render(s)
     >>> rec.counts.shape, rec.mask.shape, prediction(s)

@@ -9,7 +9,7 @@ over fixational step × count, detection accuracy over the same pairs and over w
 fixational count; each panel's cells carry their mean, its 95 % bootstrap interval
 over the cell's trials and their number.
 
-Example:
+Examples:
     >>> rows = [{"a": 1, "b": 10, "y": 0.5}, {"a": 1, "b": 10, "y": 1.5}]
     >>> rows.append({"a": 2, "b": 10, "y": 3.0})
     >>> s = surface(rows, "a", "b", "y")

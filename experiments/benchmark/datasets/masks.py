@@ -18,7 +18,7 @@ resizing (the default; the maps are never stretched, the *mask* is) or, given th
 crop offset of the mask inside the sensor, by padding/cropping without any scaling.
 The :class:`MaskFit` descriptor is what callers record.
 
-Example:
+Examples:
     >>> import numpy as np
     >>> m = np.zeros((2, 3), bool); m[1, 2] = True
     >>> out, fit = fit_mask(m, (6, 4, 2))
