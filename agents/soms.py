@@ -82,6 +82,7 @@ __all__ = [
     "SOMSOutput",
     "SOMSParams",
     "lif_layer",
+    "lif_step",
     "oms_score",
     "peak_scale",
     "peak_score",
@@ -119,6 +120,33 @@ def lif_layer(tau_s: float, dt_s: float, spike_threshold: float = 1.0) -> sl.LIF
     )
     layer.requires_grad_(False)
     return layer
+
+
+def lif_step(layer: sl.LIF, current: np.ndarray) -> np.ndarray:
+    """One time step of a :func:`lif_layer` on its own state, in NumPy: the membrane
+    ``v <- alpha v + I`` (float32, ``alpha`` the layer's ``alpha_mem_calculated``), the
+    ``MultiSpike`` count ``trunc(v / threshold)`` where ``v > 0``, the subtractive reset.
+    The same float32 operations as the layer's forward on ``current[None, None]``, so
+    the spikes and membrane are bit for bit its own, without torch's per-call overhead
+    on small maps. ``current`` has the state's shape; returns the spike counts (float32).
+
+    Example:
+        >>> lif = lif_layer(0.02, 0.01)
+        >>> lif.init_state_with_shape((1, 3))
+        >>> lif_step(lif, np.array([[0.5, 1.5, 2.25]], np.float32)).tolist()
+        [[0.0, 1.0, 2.0]]
+        >>> lif.v_mem.tolist()
+        [[0.5, 0.5, 0.25]]
+    """
+    v = layer.v_mem.numpy()  # the state's memory: updated in place
+    alpha = np.float32(layer.alpha_mem_calculated.item())
+    threshold = np.float32(layer.spike_threshold.item())
+    np.multiply(v, alpha, out=v)
+    v += current
+    spikes = np.trunc(v / threshold)
+    spikes *= v > 0
+    v -= spikes * threshold
+    return spikes
 
 
 _Params = TypeVar("_Params")
@@ -177,7 +205,9 @@ class SOMSParams:
     """sOMS parameters; defaults are the paper's (table "params").
 
     ``dt`` is the length of one step (one event map) in seconds; ``conv`` picks direct
-    ``conv2d`` or the FFT convolution (same result). ``alpha`` 0.80 is the table's value.
+    ``conv2d``, the FFT convolution or two 1-D passes of the Gaussians' factors
+    (``"separable"``; the same result to float32 rounding, the fastest at 128×128).
+    ``alpha`` 0.80 is the table's value.
 
     ``norm`` is Eq. (1)'s ``norm``: ``"minmax"`` (the paper-literal default) scales the
     map to its own range; ``"quantile"`` (the agent's, :data:`agents.attention.AGENT_SOMS`)
@@ -201,7 +231,7 @@ class SOMSParams:
     dt: float = 0.01
     spike_threshold: float = 1.0
     kernel_norm: Literal["peak", "sum"] = "peak"
-    conv: Literal["direct", "fft"] = "direct"
+    conv: Literal["direct", "fft", "separable"] = "direct"
     norm: Literal["minmax", "quantile"] = "minmax"
     pool_sigma: float = 6.0
     quantile: float = 0.9
@@ -229,8 +259,8 @@ class SOMSParams:
             raise ValueError(f"alpha must be in [0, 1], got {self.alpha}")
         if self.kernel_norm not in ("peak", "sum"):
             raise ValueError(f"kernel_norm must be 'peak' or 'sum', got {self.kernel_norm!r}")
-        if self.conv not in ("direct", "fft"):
-            raise ValueError(f"conv must be 'direct' or 'fft', got {self.conv!r}")
+        if self.conv not in ("direct", "fft", "separable"):
+            raise ValueError(f"conv must be 'direct', 'fft' or 'separable', got {self.conv!r}")
         tau_steps(self.tau_mem, self.dt)
 
 
@@ -256,6 +286,23 @@ def centre_surround_weights(params: SOMSParams) -> torch.Tensor:
     if params.kernel_norm == "peak":
         kc, ks = kc / kc.max(), ks / ks.max()
     return torch.from_numpy(np.stack([kc, ks])[:, None]).float()
+
+
+def centre_surround_factors(params: SOMSParams) -> tuple[np.ndarray, np.ndarray]:
+    """The 1-D factors ``g`` of the centre and the surround Gaussian: each 2-D kernel of
+    :func:`centre_surround_weights` is ``outer(g, g)`` (to float rounding).
+
+    Example:
+        >>> gc, gs = centre_surround_factors(SOMSParams())
+        >>> w = centre_surround_weights(SOMSParams()).numpy()
+        >>> bool(np.allclose(np.outer(gs, gs), w[1, 0], atol=1e-7)), float(gc.max())
+        (True, 1.0)
+    """
+    gc = gaussian_kernel_1d(params.kernel_size, params.sigma_c)
+    gs = gaussian_kernel_1d(params.kernel_size, params.sigma_s)
+    if params.kernel_norm == "peak":
+        gc, gs = gc / gc.max(), gs / gs.max()
+    return gc, gs
 
 
 def oms_score(diff: torch.Tensor) -> torch.Tensor:
@@ -315,12 +362,20 @@ def quantile_score(
         >>> float(s[0, 0, 0]), float(s[0, 5, 5]), float(s[0, 0, 9])
         (1.0, 0.5, 0.0)
     """
-    a = pooled.detach().cpu().numpy().ravel()
+    a = pooled.detach().cpu().numpy()
+    return torch.from_numpy(_quantile_score(a, quantile, gain, floor_spikes, peak_ratio))
+
+
+def _quantile_score(
+    a: np.ndarray, quantile: float, gain: float, floor_spikes: float, peak_ratio: float | None
+) -> np.ndarray:
+    """:func:`quantile_score` on a float32 array."""
+    flat = a.ravel()
     # a selection (introselect) where torch.quantile sorts the map: ≈10× faster here
-    q = _quantile_linear(a, quantile)
-    peak = float(a.max(initial=0.0)) if peak_ratio is not None else 0.0
-    scale = peak_scale(q, peak, gain, peak_ratio, floor_spikes)
-    return torch.clamp(pooled / scale, 0.0, 1.0)
+    q = _quantile_linear(flat, quantile)
+    peak = float(flat.max(initial=0.0)) if peak_ratio is not None else 0.0
+    scale = np.float32(peak_scale(q, peak, gain, peak_ratio, floor_spikes))
+    return np.clip(a / scale, np.float32(0.0), np.float32(1.0))
 
 
 def peak_scale(
@@ -367,6 +422,9 @@ class SOMS(MapLayer[SOMSParams]):
     step of ``params.dt`` seconds); LIF membranes carry over between calls until
     :meth:`reset`. Any ``H, W`` works; a new size rebuilds and resets the layers.
 
+    A step runs in NumPy on the sinabs layer's own state (:func:`lif_step`), with the
+    convolutions by ``params.conv``; its outputs are tensors sharing that memory.
+
     Example:
         >>> import numpy as np
         >>> soms = SOMS()
@@ -383,6 +441,9 @@ class SOMS(MapLayer[SOMSParams]):
         k = self.params.kernel_size
         self._pad = ((k - 1) // 2, k // 2, (k - 1) // 2, k // 2)  # torch 'same' alignment
         self._fft: FFTConv2d | None = None
+        self._sep: tuple[SeparableConv2d, ...] = ()
+        if self.params.conv == "separable":
+            self._sep = tuple(SeparableConv2d(g, g) for g in centre_surround_factors(self.params))
         self.pool_weight = pooling_weights(self.params.pool_sigma)
         self._pool_sep: SeparableConv2d | None = None
 
@@ -397,9 +458,9 @@ class SOMS(MapLayer[SOMSParams]):
         self._shape = (h, w)
         if self.params.conv == "fft":
             self._fft = FFTConv2d(self.weight, h, w)
-            if self.params.norm == "quantile":
-                g = gaussian_kernel_1d(self.pool_weight.shape[-1], self.params.pool_sigma)
-                self._pool_sep = SeparableConv2d(g, g)  # the Gaussian is outer(g, g)
+        if self.params.conv != "direct" and self.params.norm == "quantile":
+            g = gaussian_kernel_1d(self.pool_weight.shape[-1], self.params.pool_sigma)
+            self._pool_sep = SeparableConv2d(g, g)  # the Gaussian is outer(g, g)
         self.lif.init_state_with_shape((1, 2, 2, h, w))
 
     def reset(self) -> None:
@@ -408,6 +469,8 @@ class SOMS(MapLayer[SOMSParams]):
 
     def filter(self, x: torch.Tensor) -> torch.Tensor:
         """Centre and surround currents ``(2 polarities, 2 paths, H, W)`` of ``x (2, H, W)``."""
+        if self._sep:
+            return torch.from_numpy(np.stack([conv(x) for conv in self._sep], axis=1))
         x = x.unsqueeze(1)  # polarity as batch: (2, 1, H, W)
         if self._fft is not None:
             return self._fft(x)
@@ -415,7 +478,8 @@ class SOMS(MapLayer[SOMSParams]):
 
     def pool(self, x: torch.Tensor) -> torch.Tensor:
         """The pooling Gaussian applied to each polarity of ``x (2, H, W)`` (zero padding;
-        ``conv="fft"``: two 1-D passes of its factor, equal to float32 rounding)."""
+        ``conv`` other than ``"direct"``: two 1-D passes of its factor, equal to float32
+        rounding)."""
         if self._pool_sep is not None:
             return torch.from_numpy(self._pool_sep(x))
         return F.conv2d(x.unsqueeze(1), self.pool_weight, padding="same")[:, 0]
@@ -425,14 +489,17 @@ class SOMS(MapLayer[SOMSParams]):
         p = self.params
         if p.norm == "minmax":
             return oms_score(diff)
-        return quantile_score(self.pool(-diff), p.quantile, p.gain, p.floor_spikes, p.peak_ratio)
+        pooled = self.pool(-diff).numpy()
+        return torch.from_numpy(
+            _quantile_score(pooled, p.quantile, p.gain, p.floor_spikes, p.peak_ratio)
+        )
 
     @torch.no_grad()
     def step(self, event_map: np.ndarray | torch.Tensor) -> SOMSOutput:
         """Advance one step with the event counts ``(2, H, W)``; returns the OMS map."""
         x = self._input(event_map, "event_map")
-        spikes = self.lif(self.filter(x)[None, None])[0, 0]  # (2, 2, H, W)
-        diff = spikes[:, 0] - spikes[:, 1]
+        spikes = lif_step(self.lif, self.filter(x).numpy())[0]  # (2, 2, H, W)
+        diff = torch.from_numpy(spikes[:, 0] - spikes[:, 1])
         score = self.score(diff)
-        oms = ((x > 0) & (score >= self.params.alpha)).float()
-        return SOMSOutput(oms=oms, diff=diff, score=score)
+        oms = (x.numpy() > 0) & (score.numpy() >= np.float32(self.params.alpha))
+        return SOMSOutput(oms=torch.from_numpy(oms.astype(np.float32)), diff=diff, score=score)
