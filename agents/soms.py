@@ -205,9 +205,7 @@ class SOMSParams:
     """sOMS parameters; defaults are the paper's (table "params").
 
     ``dt`` is the length of one step (one event map) in seconds; ``conv`` picks direct
-    ``conv2d``, the FFT convolution or two 1-D passes of the Gaussians' factors
-    (``"separable"``; the same result to float32 rounding, the fastest at 128×128).
-    ``alpha`` 0.80 is the table's value.
+    ``conv2d`` or the FFT convolution (same result). ``alpha`` 0.80 is the table's value.
 
     ``norm`` is Eq. (1)'s ``norm``: ``"minmax"`` (the paper-literal default) scales the
     map to its own range; ``"quantile"`` (the agent's, :data:`agents.attention.AGENT_SOMS`)
@@ -231,7 +229,7 @@ class SOMSParams:
     dt: float = 0.01
     spike_threshold: float = 1.0
     kernel_norm: Literal["peak", "sum"] = "peak"
-    conv: Literal["direct", "fft", "separable"] = "direct"
+    conv: Literal["direct", "fft"] = "direct"
     norm: Literal["minmax", "quantile"] = "minmax"
     pool_sigma: float = 6.0
     quantile: float = 0.9
@@ -259,8 +257,8 @@ class SOMSParams:
             raise ValueError(f"alpha must be in [0, 1], got {self.alpha}")
         if self.kernel_norm not in ("peak", "sum"):
             raise ValueError(f"kernel_norm must be 'peak' or 'sum', got {self.kernel_norm!r}")
-        if self.conv not in ("direct", "fft", "separable"):
-            raise ValueError(f"conv must be 'direct', 'fft' or 'separable', got {self.conv!r}")
+        if self.conv not in ("direct", "fft"):
+            raise ValueError(f"conv must be 'direct' or 'fft', got {self.conv!r}")
         tau_steps(self.tau_mem, self.dt)
 
 
@@ -286,23 +284,6 @@ def centre_surround_weights(params: SOMSParams) -> torch.Tensor:
     if params.kernel_norm == "peak":
         kc, ks = kc / kc.max(), ks / ks.max()
     return torch.from_numpy(np.stack([kc, ks])[:, None]).float()
-
-
-def centre_surround_factors(params: SOMSParams) -> tuple[np.ndarray, np.ndarray]:
-    """The 1-D factors ``g`` of the centre and the surround Gaussian: each 2-D kernel of
-    :func:`centre_surround_weights` is ``outer(g, g)`` (to float rounding).
-
-    Example:
-        >>> gc, gs = centre_surround_factors(SOMSParams())
-        >>> w = centre_surround_weights(SOMSParams()).numpy()
-        >>> bool(np.allclose(np.outer(gs, gs), w[1, 0], atol=1e-7)), float(gc.max())
-        (True, 1.0)
-    """
-    gc = gaussian_kernel_1d(params.kernel_size, params.sigma_c)
-    gs = gaussian_kernel_1d(params.kernel_size, params.sigma_s)
-    if params.kernel_norm == "peak":
-        gc, gs = gc / gc.max(), gs / gs.max()
-    return gc, gs
 
 
 def oms_score(diff: torch.Tensor) -> torch.Tensor:
@@ -441,9 +422,6 @@ class SOMS(MapLayer[SOMSParams]):
         k = self.params.kernel_size
         self._pad = ((k - 1) // 2, k // 2, (k - 1) // 2, k // 2)  # torch 'same' alignment
         self._fft: FFTConv2d | None = None
-        self._sep: tuple[SeparableConv2d, ...] = ()
-        if self.params.conv == "separable":
-            self._sep = tuple(SeparableConv2d(g, g) for g in centre_surround_factors(self.params))
         self.pool_weight = pooling_weights(self.params.pool_sigma)
         self._pool_sep: SeparableConv2d | None = None
 
@@ -458,9 +436,9 @@ class SOMS(MapLayer[SOMSParams]):
         self._shape = (h, w)
         if self.params.conv == "fft":
             self._fft = FFTConv2d(self.weight, h, w)
-        if self.params.conv != "direct" and self.params.norm == "quantile":
-            g = gaussian_kernel_1d(self.pool_weight.shape[-1], self.params.pool_sigma)
-            self._pool_sep = SeparableConv2d(g, g)  # the Gaussian is outer(g, g)
+            if self.params.norm == "quantile":
+                g = gaussian_kernel_1d(self.pool_weight.shape[-1], self.params.pool_sigma)
+                self._pool_sep = SeparableConv2d(g, g)  # the Gaussian is outer(g, g)
         self.lif.init_state_with_shape((1, 2, 2, h, w))
 
     def reset(self) -> None:
@@ -469,8 +447,6 @@ class SOMS(MapLayer[SOMSParams]):
 
     def filter(self, x: torch.Tensor) -> torch.Tensor:
         """Centre and surround currents ``(2 polarities, 2 paths, H, W)`` of ``x (2, H, W)``."""
-        if self._sep:
-            return torch.from_numpy(np.stack([conv(x) for conv in self._sep], axis=1))
         x = x.unsqueeze(1)  # polarity as batch: (2, 1, H, W)
         if self._fft is not None:
             return self._fft(x)
@@ -478,8 +454,7 @@ class SOMS(MapLayer[SOMSParams]):
 
     def pool(self, x: torch.Tensor) -> torch.Tensor:
         """The pooling Gaussian applied to each polarity of ``x (2, H, W)`` (zero padding;
-        ``conv`` other than ``"direct"``: two 1-D passes of its factor, equal to float32
-        rounding)."""
+        ``conv="fft"``: two 1-D passes of its factor, equal to float32 rounding)."""
         if self._pool_sep is not None:
             return torch.from_numpy(self._pool_sep(x))
         return F.conv2d(x.unsqueeze(1), self.pool_weight, padding="same")[:, 0]
