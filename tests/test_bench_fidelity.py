@@ -109,6 +109,12 @@ def test_row_pools_seeds_against_the_reference() -> None:
     assert cells.l1 == "0.500 ≤ 0.825"
     still = row_of("shelf", "still", runs)
     assert still.modes["exact"].max_gap_ms is None and still.bar.ok
+    none = ev()
+    quiet = _run(dict.fromkeys(events, none), dict.fromkeys(l1, 0.0), [False, False])
+    row = row_of("shelf", "still", [quiet])
+    assert row.reference_events == 0 and row.modes["default"].events_dev_pct == 0.0
+    assert np.isnan(row.modes["default"].matched_pct) and row.bar.ok
+    assert bar_cells(row).matched == "– ≥ –" and bar_cells(row).verdict == "pass"
 
 
 def test_same_seed_identical_events_in_every_mode() -> None:

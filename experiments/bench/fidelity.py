@@ -125,7 +125,8 @@ class FidelityRow:
 
 
 def bar_check(default: ModeStats, exact: ModeStats) -> BarCheck:
-    """The bar of the default against exact on one row (module docstring).
+    """The bar of the default against exact on one row (module docstring); a row whose
+    reference has no events (``matched_pct`` nan) passes the matched condition.
 
     >>> ex = ModeStats(100, -8.0, 0.5, 40.0, 1.0, 14.0)
     >>> bar_check(ModeStats(99, -9.5, 0.55, 37.0, 2.0, 3.0), ex)
@@ -136,7 +137,9 @@ def bar_check(default: ModeStats, exact: ModeStats) -> BarCheck:
     return BarCheck(
         events=abs(default.events_dev_pct) <= abs(exact.events_dev_pct) + BAR_EVENTS_PTS,
         l1=default.l1_per_event <= BAR_L1_FACTOR * exact.l1_per_event,
-        matched=default.matched_pct >= exact.matched_pct - BAR_MATCHED_PTS,
+        # no reference events (nothing moved): nothing to match
+        matched=math.isnan(exact.matched_pct)
+        or default.matched_pct >= exact.matched_pct - BAR_MATCHED_PTS,
         gap=default.max_gap_ms is None or default.max_gap_ms <= BAR_GAP_MS,
     )
 
@@ -316,6 +319,18 @@ def _pooled_share(a: list[np.ndarray], b: list[np.ndarray], tol_us: int) -> floa
     return 100.0 * got / n
 
 
+def _deviation_pct(n: int, n_ref: int) -> float:
+    """``n`` events against the reference's ``n_ref`` (%): 0 when neither has any, inf
+    when only the mode has some.
+
+    >>> _deviation_pct(75, 100), _deviation_pct(0, 0), _deviation_pct(3, 0)
+    (-25.0, 0.0, inf)
+    """
+    if n_ref == 0:
+        return 0.0 if n == 0 else math.inf
+    return 100.0 * (n / n_ref - 1.0)
+
+
 def row_of(scene: str, motion: str, runs: list[Run], tol_us: int = 1000) -> FidelityRow:
     """Pool the seeds' runs of one row into its :class:`FidelityRow`."""
     ev = {m: [np.concatenate(r.events[m]) for r in runs] for m in ("reference", *MODES)}
@@ -331,7 +346,7 @@ def row_of(scene: str, motion: str, runs: list[Run], tol_us: int = 1000) -> Fide
         gaps = [g for g in gaps if g is not None]
         modes[m] = ModeStats(
             events=n,
-            events_dev_pct=100.0 * (n / n_ref - 1.0) if n_ref else float("nan"),
+            events_dev_pct=_deviation_pct(n, n_ref),
             l1_per_event=sum(r.l1[m] for r in runs) / max(n_ref, 1),
             matched_pct=_pooled_share(ev["reference"], ev[m], tol_us),
             max_gap_ms=max(gaps) if motion == "saccade" and gaps else None,
