@@ -47,6 +47,7 @@ import math
 from dataclasses import dataclass
 
 import nengo
+import numba
 import numpy as np
 
 from agents.fixation import action_to_gaze_degrees
@@ -477,44 +478,89 @@ class FusedSteps:
         return cls(sim, ops)
 
     def run(self, n: int) -> None:
-        """Advance the simulator ``n`` steps (as ``sim.run_steps(n)``)."""
+        """Advance the simulator ``n`` steps (as ``sim.run_steps(n)``). The target node's
+        function is read once (the controller holds the target over a call); the output
+        node's function gets each step's time and value after the steps."""
         x = self._x
         for k, xs in enumerate(self._x_state):  # the state as the simulator holds it
             x[k] = xs.item()
-        with np.errstate(invalid="raise", divide="ignore"):  # as Simulator.step
-            self._run(n)
+        s0 = int(self._step)
+        t0 = (s0 + 1) * self.dt
+        target = np.asarray(self._read_target(t0), dtype=np.float64)
+        u_seq = np.empty((n, self._u_in.size))
+        (e1, e2), (d0, d1, d2) = self._ens_src, self._filter_dst
+        lif = self._lif
+        _fused_sac_steps(
+            n, self.dt, target, *self._filter_src, self._bias, self._enc, self._blk,
+            self._dec, self._a, self._b, self._filter_idx, x, self._J, self._out,
+            self._voltage, self._refractory, self._ens_in, self._weighted, self._u_in,
+            self._target_out, e1, e2, self._u_src, d0[0], d0[1], d1[0], d1[1], d2[0], d2[1],
+            float(lif.tau_rc), float(lif.tau_ref), float(lif.min_voltage),
+            float(lif.amplitude), u_seq,
+        )  # fmt: skip
+        if not np.isfinite(self._voltage).all():  # Simulator.step raises on these
+            raise FloatingPointError("invalid value in the sAC's LIF step")
+        self._step[...] = s0 + n
+        self._time[...] = self._step * self.dt
+        for k in range(n):
+            self._store((s0 + k + 1) * self.dt, u_seq[k])
         for k, xs in enumerate(self._x_state):
             xs.flat[0] = x[k]
         self.sim._probe_step_time()  # the simulator's n_steps and time (no probes here)
 
-    def _run(self, n: int) -> None:
-        dt = self.dt
-        step, time, target_out = self._step, self._time, self._target_out
-        u_in, ens_in, J, bias = self._u_in, self._ens_in, self._J, self._bias
-        out, weighted = self._out, self._weighted
-        (e1, e2), u_src = self._ens_src, self._u_src
-        a, b, idx, x = self._a, self._b, self._filter_idx, self._x
-        for _ in range(n):
-            step[...] += 1
-            time[...] = step * dt
-            t = time.item()
-            u_in[...] = 0.0
-            u_in += u_src
-            J[...] = bias
-            ens_in[...] = 0.0
-            ens_in += e1
-            ens_in += e2
-            weighted[...] = 0.0
-            target_out[...] = self._read_target(t)
-            self._store(t, np.copy(u_in))
-            J += self._enc * ens_in[self._blk]  # encoders: one product per neuron
-            self._lif.step(dt, J, out, self._voltage, self._refractory)
-            # decoders: each axis' sum over its neurons in index order, from 0.0
-            weighted += np.add.accumulate(self._dec * out.reshape(2, -1), axis=1)[:, -1] + 0.0
-            # the six lowpass filters (nengo's "update" mode: read at the next step)
-            x[...] = a * x + b * np.concatenate(self._filter_src)[idx]
-            for arr, sel in self._filter_dst:
-                arr[...] = x[sel]
+
+@numba.njit(cache=True, nogil=True)
+def _fused_sac_steps(
+    n, dt, target, src_target, src_centre, src_weighted, bias, enc, blk, dec, a, b, idx, x,
+    J, out, voltage, refractory, ens_in, weighted, u_in, target_out, e1, e2, u_src,
+    d0, sel0, d1, sel1, d2, sel2, tau_rc, tau_ref, min_voltage, amplitude, u_seq,
+):  # fmt: skip
+    """:meth:`FusedSteps.run`'s ``n`` steps: per step the operators' arithmetic in
+    nengo's order and with its floating-point operations (no contraction: numba's
+    default), the LIF update as ``nengo.LIF.step`` (its ``expm1`` and ``log1p`` are the
+    C library's, as NumPy's without AVX-512); ``u_seq[k]`` gets the output node's input."""
+    src = np.empty(6)
+    for k in range(n):
+        for i in range(u_in.size):
+            u_in[i] = 0.0 + u_src[i]
+            u_seq[k, i] = u_in[i]
+        for i in range(ens_in.size):
+            ens_in[i] = (0.0 + e1[i]) + e2[i]
+        for i in range(target_out.size):
+            target_out[i] = target[i]
+        for i in range(J.size):
+            J[i] = bias[i] + enc[i] * ens_in[blk[i]]
+        # nengo.LIF.step
+        for i in range(J.size):
+            refractory[i] -= dt
+            delta_t = min(max(dt - refractory[i], 0.0), dt)
+            voltage[i] -= (J[i] - voltage[i]) * math.expm1(-delta_t / tau_rc)
+            spiked = voltage[i] > 1
+            out[i] = amplitude / dt if spiked else 0.0
+            t_spike = 0.0
+            if spiked:
+                t_spike = dt + tau_rc * math.log1p(-(voltage[i] - 1) / (J[i] - 1))
+            if voltage[i] < min_voltage:
+                voltage[i] = min_voltage
+            if spiked:
+                voltage[i] = 0.0
+                refractory[i] = tau_ref + t_spike
+        # decoders: each axis' sum over its neurons in index order
+        m = dec.shape[1]
+        for r in range(dec.shape[0]):
+            acc = dec[r, 0] * out[r * m]
+            for j in range(1, m):
+                acc += dec[r, j] * out[r * m + j]
+            weighted[r] = 0.0 + (acc + 0.0)
+        # the six lowpass filters (nengo's "update" mode: read at the next step)
+        src[0], src[1] = src_target[0], src_target[1]
+        src[2], src[3] = src_centre[0], src_centre[1]
+        src[4], src[5] = src_weighted[0], src_weighted[1]
+        for f in range(x.size):
+            x[f] = a[f] * x[f] + b[f] * src[idx[f]]
+        d0[0], d0[1] = x[sel0[0]], x[sel0[1]]
+        d1[0], d1[1] = x[sel1[0]], x[sel1[1]]
+        d2[0], d2[1] = x[sel2[0]], x[sel2[1]]
 
 
 def _same(a: nengo.builder.Signal, b: nengo.builder.Signal) -> bool:

@@ -79,7 +79,7 @@ import torch
 import torch.nn.functional as F
 
 from agents.kernels import FFTConv2d, same_fft_shape, von_mises_kernel, von_mises_radius
-from agents.soms import MapLayer, lif_layer, tau_steps
+from agents.soms import MapLayer, lif_layer, lif_step, tau_steps
 
 __all__ = [
     "ProtoObjectOutput",
@@ -343,26 +343,31 @@ class ProtoObjectSaliency(MapLayer[ProtoObjectParams]):
             out.append(F.max_pool2d(out[-1], 2))
         return out
 
-    def _border_currents(self, levels: list[torch.Tensor]) -> list[torch.Tensor]:
-        """Border-ownership currents of Eq. (3), ``V ⊙ (excitation − w · inhibition)``,
-        per level ``(C, 2n, h_s, w_s)`` (cell ``(c, j)``, see ``_swap``), from the
-        distinct convolutions ``V_c * VM_j`` of each level (one input transform)."""
-        out = []
-        for s, v in enumerate(levels):
-            gate = v.amax(dim=1, keepdim=True)
+    def _border_currents(self, levels: list[torch.Tensor]) -> torch.Tensor:
+        """Border-ownership currents of Eq. (3), ``V ⊙ (excitation − w · inhibition)``, as
+        the border LIF holds them: one flat buffer of the levels' ``(C, 2n, h_s, w_s)``
+        blocks (cell ``(c, j)``, see ``_swap``; sizes ``_bo_sizes``), from the distinct
+        convolutions ``V_c * VM_j`` of each level (one input transform). The gate ``V ⊙``
+        is applied by computing the cells only where ``V`` fired (elsewhere 0)."""
+        buf = torch.zeros(sum(self._bo_sizes))
+        for s, (v, part) in enumerate(zip(levels, torch.split(buf, self._bo_sizes), strict=True)):
             conv = self._vm_conv[s](v.transpose(0, 1))  # (C, 2n, h_s, w_s)
+            on = torch.nonzero(v.amax(dim=1).reshape(-1)).squeeze(1)
+            c = conv.flatten(2)[:, :, on]
+            inh = c.flatten(0, 1)[self._swap].view_as(c)
             g_exc, g_inh = self._gain[s]
-            inh = conv.flatten(0, 1)[self._swap].view_as(conv)
-            out.append(gate * (conv * g_exc + inh * g_inh))
-        return out
+            if isinstance(g_exc, torch.Tensor):
+                g_exc, g_inh = g_exc.flatten(2)[:, :, on], g_inh.flatten(2)[:, :, on]
+            part.view(c.shape[0], c.shape[1], -1)[:, :, on] = c * g_exc + inh * g_inh
+        return buf
 
     @torch.no_grad()
     def step(self, oms_map: np.ndarray | torch.Tensor) -> ProtoObjectOutput:
         """Advance one step with the OMS map ``(2, H, W)``; returns the saliency."""
         x = self._input(oms_map, "oms_map")
         h, w = x.shape[1:]
-        currents = [c.reshape(-1) for c in self._border_currents(self._levels(x))]
-        spikes = self.border_lif(torch.cat(currents)[None, None])[0, 0]
+        currents = self._border_currents(self._levels(x))
+        spikes = torch.from_numpy(lif_step(self.border_lif, currents.numpy())[0])
         # Grouping currents, Eq. (4), pooled over orientations and levels.
         group = torch.zeros(1, 4, *self._padded)
         for s, b in enumerate(torch.split(spikes, self._bo_sizes)):
@@ -373,7 +378,7 @@ class ProtoObjectSaliency(MapLayer[ProtoObjectParams]):
             if s:
                 g = F.interpolate(g, scale_factor=2**s, mode="bilinear", align_corners=False)
             group += g
-        g_spikes = self.grouping_lif(group[:, :, :h, :w].unsqueeze(1))[0, 0]
+        g_spikes = torch.from_numpy(lif_step(self.grouping_lif, group[:, :, :h, :w].numpy())[0])
         saliency = (g_spikes[0] - g_spikes[1]) + (g_spikes[2] - g_spikes[3])
         self._saliency = saliency
         return ProtoObjectOutput(saliency=saliency, grouping=g_spikes)

@@ -83,6 +83,7 @@ __all__ = [
     "SOMSOutput",
     "SOMSParams",
     "lif_layer",
+    "lif_step",
     "oms_score",
     "peak_scale",
     "peak_score",
@@ -120,6 +121,33 @@ def lif_layer(tau_s: float, dt_s: float, spike_threshold: float = 1.0) -> sl.LIF
     )
     layer.requires_grad_(False)
     return layer
+
+
+def lif_step(layer: sl.LIF, current: np.ndarray) -> np.ndarray:
+    """One time step of a :func:`lif_layer` on its own state, in NumPy: the membrane
+    ``v <- alpha v + I`` (float32, ``alpha`` the layer's ``alpha_mem_calculated``), the
+    ``MultiSpike`` count ``trunc(v / threshold)`` where ``v > 0``, the subtractive reset.
+    The same float32 operations as the layer's forward on ``current[None, None]``, so
+    the spikes and membrane are bit for bit its own, without torch's per-call overhead
+    on small maps. ``current`` has the state's shape; returns the spike counts (float32).
+
+    Example:
+        >>> lif = lif_layer(0.02, 0.01)
+        >>> lif.init_state_with_shape((1, 3))
+        >>> lif_step(lif, np.array([[0.5, 1.5, 2.25]], np.float32)).tolist()
+        [[0.0, 1.0, 2.0]]
+        >>> lif.v_mem.tolist()
+        [[0.5, 0.5, 0.25]]
+    """
+    v = layer.v_mem.numpy()  # the state's memory: updated in place
+    alpha = np.float32(layer.alpha_mem_calculated.item())
+    threshold = np.float32(layer.spike_threshold.item())
+    np.multiply(v, alpha, out=v)
+    v += current
+    spikes = np.trunc(v / threshold)
+    spikes *= v > 0
+    v -= spikes * threshold
+    return spikes
 
 
 _Params = TypeVar("_Params")
@@ -321,12 +349,20 @@ def quantile_score(
         >>> float(s[0, 0, 0]), float(s[0, 5, 5]), float(s[0, 0, 9])
         (1.0, 0.5, 0.0)
     """
-    a = pooled.detach().cpu().numpy().ravel()
+    a = pooled.detach().cpu().numpy()
+    return torch.from_numpy(_quantile_score(a, quantile, gain, floor_spikes, peak_ratio))
+
+
+def _quantile_score(
+    a: np.ndarray, quantile: float, gain: float, floor_spikes: float, peak_ratio: float | None
+) -> np.ndarray:
+    """:func:`quantile_score` on a float32 array."""
+    flat = a.ravel()
     # a selection (introselect) where torch.quantile sorts the map: ≈10× faster here
-    q = _quantile_linear(a, quantile)
-    peak = float(a.max(initial=0.0)) if peak_ratio is not None else 0.0
-    scale = peak_scale(q, peak, gain, peak_ratio, floor_spikes)
-    return torch.clamp(pooled / scale, 0.0, 1.0)
+    q = _quantile_linear(flat, quantile)
+    peak = float(flat.max(initial=0.0)) if peak_ratio is not None else 0.0
+    scale = np.float32(peak_scale(q, peak, gain, peak_ratio, floor_spikes))
+    return np.clip(a / scale, np.float32(0.0), np.float32(1.0))
 
 
 def peak_scale(
@@ -372,6 +408,9 @@ class SOMS(MapLayer[SOMSParams]):
     """Stateful sOMS: call :meth:`step` once per event map ``(2, H, W)`` (counts in one
     step of ``params.dt`` seconds); LIF membranes carry over between calls until
     :meth:`reset`. Any ``H, W`` works; a new size rebuilds and resets the layers.
+
+    A step runs in NumPy on the sinabs layer's own state (:func:`lif_step`), with the
+    convolutions by ``params.conv``; its outputs are tensors sharing that memory.
 
     Examples:
         >>> import numpy as np
@@ -431,14 +470,17 @@ class SOMS(MapLayer[SOMSParams]):
         p = self.params
         if p.norm == "minmax":
             return oms_score(diff)
-        return quantile_score(self.pool(-diff), p.quantile, p.gain, p.floor_spikes, p.peak_ratio)
+        pooled = self.pool(-diff).numpy()
+        return torch.from_numpy(
+            _quantile_score(pooled, p.quantile, p.gain, p.floor_spikes, p.peak_ratio)
+        )
 
     @torch.no_grad()
     def step(self, event_map: np.ndarray | torch.Tensor) -> SOMSOutput:
         """Advance one step with the event counts ``(2, H, W)``; returns the OMS map."""
         x = self._input(event_map, "event_map")
-        spikes = self.lif(self.filter(x)[None, None])[0, 0]  # (2, 2, H, W)
-        diff = spikes[:, 0] - spikes[:, 1]
+        spikes = lif_step(self.lif, self.filter(x).numpy())[0]  # (2, 2, H, W)
+        diff = torch.from_numpy(spikes[:, 0] - spikes[:, 1])
         score = self.score(diff)
-        oms = ((x > 0) & (score >= self.params.alpha)).float()
-        return SOMSOutput(oms=oms, diff=diff, score=score)
+        oms = (x.numpy() > 0) & (score.numpy() >= np.float32(self.params.alpha))
+        return SOMSOutput(oms=torch.from_numpy(oms.astype(np.float32)), diff=diff, score=score)

@@ -1,6 +1,7 @@
 """The agent's fast paths give the old implementations' results on seeded input: the
 separable pooling (against the FFT pair it replaced and conv2d), the partition quantile
-(bit for bit np.quantile), the fused sAC stepper (bit for bit nengo's simulator)."""
+(bit for bit np.quantile), the NumPy LIF step (bit for bit sinabs' forward), the fused
+sAC stepper (bit for bit nengo's simulator)."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import torch.nn.functional as F
 from agents.attention import AGENT_SOMS
 from agents.control import AttentionController, ControlParams, FusedSteps
 from agents.kernels import FFTConv2d, SeparableConv2d, gaussian_kernel, gaussian_kernel_1d
-from agents.soms import SOMS, _quantile_linear, peak_scale
+from agents.soms import SOMS, _quantile_linear, lif_layer, lif_step, peak_scale
 
 
 @pytest.mark.parametrize(("size", "sigma"), [(37, 6.0), (8, 1.0), (8, 4.0), (5, 0.7)])
@@ -52,6 +53,27 @@ def test_partition_quantile_is_np_quantile_bit_for_bit() -> None:
             assert _quantile_linear(a, q) == float(np.quantile(a, q)), (i, n, q)
     with pytest.raises(ValueError, match="empty"):
         _quantile_linear(np.zeros(0, np.float32), 0.9)
+
+
+@pytest.mark.parametrize("threshold", [1.0, 0.75])
+def test_lif_step_is_the_sinabs_forward_bit_for_bit(threshold: float) -> None:
+    ref, fast = lif_layer(0.1, 0.013, threshold), lif_layer(0.1, 0.013, threshold)
+    for layer in (ref, fast):
+        layer.init_state_with_shape((1, 2, 3, 50, 40))
+    rng = np.random.default_rng(1)
+    for k in range(25):
+        current = (rng.standard_normal((2, 3, 50, 40)) * 10 ** (k % 4)).astype(np.float32)
+        if k == 12:  # a new step length, as SaliencyPipeline sets it
+            for layer in (ref, fast):
+                layer.tau_mem.fill_(3.0)
+        if k == 18:
+            ref.reset_states()
+            fast.reset_states()
+        want = ref(torch.from_numpy(current)[None, None])[0, 0]
+        got = lif_step(fast, current)
+        assert np.array_equal(got[0], want.numpy()), k
+        assert np.array_equal(fast.v_mem.numpy(), ref.v_mem.numpy()), k
+        assert got.max() > 1.0  # several spikes a step somewhere
 
 
 def test_soms_quantile_outputs_equal_the_fft_pooling_and_np_quantile() -> None:

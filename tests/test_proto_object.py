@@ -218,9 +218,13 @@ def test_border_currents_equal_the_full_two_channel_convolutions(split, border):
     rng = np.random.default_rng(7)
     oms = (rng.random((2, 72, 88)) < 0.06).astype(np.float32)
     po = ProtoObjectSaliency(ProtoObjectParams(polarity_split=split, border=border), 72, 88)
-    got = po._border_currents(po._levels(torch.as_tensor(oms)))
+    flat = po._border_currents(po._levels(torch.as_tensor(oms)))
     ref = _reference_currents(po, oms)
     m = po.bank.shape[0]
+    got = [
+        part.view(-1, m, hs, ws)
+        for part, (hs, ws) in zip(torch.split(flat, po._bo_sizes), po._level_shapes, strict=True)
+    ]
     for g, r in zip(got, ref, strict=True):
         if split:  # cell (1, j) is line 1 of θ_j (channel 2j), cell (0, j) line 2 (2j + 1)
             r = r.reshape(m, 2, *r.shape[-2:]).permute(1, 0, 2, 3).flip(0)
