@@ -131,7 +131,7 @@ def lif_step(layer: sl.LIF, current: np.ndarray) -> np.ndarray:
     the spikes and membrane are bit for bit its own, without torch's per-call overhead
     on small maps. ``current`` has the state's shape; returns the spike counts (float32).
 
-    Example:
+    Examples:
         >>> lif = lif_layer(0.02, 0.01)
         >>> lif.init_state_with_shape((1, 3))
         >>> lif_step(lif, np.array([[0.5, 1.5, 2.25]], np.float32)).tolist()
