@@ -82,6 +82,7 @@ def test_frame_source_reaches_the_env() -> None:
         "frames": "exact",
         "keyframe_ms": 4.0,
         "keyframe_px": 2.0,
+        "quality": "fast",
     }
     env = gym.make("wander/Wander-v0", **kw)
     try:
