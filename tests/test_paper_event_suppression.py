@@ -278,6 +278,7 @@ def test_short_trial_rows_per_phase(tmp_path):
         "pause_s=[0.04, 0.04]",
         "lead_s=0.02",
         "soms=agent",
+        "second_soms=table",
     ]
     cfg = resolve_config(EXPERIMENT, sets=sets)
     specs = make_trials(EXPERIMENT, cfg, 3)
@@ -292,6 +293,13 @@ def test_short_trial_rows_per_phase(tmp_path):
     assert rows["hand"]["hit_steps"] == rows["both"]["hit_steps"] == 2
     assert rows["shake"]["hit_steps"] == rows["pause"]["hit_steps"] == 0
     assert sorted(r["phase_index"] for r in rows.values()) == [0, 1, 2, 3]
+    # the paper-literal sOMS scored on the same windows: same events in, its own out
+    both = rows["both"]
+    assert both["second:events_in"] == both["events_in"]
+    assert both["second:hit_steps"] == both["hit_steps"]
+    assert both["second:events_out"] != both["events_out"]
+    with pytest.raises(ValueError, match=r"second_soms\.dt"):
+        EventSuppressionConfig(second_soms=SOMSParams(dt=0.01))
 
 
 def test_soms_is_a_block_or_a_preset_name_and_bad_values_say_which():

@@ -163,7 +163,9 @@ class EventSuppressionConfig:
     ``shake_s``, ``hand_s``, ``both_s``, ``pause_s``: each phase's length range (s),
     drawn per trial. ``soms`` is the sOMS block (``--set soms.alpha=0.6``) or a preset
     name (:func:`soms_preset`: ``--set soms=agent`` runs the agent's sOMS); its ``dt`` is
-    the sOMS step, a whole number of ``window_s`` windows. The former flat keys
+    the sOMS step, a whole number of ``window_s`` windows. ``second_soms`` (a block or a
+    preset name, same ``dt``) is scored on the same windows too (the ``second:``
+    columns: two sOMS side by side on identical events). The former flat keys
     ``alpha``... and ``soms_step_s`` are still read (:data:`CONFIG_ALIASES`).
     ``hand_margin_px``: the hand's events are those on its swept mask or within that many
     pixels (:func:`swept`)."""
@@ -186,12 +188,19 @@ class EventSuppressionConfig:
     hand_ratio: float | None = None
     repeats: int = 10
     soms: SOMSParams | SOMSPreset = field(default_factory=lambda: soms_preset("table"))
+    second_soms: SOMSParams | SOMSPreset | None = None
     hit_sigma_px: float = 2.0
     hand_margin_px: int = 2
 
     def __post_init__(self) -> None:
         if isinstance(self.soms, str):  # a preset name: its block
             object.__setattr__(self, "soms", soms_preset(self.soms))
+        if isinstance(self.second_soms, str):
+            object.__setattr__(self, "second_soms", soms_preset(self.second_soms, self.soms.dt))
+        if self.second_soms is not None and self.second_soms.dt != self.soms.dt:
+            raise ValueError(
+                f"second_soms.dt={self.second_soms.dt} must equal soms.dt={self.soms.dt}"
+            )
         for name in ("window_s", "hit_sigma_px"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
@@ -599,9 +608,20 @@ def phase_row(
 
 
 def run_trial(cfg: EventSuppressionConfig, spec: TrialSpec) -> dict[str, Any]:
-    """The row of phase ``spec.params["phase"]`` of the trial of ``spec.seed``."""
+    """The row of phase ``spec.params["phase"]`` of the trial of ``spec.seed``; with a
+    ``second_soms``, its figures on the same windows in ``second:`` columns."""
     phase = str(spec.params["phase"])
-    return phase_row(cfg, phase, spec.seed, record(cfg, phase, spec.seed), cfg.soms_params)
+    rec = record(cfg, phase, spec.seed)
+    row = phase_row(cfg, phase, spec.seed, rec, cfg.soms_params)
+    if cfg.second_soms is not None:
+        assert isinstance(cfg.second_soms, SOMSParams)
+        other = phase_row(cfg, phase, spec.seed, rec, cfg.second_soms)
+        row |= {
+            f"second:{k}": v
+            for k, v in other.items()
+            if not k.startswith("_") and k not in ("phase_index", "phase_s")
+        }
+    return row
 
 
 def grid(cfg: EventSuppressionConfig) -> list[dict[str, Any]]:
