@@ -167,6 +167,7 @@ def plot(rows: Sequence[Row], path: Path, shake_px_s: float) -> Path:
     import matplotlib.pyplot as plt
 
     amps = sorted({float(r[AMPLITUDE]) for r in rows})
+    ratios = sorted({float(r[RATIO]) for r in rows})
     seeds = len({int(r["seed"]) for r in rows})
     fig, axes = plt.subplots(1, len(MEASURES), figsize=(17, 4.4))
     colours = {label: c for label, c in zip(VARIANTS, ("tab:blue", "tab:red"), strict=True)}
@@ -191,22 +192,25 @@ def plot(rows: Sequence[Row], path: Path, shake_px_s: float) -> Path:
                 ax.fill_between(x, lo, hi, color=colours[label], alpha=0.12, lw=0)
         ax.axvline(1.0, color="k", lw=0.8, ls=":")
         ax.set_xscale("log", base=2)
-        ax.set(xlabel="hand / shake image speed", ylabel=name, ylim=(-2, 102))
+        ax.set_xticks(ratios, [f"{t:g}" for t in ratios], fontsize=7)
+        ax.minorticks_off()
+        ax.set(xlabel="hand / shake image speed (px/s over px/s)", ylabel=name)
         ax.set_title(name, fontsize=9)
         if column == "hand_hit_pct":
+            ax.set_ylim(-2, 102)
             for level in LEVELS:
                 ax.axhline(level, color="0.5", lw=0.8, ls="--")
-    axes[0].text(1.03, 3, "equal speeds", fontsize=7, rotation=90)
+    axes[0].text(1.03, 60, "equal speeds", fontsize=7, rotation=90)
     handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=8, bbox_to_anchor=(0.5, -0.02))
+    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=8, bbox_to_anchor=(0.5, 0.0))
     fig.suptitle(
         "The hand against the shake: the sOMS on the hand scene's `both` phase as the hand's "
-        f"image speed goes from 0.5 to 8 × the shake's ({shake_px_s:.1f} px/s at the centre); "
+        f"image speed goes from {ratios[0]:g} to {ratios[-1]:g} × the shake's ({shake_px_s:.1f} "
+        "px/s at the centre); "
         f"{seeds} seeds a point, mean and 95 % interval; dashed: 50 % and 90 %",
         fontsize=10,
     )
-    fig.subplots_adjust(bottom=0.24, wspace=0.3)
-    return save_figure(fig, path)
+    return save_figure(fig, path, rect=(0, 0.08, 1, 1))
 
 
 def main(argv: Sequence[str] | None = None) -> int:
