@@ -829,6 +829,9 @@ def plot(
             errs[0].append(m - lo if math.isfinite(lo) else 0.0)
             errs[1].append(hi - m if math.isfinite(hi) else 0.0)
         ax.bar(x + (j - 1.5) * width, means, width, yerr=errs, capsize=2, label=label)
+    for i, phase in enumerate(cfg.phases):
+        if phase not in HAND_PHASES:  # the hand holds still: no hit is scored
+            ax.text(x[i] + 1.5 * width, 22, "no hit:\nhand still", fontsize=6, ha="center")
     ax.axhline(
         PAPER_SUPPRESSION["suppressed_pct"],
         color="k",
