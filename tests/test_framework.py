@@ -33,8 +33,8 @@ from experiments.framework import (
     write_result_folder,
 )
 
-# A tiny event_suppression run: 20 windows of 2 ms, one sOMS step of 20 ms.
-TINY = ["duration_s=0.04", "repeats=2", "active_s=0.02", "pause_s=0.01"]
+# A tiny event_suppression run: the hand phase alone, 20 windows of 2 ms (two sOMS steps).
+TINY = ["repeats=2", "phases=[hand]", "hand_s=[0.04, 0.04]", "lead_s=0"]
 
 
 @dataclass(frozen=True)

@@ -151,3 +151,26 @@ def test_scorecard_config_is_validated():
     with pytest.raises(ConfigError, match="replicates"):
         resolve_config(exp, sets=["replicates=3"])
     assert OMSScorecardConfig().replicates == 2
+
+
+def test_hand_line_passes_only_when_every_hand_bar_holds():
+    from experiments.paper.oms_scorecard import scorecard
+
+    cfg = OMSScorecardConfig(parts=("hand",))
+    row = {"part": "hand"}
+    for k, hit in (("paper", 1.0), ("agent", 0.999)):
+        row |= {
+            f"{k}:hand:hit": hit,
+            f"{k}:hand:suppressed": 0.823,
+            f"{k}:hand:shake_suppressed": 0.995,
+            f"{k}:hand:hand_kept": 0.62 if k == "agent" else 0.17,
+            f"{k}:hand:hit_steps": 804,
+        }
+    ((claim, bar, cells),) = scorecard(cfg, [row])
+    assert claim == "hand scene (suppression protocol, 4 phases)"
+    assert bar.startswith("hand hit ≥ 90 % of the hand-moving steps, ≥ 75 % suppressed")
+    assert cells["agent"] == (
+        "**pass** hand hit in 99.9 % of 804 steps; 82.3 % suppressed (paper 85.16 %); "
+        "shake-only 99.5 %; hand's events kept 62.0 %"
+    )
+    assert cells["paper"].startswith("FAIL hand hit in 100.0 %")  # keeps 17 % of the hand

@@ -7,14 +7,14 @@ import pytest
 from experiments.framework import ConfigError, TrialSpec, read_csv
 from experiments.sweep import expand, load_sweep, run_sweep, sweep_from_dict
 
-# Two real, tiny trials (event_suppression: 10 windows of 2 ms each).
+# Two real, tiny trials (event_suppression: the hand phase, 10 windows of 2 ms each).
 TINY_SWEEP = {
     "name": "tiny",
     "seeds": [0],
     "experiments": [
         {
             "experiment": "event_suppression",
-            "set": {"duration_s": 0.02, "repeats": 1, "active_s": 0.01, "pause_s": 0.01},
+            "set": {"repeats": 1, "phases": ["hand"], "hand_s": [0.02, 0.02], "lead_s": 0.0},
             "grid": {"alpha": [0.5, 0.8]},
         }
     ],
@@ -26,7 +26,7 @@ TOY_SWEEP = {
     "experiments": [
         {
             "experiment": "event_suppression",
-            "set": {"repeats": 2},
+            "set": {"repeats": 2, "phases": ["hand"]},
             "grid": {"alpha": [0.5, 0.8], "scene": ["hand", "office"]},
         }
     ],
@@ -55,7 +55,7 @@ def test_expand_is_grid_times_seeds_times_repeats_in_order_without_duplicates():
     assert [s.seed for s in specs[:3]] == [0, 1, 2]
     first = specs[0]
     assert first.extra == {"experiment": "event_suppression", "cfg.alpha": 0.5, "cfg.scene": "hand"}
-    assert (first.repeat, first.config["repeats"], first.params) == (0, 2, {"scene": "hand"})
+    assert (first.repeat, first.config["repeats"], first.params) == (0, 2, {"phase": "hand"})
     assert [(s.extra["cfg.alpha"], s.extra["cfg.scene"]) for s in specs[::3]] == [
         (0.5, "hand"),
         (0.5, "office"),
@@ -113,7 +113,7 @@ def test_resume_skips_finished_trials_and_runs_only_missing_or_new_ones(tmp_path
         "experiment",
         "cfg.alpha",
         "cfg.scene",
-        "scene",
+        "phase",
     ]
 
 

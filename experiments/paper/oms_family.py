@@ -110,7 +110,9 @@ def measure_recording(rec: Recording, variants: Mapping[str, SOMSParams]) -> dic
     acc = {k: np.zeros(4, np.int64) for k in params}
     with torch.no_grad():
         for names in groups.values():
-            somses = {k: SOMS(params[k]) for k in names}
+            # built for the map size: a variant that only pools (never steps) gets its
+            # separable FFT-mode pooling too, not the direct 37×37 conv2d (0.5 s a call)
+            somses = {k: SOMS(params[k], *rec.counts.shape[-2:]) for k in names}
             lif = somses[names[0]]
             for counts in rec.counts:
                 x = torch.from_numpy(counts.astype(np.float32))
