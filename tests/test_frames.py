@@ -63,8 +63,9 @@ def test_a_still_scene_renders_no_key_and_hands_the_dvs_one_frame_a_step():
 @pytest.mark.slow
 def test_a_slow_walk_renders_one_key_a_step():
     """Office, a fixational walk of ±0.1 degree a step at the default speed (under
-    1.3 px of image motion a step): one key a step, each step's end."""
-    ev, renders, frames = _run("office", 6, "walk")
+    1.3 px of image motion a step), keys placed by motion alone (keyframe_max_ms None):
+    one key a step, each step's end."""
+    ev, renders, frames = _run("office", 6, "walk", keyframe_max_ms=None)
     assert renders == [1] * 6
     assert all(1 <= f <= 12 for f in frames)
     assert len(ev) > 1000
@@ -74,21 +75,24 @@ def test_a_slow_walk_renders_one_key_a_step():
 def test_a_fast_saccade_takes_keys_where_the_image_moves_2_px():
     """A 20 degree saccade at the unit's upper speed (0.75 degree a step, up to 3.5 px at
     the image corners): two keys a step while it moves fast, one as it starts; the same
-    seed gives the same events and keys."""
-    ev1, renders1, _ = _run("office", 6, "saccade", ptu=FAST_PTU)
-    ev2, renders2, _ = _run("office", 6, "saccade", ptu=FAST_PTU)
+    seed gives the same events and keys (keys placed by motion alone)."""
+    ev1, renders1, _ = _run("office", 6, "saccade", ptu=FAST_PTU, keyframe_max_ms=None)
+    ev2, renders2, _ = _run("office", 6, "saccade", ptu=FAST_PTU, keyframe_max_ms=None)
     assert renders1 == [1, 2, 2, 2, 2, 2]
     assert renders1 == renders2 and np.array_equal(ev1, ev2)
 
 
 @pytest.mark.slow
 def test_keys_and_exact_frames_give_nearly_the_same_events():
-    """Office, still camera and moving objects, 8 steps: the default keys within 5 % of
-    the exact mode's events (measured: 3.4 % fewer), with a tenth of its renders."""
-    ev_k, renders_k, _ = _run("office", 8, frames="keyframes")
+    """Office, still camera and moving objects, 8 steps: one key a step within 5 % of
+    the exact mode's events (measured: 3.4 % fewer), with a tenth of its renders; the
+    default (keys at most 5 ms apart) within 3 %, with a fifth."""
+    ev_k, renders_k, _ = _run("office", 8, frames="keyframes", keyframe_max_ms=None)
+    ev_d, renders_d, _ = _run("office", 8)
     ev_e, renders_e, _ = _run("office", 8, frames="exact")
     assert abs(len(ev_k) / len(ev_e) - 1) < 0.05
-    assert sum(renders_k) == 8 and sum(renders_e) >= 80
+    assert abs(len(ev_d) / len(ev_e) - 1) < 0.03
+    assert sum(renders_k) == 8 and sum(renders_d) == 16 and sum(renders_e) >= 80
 
 
 @pytest.mark.slow
@@ -103,7 +107,7 @@ def test_keyframe_max_ms_spaces_keys_while_anything_moves():
 def test_keyframe_max_ms_is_checked():
     from wander_env.env import WanderConfig
 
-    assert WanderConfig().keyframe_max_ms is None
+    assert WanderConfig().keyframe_max_ms == 5.0
     with pytest.raises(ValueError, match=r"keyframe_max_ms=2\.5 must be a whole number"):
         WanderConfig(keyframe_max_ms=2.5)
     with pytest.raises(ValueError, match="keyframe_max_ms must be a finite number > 0"):

@@ -107,9 +107,10 @@ class WanderConfig:
     # end; none while nothing moves (wander_env.keyframes.adaptive_key_ticks).
     keyframe_px: float | None = 2.0
     # With keyframe_px: keys no more than this far apart while anything moves (None: no
-    # limit, as few as one key a step). 5 brings the events of slowly moving textures
-    # 1.5-2 points closer to the exact mode's (office, hand) at two keys a step.
-    keyframe_max_ms: float | None = None
+    # limit, as few as one key a step). 5 (two keys a step) keeps the events within 2
+    # points of exact rendering's against the fine reference (wander bench fidelity;
+    # one key a step: up to 3 points further, at 1.8x the speed on a still camera).
+    keyframe_max_ms: float | None = 5.0
     # Render at this many times the resolution and average blocks (see RenderParams): the
     # finer-antialiased reference of the fidelity benchmark (2 = 16 samples a pixel).
     supersample: int = 1
