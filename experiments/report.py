@@ -227,11 +227,54 @@ def _sweep_folders(root: Path) -> list[tuple[Path, dict[str, Any]]]:
     return [(d, read_json(d / "sweep.json")) for d in found]
 
 
-def _speed_sweeps(root: Path) -> list[tuple[Path, list[dict[str, Any]]]]:
-    """The speed sweeps under ``root/sweeps`` that have a table, with its rows (checked)."""
+def _sweep_tables(root: Path) -> list[tuple[Path, list[dict[str, Any]]]]:
+    """The sweeps under ``root/sweeps`` that have a table, with its rows (checked)."""
     sweeps = root / "sweeps"
-    found = sorted(sweeps.glob("speed*")) if sweeps.is_dir() else []
+    found = sorted(sweeps.iterdir()) if sweeps.is_dir() else []
     return [(d, read_rows(d / "results.csv")) for d in found if (d / "results.csv").is_file()]
+
+
+def _speed_sweeps(root: Path) -> list[tuple[Path, list[dict[str, Any]]]]:
+    """The saccade-speed sweeps (``speed*``) with their rows."""
+    return [
+        (d, rows)
+        for d, rows in _sweep_tables(root)
+        if d.name.startswith("speed") and rows and "time_to_foveate_s" in rows[0]
+    ]
+
+
+def _ratio_sweeps(root: Path) -> list[tuple[Path, list[dict[str, Any]]]]:
+    """The hand-against-shake sweeps (rows with ``cfg.hand_ratio``), their ``both`` rows."""
+    from experiments.paper.speed_ratio import RATIO
+
+    found = []
+    for d, rows in _sweep_tables(root):
+        if rows and RATIO in rows[0] and "phase" in rows[0]:
+            found.append((d, [r for r in rows if r["phase"] == "both"]))
+    return found
+
+
+def ratio_section(root: Path, figures: Path) -> list[str]:
+    """Each speed-ratio sweep's table (hit, suppression, background kept; the crossing
+    ratios) and its figure, drawn into ``figures``."""
+    from experiments.paper.event_suppression import Shake, image_speeds
+    from experiments.paper.speed_ratio import plot, table
+    from wander_env.scene_config import load_scene_config
+
+    lines: list[str] = []
+    for d, rows in _ratio_sweeps(root):
+        _, shake = image_speeds(load_scene_config("hand"), Shake())
+        text = _checked(d / "results.csv", "the speed-ratio table", table, rows)
+        path = figures / f"sweep_{d.name}_ratio.png"
+        fig = _checked(d / "results.csv", "the speed-ratio figure", plot, rows, path, shake)
+        lines += [
+            f"## The hand against the shake: sweep {d.name}",
+            "",
+            text,
+            _figure_link(fig, figures),
+            "",
+        ]
+    return lines
 
 
 def _sweeps(root: Path, report_dir: Path) -> list[str]:
@@ -339,6 +382,7 @@ def render_report(
         results[name] = None if folder is None else load_result(folder, name)
     _studies_table(root, report_dir)
     _speed_sweeps(root)
+    _ratio_sweeps(root)
     sweeps = _sweeps(root, report_dir)
     lines = [
         "# wander: the paper's results and ours",
@@ -352,6 +396,7 @@ def render_report(
     for name in EXPERIMENT_NAMES:
         lines += _section(name, results[name], report_dir, figures)
     lines += studies_section(root, report_dir, figures)
+    lines += ratio_section(root, report_dir / "report_figures" if figures is None else figures)
     lines += sweeps
     return "\n".join(lines).rstrip() + "\n"
 

@@ -5,9 +5,11 @@ from __future__ import annotations
 import math
 
 import pytest
+from typer.testing import CliRunner
 
+from experiments.cli.main import app
 from experiments.framework import write_csv
-from experiments.paper.speed_ratio import crossing, crossings, curve, main, table
+from experiments.paper.speed_ratio import crossing, crossings, curve, table
 
 
 def rows_of(hits: dict[float, list[float]], amp: float = 1.0) -> list[dict]:
@@ -62,7 +64,7 @@ def test_curve_and_crossings_from_rows():
     assert early <= mean <= late
 
 
-def test_table_and_main_write_the_crossings(tmp_path, capsys):
+def test_table_and_the_report_give_the_crossings(tmp_path):
     rows = rows_of({1.0: [0, 10], 2.0: [50, 70], 4.0: [90, 100]})
     rows += rows_of({1.0: [0, 0], 2.0: [0, 0], 4.0: [20, 40]}, amp=2.0)
     text = table(rows)
@@ -72,8 +74,13 @@ def test_table_and_main_write_the_crossings(tmp_path, capsys):
     assert f"| agent's sOMS (quantile norm) | ±1° | {2 ** (45 / 55):.2f} (" in text
     assert f"| {2 ** (1 + 30 / 35):.2f} (" in text
     assert "| agent's sOMS (quantile norm) | ±2° | not reached | not reached |" in text
-    write_csv(rows, tmp_path / "results.csv")
-    assert main([str(tmp_path)]) == 0
-    assert (tmp_path / "speed_ratio.md").read_text() == text
-    assert (tmp_path / "speed_ratio.png").stat().st_size > 0
-    assert "figure:" in capsys.readouterr().out
+    sweep = tmp_path / "results" / "sweeps" / "speed_ratio"
+    write_csv(rows, sweep / "results.csv")
+    out = tmp_path / "REPORT.md"
+    args = ["report", "--results", str(tmp_path / "results"), "--out", str(out)]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    report = out.read_text()
+    assert "## The hand against the shake: sweep speed_ratio" in report
+    assert text in report
+    assert (tmp_path / "report_figures" / "sweep_speed_ratio_ratio.png").stat().st_size > 0

@@ -12,15 +12,15 @@ The rows come from the sweep ``experiments/paper/configs/sweep_speed_ratio.yaml`
 module reads its ``results.csv`` and gives, per sOMS, amplitude and ratio, the hand hit
 rate, the events suppressed, the background's and the hand's events kept (means over the
 seeds with 95 % bootstrap intervals), the ratios where the hit rate crosses 50 % and 90 %
-(:func:`crossing`), a markdown table and a figure::
+(:func:`crossing`), a markdown table and a figure; ``wander report`` puts both in its
+report for every sweep whose rows carry a ``cfg.hand_ratio`` column::
 
     wander sweep experiments/paper/configs/sweep_speed_ratio.yaml --workers 1
-    python -m experiments.paper.speed_ratio results/sweeps/speed_ratio
+    wander report
 """
 
 from __future__ import annotations
 
-import argparse
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -28,11 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
-from experiments.framework import Row, read_csv
+from experiments.framework import Row
 from experiments.stats import mean_ci
 from wander_env.viz import save_figure
 
-__all__ = ["VARIANTS", "Point", "crossing", "curve", "main", "plot", "table"]
+__all__ = ["RATIO", "VARIANTS", "Point", "crossing", "curve", "plot", "table"]
 
 #: The two sOMS of the sweep: label -> column prefix (the second one's ``second:``).
 VARIANTS: dict[str, str] = {
@@ -211,25 +211,3 @@ def plot(rows: Sequence[Row], path: Path, shake_px_s: float) -> Path:
         fontsize=10,
     )
     return save_figure(fig, path, rect=(0, 0.08, 1, 1))
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Print the table and write ``speed_ratio.png`` and ``speed_ratio.md`` in the folder."""
-    from experiments.paper.event_suppression import Shake, image_speeds
-    from wander_env.scene_config import load_scene_config
-
-    ap = argparse.ArgumentParser(prog="python -m experiments.paper.speed_ratio")
-    ap.add_argument("folder", type=Path, help="the speed_ratio sweep's folder")
-    args = ap.parse_args(argv)
-    rows = [r for r in read_csv(args.folder / "results.csv") if r["phase"] == "both"]
-    text = table(rows)
-    (args.folder / "speed_ratio.md").write_text(text)
-    _, shake = image_speeds(load_scene_config("hand"), Shake())
-    path = plot(rows, args.folder / "speed_ratio.png", shake)
-    print(text)
-    print(f"figure: {path}")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
