@@ -95,8 +95,8 @@ CASES = [
     (CONFIG, {"c.yaml/": ""}, "wander experiment: error: c.yaml: a folder, not a config file"),
     (
         CONFIG,
-        {"c.yaml": "duration_s: 1e400\n"},
-        "wander experiment: error: c.yaml: bad value for key 'duration_s': "
+        {"c.yaml": "window_s: 1e400\n"},
+        "wander experiment: error: c.yaml: bad value for key 'window_s': "
         "input should be a finite number, got '1e400'",
     ),
     # sweep files
@@ -194,7 +194,7 @@ CASES = [
     ),
     # ranges
     (
-        ["experiment", "event_suppression", "--set", "duration_s=1e400"],
+        ["experiment", "detection", "--set", "duration_s=1e400"],
         {},
         "wander experiment: error: --set: bad value for key 'duration_s': "
         "input should be a finite number, got '1e400'",
