@@ -86,7 +86,9 @@ def test_same_seed_same_events_and_ground_truth():
 
 
 def test_a_step_is_one_control_period_of_renders():
-    env = make("office", control_period_s=0.02)
+    """Exact frames: every 1 ms tick of a 20 ms step is rendered and handed to the DVS,
+    plus the adaptive sub-frames (keyframes hand it fewer where nothing moves)."""
+    env = make("office", control_period_s=0.02, frames="exact")
     env.reset(seed=0)
     info = env.step(np.zeros(2, np.float32))[4]
     assert info["t"] == pytest.approx(0.02)

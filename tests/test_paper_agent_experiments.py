@@ -308,7 +308,7 @@ def test_run_and_experiment_share_names_signs_and_units(folders: tuple[Path, Pat
     table = [[float(r[k]) for k in scanpath_stats.FIXATION_COLUMNS] for r in exp_rows]
     assert table == [[float(r[k]) for k in scanpath_stats.FIXATION_COLUMNS] for r in run_rows]
     assert table == json.loads(result["scanpath_json"])
-    assert table == [[0.0, 0.0, 0.0, 0.12], [23.322849, 1.105714, 0.71, 0.13]]
+    assert table == [[0.0, 0.0, 0.0, 0.12], [28.465706, 1.054285, 0.83, 0.13]]
     # + pan = left, + tilt = up: a P left of / above the fovea lies at a larger pan / tilt.
     for r in run_rows:
         x, y = float(r["target_x_px"]), float(r["target_y_px"])
