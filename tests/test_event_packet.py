@@ -9,7 +9,6 @@ import pytest
 
 from wander_env.event_packet import EventPacket
 from wander_env.events import make_events
-from wander_env.wrappers import EventPacketInfo
 
 
 def events(n: int) -> np.ndarray:
@@ -35,11 +34,3 @@ def test_only_event_arrays_go_into_a_packet():
         EventPacket(np.zeros(3))
     with pytest.raises(TypeError, match="got list"):
         EventPacket([1, 2])
-
-
-def test_the_old_wrapper_boxes_a_bare_array_and_leaves_a_packet_alone():
-    ev = events(3)
-    boxed = EventPacketInfo._convert({"events": ev, "t": 0.5})
-    assert boxed["events"] == EventPacket(ev) and boxed["t"] == 0.5
-    info = {"events": EventPacket(ev)}
-    assert EventPacketInfo._convert(info) is info

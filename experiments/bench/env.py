@@ -21,7 +21,6 @@ import gymnasium as gym
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
-from wander_env.wrappers import EventPacketInfo
 
 # The columns of `wander bench env`'s tables (row field -> format spec).
 BREAKDOWN_COLUMNS: dict[str, str] = {
@@ -95,8 +94,8 @@ def _make(
     **env: Any,
 ):
     kw = dict(env) if antialias_samples is None else {**env, "antialias_samples": antialias_samples}
-    return lambda: EventPacketInfo(
-        gym.make("wander/Wander-v0", scene=scene, dvs=dvs, ground_truth=ground_truth, **kw)
+    return lambda: gym.make(
+        "wander/Wander-v0", scene=scene, dvs=dvs, ground_truth=ground_truth, **kw
     )
 
 
