@@ -46,7 +46,7 @@ already open before raising.
 The PTU emulator and a replayed recording:
 
 Examples:
-    >>> import tempfile, gymnasium, wander_env
+    >>> import tempfile, gymnasium, hardware
     >>> from wander_env.event_io import EventRecording, write_events
     >>> from wander_env.events import make_events
     >>> tmp = tempfile.TemporaryDirectory()
