@@ -229,3 +229,16 @@ def test_the_frame_sources_sit_between_the_renderer_and_the_env():
         "wander_env.event_packet",
         "wander_env.events",
     }
+
+
+def test_the_simulator_names_no_floor_above_it_even_as_a_string():
+    """Registering the rig env is hardware's own business: no module of wander_env names
+    ``hardware``, ``agents`` or ``experiments`` in an entry point string."""
+    named = [
+        f"{m}: {floor}"
+        for m, path in SOURCES.items()
+        if _top(m) == "wander_env"
+        for floor in ("hardware.", "agents.", "experiments.")
+        if f'"{floor}' in path.read_text(encoding="utf-8")
+    ]
+    assert named == []
