@@ -321,7 +321,9 @@ class AttentionAgent:
         if not self._started:  # the first window starts where the env put the camera
             self._started = True
             self._window_gaze = gaze
-            self._window_start = t - self.params.step_s
+            # It counts the reset's observation, one step before t, but no earlier than
+            # the run: no event arrives before t = 0.
+            self._window_start = max(t - self.params.step_s, 0.0)
         self._t = t
         self.steps += 1
         self.decided = False
