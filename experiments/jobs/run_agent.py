@@ -23,10 +23,10 @@ writes the run folder:
   (:class:`~wander_env.event_stream.EventStreamWriter`: memory does not grow with the
   run's length, and a killed run leaves the file readable up to its last flushed chunk).
 
-A fault mid-run (a device that stops answering, a signal: :mod:`wander_env.shutdown`)
+A fault mid-run (a device that stops answering, a signal: :mod:`experiments.runs.signals`)
 still leaves the folder with what was recorded, ``metrics.json`` naming the error (and
 the signal); the exception is raised after it is written. A signal only sets a flag
-(:class:`~wander_env.shutdown.DeferredSignals`): the loop takes it up between two steps,
+(:class:`~experiments.runs.signals.DeferredSignals`): the loop takes it up between two steps,
 so it never interrupts a render, a device read or a video frame's write; the video is
 then finished by ffmpeg (``metrics.json`` ``video_complete`` says whether ``run.mp4``
 is a whole MP4). A signal that comes while the folder is written waits until the
@@ -50,14 +50,15 @@ from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
 from experiments.jobs.run_viewer import open_run_log
 from experiments.jobs.scanpath_figure import pixel_to_angles, plot_scanpath
+from experiments.runs.folder import RunFolder
+from experiments.runs.provenance import run_record
+from experiments.runs.signals import DeferredSignals, SignalExit
 from wander_env.camera import degrees_to_pixels, focal_length_px
 from wander_env.config import check_fields
 from wander_env.entities import object_body_name
 from wander_env.env import WanderConfig
 from wander_env.event_stream import EventStreamWriter, OutputError, VideoSink
 from wander_env.metrics import detection_hit
-from wander_env.runinfo import run_record, write_json
-from wander_env.shutdown import DeferredSignals, SignalExit, mark_incomplete, record_failure
 from wander_env.viz import event_image, labelled_frame, saliency_rgb
 
 __all__ = [
@@ -191,12 +192,12 @@ def run_closed_loop(
         )
         if signals.pending:  # it came while the folder was written: the folder is finished
             stop = SignalExit(signals.signum)
-            mark_incomplete(
-                out_dir,
+            folder = RunFolder(out_dir)
+            folder.mark_incomplete(
                 f"{stop} while the run folder was written, after the run's "
                 f"{result.metrics['steps']} steps; every file was finished",
             )
-            record_failure(out_dir, stop)
+            folder.record_failure(stop)
     return result  # unless the pending signal, raised on leaving the block
 
 
@@ -213,7 +214,7 @@ def _run(
     signals: DeferredSignals,
 ) -> RunResult:
     """The loop and the folder of :func:`run_closed_loop`, inside its ``signals`` block."""
-    out_dir.mkdir(parents=True, exist_ok=True)
+    RunFolder(out_dir).create()
     base = env.unwrapped
     dt = float(getattr(getattr(base, "config", None), "control_period_s", agent.params.step_s))
     n_steps = max(1, round(seconds / dt))
@@ -405,6 +406,7 @@ def _write_folder(
     wall: float,
     error: BaseException | None,
 ) -> RunResult:
+    folder = RunFolder(out_dir)
     p = agent.params
     f = focal_length_px(p.width_px, p.hfov_deg)
     centre = ((p.width_px - 1) / 2.0, (p.height_px - 1) / 2.0)
@@ -444,10 +446,10 @@ def _write_folder(
         if isinstance(error, SignalExit):
             metrics["signal"] = error.name
     if isinstance(error, KeyboardInterrupt):  # a signal, Ctrl-C
-        mark_incomplete(
-            out_dir, f"{str(error) or 'interrupted'} after {log.steps} of {log.asked} steps"
+        folder.mark_incomplete(
+            f"{str(error) or 'interrupted'} after {log.steps} of {log.asked} steps"
         )
-    write_json(out_dir / "metrics.json", metrics)
+    folder.write_metrics(metrics)
     if agent.fixations and log.maps:
         n = min(len(log.maps), len(agent.fixations))
         plot_scanpath(
@@ -471,7 +473,7 @@ def _write_folder(
         )
     rec = record | {"agent": asdict(p), "summary": {k: metrics[k] for k in ("steps", "events")}}
     stream.close(rec)
-    write_json(out_dir / "run.json", rec)
+    folder.write_run(rec)
     files = sorted(x.name for x in out_dir.iterdir())
     return RunResult(metrics=metrics, files=files, error=metrics.get("error"))
 
@@ -551,14 +553,15 @@ def _stopped_in_setup(
     from wander_env.scene_config import load_scene_config
 
     camera = load_scene_config(config.scene).camera
-    out_dir.mkdir(parents=True, exist_ok=True)
+    folder = RunFolder(out_dir)
+    folder.create()
     summary = {"steps": 0, "events": 0}
     rec = record | {"summary": summary}
     EventStreamWriter(out_dir / "events.h5", (camera.width, camera.height, 2)).close(rec)
     metrics: dict[str, Any] = {**summary, "stage": "set-up"}
     metrics["error"] = f"{type(stop).__name__}: {stop} (while setting up)"
-    mark_incomplete(out_dir, f"{str(stop) or 'interrupted'} while setting up, before any step")
+    folder.mark_incomplete(f"{str(stop) or 'interrupted'} while setting up, before any step")
     if isinstance(stop, SignalExit):
         metrics["signal"] = stop.name
-    write_json(out_dir / "metrics.json", metrics)
-    write_json(out_dir / "run.json", rec)
+    folder.write_metrics(metrics)
+    folder.write_run(rec)
