@@ -12,7 +12,9 @@ Naming, one convention:
   that exists), or ``--out``;
 - an experiment: ``results/<name>/YYYYmmdd-HHMMSS-seedN/``, or ``--out``: the same stamp,
   grouped by experiment because ``wander report`` reads the newest folder of each
-  experiment under ``results/<name>/`` and sweeps keep theirs under ``results/sweeps/``.
+  experiment under ``results/<name>/``;
+- a sweep: ``results/sweeps/<name>/``, or ``--out``: one folder per sweep file, not per
+  run, because a rerun resumes the trials stored there (:meth:`take_stop`).
 
 An explicit folder that exists and is not empty is refused (:class:`FileExistsError`)
 unless ``force``. The folder is not created when named: a run that fails before it
