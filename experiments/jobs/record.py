@@ -30,9 +30,9 @@ import numpy as np
 import wander_env  # noqa: F401  (registers the environments)
 from agents.fixation import FixationalMovements, FixationParams
 from experiments.jobs.run_agent import env_kwargs
-from experiments.jobs.run_viewer import open_run_log
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
+from experiments.runs.run_viewer import open_run_log
 from experiments.runs.signals import DeferredSignals, SignalExit
 from wander_env.camera import focal_length_px
 from wander_env.config import check_fields
