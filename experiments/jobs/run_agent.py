@@ -50,13 +50,19 @@ from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
 from experiments.jobs.scanpath_figure import pixel_to_angles, plot_scanpath
 from experiments.runs.folder import RunFolder
-from experiments.runs.observers import DetectionObserver, RerunObserver, RunObserver, VideoObserver
+from experiments.runs.observers import (
+    DetectionObserver,
+    EventsObserver,
+    RerunObserver,
+    RunObserver,
+    VideoObserver,
+)
 from experiments.runs.provenance import run_record
 from experiments.runs.signals import DeferredSignals, SignalExit
 from wander_env.camera import degrees_to_pixels, focal_length_px
 from wander_env.config import check_fields
 from wander_env.env import WanderConfig
-from wander_env.event_stream import EventStreamWriter, OutputError
+from wander_env.event_stream import EventStreamWriter
 from wander_env.viz import event_image, labelled_frame, saliency_rgb
 
 __all__ = [
@@ -232,14 +238,14 @@ def _run(
     n_steps = max(1, round(seconds / dt))
     log = _Log(asked=n_steps)
     p = agent.params
-    stream = EventStreamWriter(out_dir / "events.h5", (p.width_px, p.height_px, 2), record)
+    events = EventsObserver(out_dir / "events.h5", (p.width_px, p.height_px, 2), record)
     watchers: list[RunObserver] = []
     try:
         if video:
             watchers.append(VideoObserver(out_dir / "run.mp4", round(1 / dt), _frame_for))
         rerun = RerunObserver(out_dir, env, str(record.get("command", "wander run")))  # run.rrd
     except BaseException:
-        stream.close()
+        events.finish()
         raise
     detection = DetectionObserver()
     watchers = [rerun, *watchers, detection, *observers]
@@ -256,9 +262,8 @@ def _run(
             for w in watchers:
                 w.on_act(env, agent, obs, info)
             obs, _, terminated, truncated, info = env.step(action)
-            step_events = info["events"].events
-            stream.append(step_events)
-            log.events += len(step_events)
+            events.on_step(env, agent, obs, info)  # first: a step counts once on disk
+            log.events = events.events
             log.gaze.append((float(info.get("t", (k + 1) * dt)), *map(float, obs["gaze"])))
             log.steps = k + 1
             for w in watchers:
@@ -282,17 +287,14 @@ def _run(
         log.hit_objects, log.clipped = detection.hit_objects, detection.clipped
     wall = time.perf_counter() - t_wall
     try:
-        result = _write_folder(out_dir, env, agent, log, stream, record, dt, wall, error)
+        result = _write_folder(out_dir, env, agent, log, events, record, dt, wall, error)
     except Exception as write_error:
         if error is None:
             raise
         error.add_note(f"writing the run folder {out_dir} also failed: {write_error!r}")
         raise error from write_error
     finally:
-        try:
-            stream.close()  # already closed by _write_folder unless that failed
-        except OutputError:
-            pass
+        events.finish()  # already closed by _write_folder unless that failed
     if error is not None:
         raise error
     return result
@@ -388,7 +390,7 @@ def _write_folder(
     env: Any,
     agent: AttentionAgent,
     log: _Log,
-    stream: EventStreamWriter,
+    events: EventsObserver,
     record: dict[str, Any],
     dt: float,
     wall: float,
@@ -460,7 +462,7 @@ def _write_folder(
             fixed_view=record.get("fixed_view"),  # a replayed recording (wander rig)
         )
     rec = record | {"agent": asdict(p), "summary": {k: metrics[k] for k in ("steps", "events")}}
-    stream.close(rec)
+    events.finish(rec)
     folder.write_run(rec)
     files = sorted(x.name for x in out_dir.iterdir())
     return RunResult(metrics=metrics, files=files, error=metrics.get("error"))

@@ -8,8 +8,9 @@ decided in, ``obs``/``info`` the ones the agent saw); :meth:`RunObserver.on_step
 ended, with the loop's error (``None``: none), returning the error to raise (an observer
 whose file failed to close hands back its own when the run had none).
 
-The run's own watchers are here: the video (:class:`VideoObserver`), the Rerun log
-(:class:`RerunObserver`) and detection scoring (:class:`DetectionObserver`); a study adds
+The run's own watchers are here: the events file (:class:`EventsObserver`), the video
+(:class:`VideoObserver`), the Rerun log (:class:`RerunObserver`) and detection scoring
+(:class:`DetectionObserver`); a study adds
 its own (the scanpath experiment's :class:`experiments.paper.scanpath.ScanpathObserver`).
 """
 
@@ -24,10 +25,16 @@ import numpy as np
 from agents.attention import AttentionAgent, Phase
 from experiments.runs.run_viewer import open_run_log
 from wander_env.entities import object_body_name
-from wander_env.event_stream import VideoSink
+from wander_env.event_stream import EventStreamWriter, OutputError, VideoSink
 from wander_env.metrics import detection_hit
 
-__all__ = ["DetectionObserver", "RerunObserver", "RunObserver", "VideoObserver"]
+__all__ = [
+    "DetectionObserver",
+    "EventsObserver",
+    "RerunObserver",
+    "RunObserver",
+    "VideoObserver",
+]
 
 
 class RunObserver:
@@ -45,6 +52,34 @@ class RunObserver:
     def close(self, error: BaseException | None) -> BaseException | None:
         """The loop ended (with ``error``); returns the error to raise."""
         return error
+
+
+class EventsObserver(RunObserver):
+    """``path``: every event of the run, written as it goes
+    (:class:`~wander_env.event_stream.EventStreamWriter`: memory does not grow with the
+    run's length); ``events``: how many. The file stays open after :meth:`close` until
+    :meth:`finish` writes the run's record into it (the loop calls it first in a step, so
+    a step counts once its events are on disk)."""
+
+    def __init__(self, path: Path, sensor_size: tuple[int, int, int], record: dict) -> None:
+        self.stream = EventStreamWriter(path, sensor_size, record)
+        self.events = 0
+
+    def on_step(self, env: Any, agent: AttentionAgent, obs: dict, info: dict) -> None:
+        step_events = info["events"].events
+        self.stream.append(step_events)
+        self.events += len(step_events)
+
+    def finish(self, record: dict | None = None) -> None:
+        """Close the file with ``record`` (after a failure: ``None``, and a close that
+        cannot write either is not raised: the run's own error is)."""
+        if record is not None:
+            self.stream.close(record)
+            return
+        try:
+            self.stream.close()
+        except OutputError:
+            pass
 
 
 class VideoObserver(RunObserver):
