@@ -3,7 +3,7 @@
 A missing or undefined figure (NaN, ±inf) is ``null``, NumPy scalars and arrays become
 plain numbers and lists (``json.loads(text, parse_constant=...)`` raising never fires).
 
-Example:
+Examples:
     >>> import math, numpy as np
     >>> to_strict_json({"a": math.nan, "b": np.float32(0.5), "c": [np.inf, 1]})
     {'a': None, 'b': 0.5, 'c': [None, 1]}

@@ -4,7 +4,7 @@ A signal ends a command with ``128 + signal`` (130 SIGINT, 143 SIGTERM, 129 SIGH
 result file that cannot be written (disk full, read-only or unwritable folder) with 1;
 :meth:`experiments.runs.folder.RunFolder.record_failure` says it in the folder first.
 
-Example:
+Examples:
     >>> import errno
     >>> err = OSError(errno.ENOSPC, "No space left on device", "runs/x/metrics.json")
     >>> describe(RuntimeError("writing failed")), exit_code(err)

@@ -23,7 +23,7 @@ starts leaves nothing behind, except a signal, which creates it to say so.
 A command owns a :class:`CurrentRun`; a folder named with it registers itself there, so
 that the command's failure handling finds the folder whether ``--out`` named it or not.
 
-Example:
+Examples:
     >>> import tempfile
     >>> root = Path(tempfile.mkdtemp())
     >>> current = CurrentRun()

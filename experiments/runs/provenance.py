@@ -2,7 +2,7 @@
 git revision, the time, the platform and the versions of the packages that made it
 (:func:`run_record`).
 
-Example:
+Examples:
     >>> r = run_record("wander demo", {"seconds": 1.0}, seed=0)
     >>> sorted(r)
     ['command', 'config', 'created', 'git_revision', 'platform', 'python', 'seed', 'versions']

@@ -25,7 +25,7 @@ failed write leaves in the run folder is :class:`experiments.runs.folder.RunFold
 (``metrics.json``'s ``error`` and ``signal``, the ``INCOMPLETE`` marker), the one line and
 the exit code are :mod:`experiments.runs.failure`'s.
 
-Example:
+Examples:
     >>> import os, signal
     >>> try:
     ...     with handle_signals():
