@@ -51,8 +51,9 @@ from typing import Annotated, Any
 
 import pydantic
 
+from experiments.runs.folder import RunFolder
+from experiments.runs.provenance import run_record
 from wander_env.config import ConfigError, coerce, load_yaml, parse_sets, validate
-from wander_env.runinfo import run_record, write_json
 
 __all__ = [
     "EXPERIMENT_NAMES",
@@ -483,7 +484,8 @@ def write_result_folder(
 ) -> list[Path]:
     """results.csv, config.json, run.json, summary.md, artifacts and the plots; returns
     the files. ``rows`` may carry artifacts (``_*`` keys)."""
-    out_dir.mkdir(parents=True, exist_ok=True)
+    folder = RunFolder(out_dir)
+    folder.create()
     plain = []
     for row in rows:
         p, arts = split_artifacts(row)
@@ -491,10 +493,11 @@ def write_result_folder(
         plain.append(p)
     rows = plain
     files = [write_csv(rows, out_dir / "results.csv")]
-    write_json(out_dir / "config.json", {"experiment": experiment.name, **config_to_dict(config)})
+    files.append(
+        folder.write_json("config.json", {"experiment": experiment.name, **config_to_dict(config)})
+    )
     rec = run_record(command, config_to_dict(config), seed)
-    write_json(out_dir / "run.json", {"experiment": experiment.name, **rec, "timing": timings})
-    files += [out_dir / "config.json", out_dir / "run.json"]
+    files.append(folder.write_run({"experiment": experiment.name, **rec, "timing": timings}))
     summary = out_dir / "summary.md"
     summary.write_text(render_summary(experiment, config, rows, command))
     files.append(summary)
@@ -534,8 +537,3 @@ def run_experiment(
     cmd = command or f"wander experiment {name} --seed {seed}"
     files = write_result_folder(out_dir, exp, config, rows, seed, cmd, timings)
     return [split_artifacts(r)[0] for r in rows], files
-
-
-def default_out_dir(name: str, seed: int, root: Path = Path("results")) -> Path:
-    """``results/NAME/YYYYmmdd-HHMMSS-seedN`` (local time)."""
-    return root / name / f"{time.strftime('%Y%m%d-%H%M%S')}-seed{seed}"

@@ -76,7 +76,9 @@ from experiments.framework import (
     split_artifacts,
     write_csv,
 )
-from wander_env.runinfo import dumps_strict, run_record, write_json
+from experiments.runs.folder import RunFolder
+from experiments.runs.provenance import run_record
+from wander_env.strict_json import dumps_strict
 
 __all__ = [
     "BACKENDS",
@@ -431,33 +433,6 @@ def _stored(out_dir: Path, spec: TrialSpec) -> bool:
         return False
 
 
-def _take_stop(out_dir: Path) -> None:
-    """Before a sweep resumes in ``out_dir``: the stop a former run recorded there
-    (``metrics.json``'s error and signal, an ``INCOMPLETE`` marker) moved to the history
-    of stops in ``run.json`` (``{"stops": [...]}``), so that the folder says only how
-    this run ends."""
-    metrics, marker, record = out_dir / "metrics.json", out_dir / "INCOMPLETE", out_dir / "run.json"
-    stop: dict[str, Any] = {}
-    if metrics.is_file():
-        try:
-            data = json.loads(metrics.read_text())
-        except (ValueError, RecursionError):
-            data = {"error": "unreadable metrics.json"}
-        stop.update(data if isinstance(data, dict) else {"error": str(data)[:200]})
-    if marker.is_file():
-        stop["incomplete"] = marker.read_text(errors="replace").strip() or True
-    if not stop:
-        return
-    try:
-        history = json.loads(record.read_text()) if record.is_file() else {}
-    except (ValueError, RecursionError):
-        history = {}
-    stops = history.get("stops") if isinstance(history, dict) else None
-    write_json(record, {"stops": [*(stops if isinstance(stops, list) else []), stop]})
-    metrics.unlink(missing_ok=True)
-    marker.unlink(missing_ok=True)
-
-
 def _load_row(out_dir: Path, spec: TrialSpec) -> Row:
     row = json.loads(_trial_file(out_dir, spec).read_text())["row"]
     row = {k: math.nan if v is None else v for k, v in row.items()}  # null: a missing figure
@@ -485,8 +460,9 @@ def run_sweep(
     specs = expand(sweep)
     todo = [s for s in specs if not _stored(out_dir, s)]
     skipped = len(specs) - len(todo)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    _take_stop(out_dir)
+    folder = RunFolder(out_dir)
+    folder.create()
+    folder.take_stop()
     t0 = time.perf_counter()
     if backend == "serial":
         stream = serial_executor(todo, runner)
@@ -519,5 +495,5 @@ def run_sweep(
         seconds=round(seconds, 3),
         real_time_factor=rtf,
     )
-    write_json(out_dir / "sweep.json", rec)
+    folder.write_json("sweep.json", rec)
     return SweepResult(rows, len(todo), skipped, out_dir, rtf)

@@ -13,7 +13,7 @@ from experiments.bench.agent import bench_agent, latency_row
 from experiments.cli.main import app
 from experiments.framework import read_csv
 from experiments.jobs.evaluate_agent import QualityRow, detection_interval, pooled
-from wander_env.runinfo import to_strict_json
+from wander_env.strict_json import to_strict_json
 
 
 def test_latency_row_percentiles() -> None:

@@ -95,7 +95,7 @@ def test_bench_dvs_peers_prints_a_row_per_peer_and_sensor():
 def test_version_prints_the_version_and_the_git_revision():
     from importlib.metadata import version
 
-    from wander_env.runinfo import git_revision
+    from experiments.runs.provenance import git_revision
 
     result = runner.invoke(app, ["--version"])
     assert result.exit_code == 0, result.output

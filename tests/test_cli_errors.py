@@ -11,7 +11,8 @@ import pytest
 from typer.testing import CliRunner
 
 from experiments.cli.main import app
-from wander_env.runinfo import VERSIONED_PACKAGES, dumps_strict, package_versions, run_record
+from experiments.runs.provenance import VERSIONED_PACKAGES, package_versions, run_record
+from wander_env.strict_json import dumps_strict
 
 runner = CliRunner()
 SCENES = "gratings, hand, office, shelf or a scene .yaml file"

@@ -21,9 +21,10 @@ from typer.testing import CliRunner
 
 from experiments.cli.main import app
 from experiments.framework import TrialSpec
+from experiments.runs.folder import RunFolder
+from experiments.runs.signals import SignalExit
 from experiments.sweep import run_sweep, sweep_from_dict
 from wander_env.scene_config import available_scenes
-from wander_env.shutdown import SignalExit, record_failure
 
 ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()
@@ -375,7 +376,7 @@ def test_a_resumed_sweep_keeps_no_stale_error_and_records_the_stops(tmp_path):
     for stop_at in (3, 2):  # stopped twice, as `wander sweep` records a stop
         with pytest.raises(SignalExit) as stop:
             run_sweep(sweep, tmp_path, backend="serial", runner=StoppingRunner(stop_at))
-        record_failure(tmp_path, stop.value)
+        RunFolder(tmp_path).record_failure(stop.value)
         assert json.loads((tmp_path / "metrics.json").read_text())["signal"] == "SIGINT"
     res = run_sweep(sweep, tmp_path, backend="serial", runner=StoppingRunner(None))
     assert (res.ran, res.skipped) == (len(res.rows) - 5, 5)

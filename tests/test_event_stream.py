@@ -13,11 +13,12 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
-from experiments.cli.errors import long_command
+from experiments.cli.errors import current_run, long_command
+from experiments.runs.folder import RunFolder
+from experiments.runs.signals import SignalExit
 from wander_env.event_io import read_events
 from wander_env.event_stream import EventStreamWriter, H5Appender, OutputError, VideoSink
 from wander_env.events import make_events
-from wander_env.shutdown import SignalExit
 
 
 def step(k: int, n: int = 100) -> np.ndarray:
@@ -103,25 +104,29 @@ def test_h5_appender_rows_and_a_field_with_nothing_per_row(tmp_path):
         assert bool(f.attrs["complete"]) and f.attrs["rows"] == 5 and f.attrs["names"] == "none"
 
 
-def test_long_command_turns_a_write_failure_into_one_line_and_marks_the_folder(tmp_path):
+@pytest.mark.parametrize("given", [True, False], ids=["out", "default folder"])
+def test_long_command_turns_a_write_failure_into_one_line_and_marks_the_folder(tmp_path, given):
+    # The command's failure handling finds the folder the command named, --out or not.
     app = typer.Typer()
 
     @app.command()
     @long_command("wander demo")
-    def demo(out: str = "x") -> None:
-        (tmp_path / "run").mkdir()
+    def demo(out: str | None = None) -> None:
+        run = RunFolder.new("demo", out, root=tmp_path / "runs", current=current_run())
+        run.create()
         cause = OSError(errno.ENOSPC, "No space left on device")
-        raise OutputError(tmp_path / "run" / "events.h5", cause)
+        raise OutputError(run.path / "events.h5", cause)
 
-    result = CliRunner().invoke(app, ["--out", str(tmp_path / "run")])
+    result = CliRunner().invoke(app, ["--out", str(tmp_path / "run")] if given else [])
+    (folder,) = [tmp_path / "run"] if given else list((tmp_path / "runs").iterdir())
     assert result.exit_code == 1
     assert result.stderr.strip() == (
-        f"wander demo: cannot write {tmp_path / 'run' / 'events.h5'}: No space left on device; "
-        f"'{tmp_path / 'run'}' is marked INCOMPLETE"
+        f"wander demo: cannot write {folder / 'events.h5'}: No space left on device; "
+        f"'{folder}' is marked INCOMPLETE"
     )
-    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    metrics = json.loads((folder / "metrics.json").read_text())
     assert metrics["incomplete"] is True and metrics["error"].startswith("OutputError: ")
-    assert (tmp_path / "run" / "INCOMPLETE").read_text().startswith("cannot write ")
+    assert (folder / "INCOMPLETE").read_text().startswith("cannot write ")
 
 
 def test_video_sink_writes_the_frames_it_is_given(tmp_path):

@@ -6,6 +6,7 @@ Needs root (to mount a tmpfs); skipped with the reason otherwise.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -107,3 +108,24 @@ def test_a_read_only_folder_is_one_line(tmp_path):
         )
     finally:
         _umount(ro)
+
+
+@pytest.mark.slow
+def test_a_full_disk_marks_the_default_run_folder_incomplete(tiny_disk):
+    # No --out: the command names its folder (runs/record-DATE-TIME) and the failure is
+    # said there, not in a folder it would have had to learn from the flag.
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MUJOCO_GL": "egl"}
+    code = "import sys; from experiments.cli.main import app; sys.argv[0] = 'wander'; app()"
+    args = ["record", "--seconds", "10", "--no-video"]
+    done = subprocess.run(
+        [sys.executable, "-c", code, *args],
+        env=env, cwd=tiny_disk, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert done.returncode == 1, done.stderr
+    (out,) = (tiny_disk / "runs").iterdir()
+    assert out.name.startswith("record-")
+    lines = [ln for ln in done.stderr.splitlines() if ln.strip()]
+    assert "No space left on device" in lines[-1] and "marked INCOMPLETE" in lines[-1]
+    assert "Traceback" not in done.stderr
+    assert (out / "INCOMPLETE").is_file()
+    assert json.loads((out / "metrics.json").read_text())["incomplete"] is True

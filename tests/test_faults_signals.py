@@ -19,9 +19,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from experiments.runs.folder import RunFolder
+from experiments.runs.signals import SignalExit, handle_signals
 from wander_env.event_io import EventRecording, read_events, write_events
 from wander_env.events import make_events
-from wander_env.shutdown import SignalExit, handle_signals, record_failure
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -87,7 +88,7 @@ def test_a_second_signal_during_clean_up_is_ignored(capfd):
 
 def test_record_failure_adds_the_signal_as_strict_json(tmp_path):
     (tmp_path / "metrics.json").write_text('{"steps": 3, "rate": NaN}')
-    record_failure(tmp_path, SignalExit(signal.SIGTERM))
+    RunFolder(tmp_path).record_failure(SignalExit(signal.SIGTERM))
     m = strict_json(tmp_path / "metrics.json")
     assert m == {
         "steps": 3,
@@ -96,7 +97,7 @@ def test_record_failure_adds_the_signal_as_strict_json(tmp_path):
         "signal": "SIGTERM",
     }
     fresh = tmp_path / "not-yet"  # a signal during set-up: the folder says so
-    record_failure(fresh, SignalExit(signal.SIGHUP))
+    RunFolder(fresh).record_failure(SignalExit(signal.SIGHUP))
     assert strict_json(fresh / "metrics.json")["signal"] == "SIGHUP"
 
 

@@ -104,7 +104,7 @@ SCRIPT = textwrap.dedent(
     sys.path.insert(0, {here!r})
     from sweep_workers import sleepy
     from experiments.sweep import run_sweep, sweep_from_dict
-    from wander_env.shutdown import SignalExit, handle_signals
+    from experiments.runs.signals import SignalExit, handle_signals
     sweep = sweep_from_dict({sweep!r})
     try:
         with handle_signals():

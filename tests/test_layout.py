@@ -17,7 +17,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("wander_env", "agents", "hardware", "experiments")
-WINGS = ("cli", "jobs", "bench", "benchmark", "paper")
+WINGS = ("cli", "jobs", "bench", "benchmark", "paper", "runs")
 
 
 def _module_name(path: Path) -> str:

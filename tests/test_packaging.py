@@ -58,9 +58,13 @@ def test_scenes_load_from_the_checkout_assets_folder():
 @pytest.mark.slow
 def test_a_wheel_built_from_the_checkout_contains_the_scene_files(tmp_path):
     src = tmp_path / "src"
-    ignore = shutil.ignore_patterns(
-        ".venv", ".git", "runs", "build", "dist", "*.egg-info", "__pycache__"
-    )
+    patterns = shutil.ignore_patterns(".venv", ".git", "build", "dist", "*.egg-info", "__pycache__")
+
+    def ignore(folder: str, names: list[str]) -> set[str]:
+        # the checkout's own run folders, not the package experiments/runs
+        top = {"runs", "results"} & set(names) if Path(folder) == ROOT else set()
+        return set(patterns(folder, names)) | top
+
     shutil.copytree(ROOT, src, ignore=ignore)
     isolation = [] if importlib.util.find_spec("setuptools") is None else ["--no-build-isolation"]
     cmd = [

@@ -3,7 +3,7 @@
 A signal handler that raises where the signal lands turns a SIGTERM inside a ctypes call
 (EGL's ``eglMakeCurrent`` converting its arguments) into ``ctypes.ArgumentError``, kills
 ffmpeg in the middle of ``run.mp4`` and cuts the writing of the run folder short. Inside
-:class:`~wander_env.shutdown.DeferredSignals` a signal only sets a flag: the run loops
+:class:`~experiments.runs.signals.DeferredSignals` a signal only sets a flag: the run loops
 take it up between steps, finish the video and the folder, and exit with 128 + signal.
 """
 
@@ -30,9 +30,10 @@ from typer.testing import CliRunner
 
 from experiments.cli.errors import long_command
 from experiments.cli.main import app
+from experiments.runs.folder import RunFolder
+from experiments.runs.signals import DeferredSignals, SignalExit, handle_signals
 from wander_env.event_io import read_events
 from wander_env.event_stream import OutputError, VideoSink, mp4_complete
-from wander_env.shutdown import DeferredSignals, SignalExit, handle_signals
 
 ROOT = Path(__file__).resolve().parents[1]
 STOPPED = "SignalExit: stopped by SIGTERM (signal 15)"
@@ -52,7 +53,7 @@ def frames_in(path: Path) -> int:
 
 def exit_code_of(command: Callable[[], None]) -> int:
     """``command`` as a long command (``wander run``'s signal handling): its exit code."""
-    wrapped = long_command("wander run", folder_arg=None)(command)
+    wrapped = long_command("wander run")(command)
     with pytest.raises(typer.Exit) as info:
         wrapped()
     return info.value.exit_code
@@ -284,14 +285,14 @@ def test_a_signal_while_the_run_folder_is_written_waits_for_run_json(
     from experiments.jobs import run_agent
 
     env, agent = env_and_agent
-    write_json = run_agent.write_json
+    write_json = RunFolder.write_json
 
-    def write_then_signal(path: Path, data: dict) -> None:
-        if path.name == "metrics.json":  # the first write of the finishing phase
+    def write_then_signal(folder: RunFolder, name: str, data: dict) -> Path:
+        if name == "metrics.json":  # the first write of the finishing phase
             os.kill(os.getpid(), signal.SIGTERM)
-        write_json(path, data)
+        return write_json(folder, name, data)
 
-    monkeypatch.setattr(run_agent, "write_json", write_then_signal)
+    monkeypatch.setattr(RunFolder, "write_json", write_then_signal)
     out = tmp_path / "run"
 
     def job() -> None:
@@ -338,13 +339,13 @@ def test_record_stopped_during_rendering_finishes_its_video(tmp_path, monkeypatc
 def test_record_signalled_before_run_json_still_writes_it(tmp_path, monkeypatch):
     from experiments.jobs import record as record_job
 
-    write_json = record_job.write_json
+    write_json = RunFolder.write_json
 
-    def signal_then_write(path: Path, data: dict) -> None:
+    def signal_then_write(folder: RunFolder, name: str, data: dict) -> Path:
         os.kill(os.getpid(), signal.SIGTERM)  # lands just before run.json is written
-        write_json(path, data)
+        return write_json(folder, name, data)
 
-    monkeypatch.setattr(record_job, "write_json", signal_then_write)
+    monkeypatch.setattr(RunFolder, "write_json", signal_then_write)
     out = tmp_path / "rec"
     config = record_job.RecordConfig(seconds=0.3, video=False)
     assert exit_code_of(lambda: record_job.record(out, config)) == 143
@@ -413,7 +414,6 @@ def test_view_without_a_display_prints_the_web_viewer_command_and_the_copy_hint(
 
 @pytest.mark.slow
 def test_a_signal_halts_the_rig_before_its_folder_is_written(tmp_path, monkeypatch):
-    from experiments.jobs import run_agent
     from experiments.jobs.rig import RigRunConfig, run_rig
     from hardware.ptu_emulator import PTUEmulator
     from wander_env.event_io import EventRecording, write_events
@@ -425,23 +425,25 @@ def test_a_signal_halts_the_rig_before_its_folder_is_written(tmp_path, monkeypat
     events = make_events(rng.integers(60, 70, n), rng.integers(60, 70, n), t, rng.integers(0, 2, n))
     write_events(tmp_path / "walk.npz", EventRecording(events, (128, 128, 2)))
     halts_when_written: list[int] = []
-    write_json = run_agent.write_json
+    write_json = RunFolder.write_json
     with PTUEmulator() as emu:
 
-        def noting(path: Path, data: dict) -> None:
-            if path.name == "metrics.json":
+        def noting(folder: RunFolder, name: str, data: dict) -> Path:
+            if name == "metrics.json":
                 halts_when_written.append(emu.commands.count("H"))
-            write_json(path, data)
+            return write_json(folder, name, data)
 
         def stop_at_step_20(k: int, total: int) -> None:
             if k == 20:
                 os.kill(os.getpid(), signal.SIGTERM)
 
-        monkeypatch.setattr(run_agent, "write_json", noting)
+        monkeypatch.setattr(RunFolder, "write_json", noting)
         out = tmp_path / "rig"
         config = RigRunConfig(ptu=emu.port, camera=f"replay:{tmp_path / 'walk.npz'}", video=False)
         assert exit_code_of(lambda: run_rig(out, config, progress=stop_at_step_20)) == 143
-    assert halts_when_written == [1]  # halted as the loop stopped, before the folder
+    # halted as the loop stopped, before the folder; the rig's counters are added to
+    # metrics.json after the run's failure handling halted it once more
+    assert halts_when_written == [1, 2]
     m = strict_json(out / "metrics.json")
     assert (m["steps"], m["signal"], m["error"]) == (20, "SIGTERM", STOPPED)
     assert m["rig"]["ptu_halt"] == "halt (H) acknowledged"

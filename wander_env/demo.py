@@ -2,22 +2,21 @@
 
 No renderer is involved: a textured background drifts (as if the camera moved)
 while a textured disc circles the centre. The events go to an HDF5 file and a
-PNG of titled, time-stamped event frames (red ON, blue OFF, axes in pixels);
-``run.json`` records config, seed and git revision.
+PNG of titled, time-stamped event frames (red ON, blue OFF, axes in pixels): the
+events are :func:`demo_events`', the picture :func:`plot_event_panels`'; the run folder
+(``events.h5``, ``events.png``, ``run.json``) is written by ``wander demo``.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from wander_env.dvs import DVSEmulator, DVSParams
-from wander_env.event_io import EventRecording, write_events
 from wander_env.events import concatenate, time_window, to_frame
-from wander_env.runinfo import run_record, write_json
 from wander_env.synthetic import disc_over_texture
 from wander_env.viz import OFF_RGB, ON_RGB, event_image, save_figure
 
@@ -93,11 +92,10 @@ def plot_event_panels(
     return save_figure(fig, path, rect=(0, 0.04, 1, 1))
 
 
-def run_demo(
-    out_dir: Path, config: DemoConfig, progress: Callable[[int, int], None] | None = None
-) -> dict:
-    """Write ``events.h5``, ``events.png`` and ``run.json`` to ``out_dir``; return a summary."""
-    out_dir.mkdir(parents=True, exist_ok=True)
+def demo_events(
+    config: DemoConfig, progress: Callable[[int, int], None] | None = None
+) -> tuple[np.ndarray, DVSParams]:
+    """The demo's events (and the DVS parameters that made them)."""
     n = round(config.seconds * config.frame_rate_hz)
     dt_us = round(1e6 / config.frame_rate_hz)
     frames = disc_over_texture(
@@ -114,20 +112,4 @@ def run_demo(
         if progress is not None:
             progress(i, n)
     chunks.append(emu.flush())
-    events = concatenate(chunks)
-    size = (config.width, config.height, 2)
-    record = run_record("wander demo", asdict(config) | {"dvs": params.to_dict()}, config.seed)
-    write_events(out_dir / "events.h5", EventRecording(events, size, record))
-
-    plot_event_panels(
-        out_dir / "events.png", events, size, config, step_us=(n * dt_us) // config.panels
-    )
-
-    summary = {
-        "events": len(events),
-        "on_fraction": float(events["p"].mean()) if len(events) else 0.0,
-        "events_per_frame": len(events) / n,
-        "files": ["events.h5", "events.png", "run.json"],
-    }
-    write_json(out_dir / "run.json", record | {"summary": summary})
-    return summary
+    return concatenate(chunks), params

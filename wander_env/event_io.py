@@ -57,7 +57,7 @@ from wander_env.event_checks import (
     parse_metadata,
 )
 from wander_env.events import EVENT_DTYPE, SensorSize, validate_events
-from wander_env.runinfo import dumps_strict
+from wander_env.strict_json import dumps_strict
 
 FORMAT_TAG = "wander-events/1"
 

@@ -394,7 +394,7 @@ class VideoSink:
     the file and is then ended (an :class:`OutputError` says the video is incomplete), so
     a hung encoder cannot keep the run folder from being written; a signal that arrives
     while ffmpeg finishes is handed back the same way, not raised past the folder (a run
-    loop defers signals, :class:`wander_env.shutdown.DeferredSignals`, so that none
+    loop defers signals to its step boundaries, so that none
     interrupts a frame's write or the close: ffmpeg would be killed). After
     :meth:`finish`, ``complete`` says whether the file is a whole MP4
     (:func:`mp4_complete`: playable to its last frame; ``None``: no frame, no file).

@@ -22,6 +22,9 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from experiments.runs.folder import RunFolder
+from experiments.runs.provenance import run_record
+
 if TYPE_CHECKING:  # the protocol (numpy, scipy) is imported when a run starts
     from experiments.benchmark.protocol import ProgressEvent, ProgressFn
 
@@ -167,9 +170,9 @@ def write_benchmark_outputs(
         summary_dicts,
         write_rows_csv,
     )
-    from wander_env.runinfo import run_record, write_json
 
-    out.mkdir(parents=True, exist_ok=True)
+    folder = RunFolder(out)
+    folder.create()
     write_rows_csv(rows, out / "results.csv")
     summaries = summarize(rows, std_over) if rows else []
     _write_summary_csv(summaries, out / "summary.csv")
@@ -186,7 +189,7 @@ def write_benchmark_outputs(
     record["summaries"] = summary_dicts(summaries)
     record["sequence_notes"] = notes
     record.update(extra_record or {})
-    write_json(out / "run.json", record)
+    folder.write_run(record)
     if views:
         from experiments.benchmark.figure import plot_maps_vs_masks
 
@@ -274,8 +277,6 @@ def write_suppression_outputs(
     """``results.csv`` (events in / out per window of each recording), ``results.md`` and
     ``run.json`` of ``wander benchmark suppression``; ``recordings`` are the
     ``(name, events, sensor)`` that gave ``results``. Returns the Markdown."""
-    from wander_env.runinfo import run_record, write_json
-
     names = [n for n, _, _ in recordings]
     t0s = [int(ev["t"][0]) if len(ev) else 0 for _, ev, _ in recordings]
     write_suppression_csv(out / "results.csv", list(zip(names, results, t0s, strict=True)))
@@ -290,5 +291,5 @@ def write_suppression_outputs(
     record["suppression"] = suppression_record(names, results)
     record["notes"] = notes
     record["elapsed_s"] = elapsed_s
-    write_json(out / "run.json", record)
+    RunFolder(out).write_run(record)
     return md

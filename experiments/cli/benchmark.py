@@ -40,7 +40,7 @@ from experiments.benchmark.runner import (
 )
 from experiments.cli.console import progress_bars
 from experiments.cli.errors import fail
-from experiments.cli.options import option, with_options
+from experiments.cli.options import ForceOpt, option, resolve_out, with_options
 
 app = typer.Typer(
     help="Benchmarks on real event datasets: sOMS maps against masks (IoU, precision, SSIM), "
@@ -187,7 +187,11 @@ def _finish(out: Path, md: str, started: float) -> None:
 
 OutOpt = Annotated[
     Path | None,
-    typer.Option("--out", help="Output folder (default runs/benchmark-<name>)."),
+    typer.Option(
+        "--out",
+        help="Output folder (default runs/benchmark-<name>-DATE-TIME/; an existing non-empty "
+        "folder needs --force).",
+    ),
 ]
 MaxWindowsOpt = Annotated[
     int | None,
@@ -234,7 +238,11 @@ StdOverOpt = Annotated[
 # progress aside).
 MAX_WINDOWS = option("max_windows", MaxWindowsOpt, None)
 MODEL_OPTIONS = (option("streamlined", StreamlinedOpt, False), option("alpha", AlphaOpt, None))
-RUN_OPTIONS = (option("threads", ThreadsOpt, None), option("progress", ProgressOpt, True))
+RUN_OPTIONS = (
+    option("threads", ThreadsOpt, None),
+    option("progress", ProgressOpt, True),
+    option("force", ForceOpt, False),
+)
 DATASET_OPTIONS = (
     option("max_sequences", MaxSequencesOpt, None),
     MAX_WINDOWS,
@@ -281,7 +289,7 @@ def _score_dataset(
     model = _model_config(flags)
     config = {"dataset": dataset, "path": str(flags["path"]), **options}
     config.update({p.name: flags[p.name] for p in DATASET_OPTIONS}, alpha=model.alpha)
-    out = flags["out"] or Path(f"runs/benchmark-{dataset}")
+    out = resolve_out(flags["out"], f"benchmark-{dataset}", flags["force"])
     sampler = WindowSampler()
     try:
         seqs, n = load(flags["max_sequences"])
@@ -432,7 +440,7 @@ def events(
     sensor_size = parse_sensor(sensor) if sensor else None
     offset = parse_offset(mask_offset) if mask_offset else None
     seq_name = name or default_name(file)
-    out = out or Path(f"runs/benchmark-events-{seq_name}")
+    out = resolve_out(out, f"benchmark-events-{seq_name}", shared["force"])
     _set_threads(shared["threads"])
     try:
         seq = load_generic(file, masks, sensor_size, window_us, name=seq_name, subset="events")
@@ -513,7 +521,7 @@ def suppression(
 
     started = time.monotonic()
     sensor_size = parse_sensor(sensor) if sensor else None
-    out = out or Path("runs/benchmark-suppression")
+    out = resolve_out(out, "benchmark-suppression", shared["force"])
     _set_threads(shared["threads"])
     notes: dict[str, list[str]] = {}
     try:

@@ -13,23 +13,20 @@ from __future__ import annotations
 import functools
 import sys
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any, TypeVar
 
 import typer
 from typer import _click as click
 from typer.core import TyperGroup
 
-from wander_env.shutdown import (
-    Received,
-    SignalExit,
-    describe,
-    handle_signals,
-    record_failure,
-    write_failure,
-)
+from experiments.runs.failure import describe, write_failure
+from experiments.runs.folder import CurrentRun
+from experiments.runs.signals import Received, SignalExit, handle_signals
 
-__all__ = ["OneLineErrors", "fail", "long_command", "one_line"]
+__all__ = ["OneLineErrors", "current_run", "fail", "long_command", "one_line"]
+
+#: The key of a long command's :class:`CurrentRun` in its Click context's ``meta``.
+CURRENT_RUN = "wander.current_run"
 
 
 def one_line(err: click.exceptions.ClickException) -> str:
@@ -55,19 +52,32 @@ def fail(message: object, default: str = "wander") -> typer.Exit:
 _F = TypeVar("_F", bound=Callable[..., Any])
 
 
-def long_command(name: str, folder_arg: str | None = "out") -> Callable[[_F], _F]:
-    """Decorate a Typer command: signals handled (:func:`wander_env.shutdown.handle_signals`),
-    failures as one line and an exit code (the module docstring of
-    :mod:`wander_env.shutdown`). A signal that came ends the command with its code even
-    when foreign code turned it into another error or dropped it.
+def current_run() -> CurrentRun | None:
+    """The :class:`CurrentRun` of the long command running now (``None`` outside one):
+    a run folder named with it registers itself there."""
+    from typer._click.globals import get_current_context
 
-    ``folder_arg`` names the keyword holding the result folder (gets the error).
+    ctx = get_current_context(silent=True)
+    return ctx.meta.get(CURRENT_RUN) if ctx is not None else None
+
+
+def long_command(name: str) -> Callable[[_F], _F]:
+    """Decorate a Typer command: signals handled (:func:`experiments.runs.signals.handle_signals`),
+    failures as one line and an exit code (:mod:`experiments.runs.failure`), said in the
+    run folder the command named (:func:`current_run`, whether ``--out`` gave it or not:
+    :meth:`~experiments.runs.folder.RunFolder.record_failure`). A signal that came ends the
+    command with its code even when foreign code turned it into another error or dropped it.
     """
 
     def deco(fn: _F) -> _F:
         @functools.wraps(fn)
         def wrapper(*args: Any, **kwargs: Any) -> Any:
-            folder = kwargs.get(folder_arg) if folder_arg else None
+            from typer._click.globals import get_current_context
+
+            current = CurrentRun()
+            ctx = get_current_context(silent=True)
+            if ctx is not None:
+                ctx.meta[CURRENT_RUN] = current
             received = Received()
             try:
                 with handle_signals() as received:
@@ -83,15 +93,19 @@ def long_command(name: str, folder_arg: str | None = "out") -> Callable[[_F], _F
                 if stop is not None:
                     if stop is not err:  # foreign code turned the raised signal into `err`
                         stop.__cause__ = err
-                    record_failure(folder, stop)
-                    where = f"; {str(folder)!r} holds what was recorded" if folder else ""
+                    folder = current.folder
+                    if folder is not None:
+                        folder.record_failure(stop)
+                    where = f"; {str(folder.path)!r} holds what was recorded" if folder else ""
                     typer.echo(f"{name}: {stop}{where}", err=True)
                     raise typer.Exit(stop.exit_code) from None
                 if not isinstance(err, OSError) or write_failure(err) is None:
                     raise
-                record_failure(folder, err)
-                marked = folder is not None and (Path(folder) / "INCOMPLETE").exists()
-                mark = f"; {str(folder)!r} is marked INCOMPLETE" if marked else ""
+                folder = current.folder
+                if folder is not None:
+                    folder.record_failure(err)
+                marked = folder is not None and folder.incomplete()
+                mark = f"; {str(folder.path)!r} is marked INCOMPLETE" if marked else ""
                 typer.echo(f"{name}: {describe(err)}{mark}", err=True)
                 raise typer.Exit(1) from None
 

@@ -14,11 +14,11 @@ from typing import Annotated
 import typer
 
 from experiments.cli.console import console, print_markdown, progress_bars
-from experiments.cli.errors import fail, long_command
+from experiments.cli.errors import current_run, fail, long_command
 from experiments.cli.options import SeedOpt, check_wait, check_workers, one_of
 from experiments.framework import EXPERIMENT_NAMES, ConfigError
+from experiments.runs.folder import RunFolder
 from experiments.sweep import BACKENDS
-from wander_env.shutdown import record_failure
 
 __all__ = ["register"]
 
@@ -53,14 +53,13 @@ def experiment(
 
     from experiments.framework import (
         config_to_dict,
-        default_out_dir,
         get_experiment,
         make_trials,
         resolve_config,
         run_experiment,
     )
     from experiments.sweep import local_executor
-    from wander_env.runinfo import dumps_strict
+    from wander_env.strict_json import dumps_strict
 
     try:
         exp = get_experiment(name)
@@ -71,7 +70,8 @@ def experiment(
     if show_config:
         console.print_json(dumps_strict(config_to_dict(cfg)))
         return
-    folder = out or default_out_dir(name, seed)
+    run = RunFolder.for_experiment(name, seed, out, current=current_run())
+    folder = run.path
 
     streams: list = []
 
@@ -91,8 +91,8 @@ def experiment(
                 executor=executor if workers > 1 else None,
                 progress=lambda i, total: bar.update(task, completed=i, total=total),
             )
-        except BaseException as e:  # a signal, a full disk: the result folder says so
-            record_failure(folder, e)
+        except BaseException as e:  # any error, also one no signal or write: the folder says so
+            run.record_failure(e)
             raise
         finally:
             for stream in streams:
@@ -143,7 +143,8 @@ def sweep(
         n = len(expand(sw))
     except ConfigError as e:
         raise fail(str(e)) from None
-    folder = out or Path("results") / "sweeps" / sw.name
+    run = RunFolder(out or Path("results") / "sweeps" / sw.name, current_run())
+    folder = run.path
     with progress_bars() as bar:
         task = bar.add_task(f"sweep {sw.name}", total=n)
         try:
@@ -160,10 +161,10 @@ def sweep(
         except ConfigError as e:
             raise fail(str(e)) from None
         except TimeoutError as e:
-            record_failure(folder, e)
+            run.record_failure(e)
             raise fail(f"{e} ({folder}: rerun to resume)") from None
         except BaseException as e:  # a signal: the folder says so; the workers are ended
-            record_failure(folder, e)
+            run.record_failure(e)
             raise
     console.print(
         f"{len(res.rows)} trials ({res.ran} run, {res.skipped} already done) -> "

@@ -26,7 +26,7 @@ app = typer.Typer(
 def version_text() -> str:
     """``wander <version> (git <revision>)``: the installed distribution's version and the
     checkout's commit (``-dirty`` with uncommitted changes; ``unknown`` outside git)."""
-    from wander_env.runinfo import git_revision, package_versions
+    from experiments.runs.provenance import git_revision, package_versions
 
     return f"wander {package_versions(('wander',))['wander']} (git {git_revision()})"
 

@@ -377,12 +377,14 @@ def job_config(cls: Callable[..., T], flags: Mapping[str, Any], **fixed: Any) ->
 
 
 def resolve_out(out: Path | None, command: str, force: bool) -> Path:
-    """The run folder (:func:`wander_env.runinfo.new_run_dir`), or a usage error on
-    ``--out`` when it holds an earlier run."""
-    from wander_env.runinfo import new_run_dir
+    """The path of the run folder (:meth:`experiments.runs.folder.RunFolder.new`, registered
+    as the command's current run), or a usage error on ``--out`` when it holds an earlier
+    run."""
+    from experiments.cli.errors import current_run
+    from experiments.runs.folder import RunFolder
 
     try:
-        return new_run_dir(out, command, force)
+        return RunFolder.new(command, out, force, current=current_run()).path
     except FileExistsError as err:
         raise typer.BadParameter(str(err), param_hint="'--out'") from None
 

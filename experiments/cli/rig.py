@@ -33,9 +33,11 @@ from experiments.cli.options import (
     resolve_out,
     seconds_option,
 )
+from experiments.runs.failure import exit_code
+from experiments.runs.folder import RunFolder
+from experiments.runs.signals import SignalExit
 from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.event_checks import EventFileError
-from wander_env.shutdown import SignalExit, exit_code, record_failure
 
 
 def _or_nan(value: Any) -> float:
@@ -142,8 +144,8 @@ def rig(
         typer.echo(f"wander rig: {err}", err=True)
         bad_file = isinstance(err.__cause__, EventFileError)  # a replay file refused: input
         raise typer.Exit(2 if bad_file else 1) from err
-    except KeyboardInterrupt as err:  # Ctrl-C, SIGTERM, SIGHUP (wander_env.shutdown)
-        record_failure(out, err)
+    except KeyboardInterrupt as err:  # Ctrl-C, SIGTERM, SIGHUP (experiments.runs.signals)
+        RunFolder(out).record_failure(err)
         what = str(err) if isinstance(err, SignalExit) else "interrupted"
         typer.echo(
             f"wander rig: {what}; the PTU was halted; if the run had started, "

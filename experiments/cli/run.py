@@ -52,6 +52,7 @@ from experiments.cli.options import (
 __all__ = ["demo", "flags_with_config_file", "record", "run_agent", "view"]
 
 
+@long_command("wander demo")
 def demo(
     out: RunDirOpt = None,
     seconds: Annotated[float, seconds_option("Simulated seconds of the stimulus.")] = 1.0,
@@ -60,7 +61,8 @@ def demo(
     force: ForceOpt = False,
 ) -> None:
     """Drive the DVS emulator with a synthetic moving pattern; write events and a picture."""
-    from wander_env.demo import DemoConfig, run_demo
+    from experiments.jobs.demo import run_demo
+    from wander_env.demo import DemoConfig
 
     try:
         config = DemoConfig(seconds=seconds, preset=preset, seed=seed)

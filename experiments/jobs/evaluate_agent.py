@@ -29,8 +29,9 @@ import numpy as np
 
 from experiments.framework import write_csv
 from experiments.jobs.run_agent import RunConfig, run
+from experiments.runs.folder import RunFolder
+from experiments.runs.provenance import run_record
 from experiments.stats import wilson_interval
-from wander_env.runinfo import run_record, write_json
 
 
 def detection_interval(hits: int, scored: int, confidence: float = 0.95) -> tuple[float, float]:
@@ -139,9 +140,8 @@ def evaluate(
         seen.append(int(m["events_into_agent"]))
     total = pooled(rows, kept, seen)
     rec = run_record("wander evaluate", {"run": config.__dict__, "seeds": seeds}, None)
-    write_json(
-        out_dir / "quality.json",
-        rec | {"rows": [asdict(r) for r in rows], "pooled": asdict(total)},
+    RunFolder(out_dir).write_json(
+        "quality.json", rec | {"rows": [asdict(r) for r in rows], "pooled": asdict(total)}
     )
     write_csv([asdict(r) for r in (*rows, total)], out_dir / "quality.csv")
     return [*rows, total]

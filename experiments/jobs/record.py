@@ -30,15 +30,16 @@ import numpy as np
 import wander_env  # noqa: F401  (registers the environments)
 from agents.fixation import FixationalMovements, FixationParams
 from experiments.jobs.run_agent import env_kwargs
-from experiments.jobs.run_viewer import open_run_log
+from experiments.runs.folder import RunFolder
+from experiments.runs.provenance import run_record
+from experiments.runs.run_viewer import open_run_log
+from experiments.runs.signals import DeferredSignals, SignalExit
 from wander_env.camera import focal_length_px
 from wander_env.config import check_fields
 from wander_env.env import WanderConfig
 from wander_env.event_formats import write_evimo2_sequence
 from wander_env.event_io import read_events, write_events
 from wander_env.event_stream import EventStreamWriter, H5Appender, VideoSink
-from wander_env.runinfo import run_record, write_json
-from wander_env.shutdown import DeferredSignals, SignalExit, mark_incomplete, record_failure
 
 POLICIES = ("still", "fixational", "saccades")
 # --format: the events file (events.h5 / .aedat4 / .raw) beside ground_truth.h5, or the
@@ -104,12 +105,12 @@ def record(
     Events and ground truth go to disk as they are made (memory does not grow with
     ``seconds``). A failure or a signal mid-way still closes both files with what was
     recorded, writes ``run.json`` and ``metrics.json`` with the error, then raises it.
-    A signal only sets a flag (:class:`~wander_env.shutdown.DeferredSignals`), taken up
+    A signal only sets a flag (:class:`~experiments.runs.signals.DeferredSignals`), taken up
     between two steps: ffmpeg finishes ``video.mp4`` (``video_complete`` in the summary);
     one that comes after the loop waits until ``run.json`` is written. A recording
     stopped by a signal is marked with an ``INCOMPLETE`` file saying when it stopped.
     """
-    out_dir.mkdir(parents=True, exist_ok=True)
+    RunFolder(out_dir).create()
     render_mode = "rgb_array" if config.video else None
     env = gym.make("wander/Wander-v0", render_mode=render_mode, **env_kwargs(config))
     try:
@@ -117,12 +118,12 @@ def record(
             summary = _record(out_dir, config, env, progress, signals)
             if signals.pending:  # it came after the loop: the folder is finished
                 stop = SignalExit(signals.signum)
-                mark_incomplete(
-                    out_dir,
+                folder = RunFolder(out_dir)
+                folder.mark_incomplete(
                     f"{stop} while the folder was written, after the recording's "
                     f"{summary['steps']} steps; every file was finished",
                 )
-                record_failure(out_dir, stop)
+                folder.record_failure(stop)
         return summary  # unless the pending signal, raised on leaving the block
     finally:
         env.close()
@@ -201,16 +202,17 @@ def _record(
         truth.close()
     if error is None and config.format != "h5":
         _convert(out_dir, config.format, base, dt)
+    folder = RunFolder(out_dir)
     if isinstance(error, KeyboardInterrupt):  # a signal, Ctrl-C
-        mark_incomplete(out_dir, f"{str(error) or 'interrupted'} after {done} of {steps} steps")
+        folder.mark_incomplete(f"{str(error) or 'interrupted'} after {done} of {steps} steps")
     summary["files"] = sorted({p.name for p in out_dir.iterdir()} | {"run.json"})
     if error is not None:
         message = f"{type(error).__name__}: {error}"
         stopped_by = {"signal": error.name} if isinstance(error, SignalExit) else {}
-        write_json(out_dir / "metrics.json", {**summary, "error": message, **stopped_by})
-        write_json(out_dir / "run.json", rec | {"summary": summary, "error": message})
+        folder.write_metrics({**summary, "error": message, **stopped_by})
+        folder.write_run(rec | {"summary": summary, "error": message})
         raise error
-    write_json(out_dir / "run.json", rec | {"summary": summary})
+    folder.write_run(rec | {"summary": summary})
     return summary
 
 

@@ -27,12 +27,11 @@ wrong; when the run had started the run folder is written first with what was re
 loop halts the PTU (``H``) as soon as the loop stops, before the video and the folder are
 written; a signal is taken up between two steps (every wait in a step is bounded by a
 control period or a device timeout), not inside a device read (a second signal before
-that is raised at once, to wake a wait: :class:`~wander_env.shutdown.DeferredSignals`).
+that is raised at once, to wake a wait: :class:`~experiments.runs.signals.DeferredSignals`).
 """
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
@@ -44,12 +43,14 @@ import numpy as np
 
 from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent
 from experiments.jobs.run_agent import RunConfig, RunResult, run_for_config
+from experiments.runs.folder import METRICS_JSON, RunFolder
+from experiments.runs.provenance import run_record
 from hardware.ptu_driver import FlirPTUParams, PTUError, PTUPortError, PTUTimeout
 from hardware.ptu_emulator import PTUEmulatorParams
 from hardware.rig_env import RigConfig
 from hardware.speck import SpeckParams
 from wander_env.camera import SPECK_HFOV_DEG
-from wander_env.runinfo import run_record, to_strict_json, write_json
+from wander_env.strict_json import to_strict_json
 
 __all__ = ["RigRunConfig", "RigRunError", "fixed_view_note", "run_rig"]
 
@@ -274,10 +275,10 @@ def _camera_failed(base: Any) -> bool:
 
 def _add_metrics(out_dir: Path, rig: dict[str, Any]) -> dict[str, Any]:
     """Add ``rig`` to the run folder's ``metrics.json``; returns the updated metrics."""
-    path = out_dir / "metrics.json"
-    metrics = json.loads(path.read_text()) if path.is_file() else {}
+    folder = RunFolder(out_dir)
+    metrics = folder.read_json(METRICS_JSON)
     metrics["rig"] = rig
-    write_json(path, metrics)
+    folder.write_metrics(metrics)
     return to_strict_json(metrics)  # as written: a missing figure is None (null)
 
 

@@ -23,10 +23,10 @@ writes the run folder:
   (:class:`~wander_env.event_stream.EventStreamWriter`: memory does not grow with the
   run's length, and a killed run leaves the file readable up to its last flushed chunk).
 
-A fault mid-run (a device that stops answering, a signal: :mod:`wander_env.shutdown`)
+A fault mid-run (a device that stops answering, a signal: :mod:`experiments.runs.signals`)
 still leaves the folder with what was recorded, ``metrics.json`` naming the error (and
 the signal); the exception is raised after it is written. A signal only sets a flag
-(:class:`~wander_env.shutdown.DeferredSignals`): the loop takes it up between two steps,
+(:class:`~experiments.runs.signals.DeferredSignals`): the loop takes it up between two steps,
 so it never interrupts a render, a device read or a video frame's write; the video is
 then finished by ffmpeg (``metrics.json`` ``video_complete`` says whether ``run.mp4``
 is a whole MP4). A signal that comes while the folder is written waits until the
@@ -38,26 +38,31 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent, Phase
+from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent
 from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
-from experiments.jobs.run_viewer import open_run_log
 from experiments.jobs.scanpath_figure import pixel_to_angles, plot_scanpath
+from experiments.runs.folder import RunFolder
+from experiments.runs.observers import (
+    DetectionObserver,
+    EventsObserver,
+    RerunObserver,
+    RunObserver,
+    VideoObserver,
+)
+from experiments.runs.provenance import run_record
+from experiments.runs.signals import DeferredSignals, SignalExit
 from wander_env.camera import degrees_to_pixels, focal_length_px
 from wander_env.config import check_fields
-from wander_env.entities import object_body_name
 from wander_env.env import WanderConfig
-from wander_env.event_stream import EventStreamWriter, OutputError, VideoSink
-from wander_env.metrics import detection_hit
-from wander_env.runinfo import run_record, write_json
-from wander_env.shutdown import DeferredSignals, SignalExit, mark_incomplete, record_failure
+from wander_env.event_stream import EventStreamWriter
 from wander_env.viz import event_image, labelled_frame, saliency_rgb
 
 __all__ = [
@@ -180,24 +185,37 @@ def run_closed_loop(
     progress: Callable[[int, int], None] | None = None,
     seed: int | None = None,
     halt: Callable[[], None] | None = None,
+    observers: Sequence[RunObserver] = (),
 ) -> RunResult:
     """Run ``agent`` on ``env`` for ``seconds`` and write the run folder (module doc).
 
     ``halt`` (the rig: halt the PTU; it must not raise) is called as soon as the loop ends
     on an error or a signal, before the video is closed and the folder written.
+    ``observers`` (:mod:`experiments.runs.observers`) watch the run besides its own
+    (the Rerun log, the video, detection scoring).
     """
     with DeferredSignals() as signals:  # a signal sets a flag; the loop takes it up
         result = _run(
-            env, agent, seconds, Path(out_dir), record, video, progress, seed, halt, signals
+            env,
+            agent,
+            seconds,
+            Path(out_dir),
+            record,
+            video,
+            progress,
+            seed,
+            halt,
+            signals,
+            observers,
         )
         if signals.pending:  # it came while the folder was written: the folder is finished
             stop = SignalExit(signals.signum)
-            mark_incomplete(
-                out_dir,
+            folder = RunFolder(out_dir)
+            folder.mark_incomplete(
                 f"{stop} while the run folder was written, after the run's "
                 f"{result.metrics['steps']} steps; every file was finished",
             )
-            record_failure(out_dir, stop)
+            folder.record_failure(stop)
     return result  # unless the pending signal, raised on leaving the block
 
 
@@ -212,63 +230,45 @@ def _run(
     seed: int | None,
     halt: Callable[[], None] | None,
     signals: DeferredSignals,
+    observers: Sequence[RunObserver],
 ) -> RunResult:
     """The loop and the folder of :func:`run_closed_loop`, inside its ``signals`` block."""
-    out_dir.mkdir(parents=True, exist_ok=True)
+    RunFolder(out_dir).create()
     base = env.unwrapped
     dt = float(getattr(getattr(base, "config", None), "control_period_s", agent.params.step_s))
     n_steps = max(1, round(seconds / dt))
     log = _Log(asked=n_steps)
     p = agent.params
-    stream = EventStreamWriter(out_dir / "events.h5", (p.width_px, p.height_px, 2), record)
-    writer = None
-    video_path = out_dir / "run.mp4"
-    if video:
-        try:
-            writer = VideoSink(video_path, fps=round(1 / dt))
-        except BaseException:
-            stream.close()
-            raise
-    rrlog = open_run_log(out_dir, env, str(record.get("command", "wander run")))  # run.rrd
+    events = EventsObserver(out_dir / "events.h5", (p.width_px, p.height_px, 2), record)
+    watchers: list[RunObserver] = []
+    try:
+        if video:
+            watchers.append(VideoObserver(out_dir / "run.mp4", round(1 / dt), _frame_for))
+        rerun = RerunObserver(out_dir, env, str(record.get("command", "wander run")))  # run.rrd
+    except BaseException:
+        events.finish()
+        raise
+    detection = DetectionObserver()
+    watchers = [rerun, *watchers, detection, *observers]
     error: BaseException | None = None
     t_wall = time.perf_counter()
-    window_mask: np.ndarray | None = None
-    saccade_clipped = False
     try:
         obs, info = env.reset(seed=seed)
         agent.reset()
+        for w in watchers:
+            w.on_reset(env, agent, obs, info)
         for k in range(n_steps):
             signals.check()  # a signal that came during the last step stops the run here
-            phase_before = agent.phase
-            n_sacc = len(agent.saccades)
             action = agent.act(obs, info)
-            mask = info.get("object_mask")
-            if mask is not None and phase_before is Phase.FIXATE:  # step went into the window
-                # object ids (1, 2, ...), the latest step's on top
-                window_mask = mask if window_mask is None else np.where(mask > 0, mask, window_mask)
-            if len(agent.saccades) > n_sacc:  # a saccade ended at this step
-                log.clipped.append(saccade_clipped)
-            if agent.decided:
-                log.maps.append(agent.saliency.copy())
-                hit, hit_object = None, ""
-                if window_mask is not None and window_mask.any() and agent.target is not None:
-                    hit = detection_hit(agent.target, window_mask > 0)
-                    hit_object = _objects_hit(agent.target, window_mask, info)
-                log.hits.append(hit)
-                log.hit_objects.append(hit_object)
-                window_mask = None
-                saccade_clipped = False
+            for w in watchers:
+                w.on_act(env, agent, obs, info)
             obs, _, terminated, truncated, info = env.step(action)
-            if agent.phase is Phase.SACCADE:
-                saccade_clipped |= bool(info.get("target_clipped", False))
-            step_events = info["events"].events
-            stream.append(step_events)
-            log.events += len(step_events)
+            events.on_step(env, agent, obs, info)  # first: a step counts once on disk
+            log.events = events.events
             log.gaze.append((float(info.get("t", (k + 1) * dt)), *map(float, obs["gaze"])))
             log.steps = k + 1
-            rrlog.step(obs, info, agent)
-            if writer is not None:
-                writer.append(_frame_for(agent, obs, base, info))
+            for w in watchers:
+                w.on_step(env, agent, obs, info)
             if progress is not None:
                 progress(k + 1, n_steps)
             if terminated or truncated:
@@ -278,36 +278,27 @@ def _run(
         if halt is not None:
             halt()
     finally:
-        rrlog.close()
-        log.sightings = rrlog.sightings
-        if writer is not None:
-            error = writer.finish(error)
-            log.video_complete = writer.complete
+        for w in watchers:
+            error = w.close(error)
+        log.sightings = rerun.sightings
+        log.video_complete = next(
+            (w.complete for w in watchers if isinstance(w, VideoObserver)), None
+        )
+        log.maps, log.hits = detection.maps, detection.hits
+        log.hit_objects, log.clipped = detection.hit_objects, detection.clipped
     wall = time.perf_counter() - t_wall
     try:
-        result = _write_folder(out_dir, env, agent, log, stream, record, dt, wall, error)
+        result = _write_folder(out_dir, env, agent, log, events, record, dt, wall, error)
     except Exception as write_error:
         if error is None:
             raise
         error.add_note(f"writing the run folder {out_dir} also failed: {write_error!r}")
         raise error from write_error
     finally:
-        try:
-            stream.close()  # already closed by _write_folder unless that failed
-        except OutputError:
-            pass
+        events.finish()  # already closed by _write_folder unless that failed
     if error is not None:
         raise error
     return result
-
-
-def _objects_hit(target: tuple[int, int], ids: np.ndarray, info: dict) -> str:
-    """The moving objects (named as in the scene file, ``+``-joined in id order) whose
-    masks in ``ids`` (object ids, 0 = none) the detection box around ``target`` touches
-    (:func:`~wander_env.metrics.detection_hit`); "" for none."""
-    names = {o["id"]: str(o["name"]) for o in info.get("objects", ())}
-    hit = [int(k) for k in np.unique(ids[ids > 0]) if detection_hit(target, ids == k)]
-    return "+".join(names.get(k) or object_body_name(k) for k in hit)
 
 
 def _frame_for(agent: AttentionAgent, obs: dict, base: Any, info: dict) -> np.ndarray:
@@ -400,12 +391,13 @@ def _write_folder(
     env: Any,
     agent: AttentionAgent,
     log: _Log,
-    stream: EventStreamWriter,
+    events: EventsObserver,
     record: dict[str, Any],
     dt: float,
     wall: float,
     error: BaseException | None,
 ) -> RunResult:
+    folder = RunFolder(out_dir)
     p = agent.params
     f = focal_length_px(p.width_px, p.hfov_deg)
     centre = ((p.width_px - 1) / 2.0, (p.height_px - 1) / 2.0)
@@ -445,10 +437,10 @@ def _write_folder(
         if isinstance(error, SignalExit):
             metrics["signal"] = error.name
     if isinstance(error, KeyboardInterrupt):  # a signal, Ctrl-C
-        mark_incomplete(
-            out_dir, f"{str(error) or 'interrupted'} after {log.steps} of {log.asked} steps"
+        folder.mark_incomplete(
+            f"{str(error) or 'interrupted'} after {log.steps} of {log.asked} steps"
         )
-    write_json(out_dir / "metrics.json", metrics)
+    folder.write_metrics(metrics)
     if agent.fixations and log.maps:
         n = min(len(log.maps), len(agent.fixations))
         plot_scanpath(
@@ -471,8 +463,8 @@ def _write_folder(
             fixed_view=record.get("fixed_view"),  # a replayed recording (wander rig)
         )
     rec = record | {"agent": asdict(p), "summary": {k: metrics[k] for k in ("steps", "events")}}
-    stream.close(rec)
-    write_json(out_dir / "run.json", rec)
+    events.finish(rec)
+    folder.write_run(rec)
     files = sorted(x.name for x in out_dir.iterdir())
     return RunResult(metrics=metrics, files=files, error=metrics.get("error"))
 
@@ -553,14 +545,15 @@ def _stopped_in_setup(
     from wander_env.scene_config import load_scene_config
 
     camera = load_scene_config(config.scene).camera
-    out_dir.mkdir(parents=True, exist_ok=True)
+    folder = RunFolder(out_dir)
+    folder.create()
     summary = {"steps": 0, "events": 0}
     rec = record | {"summary": summary}
     EventStreamWriter(out_dir / "events.h5", (camera.width, camera.height, 2)).close(rec)
     metrics: dict[str, Any] = {**summary, "stage": "set-up"}
     metrics["error"] = f"{type(stop).__name__}: {stop} (while setting up)"
-    mark_incomplete(out_dir, f"{str(stop) or 'interrupted'} while setting up, before any step")
+    folder.mark_incomplete(f"{str(stop) or 'interrupted'} while setting up, before any step")
     if isinstance(stop, SignalExit):
         metrics["signal"] = stop.name
-    write_json(out_dir / "metrics.json", metrics)
-    write_json(out_dir / "run.json", rec)
+    folder.write_metrics(metrics)
+    folder.write_run(rec)

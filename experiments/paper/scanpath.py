@@ -79,6 +79,7 @@ from experiments.framework import (
 )
 from experiments.jobs.run_agent import run_closed_loop
 from experiments.jobs.scanpath_figure import pixel_to_angles, saliency_mosaic, show_mosaic
+from experiments.runs.observers import RunObserver
 from experiments.stats import ci_text, mean_std
 from wander_env.camera import SPECK_HFOV_DEG, cast_pixel, focal_length_px
 from wander_env.entities import object_body_name
@@ -88,8 +89,8 @@ from wander_env.viz import save_figure
 
 __all__ = [
     "EXPERIMENT",
-    "ScanpathAgent",
     "ScanpathConfig",
+    "ScanpathObserver",
     "agent_params",
     "merge_windows",
     "object_names",
@@ -199,18 +200,15 @@ def object_names(scene: SceneConfig) -> dict[str, str]:
     return names
 
 
-class ScanpathAgent(AttentionAgent):
-    """The attention agent, also keeping per decision the saliency map, the gaze and
-    which scene object the box around ``P`` sees (ray casts in ``env``'s current pose;
-    objects named as in the scene file, :func:`object_names`)."""
+class ScanpathObserver(RunObserver):
+    """Watches the agent of a run (:mod:`experiments.runs.observers`): per decision the
+    saliency map, the gaze and which scene object the box around ``P`` sees (ray casts
+    in ``env``'s pose when the agent decided; objects named as in the scene file,
+    :func:`object_names`)."""
 
-    def __init__(self, params: AgentParams, seed: int, env: Any, box: int = 8) -> None:
+    def __init__(self, env: Any, box: int = 8) -> None:
         self._env, self._box = env.unwrapped, box
         self._objects = object_names(self._env.scene)
-        super().__init__(params, seed=seed)
-
-    def reset(self, seed: int | None = None) -> None:
-        super().reset(seed)
         self.maps: list[np.ndarray] = []
         self.map_gazes: list[tuple[float, float]] = []
         # Per decision with a P: (object under P, object most of the box sees); "" = none.
@@ -218,32 +216,32 @@ class ScanpathAgent(AttentionAgent):
         # Per decision: the object under the fovea (the fixation's area of interest).
         self.fovea_labels: list[str] = []
 
-    def act(self, observation: dict[str, np.ndarray], info: dict[str, Any]) -> np.ndarray:
-        action = super().act(observation, info)
-        if self.decided:
-            gaze = tuple(float(g) for g in np.asarray(observation["gaze"]).reshape(2))
-            self.maps.append(np.asarray(self.saliency, np.float32).copy())
-            self.map_gazes.append(gaze)
-            p = self.params
-            self.fovea_labels.append(self._object((p.width_px // 2, p.height_px // 2)))
-            if self.target is not None:
-                self.labels.append(self._objects_at(self.target))
-        return action
+    def on_reset(self, env: Any, agent: AttentionAgent, obs: dict, info: dict) -> None:
+        self.maps, self.map_gazes, self.labels, self.fovea_labels = [], [], [], []
 
-    def _object(self, xy: tuple[int, int]) -> str:
-        p = self.params
+    def on_act(self, env: Any, agent: AttentionAgent, obs: dict, info: dict) -> None:
+        if agent.decided:
+            gaze = tuple(float(g) for g in np.asarray(obs["gaze"]).reshape(2))
+            self.maps.append(np.asarray(agent.saliency, np.float32).copy())
+            self.map_gazes.append(gaze)
+            p = agent.params
+            self.fovea_labels.append(self._object(p, (p.width_px // 2, p.height_px // 2)))
+            if agent.target is not None:
+                self.labels.append(self._objects_at(p, agent.target))
+
+    def _object(self, p: AgentParams, xy: tuple[int, int]) -> str:
         geom = cast_pixel(self._env.model, self._env.data, xy, p.width_px, p.height_px)[2]
         return self._objects.get(geom, "")
 
-    def _objects_at(self, xy: tuple[int, int]) -> tuple[str, str]:
+    def _objects_at(self, p: AgentParams, xy: tuple[int, int]) -> tuple[str, str]:
         """(the object under ``xy``, the object most of the box's pixels see)."""
-        p, half = self.params, self._box // 2
+        half = self._box // 2
         seen: Counter[str] = Counter()
         for y in range(max(xy[1] - half, 0), min(xy[1] - half + self._box, p.height_px)):
             for x in range(max(xy[0] - half, 0), min(xy[0] - half + self._box, p.width_px)):
-                seen[self._object((x, y))] += 1
+                seen[self._object(p, (x, y))] += 1
         seen.pop("", None)
-        return self._object(xy), seen.most_common(1)[0][0] if seen else ""
+        return self._object(p, xy), seen.most_common(1)[0][0] if seen else ""
 
 
 def agent_params(cfg: ScanpathConfig, condition: str, env: Any) -> AgentParams:
@@ -271,12 +269,20 @@ def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
         frames=cfg.frames,
         episode_seconds=cfg.duration_s + 1.0,
     )
-    agent = ScanpathAgent(agent_params(cfg, condition, env), spec.seed, env, cfg.box)
+    agent = AttentionAgent(agent_params(cfg, condition, env), seed=spec.seed)
+    watch = ScanpathObserver(env, cfg.box)
     record = {"experiment": "scanpath", "params": dict(spec.params), "seed": spec.seed}
     try:
         with tempfile.TemporaryDirectory() as tmp:
             run = run_closed_loop(
-                env, agent, cfg.duration_s, Path(tmp), record, video=False, seed=spec.seed
+                env,
+                agent,
+                cfg.duration_s,
+                Path(tmp),
+                record,
+                video=False,
+                seed=spec.seed,
+                observers=(watch,),
             )
     finally:
         agent.close()
@@ -291,9 +297,9 @@ def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
     ).reshape(-1, 4)
     ends = [w.target_px is not None for w in fx]
     table = scanpath_stats.normalise_fixations(merge_windows(windows, ends))
-    aois = scanpath_stats.fixation_aois(agent.fovea_labels, ends)
-    hits = [bool(centre) for centre, _ in agent.labels]
-    box_hits = [bool(box) for _, box in agent.labels]
+    aois = scanpath_stats.fixation_aois(watch.fovea_labels, ends)
+    hits = [bool(centre) for centre, _ in watch.labels]
+    box_hits = [bool(box) for _, box in watch.labels]
     amps = np.array(
         [
             scanpath_stats.angular_distance(np.array(s.from_target_deg), np.array(s.to_gaze_deg))[0]
@@ -303,14 +309,14 @@ def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
     targets = np.array(
         [
             pixel_to_angles(w.target_px, g, f, centre)
-            for w, g in zip(fx, agent.map_gazes, strict=True)
+            for w, g in zip(fx, watch.map_gazes, strict=True)
             if w.target_px is not None
         ],
         dtype=np.float64,
     ).reshape(-1, 2)
     out: dict[str, Any] = {
         "decisions": len(fx),
-        "decisions_with_target": len(agent.labels),
+        "decisions_with_target": len(watch.labels),
         "fixations": len(table),
         "fixation_duration_mean_s": _us(mean_std(table[:, 3])[0]),
         "fixation_duration_std_s": _us(mean_std(table[:, 3])[1]),
@@ -319,7 +325,7 @@ def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
         "saccade_amplitude_std_deg": mean_std(amps)[1],
         "object_hit_rate": float(np.mean(hits)) if hits else math.nan,
         "object_hit_rate_box": float(np.mean(box_hits)) if box_hits else math.nan,
-        "objects_visited": len({name for name, _ in agent.labels if name}),
+        "objects_visited": len({name for name, _ in watch.labels if name}),
         "revisits": scanpath_stats.revisits(table, cfg.radius_deg),
         "coverage_deg2": scanpath_stats.coverage(table, cfg.radius_deg),
         "aois_visited": len(set(aois) - {scanpath_stats.BACKGROUND}),
@@ -336,8 +342,8 @@ def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
         "_targets_deg": targets,
         "_target_hits": np.array(hits, dtype=bool),
     }
-    if agent.maps:
-        grid_ = saliency_mosaic(agent.maps, agent.map_gazes, f, cfg.mosaic_step_deg)
+    if watch.maps:
+        grid_ = saliency_mosaic(watch.maps, watch.map_gazes, f, cfg.mosaic_step_deg)
         out |= {
             "_mosaic_pan": grid_.pan,
             "_mosaic_tilt": grid_.tilt,

@@ -20,15 +20,10 @@ raises one that came after the loop (while the run folder was written), so the f
 is finished first. The waits in a step are bounded (device timeouts); a second signal
 before the loop took up the first is raised at once, wherever the main thread waits.
 
-:func:`experiments.cli.errors.long_command` wraps a command in it and turns the ways a long run ends
-badly into one line on stderr and an exit code: a signal → ``128 + signal`` (130
-SIGINT, 143 SIGTERM, 129 SIGHUP; also when foreign code turned the raised signal into
-another exception: the :class:`Received` record says it came), a result file that
-cannot be written (disk full, read-only or unwritable folder) → 1, after
-:func:`record_failure` has added the error to the folder's ``metrics.json`` (strict
-JSON) and, for a write failure, marked the folder with an ``INCOMPLETE`` file
-(:func:`mark_incomplete`; the run jobs mark a run stopped by a signal the same way,
-saying when it stopped).
+:func:`experiments.cli.errors.long_command` wraps a command in it; what a signal or a
+failed write leaves in the run folder is :class:`experiments.runs.folder.RunFolder`'s
+(``metrics.json``'s ``error`` and ``signal``, the ``INCOMPLETE`` marker), the one line and
+the exit code are :mod:`experiments.runs.failure`'s.
 
 Examples:
     >>> import os, signal
@@ -54,25 +49,17 @@ Examples:
 
 from __future__ import annotations
 
-import errno
-import json
-import math
 import os
 import signal
 import sys
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from pathlib import Path
 from types import TracebackType
 from typing import Any
 
 SIGNALS: tuple[signal.Signals, ...] = tuple(
     getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
-)
-#: errno values that mean "the result cannot be written here".
-WRITE_ERRNOS = frozenset(
-    getattr(errno, n) for n in ("ENOSPC", "EDQUOT", "EACCES", "EPERM", "EROFS") if hasattr(errno, n)
 )
 
 
@@ -217,109 +204,10 @@ class DeferredSignals:
         self.check()
 
 
-def write_failure(err: BaseException) -> OSError | None:
-    """The write failure (disk full, not writable) in ``err`` or its causes, if any."""
-    seen: set[int] = set()
-    e: BaseException | None = err
-    while e is not None and id(e) not in seen:
-        seen.add(id(e))
-        if isinstance(e, OSError) and (
-            e.errno in WRITE_ERRNOS
-            or type(e).__name__ == "OutputError"
-            or "No space left on device" in str(e)
-        ):
-            return e
-        e = e.__cause__ or e.__context__
-    return None
-
-
-def _strict(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _strict(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_strict(v) for v in value]
-    return value
-
-
-def mark_incomplete(folder: str | os.PathLike, why: str) -> None:
-    """Mark ``folder`` with an ``INCOMPLETE`` file holding ``why`` (one line): a disk too
-    full for the text still gets the empty file. Never raises."""
-    path = Path(folder) / "INCOMPLETE"
-    try:
-        path.touch()  # an empty file needs no free blocks
-        path.write_text(f"{' '.join(why.split())}\n")
-    except OSError:
-        pass
-
-
-def record_failure(folder: str | os.PathLike | None, err: BaseException) -> None:
-    """Add ``err`` (and the signal) to ``folder/metrics.json``; mark a write failure
-    with ``folder/INCOMPLETE``. A signal that came before the folder existed (during
-    set-up) creates it. Never raises (the disk may be full)."""
-    if folder is None:
-        return
-    folder = Path(folder)
-    if isinstance(err, SignalExit):  # stopped before the run made its folder: say so there
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-        except OSError:
-            return
-    if not folder.is_dir():
-        return
-    failed_write = write_failure(err)
-    if failed_write is not None:
-        mark_incomplete(folder, describe(err))
-    path = folder / "metrics.json"
-    try:
-        metrics = json.loads(path.read_text()) if path.is_file() else {}
-        if not isinstance(metrics, dict):
-            metrics = {}
-    except (OSError, ValueError):
-        metrics = {}
-    metrics.setdefault("error", f"{type(err).__name__}: {err}")
-    if isinstance(err, SignalExit):
-        metrics["signal"] = err.name
-    if failed_write is not None:
-        metrics["incomplete"] = True
-    try:
-        text = json.dumps(_strict(metrics), indent=2, default=str, allow_nan=False) + "\n"
-        tmp = path.with_suffix(".json.tmp")
-        tmp.write_text(text)
-        os.replace(tmp, path)
-    except (OSError, ValueError):
-        pass
-
-
-def describe(err: BaseException) -> str:
-    """One line for a failure of a long command."""
-    if isinstance(err, SignalExit):
-        return str(err)
-    failed = write_failure(err)
-    if failed is not None:
-        where = failed.filename or getattr(err, "filename", None) or "the output folder"
-        what = failed.strerror or os.strerror(failed.errno or errno.EIO)
-        return f"cannot write {where}: {what}"
-    return " ".join(f"{type(err).__name__}: {err}".split())
-
-
-def exit_code(err: BaseException) -> int:
-    """128 + signal for a :class:`SignalExit`, 130 for a plain ``KeyboardInterrupt``, else 1."""
-    if isinstance(err, SignalExit):
-        return err.exit_code
-    return 130 if isinstance(err, KeyboardInterrupt) else 1
-
-
 __all__ = [
     "SIGNALS",
     "DeferredSignals",
     "Received",
     "SignalExit",
-    "describe",
-    "exit_code",
     "handle_signals",
-    "mark_incomplete",
-    "record_failure",
-    "write_failure",
 ]

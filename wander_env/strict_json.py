@@ -1,0 +1,43 @@
+"""Strict JSON: every file parses with a strict parser.
+
+A missing or undefined figure (NaN, ±inf) is ``null``, NumPy scalars and arrays become
+plain numbers and lists (``json.loads(text, parse_constant=...)`` raising never fires).
+
+Examples:
+    >>> import math, numpy as np
+    >>> to_strict_json({"a": math.nan, "b": np.float32(0.5), "c": [np.inf, 1]})
+    {'a': None, 'b': 0.5, 'c': [None, 1]}
+    >>> dumps_strict({"x": float("nan")})
+    '{"x": null}'
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any
+
+import numpy as np
+
+
+def to_strict_json(value: Any) -> Any:
+    """``value`` with every non-finite float replaced by ``None`` and NumPy values made
+    plain (recursively through dicts, lists and tuples); other objects are left as they
+    are (``json.dumps(default=str)`` turns them into text)."""
+    if isinstance(value, dict):
+        return {str(k): to_strict_json(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [to_strict_json(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return to_strict_json(value.tolist())
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def dumps_strict(data: Any, **kwargs: Any) -> str:
+    """``json.dumps`` of :func:`to_strict_json` ``(data)``; never writes NaN/Infinity."""
+    kwargs.setdefault("default", str)
+    return json.dumps(to_strict_json(data), allow_nan=False, **kwargs)
