@@ -442,10 +442,13 @@ class AttentionAgent:
         u = np.clip(u, -1.0, 1.0)
         want = np.array(
             pixel_to_rotation(
-                u[0] * p.width_px / 2, u[1] * p.height_px / 2, self._from_target[1],
-                p.width_px, p.hfov_deg,
+                u[0] * p.width_px / 2,
+                u[1] * p.height_px / 2,
+                self._from_target[1],
+                p.width_px,
+                p.hfov_deg,
             )
-        )  # fmt: skip
+        )
         delta = want - self._sent_deg
         self._sent_deg = want
         return _clip(gaze_degrees_to_action(*delta, p.width_px, p.height_px, p.hfov_deg))

@@ -324,8 +324,11 @@ def _studies_table(root: Path, report_dir: Path) -> list[str]:
             if not (base and ideal and base[0]["ptu"] == "flir"):
                 return None
             by = {int(r["seed"]): float(r["time_to_foveate_s"]) for r in ideal}
-            pairs = [(float(r["time_to_foveate_s"]), by[int(r["seed"])]) for r in base
-                     if int(r["seed"]) in by]  # fmt: skip
+            pairs = [
+                (float(r["time_to_foveate_s"]), by[int(r["seed"])])
+                for r in base
+                if int(r["seed"]) in by
+            ]
             return paired_comparison([a for a, _ in pairs], [b for _, b in pairs]).text(".3g")
 
         cost = _checked(folder / "results.csv", "the PTU link's comparison", link_cost)
@@ -353,10 +356,13 @@ def studies_section(root: Path, report_dir: Path, figures: Path | None = None) -
         from experiments.paper.speed_study import plot_surfaces
 
         fig = _checked(
-            d / "results.csv", "the response surfaces",
-            plot_surfaces, rows, figures / f"sweep_{d.name}_surfaces.png",
+            d / "results.csv",
+            "the response surfaces",
+            plot_surfaces,
+            rows,
+            figures / f"sweep_{d.name}_surfaces.png",
             title=f"sweep {d.name}: response surfaces",
-        )  # fmt: skip
+        )
         lines += [_figure_link(fig, figures), ""]
     if len(lines) == 2:
         lines += [

@@ -363,9 +363,11 @@ class RigEnv(CameraEnv):
         atexit.register(self.close)  # an env left open still halts the PTU at exit
         self.hfov_deg = c.hfov_deg
         self.init_spaces(
-            self.sensor_size[0], self.sensor_size[1], self.ptu.pan_limits_deg,
+            self.sensor_size[0],
+            self.sensor_size[1],
+            self.ptu.pan_limits_deg,
             self.ptu.tilt_limits_deg,
-        )  # fmt: skip
+        )
         self._target: tuple[int, int] = self._link.snapshot()["acked"]
         self._positions: tuple[int, int] = self._link.snapshot()["positions"]
         self._t0_us = 0

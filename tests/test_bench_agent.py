@@ -52,9 +52,19 @@ def test_pooled_quality() -> None:
 
 def test_evaluate_cli_two_seeds(tmp_path: Path) -> None:
     res = CliRunner().invoke(
-        app, ["evaluate", "--out", str(tmp_path), "--scene", "shelf", "--seconds", "0.3",
-              "--seeds", "0,1"],
-    )  # fmt: skip
+        app,
+        [
+            "evaluate",
+            "--out",
+            str(tmp_path),
+            "--scene",
+            "shelf",
+            "--seconds",
+            "0.3",
+            "--seeds",
+            "0,1",
+        ],
+    )
     assert res.exit_code == 0, res.output
     q = json.loads((tmp_path / "quality.json").read_text())
     assert [r["seed"] for r in q["rows"]] == [0, 1] and q["pooled"]["seed"] == "all"

@@ -133,9 +133,23 @@ def test_same_seed_identical_events_in_every_mode() -> None:
 def test_command_prints_both_tables_and_refuses_unknown_motions() -> None:
     res = CliRunner().invoke(
         app,
-        ["bench", "fidelity", "--scenes", "shelf", "--motions", "still", "--seeds", "0",
-         "--seconds", "0.01", "--reference-hz", "2000", "--reference-supersample", "1"],
-    )  # fmt: skip
+        [
+            "bench",
+            "fidelity",
+            "--scenes",
+            "shelf",
+            "--motions",
+            "still",
+            "--seeds",
+            "0",
+            "--seconds",
+            "0.01",
+            "--reference-hz",
+            "2000",
+            "--reference-supersample",
+            "1",
+        ],
+    )
     assert res.exit_code == 0, res.output
     out = " ".join(res.output.split())
     assert "Frame modes against the reference (4 samples a pixel at 2000 Hz ticks)" in out

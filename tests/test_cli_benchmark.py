@@ -235,9 +235,20 @@ def test_events_limit_streamlined_and_resized_masks(tmp_path):
     out = tmp_path / "out"
     # The sensor is said to be 96 x 96: the 48 x 48 masks are resized (and it is said).
     result = invoke(
-        "events", file, "--masks", masks, "--out", out, "--limit", "2",
-        "--streamlined", "--sensor", "96x96", "--no-suppression", "--no-progress",
-    )  # fmt: skip
+        "events",
+        file,
+        "--masks",
+        masks,
+        "--out",
+        out,
+        "--limit",
+        "2",
+        "--streamlined",
+        "--sensor",
+        "96x96",
+        "--no-suppression",
+        "--no-progress",
+    )
     assert result.exit_code == 0, result.output
     rows = read_csv(out / "results.csv")
     assert len(rows) == 2
@@ -314,9 +325,16 @@ def test_suppression_on_a_folder(tmp_path):
     (folder / "preview.png").write_bytes(b"")
     out = tmp_path / "out"
     result = invoke(
-        "suppression", folder, "--sensor", f"{W}x{H}", "--window-us", WIN_US, "--out", out,
+        "suppression",
+        folder,
+        "--sensor",
+        f"{W}x{H}",
+        "--window-us",
+        WIN_US,
+        "--out",
+        out,
         "--no-progress",
-    )  # fmt: skip
+    )
     assert result.exit_code == 0, result.output
     rows = read_csv(out / "results.csv")
     assert [(r["recording"], int(r["events_in"])) for r in rows] == [
@@ -346,9 +364,16 @@ def test_suppression_on_a_folder(tmp_path):
 def test_events_on_real_eed_ball_net_first_windows(tmp_path):
     out = tmp_path / "eed"
     result = invoke(
-        "events", EED / "events_txyp.npy", "--masks", EED / "ref_masks_tt_adapt",
-        "--limit", "3", "--out", out, "--no-progress",
-    )  # fmt: skip
+        "events",
+        EED / "events_txyp.npy",
+        "--masks",
+        EED / "ref_masks_tt_adapt",
+        "--limit",
+        "3",
+        "--out",
+        out,
+        "--no-progress",
+    )
     assert result.exit_code == 0, result.output
     rows = read_csv(out / "results.csv")
     assert [(int(r["t_start_us"]), int(r["t_end_us"])) for r in rows] == [
@@ -377,9 +402,17 @@ def test_alpha_option_on_real_eed_ball_net(tmp_path):
         out = tmp_path / f"eed-{alpha}"
         extra = () if alpha is None else ("--alpha", alpha)
         result = invoke(
-            "events", EED / "events_txyp.npy", "--masks", EED / "ref_masks_tt_adapt",
-            "--limit", "3", "--out", out, "--no-progress", *extra,
-        )  # fmt: skip
+            "events",
+            EED / "events_txyp.npy",
+            "--masks",
+            EED / "ref_masks_tt_adapt",
+            "--limit",
+            "3",
+            "--out",
+            out,
+            "--no-progress",
+            *extra,
+        )
         assert result.exit_code == 0, result.output
         rec = json.loads((out / "run.json").read_text())
         assert rec["config"]["alpha"] == (0.8 if alpha is None else 0.5)
@@ -396,9 +429,14 @@ def test_benchmark_minmax_suppression_on_real_ego_motion(tmp_path):
     for alpha in (0.5, 0.8):
         out = tmp_path / f"a{alpha}"
         result = invoke(
-            "suppression", REALDATA / "uzh_poster_egomotion", "--alpha", alpha,
-            "--out", out, "--no-progress",
-        )  # fmt: skip
+            "suppression",
+            REALDATA / "uzh_poster_egomotion",
+            "--alpha",
+            alpha,
+            "--out",
+            out,
+            "--no-progress",
+        )
         assert result.exit_code == 0, result.output
         sup = json.loads((out / "run.json").read_text())["suppression"]
         assert sorted(sup) == ["poster_6dof_events_txyp", "poster_translation_events_txyp"]

@@ -28,10 +28,18 @@ def _strict(text: str) -> object:
 def test_run_with_an_unknown_scene_prints_one_line_and_exits_2():
     """The issue's bar, through a real process: ≤ 3 lines on stderr, no traceback."""
     proc = subprocess.run(
-        [sys.executable, "-c", "from experiments.cli.main import main; main()", "run",
-         "--scene", "nosuch"],
-        capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-c",
+            "from experiments.cli.main import main; main()",
+            "run",
+            "--scene",
+            "nosuch",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr and proc.stdout == ""
     assert proc.stderr.splitlines() == [
@@ -168,8 +176,14 @@ def test_strict_json_and_versions():
     assert parsed["config"] == {"x": None, "y": [None, 2.0]}
     assert set(parsed["versions"]) == {"python", *VERSIONED_PACKAGES}
     assert set(VERSIONED_PACKAGES) == {
-        "numpy", "mujoco", "torch", "sinabs", "nengo", "gymnasium", "wander"
-    }  # fmt: skip
+        "numpy",
+        "mujoco",
+        "torch",
+        "sinabs",
+        "nengo",
+        "gymnasium",
+        "wander",
+    }
     import numpy as np
     import torch
 

@@ -40,10 +40,14 @@ T_OFFSET = 5_000_000  # the synthetic file's first timestamp (µs); the replay r
 # A unit quick enough that a saccade has settled well inside a short real-time run.
 QUICK = PTUEmulatorParams(
     motion=PTUParams(
-        pan_speed=100_000.0, tilt_speed=100_000.0, pan_upper_speed=100_000.0,
-        tilt_upper_speed=100_000.0, pan_accel=1e7, tilt_accel=1e7,
+        pan_speed=100_000.0,
+        tilt_speed=100_000.0,
+        pan_upper_speed=100_000.0,
+        tilt_upper_speed=100_000.0,
+        pan_accel=1e7,
+        tilt_accel=1e7,
     )
-)  # fmt: skip
+)
 MOVE = re.compile(r"([PT])P(-?\d+)")  # an absolute move (a bare "PP"/"TP" is a poll)
 FILES = {"events.h5", "fixations.csv", "metrics.json", "run.json", "run.rrd", "scanpath.png"}
 
@@ -153,8 +157,19 @@ def test_emulated_ptu_and_replay_end_to_end(app, square, tmp_path, monkeypatch):
 
     monkeypatch.setattr(rig_env, "PTUEmulator", Recorded)
     out = tmp_path / "run"
-    result = invoke(app, "--ptu", "emulate", "--camera", camera, "--seconds", "0.5",
-                    "--out", str(out), "--seed", "3")  # fmt: skip
+    result = invoke(
+        app,
+        "--ptu",
+        "emulate",
+        "--camera",
+        camera,
+        "--seconds",
+        "0.5",
+        "--out",
+        str(out),
+        "--seed",
+        "3",
+    )
     assert result.exit_code == 0, result.output
     assert {p.name for p in out.iterdir()} == FILES | {"run.mp4"}
     metrics, run, rows = read_folder(out)
@@ -180,10 +195,13 @@ def test_emulated_ptu_and_replay_end_to_end(app, square, tmp_path, monkeypatch):
     assert ptu["pan_limits_deg"] == [-3090 * RES / 3600, 3090 * RES / 3600]
     assert ptu["tilt_limits_deg"] == [-907 * RES / 3600, 604 * RES / 3600]
     assert run["rig"]["camera"] == {
-        "kind": "replay", "sensor_size": [128, 128, 2], "file": camera[7:],
-        "n_events": len(expected), "duration_us": int(expected["t"][-1]) + 1,
+        "kind": "replay",
+        "sensor_size": [128, 128, 2],
+        "file": camera[7:],
+        "n_events": len(expected),
+        "duration_us": int(expected["t"][-1]) + 1,
         "t_offset_us": T_OFFSET,
-    }  # fmt: skip
+    }
     assert run["agent"]["width_px"] == 128 and run["agent"]["step_s"] == 0.01
     # The field of view assumed (the Speck's by default) and the replay's fixed view,
     # which the scanpath figure draws in the sensor's frame.
@@ -210,8 +228,20 @@ def test_emulated_ptu_and_replay_end_to_end(app, square, tmp_path, monkeypatch):
 def test_hfov_option_reaches_the_env_the_agent_and_run_json(app, square, tmp_path):
     camera, _ = square
     out = tmp_path / "run"
-    result = invoke(app, "--ptu", "emulate", "--camera", camera, "--seconds", "0.2",
-                    "--hfov", "64", "--no-video", "--out", str(out))  # fmt: skip
+    result = invoke(
+        app,
+        "--ptu",
+        "emulate",
+        "--camera",
+        camera,
+        "--seconds",
+        "0.2",
+        "--hfov",
+        "64",
+        "--no-video",
+        "--out",
+        str(out),
+    )
     assert result.exit_code == 0, result.output
     _, run, _ = read_folder(out)
     assert run["config"]["hfov_deg"] == run["rig"]["hfov_deg"] == run["agent"]["hfov_deg"] == 64
@@ -224,9 +254,21 @@ def test_a_saccade_moves_the_ptu_to_the_chosen_point(app, square, emu, tmp_path)
     """No fixational movements: every move is the saccade's; the unit ends on P's angle."""
     camera, expected = square
     out = tmp_path / "run"
-    result = invoke(app, "--ptu", emu.port, "--camera", camera, "--replay", "realtime",
-                    "--seconds", "0.35", "--no-fixational", "--no-video",
-                    "--out", str(out))  # fmt: skip
+    result = invoke(
+        app,
+        "--ptu",
+        emu.port,
+        "--camera",
+        camera,
+        "--replay",
+        "realtime",
+        "--seconds",
+        "0.35",
+        "--no-fixational",
+        "--no-video",
+        "--out",
+        str(out),
+    )
     assert result.exit_code == 0, result.output
     assert {p.name for p in out.iterdir()} == FILES
     metrics, run, rows = read_folder(out)
@@ -289,8 +331,9 @@ def assert_one_line_failure(result, *parts: str) -> str:
 
 def test_missing_port(app, square, tmp_path):
     camera, _ = square
-    result = invoke(app, "--ptu", "/dev/no-such-ptu-port", "--camera", camera,
-                    "--out", str(tmp_path / "run"))  # fmt: skip
+    result = invoke(
+        app, "--ptu", "/dev/no-such-ptu-port", "--camera", camera, "--out", str(tmp_path / "run")
+    )
     assert_one_line_failure(
         result,
         "wander rig: opening the PTU '/dev/no-such-ptu-port' failed: PTU port "
@@ -335,8 +378,7 @@ def test_samna_missing(app, monkeypatch, tmp_path):
 
 def test_no_speck_found_lists_what_was_found(app, monkeypatch, tmp_path):
     install(monkeypatch, FakeSamna([("DVXplorer", "dvx-1", None), ("Davis 346", "d-7", None)]))
-    result = invoke(app, "--ptu", "emulate", "--camera", "speck:sf-9",
-                    "--out", str(tmp_path / "r"))  # fmt: skip
+    result = invoke(app, "--ptu", "emulate", "--camera", "speck:sf-9", "--out", str(tmp_path / "r"))
     assert_one_line_failure(
         result,
         "opening the camera 'speck:sf-9' failed: no unopened Speck",
@@ -363,8 +405,20 @@ def test_ptu_going_silent_mid_run(app, square, emu, tmp_path):
     camera, expected = square
     watcher = on_first_move(emu, emu.stop_answering)
     out = tmp_path / "run"
-    result = invoke(app, "--ptu", emu.port, "--camera", camera, "--replay", "realtime",
-                    "--seconds", "3", "--no-video", "--out", str(out))  # fmt: skip
+    result = invoke(
+        app,
+        "--ptu",
+        emu.port,
+        "--camera",
+        camera,
+        "--replay",
+        "realtime",
+        "--seconds",
+        "3",
+        "--no-video",
+        "--out",
+        str(out),
+    )
     watcher.join()
     metrics, run, _ = read_folder(out)
     steps = metrics["steps"]
@@ -389,9 +443,21 @@ def test_error_reply_mid_run(app, square, emu, tmp_path):
     camera, expected = square
     watcher = on_first_move(emu, lambda: emu.inject_error("Illegal argument", command="PP"))
     out = tmp_path / "run"
-    result = invoke(app, "--ptu", emu.port, "--camera", camera, "--replay", "realtime",
-                    "--seconds", "1", "--no-fixational", "--no-video",
-                    "--out", str(out))  # fmt: skip
+    result = invoke(
+        app,
+        "--ptu",
+        emu.port,
+        "--camera",
+        camera,
+        "--replay",
+        "realtime",
+        "--seconds",
+        "1",
+        "--no-fixational",
+        "--no-video",
+        "--out",
+        str(out),
+    )
     watcher.join()
     metrics, _, _ = read_folder(out)
     steps = metrics["steps"]
@@ -412,8 +478,7 @@ def test_error_reply_mid_run(app, square, emu, tmp_path):
 def test_mid_run_fault_through_run_rig_keeps_the_cause(square, emu, tmp_path):
     camera, _ = square
     watcher = on_first_move(emu, emu.stop_answering)
-    config = RigRunConfig(ptu=emu.port, camera=camera, replay="realtime", seconds=3.0,
-                          video=False)  # fmt: skip
+    config = RigRunConfig(ptu=emu.port, camera=camera, replay="realtime", seconds=3.0, video=False)
     with pytest.raises(RigRunError) as info:
         run_rig(tmp_path / "r", config)
     watcher.join()
@@ -467,8 +532,13 @@ def test_queue_overflow_is_counted_and_reported(monkeypatch, tmp_path):
 
     monkeypatch.setattr(rig_env.RigEnv, "reset", burst_after_reset)
     install(monkeypatch, FakeSamna([("Speck2fDevKit", "sf", FakeSpeck(ev))]))
-    config = RigRunConfig(ptu="emulate", camera="speck", seconds=0.5, video=False,
-                          speck=SpeckParams(queue_events=capacity))  # fmt: skip
+    config = RigRunConfig(
+        ptu="emulate",
+        camera="speck",
+        seconds=0.5,
+        video=False,
+        speck=SpeckParams(queue_events=capacity),
+    )
     out = tmp_path / "run"
     result = run_rig(out, config)
     metrics, run, _ = read_folder(out)

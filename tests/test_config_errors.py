@@ -335,8 +335,12 @@ def test_the_billion_laughs_is_one_line_within_1_gb(args, limit, line, tmp_path)
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(ROOT / "tests")])}
     proc = subprocess.run(
         [sys.executable, "-c", LIMITED, str(limit), *args],
-        capture_output=True, text=True, timeout=600, cwd=tmp_path, env=env,
-    )  # fmt: skip
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=tmp_path,
+        env=env,
+    )
     assert (proc.returncode, proc.stderr.splitlines()) == (2, [line])
     (peak,) = [int(w.split()[1]) for w in proc.stdout.splitlines() if w.startswith("peak ")]
     assert peak * 1024 < GIB
@@ -346,11 +350,13 @@ def test_the_billion_laughs_is_one_line_within_1_gb(args, limit, line, tmp_path)
 def test_a_syntax_error_through_a_real_process_has_no_traceback(tmp_path):
     (tmp_path / "s.yaml").write_text("size: [0.2\n")
     proc = subprocess.run(
-        [sys.executable, "-c", "from experiments.cli.main import main; main()", "sweep",
-         "s.yaml"],
-        capture_output=True, text=True, timeout=300, cwd=tmp_path,
+        [sys.executable, "-c", "from experiments.cli.main import main; main()", "sweep", "s.yaml"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
         env={**os.environ, "PYTHONPATH": str(ROOT)},
-    )  # fmt: skip
+    )
     assert "Traceback" not in proc.stderr
     assert (proc.returncode, proc.stderr.splitlines()) == (
         2,

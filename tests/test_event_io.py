@@ -18,9 +18,11 @@ def recording() -> EventRecording:
     rng = np.random.default_rng(0)
     n = 5000
     ev = make_events(
-        rng.integers(0, 128, n), rng.integers(0, 96, n), np.sort(rng.integers(0, 10**6, n)),
+        rng.integers(0, 128, n),
+        rng.integers(0, 96, n),
+        np.sort(rng.integers(0, 10**6, n)),
         rng.integers(0, 2, n),
-    )  # fmt: skip
+    )
     return EventRecording(ev, (128, 96, 2), {"seed": 0, "preset": "ideal"})
 
 
@@ -60,9 +62,11 @@ def test_writing_refuses_unknown_suffix_and_invalid_events(tmp_path):
 
 @pytest.mark.parametrize(
     ("name", "keep", "message"),
-    [("cut.npz", 500, r"cut\.npz: not a readable \.npz file"),
-     ("cut.h5", 2000, r"cut\.h5: not a readable HDF5 file")],
-)  # fmt: skip
+    [
+        ("cut.npz", 500, r"cut\.npz: not a readable \.npz file"),
+        ("cut.h5", 2000, r"cut\.h5: not a readable HDF5 file"),
+    ],
+)
 def test_truncated_file_names_the_file(tmp_path, name, keep, message):
     path = tmp_path / name
     write_events(path, recording())

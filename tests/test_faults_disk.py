@@ -50,8 +50,12 @@ def steps(n: int, per_step: int = 20_000):
     rng = np.random.default_rng(0)
     for k in range(n):
         t = np.sort(rng.integers(k * 10_000, (k + 1) * 10_000, per_step))
-        yield make_events(rng.integers(0, 128, per_step), rng.integers(0, 128, per_step), t,
-                          rng.integers(0, 2, per_step))  # fmt: skip
+        yield make_events(
+            rng.integers(0, 128, per_step),
+            rng.integers(0, 128, per_step),
+            t,
+            rng.integers(0, 2, per_step),
+        )
 
 
 def test_stream_writer_on_a_full_disk_names_the_file_and_keeps_what_was_flushed(tiny_disk):
@@ -119,8 +123,12 @@ def test_a_full_disk_marks_the_default_run_folder_incomplete(tiny_disk):
     args = ["record", "--seconds", "10", "--no-video"]
     done = subprocess.run(
         [sys.executable, "-c", code, *args],
-        env=env, cwd=tiny_disk, capture_output=True, text=True, timeout=600,
-    )  # fmt: skip
+        env=env,
+        cwd=tiny_disk,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert done.returncode == 1, done.stderr
     (out,) = (tiny_disk / "runs").iterdir()
     assert out.name.startswith("record-")

@@ -104,8 +104,9 @@ def test_a_claimed_8192_sensor_is_refused_in_one_line_by_the_benchmark(tmp_path,
         write_events(path, EventRecording(events(), (16, 16, 2)))
         extra = ["--sensor", "8192x8192"]
     out = tmp_path / "out"
-    got = wander("benchmark", "events", path, "--masks", masks, "--out", out, "--no-progress",
-                 *extra)  # fmt: skip
+    got = wander(
+        "benchmark", "events", path, "--masks", masks, "--out", out, "--no-progress", *extra
+    )
     one_line(
         got,
         "wander benchmark events",
@@ -118,8 +119,18 @@ def test_a_claimed_8192_sensor_is_refused_in_one_line_by_the_benchmark(tmp_path,
 def test_a_claimed_8192_sensor_is_refused_in_one_line_by_the_rig_replay(tmp_path):
     path = big_sensor_h5(tmp_path / "big.h5")
     out = tmp_path / "run"
-    got = wander("rig", "--ptu", "emulate", "--camera", f"replay:{path}", "--seconds", "1",
-                 "--out", out, "--no-video")  # fmt: skip
+    got = wander(
+        "rig",
+        "--ptu",
+        "emulate",
+        "--camera",
+        f"replay:{path}",
+        "--seconds",
+        "1",
+        "--out",
+        out,
+        "--no-video",
+    )
     one_line(
         got,
         "wander rig",
@@ -176,11 +187,22 @@ def test_a_gzip_h5_of_2_27_events_is_refused_before_it_inflates(tmp_path, gzip_2
     with pytest.raises(EventFileError) as info:
         read_events(gzip_2_27)
     assert str(info.value) == refused_count(gzip_2_27, 1 << 27)
-    got = wander("benchmark", "events", gzip_2_27, "--masks", masks, "--out", tmp_path / "b",
-                 "--no-progress")  # fmt: skip
+    got = wander(
+        "benchmark", "events", gzip_2_27, "--masks", masks, "--out", tmp_path / "b", "--no-progress"
+    )
     one_line(got, "wander benchmark events", f"error: {refused_count(gzip_2_27, 1 << 27)}")
-    got = wander("rig", "--ptu", "emulate", "--camera", f"replay:{gzip_2_27}", "--seconds",
-                 "1", "--out", tmp_path / "run", "--no-video")  # fmt: skip
+    got = wander(
+        "rig",
+        "--ptu",
+        "emulate",
+        "--camera",
+        f"replay:{gzip_2_27}",
+        "--seconds",
+        "1",
+        "--out",
+        tmp_path / "run",
+        "--no-video",
+    )
     one_line(
         got,
         "wander rig",
@@ -289,8 +311,18 @@ def test_a_huge_mask_png_is_one_line(tmp_path, side, problem):
     folder = tmp_path / "masks"
     folder.mkdir()
     mask = _png_header(folder / "000000_2000.png", side, side)
-    got = wander("benchmark", "events", path, "--masks", folder, "--out", tmp_path / "out",
-                 "--window-us", "1000", "--no-progress")  # fmt: skip
+    got = wander(
+        "benchmark",
+        "events",
+        path,
+        "--masks",
+        folder,
+        "--out",
+        tmp_path / "out",
+        "--window-us",
+        "1000",
+        "--no-progress",
+    )
     one_line(got, "wander benchmark events", f"error: {mask}: {problem}")
     assert not (tmp_path / "out").exists()
 

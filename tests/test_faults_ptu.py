@@ -78,9 +78,21 @@ def test_rig_mid_run_fault_is_one_line_exit_1_with_the_halt_recorded(
     }[fault]
     watcher = on_first_move(emu, action)
     out = tmp_path / "run"
-    result = invoke(app, "--ptu", emu.port, "--camera", camera, "--replay", "realtime",
-                    "--seconds", "2", "--no-fixational", "--no-video",
-                    "--out", str(out))  # fmt: skip
+    result = invoke(
+        app,
+        "--ptu",
+        emu.port,
+        "--camera",
+        camera,
+        "--replay",
+        "realtime",
+        "--seconds",
+        "2",
+        "--no-fixational",
+        "--no-video",
+        "--out",
+        str(out),
+    )
     watcher.join()
     metrics, _, _ = read_folder(out)
     steps = metrics["steps"]
@@ -115,8 +127,12 @@ def test_speck_unplugged_mid_run_is_one_line_exit_1_with_the_halt_recorded(
 
     rng = np.random.default_rng(1)
     n = 30_000
-    ev = make_events(rng.integers(0, 128, n), rng.integers(0, 128, n),
-                     np.sort(rng.integers(0, 3_000_000, n)), rng.integers(0, 2, n))  # fmt: skip
+    ev = make_events(
+        rng.integers(0, 128, n),
+        rng.integers(0, 128, n),
+        np.sort(rng.integers(0, 3_000_000, n)),
+        rng.integers(0, 2, n),
+    )
     fake = install(monkeypatch, FakeSamna([("Speck2fDevKit", "sf", FakeSpeck(ev))]))
     act, calls = AttentionAgent.act, []
 
@@ -132,8 +148,18 @@ def test_speck_unplugged_mid_run_is_one_line_exit_1_with_the_halt_recorded(
 
     monkeypatch.setattr(AttentionAgent, "act", unplug_at_step_6)
     out = tmp_path / "run"
-    result = invoke(app, "--ptu", "emulate", "--camera", "speck", "--seconds", "2",
-                    "--no-video", "--out", str(out))  # fmt: skip
+    result = invoke(
+        app,
+        "--ptu",
+        "emulate",
+        "--camera",
+        "speck",
+        "--seconds",
+        "2",
+        "--no-video",
+        "--out",
+        str(out),
+    )
     metrics, _, _ = read_folder(out)
     assert_one_line_failure(
         result,
@@ -152,8 +178,9 @@ def test_stuck_link_write_times_out_into_the_port_fault_path(emu):
     and fails as a PTUPortError naming the command; close's halt is bounded too."""
     import time
 
-    params = FlirPTUParams(timeout_s=0.5, halt_timeout_s=0.2, banner_quiet_s=0.02,
-                           write_timeout_s=0.3)  # fmt: skip
+    params = FlirPTUParams(
+        timeout_s=0.5, halt_timeout_s=0.2, banner_quiet_s=0.02, write_timeout_s=0.3
+    )
     ptu = FlirPTU(emu.port, params)
     assert ptu._port.write_timeout == 0.3
     assert ptu.pan_deg == 0.0

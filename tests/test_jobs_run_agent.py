@@ -209,8 +209,15 @@ def test_metrics_and_run_json_are_strict_json_with_versions(run_dir: Path) -> No
         json.loads((run_dir / name).read_text(), parse_constant=refuse)
     versions = json.loads((run_dir / "run.json").read_text())["versions"]
     assert set(versions) == {
-        "python", "numpy", "mujoco", "torch", "sinabs", "nengo", "gymnasium", "wander"
-    }  # fmt: skip
+        "python",
+        "numpy",
+        "mujoco",
+        "torch",
+        "sinabs",
+        "nengo",
+        "gymnasium",
+        "wander",
+    }
     assert all(versions[k] for k in versions if k != "wander")
 
 

@@ -214,8 +214,9 @@ def test_same_seed_gives_identical_events_in_keyframes_mode():
     for _ in range(2):
         env = gym.make("wander/Wander-v0", scene="office", frames="keyframes")
         env.reset(seed=3)
-        evs = [env.step(np.array([0.05 * (k == 0), 0.0], np.float32))[4]["events"]
-               for k in range(8)]  # fmt: skip
+        evs = [
+            env.step(np.array([0.05 * (k == 0), 0.0], np.float32))[4]["events"] for k in range(8)
+        ]
         runs.append(np.concatenate(evs))
         env.close()
     assert len(runs[0]) > 100

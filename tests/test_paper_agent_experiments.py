@@ -191,16 +191,29 @@ def test_grid_varies_one_factor_at_a_time_around_the_paper_values():
         assert len(changed) == 1
     # one main sequence per PTU setting: baseline, 2 speeds, 2 accelerations, ideal
     assert [r["factor"] for r in rows if r["main_sequence"]] == [
-        "baseline", "ptu_speed", "ptu_speed", "ptu_accel", "ptu_accel", "ptu_link"
-    ]  # fmt: skip
+        "baseline",
+        "ptu_speed",
+        "ptu_speed",
+        "ptu_accel",
+        "ptu_accel",
+        "ptu_link",
+    ]
 
 
 def test_factorial_grid_is_the_product_of_the_five_factors():
     cfg = saccade_speed.SaccadeSpeedConfig(design="factorial")
     rows = saccade_speed.grid(cfg)
     assert len(rows) == 3**5 and {r["factor"] for r in rows} == {"factorial"}
-    keys = {(r["speed_pos_s"], r["accel_pos_s2"], r["fixational_step_pos"],
-             r["fixational_n_steps"], r["window_s"]) for r in rows}  # fmt: skip
+    keys = {
+        (
+            r["speed_pos_s"],
+            r["accel_pos_s2"],
+            r["fixational_step_pos"],
+            r["fixational_n_steps"],
+            r["window_s"],
+        )
+        for r in rows
+    }
     assert len(keys) == 243
     assert sum(r["main_sequence"] for r in rows) == 9  # speed × acceleration
 

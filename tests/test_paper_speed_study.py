@@ -38,9 +38,15 @@ def test_linear_fit_and_too_few_points() -> None:
     assert short.n == 2 and math.isnan(short.params["k"]) and math.isnan(short.r2)
     cols = fit.as_dict("ms_d_")
     assert set(cols) == {
-        "ms_d_d0", "ms_d_d0_low", "ms_d_d0_high", "ms_d_k", "ms_d_k_low", "ms_d_k_high",
-        "ms_d_r2", "ms_d_rmse",
-    }  # fmt: skip
+        "ms_d_d0",
+        "ms_d_d0_low",
+        "ms_d_d0_high",
+        "ms_d_k",
+        "ms_d_k_low",
+        "ms_d_k_high",
+        "ms_d_r2",
+        "ms_d_rmse",
+    }
 
 
 def test_trapezoid_main_sequence_under_the_standard_forms() -> None:
@@ -61,12 +67,17 @@ def test_surface_marginal_means_and_figure(tmp_path) -> None:
         for acc in (1000.0, 8000.0):
             for step in (20, 120):
                 for seed in range(3):
-                    rows.append({
-                        "speed_pos_s": s, "accel_pos_s2": acc, "fixational_step_pos": step,
-                        "fixational_n_steps": 8, "cfg.window_s": 0.124,
-                        "time_to_foveate_s": 1000.0 / s + 1000.0 / acc + 0.01 * seed,
-                        "detection_accuracy": 0.5 + step / 1000.0,
-                    })  # fmt: skip
+                    rows.append(
+                        {
+                            "speed_pos_s": s,
+                            "accel_pos_s2": acc,
+                            "fixational_step_pos": step,
+                            "fixational_n_steps": 8,
+                            "cfg.window_s": 0.124,
+                            "time_to_foveate_s": 1000.0 / s + 1000.0 / acc + 0.01 * seed,
+                            "detection_accuracy": 0.5 + step / 1000.0,
+                        }
+                    )
     sf = surface(rows, "speed_pos_s", "accel_pos_s2", "time_to_foveate_s")
     assert sf.x.tolist() == [1000.0, 2000.0] and sf.y.tolist() == [1000.0, 8000.0]
     assert sf.n.tolist() == [[6, 6], [6, 6]]
@@ -150,12 +161,20 @@ def test_one_at_a_time_figure_has_intervals_and_main_sequence_fits(tmp_path, mon
     rows = []
     for k, p in enumerate(grid):
         for r in range(3):
-            rows.append({
-                "trial": len(rows), "trial_id": f"t{len(rows)}", "repeat": r, "seed": r, **p,
-                "time_to_foveate_s": 0.3 + 0.01 * r + 0.001 * k, "detection_accuracy": 0.5,
-                "foveation_error_x_px": 1.0 + r, "foveation_error_y_px": 2.0,
-                "events_per_s": 1e4,
-            })  # fmt: skip
+            rows.append(
+                {
+                    "trial": len(rows),
+                    "trial_id": f"t{len(rows)}",
+                    "repeat": r,
+                    "seed": r,
+                    **p,
+                    "time_to_foveate_s": 0.3 + 0.01 * r + 0.001 * k,
+                    "detection_accuracy": 0.5,
+                    "foveation_error_x_px": 1.0 + r,
+                    "foveation_error_y_px": 2.0,
+                    "events_per_s": 1e4,
+                }
+            )
     amps = np.array(cfg.main_sequence_amplitudes_deg)
     v, d = saccade_speed.theory_main_sequence(amps, PTUParams())
     vf, df = fit_saturating(amps, v), fit_linear(amps, d)

@@ -60,12 +60,24 @@ def test_studies_section_shows_the_flir_main_sequence_and_the_links_cost(tmp_pat
     rows = []
     for factor, ptu, ttf in (("baseline", "flir", 0.75), ("ptu_link", "ideal", 0.5)):
         for seed in range(10):
-            rows.append({"trial": len(rows), "trial_id": f"t{len(rows)}", "repeat": seed,
-                         "seed": seed, "factor": factor, **base, "ptu": ptu,
-                         "main_sequence": seed == 0, "time_to_foveate_s": ttf + 0.125 * seed,
-                         "detection_accuracy": 1.0, "foveation_error_x_px": 0.3,
-                         "foveation_error_y_px": 0.3, "command_latency_mean_s": 0.024,
-                         **(fits if seed == 0 else {})})  # fmt: skip
+            rows.append(
+                {
+                    "trial": len(rows),
+                    "trial_id": f"t{len(rows)}",
+                    "repeat": seed,
+                    "seed": seed,
+                    "factor": factor,
+                    **base,
+                    "ptu": ptu,
+                    "main_sequence": seed == 0,
+                    "time_to_foveate_s": ttf + 0.125 * seed,
+                    "detection_accuracy": 1.0,
+                    "foveation_error_x_px": 0.3,
+                    "foveation_error_y_px": 0.3,
+                    "command_latency_mean_s": 0.024,
+                    **(fits if seed == 0 else {}),
+                }
+            )
     write_csv(rows, folder / "results.csv")
     (folder / "config.json").write_text(
         json.dumps({"experiment": "saccade_speed", **config_to_dict(cfg)})
@@ -129,43 +141,55 @@ def _abc(csv_path: Path, rows: range) -> None:
 RANDOM = bytes(range(128, 256)) * 8  # not UTF-8 anywhere
 DAMAGE = {
     "a row cut short": (
-        "results.csv", _cut_row, "line 21 has 17 cells, the header 19 (cut or damaged)"
+        "results.csv",
+        _cut_row,
+        "line 21 has 17 cells, the header 19 (cut or damaged)",
     ),
     "the header cut short": (
-        "results.csv", _cut_header, "line 2 has 19 cells, the header 18 (cut or damaged)"
+        "results.csv",
+        _cut_header,
+        "line 2 has 19 cells, the header 18 (cut or damaged)",
     ),
     "abc in a number column": (
-        "results.csv", lambda p: _abc(p, range(3, 4)),
+        "results.csv",
+        lambda p: _abc(p, range(3, 4)),
         "column 'object_hit_rate', line 4: 'abc' where the other rows hold numbers",
     ),
     "abc in every row of a number column": (
-        "results.csv", lambda p: _abc(p, range(1, 21)),
+        "results.csv",
+        lambda p: _abc(p, range(1, 21)),
         "scanpath's figures failed on its rows (ValueError: could not convert string to "
         "float: 'abc')",
     ),
     "random bytes for the table": (
-        "results.csv", lambda p: p.write_bytes(RANDOM),
+        "results.csv",
+        lambda p: p.write_bytes(RANDOM),
         "not UTF-8 text (invalid start byte at byte 0)",
     ),
     "an empty table": ("results.csv", lambda p: p.write_text(""), "empty: no header row"),
     "run.json cut short": (
-        "run.json", lambda p: p.write_bytes(p.read_bytes()[:9]),
+        "run.json",
+        lambda p: p.write_bytes(p.read_bytes()[:9]),
         "not valid JSON, cut short or damaged (Unterminated string starting at: line 1 "
         "column 2 (char 1))",
     ),
     "random bytes for run.json": (
-        "run.json", lambda p: p.write_bytes(RANDOM),
+        "run.json",
+        lambda p: p.write_bytes(RANDOM),
         "not UTF-8 text (invalid start byte at byte 0)",
     ),
     "run.json not an object": (
-        "run.json", lambda p: p.write_text("[1]"), "expected a JSON object, got list"
+        "run.json",
+        lambda p: p.write_text("[1]"),
+        "expected a JSON object, got list",
     ),
     "config.json cut short": (
-        "config.json", lambda p: p.write_bytes(p.read_bytes()[:9]),
+        "config.json",
+        lambda p: p.write_bytes(p.read_bytes()[:9]),
         "not valid JSON, cut short or damaged (Unterminated string starting at: line 1 "
         "column 2 (char 1))",
     ),
-}  # fmt: skip
+}
 
 
 @pytest.mark.parametrize("case", list(DAMAGE))
@@ -174,8 +198,11 @@ def test_a_damaged_result_folder_is_one_line_and_nothing_is_written(tmp_path, ca
     folder = _scanpath_folder(tmp_path / "results")
     damage(folder / name)
     out = tmp_path / "docs" / "REPORT.md"
-    result = CliRunner().invoke(app, ["report", "--results", str(tmp_path / "results"),
-                                      "--out", str(out)], prog_name="wander")  # fmt: skip
+    result = CliRunner().invoke(
+        app,
+        ["report", "--results", str(tmp_path / "results"), "--out", str(out)],
+        prog_name="wander",
+    )
     assert result.exit_code == 2, result.output
     assert result.stderr.splitlines() == [f"wander report: error: {folder / name}: {problem}"]
     assert not (tmp_path / "docs").exists()

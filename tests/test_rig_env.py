@@ -43,8 +43,12 @@ def write_recording(path: Path, size=(128, 128, 2), n=4000, span_us=45_000) -> n
     rng = np.random.default_rng(7)
     t = np.sort(rng.integers(0, span_us, n))
     t[0] = 0
-    ev = make_events(rng.integers(0, size[0], n), rng.integers(0, size[1], n), t + T_OFFSET,
-                     rng.integers(0, 2, n))  # fmt: skip
+    ev = make_events(
+        rng.integers(0, size[0], n),
+        rng.integers(0, size[1], n),
+        t + T_OFFSET,
+        rng.integers(0, 2, n),
+    )
     write_events(path, EventRecording(ev, size))
     out = ev.copy()
     out["t"] -= T_OFFSET
@@ -95,8 +99,15 @@ def test_registered_nondeterministic_with_the_sim_envs_spaces(recording):
         assert rig.action_space == sim.action_space
         obs, info = rig.reset(seed=0)
         assert rig.observation_space.contains(obs)
-        contract = {"events", "t", "ptu_positions", "ptu_target_positions", "ptu_target_deg",
-                    "moving", "target_clipped"}  # fmt: skip
+        contract = {
+            "events",
+            "t",
+            "ptu_positions",
+            "ptu_target_positions",
+            "ptu_target_deg",
+            "moving",
+            "target_clipped",
+        }
         rig_only = {"command_latency_s", "dropped_events", "lag_s"}
         assert set(info) == contract | rig_only  # no ground truth on the rig
         assert (info["t"], info["ptu_positions"], info["moving"]) == (0.0, (0, 0), False)
@@ -109,8 +120,13 @@ def test_registered_nondeterministic_with_the_sim_envs_spaces(recording):
 def test_sensor_size_and_ptu_limits_come_from_the_devices(tmp_path):
     path = tmp_path / "small.npz"
     write_recording(path, size=(64, 48, 2), n=100)
-    motion = PTUParams(pan_resolution_arcsec=46.2857, pan_min_pos=-5000, pan_max_pos=4000,
-                       tilt_min_pos=-700, tilt_max_pos=500)  # fmt: skip
+    motion = PTUParams(
+        pan_resolution_arcsec=46.2857,
+        pan_min_pos=-5000,
+        pan_max_pos=4000,
+        tilt_min_pos=-700,
+        tilt_max_pos=500,
+    )
     env = make_rig("emulate", f"replay:{path}", emulator=PTUEmulatorParams(motion=motion))
     try:
         assert env.sensor_size == (64, 48, 2)
@@ -373,8 +389,9 @@ def test_queue_overflow_is_counted_in_info(monkeypatch, emu):
         ev[f] = rng.integers(0, hi, n)
     ev["t"] = np.sort(rng.integers(150_000, 250_000, n))  # well after reset
     install(monkeypatch, FakeSamna([("Speck2fDevKit", "sf", FakeSpeck(ev))]))
-    env = make_rig(emu.port, "speck", speck=SpeckParams(queue_events=capacity),
-                   control_period_s=0.4)  # fmt: skip
+    env = make_rig(
+        emu.port, "speck", speck=SpeckParams(queue_events=capacity), control_period_s=0.4
+    )
     try:
         env.reset()
         deadline = time.monotonic() + 5.0

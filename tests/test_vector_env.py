@@ -67,8 +67,12 @@ def test_default_start_method_in_a_fresh_process_gives_the_same_events(sync_run)
     env = child_env()
     proc = subprocess.run(
         [sys.executable, str(ROOT / "tests" / "vector_drive.py")],
-        cwd=ROOT, env=env, capture_output=True, text=True, timeout=3 * WAIT_S,
-    )  # fmt: skip
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=3 * WAIT_S,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     out = json.loads(proc.stdout.strip().splitlines()[-1])
     assert out["start_method"] == "fork"  # Linux's default: the case that used to hang
@@ -143,8 +147,12 @@ def test_importing_and_constructing_creates_no_gl_and_no_thread():
         pytest.skip("needs Linux's /proc")
     env = child_env()
     proc = subprocess.run(
-        [sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True,
+        [sys.executable, "-c", code],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
         timeout=WAIT_S,
-    )  # fmt: skip
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert proc.stdout.split() == ["0", "True", "None"]

@@ -66,10 +66,14 @@ def plot_event_panels(
             continue
         t0 = k * step_us
         window = time_window(events, t0, t0 + span_us)
-        ax.imshow(event_image(to_frame(window, size)), interpolation="nearest",
-                  extent=(-0.5, w - 0.5, h - 0.5, -0.5))  # fmt: skip
-        ax.set_title(f"t = {t0 / 1e3:.0f}–{(t0 + span_us) / 1e3:.0f} ms ({len(window):,} ev)",
-                     fontsize=9)  # fmt: skip
+        ax.imshow(
+            event_image(to_frame(window, size)),
+            interpolation="nearest",
+            extent=(-0.5, w - 0.5, h - 0.5, -0.5),
+        )
+        ax.set_title(
+            f"t = {t0 / 1e3:.0f}–{(t0 + span_us) / 1e3:.0f} ms ({len(window):,} ev)", fontsize=9
+        )
         ax.tick_params(labelsize=7)
         if k % columns == 0:
             ax.set_ylabel("y (px)", fontsize=8)
@@ -87,8 +91,11 @@ def plot_event_panels(
             Patch(color=np.asarray(OFF_RGB) / 255, label="OFF (darker)"),
             Patch(facecolor="white", edgecolor="0.5", label="no event"),
         ],
-        loc="lower center", ncol=3, fontsize=8, frameon=False,
-    )  # fmt: skip
+        loc="lower center",
+        ncol=3,
+        fontsize=8,
+        frameon=False,
+    )
     return save_figure(fig, path, rect=(0, 0.04, 1, 1))
 
 
@@ -99,10 +106,15 @@ def demo_events(
     n = round(config.seconds * config.frame_rate_hz)
     dt_us = round(1e6 / config.frame_rate_hz)
     frames = disc_over_texture(
-        config.width, config.height, n + 1,
-        background_speed_px=0.05, disc_radius_px=config.width / 8,
-        orbit_px=config.width / 4, orbit_frames=n // 2, seed=config.seed,
-    )  # fmt: skip
+        config.width,
+        config.height,
+        n + 1,
+        background_speed_px=0.05,
+        disc_radius_px=config.width / 8,
+        orbit_px=config.width / 4,
+        orbit_frames=n // 2,
+        seed=config.seed,
+    )
     params = DVSParams.preset(config.preset)
     emu = DVSEmulator(config.width, config.height, params, seed=config.seed)
     emu.reset(frames[0], 0)

@@ -522,20 +522,40 @@ class DVSEmulator:
         dt_s = (t_us - t0) * 1e-6
         self.max_log_change = float(
             _levels(
-                lum, self._log_in_prev, self._level, self._diff, self.th_on, p.linlog_intensity,
-                self._lowpass(lum, dt_s), p.leak_rate_hz * dt_s,
-                self._log_in, self._level_new, self._diff_new,
+                lum,
+                self._log_in_prev,
+                self._level,
+                self._diff,
+                self.th_on,
+                p.linlog_intensity,
+                self._lowpass(lum, dt_s),
+                p.leak_rate_hz * dt_s,
+                self._log_in,
+                self._level_new,
+                self._diff_new,
             )
-        )  # fmt: skip
+        )
         n_active, bound = _crossing_pixels(
             self._diff, self._diff_new, self.th_on, self.th_off, self._active
         )
         xs, ys = np.empty(bound, np.int16), np.empty(bound, np.int16)
         ts, ps = np.empty(bound, np.float64), np.empty(bound, np.int8)
         n = _emit(
-            self._active[:n_active], self._diff, self._diff_new, self.th_on, self.th_off,
-            self._last_event, p.refractory_us, float(t0), float(t_us), self.width, xs, ys, ts, ps,
-        )  # fmt: skip
+            self._active[:n_active],
+            self._diff,
+            self._diff_new,
+            self.th_on,
+            self.th_off,
+            self._last_event,
+            p.refractory_us,
+            float(t0),
+            float(t_us),
+            self.width,
+            xs,
+            ys,
+            ts,
+            ps,
+        )
         self._level, self._level_new = self._level_new, self._level
         self._log_in_prev, self._log_in = self._log_in, self._log_in_prev
         ts = ts[:n]

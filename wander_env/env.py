@@ -158,9 +158,10 @@ class WanderConfig:
                 )
         px = self.keyframe_px
         if px is not None and (
-            isinstance(px, bool) or not (isinstance(px, (int, float)) and math.isfinite(px))
+            isinstance(px, bool)
+            or not (isinstance(px, (int, float)) and math.isfinite(px))
             or px <= 0
-        ):  # fmt: skip
+        ):
             raise ValueError(
                 f"WanderConfig.keyframe_px must be None or a finite number > 0, got {px!r}"
             )

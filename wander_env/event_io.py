@@ -356,11 +356,15 @@ def write_events(path: str | os.PathLike, recording: EventRecording) -> None:
             # An empty recording (e.g. a run that failed at its first step) is stored
             # uncompressed: HDF5 cannot chunk a zero-length dataset.
             packing = (
-                {"compression": "gzip", "compression_opts": 4, "shuffle": True,
-                 "chunks": (min(n, 1 << 16),)}
+                {
+                    "compression": "gzip",
+                    "compression_opts": 4,
+                    "shuffle": True,
+                    "chunks": (min(n, 1 << 16),),
+                }
                 if n
                 else {}
-            )  # fmt: skip
+            )
             for name in ("x", "y", "t", "p"):
                 g.create_dataset(name, data=recording.events[name], **packing)
             f.attrs["sensor_size"] = size

@@ -348,10 +348,23 @@ class KeyPair:
         for i, key in enumerate((self.a, self.b)):
             kv = key.view
             _key_params(
-                self.k, self._k_inv, kv.rotation, kv.centre, kv.layer_positions, key.boxes,
-                key.rho_max, view.rotation, view.centre, view.layer_positions, h, wd,
-                hinv[i], bvec[i], moving[i], boxes[i],
-            )  # fmt: skip
+                self.k,
+                self._k_inv,
+                kv.rotation,
+                kv.centre,
+                kv.layer_positions,
+                key.boxes,
+                key.rho_max,
+                view.rotation,
+                view.centre,
+                view.layer_positions,
+                h,
+                wd,
+                hinv[i],
+                bvec[i],
+                moving[i],
+                boxes[i],
+            )
         weights = np.array([1.0 - w, w])
         near = int(w > 0.5)
         lum, layers, inv, present, rho0 = self._stacked
@@ -370,9 +383,20 @@ class KeyPair:
                 return out
             near = -1
         _synth_kernel(
-            out, regions, weights, near, lum, layers, inv, present, boxes, hinv, bvec, rho0,
+            out,
+            regions,
+            weights,
+            near,
+            lum,
+            layers,
+            inv,
+            present,
+            boxes,
+            hinv,
+            bvec,
+            rho0,
             moving,
-        )  # fmt: skip
+        )
         return out
 
 

@@ -753,8 +753,11 @@ class PanTiltUnit:
         """An independent unit in the same state."""
         twin = copy.copy(self)
         twin._target, twin._drive, twin._speed, twin._camera = (
-            list(self._target), list(self._drive), list(self._speed), list(self._camera)
-        )  # fmt: skip
+            list(self._target),
+            list(self._drive),
+            list(self._speed),
+            list(self._camera),
+        )
         twin.link = self.link.copy() if self.link is not None else None
         return twin
 

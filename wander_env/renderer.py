@@ -197,9 +197,14 @@ class CameraRenderer(Closing):
         if self._con is None:
             raise RuntimeError("CameraRenderer is closed")
         mujoco.mjv_updateScene(
-            self.model, data, self._option, None, self._camera, mujoco.mjtCatBit.mjCAT_ALL,
+            self.model,
+            data,
+            self._option,
+            None,
+            self._camera,
+            mujoco.mjtCatBit.mjCAT_ALL,
             self._scene,
-        )  # fmt: skip
+        )
 
     def render_current(self) -> np.ndarray:
         """RGB uint8 (H, W, 3) of the last :meth:`update` (a new array)."""

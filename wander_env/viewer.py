@@ -213,8 +213,11 @@ def read_recording(path: Path) -> dict[tuple[str, str], list[tuple[int, list]]]:
             if ":" not in name:
                 continue
             rows = out.setdefault((chunk.entity_path, name), [])
-            rows += [(t, v) for t, v in zip(times, batch.column(name).to_pylist(), strict=True)
-                     if v is not None]  # fmt: skip
+            rows += [
+                (t, v)
+                for t, v in zip(times, batch.column(name).to_pylist(), strict=True)
+                if v is not None
+            ]
     return {k: sorted(v, key=lambda tv: tv[0]) for k, v in out.items()}
 
 

@@ -68,12 +68,19 @@ class WindowSampler:
         self.views.append(
             WindowView(
                 f"{row.subset}/{row.sequence}" if row.subset else row.sequence,
-                row.window, row.t_start_us, row.t_end_us,
-                np.asarray(counts).copy(), np.asarray(maps.oms, bool).copy(),
-                np.asarray(maps.saliency, np.float64).copy(), point,
-                np.asarray(mask, bool).copy(), row.hit, row.iou, row.precision,
+                row.window,
+                row.t_start_us,
+                row.t_end_us,
+                np.asarray(counts).copy(),
+                np.asarray(maps.oms, bool).copy(),
+                np.asarray(maps.saliency, np.float64).copy(),
+                point,
+                np.asarray(mask, bool).copy(),
+                row.hit,
+                row.iou,
+                row.precision,
             )
-        )  # fmt: skip
+        )
 
 
 def _box(ax: Any, point: tuple[float, float] | None, box: int, colour: str) -> None:
@@ -82,8 +89,9 @@ def _box(ax: Any, point: tuple[float, float] | None, box: int, colour: str) -> N
     if point is None:
         return
     x, y = point
-    ax.add_patch(Rectangle((x - box / 2 - 0.5, y - box / 2 - 0.5), box, box, fill=False,
-                           ec=colour, lw=1.2))  # fmt: skip
+    ax.add_patch(
+        Rectangle((x - box / 2 - 0.5, y - box / 2 - 0.5), box, box, fill=False, ec=colour, lw=1.2)
+    )
     ax.plot(x, y, "+", color=colour, ms=6)
 
 
@@ -104,8 +112,9 @@ def plot_maps_vs_masks(path: Path, views: list[WindowView], title: str, box: int
         span = f"{v.t_start_us / 1e3:.1f}–{v.t_end_us / 1e3:.1f} ms"
         a0, a1, a2, a3 = axes[r]
         a0.imshow(event_image(v.counts), extent=ext, interpolation="nearest")
-        a0.set_title(f"{v.sequence} window {v.window}\nevents {span} ({int(v.counts.sum()):,})",
-                     fontsize=8)  # fmt: skip
+        a0.set_title(
+            f"{v.sequence} window {v.window}\nevents {span} ({int(v.counts.sum()):,})", fontsize=8
+        )
         a1.imshow(v.oms, cmap="gray_r", extent=ext, interpolation="nearest", vmin=0, vmax=1)
         a1.set_title(f"sOMS output ({int(v.oms.sum()):,} px kept)", fontsize=8)
         im = a2.imshow(v.saliency, cmap="magma", extent=ext, interpolation="nearest")
@@ -115,12 +124,16 @@ def plot_maps_vs_masks(path: Path, views: list[WindowView], title: str, box: int
         _box(a2, v.point_xy, box, "lime")
         a2.set_title("saliency, P and its 8×8 box", fontsize=8)
         a3.imshow(v.mask, cmap="Greens", extent=ext, interpolation="nearest", vmin=0, vmax=1.6)
-        a3.imshow(np.ma.masked_where(~v.oms, v.oms), cmap="autumn", extent=ext, alpha=0.6,
-                  interpolation="nearest")  # fmt: skip
+        a3.imshow(
+            np.ma.masked_where(~v.oms, v.oms),
+            cmap="autumn",
+            extent=ext,
+            alpha=0.6,
+            interpolation="nearest",
+        )
         _box(a3, v.point_xy, box, "magenta")
         verdict = "hit" if v.hit == 1.0 else "miss" if v.hit == 0.0 else "not scored"
-        a3.set_title(f"mask: {verdict}, IoU {v.iou:.1%}, precision {v.precision:.1%}",
-                     fontsize=8)  # fmt: skip
+        a3.set_title(f"mask: {verdict}, IoU {v.iou:.1%}, precision {v.precision:.1%}", fontsize=8)
         for a in (a0, a1, a2, a3):
             a.tick_params(labelsize=6)
             a.set_xlabel("x (px)", fontsize=7)
@@ -135,6 +148,9 @@ def plot_maps_vs_masks(path: Path, views: list[WindowView], title: str, box: int
             Patch(color=plt.get_cmap("autumn")(0.0), alpha=0.6, label="sOMS on the mask panel"),
             Patch(facecolor="none", edgecolor="magenta", label="P's 8×8 box (hit: touches mask)"),
         ],
-        loc="lower center", ncol=6, fontsize=7, frameon=False,
-    )  # fmt: skip
+        loc="lower center",
+        ncol=6,
+        fontsize=7,
+        frameon=False,
+    )
     return save_figure(fig, path, rect=(0, 0.03, 1, 1))

@@ -144,9 +144,15 @@ def _run_sequences(
     with _progress_context(show_progress) as progress:
         bars = _Bars(progress, what, n_sequences) if progress is not None else None
         return run_sequences(
-            sequences, n_sequences, model_config, protocol, max_windows, sampler,
-            bars, None if bars is None else bars.sequence_done,
-        )  # fmt: skip
+            sequences,
+            n_sequences,
+            model_config,
+            protocol,
+            max_windows,
+            sampler,
+            bars,
+            None if bars is None else bars.sequence_done,
+        )
 
 
 def _run_suppression(
@@ -448,9 +454,15 @@ def events(
         model = _model_config(shared)
         sampler = WindowSampler()
         rows, notes, dts = _run_sequences(
-            [seq], 1, "events", model, ProtocolConfig(mask_offset_xy=offset), None, progress,
+            [seq],
+            1,
+            "events",
+            model,
+            ProtocolConfig(mask_offset_xy=offset),
+            None,
+            progress,
             sampler,
-        )  # fmt: skip
+        )
         extra_md, extra_rec = "", {}
         if suppression and seq.windows:
             win = round(dts[f"{seq.subset}/{seq.name}"] * 1e6)

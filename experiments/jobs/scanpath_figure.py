@@ -239,27 +239,57 @@ def draw_sensor_frame(
     if maps:
         peaks = [np.asarray(m, np.float64) / m.max() for m in maps if np.max(m) > 0]
         values = np.max(peaks, axis=0) if peaks else np.zeros((h, w))
-        image = ax.imshow(values, cmap="magma", vmin=0.0, vmax=1.0, interpolation="nearest",
-                          extent=(-0.5, w - 0.5, h - 0.5, -0.5))  # fmt: skip
+        image = ax.imshow(
+            values,
+            cmap="magma",
+            vmin=0.0,
+            vmax=1.0,
+            interpolation="nearest",
+            extent=(-0.5, w - 0.5, h - 0.5, -0.5),
+        )
         bar = ax.figure.colorbar(image, ax=ax, fraction=0.046, pad=0.02)
         bar.set_label("saliency (max over decisions, each map / its peak)", fontsize=8)
-        ax.plot((w - 1) / 2, (h - 1) / 2, "+", color="cyan", ms=12, mew=1.5,
-                label="fovea (sensor centre)")  # fmt: skip
+        ax.plot(
+            (w - 1) / 2,
+            (h - 1) / 2,
+            "+",
+            color="cyan",
+            ms=12,
+            mew=1.5,
+            label="fovea (sensor centre)",
+        )
     points = [(k, f["target_px"]) for k, f in enumerate(fixations) if f.get("target_px")]
     if points:
         xy = np.array([p for _, p in points], dtype=np.float64)
-        ax.scatter(xy[:, 0], xy[:, 1], marker="x", c="lime", s=30, zorder=4,
-                   label=f"P(x, y), salient point ({len(points)})")  # fmt: skip
+        ax.scatter(
+            xy[:, 0],
+            xy[:, 1],
+            marker="x",
+            c="lime",
+            s=30,
+            zorder=4,
+            label=f"P(x, y), salient point ({len(points)})",
+        )
         for k, (x, y) in points:
-            ax.annotate(str(k), (x, y), color="white", fontsize=7, xytext=(3, 3),
-                        textcoords="offset points")  # fmt: skip
+            ax.annotate(
+                str(k), (x, y), color="white", fontsize=7, xytext=(3, 3), textcoords="offset points"
+            )
     ax.set_xlabel("x (px, right)")
     ax.set_ylabel("y (px, down)")
     ax.set_title(f"{title}, in the sensor's frame", fontsize=10)
     if maps or points:
         ax.legend(loc="lower right", fontsize=6.5, framealpha=0.8)
-    ax.text(0.01, 0.99, note, transform=ax.transAxes, va="top", fontsize=7, color="white",
-            wrap=True, bbox={"facecolor": "black", "alpha": 0.6, "edgecolor": "cyan"})  # fmt: skip
+    ax.text(
+        0.01,
+        0.99,
+        note,
+        transform=ax.transAxes,
+        va="top",
+        fontsize=7,
+        color="white",
+        wrap=True,
+        bbox={"facecolor": "black", "alpha": 0.6, "edgecolor": "cyan"},
+    )
 
 
 def _draw_sphere(
@@ -284,35 +314,75 @@ def _draw_sphere(
         track = np.asarray(track, dtype=np.float64).reshape(-1, 3)
         if len(track):
             colour = f"C{k + 2}"
-            ax.plot(track[:, 1], track[:, 2], "-", color=colour, lw=1.2, alpha=0.9,
-                    label=f"{name} (ground truth path)")  # fmt: skip
+            ax.plot(
+                track[:, 1],
+                track[:, 2],
+                "-",
+                color=colour,
+                lw=1.2,
+                alpha=0.9,
+                label=f"{name} (ground truth path)",
+            )
             ax.plot(track[-1, 1], track[-1, 2], "o", color=colour, ms=4)
     if limits_deg is not None:
         (plo, phi), (tlo, thi) = limits_deg
-        ax.add_patch(Rectangle((plo, tlo), phi - plo, thi - tlo, fill=False, ls="--",
-                               ec="0.7", lw=1.0, label="PTU limits of the gaze"))  # fmt: skip
+        ax.add_patch(
+            Rectangle(
+                (plo, tlo),
+                phi - plo,
+                thi - tlo,
+                fill=False,
+                ls="--",
+                ec="0.7",
+                lw=1.0,
+                label="PTU limits of the gaze",
+            )
+        )
     note = ""
     if gazes:
         g = np.asarray(gazes)
         ax.plot(g[:, 0], g[:, 1], "-", color="gold", lw=1.5, label="saccades")
         sizes = [20 + 200 * f["duration_s"] for f in fixations]
-        ax.scatter(g[:, 0], g[:, 1], s=sizes, c="cyan", edgecolors="k", zorder=3,
-                   label="fixations (size ∝ duration)")  # fmt: skip
+        ax.scatter(
+            g[:, 0],
+            g[:, 1],
+            s=sizes,
+            c="cyan",
+            edgecolors="k",
+            zorder=3,
+            label="fixations (size ∝ duration)",
+        )
         for k, (p, t) in enumerate(g):
-            ax.annotate(str(k), (p, t), color="white", fontsize=7, xytext=(3, 3),
-                        textcoords="offset points")  # fmt: skip
+            ax.annotate(
+                str(k), (p, t), color="white", fontsize=7, xytext=(3, 3), textcoords="offset points"
+            )
         targets = [f["target_deg"] for f in fixations if f.get("target_deg") is not None]
         if targets:
             tg = np.asarray(targets, dtype=np.float64)
             out = (
                 beyond_limits(tg, limits_deg) if limits_deg is not None else np.zeros(len(tg), bool)
             )
-            ax.scatter(tg[~out, 0], tg[~out, 1], marker="x", c="lime", s=30, zorder=4,
-                       label="P(x, y), salient point")  # fmt: skip
+            ax.scatter(
+                tg[~out, 0],
+                tg[~out, 1],
+                marker="x",
+                c="lime",
+                s=30,
+                zorder=4,
+                label="P(x, y), salient point",
+            )
             if out.any():
-                ax.scatter(tg[out, 0], tg[out, 1], marker="X", c="red", s=45, zorder=4,
-                           edgecolors="white", linewidths=0.5,
-                           label=f"P beyond the PTU's reach ({int(out.sum())})")  # fmt: skip
+                ax.scatter(
+                    tg[out, 0],
+                    tg[out, 1],
+                    marker="X",
+                    c="red",
+                    s=45,
+                    zorder=4,
+                    edgecolors="white",
+                    linewidths=0.5,
+                    label=f"P beyond the PTU's reach ({int(out.sum())})",
+                )
                 (plo, phi), (tlo, thi) = limits_deg  # type: ignore[misc]
                 note = (
                     f"{int(out.sum())} of {len(tg)} salient points lie beyond the PTU's range "
@@ -346,5 +416,13 @@ def _draw_sphere(
     ax.set_title(title, fontsize=10)
     ax.legend(loc="lower right", fontsize=6.5, framealpha=0.8)
     if note:
-        ax.text(0.01, 0.99, note, transform=ax.transAxes, va="top", fontsize=7, color="white",
-                bbox={"facecolor": "black", "alpha": 0.6, "edgecolor": "red"})  # fmt: skip
+        ax.text(
+            0.01,
+            0.99,
+            note,
+            transform=ax.transAxes,
+            va="top",
+            fontsize=7,
+            color="white",
+            bbox={"facecolor": "black", "alpha": 0.6, "edgecolor": "red"},
+        )

@@ -686,8 +686,15 @@ def plot(cfg: SaccadeSpeedConfig, rows: list[Row], results_dir: Path, fig_dir: P
                 series.append(("foveation_error_y_px", "s--", "y"))
             for col, style, name in series:
                 m, lo, hi = factor_intervals(sel, column, col, xs)
-                ax.errorbar(xs, m, yerr=[lo, hi], fmt=style, capsize=3, ms=4,
-                            label=name if len(series) > 1 else None)  # fmt: skip
+                ax.errorbar(
+                    xs,
+                    m,
+                    yerr=[lo, hi],
+                    fmt=style,
+                    capsize=3,
+                    ms=4,
+                    label=name if len(series) > 1 else None,
+                )
             if len(series) > 1:
                 ax.legend(fontsize=6)
             if i == len(metrics) - 1:

@@ -561,8 +561,15 @@ def plot_statistics(cfg: ScanpathConfig, rows: list[Row], path: Path) -> Path:
             ax.bar(x + offset, np.nan_to_num(m), width, color=f"C{j}", label=c)
             ok = np.isfinite(lo) & np.isfinite(hi)
             if ok.any():
-                ax.errorbar((x + offset)[ok], m[ok], yerr=[lo[ok], hi[ok]], fmt="none",
-                            ecolor="k", capsize=3, lw=1)  # fmt: skip
+                ax.errorbar(
+                    (x + offset)[ok],
+                    m[ok],
+                    yerr=[lo[ok], hi[ok]],
+                    fmt="none",
+                    ecolor="k",
+                    capsize=3,
+                    lw=1,
+                )
         ax.set_xticks(x, scenes)
         ax.set_title(label, fontsize=8.5)
         ax.set_ylim(bottom=0.0)  # every statistic here is >= 0
@@ -621,8 +628,18 @@ def _draw_scanpath(
         (plo, phi), (tlo, thi) = limits_deg
         x0, x1 = ax.get_xlim()
         y0, y1 = ax.get_ylim()
-        ax.add_patch(Rectangle((plo, tlo), phi - plo, thi - tlo, fill=False, ls="--",
-                               ec="0.75", lw=1.0, label="PTU reach of the gaze"))  # fmt: skip
+        ax.add_patch(
+            Rectangle(
+                (plo, tlo),
+                phi - plo,
+                thi - tlo,
+                fill=False,
+                ls="--",
+                ec="0.75",
+                lw=1.0,
+                label="PTU reach of the gaze",
+            )
+        )
         ax.set_xlim(x0, x1)  # the box may be larger than the mosaic: keep the view
         ax.set_ylim(y0, y1)
     ax.invert_xaxis()  # positive pan turns left
