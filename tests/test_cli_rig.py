@@ -307,7 +307,10 @@ def test_a_saccade_moves_the_ptu_to_the_chosen_point(app, square, emu, tmp_path)
         (["--ptu", "emulate", "--camera", "davis"], "'replay:<event file>', got 'davis'"),
         (["--ptu", "emulate", "--camera", "speck", "--replay", "slow"], "replay must be one of"),
         (["--ptu", " ", "--camera", "speck"], "ptu is required"),
-        (["--ptu", "emulate", "--camera", "speck", "--seconds", "0"], "seconds > 0, got 0.0"),
+        (
+            ["--ptu", "emulate", "--camera", "speck", "--seconds", "0"],
+            "seconds in (0, 86400], got 0.0",
+        ),
     ],
 )
 def test_bad_options_exit_2_before_opening_anything(app, tmp_path, args, message):

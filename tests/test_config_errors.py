@@ -304,7 +304,10 @@ LIMITED = textwrap.dedent(
     try:
         main()
     finally:
-        peak_kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        # This process's own resident peak (VmHWM): ru_maxrss would also count the pytest
+        # process it was forked from, which Linux carries across exec.
+        with open("/proc/self/status") as f:
+            peak_kib = next(int(w.split()[1]) for w in f if w.startswith("VmHWM:"))
         print(f"peak {peak_kib}", file=sys.stdout, flush=True)
     """
 )
@@ -322,7 +325,7 @@ GIB = 1 << 30
         ),
         # The experiment's modules (torch, MuJoCo) reserve ~1.3 GB of address space on
         # import, before the file is read: 2 GB of it, and the 1 GB bound on the resident
-        # peak (ru_maxrss).
+        # peak (VmHWM).
         (
             ["experiment", "event_suppression", "--config", "bomb.yaml"],
             2 * GIB,
