@@ -218,6 +218,7 @@ def run_trial(cfg: DetectionConfig, spec: TrialSpec) -> dict[str, Any]:
     without = _means(evaluate_sequence(seq, baseline, protocol), warm)
     n_windows = len(seq.windows)
     return {
+        "simulated_s": round(cfg.duration_s / cfg.step_s) * cfg.step_s,
         "camera_speed_measured_deg_s": speed_meas,
         "events_per_step": len(seq.events) / n_windows,
         "mask_pixels_mean": float(np.mean([w.mask.sum() for w in seq.windows])),

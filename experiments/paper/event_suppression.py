@@ -610,6 +610,7 @@ def phase_row(
     return {
         "phase_index": index,
         "phase_s": sched[index].length_s,
+        "simulated_s": len(rec.counts) * cfg.window_s,  # the lead-in and the phase
         **row,
         "_gaze": rec.gaze[lead:],
         "_hand_px": rec.hand_px[lead:],
