@@ -440,23 +440,31 @@ Shape = Literal["box", "sphere", "cylinder", "mesh"]
 Size = Annotated[tuple[Positive, ...], pydantic.Field(max_length=3)]
 
 
+# The fields static and moving props share, each with its documentation.
+BodyShape = Annotated[Shape, field_doc("box, sphere, cylinder, or mesh (then give mesh, not size)")]
+BodySize = Annotated[
+    Size,
+    field_doc(
+        "Full extents: a box [x, y, z], a sphere [diameter], a cylinder [diameter, height] "
+        "(axis along z); none for a mesh",
+        unit="m",
+    ),
+]
+BodyMesh = Annotated[MeshConfig | None, field_doc("The mesh file and its scale (shape mesh only)")]
+BodyTexture = Annotated[
+    TextureSpec | None,
+    field_doc("A procedural texture (none: rgba alone); cube-mapped except on a box"),
+]
+
+
 @dataclass(frozen=True, kw_only=True)
 class StaticObjectConfig(_Body):
     """A static prop: shape, full-extent size (m) or mesh, centre, orientation (xyz
     Euler, deg)."""
 
-    shape: Annotated[Shape, field_doc("box, sphere, cylinder, or mesh (then give mesh, not size)")]
-    size: Annotated[
-        Size,
-        field_doc(
-            "Full extents: a box [x, y, z], a sphere [diameter], a cylinder [diameter, height] "
-            "(axis along z); none for a mesh",
-            unit="m",
-        ),
-    ] = ()
-    mesh: Annotated[
-        MeshConfig | None, field_doc("The mesh file and its scale (shape mesh only)")
-    ] = None
+    shape: BodyShape
+    size: BodySize = ()
+    mesh: BodyMesh = None
     position: Annotated[
         Vec3,
         field_doc(
@@ -474,10 +482,7 @@ class StaticObjectConfig(_Body):
         0.7,
         1.0,
     )
-    texture: Annotated[
-        TextureSpec | None,
-        field_doc("A procedural texture (none: rgba alone); cube-mapped except on a box"),
-    ] = None
+    texture: BodyTexture = None
     name: Annotated[str, field_doc("Its geom's name (default static_i, i from 0)")] = ""
 
 
@@ -489,18 +494,9 @@ class MovingObjectConfig(_Body):
     Object k (1-based, in list order) has id k in segmentation masks.
     """
 
-    shape: Annotated[Shape, field_doc("box, sphere, cylinder, or mesh (then give mesh, not size)")]
-    size: Annotated[
-        Size,
-        field_doc(
-            "Full extents: a box [x, y, z], a sphere [diameter], a cylinder [diameter, height] "
-            "(axis along z); none for a mesh",
-            unit="m",
-        ),
-    ] = ()
-    mesh: Annotated[
-        MeshConfig | None, field_doc("The mesh file and its scale (shape mesh only)")
-    ] = None
+    shape: BodyShape
+    size: BodySize = ()
+    mesh: BodyMesh = None
     trajectory: Annotated[
         TrajectoryParams,
         field_doc("Where its centre is at time t: one of the kinds below, chosen by kind"),
@@ -512,10 +508,7 @@ class MovingObjectConfig(_Body):
         1.0,
         1.0,
     )
-    texture: Annotated[
-        TextureSpec | None,
-        field_doc("A procedural texture (none: rgba alone); cube-mapped except on a box"),
-    ] = None
+    texture: BodyTexture = None
     name: Annotated[
         str, field_doc("Its name in the ground truth and results (its body is object_k)")
     ] = ""
