@@ -129,9 +129,9 @@ class AgentParams:
       its texture, and an object whose events are denser than the background's stands
       out. Its parameters (``quantile`` 0.9, ``gain`` 3.5, ``peak_ratio`` 2) passed the
       three family claims with the largest margin on the whole even-seed half of the
-      stimulus family (``python -m experiments.paper.oms_family``); ``wander experiment
-      oms_scorecard`` prints its scorecard beside the paper-literal one (README, "The
-      sOMS threshold"). ``SOMSParams()`` alone is the paper-literal sOMS;
+      stimulus family (``experiments.paper.oms_family.tune``); ``wander experiment
+      oms_scorecard`` prints its scorecard beside the paper-literal one (docs/experiments.md,
+      "The sOMS threshold"). ``SOMSParams()`` alone is the paper-literal sOMS;
     - sensor geometry (128×128 Speck, HFOV 112.83°) and one parameter block per
       component. The components' ``dt``, sizes and fixation interval are set from
       these fields by :meth:`resolved` (so they cannot disagree).

@@ -317,6 +317,7 @@ def run_trial(cfg: OMSCharacterisationConfig, spec: TrialSpec) -> dict[str, Any]
         return float(np.nanmean(a)) if np.isfinite(a).any() else math.nan
 
     return {
+        "simulated_s": n * cfg.step_s,
         "events_in": ev_in,
         "events_out": ev_out,
         "suppressed_pct": 100.0 - pct(ev_out, ev_in) if ev_in else math.nan,

@@ -413,7 +413,7 @@ def choice_comparison() -> Comparison:
         "min-max over the map, α 0.80",
         f"{p.norm} norm of the σ {p.pool_sigma:g} px pooled surround excess, {how}, α {p.alpha:g}",
         "ours chosen on the even-seed half (most family claims, then the largest margin: "
-        "`python -m experiments.paper.oms_family`); the odd half held out",
+        "`experiments.paper.oms_family.tune`); the odd half held out",
     )
 
 

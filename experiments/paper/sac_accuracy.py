@@ -194,6 +194,7 @@ def run_trial(cfg: SacAccuracyConfig, spec: TrialSpec) -> dict[str, Any]:
             obs, _, _, _, info = env.step(agent.act(obs, info))
             clipped |= bool(info["target_clipped"])
         sac = agent.saccades[0]
+        simulated_s = float(info["t"])
         reached = project_points(base.model, base.data, point[None], width=w, height=h)[0]
     finally:
         agent.close()
@@ -202,6 +203,7 @@ def run_trial(cfg: SacAccuracyConfig, spec: TrialSpec) -> dict[str, Any]:
     hfov = agent.params.hfov_deg
     err = sac.error_deg
     return {
+        "simulated_s": simulated_s,
         "target_x_px": target[0],
         "target_y_px": target[1],
         "target_surface": surface,
