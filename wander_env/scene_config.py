@@ -364,6 +364,11 @@ class RoomConfig:
     )
 
 
+# The look every part's config declares: a colour, and for tables and shelves a texture.
+PartRGBA = Annotated[RGBA, field_doc("Colour (red, green, blue, alpha), times the texture's")]
+PartTexture = Annotated[TextureSpec | None, field_doc("A procedural texture (none: rgba alone)")]
+
+
 @dataclass(frozen=True)
 class TableConfig:
     """A table: top ``top_size`` (x, y) at ``height`` (top surface), four legs."""
@@ -378,15 +383,13 @@ class TableConfig:
         Positive,
         field_doc("Side of the legs' square section; set in by it from the corners", unit="m"),
     ] = 0.05
-    rgba: Annotated[RGBA, field_doc("Colour (red, green, blue, alpha), times the texture's")] = (
+    rgba: PartRGBA = (
         1.0,
         1.0,
         1.0,
         1.0,
     )
-    texture: Annotated[TextureSpec | None, field_doc("A procedural texture (none: rgba alone)")] = (
-        None
-    )
+    texture: PartTexture = None
 
     def __post_init__(self) -> None:
         if self.thickness >= self.height:
@@ -421,15 +424,13 @@ class ShelfConfig:
     yaw_deg: Annotated[
         float, field_doc("Turn about z (0: it faces -x, towards a PTU at the origin)", unit="deg")
     ] = 0.0
-    rgba: Annotated[RGBA, field_doc("Colour (red, green, blue, alpha), times the texture's")] = (
+    rgba: PartRGBA = (
         1.0,
         1.0,
         1.0,
         1.0,
     )
-    texture: Annotated[TextureSpec | None, field_doc("A procedural texture (none: rgba alone)")] = (
-        None
-    )
+    texture: PartTexture = None
 
     def __post_init__(self) -> None:
         if self.levels and max(self.levels) > self.height + 1e-9:
@@ -476,7 +477,7 @@ class StaticObjectConfig(_Body):
         0.0,
         0.0,
     )
-    rgba: Annotated[RGBA, field_doc("Colour (red, green, blue, alpha), times the texture's")] = (
+    rgba: PartRGBA = (
         0.7,
         0.7,
         0.7,
@@ -502,7 +503,7 @@ class MovingObjectConfig(_Body):
         field_doc("Where its centre is at time t: one of the kinds below, chosen by kind"),
         pydantic.Field(discriminator="kind"),
     ]
-    rgba: Annotated[RGBA, field_doc("Colour (red, green, blue, alpha), times the texture's")] = (
+    rgba: PartRGBA = (
         1.0,
         1.0,
         1.0,
