@@ -40,6 +40,32 @@ class AngularGrid:
     values: np.ndarray
 
 
+def note_box(ax: Any, note: str, edge: str, wrap: bool = False) -> None:
+    """A white note on black in the axes' top left corner, framed in ``edge``."""
+    ax.text(
+        0.01,
+        0.99,
+        note,
+        transform=ax.transAxes,
+        va="top",
+        fontsize=7,
+        color="white",
+        wrap=wrap,
+        bbox={"facecolor": "black", "alpha": 0.6, "edgecolor": edge},
+    )
+
+
+def limits_box(limits_deg: Any, colour: str, label: str) -> Any:
+    """The dashed box (a matplotlib ``Rectangle``) of the PTU's ((pan lo, hi), (tilt lo,
+    hi)) limits, in degrees."""
+    from matplotlib.patches import Rectangle
+
+    (plo, phi), (tlo, thi) = limits_deg
+    return Rectangle(
+        (plo, tlo), phi - plo, thi - tlo, fill=False, ls="--", ec=colour, lw=1.0, label=label
+    )
+
+
 def _camera_geometry(focal_px: float, centre: tuple[float, float]) -> tuple[int, float]:
     """The sensor width and horizontal FOV (degrees) of focal length ``focal_px`` and
     principal point ``centre`` (``cx = (W − 1)/2``)."""
@@ -279,17 +305,7 @@ def draw_sensor_frame(
     ax.set_title(f"{title}, in the sensor's frame", fontsize=10)
     if maps or points:
         ax.legend(loc="lower right", fontsize=6.5, framealpha=0.8)
-    ax.text(
-        0.01,
-        0.99,
-        note,
-        transform=ax.transAxes,
-        va="top",
-        fontsize=7,
-        color="white",
-        wrap=True,
-        bbox={"facecolor": "black", "alpha": 0.6, "edgecolor": "cyan"},
-    )
+    note_box(ax, note, "cyan", wrap=True)
 
 
 def _draw_sphere(
@@ -303,7 +319,6 @@ def _draw_sphere(
 ) -> None:
     """The scanpath on the pan-tilt sphere: the saliency mosaic, the objects' paths, the
     PTU's limits, fixations, saccades and the salient points."""
-    from matplotlib.patches import Rectangle
 
     gazes = [f["gaze_deg"] for f in fixations]
     if maps:
@@ -326,18 +341,7 @@ def _draw_sphere(
             ax.plot(track[-1, 1], track[-1, 2], "o", color=colour, ms=4)
     if limits_deg is not None:
         (plo, phi), (tlo, thi) = limits_deg
-        ax.add_patch(
-            Rectangle(
-                (plo, tlo),
-                phi - plo,
-                thi - tlo,
-                fill=False,
-                ls="--",
-                ec="0.7",
-                lw=1.0,
-                label="PTU limits of the gaze",
-            )
-        )
+        ax.add_patch(limits_box(limits_deg, "0.7", "PTU limits of the gaze"))
     note = ""
     if gazes:
         g = np.asarray(gazes)
@@ -416,13 +420,4 @@ def _draw_sphere(
     ax.set_title(title, fontsize=10)
     ax.legend(loc="lower right", fontsize=6.5, framealpha=0.8)
     if note:
-        ax.text(
-            0.01,
-            0.99,
-            note,
-            transform=ax.transAxes,
-            va="top",
-            fontsize=7,
-            color="white",
-            bbox={"facecolor": "black", "alpha": 0.6, "edgecolor": "red"},
-        )
+        note_box(ax, note, "red")

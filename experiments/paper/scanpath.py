@@ -78,7 +78,12 @@ from experiments.framework import (
     load_artifacts,
 )
 from experiments.jobs.run_agent import run_closed_loop
-from experiments.jobs.scanpath_figure import pixel_to_angles, saliency_mosaic, show_mosaic
+from experiments.jobs.scanpath_figure import (
+    limits_box,
+    pixel_to_angles,
+    saliency_mosaic,
+    show_mosaic,
+)
 from experiments.runs.observers import RunObserver
 from experiments.stats import ci_text, mean_std
 from wander_env.camera import SPECK_HFOV_DEG, cast_pixel, focal_length_px
@@ -603,7 +608,6 @@ def _draw_scanpath(
 ) -> None:
     """One scanpath panel: the mosaic, fixations, saccades, the salient points and (given
     ``limits_deg``, the PTU's pan and tilt ranges of the gaze) a dashed box of the reach."""
-    from matplotlib.patches import Rectangle
 
     if "mosaic" in arts:
         pan, tilt = arts["mosaic_pan"], arts["mosaic_tilt"]
@@ -625,21 +629,9 @@ def _draw_scanpath(
                     tg[sel, 0], tg[sel, 1], marker="x", c=colour, s=25, zorder=4, label=label
                 )
     if limits_deg is not None:
-        (plo, phi), (tlo, thi) = limits_deg
         x0, x1 = ax.get_xlim()
         y0, y1 = ax.get_ylim()
-        ax.add_patch(
-            Rectangle(
-                (plo, tlo),
-                phi - plo,
-                thi - tlo,
-                fill=False,
-                ls="--",
-                ec="0.75",
-                lw=1.0,
-                label="PTU reach of the gaze",
-            )
-        )
+        ax.add_patch(limits_box(limits_deg, "0.75", "PTU reach of the gaze"))
         ax.set_xlim(x0, x1)  # the box may be larger than the mosaic: keep the view
         ax.set_ylim(y0, y1)
     ax.invert_xaxis()  # positive pan turns left
