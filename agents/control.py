@@ -54,7 +54,7 @@ from agents.fixation import action_to_gaze_degrees
 from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.closing import Closing
 from wander_env.config import check_fields
-from wander_env.ptu import FLIR_RESOLUTION_ARCSEC, positions_to_degrees
+from wander_env.ptu.units import FLIR_RESOLUTION_ARCSEC, positions_to_degrees
 
 __all__ = [
     "AttentionController",

@@ -42,7 +42,7 @@ import numpy as np
 from wander_env.actions import action_to_gaze_degrees, gaze_degrees_to_action
 from wander_env.camera import SPECK_HFOV_DEG, focal_length_px
 from wander_env.config import check_fields
-from wander_env.ptu import FLIR_RESOLUTION_ARCSEC, positions_to_degrees
+from wander_env.ptu.units import FLIR_RESOLUTION_ARCSEC, positions_to_degrees
 
 __all__ = [
     "FixationParams",

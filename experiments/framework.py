@@ -190,7 +190,7 @@ def _frame_mode(name: str) -> str:
 
 
 def _ptu_preset(name: str) -> str:
-    from wander_env.ptu import PTUParams
+    from wander_env.ptu.params import PTUParams
 
     PTUParams.preset(name)  # ValueError naming the presets
     return name
@@ -202,7 +202,7 @@ SceneName = Annotated[str, pydantic.AfterValidator(_scene_name)]
 DvsPreset = Annotated[str, pydantic.AfterValidator(_dvs_preset)]
 #: The env's frame source (:data:`wander_env.env.FRAME_MODES`).
 FrameMode = Annotated[str, pydantic.AfterValidator(_frame_mode)]
-#: A PTU preset (:meth:`wander_env.ptu.PTUParams.preset`).
+#: A PTU preset (:meth:`wander_env.ptu.params.PTUParams.preset`).
 PtuPreset = Annotated[str, pydantic.AfterValidator(_ptu_preset)]
 #: A trial's simulated length, seconds: in (0, :data:`MAX_TRIAL_S`].
 TrialSeconds = Annotated[float, pydantic.Field(gt=0, le=MAX_TRIAL_S)]

@@ -55,7 +55,7 @@ try:  # the serial layer's own errors: termios.error (EIO of an unplugged adapte
     )
 except ImportError:  # pragma: no cover - not POSIX
     SERIAL_ERRORS = (serial.SerialException, OSError)
-from wander_env.ptu import degrees_to_positions, positions_to_degrees, round_position
+from wander_env.ptu.units import degrees_to_positions, positions_to_degrees, round_position
 
 # A standalone number: not glued to a letter, ``^`` or ``.`` (so "sec^2" or "v2.14" don't count).
 _NUMBER = re.compile(r"(?<![\w^.])[-+]?\d+(?:\.\d+)?(?![\w.])")

@@ -4,7 +4,7 @@ The emulator speaks the FLIR ASCII protocol on the master side of a pty; its
 :attr:`PTUEmulator.port` is the slave device path, which a real ``serial.Serial(port)``
 (or :func:`serial.serial_for_url`) opens like a USB-serial adapter. A background
 thread reads commands, answers them and moves the axes in real time with the motion
-maths of :mod:`wander_env.ptu` (:func:`~wander_env.ptu.axis_step`: trapezoidal
+maths of :mod:`wander_env.ptu` (:func:`~wander_env.ptu.axis.axis_step`: trapezoidal
 profile, base speed, on-the-fly target and speed changes).
 
 Protocol, as the FLIR manuals and public drivers describe it (sources in
@@ -49,14 +49,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from wander_env.ptu import (
-    AxisState,
-    PTUParams,
-    axis_step,
-    round_position,
-    step_counter,
-    stopping_distance,
-)
+from wander_env.ptu.axis import AxisState, axis_step, stopping_distance
+from wander_env.ptu.params import PTUParams
+from wander_env.ptu.units import round_position, step_counter
 
 # The FLIR firmware text of a reset's limit hits (tilt twice, pan twice) and its ``*``.
 RESET_REPLY = "!T!T!P!P*"

@@ -84,7 +84,7 @@ from wander_env.config import check_fields
 from wander_env.env_base import CameraEnv, StepInfo
 from wander_env.event_packet import EventPacket
 from wander_env.events import empty_events
-from wander_env.ptu import degrees_to_positions, positions_to_degrees, round_position
+from wander_env.ptu.units import degrees_to_positions, positions_to_degrees, round_position
 from wander_env.viz import event_image, labelled_frame
 
 _REPLAY_MODES = ("realtime", "fast")

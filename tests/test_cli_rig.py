@@ -33,7 +33,7 @@ from hardware.speck import SpeckParams
 from wander_env.camera import SPECK_HFOV_DEG, focal_length_px
 from wander_env.event_io import EventRecording, read_events, write_events
 from wander_env.events import EVENT_DTYPE, make_events
-from wander_env.ptu import PTUParams
+from wander_env.ptu.params import PTUParams
 
 RES = PTUParams().pan_resolution_arcsec  # 92.5714″ on both axes of the emulated unit
 T_OFFSET = 5_000_000  # the synthetic file's first timestamp (µs); the replay rebases it to 0

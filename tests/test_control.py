@@ -19,7 +19,7 @@ from agents.control import (
     steps_for,
 )
 from agents.fixation import action_to_gaze_degrees
-from wander_env.ptu import positions_to_degrees
+from wander_env.ptu.units import positions_to_degrees
 
 CENTRE = 63.5
 HALF = 64.0

@@ -12,7 +12,7 @@ import wander_env  # noqa: F401  (registers the environments)
 from wander_env.actions import gaze_degrees_to_action
 from wander_env.env import FRAME_MODES
 from wander_env.frames import FRAME_SOURCES, ExactFrames, KeyframeFrames
-from wander_env.ptu import PTUParams
+from wander_env.ptu.params import PTUParams
 
 FAST_PTU = PTUParams().with_slew(2902.0, 1e5)  # the upper speed, 74.6 deg/s, in 29 ms
 

@@ -27,7 +27,9 @@ from hardware.ptu_driver import (
     reply_number,
 )
 from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
-from wander_env.ptu import PTUParams, degrees_to_positions, move_duration, round_position
+from wander_env.ptu.axis import move_duration
+from wander_env.ptu.params import PTUParams
+from wander_env.ptu.units import degrees_to_positions, round_position
 
 PAN_RES, TILT_RES = 46.2857, 92.5714  # a non-default pan resolution: must be queried
 # Fast axes: a few hundred positions take 0.1-0.2 s.

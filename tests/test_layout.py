@@ -219,7 +219,7 @@ def test_the_frame_sources_sit_between_the_renderer_and_the_env():
     trajectory; the env picks a source and never the other way round; the rig shares
     only the CameraEnv base with the sim."""
     frames = {t for t, _ in GRAPH["wander_env.frames"]}
-    assert {"wander_env.renderer", "wander_env.keyframes", "wander_env.ptu"} <= frames
+    assert {"wander_env.renderer", "wander_env.keyframes", "wander_env.ptu.unit"} <= frames
     assert "wander_env.env" not in frames and "wander_env.env_base" not in frames
     assert "wander_env.frames" in {t for t, _ in GRAPH["wander_env.env"]}
     rig = {t for t, _ in GRAPH["hardware.rig_env"]}

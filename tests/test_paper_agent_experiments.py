@@ -19,7 +19,7 @@ from experiments.cli.main import app
 from experiments.framework import make_trials, resolve_config, run_experiment, run_spec
 from experiments.paper import sac_accuracy, saccade_speed, scanpath
 from wander_env.camera import cast_pixel
-from wander_env.ptu import PTUParams
+from wander_env.ptu.params import PTUParams
 from wander_env.renderer import project_points
 from wander_env.scene_config import load_scene_config
 

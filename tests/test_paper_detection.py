@@ -20,7 +20,7 @@ from experiments.paper.detection import (
     grid,
     ptu_for_speed,
 )
-from wander_env.ptu import PTUParams
+from wander_env.ptu.params import PTUParams
 
 
 def test_ptu_speed_levels_in_degrees_per_second():

@@ -13,7 +13,7 @@ from experiments.paper import saccade_speed
 from experiments.paper.main_sequence import fit_linear, fit_saturating, saturating
 from experiments.paper.speed_study import plot_surfaces, surface
 from experiments.sweep import load_sweep, run_sweep, sweep_from_dict
-from wander_env.ptu import PTUParams
+from wander_env.ptu.params import PTUParams
 
 
 def test_saturating_fit_recovers_noisy_parameters_with_honest_intervals() -> None:

@@ -8,21 +8,18 @@ import math
 
 import pytest
 
-from wander_env.ptu import (
+from wander_env.ptu.axis import (
     AxisState,
-    PanTiltUnit,
-    PTUParams,
-    _advance,
+    axis_path,
     axis_step,
-    backlash,
-    camera_position,
-    degrees_to_positions,
     move_duration,
     peak_speed,
-    positions_to_degrees,
-    round_position,
     stopping_distance,
 )
+from wander_env.ptu.mechanics import backlash, camera_position
+from wander_env.ptu.params import PTUParams
+from wander_env.ptu.unit import PanTiltUnit
+from wander_env.ptu.units import degrees_to_positions, positions_to_degrees, round_position
 
 DEG_PER_POS = 92.5714 / 3600.0
 
@@ -268,7 +265,7 @@ def test_retarget_to_current_position_while_moving():
 def test_phase_path_is_monotone_between_points():
     # A reversal inside one step shows up as an extreme point in the path.
     s = AxisState(500.0, 1000.0)
-    end, path = _advance(s, 0.0, 2.0, 1000, 2000, 0.0)
+    end, path = axis_path(s, 0.0, 2.0, 1000, 2000, 0.0)
     assert max(path) == pytest.approx(750.0)
     assert end == AxisState(0.0, 0.0)
 
@@ -485,12 +482,12 @@ def test_unit_camera_position_uses_camera_angles():
     )
 
 
-def test_docstring_examples_run():
+@pytest.mark.parametrize("module", ["units", "link", "params", "axis", "mechanics", "unit"])
+def test_docstring_examples_run(module):
     import doctest
+    import importlib
 
-    import wander_env.ptu
-
-    assert doctest.testmod(wander_env.ptu).failed == 0
+    assert doctest.testmod(importlib.import_module(f"wander_env.ptu.{module}")).failed == 0
 
 
 @pytest.mark.parametrize(

@@ -1,4 +1,4 @@
-"""The PTU's serial-link command latency (wander_env.ptu.CommandLink), against the rig."""
+"""The PTU's serial-link command latency (wander_env.ptu.link.CommandLink), against the rig."""
 
 from __future__ import annotations
 
@@ -17,14 +17,9 @@ from hardware.ptu_driver import FlirPTUParams
 from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from wander_env.event_io import EventRecording, write_events
 from wander_env.events import make_events
-from wander_env.ptu import (
-    CommandLink,
-    PanTiltUnit,
-    PTULinkParams,
-    PTUParams,
-    command_bytes,
-    reply_bytes,
-)
+from wander_env.ptu.link import CommandLink, PTULinkParams, command_bytes, reply_bytes
+from wander_env.ptu.params import PTUParams
+from wander_env.ptu.unit import PanTiltUnit
 
 BYTE = 10 / 9600  # s per byte at 9600 8N1
 

@@ -48,7 +48,7 @@ def test_studies_section_shows_the_flir_main_sequence_and_the_links_cost(tmp_pat
 
     from experiments.paper import saccade_speed
     from experiments.paper.main_sequence import fit_linear, fit_saturating
-    from wander_env.ptu import PTUParams
+    from wander_env.ptu.params import PTUParams
 
     cfg = saccade_speed.SaccadeSpeedConfig()
     folder = tmp_path / "results" / "saccade_speed" / "x"

@@ -24,7 +24,7 @@ from hardware.speck import SamnaUnavailableError, SpeckParams
 from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.event_io import EventRecording, write_events
 from wander_env.events import EVENT_DTYPE, make_events
-from wander_env.ptu import PTUParams
+from wander_env.ptu.params import PTUParams
 
 REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
 WALK = REALDATA / "dvs128_people" / "alex_walking_for_10secs_txyp.npy"

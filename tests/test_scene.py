@@ -412,7 +412,7 @@ def test_textures_are_deterministic_and_encode_to_png():
 
 
 def test_camera_offset_matches_the_ptu_model():
-    from wander_env.ptu import camera_position
+    from wander_env.ptu.mechanics import camera_position
 
     cfg = load_scene_config("shelf")
     mount = dataclasses.replace(cfg.ptu, camera_forward_m=0.05, camera_up_m=0.03)

@@ -8,7 +8,7 @@ log-intensity change (adaptive sampling: a frame whose largest change exceeds
 ``adaptive_log_change`` is preceded by up to ``max_subframes - 1`` frames splitting the
 span since the previous frame), and the emulator turns the frames into events.
 
-The step runs on one timeline: the PTU's :meth:`~wander_env.ptu.PanTiltUnit.trajectory`
+The step runs on one timeline: the PTU's :meth:`~wander_env.ptu.unit.PanTiltUnit.trajectory`
 (the unit stepped once per tick) is computed at the step's start and the frame source
 (:mod:`wander_env.frames`, chosen by ``frames``) reads the camera's angles from it; the
 env itself only turns frames into events (this module) and commands into targets
@@ -66,7 +66,8 @@ from wander_env.event_packet import EventPacket
 from wander_env.events import concatenate
 from wander_env.frames import FRAME_SOURCES, FrameParams, Stage
 from wander_env.mjcf import SceneAnimator, build_mjcf
-from wander_env.ptu import PanTiltUnit, PTUParams
+from wander_env.ptu.params import PTUParams
+from wander_env.ptu.unit import PanTiltUnit
 from wander_env.renderer import RenderParams, project_points
 from wander_env.scene_config import SceneConfig, load_scene_config
 from wander_env.viz import event_image, labelled_frame

@@ -6,7 +6,7 @@ camera's renderer (created in the process that renders). It poses the world at a
 camera angles, renders a colour frame, a frame's geometry (motion layers and depth) and
 the ground truth's object mask.
 
-A :class:`FrameSource` turns a step's :class:`~wander_env.ptu.Trajectory` (the PTU stepped
+A :class:`FrameSource` turns a step's :class:`~wander_env.ptu.unit.Trajectory` (the PTU stepped
 once per tick, computed once per step) into the frames the DVS sees:
 
 - :meth:`~FrameSource.plan` at the step's start, with the whole trajectory (a source
@@ -45,7 +45,7 @@ from wander_env.keyframes import (
     view_flow_bounds_px,
 )
 from wander_env.mjcf import SceneAnimator, geom_layer_ids, geom_layer_radii
-from wander_env.ptu import Trajectory
+from wander_env.ptu.unit import Trajectory
 from wander_env.renderer import CameraRenderer, RenderParams
 from wander_env.scene_config import SceneConfig
 

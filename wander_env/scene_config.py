@@ -291,7 +291,7 @@ class PTUMountConfig:
 
     ``position`` is the tilt hinge in the world (the hinge lies on the pan axis); the
     camera's centre is ``camera_forward_m`` along the optical axis and ``camera_up_m``
-    above it (at tilt 0) from the hinge, as in :class:`wander_env.ptu.PTUParams`.
+    above it (at tilt 0) from the hinge, as in :class:`wander_env.ptu.params.PTUParams`.
     """
 
     position: Annotated[

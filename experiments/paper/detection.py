@@ -53,7 +53,8 @@ from experiments.stats import mean_std
 from wander_env.config import block_aliases
 from wander_env.env import WanderConfig
 from wander_env.events import concatenate
-from wander_env.ptu import FLIR_RESOLUTION_ARCSEC, PTUParams
+from wander_env.ptu.params import PTUParams
+from wander_env.ptu.units import FLIR_RESOLUTION_ARCSEC
 from wander_env.viz import save_figure
 
 __all__ = [

@@ -63,7 +63,7 @@ from experiments.stats import mean_std
 from wander_env.camera import cast_pixel, degrees_to_pixels
 from wander_env.env import WanderConfig
 from wander_env.metrics import foveation_error_px
-from wander_env.ptu import PTUParams
+from wander_env.ptu.params import PTUParams
 from wander_env.renderer import project_points
 from wander_env.viz import save_figure
 

@@ -21,7 +21,7 @@ Each trial:
   100 Hz (events play no part): pan amplitude reached, peak pan speed (the tilt moves
   only the half pixel between the fovea and a pixel row) and movement duration (command
   to standstill, to the 10 ms step) — beside the PTU's rest-to-rest trapezoid
-  (:func:`wander_env.ptu.move_duration`, :func:`wander_env.ptu.peak_speed`).
+  (:func:`wander_env.ptu.axis.move_duration`, :func:`wander_env.ptu.axis.peak_speed`).
 """
 
 from __future__ import annotations
@@ -58,7 +58,9 @@ from experiments.paper.speed_study import AXIS_LABELS, plot_surfaces
 from experiments.stats import ci_text, mean_ci, mean_std, paired_comparison
 from wander_env.camera import SPECK_HFOV_DEG, focal_length_px
 from wander_env.env import WanderConfig
-from wander_env.ptu import PTUParams, degrees_to_positions, move_duration, peak_speed
+from wander_env.ptu.axis import move_duration, peak_speed
+from wander_env.ptu.params import PTUParams
+from wander_env.ptu.units import degrees_to_positions
 from wander_env.viz import save_figure
 
 __all__ = [

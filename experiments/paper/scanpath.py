@@ -477,7 +477,7 @@ def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path)
             scanpath_stats.write_fixations(
                 results_dir / "fixations" / _export_name(r), arts["fixations"], aois
             )
-    from wander_env.ptu import PTUParams  # the env's unit (the trials use its default)
+    from wander_env.ptu.params import PTUParams  # the env's unit (the trials use its default)
 
     unit = PTUParams()
     limits = (unit.pan_limits_deg, unit.tilt_limits_deg)
