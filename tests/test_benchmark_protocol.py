@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import math
 from dataclasses import dataclass, field
 
@@ -11,22 +10,11 @@ import pytest
 
 from experiments.benchmark.datasets import MaskWindow, SequenceData
 from experiments.benchmark.protocol import (
-    ROW_COLUMNS,
     BenchmarkModel,
     Maps,
     ProtocolConfig,
-    WindowRow,
     evaluate_sequence,
-    event_suppression,
-    mean_std,
-    read_rows_csv,
-    render_markdown,
-    render_suppression_markdown,
-    run_benchmark,
     score_window,
-    summarize,
-    write_results,
-    write_rows_csv,
 )
 from wander_env.events import make_events
 from wander_env.metrics import ssim
@@ -156,11 +144,13 @@ def test_overlapping_windows_are_refused():
         evaluate_sequence(sequence(wins), FakeModel(OMS, (1, 1)))
 
 
-def test_progress_callback_and_run_benchmark():
+def test_progress_callback_over_sequences():
     seen = []
     model: BenchmarkModel = FakeModel(OMS, (10.0, 10.0))
     seqs = [sequence(standard_windows(), name="a"), sequence(standard_windows(), name="b")]
-    rows = run_benchmark(iter(seqs), model, progress=seen.append, n_sequences=2)
+    rows = [
+        r for k, s in enumerate(seqs) for r in evaluate_sequence(s, model, None, seen.append, k, 2)
+    ]
     assert len(rows) == 8 and model.resets == 2
     assert [(e.sequence, e.sequence_index, e.window, e.n_windows) for e in seen][-1] == (
         "b",
@@ -169,117 +159,3 @@ def test_progress_callback_and_run_benchmark():
         4,
     )
     assert len(seen) == 8 and seen[0].n_sequences == 2
-
-
-def row(seq, subset, hit, iou=0.5, prec=0.5, s=0.9, notes="", dataset="evimo"):
-    return WindowRow(dataset, subset, seq, 0, 0, 1, 1, 1, iou, prec, s, hit, notes)
-
-
-def hand_rows():
-    nan = math.nan
-    return [
-        row("a", "box", 1.0, iou=0.5),
-        row("a", "box", 0.0, iou=0.5),
-        row("a", "box", 1.0, iou=1.0),
-        row("a", "box", 1.0, iou=0.0),
-        row("a", "box", nan, iou=nan, prec=nan, s=nan, notes="empty_mask"),
-        row("b", "box", 1.0),
-        row("b", "box", 0.0),
-        row("c", "wall", 1.0, prec=nan, notes="oms_empty"),
-        row("c", "wall", nan, iou=nan, prec=nan, s=nan, notes="outside_recording"),
-    ]
-
-
-def test_summary_mean_std_exact():
-    assert mean_std([0.75, 0.5]) == (0.625, 0.125)
-    assert mean_std([1.0], ddof=1)[1] != mean_std([1.0], ddof=1)[1]  # nan
-    sums = summarize(hand_rows())
-    by = {(s.level, s.subset, s.sequence): s for s in sums}
-    a = by[("sequence", "box", "a")]
-    assert (a.n_windows, a.n_scored, a.n_empty_mask) == (5, 4, 1)
-    assert a.accuracy_mean == 0.75 and a.accuracy_std == math.sqrt(0.1875)
-    assert a.iou_mean == 0.5 and a.iou_std == math.sqrt(0.125)
-    box_ = by[("subset", "box", "")]
-    assert (box_.n_sequences, box_.n_windows, box_.n_scored) == (2, 7, 6)
-    assert (box_.accuracy_mean, box_.accuracy_std) == (0.625, 0.125)
-    wall = by[("subset", "wall", "")]
-    assert (wall.n_outside, wall.n_oms_empty, wall.accuracy_mean) == (1, 1, 1.0)
-    assert math.isnan(wall.precision_mean)
-    allr = by[("all", "all", "")]
-    assert allr.n_sequences == 3 and allr.accuracy_mean == 0.75
-    assert allr.accuracy_std == pytest.approx(math.sqrt(0.125 / 3), abs=1e-15)
-    pooled = {(s.level, s.subset): s for s in summarize(hand_rows(), std_over="windows")}
-    hits = np.array([1, 0, 1, 1, 1, 0], float)
-    assert pooled[("subset", "box")].accuracy_mean == hits.mean()
-    assert pooled[("subset", "box")].accuracy_std == hits.std()
-    sample = {(s.level, s.subset): s for s in summarize(hand_rows(), ddof=1)}
-    assert sample[("subset", "box")].accuracy_std == np.std([0.75, 0.5], ddof=1)
-
-
-def test_csv_and_markdown_written(tmp_path):
-    model = FakeModel(OMS, (10.0, 10.0))
-    rows = evaluate_sequence(sequence(standard_windows()), model)
-    csv_path, md_path = write_results(rows + hand_rows(), tmp_path / "out", "evimo")
-    with csv_path.open() as f:
-        table = list(csv.reader(f))
-    assert (
-        tuple(table[0])
-        == ROW_COLUMNS
-        == (
-            "dataset",
-            "subset",
-            "sequence",
-            "window",
-            "t_start_us",
-            "t_end_us",
-            "n_events",
-            "mask_pixels",
-            "iou",
-            "precision",
-            "ssim",
-            "hit",
-            "notes",
-        )
-    )
-    assert len(table) == 1 + len(rows) + len(hand_rows())
-    assert table[1][:8] == ["evimo", "box", "seq", "0", "0", "1000", "2", "16"]
-    assert table[2][8:] == ["", "", "", "", "empty_mask"]
-    back = read_rows_csv(csv_path)
-    assert [(r.sequence, r.window, r.n_events, r.notes) for r in back] == [
-        (r.sequence, r.window, r.n_events, r.notes) for r in rows + hand_rows()
-    ]
-    assert back[0].iou == rows[0].iou and math.isnan(back[1].iou)
-    md = md_path.read_text()
-    # box: 3 sequences (seq, a, b), accuracy over sequences mean(0.5, 0.75, 0.5) ± std
-    assert "| box | 3 | 11 | 8 | 2 | 1 | 0 | 58.3 ± 11.79 | 73.4 ± 21.61 |" in md
-    assert "88.8 ± 5.32" in md and "| 82.2 |" in md and "| 96 |" in md
-    assert 'paper "IoU"' in md and "## Per sequence" in md
-    assert "| box | a | 5 | 4 | 1 | 0 | 0 | 0 | 0 | 75.0 ± 43.30 |" in md
-    lle = render_markdown(summarize([row("00011", "all", 1.0, dataset="llevos")]), "llevos")
-    assert "53.3 ± 25.56" in lle
-
-
-def test_write_rows_csv_nan_cells(tmp_path):
-    path = write_rows_csv([row("a", "box", math.nan, iou=math.nan)], tmp_path / "r.csv")
-    assert path.read_text().splitlines()[1].split(",")[8] == ""
-
-
-def test_event_suppression_counts():
-    # static scene: events everywhere, OMS active on a 4 x 8 patch only
-    events = make_events(
-        x=[5, 6, 20, 5, 30, 31, 4, 4],
-        y=[5, 5, 5, 6, 20, 20, 4, 4],
-        t=[0, 100, 500, 1999, 2000, 2500, 4000, 4001],
-        p=[1, 0, 1, 1, 0, 1, 1, 0],
-    )
-    model = FakeModel(OMS, None)
-    res = event_suppression(events, SENSOR, model, window_us=2000)
-    assert res.n_windows == 3
-    assert res.events_in.tolist() == [4, 2, 2]
-    assert res.events_out.tolist() == [3, 0, 2]
-    assert (res.total_in, res.total_out) == (8, 5)
-    assert res.fraction_suppressed == 1 - 5 / 8
-    assert res.per_window()["events_in_mean"] == 8 / 3
-    assert [c[1] for c in model.calls] == [0.002] * 3
-    md = render_suppression_markdown(res, "poster")
-    assert "37.50 %" in md and "85.16 %" in md

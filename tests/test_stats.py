@@ -115,6 +115,8 @@ def test_independent_permutation_test_matches_a_t_test_on_separated_samples() ->
 
 def test_moved_helpers_keep_their_behaviour() -> None:
     assert mean_std([1.0, 3.0, float("nan")]) == (2.0, 1.0)
+    assert mean_std([0.75, 0.5]) == (0.625, 0.125)
+    assert math.isnan(mean_std([1.0], ddof=1)[1])
     low, high = wilson_interval(124, 140)
     assert (round(low, 3), round(high, 3)) == (0.822, 0.928)
     assert all(math.isnan(x) for x in wilson_interval(0, 0))

@@ -125,7 +125,7 @@ def run_sequences(
 
 
 def _write_summary_csv(summaries: Sequence[Any], path: Path) -> Path:
-    from experiments.benchmark.protocol import summary_dicts
+    from experiments.benchmark.summary import summary_dicts
 
     dicts = summary_dicts(summaries)
     with path.open("w", newline="") as f:
@@ -164,7 +164,7 @@ def write_benchmark_outputs(
 
     Returns the Markdown written to ``results.md``.
     """
-    from experiments.benchmark.protocol import (
+    from experiments.benchmark.summary import (
         render_markdown,
         summarize,
         summary_dicts,
@@ -212,7 +212,7 @@ def run_suppression(
     """:func:`event_suppression` on each ``(name, events, sensor)`` with a fresh model
     (``model_config`` with the step ``window_us``); ``progress(name, event)`` sees every
     window."""
-    from experiments.benchmark.protocol import event_suppression
+    from experiments.benchmark.suppression import event_suppression
     from wander_env.event_checks import check_sensor_area
 
     results = []
@@ -226,7 +226,7 @@ def run_suppression(
 
 def suppression_markdown(names: Sequence[str], results: Sequence[Any]) -> str:
     """Per-recording tables (beside the paper's) and, for several, the pooled fraction."""
-    from experiments.benchmark.protocol import render_suppression_markdown
+    from experiments.benchmark.suppression import render_suppression_markdown
 
     parts = [render_suppression_markdown(r, n) for n, r in zip(names, results, strict=True)]
     if len(results) > 1:

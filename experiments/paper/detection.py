@@ -32,12 +32,8 @@ from agents.pipeline import SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
 from experiments.benchmark.datasets.base import MaskWindow, SequenceData
-from experiments.benchmark.protocol import (
-    ProtocolConfig,
-    WindowRow,
-    evaluate_sequence,
-    paper_reference,
-)
+from experiments.benchmark.protocol import ProtocolConfig, WindowRow, evaluate_sequence
+from experiments.benchmark.summary import paper_reference
 from experiments.framework import (
     Comparison,
     DvsPreset,

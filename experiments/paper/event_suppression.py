@@ -53,7 +53,7 @@ from scipy.ndimage import binary_dilation, gaussian_filter
 import wander_env  # noqa: F401  (registers the environments)
 from agents.proto_object import saliency_argmax
 from agents.soms import SOMS, TABLE_FIELDS, SOMSParams
-from experiments.benchmark.protocol import PAPER_SUPPRESSION
+from experiments.benchmark.suppression import PAPER_SUPPRESSION
 from experiments.framework import (
     Comparison,
     DvsPreset,

@@ -1,0 +1,29 @@
+"""Tests for the event-suppression measurement (experiments.benchmark.suppression)."""
+
+from __future__ import annotations
+
+from test_benchmark_protocol import OMS, SENSOR, FakeModel
+
+from experiments.benchmark.suppression import event_suppression, render_suppression_markdown
+from wander_env.events import make_events
+
+
+def test_event_suppression_counts():
+    # static scene: events everywhere, OMS active on a 4 x 8 patch only
+    events = make_events(
+        x=[5, 6, 20, 5, 30, 31, 4, 4],
+        y=[5, 5, 5, 6, 20, 20, 4, 4],
+        t=[0, 100, 500, 1999, 2000, 2500, 4000, 4001],
+        p=[1, 0, 1, 1, 0, 1, 1, 0],
+    )
+    model = FakeModel(OMS, None)
+    res = event_suppression(events, SENSOR, model, window_us=2000)
+    assert res.n_windows == 3
+    assert res.events_in.tolist() == [4, 2, 2]
+    assert res.events_out.tolist() == [3, 0, 2]
+    assert (res.total_in, res.total_out) == (8, 5)
+    assert res.fraction_suppressed == 1 - 5 / 8
+    assert res.per_window()["events_in_mean"] == 8 / 3
+    assert [c[1] for c in model.calls] == [0.002] * 3
+    md = render_suppression_markdown(res, "poster")
+    assert "37.50 %" in md and "85.16 %" in md
