@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from experiments.jobs.record import GazePolicy
+from agents.scripted import GazePolicy
 from wander_env.actions import gaze_degrees_to_action
 
 SCENES = ("office", "hand", "shelf", "gratings")

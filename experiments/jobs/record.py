@@ -8,12 +8,8 @@ end, ``evimo2`` to the EVIMO2v2 ``dataset_*`` files of
 moving object's pixel centre, mask size and visibility), ``video.mp4`` (camera |
 events, with the fovea marked) and ``run.json``.
 
-Policies:
-- ``still``: the camera holds its gaze;
-- ``fixational``: fixational eye movements only (a new 8-step random walk of
-  ±60 PTU positions every 124 ms, :mod:`agents.fixation`);
-- ``saccades``: a saccade to a random pixel every ``saccade_interval_s``, with
-  fixational movements in between.
+The policies are :class:`agents.scripted.GazePolicy`'s: ``still``, ``fixational`` and
+``saccades``.
 """
 
 from __future__ import annotations
@@ -28,7 +24,7 @@ import h5py
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
-from agents.fixation import FixationalMovements, FixationParams
+from agents.scripted import POLICIES, GazePolicy
 from experiments.jobs.run_agent import env_kwargs
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
@@ -41,7 +37,6 @@ from wander_env.event_formats import write_evimo2_sequence
 from wander_env.event_io import read_events, write_events
 from wander_env.event_stream import EventStreamWriter, H5Appender, VideoSink
 
-POLICIES = ("still", "fixational", "saccades")
 # --format: the events file (events.h5 / .aedat4 / .raw) beside ground_truth.h5, or the
 # EVIMO2v2 layout (events + per-step masks) that `wander benchmark evimo` scores.
 FORMATS = {"h5": "events.h5", "aedat4": "events.aedat4", "evt3": "events.raw", "evimo2": None}
@@ -68,33 +63,6 @@ class RecordConfig:
         if self.format not in FORMATS:
             raise ValueError(f"format must be one of {tuple(FORMATS)}, got {self.format!r}")
         check_fields(self, ("seconds",), positive=True)
-
-
-class GazePolicy:
-    """The simple policies of :data:`POLICIES`, seeded."""
-
-    def __init__(self, name: str, seed: int, dt_s: float, saccade_interval_s: float) -> None:
-        self.name, self.dt_s, self.interval = name, dt_s, saccade_interval_s
-        self.rng = np.random.default_rng(seed)
-        self.fixation = FixationalMovements(FixationParams(), self.rng)
-        self.fixation.start()
-        self.t_fix = 0.0
-        self.t = 0.0
-
-    def act(self, info: dict[str, Any]) -> np.ndarray:
-        action = np.zeros(2, np.float32)
-        if self.name == "saccades" and self.t > 0 and self.t % self.interval < self.dt_s / 2:
-            action = self.rng.uniform(-0.6, 0.6, 2).astype(np.float32)
-            self.fixation.start()
-            self.t_fix = self.t
-        elif self.name != "still" and not info["moving"]:
-            if self.fixation.done:
-                self.fixation.start(after_saccade=False)
-                self.t_fix = self.t
-            if self.fixation.due(self.t - self.t_fix):
-                action = np.asarray(self.fixation.next_offset().action, np.float32)
-        self.t += self.dt_s
-        return np.clip(action, -1.0, 1.0)
 
 
 def record(
