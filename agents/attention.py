@@ -19,7 +19,7 @@ The agent is a two-phase state machine, stepped once per env step (``step_s``)::
   env: ``step_s`` of controller time per env step, also while fixating). The decoded
   ``u`` (action units, ``u ≈ (P − c)/(W/2, H/2)`` once settled) is the *total* gaze shift
   wanted, turned into the exact pan-tilt rotation that centres that pixel offset
-  (:func:`agents.fixation.pixel_to_rotation`, at the tilt the saccade starts from);
+  (:func:`wander_env.camera.pixel_to_rotation`, at the tilt the saccade starts from);
   because the env integrates relative actions, the agent sends each step the change of
   that rotation, so the PTU target ends on ``P``'s ray whatever the controller's
   transient. The phase
@@ -55,17 +55,13 @@ from typing import Any
 import numpy as np
 
 from agents.control import AttentionController, ControlParams
-from agents.fixation import (
-    FixationalMovements,
-    FixationParams,
-    gaze_degrees_to_action,
-    pixel_to_rotation,
-)
+from agents.fixation import FixationalMovements, FixationParams
 from agents.pipeline import SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
 from agents.torch_fork import set_torch_threads
-from wander_env.camera import SPECK_HFOV_DEG
+from wander_env.actions import gaze_degrees_to_action
+from wander_env.camera import SPECK_HFOV_DEG, pixel_to_rotation
 from wander_env.config import check_fields
 
 __all__ = [

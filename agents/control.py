@@ -50,7 +50,7 @@ import nengo
 import numba
 import numpy as np
 
-from agents.fixation import action_to_gaze_degrees
+from wander_env.actions import action_to_gaze_degrees
 from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.closing import Closing
 from wander_env.config import check_fields

@@ -18,8 +18,8 @@ Units and signs: PTU positions and degrees use the PTU's convention (positive pa
 turns LEFT, positive tilt is UP, see :mod:`wander_env.ptu`); env action units are the
 relative gaze offset scaled to the half field of view (positive x looks RIGHT,
 positive y looks DOWN), converted with the pinhole model (pixel offset ``d`` ↔ angle
-``atan(d / f_px)``) — see :func:`gaze_degrees_to_action`, the exact inverse of the
-env's action → angle mapping :func:`action_to_gaze_degrees`.
+``atan(d / f_px)``) — see :func:`wander_env.actions.gaze_degrees_to_action`, the exact
+inverse of the env's action → angle mapping :func:`wander_env.actions.action_to_gaze_degrees`.
 
 Examples:
     >>> import numpy as np
@@ -34,13 +34,12 @@ Examples:
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from wander_env.actions import action_to_gaze_degrees, gaze_degrees_to_action
-from wander_env.camera import SPECK_HFOV_DEG, focal_length_px
+from wander_env.actions import gaze_degrees_to_action
+from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.config import check_fields
 from wander_env.ptu.units import FLIR_RESOLUTION_ARCSEC, positions_to_degrees
 
@@ -48,48 +47,14 @@ __all__ = [
     "FixationParams",
     "FixationStep",
     "FixationalMovements",
-    "action_to_gaze_degrees",
     "draw_perturbations",
     "fold_into_bound",
-    "gaze_degrees_to_action",
-    "pixel_to_rotation",
     "positions_to_action",
 ]
 
 
 # ----------------------------------------------------------------------------------------
 # Pure maths
-
-
-def pixel_to_rotation(
-    dx_px: float,
-    dy_px: float,
-    tilt_deg: float,
-    width_px: int = 128,
-    hfov_deg: float = SPECK_HFOV_DEG,
-) -> tuple[float, float]:
-    """The pan-tilt rotation (degrees, PTU signs) that brings the ray through the pixel
-    offset ``(dx, dy)`` from the principal point (x right, y down) onto the optical axis,
-    for a camera at tilt ``tilt_deg`` (pan does not matter: it is about the vertical).
-
-    Exact for a camera rotating about its optical centre: the ray
-    ``f·forward + dx·right − dy·up`` gets pan ``atan2(−dx, f cos φ + dy sin φ)`` and
-    elevation ``atan2(f sin φ − dy cos φ, ‖horizontal part‖)``. Converting each axis on
-    its own (``atan(dx/f)``, ``atan(dy/f)``) is only right near the centre: for a corner
-    pixel of the 113° Speck view it overshoots the tilt by ≈ 14°.
-
-    >>> pan, tilt = pixel_to_rotation(56.0, -43.0, 0.0)  # right and up, camera level
-    >>> round(pan, 1), round(tilt, 1)
-    (-52.8, 31.5)
-    """
-    f = focal_length_px(width_px, hfov_deg)
-    phi = math.radians(tilt_deg)
-    x = f * math.cos(phi) + dy_px * math.sin(phi)
-    y = -dx_px
-    z = f * math.sin(phi) - dy_px * math.cos(phi)
-    pan = math.degrees(math.atan2(y, x))
-    tilt = math.degrees(math.atan2(z, math.hypot(x, y)))
-    return pan + 0.0, tilt - tilt_deg + 0.0
 
 
 def positions_to_action(

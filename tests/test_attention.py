@@ -12,9 +12,9 @@ import pytest
 
 import wander_env  # noqa: F401
 from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent, Phase
-from agents.fixation import action_to_gaze_degrees, pixel_to_rotation
 from agents.soms import SOMSParams
-from wander_env.camera import focal_length_px
+from wander_env.actions import action_to_gaze_degrees
+from wander_env.camera import focal_length_px, pixel_to_rotation
 from wander_env.renderer import project_points
 
 H = W = 128

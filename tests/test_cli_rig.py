@@ -24,12 +24,12 @@ import experiments.jobs.rig as rig_module
 import hardware.rig_env as rig_env
 from agents.attention import AttentionAgent
 from agents.control import normalised_error
-from agents.fixation import action_to_gaze_degrees
 from experiments.cli.rig import dropped_warning, register, summary_line
 from experiments.jobs.rig import RigRunConfig, RigRunError, run_rig
 from hardware.ptu_driver import PTUTimeout
 from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from hardware.speck import SpeckParams
+from wander_env.actions import action_to_gaze_degrees
 from wander_env.camera import SPECK_HFOV_DEG, focal_length_px
 from wander_env.event_io import EventRecording, read_events, write_events
 from wander_env.events import EVENT_DTYPE, make_events

@@ -18,7 +18,7 @@ from agents.control import (
     paper_command_positions,
     steps_for,
 )
-from agents.fixation import action_to_gaze_degrees
+from wander_env.actions import action_to_gaze_degrees
 from wander_env.ptu.units import positions_to_degrees
 
 CENTRE = 63.5

@@ -10,12 +10,11 @@ import pytest
 from agents.fixation import (
     FixationalMovements,
     FixationParams,
-    action_to_gaze_degrees,
     draw_perturbations,
     fold_into_bound,
-    gaze_degrees_to_action,
     positions_to_action,
 )
+from wander_env.actions import action_to_gaze_degrees, gaze_degrees_to_action
 from wander_env.camera import focal_length_px, pixels_to_degrees
 
 RES = 92.5714  # arcsec per PTU position (the paper's unit)
@@ -185,34 +184,3 @@ def test_params_validate() -> None:
         FixationParams(n_steps=-1)
     p = FixationParams()
     assert (p.n_steps, p.max_step_pos, p.resolution_arcsec) == (8, 60, 92.5714)
-
-
-def test_pixel_to_rotation_puts_the_pixels_ray_on_the_optical_axis():
-    """Rotate a pan-tilt camera by the returned angles: its new forward axis is the ray
-    that went through the pixel (to 1e-9), for pixels anywhere and any starting tilt."""
-    from agents.fixation import pixel_to_rotation
-    from wander_env.camera import focal_length_px
-
-    f = focal_length_px(128)
-
-    def axes(pan_deg: float, tilt_deg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        p, t = np.radians(pan_deg), np.radians(tilt_deg)  # world: x forward, y left, z up
-        fwd = np.array([np.cos(t) * np.cos(p), np.cos(t) * np.sin(p), np.sin(t)])
-        right = np.array([np.sin(p), -np.cos(p), 0.0])
-        up = np.cross(right, fwd)
-        return fwd, right, up
-
-    rng = np.random.default_rng(0)
-    for _ in range(50):
-        dx, dy = rng.uniform(-64, 64, 2)
-        pan0, tilt0 = rng.uniform(-90, 90), rng.uniform(-40, 40)
-        fwd, right, up = axes(pan0, tilt0)
-        ray = f * fwd + dx * right - dy * up
-        dpan, dtilt = pixel_to_rotation(dx, dy, tilt0)
-        new_fwd, _, _ = axes(pan0 + dpan, tilt0 + dtilt)
-        assert np.allclose(new_fwd, ray / np.linalg.norm(ray), atol=1e-9)
-    # Near the centre it agrees with converting each axis alone; at a corner it does not.
-    assert pixel_to_rotation(1.0, 1.0, 0.0) == pytest.approx(
-        (-np.degrees(np.arctan(1 / f)), -np.degrees(np.arctan(1 / f))), abs=1e-3
-    )
-    assert abs(pixel_to_rotation(64.0, 64.0, 0.0)[1] + np.degrees(np.arctan(64 / f))) > 10

@@ -16,7 +16,8 @@ from experiments import scanpath_stats
 from experiments.cli.main import app
 from experiments.cli.options import AgentAlphaOpt
 from experiments.jobs.run_agent import RunConfig, env_kwargs, run, run_closed_loop, video_frame
-from experiments.jobs.scanpath_figure import pixel_to_angles, saliency_mosaic
+from experiments.jobs.scanpath_figure import saliency_mosaic
+from wander_env.camera import pixel_to_world_angles
 from wander_env.event_io import read_events
 
 
@@ -177,7 +178,7 @@ def test_saliency_mosaic_places_maps_by_gaze() -> None:
     for i, j in np.argwhere(grid.values == 1.0):
         d = min(np.hypot(grid.pan[j] - p, grid.tilt[i] - t) for p, t in ((0, 0), (20, -10)))
         assert d < 1.5 * np.sqrt(2)
-    pan, tilt = pixel_to_angles((63.5 + f, 63.5), (0.0, 0.0), f, (63.5, 63.5))
+    pan, tilt = pixel_to_world_angles((63.5 + f, 63.5), (0.0, 0.0), f, (63.5, 63.5))
     assert pan == pytest.approx(-45.0) and tilt == 0.0
 
 

@@ -7,7 +7,6 @@ import math
 import numpy as np
 import pytest
 
-from agents.fixation import action_to_gaze_degrees
 from agents.pipeline import SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
@@ -20,6 +19,7 @@ from experiments.paper.detection import (
     grid,
     ptu_for_speed,
 )
+from wander_env.actions import action_to_gaze_degrees
 from wander_env.ptu.params import PTUParams
 
 

@@ -7,8 +7,12 @@ MuJoCo's camera frame (x right, y up, z backward) converts with
 :func:`rotation_from_mujoco`. A rotation ``R`` is world-from-camera (columns: the
 camera's axes in world coordinates) and ``c`` the camera centre in world coordinates.
 
-- :func:`focal_length_px`, :func:`pixels_to_degrees`, :func:`degrees_to_pixels`: the
-  focal length from the field of view and the angle of a pixel offset;
+- :func:`focal_length_px`, :func:`field_of_view_deg`, :func:`vertical_fov_deg`,
+  :func:`pixels_to_degrees`, :func:`degrees_to_pixels`: the focal length from the field of
+  view and back, and the angle of a pixel offset;
+- :func:`pixel_to_rotation`, :func:`pixel_to_world_angles`, :func:`world_angles_to_pixels`:
+  pixels and the pan-tilt unit's angles (PTU signs: positive pan turns left, positive tilt
+  looks up), exact for a camera rotating about its optical centre;
 - :func:`intrinsics`: the 3 × 3 matrix ``K``;
 - :func:`rotation_homography`: ``K R K⁻¹``, the exact image motion of a pure rotation
   about the camera centre (static geometry at any depth);
@@ -59,6 +63,26 @@ def focal_length_px(width_px: int, hfov_deg: float = SPECK_HFOV_DEG) -> float:
     return (width_px / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
 
 
+def field_of_view_deg(size_px: float, focal_px: float) -> float:
+    """The field of view (degrees) across ``size_px`` pixels at focal length ``focal_px``,
+    ``2·atan((size / 2) / f)``: the inverse of :func:`focal_length_px`.
+
+    >>> round(field_of_view_deg(128, focal_length_px(128, 90.0)), 9)
+    90.0
+    """
+    return 2.0 * math.degrees(math.atan((size_px / 2.0) / focal_px))
+
+
+def vertical_fov_deg(hfov_deg: float, width: int, height: int) -> float:
+    """Vertical FOV (MuJoCo ``fovy``) for a horizontal FOV and image size (square pixels).
+
+    >>> round(vertical_fov_deg(112.83, 128, 128), 2), round(vertical_fov_deg(90.0, 200, 100), 2)
+    (112.83, 53.13)
+    """
+    half = math.radians(hfov_deg) / 2.0
+    return math.degrees(2.0 * math.atan(math.tan(half) * height / width))
+
+
 def pixels_to_degrees(
     dx_px: float | np.ndarray, width_px: int, hfov_deg: float = SPECK_HFOV_DEG
 ) -> float | np.ndarray:
@@ -85,6 +109,92 @@ def degrees_to_pixels(
     f = focal_length_px(width_px, hfov_deg)
     out = f * np.tan(np.radians(np.asarray(angle_deg, dtype=np.float64)))
     return float(out) if out.ndim == 0 else out
+
+
+def pixel_to_rotation(
+    dx_px: float,
+    dy_px: float,
+    tilt_deg: float,
+    width_px: int = 128,
+    hfov_deg: float = SPECK_HFOV_DEG,
+) -> tuple[float, float]:
+    """The pan-tilt rotation (degrees, PTU signs) that brings the ray through the pixel
+    offset ``(dx, dy)`` from the principal point (x right, y down) onto the optical axis,
+    for a camera at tilt ``tilt_deg`` (pan does not matter: it is about the vertical).
+
+    Exact for a camera rotating about its optical centre: the ray
+    ``f·forward + dx·right − dy·up`` gets pan ``atan2(−dx, f cos φ + dy sin φ)`` and
+    elevation ``atan2(f sin φ − dy cos φ, ‖horizontal part‖)``. Converting each axis on
+    its own (``atan(dx/f)``, ``atan(dy/f)``) is only right near the centre: for a corner
+    pixel of the 113° Speck view it overshoots the tilt by ≈ 14°.
+
+    >>> pan, tilt = pixel_to_rotation(56.0, -43.0, 0.0)  # right and up, camera level
+    >>> round(pan, 1), round(tilt, 1)
+    (-52.8, 31.5)
+    """
+    f = focal_length_px(width_px, hfov_deg)
+    phi = math.radians(tilt_deg)
+    x = f * math.cos(phi) + dy_px * math.sin(phi)
+    y = -dx_px
+    z = f * math.sin(phi) - dy_px * math.cos(phi)
+    pan = math.degrees(math.atan2(y, x))
+    tilt = math.degrees(math.atan2(z, math.hypot(x, y)))
+    return pan + 0.0, tilt - tilt_deg + 0.0
+
+
+def pixel_to_world_angles(
+    xy: tuple[float, float],
+    gaze_deg: tuple[float, float],
+    focal_px: float,
+    centre: tuple[float, float],
+) -> tuple[float, float]:
+    """World (pan, tilt) in degrees of pixel ``xy`` seen with the camera at ``gaze_deg``:
+    the gaze plus the exact rotation that brings the pixel to the fovea
+    (:func:`pixel_to_rotation`; at the tilt of the gaze).
+
+    >>> [round(a, 9) for a in pixel_to_world_angles((63.5, 63.5), (10.0, -5.0), 42.5, (63.5, 63.5))]
+    [10.0, -5.0]
+    >>> pan, tilt = pixel_to_world_angles((127.0, 0.0), (0.0, 0.0), 42.5, (63.5, 63.5))
+    >>> round(pan, 2), round(tilt, 2)  # a corner: atan per axis would say (-56.21, 56.21)
+    (-56.21, 39.73)
+    """
+    width = round(2 * centre[0] + 1)  # cx = (W − 1) / 2
+    hfov = field_of_view_deg(width, focal_px)
+    rot = pixel_to_rotation(
+        xy[0] - centre[0], xy[1] - centre[1], gaze_deg[1], width_px=width, hfov_deg=hfov
+    )
+    return gaze_deg[0] + rot[0], gaze_deg[1] + rot[1]
+
+
+def world_angles_to_pixels(
+    pan_deg: np.ndarray,
+    tilt_deg: np.ndarray,
+    gaze_deg: tuple[float, float],
+    focal_px: float,
+    centre: tuple[float, float],
+) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel (x, y) where the world directions (``pan``, ``tilt``, degrees; arrays of one
+    shape) appear to a camera at ``gaze_deg`` — the inverse of :func:`pixel_to_world_angles`;
+    NaN behind the camera.
+
+    >>> gaze, centre = (5.0, -10.0), (63.5, 63.5)
+    >>> pan, tilt = pixel_to_world_angles((100.0, 10.0), gaze, 42.5, centre)
+    >>> x, y = world_angles_to_pixels(np.array(pan), np.array(tilt), gaze, 42.5, centre)
+    >>> round(float(x), 9), round(float(y), 9)
+    (100.0, 10.0)
+    """
+    p, t = np.radians(pan_deg), np.radians(tilt_deg)
+    gp, gt = math.radians(gaze_deg[0]), math.radians(gaze_deg[1])
+    d = np.stack([np.cos(t) * np.cos(p), np.cos(t) * np.sin(p), np.sin(t)])
+    fwd = np.array([math.cos(gt) * math.cos(gp), math.cos(gt) * math.sin(gp), math.sin(gt)])
+    left = np.array([-math.sin(gp), math.cos(gp), 0.0])
+    up = np.array([-math.sin(gt) * math.cos(gp), -math.sin(gt) * math.sin(gp), math.cos(gt)])
+    depth = np.tensordot(fwd, d, axes=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = centre[0] - focal_px * np.tensordot(left, d, axes=1) / depth
+        y = centre[1] - focal_px * np.tensordot(up, d, axes=1) / depth
+    behind = depth <= 1e-9
+    return np.where(behind, np.nan, x), np.where(behind, np.nan, y)
 
 
 def intrinsics(width: int, height: int, fovy_deg: float) -> np.ndarray:
@@ -226,14 +336,19 @@ __all__ = [
     "SPECK_HFOV_DEG",
     "cast_pixel",
     "degrees_to_pixels",
+    "field_of_view_deg",
     "focal_length_px",
     "intrinsics",
     "linearise_depth",
     "pixel_ray",
+    "pixel_to_rotation",
+    "pixel_to_world_angles",
     "pixels_to_degrees",
     "project",
     "relative_pose",
     "rotation_from_mujoco",
     "rotation_homography",
     "source_pixels",
+    "vertical_fov_deg",
+    "world_angles_to_pixels",
 ]

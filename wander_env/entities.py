@@ -46,7 +46,7 @@ from typing import Protocol
 import mujoco
 import numpy as np
 
-from wander_env.camera import CAMERA_NAME
+from wander_env.camera import CAMERA_NAME, vertical_fov_deg
 from wander_env.scene_config import (
     CameraConfig,
     GratingConfig,
@@ -105,7 +105,6 @@ __all__ = [
     "grating_state",
     "object_body_name",
     "object_index",
-    "vertical_fov_deg",
 ]
 
 PAN_JOINT = "pan"
@@ -138,16 +137,6 @@ def object_index(body_name: str) -> int:
     """Object id (1-based) of a body name, 0 when it is not an object body."""
     m = _OBJECT_RE.match(body_name)
     return int(m.group(1)) if m else 0
-
-
-def vertical_fov_deg(hfov_deg: float, width: int, height: int) -> float:
-    """Vertical FOV (MuJoCo ``fovy``) for a horizontal FOV and image size (square pixels).
-
-    >>> round(vertical_fov_deg(112.83, 128, 128), 2), round(vertical_fov_deg(90.0, 200, 100), 2)
-    (112.83, 53.13)
-    """
-    half = math.radians(hfov_deg) / 2.0
-    return math.degrees(2.0 * math.atan(math.tan(half) * height / width))
 
 
 def fmt(values: float | Iterable[float]) -> str:

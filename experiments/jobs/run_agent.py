@@ -48,7 +48,7 @@ import numpy as np
 from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent
 from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
-from experiments.jobs.scanpath_figure import pixel_to_angles, plot_scanpath
+from experiments.jobs.scanpath_figure import plot_scanpath
 from experiments.runs.folder import RunFolder
 from experiments.runs.observers import (
     DetectionObserver,
@@ -59,7 +59,7 @@ from experiments.runs.observers import (
 )
 from experiments.runs.provenance import run_record
 from experiments.runs.signals import DeferredSignals, SignalExit
-from wander_env.camera import degrees_to_pixels, focal_length_px
+from wander_env.camera import degrees_to_pixels, focal_length_px, pixel_to_world_angles
 from wander_env.config import check_fields
 from wander_env.env import WanderConfig
 from wander_env.event_stream import EventStreamWriter
@@ -348,7 +348,7 @@ def _object_paths(
     paths: dict[str, list[tuple[float, float, float]]] = {}
     for name, t, pan, tilt, x, y in sightings:
         paths.setdefault(name, []).append(
-            (t, *pixel_to_angles((x, y), (pan, tilt), focal_px, centre))
+            (t, *pixel_to_world_angles((x, y), (pan, tilt), focal_px, centre))
         )
     return {k: np.asarray(v) for k, v in paths.items()}
 
@@ -402,7 +402,7 @@ def _write_folder(
     f = focal_length_px(p.width_px, p.hfov_deg)
     centre = ((p.width_px - 1) / 2.0, (p.height_px - 1) / 2.0)
     targets_deg = [
-        pixel_to_angles(fx.target_px, fx.gaze_deg, f, centre) if fx.target_px else None
+        pixel_to_world_angles(fx.target_px, fx.gaze_deg, f, centre) if fx.target_px else None
         for fx in agent.fixations
     ]
     table = scanpath_stats.normalise_fixations(

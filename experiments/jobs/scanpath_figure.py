@@ -3,7 +3,7 @@
 A pan-tilt camera's fixations live in world angles, not in one image, so the figure
 puts every fixation's saliency map on a common angular grid (pan, tilt in degrees; a
 pixel's world direction is the gaze plus the exact pan-tilt rotation that brings it to
-the fovea, :func:`agents.fixation.pixel_to_rotation`, not ``atan`` per axis), keeps the
+the fovea, :func:`wander_env.camera.pixel_to_rotation`, not ``atan`` per axis), keeps the
 maximum of the per-map normalised saliency (colour bar), and draws the fixation points
 (gaze at each window, marker size ∝ duration), the saccade lines between them, the
 salient points ``P`` that triggered the saccades (those beyond the PTU's reach marked
@@ -19,7 +19,6 @@ Examples:
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.fixation import pixel_to_rotation
+from wander_env.camera import field_of_view_deg, world_angles_to_pixels
 from wander_env.viz import save_figure
 
 
@@ -66,66 +65,6 @@ def limits_box(limits_deg: Any, colour: str, label: str) -> Any:
     )
 
 
-def _camera_geometry(focal_px: float, centre: tuple[float, float]) -> tuple[int, float]:
-    """The sensor width and horizontal FOV (degrees) of focal length ``focal_px`` and
-    principal point ``centre`` (``cx = (W − 1)/2``)."""
-    width = round(2 * centre[0] + 1)
-    return width, 2.0 * math.degrees(math.atan((width / 2.0) / focal_px))
-
-
-def pixel_to_angles(
-    xy: tuple[float, float],
-    gaze_deg: tuple[float, float],
-    focal_px: float,
-    centre: tuple[float, float],
-) -> tuple[float, float]:
-    """World (pan, tilt) in degrees of pixel ``xy`` seen with the camera at ``gaze_deg``:
-    the gaze plus the exact rotation that brings the pixel to the fovea
-    (:func:`agents.fixation.pixel_to_rotation`; at the tilt of the gaze).
-
-    >>> [round(a, 9) for a in pixel_to_angles((63.5, 63.5), (10.0, -5.0), 42.5, (63.5, 63.5))]
-    [10.0, -5.0]
-    >>> pan, tilt = pixel_to_angles((127.0, 0.0), (0.0, 0.0), 42.5, (63.5, 63.5))
-    >>> round(pan, 2), round(tilt, 2)  # a corner: atan per axis would say (-56.21, 56.21)
-    (-56.21, 39.73)
-    """
-    width, hfov = _camera_geometry(focal_px, centre)
-    rot = pixel_to_rotation(
-        xy[0] - centre[0], xy[1] - centre[1], gaze_deg[1], width_px=width, hfov_deg=hfov
-    )
-    return gaze_deg[0] + rot[0], gaze_deg[1] + rot[1]
-
-
-def angles_to_pixels(
-    pan_deg: np.ndarray,
-    tilt_deg: np.ndarray,
-    gaze_deg: tuple[float, float],
-    focal_px: float,
-    centre: tuple[float, float],
-) -> tuple[np.ndarray, np.ndarray]:
-    """Pixel (x, y) where the world directions (``pan``, ``tilt``, degrees; arrays of one
-    shape) appear to a camera at ``gaze_deg`` — the inverse of :func:`pixel_to_angles`;
-    NaN behind the camera.
-
-    >>> pan, tilt = pixel_to_angles((100.0, 10.0), (5.0, -10.0), 42.5, (63.5, 63.5))
-    >>> x, y = angles_to_pixels(np.array(pan), np.array(tilt), (5.0, -10.0), 42.5, (63.5, 63.5))
-    >>> round(float(x), 9), round(float(y), 9)
-    (100.0, 10.0)
-    """
-    p, t = np.radians(pan_deg), np.radians(tilt_deg)
-    gp, gt = math.radians(gaze_deg[0]), math.radians(gaze_deg[1])
-    d = np.stack([np.cos(t) * np.cos(p), np.cos(t) * np.sin(p), np.sin(t)])
-    fwd = np.array([math.cos(gt) * math.cos(gp), math.cos(gt) * math.sin(gp), math.sin(gt)])
-    left = np.array([-math.sin(gp), math.cos(gp), 0.0])
-    up = np.array([-math.sin(gt) * math.cos(gp), -math.sin(gt) * math.sin(gp), math.cos(gt)])
-    depth = np.tensordot(fwd, d, axes=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x = centre[0] - focal_px * np.tensordot(left, d, axes=1) / depth
-        y = centre[1] - focal_px * np.tensordot(up, d, axes=1) / depth
-    behind = depth <= 1e-9
-    return np.where(behind, np.nan, x), np.where(behind, np.nan, y)
-
-
 def saliency_mosaic(
     maps: Sequence[np.ndarray],
     gazes_deg: Sequence[tuple[float, float]],
@@ -133,15 +72,16 @@ def saliency_mosaic(
     step_deg: float = 0.5,
 ) -> AngularGrid:
     """Max over fixations of each map normalised to its own peak, on an angular grid
-    (each cell sampled from the pixel that sees it, :func:`angles_to_pixels`)."""
+    (each cell sampled from the pixel that sees it,
+    :func:`~wander_env.camera.world_angles_to_pixels`)."""
     if len(maps) != len(gazes_deg):
         raise ValueError(f"{len(maps)} maps but {len(gazes_deg)} gaze directions")
     if not maps:
         raise ValueError("no saliency maps")
     h, w = maps[0].shape
     centre = ((w - 1) / 2.0, (h - 1) / 2.0)
-    half_w = math.degrees(math.atan((w / 2.0) / focal_px))
-    half_h = math.degrees(math.atan((h / 2.0) / focal_px))
+    half_w = field_of_view_deg(w, focal_px) / 2.0
+    half_h = field_of_view_deg(h, focal_px) / 2.0
     g = np.asarray(gazes_deg, dtype=np.float64)
     pan = np.arange(g[:, 0].min() - half_w, g[:, 0].max() + half_w + step_deg, step_deg)
     tilt = np.arange(g[:, 1].min() - half_h, g[:, 1].max() + half_h + step_deg, step_deg)
@@ -152,7 +92,7 @@ def saliency_mosaic(
         peak = m.max()
         if not peak > 0:
             continue
-        x, y = angles_to_pixels(pan_grid, tilt_grid, (gp, gt), focal_px, centre)
+        x, y = world_angles_to_pixels(pan_grid, tilt_grid, (gp, gt), focal_px, centre)
         ok = np.isfinite(x) & np.isfinite(y)
         xi = np.rint(np.where(ok, x, -1)).astype(int)
         yi = np.rint(np.where(ok, y, -1)).astype(int)

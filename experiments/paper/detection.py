@@ -27,7 +27,6 @@ import gymnasium as gym
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
-from agents.fixation import gaze_degrees_to_action
 from agents.pipeline import SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
@@ -46,6 +45,7 @@ from experiments.framework import (
     TrialSpec,
 )
 from experiments.stats import mean_std
+from wander_env.actions import gaze_degrees_to_action
 from wander_env.config import block_aliases
 from wander_env.env import WanderConfig
 from wander_env.events import concatenate

@@ -16,7 +16,7 @@ into the image (:func:`wander_env.renderer.project_points`): its offset from the
 measure, with the sAC's decoding error, the PTU's quantisation, its backlash and the
 parallax of a camera that sits off the rotation axes all in it. The row also gives the
 part the reached camera angles explain (``angle_error_*_px``). (The agent turns the
-pixel offset into the exact pan-tilt rotation, :func:`agents.fixation.pixel_to_rotation`;
+pixel offset into the exact pan-tilt rotation, :func:`wander_env.camera.pixel_to_rotation`;
 converting each axis on its own would add up to ≈1.2 px of vertical error at the corners
 of the target range.)
 

@@ -56,7 +56,7 @@ from experiments.jobs.run_agent import run_closed_loop
 from experiments.paper import main_sequence
 from experiments.paper.speed_study import AXIS_LABELS, plot_surfaces
 from experiments.stats import ci_text, mean_ci, mean_std, paired_comparison
-from wander_env.camera import SPECK_HFOV_DEG, focal_length_px
+from wander_env.camera import SPECK_HFOV_DEG, degrees_to_pixels, pixels_to_degrees
 from wander_env.env import WanderConfig
 from wander_env.ptu.axis import move_duration, peak_speed
 from wander_env.ptu.params import PTUParams
@@ -159,7 +159,7 @@ class SaccadeSpeedConfig:
             raise ValueError(f"object_speed_scales must be >= 0, got {self.object_speed_scales}")
         if not self.main_sequence_amplitudes_deg:
             raise ValueError("main_sequence_amplitudes_deg must list at least one amplitude")
-        half = math.degrees(math.atan(63.0 / focal_length_px(128, SPECK_HFOV_DEG)))
+        half = pixels_to_degrees(63.0, 128, SPECK_HFOV_DEG)
         if any(not 0 < a <= half for a in self.main_sequence_amplitudes_deg):
             raise ValueError(
                 f"main_sequence_amplitudes_deg must be in (0, {half:.1f}] (a pixel on the "
@@ -234,12 +234,11 @@ def main_sequence_targets(
     >>> main_sequence_targets((10.0, 10.0))
     [(71, 63), (56, 64)]
     """
-    f = focal_length_px(width, hfov_deg)
     cx = (width - 1) / 2.0
     out = []
     for k, a in enumerate(amplitudes_deg):
         sign = 1.0 if k % 2 == 0 else -1.0
-        x = min(max(round(cx + sign * f * math.tan(math.radians(a))), 0), width - 1)
+        x = min(max(round(cx + sign * degrees_to_pixels(a, width, hfov_deg)), 0), width - 1)
         out.append((int(x), height // 2 - 1 + k % 2))
     return out
 

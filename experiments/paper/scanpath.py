@@ -80,13 +80,12 @@ from experiments.framework import (
 from experiments.jobs.run_agent import run_closed_loop
 from experiments.jobs.scanpath_figure import (
     limits_box,
-    pixel_to_angles,
     saliency_mosaic,
     show_mosaic,
 )
 from experiments.runs.observers import RunObserver
 from experiments.stats import ci_text, mean_std
-from wander_env.camera import SPECK_HFOV_DEG, cast_pixel, focal_length_px
+from wander_env.camera import SPECK_HFOV_DEG, cast_pixel, focal_length_px, pixel_to_world_angles
 from wander_env.entities import object_body_name
 from wander_env.env import WanderConfig
 from wander_env.scene_config import SceneConfig
@@ -313,7 +312,7 @@ def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
     )
     targets = np.array(
         [
-            pixel_to_angles(w.target_px, g, f, centre)
+            pixel_to_world_angles(w.target_px, g, f, centre)
             for w, g in zip(fx, watch.map_gazes, strict=True)
             if w.target_px is not None
         ],
