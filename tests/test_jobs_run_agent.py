@@ -17,7 +17,7 @@ from experiments.cli.main import app
 from experiments.cli.options import AgentAlphaOpt
 from experiments.jobs.run_agent import RunConfig, env_kwargs, run, run_closed_loop, video_frame
 from experiments.jobs.scanpath_figure import pixel_to_angles, saliency_mosaic
-from wander_env.event_io import read_events
+from wander_env.events.io import read_events
 
 
 @pytest.fixture(scope="module")

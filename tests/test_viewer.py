@@ -11,8 +11,8 @@ import pytest
 from PIL import Image
 
 from experiments.jobs.record import RecordConfig, record
-from wander_env.event_io import read_events
 from wander_env.events import time_window, to_frame
+from wander_env.events.io import read_events
 from wander_env.viewer import RunLog, polarity_labels, view
 from wander_env.viewer import read_recording as read_rrd
 

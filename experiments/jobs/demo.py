@@ -13,7 +13,7 @@ from typing import Any
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
 from wander_env.demo import DemoConfig, demo_events, plot_event_panels
-from wander_env.event_io import EventRecording, write_events
+from wander_env.events.io import EventRecording, write_events
 
 __all__ = ["run_demo"]
 

@@ -20,7 +20,7 @@ writes the run folder:
 - ``run.mp4``: events | OMS | saliency | camera, with the fovea (green) and ``P``
   (magenta 8×8 box) marked;
 - ``events.h5``: every event of the run, written as the run goes
-  (:class:`~wander_env.event_stream.EventStreamWriter`: memory does not grow with the
+  (:class:`~wander_env.events.stream.EventStreamWriter`: memory does not grow with the
   run's length, and a killed run leaves the file readable up to its last flushed chunk).
 
 A fault mid-run (a device that stops answering, a signal: :mod:`experiments.runs.signals`)
@@ -62,7 +62,7 @@ from experiments.runs.signals import DeferredSignals, SignalExit
 from wander_env.camera import degrees_to_pixels, focal_length_px
 from wander_env.config import check_fields
 from wander_env.env import WanderConfig
-from wander_env.event_stream import EventStreamWriter
+from wander_env.events.stream import EventStreamWriter
 from wander_env.viz import event_image, labelled_frame, saliency_rgb
 
 __all__ = [

@@ -25,7 +25,7 @@ import numpy as np
 from agents.attention import AttentionAgent, Phase
 from experiments.runs.run_viewer import open_run_log
 from wander_env.entities import object_body_name
-from wander_env.event_stream import EventStreamWriter, OutputError, VideoSink
+from wander_env.events.stream import EventStreamWriter, OutputError, VideoSink
 from wander_env.metrics import detection_hit
 
 __all__ = [
@@ -56,7 +56,7 @@ class RunObserver:
 
 class EventsObserver(RunObserver):
     """``path``: every event of the run, written as it goes
-    (:class:`~wander_env.event_stream.EventStreamWriter`: memory does not grow with the
+    (:class:`~wander_env.events.stream.EventStreamWriter`: memory does not grow with the
     run's length); ``events``: how many. The file stays open after :meth:`close` until
     :meth:`finish` writes the run's record into it (the loop calls it first in a step, so
     a step counts once its events are on disk)."""
