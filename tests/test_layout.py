@@ -186,6 +186,7 @@ def test_experiments_is_in_wings():
     root = sorted(m for m in SOURCES if m.count(".") == 1 and m.startswith("experiments."))
     assert [m for m in root if m not in wings] == [
         "experiments.framework",
+        "experiments.metrics",
         "experiments.report",
         "experiments.scanpath_stats",
         "experiments.stats",

@@ -23,10 +23,10 @@ from typing import Any
 import numpy as np
 
 from agents.attention import AttentionAgent, Phase
+from experiments.metrics import detection_hit
 from experiments.runs.run_viewer import open_run_log
 from wander_env.entities import object_body_name
 from wander_env.events.stream import EventStreamWriter, OutputError, VideoSink
-from wander_env.metrics import detection_hit
 
 __all__ = [
     "DetectionObserver",
@@ -171,7 +171,7 @@ class DetectionObserver(RunObserver):
 def objects_hit(target: tuple[int, int], ids: np.ndarray, info: dict) -> str:
     """The moving objects (named as in the scene file, ``+``-joined in id order) whose
     masks in ``ids`` (object ids, 0 = none) the detection box around ``target`` touches
-    (:func:`~wander_env.metrics.detection_hit`); "" for none."""
+    (:func:`~experiments.metrics.detection_hit`); "" for none."""
     names = {o["id"]: str(o["name"]) for o in info.get("objects", ())}
     hit = [int(k) for k in np.unique(ids[ids > 0]) if detection_hit(target, ids == k)]
     return "+".join(names.get(k) or object_body_name(k) for k in hit)
