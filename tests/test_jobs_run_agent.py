@@ -184,7 +184,7 @@ def test_saliency_mosaic_places_maps_by_gaze() -> None:
 def test_run_rrd_logs_every_decision_and_movement(run_dir: Path) -> None:
     """run.rrd read back with Rerun's reader: one saliency map and P per decision, one
     annotation per fixation and per saccade, a gaze value per step."""
-    from wander_env.viewer import read_recording as read_rrd
+    from experiments.runs.viewer import read_recording as read_rrd
 
     m = json.loads((run_dir / "metrics.json").read_text())
     data = read_rrd(run_dir / "run.rrd")

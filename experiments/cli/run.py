@@ -194,8 +194,8 @@ def view(
     run_dir: Annotated[Path, typer.Argument(help="A run folder holding run.rrd.")],
 ) -> None:
     """Open a run folder's run.rrd in the Rerun viewer (headless: print the command)."""
-    from wander_env.viewer import command_text
-    from wander_env.viewer import view as open_view
+    from experiments.runs.viewer import command_text
+    from experiments.runs.viewer import view as open_view
 
     try:
         what, command = open_view(run_dir)

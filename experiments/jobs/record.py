@@ -32,8 +32,8 @@ from agents.fixation import FixationalMovements, FixationParams
 from experiments.jobs.run_agent import env_kwargs
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
-from experiments.runs.run_viewer import open_run_log
 from experiments.runs.signals import DeferredSignals, SignalExit
+from experiments.runs.viewer import open_run_log
 from wander_env.camera import focal_length_px
 from wander_env.config import check_fields
 from wander_env.env import WanderConfig

@@ -171,7 +171,7 @@ class _Log:
     clipped: list[bool] = field(default_factory=list)  # per saccade
     steps: int = 0
     asked: int = 0  # the steps the run was to take
-    sightings: list[tuple] = field(default_factory=list)  # ground truth (run_viewer)
+    sightings: list[tuple] = field(default_factory=list)  # ground truth (runs.viewer)
     video_complete: bool | None = None  # run.mp4 a whole MP4 (None: no video written)
 
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from agents.attention import AttentionAgent, Phase
 from experiments.metrics import detection_hit
-from experiments.runs.run_viewer import open_run_log
+from experiments.runs.viewer import open_run_log
 from wander_env.entities import object_body_name
 from wander_env.events.stream import EventStreamWriter, OutputError, VideoSink
 
@@ -106,7 +106,7 @@ class VideoObserver(RunObserver):
 
 
 class RerunObserver(RunObserver):
-    """``out_dir/run.rrd`` (:func:`~experiments.runs.run_viewer.open_run_log`); ``sightings``
+    """``out_dir/run.rrd`` (:func:`~experiments.runs.viewer.open_run_log`); ``sightings``
     after :meth:`close`: the ground truth the run saw."""
 
     def __init__(self, out_dir: Path, env: Any, title: str) -> None:
