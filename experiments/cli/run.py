@@ -62,7 +62,7 @@ def demo(
 ) -> None:
     """Drive the DVS emulator with a synthetic moving pattern; write events and a picture."""
     from experiments.jobs.demo import run_demo
-    from wander_env.demo import DemoConfig
+    from experiments.jobs.dvs_demo import DemoConfig
 
     try:
         config = DemoConfig(seconds=seconds, preset=preset, seed=seed)
