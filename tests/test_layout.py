@@ -318,3 +318,22 @@ def test_reading_and_writing_events_loads_no_simulator():
     ]
     heavy = ("mujoco", "torch", "gymnasium.envs.mujoco", "numba", "sinabs", "nengo", "cv2")
     assert sorted(m for m in loaded if any(m == h or m.startswith(f"{h}.") for h in heavy)) == []
+
+
+def test_wander_env_holds_no_lab_code():
+    """Every module of wander_env serves the simulator: wander_env itself, the agents or the
+    hardware import it. What only experiments use (the metrics, the Rerun recording, the
+    demo's stimulus) lives in experiments. Exempt: the env (Gymnasium reaches it by its
+    entry-point string) and the event library, whose users are anyone with event files."""
+    lab_only = sorted(
+        m
+        for m in SOURCES
+        if _top(m) == "wander_env"
+        and m not in ("wander_env", "wander_env.env")
+        and not (m == "wander_env.events" or m.startswith("wander_env.events."))
+        and not any(
+            _top(user) in ("wander_env", "agents", "hardware") and m in {t for t, _ in edges}
+            for user, edges in GRAPH.items()
+        )
+    )
+    assert lab_only == []
