@@ -1,8 +1,8 @@
 """Play a recorded event file as if it were a camera.
 
-:class:`ReplaySource` reads any file :func:`wander_env.event_io.read_events` reads
+:class:`ReplaySource` reads any file :func:`wander_env.events.io.read_events` reads
 (``.npz``, HDF5, ``.npy``, AEDAT4, AEDAT 2.0) or takes an
-:class:`~wander_env.event_io.EventRecording`, rebases the timestamps so that the
+:class:`~wander_env.events.io.EventRecording`, rebases the timestamps so that the
 replay starts at 0 µs (the original offset is kept in ``metadata["t_offset_us"]``)
 and hands out consecutive windows through the :class:`~hardware.event_source.EventSource`
 interface. In real-time mode a ``read`` returns when the wall clock has reached the
@@ -12,14 +12,14 @@ end of the file reads return empty arrays and ``finished`` is true, unless
 length so that timestamps keep increasing.
 
 What it plays feeds the agent, whose maps take about 1.2 KB a pixel: a sensor larger than
-:data:`~wander_env.event_checks.MAX_SENSOR_PIXELS` is refused, and a file is read within
-the event limit of :func:`~wander_env.event_io.read_events`
-(:data:`~wander_env.event_checks.MAX_EVENTS`), both with an
-:class:`~wander_env.event_checks.EventFileError` naming the file.
+:data:`~wander_env.events.checks.MAX_SENSOR_PIXELS` is refused, and a file is read within
+the event limit of :func:`~wander_env.events.io.read_events`
+(:data:`~wander_env.events.checks.MAX_EVENTS`), both with an
+:class:`~wander_env.events.checks.EventFileError` naming the file.
 
 Examples:
     >>> from wander_env.events import make_events
-    >>> from wander_env.event_io import EventRecording
+    >>> from wander_env.events.io import EventRecording
     >>> ev = make_events(x=[1, 2, 3], y=[0, 0, 0], t=[100, 150, 400], p=[1, 0, 1])
     >>> rec = EventRecording(ev, (4, 4, 2))
     >>> with ReplaySource(rec) as cam:
@@ -39,9 +39,9 @@ from typing import Any
 import numpy as np
 
 from hardware.event_source import EventSourceBase
-from wander_env.event_checks import check_sensor_area
-from wander_env.event_io import EventRecording, read_events
 from wander_env.events import EVENT_DTYPE, empty_events, time_window
+from wander_env.events.checks import check_sensor_area
+from wander_env.events.io import EventRecording, read_events
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@
 * observation ``{"events": (2, H, W) float32 per-polarity counts of the step
   (channel 1 = ON), "gaze": (pan, tilt) degrees}`` (the last polled PTU position);
 * ``info``: ``events`` (the step's raw events, ``t`` in µs since ``reset``, as a
-  :class:`~wander_env.event_packet.EventPacket` like the sim's: ``.events`` is the array),
+  :class:`~wander_env.events.packet.EventPacket` like the sim's: ``.events`` is the array),
   ``t`` (s since ``reset``, the end of the step window), ``ptu_positions``,
   ``ptu_target_positions``, ``moving``, ``target_clipped``, and, rig only,
   ``command_latency_s`` (seconds from handing the latest acknowledged command to
@@ -47,7 +47,7 @@ The PTU emulator and a replayed recording:
 
 Examples:
     >>> import tempfile, gymnasium, hardware
-    >>> from wander_env.event_io import EventRecording, write_events
+    >>> from wander_env.events.io import EventRecording, write_events
     >>> from wander_env.events import make_events
     >>> tmp = tempfile.TemporaryDirectory()
     >>> path = f"{tmp.name}/two.npz"
@@ -82,8 +82,8 @@ from hardware.speck import SpeckParams, SpeckSource
 from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.config import check_fields
 from wander_env.env_base import CameraEnv, StepInfo
-from wander_env.event_packet import EventPacket
 from wander_env.events import empty_events
+from wander_env.events.packet import EventPacket
 from wander_env.ptu.units import degrees_to_positions, positions_to_degrees, round_position
 from wander_env.viz import event_image, labelled_frame
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from experiments.bench.dvs import PEERS, bench_inputs, bench_peers, linear_frames
+from experiments.jobs.synthetic import drifting_texture
 from wander_env.dvs import DVSEmulator
-from wander_env.synthetic import drifting_texture
 
 
 def test_linear_frames_give_the_events_of_their_srgb_frames():

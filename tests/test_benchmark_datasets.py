@@ -472,8 +472,8 @@ def test_zip_is_npz(tmp_path):
 
 
 def test_generic_loader_says_when_masks_differ_from_sensor(tmp_path):
-    from wander_env.event_io import EventRecording, write_events
     from wander_env.events import make_events
+    from wander_env.events.io import EventRecording, write_events
 
     write_png_p(tmp_path / "m" / "000001_5000.png", rect((6, 8), 0, 2, 0, 2, 1, np.uint8))
     write_png_p(tmp_path / "m" / "000002_10000.png", rect((6, 8), 0, 2, 0, 2, 1, np.uint8))

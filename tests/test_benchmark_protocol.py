@@ -16,8 +16,8 @@ from experiments.benchmark.protocol import (
     evaluate_sequence,
     score_window,
 )
+from experiments.metrics import ssim
 from wander_env.events import make_events
-from wander_env.metrics import ssim
 
 W, H = 32, 24
 SENSOR = (W, H, 2)

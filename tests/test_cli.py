@@ -9,7 +9,7 @@ import pytest
 from typer.testing import CliRunner
 
 from experiments.cli.main import app
-from wander_env.event_io import read_events
+from wander_env.events.io import read_events
 
 runner = CliRunner()
 

@@ -31,8 +31,8 @@ from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from hardware.speck import SpeckParams
 from wander_env.actions import action_to_gaze_degrees
 from wander_env.camera import SPECK_HFOV_DEG, focal_length_px
-from wander_env.event_io import EventRecording, read_events, write_events
 from wander_env.events import EVENT_DTYPE, make_events
+from wander_env.events.io import EventRecording, read_events, write_events
 from wander_env.ptu.params import PTUParams
 
 RES = PTUParams().pan_resolution_arcsec  # 92.5714″ on both axes of the emulated unit

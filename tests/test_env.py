@@ -12,8 +12,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import wander_env  # noqa: F401  (registers the environments)
-from wander_env.event_packet import EventPacket
 from wander_env.events import concatenate
+from wander_env.events.packet import EventPacket
 
 F_PX = 64 / math.tan(math.atan(5.12 / 3.4))  # focal length in pixels of the Speck optics
 

@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from wander_env.event_io import read_events
-from wander_env.event_stream import EventStreamWriter, OutputError
 from wander_env.events import make_events
+from wander_env.events.io import read_events
+from wander_env.events.stream import EventStreamWriter, OutputError
 
 ROOT = Path(__file__).resolve().parents[1]
 

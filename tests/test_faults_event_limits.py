@@ -19,10 +19,10 @@ import h5py
 import numpy as np
 import pytest
 
-from wander_env.event_checks import MAX_EVENTS, EventFileError
-from wander_env.event_formats import evt3_event_count
-from wander_env.event_io import EventRecording, read_events, write_events
 from wander_env.events import make_events
+from wander_env.events.checks import MAX_EVENTS, EventFileError
+from wander_env.events.formats import evt3_event_count
+from wander_env.events.io import EventRecording, read_events, write_events
 
 LIMIT_MB = 2500
 BUDGET = "the agent and the benchmark model process at most 921,600 (about 1.2 KB of maps a pixel)"
@@ -332,7 +332,7 @@ class PanicException(BaseException):
 
 
 def test_a_decoder_panic_becomes_one_event_file_error_and_nothing_broader():
-    from wander_env.event_formats import _decoding
+    from wander_env.events.formats import _decoding
 
     path = Path("x.raw")
     with pytest.raises(EventFileError) as info, _decoding(path, "EVT2 decoding"):

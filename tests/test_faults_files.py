@@ -18,7 +18,7 @@ import h5py
 import numpy as np
 import pytest
 
-from wander_env.event_io import EventFileError, read_events
+from wander_env.events.io import EventFileError, read_events
 
 REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
 REAL = REALDATA / "dvs128_people" / "alex_walking_for_10secs_txyp.npy"
@@ -180,7 +180,7 @@ def test_header_bombs_are_refused_fast_with_little_memory(tmp_path, real, bomb):
     code = textwrap.dedent(
         f"""
         import json, time
-        from wander_env.event_io import EventFileError, read_events
+        from wander_env.events.io import EventFileError, read_events
         t0 = time.perf_counter()
         try:
             read_events({str(path)!r})

@@ -21,8 +21,8 @@ import pytest
 
 from experiments.runs.folder import RunFolder
 from experiments.runs.signals import SignalExit, handle_signals
-from wander_env.event_io import EventRecording, read_events, write_events
 from wander_env.events import make_events
+from wander_env.events.io import EventRecording, read_events, write_events
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -10,8 +10,8 @@ import pytest
 
 from hardware.event_source import EventSource
 from hardware.replay import ReplayParams, ReplaySource
-from wander_env.event_io import EventRecording, read_events, write_events
 from wander_env.events import concatenate, make_events
+from wander_env.events.io import EventRecording, read_events, write_events
 
 REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
 needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason="../shared/realdata absent")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from experiments.jobs.record import RecordConfig, record
-from wander_env.event_io import read_events
+from wander_env.events.io import read_events
 
 
 def test_record_writes_events_truth_and_video(tmp_path):

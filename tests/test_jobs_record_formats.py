@@ -15,7 +15,7 @@ from experiments.benchmark.datasets.evimo import find_evimo_sequences, load_evim
 from experiments.cli.benchmark import app as benchmark_app
 from experiments.jobs.record import RecordConfig, record
 from wander_env.camera import focal_length_px
-from wander_env.event_io import read_events
+from wander_env.events.io import read_events
 
 STEP_US = 10_000  # the env's control period: one mask per step
 

@@ -18,7 +18,7 @@ from experiments.cli.options import AgentAlphaOpt
 from experiments.jobs.run_agent import RunConfig, env_kwargs, run, run_closed_loop, video_frame
 from experiments.jobs.scanpath_figure import saliency_mosaic
 from wander_env.camera import pixel_to_world_angles
-from wander_env.event_io import read_events
+from wander_env.events.io import read_events
 
 
 @pytest.fixture(scope="module")
@@ -185,7 +185,7 @@ def test_saliency_mosaic_places_maps_by_gaze() -> None:
 def test_run_rrd_logs_every_decision_and_movement(run_dir: Path) -> None:
     """run.rrd read back with Rerun's reader: one saliency map and P per decision, one
     annotation per fixation and per saccade, a gaze value per step."""
-    from wander_env.viewer import read_recording as read_rrd
+    from experiments.runs.viewer import read_recording as read_rrd
 
     m = json.loads((run_dir / "metrics.json").read_text())
     data = read_rrd(run_dir / "run.rrd")

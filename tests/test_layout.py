@@ -11,6 +11,9 @@ from __future__ import annotations
 
 import ast
 import graphlib
+import json
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -103,8 +106,10 @@ def test_the_parser_sees_the_imports_it_must_see():
     assert "wander_env.camera" in {t for t, _ in GRAPH["agents.attention"]}
     # ``from experiments import scanpath_stats`` names the module, not the package.
     assert "experiments.scanpath_stats" in {t for t, _ in GRAPH["experiments.paper.scanpath"]}
-    # A lazy import inside a function counts (event_stream's index_offset_us).
-    assert "wander_env.event_formats" in {t for t, _ in GRAPH["wander_env.event_stream"]}
+    # A lazy import inside a function counts (events.stream's index_offset_us), and so does
+    # ``from package import module`` (events.io's ``from wander_env.events import formats``).
+    assert "wander_env.events.formats" in {t for t, _ in GRAPH["wander_env.events.stream"]}
+    assert "wander_env.events.formats" in {t for t, _ in GRAPH["wander_env.events.io"]}
     rel = imports_of("experiments.benchmark.datasets")
     assert {"experiments.benchmark.datasets.base", "experiments.benchmark.datasets.evimo"} <= {
         t for t, _ in rel
@@ -181,6 +186,7 @@ def test_experiments_is_in_wings():
     root = sorted(m for m in SOURCES if m.count(".") == 1 and m.startswith("experiments."))
     assert [m for m in root if m not in wings] == [
         "experiments.framework",
+        "experiments.metrics",
         "experiments.report",
         "experiments.scanpath_stats",
         "experiments.stats",
@@ -226,7 +232,7 @@ def test_the_frame_sources_sit_between_the_renderer_and_the_env():
     assert "wander_env.env_base" in rig and "wander_env.env" not in rig
     assert {t for t, _ in GRAPH["wander_env.env_base"]} <= {
         "wander_env.actions",
-        "wander_env.event_packet",
+        "wander_env.events.packet",
         "wander_env.events",
     }
 
@@ -242,3 +248,92 @@ def test_the_simulator_names_no_floor_above_it_even_as_a_string():
         if f'"{floor}' in path.read_text(encoding="utf-8")
     ]
     assert named == []
+
+
+#: The only modules of ``wander_env`` outside ``wander_env.events`` that the event library
+#: may import: small helpers that import nothing of ours (checked below) and no simulator.
+EVENTS_MAY_IMPORT = ("wander_env.strict_json", "wander_env.closing")
+
+
+def test_the_event_library_stands_on_its_own():
+    """``wander_env.events`` (arrays, packets, files, checks, streaming) imports no module of
+    wander_env outside itself but the named dependency-free helpers, and nothing heavier
+    than the format libraries: a user who only reads and writes event files gets no
+    simulator."""
+    events = sorted(
+        m for m in SOURCES if m == "wander_env.events" or m.startswith("wander_env.events.")
+    )
+    assert events == [
+        "wander_env.events",
+        "wander_env.events.checks",
+        "wander_env.events.formats",
+        "wander_env.events.io",
+        "wander_env.events.packet",
+        "wander_env.events.stream",
+    ]
+    outside = [
+        f"{_where(m, line)} imports {t}"
+        for m in events
+        for t, line in GRAPH[m]
+        if not (t == "wander_env.events" or t.startswith("wander_env.events."))
+        and t not in EVENTS_MAY_IMPORT
+    ]
+    assert outside == []
+    # The helpers are what the allowlist says they are: they import nothing of ours.
+    assert {m: GRAPH[m] for m in EVENTS_MAY_IMPORT} == {m: [] for m in EVENTS_MAY_IMPORT}
+    heavy = {"mujoco", "torch", "gymnasium", "sinabs", "nengo", "numba", "cv2", "OpenGL"}
+    found = sorted(
+        f"{m} imports {lib}"
+        for m in [*events, *EVENTS_MAY_IMPORT]
+        for lib in _third_party_of(m) & heavy
+    )
+    assert found == []
+
+
+def test_reading_and_writing_events_loads_no_simulator():
+    """Importing the readers, writers and the streaming writer in a fresh interpreter loads
+    exactly these modules of ours, and none of MuJoCo, torch, Gymnasium's MuJoCo envs,
+    numba, sinabs, nengo or OpenCV. (``wander_env/__init__.py`` runs first: it sets
+    ``MUJOCO_GL`` and registers the sim env with Gymnasium by its entry-point string, which
+    imports Gymnasium's registry but not the env module.)"""
+    code = (
+        "import sys, json\n"
+        "import wander_env.events.io, wander_env.events.formats, wander_env.events.stream\n"
+        "print(json.dumps(sorted(sys.modules)))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True
+    ).stdout
+    loaded = set(json.loads(out))
+    ours = sorted(m for m in loaded if _top(m) in PACKAGES)
+    assert ours == [
+        "wander_env",
+        "wander_env.closing",
+        "wander_env.events",
+        "wander_env.events.checks",
+        "wander_env.events.formats",
+        "wander_env.events.io",
+        "wander_env.events.stream",
+        "wander_env.strict_json",
+    ]
+    heavy = ("mujoco", "torch", "gymnasium.envs.mujoco", "numba", "sinabs", "nengo", "cv2")
+    assert sorted(m for m in loaded if any(m == h or m.startswith(f"{h}.") for h in heavy)) == []
+
+
+def test_wander_env_holds_no_lab_code():
+    """Every module of wander_env serves the simulator: wander_env itself, the agents or the
+    hardware import it. What only experiments use (the metrics, the Rerun recording, the
+    demo's stimulus) lives in experiments. Exempt: the env (Gymnasium reaches it by its
+    entry-point string) and the event library, whose users are anyone with event files."""
+    lab_only = sorted(
+        m
+        for m in SOURCES
+        if _top(m) == "wander_env"
+        and m not in ("wander_env", "wander_env.env")
+        and not (m == "wander_env.events" or m.startswith("wander_env.events."))
+        and not any(
+            _top(user) in ("wander_env", "agents", "hardware") and m in {t for t, _ in edges}
+            for user, edges in GRAPH.items()
+        )
+    )
+    assert lab_only == []

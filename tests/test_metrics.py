@@ -1,4 +1,4 @@
-"""Tests for the ground-truth metrics (wander_env.metrics)."""
+"""Tests for the ground-truth metrics (experiments.metrics)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from numpy.lib.stride_tricks import sliding_window_view
 
-from wander_env.metrics import (
+from experiments.metrics import (
     detection_hit,
     foveation_error_px,
     iou,
@@ -265,6 +265,6 @@ def test_foveation_error():
 def test_docstring_examples_run():
     import doctest
 
-    import wander_env.metrics
+    import experiments.metrics
 
-    assert doctest.testmod(wander_env.metrics).failed == 0
+    assert doctest.testmod(experiments.metrics).failed == 0

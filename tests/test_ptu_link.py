@@ -15,8 +15,8 @@ import serial
 import wander_env  # noqa: F401  (registers the environments)
 from hardware.ptu_driver import FlirPTUParams
 from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
-from wander_env.event_io import EventRecording, write_events
 from wander_env.events import make_events
+from wander_env.events.io import EventRecording, write_events
 from wander_env.ptu.link import CommandLink, PTULinkParams, command_bytes, reply_bytes
 from wander_env.ptu.params import PTUParams
 from wander_env.ptu.unit import PanTiltUnit

@@ -22,8 +22,8 @@ from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from hardware.rig_env import RigConfig, RigEnv
 from hardware.speck import SamnaUnavailableError, SpeckParams
 from wander_env.camera import SPECK_HFOV_DEG
-from wander_env.event_io import EventRecording, write_events
 from wander_env.events import EVENT_DTYPE, make_events
+from wander_env.events.io import EventRecording, write_events
 from wander_env.ptu.params import PTUParams
 
 REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"

@@ -32,8 +32,8 @@ from experiments.cli.errors import long_command
 from experiments.cli.main import app
 from experiments.runs.folder import RunFolder
 from experiments.runs.signals import DeferredSignals, SignalExit, handle_signals
-from wander_env.event_io import read_events
-from wander_env.event_stream import OutputError, VideoSink, mp4_complete
+from wander_env.events.io import read_events
+from wander_env.events.stream import OutputError, VideoSink, mp4_complete
 
 ROOT = Path(__file__).resolve().parents[1]
 STOPPED = "SignalExit: stopped by SIGTERM (signal 15)"
@@ -416,8 +416,8 @@ def test_view_without_a_display_prints_the_web_viewer_command_and_the_copy_hint(
 def test_a_signal_halts_the_rig_before_its_folder_is_written(tmp_path, monkeypatch):
     from experiments.jobs.rig import RigRunConfig, run_rig
     from hardware.ptu_emulator import PTUEmulator
-    from wander_env.event_io import EventRecording, write_events
     from wander_env.events import make_events
+    from wander_env.events.io import EventRecording, write_events
 
     rng = np.random.default_rng(0)
     n = 30_000

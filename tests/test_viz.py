@@ -1,11 +1,10 @@
-"""Pictures and synthetic stimuli."""
+"""Pictures: event images, tiling, upscaling."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from wander_env.synthetic import disc_over_texture, drifting_texture
 from wander_env.viz import OFF_RGB, ON_RGB, event_image, tile, upscale
 
 
@@ -26,15 +25,3 @@ def test_tile_and_upscale_shapes():
     ims = [np.zeros((4, 5, 3), np.uint8)] * 5
     assert tile(ims, columns=3, gap=1).shape == (2 * 4 + 1, 3 * 5 + 2, 3)
     assert upscale(np.ones((2, 3, 3), np.uint8), 4).shape == (8, 12, 3)
-
-
-def test_drifting_texture_moves_by_the_requested_speed():
-    f = drifting_texture(64, 8, n_frames=5, speed_px=2.0, seed=1)
-    # The texture drifts left by 2 px a frame: frame 2 column x is frame 0 column x + 4.
-    assert np.abs(f[2][:, :-4].astype(int) - f[0][:, 4:].astype(int)).max() <= 1
-
-
-def test_disc_stimulus_is_seeded():
-    a = disc_over_texture(32, 32, 4, 0.1, 5, 8, 4, seed=2)
-    b = disc_over_texture(32, 32, 4, 0.1, 5, 8, 4, seed=2)
-    assert np.array_equal(a, b)

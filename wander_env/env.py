@@ -62,8 +62,8 @@ from wander_env.camera import focal_length_px
 from wander_env.config import check_fields
 from wander_env.dvs import DVSEmulator, DVSParams, LogFrame
 from wander_env.env_base import CameraEnv, StepInfo
-from wander_env.event_packet import EventPacket
 from wander_env.events import concatenate
+from wander_env.events.packet import EventPacket
 from wander_env.frames import FRAME_SOURCES, FrameParams, Stage
 from wander_env.mjcf import SceneAnimator, build_mjcf
 from wander_env.ptu.params import PTUParams

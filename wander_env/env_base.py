@@ -18,7 +18,7 @@ beyond the PTU's limits is clipped to them and ``info["target_clipped"]`` says s
 
 Observation: ``{"events": (2, H, W) float32 per-polarity counts of the step (channel
 1 = ON), "gaze": (pan, tilt) in degrees}``. ``info["events"]`` holds the step's raw
-events, every one of them, as an :class:`~wander_env.event_packet.EventPacket` (whose
+events, every one of them, as an :class:`~wander_env.events.packet.EventPacket` (whose
 ``.events`` is the structured array; as a packet it passes through vector envs,
 ``check_env`` and pickling).
 
@@ -37,8 +37,8 @@ import gymnasium as gym
 import numpy as np
 
 from wander_env.actions import action_to_gaze_degrees, check_action
-from wander_env.event_packet import EventPacket
 from wander_env.events import to_frame
+from wander_env.events.packet import EventPacket
 
 __all__ = ["CameraEnv", "StepInfo"]
 

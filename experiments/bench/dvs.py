@@ -35,8 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from experiments.jobs.synthetic import drifting_texture
 from wander_env.dvs import DVSEmulator, DVSParams
-from wander_env.synthetic import drifting_texture
 
 # Drift speeds (px/frame) that give about 1,000 and 4,000 events per frame with `ideal`.
 SENSORS = {(128, 128): 0.25, (346, 260): 0.2}

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from wander_env.event_io import read_events
+from wander_env.events.io import read_events
 
 Decoder = Callable[[Path], np.ndarray]
 
@@ -48,7 +48,7 @@ def _txyp(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray) -> np.ndar
 
 def _wander(path: Path) -> np.ndarray:
     if path.suffix.lower() == ".es":  # rows as stored, like the other decoders here
-        from wander_env.event_formats import read_es
+        from wander_env.events.formats import read_es
 
         ev = read_es(path, flip_y=False).events
     else:
@@ -82,7 +82,7 @@ def _evt3(path: Path) -> np.ndarray:
 
 
 def _raw_version(path: Path) -> str | None:
-    from wander_env.event_formats import _evt_version, prophesee_header
+    from wander_env.events.formats import _evt_version, prophesee_header
 
     with open(path, "rb") as fh:
         return _evt_version(prophesee_header(fh.read(4096))[0])

@@ -95,12 +95,12 @@ def run_sequences(
     windows' maps for ``maps_vs_masks.png``; ``progress`` sees every window
     (:class:`experiments.benchmark.protocol.ProgressEvent`), ``sequence_done`` is called
     after each scored sequence. A sensor larger than
-    :data:`~wander_env.event_checks.MAX_SENSOR_PIXELS` is refused before the model
-    allocates its maps (:class:`~wander_env.event_checks.EventFileError`).
+    :data:`~wander_env.events.checks.MAX_SENSOR_PIXELS` is refused before the model
+    allocates its maps (:class:`~wander_env.events.checks.EventFileError`).
     """
     from experiments.benchmark.model import nominal_dt_s
     from experiments.benchmark.protocol import evaluate_sequence
-    from wander_env.event_checks import check_sensor_area
+    from wander_env.events.checks import check_sensor_area
 
     rows: list[Any] = []
     notes: dict[str, list[str]] = {}
@@ -213,7 +213,7 @@ def run_suppression(
     (``model_config`` with the step ``window_us``); ``progress(name, event)`` sees every
     window."""
     from experiments.benchmark.suppression import event_suppression
-    from wander_env.event_checks import check_sensor_area
+    from wander_env.events.checks import check_sensor_area
 
     results = []
     for name, events, sensor in recordings:

@@ -527,9 +527,9 @@ def suppression(
     **shared: Any,
 ) -> None:
     """Fraction of events sOMS suppresses on recordings without masks (e.g. ego-motion only)."""
-    from wander_env.event_checks import check_sensor_area
-    from wander_env.event_io import read_events
     from wander_env.events import time_window
+    from wander_env.events.checks import check_sensor_area
+    from wander_env.events.io import read_events
 
     started = time.monotonic()
     sensor_size = parse_sensor(sensor) if sensor else None

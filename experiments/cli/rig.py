@@ -37,7 +37,7 @@ from experiments.runs.failure import exit_code
 from experiments.runs.folder import RunFolder
 from experiments.runs.signals import SignalExit
 from wander_env.camera import SPECK_HFOV_DEG
-from wander_env.event_checks import EventFileError
+from wander_env.events.checks import EventFileError
 
 
 def _or_nan(value: Any) -> float:

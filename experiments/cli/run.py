@@ -62,7 +62,7 @@ def demo(
 ) -> None:
     """Drive the DVS emulator with a synthetic moving pattern; write events and a picture."""
     from experiments.jobs.demo import run_demo
-    from wander_env.demo import DemoConfig
+    from experiments.jobs.dvs_demo import DemoConfig
 
     try:
         config = DemoConfig(seconds=seconds, preset=preset, seed=seed)
@@ -194,8 +194,8 @@ def view(
     run_dir: Annotated[Path, typer.Argument(help="A run folder holding run.rrd.")],
 ) -> None:
     """Open a run folder's run.rrd in the Rerun viewer (headless: print the command)."""
-    from wander_env.viewer import command_text
-    from wander_env.viewer import view as open_view
+    from experiments.runs.viewer import command_text
+    from experiments.runs.viewer import view as open_view
 
     try:
         what, command = open_view(run_dir)

@@ -1,4 +1,4 @@
-"""``wander demo``: the run folder of the DVS demo (:mod:`wander_env.demo`).
+"""``wander demo``: the run folder of the DVS demo (:mod:`experiments.jobs.dvs_demo`).
 
 ``events.h5`` (with the run record), ``events.png`` (titled event frames) and ``run.json``.
 """
@@ -10,10 +10,10 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+from experiments.jobs.dvs_demo import DemoConfig, demo_events, plot_event_panels
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
-from wander_env.demo import DemoConfig, demo_events, plot_event_panels
-from wander_env.event_io import EventRecording, write_events
+from wander_env.events.io import EventRecording, write_events
 
 __all__ = ["run_demo"]
 

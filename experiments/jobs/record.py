@@ -3,7 +3,7 @@
 Writes, as the run goes, ``events.h5`` (all events, config and seed in its metadata;
 ``--format aedat4`` / ``evt3`` convert it to ``events.aedat4`` / ``events.raw`` at the
 end, ``evimo2`` to the EVIMO2v2 ``dataset_*`` files of
-:func:`wander_env.event_formats.write_evimo2_sequence`),
+:func:`wander_env.events.formats.write_evimo2_sequence`),
 ``ground_truth.h5`` (per step: time, gaze, PTU positions, object-id mask, each
 moving object's pixel centre, mask size and visibility), ``video.mp4`` (camera |
 events, with the fovea marked) and ``run.json``.
@@ -28,14 +28,14 @@ from agents.scripted import POLICIES, GazePolicy
 from experiments.jobs.run_agent import env_kwargs
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
-from experiments.runs.run_viewer import open_run_log
 from experiments.runs.signals import DeferredSignals, SignalExit
+from experiments.runs.viewer import open_run_log
 from wander_env.camera import focal_length_px
 from wander_env.config import check_fields
 from wander_env.env import WanderConfig
-from wander_env.event_formats import write_evimo2_sequence
-from wander_env.event_io import read_events, write_events
-from wander_env.event_stream import EventStreamWriter, H5Appender, VideoSink
+from wander_env.events.formats import write_evimo2_sequence
+from wander_env.events.io import read_events, write_events
+from wander_env.events.stream import EventStreamWriter, H5Appender, VideoSink
 
 # --format: the events file (events.h5 / .aedat4 / .raw) beside ground_truth.h5, or the
 # EVIMO2v2 layout (events + per-step masks) that `wander benchmark evimo` scores.

@@ -20,7 +20,7 @@ writes the run folder:
 - ``run.mp4``: events | OMS | saliency | camera, with the fovea (green) and ``P``
   (magenta 8×8 box) marked;
 - ``events.h5``: every event of the run, written as the run goes
-  (:class:`~wander_env.event_stream.EventStreamWriter`: memory does not grow with the
+  (:class:`~wander_env.events.stream.EventStreamWriter`: memory does not grow with the
   run's length, and a killed run leaves the file readable up to its last flushed chunk).
 
 A fault mid-run (a device that stops answering, a signal: :mod:`experiments.runs.signals`)
@@ -62,7 +62,7 @@ from experiments.runs.signals import DeferredSignals, SignalExit
 from wander_env.camera import degrees_to_pixels, focal_length_px, pixel_to_world_angles
 from wander_env.config import check_fields
 from wander_env.env import WanderConfig
-from wander_env.event_stream import EventStreamWriter
+from wander_env.events.stream import EventStreamWriter
 from wander_env.viz import event_image, labelled_frame, saliency_rgb
 
 __all__ = [
@@ -171,7 +171,7 @@ class _Log:
     clipped: list[bool] = field(default_factory=list)  # per saccade
     steps: int = 0
     asked: int = 0  # the steps the run was to take
-    sightings: list[tuple] = field(default_factory=list)  # ground truth (run_viewer)
+    sightings: list[tuple] = field(default_factory=list)  # ground truth (runs.viewer)
     video_complete: bool | None = None  # run.mp4 a whole MP4 (None: no video written)
 
 

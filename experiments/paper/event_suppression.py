@@ -64,11 +64,11 @@ from experiments.framework import (
     TrialSpec,
     load_artifacts,
 )
+from experiments.metrics import detection_hit
 from experiments.stats import mean_ci, wilson_interval
 from wander_env.actions import gaze_degrees_to_action
 from wander_env.camera import focal_length_px
 from wander_env.config import block_aliases
-from wander_env.metrics import detection_hit
 from wander_env.scene_config import SceneConfig
 from wander_env.trajectories import LinearBounceParams
 from wander_env.viz import save_figure
@@ -411,7 +411,7 @@ def oms_point(oms: np.ndarray, sigma_px: float) -> tuple[int, int] | None:
 def hand_hit(oms: np.ndarray, hand: np.ndarray, sigma_px: float, box: int = 8) -> bool:
     """The scorer of the hand claim for one sOMS step: the ``box``×``box`` square around
     the OMS map's densest point (:func:`oms_point`) touches the hand's mask
-    (:func:`wander_env.metrics.detection_hit`); an empty map is a miss (the hand's events
+    (:func:`experiments.metrics.detection_hit`); an empty map is a miss (the hand's events
     did not survive).
 
     >>> m = np.zeros((2, 32, 32), bool); m[1, 20:24, 20:24] = True   # kept events

@@ -52,8 +52,8 @@ from experiments.framework import (
     TrialSpec,
     load_artifacts,
 )
+from experiments.metrics import iou, precision
 from wander_env.config import block_aliases
-from wander_env.metrics import iou, precision
 from wander_env.scene_config import GRATING_MODES, assets_dir
 from wander_env.viz import save_figure
 

@@ -161,7 +161,7 @@ def _family_row(cfg: OMSScorecardConfig, seed: int, half: str) -> dict[str, Any]
 def _real_row(cfg: OMSScorecardConfig) -> dict[str, Any]:
     from agents.pipeline import SaliencyPipeline
     from experiments.benchmark.suppression import event_suppression
-    from wander_env.event_io import read_events
+    from wander_env.events.io import read_events
 
     row: dict[str, Any] = {}
     folder = Path(cfg.real_dir)

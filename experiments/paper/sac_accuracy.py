@@ -59,10 +59,10 @@ from experiments.framework import (
     TrialSeconds,
     TrialSpec,
 )
+from experiments.metrics import foveation_error_px
 from experiments.stats import mean_std
 from wander_env.camera import cast_pixel, degrees_to_pixels
 from wander_env.env import WanderConfig
-from wander_env.metrics import foveation_error_px
 from wander_env.ptu.params import PTUParams
 from wander_env.renderer import project_points
 from wander_env.viz import save_figure

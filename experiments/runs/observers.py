@@ -23,10 +23,10 @@ from typing import Any
 import numpy as np
 
 from agents.attention import AttentionAgent, Phase
-from experiments.runs.run_viewer import open_run_log
+from experiments.metrics import detection_hit
+from experiments.runs.viewer import open_run_log
 from wander_env.entities import object_body_name
-from wander_env.event_stream import EventStreamWriter, OutputError, VideoSink
-from wander_env.metrics import detection_hit
+from wander_env.events.stream import EventStreamWriter, OutputError, VideoSink
 
 __all__ = [
     "DetectionObserver",
@@ -56,7 +56,7 @@ class RunObserver:
 
 class EventsObserver(RunObserver):
     """``path``: every event of the run, written as it goes
-    (:class:`~wander_env.event_stream.EventStreamWriter`: memory does not grow with the
+    (:class:`~wander_env.events.stream.EventStreamWriter`: memory does not grow with the
     run's length); ``events``: how many. The file stays open after :meth:`close` until
     :meth:`finish` writes the run's record into it (the loop calls it first in a step, so
     a step counts once its events are on disk)."""
@@ -106,7 +106,7 @@ class VideoObserver(RunObserver):
 
 
 class RerunObserver(RunObserver):
-    """``out_dir/run.rrd`` (:func:`~experiments.runs.run_viewer.open_run_log`); ``sightings``
+    """``out_dir/run.rrd`` (:func:`~experiments.runs.viewer.open_run_log`); ``sightings``
     after :meth:`close`: the ground truth the run saw."""
 
     def __init__(self, out_dir: Path, env: Any, title: str) -> None:
@@ -171,7 +171,7 @@ class DetectionObserver(RunObserver):
 def objects_hit(target: tuple[int, int], ids: np.ndarray, info: dict) -> str:
     """The moving objects (named as in the scene file, ``+``-joined in id order) whose
     masks in ``ids`` (object ids, 0 = none) the detection box around ``target`` touches
-    (:func:`~wander_env.metrics.detection_hit`); "" for none."""
+    (:func:`~experiments.metrics.detection_hit`); "" for none."""
     names = {o["id"]: str(o["name"]) for o in info.get("objects", ())}
     hit = [int(k) for k in np.unique(ids[ids > 0]) if detection_hit(target, ids == k)]
     return "+".join(names.get(k) or object_body_name(k) for k in hit)

@@ -1,4 +1,4 @@
-"""Any event file :func:`wander_env.event_io.read_events` reads + a folder of window masks.
+"""Any event file :func:`wander_env.events.io.read_events` reads + a folder of window masks.
 
 The mask folder follows :mod:`experiments.benchmark.datasets.masks` (``NNNNNN_T.png``, ``T`` =
 window end in µs, covering ``T − window ≤ t < T``), e.g. ``../shared/realdata/
@@ -17,8 +17,8 @@ from pathlib import Path
 
 from experiments.benchmark.datasets.base import SequenceData
 from experiments.benchmark.datasets.masks import mask_fit, read_mask_folder
-from wander_env.event_io import read_events
 from wander_env.events import SensorSize
+from wander_env.events.io import read_events
 
 
 def load_generic(

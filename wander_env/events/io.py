@@ -15,7 +15,7 @@ suffix                    read   write  notes
 ``.aedat``                yes    no     jAER AEDAT 2.0 from a DVS128
 ========================  =====  =====  ==============================================
 
-plus the formats of :mod:`wander_env.event_formats`: Prophesee ``.raw`` (EVT 2/3, EVT3
+plus the formats of :mod:`wander_env.events.formats`: Prophesee ``.raw`` (EVT 2/3, EVT3
 written too), ``.dat``, Event Stream ``.es``, and AEDAT 4.0 writing; ``.h5`` files also
 get the DSEC ``ms_to_idx`` index.
 
@@ -27,7 +27,7 @@ is truncated, of the wrong format, or has unsorted timestamps raises
 Examples:
     >>> import tempfile, pathlib
     >>> from wander_env.events import make_events
-    >>> from wander_env.event_io import EventRecording, read_events, write_events
+    >>> from wander_env.events.io import EventRecording, read_events, write_events
     >>> path = pathlib.Path(tempfile.mkdtemp()) / "demo.h5"
     >>> rec = EventRecording(make_events([0], [1], [5], [1]), (4, 4, 2), {"seed": 0})
     >>> write_events(path, rec)
@@ -44,7 +44,8 @@ from typing import Any
 
 import numpy as np
 
-from wander_env.event_checks import (
+from wander_env.events import EVENT_DTYPE, SensorSize, validate_events
+from wander_env.events.checks import (
     MAX_EVENTS,
     MAX_SENSOR_SIDE,
     EventFileError,
@@ -56,7 +57,6 @@ from wander_env.event_checks import (
     n_rows,
     parse_metadata,
 )
-from wander_env.events import EVENT_DTYPE, SensorSize, validate_events
 from wander_env.strict_json import dumps_strict
 
 FORMAT_TAG = "wander-events/1"
@@ -186,7 +186,7 @@ def _read_h5(path: Path, sensor_size: SensorSize | None, limits: ReadLimits) -> 
 def stream_state(
     path: Path, attrs: Any, stored: int, metadata: dict[str, Any]
 ) -> tuple[int, dict[str, Any]]:
-    """Events to read from a file that :class:`~wander_env.event_stream.EventStreamWriter`
+    """Events to read from a file that :class:`~wander_env.events.stream.EventStreamWriter`
     wrote, and its metadata; one it did not finish says where it stops."""
     if "complete" not in attrs or bool(attrs["complete"]):
         return stored, metadata
@@ -311,17 +311,17 @@ def read_events(
 
     ``sensor_size`` overrides what the file says; for ``.npy`` without it the size
     is inferred from the largest coordinates and ``metadata["sensor_size_inferred"]``
-    is set. The file is untrusted (:mod:`wander_env.event_checks`): a sensor side above
+    is set. The file is untrusted (:mod:`wander_env.events.checks`): a sensor side above
     ``max_sensor_side``, a count the file cannot hold, a value that does not fit its
     field, more than ``max_events`` events (counted before a compressed file is inflated)
     are :class:`EventFileError` before anything large is allocated. A file that
-    :class:`~wander_env.event_stream.EventStreamWriter` did not finish (a killed run) is
+    :class:`~wander_env.events.stream.EventStreamWriter` did not finish (a killed run) is
     read up to its last flushed chunk; ``metadata["incomplete"]`` says where it stops.
     """
-    from wander_env import event_formats  # the field's formats (EVT2/3, DAT, ES)
+    from wander_env.events import formats  # the field's formats (EVT2/3, DAT, ES)
 
     path = Path(path)
-    readers = {**_READERS, **event_formats.READERS}
+    readers = {**_READERS, **formats.READERS}
     reader = readers.get(path.suffix.lower())
     if reader is None:
         raise EventFileError(path, f"unknown suffix {path.suffix!r}; readable: {sorted(readers)}")
@@ -332,7 +332,7 @@ def read_events(
 
 def write_events(path: str | os.PathLike, recording: EventRecording) -> None:
     """Write ``.npz``, ``.h5``/``.hdf5``, ``.aedat4`` or ``.raw`` (EVT3); validates first."""
-    from wander_env import event_formats  # AEDAT4/EVT3 writers, the HDF5 ms_to_idx index
+    from wander_env.events import formats  # AEDAT4/EVT3 writers, the HDF5 ms_to_idx index
 
     path = Path(path)
     validate_events(recording.events, recording.sensor_size, where=str(path))
@@ -370,11 +370,11 @@ def write_events(path: str | os.PathLike, recording: EventRecording) -> None:
             f.attrs["sensor_size"] = size
             f.attrs["metadata"] = meta
             f.attrs["format"] = FORMAT_TAG
-            event_formats.write_ms_to_idx(f, recording.events)
-    elif suffix in event_formats.WRITERS:
-        event_formats.WRITERS[suffix](path, recording)
+            formats.write_ms_to_idx(f, recording.events)
+    elif suffix in formats.WRITERS:
+        formats.WRITERS[suffix](path, recording)
     else:
-        writable = [".npz", ".h5", ".hdf5", *event_formats.WRITERS]
+        writable = [".npz", ".h5", ".hdf5", *formats.WRITERS]
         raise EventFileError(
             path, f"cannot write suffix {path.suffix!r}; writable: {', '.join(writable)}"
         )

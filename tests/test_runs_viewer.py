@@ -11,10 +11,10 @@ import pytest
 from PIL import Image
 
 from experiments.jobs.record import RecordConfig, record
-from wander_env.event_io import read_events
+from experiments.runs.viewer import RunLog, polarity_labels, view
+from experiments.runs.viewer import read_recording as read_rrd
 from wander_env.events import time_window, to_frame
-from wander_env.viewer import RunLog, polarity_labels, view
-from wander_env.viewer import read_recording as read_rrd
+from wander_env.events.io import read_events
 
 
 def labels(value: object) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Event formats of the field (wander_env.event_formats).
+"""Event formats of the field (wander_env.events.formats).
 
 Every writer's output is read back by a second, independent reader: AEDAT4 written by
 faery is decoded by the ``aedat`` package, EVT3 written by faery by the ``evt3`` package
@@ -15,15 +15,15 @@ import h5py
 import numpy as np
 import pytest
 
-from wander_env.event_formats import (
+from wander_env.events import EVENT_DTYPE, make_events, time_window
+from wander_env.events.formats import (
     es_expected_bytes,
     index_offset_us,
     ms_to_idx,
     read_es,
     read_h5_window,
 )
-from wander_env.event_io import EventFileError, EventRecording, read_events, write_events
-from wander_env.events import EVENT_DTYPE, make_events, time_window
+from wander_env.events.io import EventFileError, EventRecording, read_events, write_events
 
 REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
 needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason="../shared/realdata absent")

@@ -1,7 +1,7 @@
 """Synthetic frame sequences for demos, benchmarks and tests (no renderer needed).
 
 Examples:
-    >>> from wander_env.synthetic import drifting_texture
+    >>> from experiments.jobs.synthetic import drifting_texture
     >>> frames = drifting_texture(32, 24, n_frames=3, speed_px=0.5, seed=0)
     >>> frames.shape, frames.dtype.name
     ((3, 24, 32, 3), 'uint8')

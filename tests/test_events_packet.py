@@ -7,8 +7,8 @@ import pickle
 import numpy as np
 import pytest
 
-from wander_env.event_packet import EventPacket
 from wander_env.events import make_events
+from wander_env.events.packet import EventPacket
 
 
 def events(n: int) -> np.ndarray:

@@ -1,6 +1,6 @@
 """Event files are untrusted: checks made before anything is allocated or cast.
 
-Every reader of :mod:`wander_env.event_io` goes through these. A check that fails
+Every reader of :mod:`wander_env.events.io` goes through these. A check that fails
 raises :class:`EventFileError` naming the file, the field and the offending value:
 
 - :func:`check_sensor_size`: two or three whole numbers, positive, at most
@@ -28,7 +28,7 @@ Examples:
     >>> fill_events("a.npy", cols, (16, 16, 2))
     Traceback (most recent call last):
     ...
-    wander_env.event_checks.EventFileError: a.npy: field 'x': x[1]=12.7 is not a whole number
+    wander_env.events.checks.EventFileError: a.npy: field 'x': x[1]=12.7 is not a whole number
 """
 
 from __future__ import annotations
@@ -91,7 +91,7 @@ def check_sensor_size(
     >>> check_sensor_size("f.h5", (100000, 100000, 2))  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    wander_env.event_checks.EventFileError: f.h5: field 'sensor_size': (100000, ...) exceeds ...
+    wander_env.events.checks.EventFileError: f.h5: field 'sensor_size': (100000, ...) exceeds ...
     """
     try:
         items = list(np.asarray(value).reshape(-1).tolist())
@@ -129,7 +129,7 @@ class ReadLimits:
     >>> ReadLimits(max_events=10).check_count("f.h5", "events/t", 11)
     Traceback (most recent call last):
     ...
-    wander_env.event_checks.EventFileError: f.h5: field 'events/t': holds at least 11 events; \
+    wander_env.events.checks.EventFileError: f.h5: field 'events/t': holds at least 11 events; \
 at most 10 are read (the max_events of read_events)
     """
 
@@ -160,7 +160,7 @@ def check_sensor_area(
     >>> check_sensor_area("f.h5", (8192, 8192, 2))
     Traceback (most recent call last):
     ...
-    wander_env.event_checks.EventFileError: f.h5: field 'sensor_size': 8192x8192 is \
+    wander_env.events.checks.EventFileError: f.h5: field 'sensor_size': 8192x8192 is \
 67,108,864 pixels; the agent and the benchmark model process at most 921,600 (about 1.2 KB \
 of maps a pixel)
     """

@@ -1,6 +1,6 @@
 """The event-file formats of the field, through maintained libraries.
 
-:func:`wander_env.event_io.read_events` / :func:`~wander_env.event_io.write_events`
+:func:`wander_env.events.io.read_events` / :func:`~wander_env.events.io.write_events`
 dispatch here by suffix:
 
 ==========  =====  =====  ================================================================
@@ -14,7 +14,7 @@ suffix      read   write  through
 ``.aedat4`` (1)    yes    AEDAT 4.0 written by ``faery`` (LZ4); read by ``aedat`` (1)
 ==========  =====  =====  ================================================================
 
-(1) the AEDAT 4.0 reader lives in :mod:`wander_env.event_io`.
+(1) the AEDAT 4.0 reader lives in :mod:`wander_env.events.io`.
 
 Why these libraries: ``wander bench formats`` decodes the same real recordings with
 each candidate and compares them event for event (README, "Event files"). On a real
@@ -27,7 +27,7 @@ Every reader checks its input before trusting it — the header declares the for
 body is a whole number of words/events, decoded coordinates fall inside the sensor,
 polarities are 0/1, time never runs backwards and the events decoded stay within the
 reader's event limit (counted as a decoder produces them, before the file is held in full)
-— and raises :class:`~wander_env.event_io.EventFileError` naming the file. A decoder's
+— and raises :class:`~wander_env.events.io.EventFileError` naming the file. A decoder's
 failure, a Rust panic inside ``faery`` included, becomes that one error. What a format cannot hold
 (wander's JSON metadata, in EVT3 and AEDAT4) is said here and in the README, not lost
 silently: write an ``.h5`` beside it to keep it.
@@ -38,7 +38,7 @@ HDF5 files carry the DSEC ``ms_to_idx`` index (:func:`ms_to_idx`), which
 Examples:
     >>> import tempfile, pathlib
     >>> from wander_env.events import make_events
-    >>> from wander_env.event_io import EventRecording, read_events, write_events
+    >>> from wander_env.events.io import EventRecording, read_events, write_events
     >>> path = pathlib.Path(tempfile.mkdtemp()) / "demo.raw"
     >>> ev = make_events(x=[3, 1], y=[0, 2], t=[10, 2500], p=[1, 0])
     >>> write_events(path, EventRecording(ev, (4, 4, 2)))
@@ -57,14 +57,14 @@ from typing import Any
 
 import numpy as np
 
-from wander_env.event_checks import (
+from wander_env.events import SensorSize, time_window
+from wander_env.events.checks import (
     EventFileError,
     EventRecording,
     ReadLimits,
     check_sensor_size,
     checked_recording,
 )
-from wander_env.events import SensorSize, time_window
 
 # Prophesee sensors whose headers omit the geometry (older plugins), by plugin name:
 # the Gen3/Gen3.1 sensors are VGA, the Gen4.1/IMX636 ones HD.

@@ -1,4 +1,4 @@
-"""The streaming writers (wander_env.event_stream) and the one-line failures of long commands."""
+"""The streaming writers (wander_env.events.stream) and the one-line failures of long commands."""
 
 from __future__ import annotations
 
@@ -16,9 +16,9 @@ from typer.testing import CliRunner
 from experiments.cli.errors import current_run, long_command
 from experiments.runs.folder import RunFolder
 from experiments.runs.signals import SignalExit
-from wander_env.event_io import read_events
-from wander_env.event_stream import EventStreamWriter, H5Appender, OutputError, VideoSink
 from wander_env.events import make_events
+from wander_env.events.io import read_events
+from wander_env.events.stream import EventStreamWriter, H5Appender, OutputError, VideoSink
 
 
 def step(k: int, n: int = 100) -> np.ndarray:
@@ -56,7 +56,7 @@ def test_a_finished_stream_equals_the_events_and_takes_the_final_metadata(tmp_pa
 
 def test_a_finished_stream_has_the_dsec_index_of_its_events(tmp_path):
     """ms_to_idx built chunk by chunk equals the index of the whole recording, and seeks."""
-    from wander_env.event_formats import ms_to_idx, read_h5_window
+    from wander_env.events.formats import ms_to_idx, read_h5_window
 
     path = tmp_path / "events.h5"
     rng = np.random.default_rng(4)

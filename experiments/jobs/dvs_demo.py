@@ -1,10 +1,11 @@
-"""The first main job: a synthetic moving pattern through the DVS emulator.
+"""The DVS demo's stimulus and picture: a synthetic moving pattern through the emulator.
 
 No renderer is involved: a textured background drifts (as if the camera moved)
 while a textured disc circles the centre. The events go to an HDF5 file and a
 PNG of titled, time-stamped event frames (red ON, blue OFF, axes in pixels): the
 events are :func:`demo_events`', the picture :func:`plot_event_panels`'; the run folder
-(``events.h5``, ``events.png``, ``run.json``) is written by ``wander demo``.
+(``events.h5``, ``events.png``, ``run.json``) is written by ``wander demo``
+(:mod:`experiments.jobs.demo`).
 """
 
 from __future__ import annotations
@@ -15,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
+from experiments.jobs.synthetic import disc_over_texture
 from wander_env.dvs import DVSEmulator, DVSParams
 from wander_env.events import concatenate, time_window, to_frame
-from wander_env.synthetic import disc_over_texture
 from wander_env.viz import OFF_RGB, ON_RGB, event_image, save_figure
 
 

@@ -5,6 +5,20 @@ coordinates, origin top-left, y down), ``t`` (int64 microseconds) and ``p``
 (int8, 1 = ON, 0 = OFF), sorted by ``t``: the Tonic convention. A sensor is
 described by ``sensor_size = (W, H, 2)``.
 
+This package is the event library on its own: the array helpers here, and
+
+- :mod:`wander_env.events.packet`: one step's events as a value (``info["events"]``);
+- :mod:`wander_env.events.io`: ``read_events`` / ``write_events``, by suffix;
+- :mod:`wander_env.events.formats`: the field's formats (EVT2/3, DAT, AEDAT4, ES);
+- :mod:`wander_env.events.checks`: limits and checks for untrusted files;
+- :mod:`wander_env.events.stream`: ``events.h5`` written as events are made.
+
+None of them imports the simulator (MuJoCo, the renderer, the env) or torch: reading and
+writing event files costs NumPy and the format's own library. Outside this package they
+use only two dependency-free helpers, :mod:`wander_env.strict_json` and
+:mod:`wander_env.closing`. ``import wander_env.events`` runs ``wander_env/__init__.py``,
+which registers the env with Gymnasium by name (the env module itself is not imported).
+
 Examples:
     >>> import numpy as np
     >>> from wander_env.events import make_events, to_frame

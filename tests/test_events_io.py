@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from wander_env.event_io import EventFileError, EventRecording, read_events, write_events
 from wander_env.events import make_events
+from wander_env.events.io import EventFileError, EventRecording, read_events, write_events
 
 REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
 needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason="../shared/realdata absent")

@@ -1,14 +1,14 @@
 """Event data to disk as it is made: an ``events.h5`` appended chunk by chunk.
 
 :class:`EventStreamWriter` writes the ``events.h5`` layout of
-:func:`wander_env.event_io.write_events` (group ``events`` with gzip columns x, y, t, p;
+:func:`wander_env.events.io.write_events` (group ``events`` with gzip columns x, y, t, p;
 ``sensor_size``, ``metadata`` and ``format`` attributes), but into resizable datasets:
 :meth:`~EventStreamWriter.append` buffers a step's events and every ``chunk_events``
 events (or ``flush_s`` seconds) the buffer is appended and the file flushed, so the
 memory of a run does not grow with its length. Until :meth:`~EventStreamWriter.close`
 the file says ``complete = False`` and how far it got (``events_flushed``,
 ``t_flushed_us``): a run killed mid-way leaves a file that
-:func:`~wander_env.event_io.read_events` reads up to its last flushed chunk, with
+:func:`~wander_env.events.io.read_events` reads up to its last flushed chunk, with
 ``metadata["incomplete"]`` saying where it stops.
 
 :class:`H5Appender` does the same for per-step arrays (ground truth). Before each
@@ -18,7 +18,7 @@ write the free space is checked: a full disk (or an unwritable folder) raises
 Examples:
     >>> import tempfile, pathlib
     >>> from wander_env.events import make_events
-    >>> from wander_env.event_io import read_events
+    >>> from wander_env.events.io import read_events
     >>> path = pathlib.Path(tempfile.mkdtemp()) / "events.h5"
     >>> with EventStreamWriter(path, (4, 4, 2), {"seed": 0}, chunk_events=2) as w:
     ...     w.append(make_events([0, 1], [1, 1], [5, 7], [1, 0]))
@@ -43,8 +43,8 @@ from typing import Any
 import numpy as np
 
 from wander_env.closing import Closing
-from wander_env.event_io import FORMAT_TAG
 from wander_env.events import EVENT_DTYPE, SensorSize, validate_events
+from wander_env.events.io import FORMAT_TAG
 
 _FIELDS = ("x", "y", "t", "p")
 #: Free bytes kept beyond a write's own size (HDF5 metadata, attributes, the run folder).
@@ -236,7 +236,7 @@ class EventStreamWriter(_StreamFile):
         self._buffer: list[np.ndarray] = []
         self._buffered = 0
         self._last_flush = time.monotonic()
-        # DSEC's ms_to_idx, built chunk by chunk (equal to event_formats.ms_to_idx of all t)
+        # DSEC's ms_to_idx, built chunk by chunk (equal to formats.ms_to_idx of all t)
         self._ms_offset: int | None = None
         self._ms_idx: list[np.ndarray] = []
         self._ms_next = 0
@@ -314,7 +314,7 @@ class EventStreamWriter(_StreamFile):
 
     def _index_chunk(self, t: np.ndarray, start: int) -> None:
         """Extend ``ms_to_idx`` by the millisecond boundaries up to this chunk's last event."""
-        from wander_env.event_formats import index_offset_us
+        from wander_env.events.formats import index_offset_us
 
         if self._ms_offset is None:
             self._ms_offset = index_offset_us(t)
