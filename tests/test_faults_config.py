@@ -5,7 +5,7 @@ from __future__ import annotations
 import mujoco
 import pytest
 
-from wander_env.env import WanderConfig
+from wander_env.env_config import WanderConfig
 from wander_env.renderer import CameraRenderer
 
 

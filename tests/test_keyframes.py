@@ -224,7 +224,7 @@ def test_same_seed_gives_identical_events_in_keyframes_mode():
 
 
 def test_frames_config_is_checked():
-    from wander_env.env import WanderConfig
+    from wander_env.env_config import WanderConfig
 
     with pytest.raises(ValueError, match="frames must be one of"):
         WanderConfig(frames="fast")
