@@ -29,6 +29,7 @@ from experiments.cli.rig import dropped_warning, register, summary_line
 from experiments.jobs.rig import RigRunConfig, RigRunError, run_rig
 from hardware.ptu_driver import PTUTimeout
 from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
+from hardware.rig_env import RigConfig
 from hardware.speck import SpeckParams
 from wander_env.camera import SPECK_HFOV_DEG, focal_length_px
 from wander_env.event_io import EventRecording, read_events, write_events
@@ -392,7 +393,7 @@ def test_no_speck_found_lists_what_was_found(app, monkeypatch, tmp_path):
 
 def test_open_failure_through_run_rig_keeps_the_cause(square, tmp_path):
     camera, _ = square
-    config = RigRunConfig(ptu="/dev/no-such-ptu-port", camera=camera)
+    config = RigRunConfig(RigConfig(ptu="/dev/no-such-ptu-port", camera=camera))
     with pytest.raises(RigRunError) as info:
         run_rig(tmp_path / "r", config)
     err = info.value
@@ -481,7 +482,9 @@ def test_error_reply_mid_run(app, square, emu, tmp_path):
 def test_mid_run_fault_through_run_rig_keeps_the_cause(square, emu, tmp_path):
     camera, _ = square
     watcher = on_first_move(emu, emu.stop_answering)
-    config = RigRunConfig(ptu=emu.port, camera=camera, replay="realtime", seconds=3.0, video=False)
+    config = RigRunConfig(
+        RigConfig(ptu=emu.port, camera=camera, replay="realtime", episode_seconds=3.0), video=False
+    )
     with pytest.raises(RigRunError) as info:
         run_rig(tmp_path / "r", config)
     watcher.join()
@@ -536,11 +539,13 @@ def test_queue_overflow_is_counted_and_reported(monkeypatch, tmp_path):
     monkeypatch.setattr(rig_env.RigEnv, "reset", burst_after_reset)
     install(monkeypatch, FakeSamna([("Speck2fDevKit", "sf", FakeSpeck(ev))]))
     config = RigRunConfig(
-        ptu="emulate",
-        camera="speck",
-        seconds=0.5,
+        RigConfig(
+            ptu="emulate",
+            camera="speck",
+            episode_seconds=0.5,
+            speck=SpeckParams(queue_events=capacity),
+        ),
         video=False,
-        speck=SpeckParams(queue_events=capacity),
     )
     out = tmp_path / "run"
     result = run_rig(out, config)
