@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import ast
 import dataclasses
+import inspect
 import json
 from pathlib import Path
 
@@ -54,8 +55,8 @@ def test_the_env_settings_are_one_block_in_every_job_and_experiment_config(cls: 
 
 
 def test_keyframe_px_is_defined_once_as_a_field() -> None:
-    """The field ``keyframe_px`` is declared by WanderConfig alone (FrameParams, the frame
-    source's own parameters, is built from it)."""
+    """The setting ``keyframe_px`` is declared by WanderConfig alone (FrameParams, the frame
+    source's own parameters, is built from it; the env benchmark's row reports it)."""
     owners = []
     for top in ("wander_env", "agents", "hardware", "experiments"):
         for path in (ROOT / top).rglob("*.py"):
@@ -67,6 +68,7 @@ def test_keyframe_px_is_defined_once_as_a_field() -> None:
                         if isinstance(target, ast.Name) and target.id == "keyframe_px":
                             owners.append(f"{path.relative_to(ROOT)}:{node.name}")
     assert sorted(owners) == [
+        "experiments/bench/env.py:EnvBenchRow",
         "wander_env/env_config.py:WanderConfig",
         "wander_env/frames.py:FrameParams",
     ]
@@ -82,9 +84,7 @@ def test_no_command_hands_its_locals_on() -> None:
 
 
 def _defaults(command: str) -> dict[str, object]:
-    cmd = next(c for c in app.registered_commands if c.name == command)
-    import inspect
-
+    cmd = next(c for c in app.registered_commands if (c.name or c.callback.__name__) == command)
     sig = inspect.signature(cmd.callback)  # type: ignore[arg-type]
     return {n: p.default for n, p in sig.parameters.items() if n in FLAG_KEYS}
 
@@ -169,7 +169,7 @@ def test_set_env_frames_reaches_the_env_of_run_record_and_evaluate(
 def test_a_bad_env_value_is_one_line_naming_its_flag_or_key(
     args: list[str], line: str, tmp_path: Path
 ) -> None:
-    result = RUNNER.invoke(app, [*args, "--out", str(tmp_path / "out")])
+    result = RUNNER.invoke(app, [*args, "--out", str(tmp_path / "out")], prog_name="wander")
     assert result.exit_code == 2
     assert result.output.strip() == line
     assert not (tmp_path / "out").exists()
