@@ -128,9 +128,9 @@ def test_run_reads_a_config_file_and_flags_override_it(tmp_path):
     ("text", "message"),
     [
         ("scen: shelf\n", "unknown key 'scen' for RunConfig; allowed keys: scene (str), "),
-        ("seconds: abc\n", "bad value for key 'seconds': expected float, got 'abc'"),
-        ("scene: offce\n", "bad value for key 'scene': unknown scene 'offce'; allowed: "),
-        ("frames: abc\n", "bad value for key 'frames': 'abc' is not allowed; allowed: keyframes,"),
+        ("seconds: abc\n", "seconds: expected float, got 'abc'"),
+        ("scene: offce\n", "scene: unknown scene 'offce'; allowed: "),
+        ("frames: abc\n", "frames: 'abc' is not allowed; allowed: keyframes,"),
         ("seconds: -1\n", "RunConfig.seconds must be a finite number > 0, got -1.0"),
     ],
 )

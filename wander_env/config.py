@@ -462,6 +462,20 @@ def check_fields(
             raise ValueError(f"{cls}.{name} must be {kind}{bound}, got {v!r}")
 
 
+def _as_given(data: Any, err: dict[str, Any]) -> dict[str, Any]:
+    """``err`` showing the value as it was given: a number spelt as text (``'1e-6'``),
+    which :func:`_run` read as the float, is shown as that text."""
+    given: Any = data
+    for part in tuple(err["loc"])[1:]:  # after the list index of _run's box
+        try:
+            given = given[part]
+        except (KeyError, IndexError, TypeError):
+            return err
+    if isinstance(given, str) and not isinstance(err.get("input"), str):
+        return {**err, "input": given}
+    return err
+
+
 def validate(
     cls: type, values: Mapping[str, Any], base: Any = None, where: str | None = None
 ) -> Any:
@@ -491,7 +505,7 @@ def validate(
     try:
         return _run(cls, data, _FINITE)
     except pydantic.ValidationError as e:
-        errors = kept_errors(cls, e.errors())
+        errors = [_as_given(data, err) for err in kept_errors(cls, e.errors())]
         msgs = list(dict.fromkeys(error_message(cls, err) for err in errors))
         raise ConfigError(head + "; ".join(msgs)) from None
     except (ValueError, TypeError) as e:

@@ -147,11 +147,11 @@ def _walk(cls: Any, loc: Iterable[Any]) -> tuple[str, Any]:
         if members and isinstance(part, str):
             tp = next((m for m in members if part in _tags(m)), None)
             continue
-        if typing.get_origin(base) in (typing.Union, types.UnionType):  # a member's name
+        if typing.get_origin(base) in (typing.Union, types.UnionType) and isinstance(part, str):
+            # pydantic names the member it tried: a class's name, or e.g. "literal['a','b']"
             named = [a for a in typing.get_args(base) if getattr(a, "__name__", None) == part]
-            if named:
-                tp = named[0]
-                continue
+            tp = named[0] if named else None
+            continue
         if isinstance(part, int):
             path += f"[{part}]"
             args = typing.get_args(base) if typing.get_origin(base) is tuple else ()
@@ -183,6 +183,14 @@ def error_message(cls: Any, err: Mapping[str, Any]) -> str:
         path, tp = _walk(cls, loc[:-1])
         return _at(path, f"expected {type_name(_bare(tp))}, got {_shown(err['input'])}")
     path, tp = _walk(cls, loc)
+    whole = _walk(cls, loc[:-1])[1] if loc else None
+    if (
+        isinstance(loc[-1] if loc else None, str)
+        and typing.get_origin(_bare(whole)) in (typing.Union, types.UnionType)
+        and not _members(_bare(whole))
+        and kind != "value_error"
+    ):  # a value that is none of a plain union's members: name the union
+        return _at(path, f"expected {type_name(_bare(whole))}, got {_shown(err['input'])}")
     if kind == "missing":
         return _at(path, "required")
     if kind in ("union_tag_invalid", "union_tag_not_found"):
