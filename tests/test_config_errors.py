@@ -97,8 +97,7 @@ CASES = [
     (
         CONFIG,
         {"c.yaml": "window_s: 1e400\n"},
-        "wander experiment: error: c.yaml: window_s: "
-        "input should be a finite number, got '1e400'",
+        "wander experiment: error: c.yaml: window_s: input should be a finite number, got '1e400'",
     ),
     # sweep files
     (["sweep", "s.yaml"], {}, "wander sweep: error: sweep file not found: s.yaml"),
@@ -158,22 +157,22 @@ CASES = [
         f"wander experiment: error: --set: scenes[1]: unknown scene 'offce'; available: {SCENES}",
     ),
     (
-        ["experiment", "event_suppression", "--set", "scene=no/such.yaml"],
+        ["experiment", "event_suppression", "--set", "env.scene=no/such.yaml"],
         {},
-        "wander experiment: error: --set: scene: scene file not found: no/such.yaml; "
+        "wander experiment: error: --set: env.scene: scene file not found: no/such.yaml; "
         f"allowed: {SCENES} or a scene .yaml file",
     ),
     (
-        ["experiment", "scanpath", "--set", "dvs=nosuch"],
+        ["experiment", "scanpath", "--set", "env.dvs=nosuch"],
         {},
-        "wander experiment: error: --set: dvs: unknown DVS preset 'nosuch'; "
+        "wander experiment: error: --set: env.dvs: unknown DVS preset 'nosuch'; "
         "choose one of ['ideal', 'paper', 'speck']",
     ),
     (
-        ["experiment", "detection", "--set", "frames=fast"],
+        ["experiment", "detection", "--set", "env.frames=fast"],
         {},
-        "wander experiment: error: --set: frames: unknown frame mode 'fast'; "
-        "allowed: keyframes, exact",
+        "wander experiment: error: --set: env.frames: expected one of 'keyframes', 'exact', "
+        "got 'fast'",
     ),
     (
         ["experiment", "saccade_speed", "--set", "ptu_presets=[flir, nosuch]"],
@@ -184,8 +183,7 @@ CASES = [
     (
         ["experiment", "saccade_speed", "--set", "ptu=nosuch"],
         {},
-        "wander experiment: error: --set: ptu: "
-        "expected one of 'ideal', 'flir', got 'nosuch'",
+        "wander experiment: error: --set: ptu: expected one of 'ideal', 'flir', got 'nosuch'",
     ),
     (
         ["experiment", "event_suppression", "--set", "soms=nosuch"],
@@ -197,8 +195,7 @@ CASES = [
     (
         ["experiment", "detection", "--set", "duration_s=1e400"],
         {},
-        "wander experiment: error: --set: duration_s: "
-        "input should be a finite number, got '1e400'",
+        "wander experiment: error: --set: duration_s: input should be a finite number, got '1e400'",
     ),
     (
         ["experiment", "scanpath", "--set", "duration_s=7200"],
@@ -227,12 +224,14 @@ CASES = [
     (
         ["experiment", "event_suppression", "--set", "soms.kernel_size=100000"],
         {},
-        "wander experiment: error: --set: soms: kernel_size must be in [1, 128], got 100000",
+        "wander experiment: error: --set: soms.kernel_size: kernel_size must be in [1, 128], "
+        "got 100000",
     ),
     (
         ["experiment", "detection", "--set", "soms.kernel_size=100000"],
         {},
-        "wander experiment: error: --set: soms: kernel_size must be in [1, 128], got 100000",
+        "wander experiment: error: --set: soms.kernel_size: kernel_size must be in [1, 128], "
+        "got 100000",
     ),
     (
         ["experiment", "event_suppression", "--set", "repeats=" + "9" * 5000],
