@@ -56,5 +56,8 @@ def test_fixational_policy_moves_the_gaze_within_its_range(tmp_path):
 
 
 def test_unknown_policy_is_named():
-    with pytest.raises(ValueError, match="policy must be one of"):
+    with pytest.raises(
+        ValueError,
+        match=r"^policy: expected one of .still., .fixational., .saccades., got .wander.$",
+    ):
         RecordConfig(policy="wander")

@@ -100,6 +100,6 @@ def test_record_writes_events_in_the_chosen_format(tmp_path, fmt, name):
 
 def test_unknown_record_format_is_named():
     with pytest.raises(
-        ValueError, match=r"format must be one of \('h5', 'aedat4', 'evt3', 'evimo2'\)"
+        ValueError, match=r"^format: expected one of 'h5', 'aedat4', 'evt3', 'evimo2', got 'mp4'$"
     ):
         RecordConfig(format="mp4")
