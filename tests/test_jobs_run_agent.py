@@ -43,7 +43,7 @@ def test_run_folder_contents(run_dir: Path) -> None:
     kept = m["events_kept_by_soms"] / m["events_into_agent"]
     assert m["soms_suppression"] == pytest.approx(1 - kept)
     run_json = json.loads((run_dir / "run.json").read_text())
-    assert run_json["seed"] == 4 and run_json["config"]["scene"] == "office"
+    assert run_json["seed"] == 4 and run_json["config"]["env"]["scene"] == "office"
     assert run_json["git_revision"] and run_json["agent"]["window_s"] == 0.124
     assert run_json["config"]["alpha"] == run_json["agent"]["soms"]["alpha"] == 0.8
     assert run_json["config"]["soms_norm"] == run_json["agent"]["soms"]["norm"] == "quantile"
@@ -59,7 +59,7 @@ def test_run_folder_contents(run_dir: Path) -> None:
 
 
 def test_alpha_is_checked_and_reaches_the_agent() -> None:
-    with pytest.raises(ValueError, match=r"RunConfig\.alpha must be in \[0, 1\], got 1\.5"):
+    with pytest.raises(ValueError, match=r"^alpha: input should be less than or equal to 1, got 1\.5$"):
         RunConfig(alpha=1.5)
     result = CliRunner().invoke(app, ["run", "--alpha", "1.5", "--seconds", "0.1"])
     assert result.exit_code == 2 and "--alpha" in result.output
