@@ -59,7 +59,9 @@ def test_run_folder_contents(run_dir: Path) -> None:
 
 
 def test_alpha_is_checked_and_reaches_the_agent() -> None:
-    with pytest.raises(ValueError, match=r"^alpha: input should be less than or equal to 1, got 1\.5$"):
+    with pytest.raises(
+        ValueError, match=r"^alpha: input should be less than or equal to 1, got 1\.5$"
+    ):
         RunConfig(alpha=1.5)
     result = CliRunner().invoke(app, ["run", "--alpha", "1.5", "--seconds", "0.1"])
     assert result.exit_code == 2 and "--alpha" in result.output

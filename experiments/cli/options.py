@@ -221,7 +221,11 @@ WindowOpt = Annotated[
 ]
 FixationalOpt = Annotated[bool, typer.Option(help="Fixational eye movements during fixations.")]
 StreamlinedOpt = Annotated[
-    bool, typer.Option(help="Streamlined proto-object model (no polarity split).")
+    bool,
+    typer.Option(
+        help="Streamlined proto-object model (V = V+ or V-, the paper's) instead of one "
+        "population per polarity."
+    ),
 ]
 VideoOpt = Annotated[bool, typer.Option(help="Write run.mp4.")]
 AgentAlphaOpt = Annotated[
@@ -229,7 +233,7 @@ AgentAlphaOpt = Annotated[
     typer.Option(
         min=0.0,
         max=1.0,
-        help="sOMS threshold α (default: the paper's table 0.8, on the agent's quantile norm).",
+        help="sOMS threshold α of Eq. (1) (default: the paper's table, 0.8).",
     ),
 ]
 
