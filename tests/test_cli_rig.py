@@ -182,8 +182,8 @@ def test_emulated_ptu_and_replay_end_to_end(app, square, tmp_path, monkeypatch):
     assert run["summary"] == {"steps": 50, "events": 25_000}
     # run.json: the config, and what the devices reported.
     assert run["command"] == "wander rig" and run["seed"] == 3
-    cfg = run["config"]
-    assert (cfg["ptu"], cfg["camera"], cfg["replay"], cfg["seconds"]) == (
+    cfg, env = run["config"], run["config"]["env"]
+    assert (env["ptu"], env["camera"], env["replay"], env["episode_seconds"]) == (
         "emulate",
         camera,
         "fast",
@@ -245,7 +245,7 @@ def test_hfov_option_reaches_the_env_the_agent_and_run_json(app, square, tmp_pat
     )
     assert result.exit_code == 0, result.output
     _, run, _ = read_folder(out)
-    assert run["config"]["hfov_deg"] == run["rig"]["hfov_deg"] == run["agent"]["hfov_deg"] == 64
+    assert run["config"]["env"]["hfov_deg"] == run["rig"]["hfov_deg"] == run["agent"]["hfov_deg"] == 64
     assert run["rig"]["hfov_from"] == "--hfov" and run["fixed_view"].endswith("64.0° (--hfov)")
     bad = invoke(app, "--ptu", "emulate", "--camera", camera, "--hfov", "200")
     assert bad.exit_code == 2 and "'--hfov'" in bad.output and "must be < 180" in bad.output
@@ -275,7 +275,7 @@ def test_a_saccade_moves_the_ptu_to_the_chosen_point(app, square, emu, tmp_path)
     metrics, run, rows = read_folder(out)
     assert metrics["steps"] == 35
     assert_events_of_steps(out, expected, metrics)
-    assert run["config"]["replay"] == "realtime" and run["rig"]["ptu"]["emulated"] is False
+    assert run["config"]["env"]["replay"] == "realtime" and run["rig"]["ptu"]["emulated"] is False
     # One decision (at 0.13 s), one completed saccade; the next window has not ended.
     assert (metrics["decisions"], metrics["saccades"], len(rows)) == (1, 1, 1)
     target = (int(rows[0]["target_x_px"]), int(rows[0]["target_y_px"]))
