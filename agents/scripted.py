@@ -15,13 +15,16 @@ Examples:
 
 from __future__ import annotations
 
-from typing import Any
+import typing
+from typing import Any, Literal
 
 import numpy as np
 
 from agents.fixation import FixationalMovements, FixationParams
 
-POLICIES = ("still", "fixational", "saccades")
+#: A scripted policy's name.
+Policy = Literal["still", "fixational", "saccades"]
+POLICIES: tuple[str, ...] = typing.get_args(Policy)
 
 
 class GazePolicy:

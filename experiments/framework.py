@@ -54,6 +54,7 @@ import pydantic
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
 from wander_env.config import ConfigError, coerce, load_yaml, parse_sets, validate
+from wander_env.env_config import DvsPreset, FrameMode, PtuPreset, SceneName, WanderConfig
 
 __all__ = [
     "EXPERIMENT_NAMES",
@@ -73,6 +74,7 @@ __all__ = [
     "SceneName",
     "TrialSeconds",
     "TrialSpec",
+    "check_env_block",
     "coerce",
     "config_from_dict",
     "config_to_dict",
@@ -162,48 +164,6 @@ MAX_TRIALS = 100_000
 MAX_SEED = 2**32 - 1
 
 
-def _scene_name(name: str) -> str:
-    from wander_env.scene_config import available_scenes, load_scene_config
-
-    try:
-        load_scene_config(name)
-    except FileNotFoundError as err:
-        raise ValueError(
-            f"{err}; allowed: {', '.join(available_scenes())} or a scene .yaml file"
-        ) from None
-    return name
-
-
-def _dvs_preset(name: str) -> str:
-    from wander_env.dvs import DVSParams
-
-    DVSParams.preset(name)  # ValueError naming the presets
-    return name
-
-
-def _frame_mode(name: str) -> str:
-    from wander_env.env import FRAME_MODES
-
-    if name not in FRAME_MODES:
-        raise ValueError(f"unknown frame mode {name!r}; allowed: {', '.join(FRAME_MODES)}")
-    return name
-
-
-def _ptu_preset(name: str) -> str:
-    from wander_env.ptu.params import PTUParams
-
-    PTUParams.preset(name)  # ValueError naming the presets
-    return name
-
-
-#: A scene: a name of ``assets/scenes`` or a scene file that loads.
-SceneName = Annotated[str, pydantic.AfterValidator(_scene_name)]
-#: A DVS preset (:meth:`wander_env.dvs.DVSParams.preset`).
-DvsPreset = Annotated[str, pydantic.AfterValidator(_dvs_preset)]
-#: The env's frame source (:data:`wander_env.env.FRAME_MODES`).
-FrameMode = Annotated[str, pydantic.AfterValidator(_frame_mode)]
-#: A PTU preset (:meth:`wander_env.ptu.params.PTUParams.preset`).
-PtuPreset = Annotated[str, pydantic.AfterValidator(_ptu_preset)]
 #: A trial's simulated length, seconds: in (0, :data:`MAX_TRIAL_S`].
 TrialSeconds = Annotated[float, pydantic.Field(gt=0, le=MAX_TRIAL_S)]
 #: Repeats of each grid point: 1 to :data:`MAX_REPEATS`.
@@ -213,6 +173,22 @@ RadiusDeg = Annotated[float, pydantic.Field(gt=0, le=180)]
 #: A grid step on the pan-tilt plane, degrees: in [0.05, 10] (a finer grid of the
 #: PTU's range outgrows memory).
 GridStepDeg = Annotated[float, pydantic.Field(ge=0.05, le=10)]
+
+
+def check_env_block(env: WanderConfig, fixed: Mapping[str, str]) -> None:
+    """An experiment config's check of its ``env`` block: each field of ``fixed`` (name:
+    what sets it) the experiment sets itself per trial, so the block must leave it at
+    :class:`~wander_env.env_config.WanderConfig`'s default (nothing given is dropped).
+
+    >>> check_env_block(WanderConfig(scene="shelf"), {"scene": "the grid's scenes"})
+    Traceback (most recent call last):
+    ...
+    ValueError: env.scene: set by the experiment (the grid's scenes); leave it out
+    """
+    default = WanderConfig()
+    for name, by in fixed.items():
+        if env[name] != default[name]:
+            raise ValueError(f"env.{name}: set by the experiment ({by}); leave it out")
 
 
 # ----------------------------------------------------------------------------------------

@@ -80,7 +80,7 @@ from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from hardware.replay import ReplaySource
 from hardware.speck import SpeckParams, SpeckSource
 from wander_env.camera import SPECK_HFOV_DEG
-from wander_env.config import check_fields
+from wander_env.config import FieldsMapping, check_fields
 from wander_env.env_base import CameraEnv, StepInfo
 from wander_env.events import empty_events
 from wander_env.events.packet import EventPacket
@@ -91,7 +91,7 @@ _REPLAY_MODES = ("realtime", "fast")
 
 
 @dataclass(frozen=True)
-class RigConfig:
+class RigConfig(FieldsMapping):
     """What a :class:`RigEnv` opens and how it runs.
 
     ``ptu``: a pyserial URL of the FLIR PTU (``"/dev/ttyUSB0"``, ``"socket://host:4000"``)

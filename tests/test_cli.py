@@ -105,33 +105,33 @@ def test_version_prints_the_version_and_the_git_revision():
 def test_run_reads_a_config_file_and_flags_override_it(tmp_path):
     config = tmp_path / "run.yaml"
     config.write_text(
-        "scene: shelf\nseconds: 0.3\nseed: 3\nwindow_s: 0.05\nvideo: false\nsoms_norm: minmax\n"
+        "env: {scene: shelf, episode_seconds: 0.3}\nseed: 3\nwindow_s: 0.05\nvideo: false\n"
+        "soms_norm: minmax\n"
     )
     out = tmp_path / "run"
     args = ["run", "--config", str(config), "--seed", "5", "--out", str(out)]
     result = runner.invoke(app, args)
     assert result.exit_code == 0, result.output
     got = json.loads((out / "run.json").read_text())["config"]
-    assert {k: got[k] for k in ("scene", "seconds", "seed", "window_s", "video", "soms_norm")} == {
-        "scene": "shelf",
-        "seconds": 0.3,
+    assert (got["env"]["scene"], got["env"]["episode_seconds"]) == ("shelf", 0.3)
+    assert {k: got[k] for k in ("seed", "window_s", "video", "soms_norm")} == {
         "seed": 5,  # the flag given on the command line wins
         "window_s": 0.05,
         "video": False,
         "soms_norm": "minmax",
     }
-    assert got["dvs"] == "ideal" and got["alpha"] == 0.8  # neither file nor flag: defaults
+    assert got["env"]["dvs"] == "ideal" and got["alpha"] == 0.8  # neither file nor flag: defaults
     assert not (out / "run.mp4").exists() and "real-time factor" in result.output
 
 
 @pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("scen: shelf\n", "unknown key 'scen' for RunConfig; allowed keys: scene (str), "),
-        ("seconds: abc\n", "bad value for key 'seconds': expected float, got 'abc'"),
-        ("scene: offce\n", "bad value for key 'scene': unknown scene 'offce'; allowed: "),
-        ("frames: abc\n", "bad value for key 'frames': 'abc' is not allowed; allowed: keyframes,"),
-        ("seconds: -1\n", "RunConfig.seconds must be a finite number > 0, got -1.0"),
+        ("scen: shelf\n", "unknown key 'scen' for RunConfig; allowed keys: env (WanderConfig), "),
+        ("env: {episode_seconds: abc}\n", "env.episode_seconds: expected float, got 'abc'"),
+        ("env: {scene: offce}\n", "env.scene: unknown scene 'offce'; available: "),
+        ("env: {frames: abc}\n", "env.frames: expected one of 'keyframes', 'exact', got 'abc'"),
+        ("env: {episode_seconds: -1}\n", "env.episode_seconds: input should be greater than 0"),
     ],
 )
 def test_run_refuses_a_bad_config_file_in_one_line(tmp_path, text, message):

@@ -204,7 +204,7 @@ def test_help_of_every_command():
     for cmd in ("evimo", "llevos", "events", "suppression"):
         result = runner.invoke(app, [cmd, "--help"], env={"COLUMNS": "200"})
         assert result.exit_code == 0, result.output
-        for opt in ("--out", "--limit", "--streamlined"):
+        for opt in ("--out", "--max-windows", "--streamlined"):
             assert opt in result.output, (cmd, opt)
 
 
@@ -241,7 +241,7 @@ def test_events_limit_streamlined_and_resized_masks(tmp_path):
         masks,
         "--out",
         out,
-        "--limit",
+        "--max-windows",
         "2",
         "--streamlined",
         "--sensor",
@@ -368,7 +368,7 @@ def test_events_on_real_eed_ball_net_first_windows(tmp_path):
         EED / "events_txyp.npy",
         "--masks",
         EED / "ref_masks_tt_adapt",
-        "--limit",
+        "--max-windows",
         "3",
         "--out",
         out,
@@ -406,7 +406,7 @@ def test_alpha_option_on_real_eed_ball_net(tmp_path):
             EED / "events_txyp.npy",
             "--masks",
             EED / "ref_masks_tt_adapt",
-            "--limit",
+            "--max-windows",
             "3",
             "--out",
             out,

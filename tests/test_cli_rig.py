@@ -28,6 +28,7 @@ from experiments.cli.rig import dropped_warning, register, summary_line
 from experiments.jobs.rig import RigRunConfig, RigRunError, run_rig
 from hardware.ptu_driver import PTUTimeout
 from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
+from hardware.rig_env import RigConfig
 from hardware.speck import SpeckParams
 from wander_env.actions import action_to_gaze_degrees
 from wander_env.camera import SPECK_HFOV_DEG, focal_length_px
@@ -181,8 +182,8 @@ def test_emulated_ptu_and_replay_end_to_end(app, square, tmp_path, monkeypatch):
     assert run["summary"] == {"steps": 50, "events": 25_000}
     # run.json: the config, and what the devices reported.
     assert run["command"] == "wander rig" and run["seed"] == 3
-    cfg = run["config"]
-    assert (cfg["ptu"], cfg["camera"], cfg["replay"], cfg["seconds"]) == (
+    cfg, env = run["config"], run["config"]["env"]
+    assert (env["ptu"], env["camera"], env["replay"], env["episode_seconds"]) == (
         "emulate",
         camera,
         "fast",
@@ -244,7 +245,9 @@ def test_hfov_option_reaches_the_env_the_agent_and_run_json(app, square, tmp_pat
     )
     assert result.exit_code == 0, result.output
     _, run, _ = read_folder(out)
-    assert run["config"]["hfov_deg"] == run["rig"]["hfov_deg"] == run["agent"]["hfov_deg"] == 64
+    assert (
+        run["config"]["env"]["hfov_deg"] == run["rig"]["hfov_deg"] == run["agent"]["hfov_deg"] == 64
+    )
     assert run["rig"]["hfov_from"] == "--hfov" and run["fixed_view"].endswith("64.0° (--hfov)")
     bad = invoke(app, "--ptu", "emulate", "--camera", camera, "--hfov", "200")
     assert bad.exit_code == 2 and "'--hfov'" in bad.output and "must be < 180" in bad.output
@@ -274,7 +277,7 @@ def test_a_saccade_moves_the_ptu_to_the_chosen_point(app, square, emu, tmp_path)
     metrics, run, rows = read_folder(out)
     assert metrics["steps"] == 35
     assert_events_of_steps(out, expected, metrics)
-    assert run["config"]["replay"] == "realtime" and run["rig"]["ptu"]["emulated"] is False
+    assert run["config"]["env"]["replay"] == "realtime" and run["rig"]["ptu"]["emulated"] is False
     # One decision (at 0.13 s), one completed saccade; the next window has not ended.
     assert (metrics["decisions"], metrics["saccades"], len(rows)) == (1, 1, 1)
     target = (int(rows[0]["target_x_px"]), int(rows[0]["target_y_px"]))
@@ -392,7 +395,7 @@ def test_no_speck_found_lists_what_was_found(app, monkeypatch, tmp_path):
 
 def test_open_failure_through_run_rig_keeps_the_cause(square, tmp_path):
     camera, _ = square
-    config = RigRunConfig(ptu="/dev/no-such-ptu-port", camera=camera)
+    config = RigRunConfig(RigConfig(ptu="/dev/no-such-ptu-port", camera=camera))
     with pytest.raises(RigRunError) as info:
         run_rig(tmp_path / "r", config)
     err = info.value
@@ -481,7 +484,9 @@ def test_error_reply_mid_run(app, square, emu, tmp_path):
 def test_mid_run_fault_through_run_rig_keeps_the_cause(square, emu, tmp_path):
     camera, _ = square
     watcher = on_first_move(emu, emu.stop_answering)
-    config = RigRunConfig(ptu=emu.port, camera=camera, replay="realtime", seconds=3.0, video=False)
+    config = RigRunConfig(
+        RigConfig(ptu=emu.port, camera=camera, replay="realtime", episode_seconds=3.0), video=False
+    )
     with pytest.raises(RigRunError) as info:
         run_rig(tmp_path / "r", config)
     watcher.join()
@@ -536,11 +541,13 @@ def test_queue_overflow_is_counted_and_reported(monkeypatch, tmp_path):
     monkeypatch.setattr(rig_env.RigEnv, "reset", burst_after_reset)
     install(monkeypatch, FakeSamna([("Speck2fDevKit", "sf", FakeSpeck(ev))]))
     config = RigRunConfig(
-        ptu="emulate",
-        camera="speck",
-        seconds=0.5,
+        RigConfig(
+            ptu="emulate",
+            camera="speck",
+            episode_seconds=0.5,
+            speck=SpeckParams(queue_events=capacity),
+        ),
         video=False,
-        speck=SpeckParams(queue_events=capacity),
     )
     out = tmp_path / "run"
     result = run_rig(out, config)

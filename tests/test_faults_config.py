@@ -5,12 +5,14 @@ from __future__ import annotations
 import mujoco
 import pytest
 
-from wander_env.env import WanderConfig
+from wander_env.env_config import WanderConfig
 from wander_env.renderer import CameraRenderer
 
 
 def test_zero_subframes_is_the_configs_value_error():
-    with pytest.raises(ValueError, match=r"WanderConfig\.max_subframes must be >= 1, got 0"):
+    with pytest.raises(
+        ValueError, match=r"^max_subframes: input should be greater than or equal to 1, got 0$"
+    ):
         WanderConfig(max_subframes=0)
 
 

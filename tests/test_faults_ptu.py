@@ -3,6 +3,8 @@ garbage, a closed pty), at the driver and through ``wander rig``."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 from test_cli_rig import (  # noqa: F401  (fixtures: app, square)
     QUICK,
@@ -33,11 +35,14 @@ def patient_driver(monkeypatch):
     for tests whose fault is not the PTU's."""
     from experiments.jobs.rig import RigRunConfig
 
-    env_kwargs = RigRunConfig.env_kwargs
+    checked = RigRunConfig.__post_init__
     patient = FlirPTUParams(timeout_s=5.0, halt_timeout_s=2.0, banner_quiet_s=0.02)
-    monkeypatch.setattr(
-        RigRunConfig, "env_kwargs", lambda self: {**env_kwargs(self), "driver": patient}
-    )
+
+    def with_patient_driver(self):
+        checked(self)
+        object.__setattr__(self, "env", replace(self.env, driver=patient))
+
+    monkeypatch.setattr(RigRunConfig, "__post_init__", with_patient_driver)
 
 
 def test_closed_pty_is_a_port_error_and_close_does_not_raise(emu):

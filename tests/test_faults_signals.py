@@ -21,6 +21,7 @@ import pytest
 
 from experiments.runs.folder import RunFolder
 from experiments.runs.signals import SignalExit, handle_signals
+from wander_env.env_config import WanderConfig
 from wander_env.events import make_events
 from wander_env.events.io import EventRecording, read_events, write_events
 
@@ -201,7 +202,7 @@ def test_a_signal_while_setting_up_still_leaves_a_folder(tmp_path, monkeypatch):
     monkeypatch.setattr(run_agent, "AttentionAgent", stopped)
     out = tmp_path / "run"
     with pytest.raises(SignalExit):
-        run_agent.run(out, run_agent.RunConfig(seconds=1.0, video=False))
+        run_agent.run(out, run_agent.RunConfig(WanderConfig(episode_seconds=1.0), video=False))
     m = strict_json(out / "metrics.json")
     assert m == {
         "steps": 0,

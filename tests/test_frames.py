@@ -10,7 +10,7 @@ import pytest
 
 import wander_env  # noqa: F401  (registers the environments)
 from wander_env.actions import gaze_degrees_to_action
-from wander_env.env import FRAME_MODES
+from wander_env.env_config import FRAME_MODES
 from wander_env.frames import FRAME_SOURCES, ExactFrames, KeyframeFrames
 from wander_env.ptu.params import PTUParams
 
@@ -105,23 +105,25 @@ def test_keyframe_max_ms_spaces_keys_while_anything_moves():
 
 
 def test_keyframe_max_ms_is_checked():
-    from wander_env.env import WanderConfig
+    from wander_env.env_config import WanderConfig
 
     assert WanderConfig().keyframe_max_ms == 5.0
-    with pytest.raises(ValueError, match=r"keyframe_max_ms=2\.5 must be a whole number"):
+    with pytest.raises(ValueError, match=r"^keyframe_max_ms: 2\.5 must be a whole number"):
         WanderConfig(keyframe_max_ms=2.5)
-    with pytest.raises(ValueError, match="keyframe_max_ms must be a finite number > 0"):
+    with pytest.raises(
+        ValueError, match=r"^keyframe_max_ms: input should be greater than 0, got 0.0$"
+    ):
         WanderConfig(keyframe_max_ms=0.0)
 
 
 def test_quality_fine_renders_16_samples_a_pixel():
-    from wander_env.env import WanderConfig
+    from wander_env.env_config import WanderConfig
 
     assert WanderConfig().quality == "fast" and WanderConfig().render_supersample == 1
     env = gym.make("wander/Wander-v0", quality="fine").unwrapped
     assert env.stage.params.supersample == 2 and env.scene.camera.antialias_samples == 4
     env.close()
-    with pytest.raises(ValueError, match="quality must be one of"):
+    with pytest.raises(ValueError, match=r"^quality: expected one of .fast., .fine., got .best.$"):
         WanderConfig(quality="best")
     with pytest.raises(ValueError, match="not both"):
         WanderConfig(quality="fine", supersample=2)

@@ -10,11 +10,15 @@ import numpy as np
 import pytest
 
 from experiments.jobs.record import RecordConfig, record
+from wander_env.env_config import WanderConfig
 from wander_env.events.io import read_events
 
 
 def test_record_writes_events_truth_and_video(tmp_path):
-    summary = record(tmp_path, RecordConfig(scene="office", seconds=0.2, policy="fixational"))
+    summary = record(
+        tmp_path,
+        RecordConfig(WanderConfig(scene="office", episode_seconds=0.2), policy="fixational"),
+    )
     assert sorted(summary["files"]) == [
         "events.h5",
         "ground_truth.h5",
@@ -39,7 +43,12 @@ def test_record_writes_events_truth_and_video(tmp_path):
 
 
 def test_fixational_policy_moves_the_gaze_within_its_range(tmp_path):
-    record(tmp_path, RecordConfig(scene="shelf", seconds=0.3, policy="fixational", video=False))
+    record(
+        tmp_path,
+        RecordConfig(
+            WanderConfig(scene="shelf", episode_seconds=0.3), policy="fixational", video=False
+        ),
+    )
     with h5py.File(tmp_path / "ground_truth.h5") as f:
         pos = f["ptu_positions"][()]
     assert np.abs(pos).max() > 0  # it moved
@@ -47,5 +56,8 @@ def test_fixational_policy_moves_the_gaze_within_its_range(tmp_path):
 
 
 def test_unknown_policy_is_named():
-    with pytest.raises(ValueError, match="policy must be one of"):
+    with pytest.raises(
+        ValueError,
+        match=r"^policy: expected one of .still., .fixational., .saccades., got .wander.$",
+    ):
         RecordConfig(policy="wander")

@@ -15,6 +15,7 @@ from experiments.benchmark.datasets.evimo import find_evimo_sequences, load_evim
 from experiments.cli.benchmark import app as benchmark_app
 from experiments.jobs.record import RecordConfig, record
 from wander_env.camera import focal_length_px
+from wander_env.env_config import WanderConfig
 from wander_env.events.io import read_events
 
 STEP_US = 10_000  # the env's control period: one mask per step
@@ -23,7 +24,12 @@ STEP_US = 10_000  # the env's control period: one mask per step
 @pytest.mark.slow
 def test_recorded_evimo2_sequence_is_scored_by_the_evimo_benchmark(tmp_path):
     rec_dir, out = tmp_path / "rec", tmp_path / "bench"
-    cfg = RecordConfig(scene="office", seconds=0.1, policy="still", video=False, format="evimo2")
+    cfg = RecordConfig(
+        WanderConfig(scene="office", episode_seconds=0.1),
+        policy="still",
+        video=False,
+        format="evimo2",
+    )
     summary = record(rec_dir, cfg)
     assert {"dataset_events_t.npy", "dataset_mask.npz", "dataset_info.npz"} <= set(summary["files"])
     t_us = np.rint(np.load(rec_dir / "dataset_events_t.npy") * 1e6).astype(np.int64)
@@ -82,7 +88,9 @@ def test_recorded_evimo2_sequence_is_scored_by_the_evimo_benchmark(tmp_path):
 
 @pytest.mark.parametrize(("fmt", "name"), [("aedat4", "events.aedat4"), ("evt3", "events.raw")])
 def test_record_writes_events_in_the_chosen_format(tmp_path, fmt, name):
-    summary = record(tmp_path, RecordConfig(seconds=0.05, video=False, format=fmt))
+    summary = record(
+        tmp_path, RecordConfig(WanderConfig(episode_seconds=0.05), video=False, format=fmt)
+    )
     assert name in summary["files"] and "events.h5" not in summary["files"]
     rec = read_events(tmp_path / name)
     assert rec.sensor_size == (128, 128, 2)
@@ -92,6 +100,6 @@ def test_record_writes_events_in_the_chosen_format(tmp_path, fmt, name):
 
 def test_unknown_record_format_is_named():
     with pytest.raises(
-        ValueError, match=r"format must be one of \('h5', 'aedat4', 'evt3', 'evimo2'\)"
+        ValueError, match=r"^format: expected one of 'h5', 'aedat4', 'evt3', 'evimo2', got 'mp4'$"
     ):
         RecordConfig(format="mp4")

@@ -15,9 +15,10 @@ from agents.attention import AGENT_SOMS_ALPHA
 from experiments import scanpath_stats
 from experiments.cli.main import app
 from experiments.cli.options import AgentAlphaOpt
-from experiments.jobs.run_agent import RunConfig, env_kwargs, run, run_closed_loop, video_frame
+from experiments.jobs.run_agent import RunConfig, run, run_closed_loop, video_frame
 from experiments.jobs.scanpath_figure import saliency_mosaic
 from wander_env.camera import pixel_to_world_angles
+from wander_env.env_config import WanderConfig
 from wander_env.events.io import read_events
 
 
@@ -43,7 +44,7 @@ def test_run_folder_contents(run_dir: Path) -> None:
     kept = m["events_kept_by_soms"] / m["events_into_agent"]
     assert m["soms_suppression"] == pytest.approx(1 - kept)
     run_json = json.loads((run_dir / "run.json").read_text())
-    assert run_json["seed"] == 4 and run_json["config"]["scene"] == "office"
+    assert run_json["seed"] == 4 and run_json["config"]["env"]["scene"] == "office"
     assert run_json["git_revision"] and run_json["agent"]["window_s"] == 0.124
     assert run_json["config"]["alpha"] == run_json["agent"]["soms"]["alpha"] == 0.8
     assert run_json["config"]["soms_norm"] == run_json["agent"]["soms"]["norm"] == "quantile"
@@ -59,7 +60,9 @@ def test_run_folder_contents(run_dir: Path) -> None:
 
 
 def test_alpha_is_checked_and_reaches_the_agent() -> None:
-    with pytest.raises(ValueError, match=r"RunConfig\.alpha must be in \[0, 1\], got 1\.5"):
+    with pytest.raises(
+        ValueError, match=r"^alpha: input should be less than or equal to 1, got 1\.5$"
+    ):
         RunConfig(alpha=1.5)
     result = CliRunner().invoke(app, ["run", "--alpha", "1.5", "--seconds", "0.1"])
     assert result.exit_code == 2 and "--alpha" in result.output
@@ -75,16 +78,16 @@ def test_frame_source_reaches_the_env() -> None:
     # the env with them; before, RunConfig recorded them and gym.make never saw them.
     import gymnasium as gym
 
-    kw = env_kwargs(RunConfig(scene="shelf", seconds=0.5, frames="exact", keyframe_ms=4.0))
-    assert kw == {
-        "scene": "shelf",
-        "dvs": "ideal",
-        "episode_seconds": 0.5,
-        "frames": "exact",
-        "keyframe_ms": 4.0,
-        "keyframe_px": 2.0,
-        "quality": "fast",
-    }
+    config = RunConfig(
+        WanderConfig(scene="shelf", episode_seconds=0.5, frames="exact", keyframe_ms=4.0)
+    )
+    kw = dict(**config.env)
+    assert (kw["scene"], kw["frames"], kw["keyframe_ms"], kw["episode_seconds"]) == (
+        "shelf",
+        "exact",
+        4.0,
+        0.5,
+    )
     env = gym.make("wander/Wander-v0", **kw)
     try:
         cfg = env.unwrapped.config
@@ -95,7 +98,7 @@ def test_frame_source_reaches_the_env() -> None:
 
 
 def test_same_seed_same_scanpath(run_dir: Path, tmp_path: Path) -> None:
-    run(tmp_path, RunConfig(seconds=1.5, seed=4, video=False))
+    run(tmp_path, RunConfig(WanderConfig(episode_seconds=1.5), seed=4, video=False))
     assert (tmp_path / "fixations.csv").read_text() == (run_dir / "fixations.csv").read_text()
     assert not (tmp_path / "run.mp4").exists()
 
@@ -226,10 +229,10 @@ def test_quality_reaches_the_env_and_a_bad_one_is_one_line(tmp_path):
     from typer.testing import CliRunner
 
     from experiments.cli.main import app
-    from experiments.jobs.run_agent import RunConfig, env_kwargs
+    from experiments.jobs.run_agent import RunConfig
 
-    assert env_kwargs(RunConfig())["quality"] == "fast"
-    assert env_kwargs(RunConfig(quality="fine"))["quality"] == "fine"
+    assert RunConfig().env["quality"] == "fast"
+    assert RunConfig(WanderConfig(quality="fine")).env["quality"] == "fine"
     result = CliRunner().invoke(app, ["run", "--quality", "best", "--out", str(tmp_path / "r")])
     assert result.exit_code == 2 and "'--quality'" in result.output and "best" in result.output
     assert not (tmp_path / "r").exists()

@@ -102,7 +102,7 @@ def test_unbounded_motion_has_no_schedule_and_bad_bounds_are_refused():
 
 
 def test_keyframe_px_is_checked():
-    from wander_env.env import WanderConfig
+    from wander_env.env_config import WanderConfig
 
     for bad in (0.0, -1.0, float("nan"), float("inf"), True, "2"):
         with pytest.raises(ValueError, match="keyframe_px must be None or a finite number"):

@@ -224,11 +224,11 @@ def test_same_seed_gives_identical_events_in_keyframes_mode():
 
 
 def test_frames_config_is_checked():
-    from wander_env.env import WanderConfig
+    from wander_env.env_config import WanderConfig
 
-    with pytest.raises(ValueError, match="frames must be one of"):
+    with pytest.raises(ValueError, match=r"^frames: expected one of .keyframes., .exact., got "):
         WanderConfig(frames="fast")
-    with pytest.raises(ValueError, match=r"keyframe_ms=2\.5 must be a whole number"):
+    with pytest.raises(ValueError, match=r"^keyframe_ms: 2\.5 must be a whole number"):
         WanderConfig(keyframe_ms=2.5)
     # a key every tick when the interval divides a tick (100 Hz rendering, 2 ms keys)
     assert WanderConfig(render_rate_hz=100.0, control_period_s=0.02).keyframe_us == 2000

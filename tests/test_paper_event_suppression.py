@@ -247,8 +247,9 @@ def test_the_agent_variant_uses_the_agents_soms():
 
 def test_config_checks_windows_steps_and_phases():
     with pytest.raises(ValueError, match="whole number of windows"):
-        validate(EventSuppressionConfig, {"soms_step_s": 0.003})  # the former name of soms.dt
-    assert validate(EventSuppressionConfig, {"alpha": 0.5}).soms == SOMSParams(alpha=0.5, dt=0.02)
+        validate(EventSuppressionConfig, {"soms": {"dt": 0.003}})
+    cfg = validate(EventSuppressionConfig, {"soms": {"alpha": 0.5}})
+    assert cfg.soms == SOMSParams(alpha=0.5, dt=0.02)
     with pytest.raises(ValueError, match="phases must be"):
         EventSuppressionConfig(phases=("wave",))
     with pytest.raises(ValueError, match="hand_s must be"):
@@ -306,8 +307,7 @@ def test_soms_is_a_block_or_a_preset_name_and_bad_values_say_which():
     with pytest.raises(ConfigError) as e:
         validate(EventSuppressionConfig, {"soms": "bogus"}, where="--set")
     assert str(e.value) == (
-        "--set: bad value for key 'soms': expected SOMSParams or one of 'table', 'agent', "
-        "got 'bogus'"
+        "--set: soms: expected SOMSParams or one of 'table', 'agent', got 'bogus'"
     )
     cfg = validate(EventSuppressionConfig, parse_sets(["soms.alpha=0.3"], EventSuppressionConfig))
     assert (cfg.soms_params.alpha, cfg.soms_params.norm, cfg.windows_per_step) == (

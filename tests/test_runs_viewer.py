@@ -13,6 +13,7 @@ from PIL import Image
 from experiments.jobs.record import RecordConfig, record
 from experiments.runs.viewer import RunLog, polarity_labels, view
 from experiments.runs.viewer import read_recording as read_rrd
+from wander_env.env_config import WanderConfig
 from wander_env.events import time_window, to_frame
 from wander_env.events.io import read_events
 
@@ -24,7 +25,12 @@ def labels(value: object) -> np.ndarray:
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("record")
-    record(out, RecordConfig(scene="office", seconds=0.3, policy="fixational", video=False))
+    record(
+        out,
+        RecordConfig(
+            WanderConfig(scene="office", episode_seconds=0.3), policy="fixational", video=False
+        ),
+    )
     return out
 
 

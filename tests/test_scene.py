@@ -271,7 +271,7 @@ def _bad_mode(d):
         (
             lambda d: d.__setitem__("camera", {"width": True, "hfov_deg": 200}),
             "camera.width: ",
-            ("valid integer, got True", "camera.hfov_deg: ", "179, got 200"),
+            ("camera.width: expected int, got True", "camera.hfov_deg: ", "179, got 200"),
         ),
         (
             lambda d: d.update(moving_objects=[], gratings={"object_size_deg": 150}),

@@ -32,6 +32,8 @@ from experiments.cli.errors import long_command
 from experiments.cli.main import app
 from experiments.runs.folder import RunFolder
 from experiments.runs.signals import DeferredSignals, SignalExit, handle_signals
+from hardware.rig_env import RigConfig
+from wander_env.env_config import WanderConfig
 from wander_env.events.io import read_events
 from wander_env.events.stream import OutputError, VideoSink, mp4_complete
 
@@ -182,10 +184,10 @@ def env_and_agent() -> Iterator[tuple[Any, Any]]:
 
     import wander_env  # noqa: F401  (registers the environments)
     from agents.attention import AttentionAgent
-    from experiments.jobs.run_agent import RunConfig, env_kwargs
+    from experiments.jobs.run_agent import RunConfig
 
-    config = RunConfig(seconds=2.0)
-    env = gym.make("wander/Wander-v0", **env_kwargs(config))
+    config = RunConfig(WanderConfig(episode_seconds=2.0))
+    env = gym.make("wander/Wander-v0", **config.env)
     agent = AttentionAgent(config.agent_params(env), seed=0)
     yield env, agent
     agent.close()
@@ -324,7 +326,7 @@ def test_record_stopped_during_rendering_finishes_its_video(tmp_path, monkeypatc
     signaller = RenderSignaller(monkeypatch)
     out = tmp_path / "rec"
     sender = signaller.arm(at=30)
-    assert exit_code_of(lambda: record(out, RecordConfig(seconds=1.0))) == 143
+    assert exit_code_of(lambda: record(out, RecordConfig(WanderConfig(episode_seconds=1.0)))) == 143
     sender.join(60)
     assert signaller.sent.is_set()
     m = strict_json(out / "metrics.json")
@@ -347,7 +349,7 @@ def test_record_signalled_before_run_json_still_writes_it(tmp_path, monkeypatch)
 
     monkeypatch.setattr(RunFolder, "write_json", signal_then_write)
     out = tmp_path / "rec"
-    config = record_job.RecordConfig(seconds=0.3, video=False)
+    config = record_job.RecordConfig(WanderConfig(episode_seconds=0.3), video=False)
     assert exit_code_of(lambda: record_job.record(out, config)) == 143
     assert strict_json(out / "run.json")["summary"]["steps"] == 30
     m = strict_json(out / "metrics.json")
@@ -439,7 +441,9 @@ def test_a_signal_halts_the_rig_before_its_folder_is_written(tmp_path, monkeypat
 
         monkeypatch.setattr(RunFolder, "write_json", noting)
         out = tmp_path / "rig"
-        config = RigRunConfig(ptu=emu.port, camera=f"replay:{tmp_path / 'walk.npz'}", video=False)
+        config = RigRunConfig(
+            RigConfig(ptu=emu.port, camera=f"replay:{tmp_path / 'walk.npz'}"), video=False
+        )
         assert exit_code_of(lambda: run_rig(out, config, progress=stop_at_step_20)) == 143
     # halted as the loop stopped, before the folder; the rig's counters are added to
     # metrics.json after the run's failure handling halted it once more

@@ -15,7 +15,7 @@ TINY_SWEEP = {
         {
             "experiment": "event_suppression",
             "set": {"repeats": 1, "phases": ["hand"], "hand_s": [0.02, 0.02], "lead_s": 0.0},
-            "grid": {"alpha": [0.5, 0.8]},
+            "grid": {"soms.alpha": [0.5, 0.8]},
         }
     ],
 }
@@ -27,7 +27,7 @@ TOY_SWEEP = {
         {
             "experiment": "event_suppression",
             "set": {"repeats": 2, "phases": ["hand"]},
-            "grid": {"alpha": [0.5, 0.8], "scene": ["hand", "office"]},
+            "grid": {"soms.alpha": [0.5, 0.8], "env.scene": ["hand", "office"]},
         }
     ],
 }
@@ -54,9 +54,13 @@ def test_expand_is_grid_times_seeds_times_repeats_in_order_without_duplicates():
     assert [s.index for s in specs] == list(range(12))
     assert [s.seed for s in specs[:3]] == [0, 1, 2]
     first = specs[0]
-    assert first.extra == {"experiment": "event_suppression", "cfg.alpha": 0.5, "cfg.scene": "hand"}
+    assert first.extra == {
+        "experiment": "event_suppression",
+        "cfg.soms.alpha": 0.5,
+        "cfg.env.scene": "hand",
+    }
     assert (first.repeat, first.config["repeats"], first.params) == (0, 2, {"phase": "hand"})
-    assert [(s.extra["cfg.alpha"], s.extra["cfg.scene"]) for s in specs[::3]] == [
+    assert [(s.extra["cfg.soms.alpha"], s.extra["cfg.env.scene"]) for s in specs[::3]] == [
         (0.5, "hand"),
         (0.5, "office"),
         (0.8, "hand"),
@@ -100,7 +104,10 @@ def test_resume_skips_finished_trials_and_runs_only_missing_or_new_ones(tmp_path
 
     runner.calls.clear()
     grown = {**TOY_SWEEP, "experiments": [dict(TOY_SWEEP["experiments"][0])]}
-    grown["experiments"][0]["grid"] = {"alpha": [0.5, 0.8, 0.9], "scene": ["hand", "office"]}
+    grown["experiments"][0]["grid"] = {
+        "soms.alpha": [0.5, 0.8, 0.9],
+        "env.scene": ["hand", "office"],
+    }
     res = run_sweep(sweep_from_dict(grown), tmp_path, backend="serial", runner=runner)
     assert len(runner.calls) == n // 2 and res.skipped == n
     rows = read_csv(tmp_path / "results.csv")
@@ -111,8 +118,8 @@ def test_resume_skips_finished_trials_and_runs_only_missing_or_new_ones(tmp_path
         "repeat",
         "seed",
         "experiment",
-        "cfg.alpha",
-        "cfg.scene",
+        "cfg.soms.alpha",
+        "cfg.env.scene",
         "phase",
     ]
 
@@ -124,7 +131,7 @@ def test_local_processes_give_the_same_table_as_this_process(tmp_path):
     serial = (tmp_path / "serial" / "results.csv").read_bytes()
     assert serial == (tmp_path / "local" / "results.csv").read_bytes()
     rows = read_csv(tmp_path / "serial" / "results.csv")
-    assert [(r["cfg.alpha"], r["windows"]) for r in rows] == [(0.5, 10), (0.8, 10)]
+    assert [(r["cfg.soms.alpha"], r["windows"]) for r in rows] == [(0.5, 10), (0.8, 10)]
 
 
 @pytest.mark.slow  # ~10 s on an idle machine, 20-40 s when the 2 cores are shared

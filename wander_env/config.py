@@ -1,19 +1,19 @@
 """One config system: parameter dataclasses validated from YAML, dicts and ``--set`` items.
 
 pydantic (strict, unknown keys refused, nested dataclasses and tuples) does the
-validation; this module only turns its errors into the project's messages, which name
-where the value came from (a file, ``--set``), the field's path, the allowed keys or
-values and the bad value, e.g.
-``--set: unknown key 'soms.alph' for SOMSParams; allowed keys: ...`` or
-``c.yaml: bad value for key 'x': expected float, got 'abc'``.
+validation; this module only turns its errors into the project's messages, each led by
+where the value came from (a file, ``--set``) and the field's path, then what is wrong
+and the value given, e.g.
+``--set: soms: unknown key 'alph' for SOMSParams; allowed keys: ...``,
+``c.yaml: env.frames: expected one of 'keyframes', 'exact', got 'fast'`` or
+``scene.yaml: moving_objects[1].trajectory.kind: expected one of ...``.
 
 - :func:`validate` — a dataclass instance from a mapping (nested mappings become nested
-  dataclasses), optionally on top of a ``base`` instance (a nested mapping updates only
-  the keys it names);
+  dataclasses; dotted keys are nested keys), optionally on top of a ``base`` instance (a
+  nested mapping updates only the keys it names); tagged unions
+  (``Annotated[A | B, pydantic.Field(discriminator="kind")]``) included;
 - :func:`coerce` — one value as a type (``TypeError`` naming the type);
 - :func:`parse_sets` — ``["a.b=value", ...]`` → nested ``{"a": {"b": value}}``;
-- :func:`aliases_of` — a config's old flat key names (``CONFIG_ALIASES``, e.g.
-  ``{"alpha": "soms.alpha"}``), which :func:`validate` still reads as the nested keys;
 - :func:`check_fields` — the shared ``__post_init__`` check of numeric fields;
 - :func:`check_annotated` — a ``__post_init__`` check of a dataclass's ``Annotated``
   and ``Literal`` fields by pydantic (for instances built in code, e.g. by
@@ -22,17 +22,13 @@ values and the bad value, e.g.
   and sweep file (and ``--set`` value): bounded (:data:`MAX_YAML_BYTES`,
   :data:`MAX_YAML_DEPTH`), plain data only (no anchors or aliases, no tags), UTF-8 text;
   every refusal and syntax error one :class:`ConfigError` line naming the file, the line
-  and the column;
-- :func:`validate_paths` — a dataclass instance from a whole document (a scene file),
-  finite numbers only, every message led by the field's path
-  (``moving_objects[1].trajectory.kind: expected one of ...``), tagged unions
-  (``Annotated[A | B, pydantic.Field(discriminator="kind")]``) included.
+  and the column.
 
 Numbers: ints are accepted for floats; bools are not numbers; a string such as ``1e-3``
 (YAML 1.1 reads it as a string) is read as the float it spells; infinities and NaN are
 refused (``1e400`` is one). A field's range (``Annotated[float, pydantic.Field(le=...)]``)
-is checked with its type: ``bad value for key 'x': input should be less than or equal to
-3600, got 7200``.
+is checked with its type: ``duration_s: input should be less than or equal to 3600, got
+7200``.
 
 Examples:
     >>> from wander_env.scene_config import RoomConfig
@@ -46,8 +42,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import re
-import types
 import typing
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -57,26 +51,29 @@ import numpy as np
 import pydantic
 import yaml
 
+from wander_env.config_messages import (
+    allowed_keys,
+    error_message,
+    field_types,
+    kept_errors,
+    type_name,
+)
+
 __all__ = [
     "MAX_KEY_PARTS",
     "MAX_NUMBER_CHARS",
     "MAX_YAML_BYTES",
     "MAX_YAML_DEPTH",
     "ConfigError",
-    "aliases_of",
-    "allowed_keys",
-    "block_aliases",
+    "FieldsMapping",
     "check_annotated",
     "check_fields",
     "coerce",
-    "field_types",
     "load_yaml",
     "parse_sets",
     "parse_yaml",
     "to_plain",
-    "type_name",
     "validate",
-    "validate_paths",
 ]
 
 
@@ -220,34 +217,6 @@ def load_yaml(path: str | Path, what: str = "config file") -> Any:
     return parse_yaml(data, str(path))
 
 
-def type_name(tp: Any) -> str:
-    """A readable name of a type for messages (``list [float, float]``, ``one of 'a'``)."""
-    origin = typing.get_origin(tp)
-    if origin is Literal:
-        return "one of " + ", ".join(repr(a) for a in typing.get_args(tp))
-    if origin in (typing.Union, types.UnionType):
-        return " or ".join(type_name(a) for a in typing.get_args(tp))
-    if origin is tuple:
-        args = typing.get_args(tp)
-        if len(args) == 2 and args[1] is Ellipsis:
-            return f"list of {type_name(args[0])}"
-        return "list [" + ", ".join(type_name(a) for a in args) + "]"
-    if tp is type(None):
-        return "null"
-    return getattr(tp, "__name__", str(tp))
-
-
-def field_types(cls: type) -> dict[str, Any]:
-    """The init fields of dataclass ``cls`` and their (resolved) types."""
-    hints = typing.get_type_hints(cls)
-    return {f.name: hints[f.name] for f in dataclasses.fields(cls) if f.init}
-
-
-def allowed_keys(cls: type) -> str:
-    """``key (type), ...`` for error messages and ``--help``."""
-    return ", ".join(f"{k} ({type_name(t)})" for k, t in field_types(cls).items())
-
-
 def to_plain(obj: Any) -> Any:
     """Dataclasses (their init fields) as dicts and tuples as lists, recursively."""
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
@@ -285,58 +254,6 @@ def _expand(values: Mapping[str, Any]) -> dict[str, Any]:
         else:
             node[last] = v
     return out
-
-
-def aliases_of(cls: Any) -> dict[str, tuple[str, ...]]:
-    """The old names a config class still reads: ``CONFIG_ALIASES``, a class-level
-    mapping of a former flat key to the dotted key (or keys) it now sets.
-
-    >>> class Old:  # a config dataclass, say, whose step and alpha moved into blocks
-    ...     CONFIG_ALIASES = {"step_s": ("a.dt", "b.dt"), "alpha": "a.alpha"}
-    >>> aliases_of(Old)
-    {'step_s': ('a.dt', 'b.dt'), 'alpha': ('a.alpha',)}
-    """
-    raw = getattr(cls, "CONFIG_ALIASES", None) or {}
-    return {k: (v,) if isinstance(v, str) else tuple(v) for k, v in raw.items()}
-
-
-def block_aliases(block: str, names: Iterable[str]) -> dict[str, str]:
-    """``CONFIG_ALIASES`` entries for flat keys that moved, under the same names, into the
-    nested block ``block``.
-
-    >>> block_aliases("soms", ("alpha", "sigma_c"))
-    {'alpha': 'soms.alpha', 'sigma_c': 'soms.sigma_c'}
-    """
-    return {name: f"{block}.{name}" for name in names}
-
-
-def _has_path(data: Mapping[str, Any], dotted: str) -> bool:
-    """Whether nested mapping ``data`` sets the dotted key ``dotted``."""
-    node: Any = data
-    for name in dotted.split("."):
-        if not isinstance(node, Mapping) or name not in node:
-            return False
-        node = node[name]
-    return True
-
-
-def _unalias(cls: Any, values: Mapping[str, Any]) -> dict[str, Any]:
-    """``values`` (dotted keys expanded) with each old flat key moved to the nested
-    key(s) it names; an old key given together with its new key is refused."""
-    aliases = aliases_of(cls)
-    current = {k: v for k, v in values.items() if k not in aliases}
-    given = _expand(current)
-    moved: dict[str, Any] = {}
-    for old, targets in aliases.items():
-        if old not in values:
-            continue
-        for target in targets:
-            if _has_path(given, target):
-                raise ConfigError(
-                    f"key {old!r} is the former name of {target!r}; give only one of them"
-                )
-            moved[target] = values[old]
-    return _expand({**current, **moved})
 
 
 def _on_defaults(cls: Any, values: Mapping[str, Any]) -> dict[str, Any]:
@@ -412,171 +329,6 @@ def coerce(value: Any, tp: Any) -> Any:
         raise TypeError(f"expected {type_name(tp)}") from None
 
 
-def _describe(cls: type, loc: tuple[Any, ...]) -> tuple[str, type, Any, str]:
-    """(dotted key, the dataclass holding it, the field's type, the key's last name)."""
-    owner: Any = cls
-    key, tp, name = "", None, ""
-    for part in loc:
-        if isinstance(part, int):
-            key += f"[{part}]"
-            continue
-        name = str(part)
-        key = f"{key}.{name}" if key else name
-        types_ = field_types(owner) if dataclasses.is_dataclass(owner) else {}
-        if name not in types_:
-            tp = None
-            break
-        tp = types_[name]
-        inner = [a for a in (typing.get_args(tp) or (tp,)) if dataclasses.is_dataclass(a)]
-        if dataclasses.is_dataclass(tp):
-            owner = tp
-        elif typing.get_origin(tp) is tuple and inner:
-            owner = inner[0]
-        elif inner:
-            owner = inner[0]
-    return key, owner, tp, name
-
-
-def _value_at(data: Any, loc: tuple[Any, ...]) -> Any:
-    for part in loc:
-        try:
-            data = data[part]
-        except (KeyError, IndexError, TypeError):
-            return None
-    return data
-
-
-def _message(cls: type, data: Any, err: Mapping[str, Any], shown: Mapping[str, str]) -> str:
-    """One pydantic error as the project's message; ``shown`` maps a dotted key to the
-    former flat name the user gave it by (so a message names the key as it was given)."""
-    return _as_given(_raw_message(cls, data, err), shown)
-
-
-def _as_given(text: str, shown: Mapping[str, str]) -> str:
-    """``text`` naming each dotted key of ``shown`` by the former name it was given by."""
-    for target, old in shown.items():
-        text = text.replace(f"key {target!r}", f"key {old!r}")
-        if text.startswith(f"{target}: "):
-            text = f"{old}: " + text[len(target) + 2 :]
-    return text
-
-
-def _field_locs(cls: type, loc: tuple[Any, ...]) -> tuple[Any, ...]:
-    """``loc`` without pydantic's union-member tags (``("soms", "SOMSParams", "alpha")``
-    → ``("soms", "alpha")``), so that it is a path of fields and indices."""
-    out: list[Any] = []
-    owner: Any = cls
-    tp: Any = None
-    for part in loc:
-        if isinstance(part, int):
-            out.append(part)
-            continue
-        types_ = field_types(owner) if dataclasses.is_dataclass(owner) else {}
-        if part in types_:
-            out.append(part)
-            tp = types_[part]
-            inner = [a for a in (typing.get_args(tp) or (tp,)) if dataclasses.is_dataclass(a)]
-            owner = inner[0] if inner else None
-        elif tp is not None and typing.get_origin(tp) in (typing.Union, types.UnionType):
-            members = [a for a in typing.get_args(tp) if getattr(a, "__name__", None) == part]
-            owner = members[0] if members else None  # the tag of the member tried
-            tp = None
-        else:
-            out.append(part)
-    return tuple(out)
-
-
-def _union_errors_kept(cls: type, errors: list[Any]) -> list[Any]:
-    """Errors of a union field: the one from inside a member where there is one (a
-    nested mapping with a bad key, or one a member's own check refused, says what is
-    wrong there, not that the field is not one of the other members)."""
-    locs = [_field_locs(cls, tuple(e["loc"])) for e in errors]
-    checked = {loc for e, loc in zip(errors, locs, strict=True) if e["type"] == "value_error"}
-    return [
-        e
-        for e, loc in zip(errors, locs, strict=True)
-        if not any(len(o) > len(loc) and o[: len(loc)] == loc for o in locs)
-        and (e["type"] == "value_error" or loc not in checked)
-    ]
-
-
-#: pydantic's errors for a value of the right type out of its field's range.
-_RANGE_KINDS = frozenset(
-    ("greater_than", "greater_than_equal", "less_than", "less_than_equal", "finite_number")
-)
-_SHOWN_CHARS = 200
-
-
-def _shown(value: Any) -> str:
-    """``repr(value)``, cut to :data:`_SHOWN_CHARS` characters (a message stays a line)."""
-    text = repr(value)
-    return text if len(text) <= _SHOWN_CHARS else text[: _SHOWN_CHARS - 3] + "..."
-
-
-def _lower(msg: str) -> str:
-    return msg[:1].lower() + msg[1:]
-
-
-def _raw_message(cls: type, data: Any, err: Mapping[str, Any]) -> str:
-    loc = _field_locs(cls, tuple(err["loc"]))[1:]  # drop the list index of _run's box
-    kind = err["type"]
-    if kind == "unexpected_keyword_argument":
-        key, owner, _, _ = _describe(cls, loc[:-1])
-        full = f"{key}.{loc[-1]}" if key else str(loc[-1])
-        text = f"unknown key {full!r} for {owner.__name__}; allowed keys: {allowed_keys(owner)}"
-        former = aliases_of(owner)
-        if former:
-            text += "; former names: " + ", ".join(
-                f"{k} ({', '.join(v)})" for k, v in former.items()
-            )
-        return text
-    if kind == "missing":
-        key = _describe(cls, loc)[0]
-        return f"key {key!r} is required"
-    if kind == "value_error":  # a dataclass's own check (__post_init__)
-        text = str(err["ctx"]["error"]) if "ctx" in err else err["msg"]
-        key = _describe(cls, loc)[0]
-        return f"{key}: {text}" if key else text
-    # A type error: name the field (the first dataclass field on the path), its type,
-    # the value given and, when the error is deeper in it, pydantic's precise complaint.
-    fields_only = [i for i, p in enumerate(loc) if isinstance(p, str)]
-    cut = fields_only[-1] + 1 if fields_only else len(loc)
-    key, _, tp, _ = _describe(cls, loc[:cut])
-    got = _value_at(data, loc[:cut])
-    if kind in _RANGE_KINDS and not loc[cut:]:  # the right type, out of range
-        return f"bad value for key {key!r}: {_lower(err['msg'])}, got {_shown(got)}"
-    text = f"bad value for key {key!r}: expected {type_name(tp)}, got {_shown(got)}"
-    if loc[cut:]:
-        inner = key + "".join(f"[{p}]" for p in loc[cut:])
-        text += f" ({inner}: {err['msg']}, got {_shown(err['input'])})"
-    return text
-
-
-def validate(cls: type, values: Mapping[str, Any], base: Any = None, where: str = "config") -> Any:
-    """A ``cls`` instance: ``base`` (or the defaults) with ``values`` applied; nested
-    mappings set nested dataclass fields. ConfigError naming ``where``, the key and the
-    value (every problem found, ``; ``-separated)."""
-    if not isinstance(values, Mapping):
-        raise ConfigError(f"{where}: expected a mapping of key: value, got {values!r}")
-    bad = [k for k in values if not isinstance(k, str)]
-    if bad:
-        raise ConfigError(f"{where}: keys must be strings, got {bad!r}")
-    shown = {t: old for old, ts in aliases_of(cls).items() if old in values for t in ts}
-    try:
-        values = _unalias(cls, values)
-    except ConfigError as e:
-        raise ConfigError(f"{where}: {_as_given(str(e), shown)}") from None
-    data = _merge(to_plain(base), values) if base is not None else _on_defaults(cls, values)
-    try:
-        return _run(cls, data, _FINITE)
-    except pydantic.ValidationError as e:
-        errors = _union_errors_kept(cls, e.errors())
-        msgs = list(dict.fromkeys(_message(cls, data, err, shown) for err in errors))
-        raise ConfigError(f"{where}: " + "; ".join(msgs)) from None
-    except (ValueError, TypeError) as e:
-        raise ConfigError(f"{where}: {e}") from None
-
-
 def _type_at(cls: type, path: list[str]) -> Any:
     tp: Any = cls
     for name in path:
@@ -641,6 +393,29 @@ def parse_sets(sets: Iterable[str], cls: type) -> dict[str, Any]:
     return out
 
 
+class FieldsMapping:
+    """A mixin for a dataclass of an env's settings: it unpacks as a mapping of its
+    init fields, so the env is made from the block alone:
+    ``gymnasium.make("wander/Wander-v0", **config.env)``.
+
+    >>> from dataclasses import dataclass
+    >>> @dataclass
+    ... class Settings(FieldsMapping):
+    ...     a: int = 1
+    ...     b: str = "x"
+    >>> dict(**Settings())
+    {'a': 1, 'b': 'x'}
+    """
+
+    def keys(self) -> list[str]:
+        return [f.name for f in dataclasses.fields(self) if f.init]  # type: ignore[arg-type]
+
+    def __getitem__(self, name: str) -> Any:
+        if name not in self.keys():
+            raise KeyError(name)
+        return getattr(self, name)
+
+
 def check_fields(
     obj: Any,
     names: Iterable[str],
@@ -687,130 +462,51 @@ def check_fields(
             raise ValueError(f"{cls}.{name} must be {kind}{bound}, got {v!r}")
 
 
-# ----------------------------------------------------------------------------------------
-# Whole documents, path-first messages
-
-_LEADING_FIELD = re.compile(r"^(?:\w+\.)?(\w+)((?:\[\d+\])*)(:?) ")
-
-
-def _bare(tp: Any) -> Any:
-    """``tp`` without ``| None``."""
-    if typing.get_origin(tp) in (typing.Union, types.UnionType):
-        args = [a for a in typing.get_args(tp) if a is not type(None)]
-        if len(args) == 1:
-            return args[0]
-    return tp
-
-
-def _members(tp: Any) -> list[Any]:
-    """The dataclasses of a union of dataclasses (a tagged union), else []."""
-    if typing.get_origin(tp) not in (typing.Union, types.UnionType):
-        return []
-    args = [a for a in typing.get_args(tp) if a is not type(None)]
-    return args if len(args) > 1 and all(dataclasses.is_dataclass(a) for a in args) else []
+def _as_given(data: Any, err: dict[str, Any]) -> dict[str, Any]:
+    """``err`` showing the value as it was given: a number spelt as text (``'1e-6'``),
+    which :func:`_run` read as the float, is shown as that text."""
+    given: Any = data
+    for part in tuple(err["loc"])[1:]:  # after the list index of _run's box
+        try:
+            given = given[part]
+        except (KeyError, IndexError, TypeError):
+            return err
+    if isinstance(given, str) and not isinstance(err.get("input"), str):
+        return {**err, "input": given}
+    return err
 
 
-def _tags(member: Any, key: str | None = None) -> set[Any]:
-    """The values of ``member``'s Literal fields (field ``key`` only, when given): a
-    tagged union's tag is one of them."""
-    return {
-        v
-        for name, t in field_types(member).items()
-        if typing.get_origin(t) is Literal and key in (None, name)
-        for v in typing.get_args(t)
-    }
-
-
-def _walk(cls: Any, loc: Iterable[Any]) -> tuple[str, Any]:
-    """(the path text, the type there) of a pydantic error location under ``cls``; a
-    tagged union's tag (pydantic puts it in the location) leaves the path as it is."""
-    path, tp = "", cls
-    for part in loc:
-        base = _bare(tp)
-        members = _members(base)
-        if members and isinstance(part, str):
-            tp = next((m for m in members if part in _tags(m)), None)
-            continue
-        if isinstance(part, int):
-            path += f"[{part}]"
-            args = typing.get_args(base) if typing.get_origin(base) is tuple else ()
-            if len(args) == 2 and args[1] is Ellipsis:
-                tp = args[0]
-            else:
-                tp = args[part] if part < len(args) else None
-            continue
-        path = f"{path}.{part}" if path else str(part)
-        tp = field_types(base).get(part) if dataclasses.is_dataclass(base) else None
-    return path, tp
-
-
-def _at(path: str, text: str) -> str:
-    return f"{path}: {text}" if path else text
-
-
-def _path_message(cls: Any, err: Mapping[str, Any]) -> str:
-    """One pydantic error as ``path: what is wrong, got value``."""
-    loc = tuple(err["loc"])[1:]  # drop the list index of _run's box
-    kind, ctx = err["type"], err.get("ctx") or {}
-    if kind == "unexpected_keyword_argument":
-        path, tp = _walk(cls, loc[:-1])
-        owner = _bare(tp)
-        name = getattr(owner, "__name__", "this block")
-        allowed = allowed_keys(owner) if dataclasses.is_dataclass(owner) else "none"
-        return _at(path, f"unknown key {loc[-1]!r} for {name}; allowed keys: {allowed}")
-    if kind == "missing" and loc and isinstance(loc[-1], int):  # a list too short
-        path, tp = _walk(cls, loc[:-1])
-        return _at(path, f"expected {type_name(_bare(tp))}, got {_shown(err['input'])}")
-    path, tp = _walk(cls, loc)
-    if kind == "missing":
-        return _at(path, "required")
-    if kind in ("union_tag_invalid", "union_tag_not_found"):
-        key = str(ctx.get("discriminator", "kind")).strip("'")
-        tags = [t for m in _members(_bare(tp)) for t in sorted(_tags(m, key))]
-        allowed = ", ".join(repr(t) for t in tags)
-        if "tag" in ctx:
-            text = f"expected one of {allowed}, got {ctx['tag']!r}"
-        else:
-            text = f"required (one of {allowed})"
-        return _at(f"{path}.{key}" if path else key, text)
-    if kind == "value_error":  # a dataclass's own check (__post_init__): name its field
-        text = str(ctx["error"]) if "error" in ctx else err["msg"]
-        owner = _bare(tp)
-        m = _LEADING_FIELD.match(text)
-        if m and dataclasses.is_dataclass(owner) and m.group(1) in field_types(owner):
-            sub = f"{m.group(1)}{m.group(2)}"
-            path = f"{path}.{sub}" if path else sub
-            if m.group(3):  # "field: text" -> "path.field: text"
-                text = text[m.end() :]
-        return _at(path, text)
-    if kind == "literal_error":
-        return _at(path, f"expected {type_name(_bare(tp))}, got {_shown(err['input'])}")
-    return _at(path, f"{_lower(err['msg'])}, got {_shown(err['input'])}")
-
-
-def validate_paths(cls: type, data: Any, where: str | None = None) -> Any:
-    """A ``cls`` instance from the mapping ``data`` as it stands (absent keys take the
-    dataclasses' defaults; strict, unknown keys refused, numbers finite). ConfigError:
-    each problem as ``field.path: what is wrong, got value`` (``; ``-separated), after
-    ``where: `` when given.
+def validate(
+    cls: type, values: Mapping[str, Any], base: Any = None, where: str | None = None
+) -> Any:
+    """A ``cls`` instance: ``base`` (or the defaults) with ``values`` applied; nested
+    mappings set nested dataclass fields, changing only the keys they name (strict,
+    unknown keys refused, numbers finite). ConfigError: each problem as ``field.path:
+    what is wrong, got value`` (``; ``-separated), after ``where: `` when given.
 
     >>> from wander_env.scene_config import SceneConfig
     >>> try:
-    ...     validate_paths(SceneConfig, {"name": "a", "camera": {"width": 0}}, where="a.yaml")
+    ...     validate(SceneConfig, {"name": "a", "camera": {"width": 0}}, where="a.yaml")
     ... except ConfigError as e:
     ...     print(e)
     a.yaml: camera.width: input should be greater than or equal to 1, got 0
     """
     head = f"{where}: " if where else ""
-    if not isinstance(data, Mapping):
-        raise ConfigError(f"{head}expected a mapping of key: value, got {data!r}")
-    bad = [k for k in data if not isinstance(k, str)]
+    if not isinstance(values, Mapping):
+        raise ConfigError(f"{head}expected a mapping of key: value, got {values!r}")
+    bad = [k for k in values if not isinstance(k, str)]
     if bad:
         raise ConfigError(f"{head}keys must be strings, got {bad!r}")
     try:
+        values = _expand(values)
+    except ConfigError as e:
+        raise ConfigError(f"{head}{e}") from None
+    data = _merge(to_plain(base), values) if base is not None else _on_defaults(cls, values)
+    try:
         return _run(cls, data, _FINITE)
     except pydantic.ValidationError as e:
-        msgs = list(dict.fromkeys(_path_message(cls, err) for err in e.errors()))
+        errors = [_as_given(data, err) for err in kept_errors(cls, e.errors())]
+        msgs = list(dict.fromkeys(error_message(cls, err) for err in errors))
         raise ConfigError(head + "; ".join(msgs)) from None
     except (ValueError, TypeError) as e:
         raise ConfigError(f"{head}{e}") from None
@@ -838,6 +534,8 @@ def check_annotated(obj: Any) -> None:
             err = e.errors()[0]
             if err["type"] == "literal_error":
                 text = f"expected {type_name(tp)}"
+            elif err["type"] == "value_error" and "error" in (err.get("ctx") or {}):
+                raise ValueError(f"{f.name}: {err['ctx']['error']}") from None
             else:
                 text = err["msg"][:1].lower() + err["msg"][1:]
             raise ValueError(f"{f.name}: {text}, got {getattr(obj, f.name)!r}") from None

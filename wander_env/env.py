@@ -53,15 +53,15 @@ Examples:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from wander_env.camera import focal_length_px
-from wander_env.config import check_fields
 from wander_env.dvs import DVSEmulator, DVSParams, LogFrame
 from wander_env.env_base import CameraEnv, StepInfo
+from wander_env.env_config import WanderConfig
 from wander_env.events import concatenate
 from wander_env.events.packet import EventPacket
 from wander_env.frames import FRAME_SOURCES, FrameParams, Stage
@@ -71,134 +71,6 @@ from wander_env.ptu.unit import PanTiltUnit
 from wander_env.renderer import RenderParams, project_points
 from wander_env.scene_config import SceneConfig, load_scene_config
 from wander_env.viz import event_image, labelled_frame
-
-
-@dataclass(frozen=True)
-class WanderConfig:
-    """Everything that defines an environment instance (pickled with it)."""
-
-    scene: str | SceneConfig = "office"
-    control_period_s: float = 0.01
-    render_rate_hz: float = 1000.0
-    dvs: str = "ideal"
-    adaptive_log_change: float = 1.0
-    max_subframes: int = 8
-    ground_truth: bool = True
-    episode_seconds: float = 10.0
-    start_gaze_deg: tuple[float, float] = (0.0, 0.0)
-    ptu: PTUParams = field(default_factory=PTUParams)
-    dvs_params: DVSParams | None = None  # overrides the `dvs` preset when given
-    # Overrides the scene's camera.antialias_samples (MSAA) when given. 0 renders a frame
-    # about twice as fast on a CPU, but edges jump from pixel to pixel instead of sliding:
-    # bigger per-pixel log changes, so more adaptive sub-frames (office: ~1.5x the frames
-    # with a still camera) and ~5 % more events. The scenes' default is 4.
-    antialias_samples: int | None = None
-    # How the frames between control steps are made (wander_env.frames.FRAME_SOURCES):
-    # "exact" renders every one (every render tick and adaptive sub-frame); "keyframes"
-    # renders keys and synthesises the frames in between from the keys' depth and motion
-    # layers (see wander_env.keyframes).
-    frames: str = "keyframes"
-    # Keys every keyframe_ms (and at each step's end) where the image motion has no
-    # bound (a camera centre that moves, a sliding screen), or always with
-    # keyframe_px=None.
-    keyframe_ms: float = 2.0
-    # Keys where motion asks (frames="keyframes"): a step's keys are the ticks where the
-    # image motion predicted since the last key (the camera's rotation along the PTU's
-    # own trajectory, the objects' known motion) would pass keyframe_px pixels, and its
-    # end; none while nothing moves (wander_env.keyframes.adaptive_key_ticks).
-    keyframe_px: float | None = 2.0
-    # With keyframe_px: keys no more than this far apart while anything moves (None: no
-    # limit, as few as one key a step). 5 (two keys a step) keeps the events within 2
-    # points of exact rendering's against the fine reference (wander bench fidelity;
-    # one key a step: up to 3 points further, at 1.8x the speed on a still camera).
-    keyframe_max_ms: float | None = 5.0
-    # Render at this many times the resolution and average blocks (see RenderParams): the
-    # finer-antialiased reference of the fidelity benchmark (2 = 16 samples a pixel).
-    supersample: int = 1
-    # "fast": frames with the scene's antialiasing (MSAA 4); "fine": every rendered frame
-    # (a key, or in exact mode every frame) with 16 samples a pixel (supersample 2 ×
-    # MSAA 4): closer to a photodiode that integrates its whole area, at about twice the
-    # cost of a render.
-    quality: str = "fast"
-
-    def __post_init__(self) -> None:
-        names = ("control_period_s", "render_rate_hz", "adaptive_log_change", "episode_seconds")
-        check_fields(self, names, positive=True)
-        ticks = self.control_period_s * self.render_rate_hz
-        if abs(ticks - round(ticks)) > 1e-9 or round(ticks) < 1:
-            raise ValueError(
-                f"control_period_s={self.control_period_s} must be a whole number (>= 1) of "
-                f"render periods (render_rate_hz={self.render_rate_hz})"
-            )
-        if self.max_subframes < 1:  # before the division below (0 would divide by zero)
-            raise ValueError(f"WanderConfig.max_subframes must be >= 1, got {self.max_subframes}")
-        if round(1e6 / self.render_rate_hz / self.max_subframes) < 1:
-            raise ValueError(f"max_subframes={self.max_subframes} splits a tick below 1 µs")
-        if self.dvs_params is None:
-            DVSParams.preset(self.dvs)  # raises for an unknown preset name
-        if self.frames not in FRAME_MODES:
-            raise ValueError(
-                f"WanderConfig.frames must be one of {FRAME_MODES}, got {self.frames!r}"
-            )
-        intervals = {"keyframe_ms": self.keyframe_ms, "keyframe_max_ms": self.keyframe_max_ms}
-        for name, k in intervals.items():
-            if k is None and name == "keyframe_max_ms":
-                continue
-            if isinstance(k, bool) or not (
-                isinstance(k, (int, float)) and math.isfinite(k) and k > 0
-            ):
-                raise ValueError(f"WanderConfig.{name} must be a finite number > 0, got {k!r}")
-            # Keys are render ticks (and each step's end): an interval must be a whole
-            # number of ticks, or divide a tick (every tick a key).
-            key_us, tick_us = round(k * 1e3), round(1e6 / self.render_rate_hz)
-            whole = abs(k * 1e3 - key_us) <= 1e-6 and key_us >= 1
-            if not whole or (key_us % tick_us and tick_us % key_us):
-                raise ValueError(
-                    f"WanderConfig.{name}={k} must be a whole number of render periods or "
-                    f"divide one (render_rate_hz={self.render_rate_hz}: {tick_us} µs)"
-                )
-        px = self.keyframe_px
-        if px is not None and (
-            isinstance(px, bool)
-            or not (isinstance(px, (int, float)) and math.isfinite(px))
-            or px <= 0
-        ):
-            raise ValueError(
-                f"WanderConfig.keyframe_px must be None or a finite number > 0, got {px!r}"
-            )
-        ss = self.supersample
-        if isinstance(ss, bool) or not isinstance(ss, int) or ss < 1:
-            raise ValueError(f"WanderConfig.supersample must be an int >= 1, got {ss!r}")
-        if self.quality not in QUALITIES:
-            raise ValueError(
-                f"WanderConfig.quality must be one of {QUALITIES}, got {self.quality!r}"
-            )
-        if self.quality == "fine" and ss != 1:
-            raise ValueError("give WanderConfig.quality='fine' or a supersample, not both")
-        aa = self.antialias_samples
-        if aa is not None and (isinstance(aa, bool) or not isinstance(aa, int) or aa < 0):
-            raise ValueError(f"WanderConfig.antialias_samples must be an int >= 0, got {aa!r}")
-
-    @property
-    def ticks_per_step(self) -> int:
-        return round(self.control_period_s * self.render_rate_hz)
-
-    @property
-    def tick_us(self) -> int:
-        return round(1e6 / self.render_rate_hz)
-
-    @property
-    def keyframe_us(self) -> int:
-        return round(self.keyframe_ms * 1e3)
-
-    @property
-    def render_supersample(self) -> int:
-        """The renderer's supersampling: ``supersample``, or 2 with ``quality="fine"``."""
-        return 2 if self.quality == "fine" else self.supersample
-
-
-FRAME_MODES = tuple(FRAME_SOURCES)
-QUALITIES = ("fast", "fine")
 
 
 class WanderEnv(CameraEnv):
@@ -258,9 +130,7 @@ class WanderEnv(CameraEnv):
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         cfg = state["config"]
-        self.__init__(
-            render_mode=state["render_mode"], **{f.name: getattr(cfg, f.name) for f in fields(cfg)}
-        )
+        self.__init__(render_mode=state["render_mode"], **cfg)
 
     # -- the step ----------------------------------------------------------------------
     def collect(self, clipped: bool) -> tuple[np.ndarray, StepInfo]:

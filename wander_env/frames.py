@@ -17,7 +17,8 @@ once per tick, computed once per step) into the frames the DVS sees:
 
 :class:`ExactFrames` renders every frame. :class:`KeyframeFrames` renders keys and makes
 the frames between them from the keys' geometry (:mod:`wander_env.keyframes`). A new
-frame mode is one more subclass, named in :data:`FRAME_SOURCES`.
+frame mode is one more subclass, named in :data:`FRAME_SOURCES` and in
+:data:`wander_env.env_config.FrameMode`.
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ Conventions: metres, degrees, seconds; the world frame has z up, and the PTU loo
 (not MuJoCo half-sizes): a box ``[sx, sy, sz]``, a sphere ``[diameter]``, a cylinder
 ``[diameter, height]`` (axis along z).
 
-Validation: :func:`wander_env.config.validate_paths` (pydantic, strict, unknown keys
+Validation: :func:`wander_env.config.validate` (pydantic, strict, unknown keys
 refused, numbers finite) reads a scene file into these dataclasses; single-field bounds
 are ``Annotated`` constraints on the fields, cross-field rules are ``__post_init__``
 checks, and a trajectory is a union tagged by its ``kind``. A bad value, a missing
@@ -57,9 +57,9 @@ import numpy as np
 import pydantic
 
 from wander_env.camera import SPECK_HFOV_DEG
-from wander_env.config import ConfigError, check_annotated, load_yaml, validate_paths
+from wander_env.config import ConfigError, check_annotated, load_yaml, validate
 from wander_env.field_doc import field_doc
-from wander_env.textures import GRATING_PROFILES, TextureSpec
+from wander_env.textures import TextureSpec
 from wander_env.trajectories import TrajectoryParams
 
 Finite = Annotated[float, pydantic.Field(allow_inf_nan=False)]
@@ -622,12 +622,6 @@ class GratingConfig:
     ] = 128
 
     def __post_init__(self) -> None:
-        # the Literal fields first: check_annotated names an Annotated[Literal] "Annotated"
-        for name, allowed in (("mode", GRATING_MODES), ("profile", GRATING_PROFILES)):
-            value = getattr(self, name)
-            if value not in allowed:
-                options = ", ".join(repr(a) for a in allowed)
-                raise ValueError(f"{name}: expected one of {options}, got {value!r}")
         check_annotated(self)
 
     @property
@@ -849,7 +843,7 @@ def scene_config_from_dict(
     if isinstance(data, Mapping) and "name" not in data:
         data = {"name": default_name, **data}
     _check_lengths(data, where)
-    return validate_paths(SceneConfig, data, where=where)
+    return validate(SceneConfig, data, where=where)
 
 
 def _check_lengths(data: Any, where: str | None) -> None:

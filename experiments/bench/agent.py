@@ -191,7 +191,7 @@ def loop_modes(
 ) -> ModesRow:
     """Two closed loops (env + agent), ``frames="exact"`` and ``"keyframes"``, stepped
     alternately (one step of each in turn, each timed), so that machine noise hits both."""
-    from wander_env.env import WanderConfig
+    from wander_env.env_config import WanderConfig
 
     km = WanderConfig.keyframe_ms if keyframe_ms is None else keyframe_ms
     modes = {"exact": {"frames": "exact"}, "keyframes": {"frames": "keyframes", "keyframe_ms": km}}

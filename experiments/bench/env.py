@@ -117,7 +117,7 @@ def bench_env(
     order rotated every step), so that a noisy machine slows all alike; each step is
     timed.
     """
-    from wander_env.env import WanderConfig
+    from wander_env.env_config import WanderConfig
 
     km = WanderConfig.keyframe_ms if keyframe_ms is None else keyframe_ms
     modes = {

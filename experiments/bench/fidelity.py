@@ -263,7 +263,7 @@ def run_row(
     import gymnasium as gym
 
     import wander_env  # noqa: F401  (registers the environments)
-    from wander_env.env import WanderConfig
+    from wander_env.env_config import WanderConfig
 
     period = WanderConfig.control_period_s
     kwargs = mode_kwargs(period, reference_hz, reference_supersample)

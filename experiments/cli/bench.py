@@ -11,7 +11,7 @@ from typing import Annotated
 import typer
 
 from experiments.cli.console import console, print_table
-from experiments.cli.options import KeyframeMsOpt, SceneOpt, frames_kwargs, int_list, seconds_option
+from experiments.cli.options import KeyframeMsOpt, SceneOpt, int_list, seconds_option
 
 __all__ = ["app"]
 
@@ -80,7 +80,7 @@ def bench_env(
     from experiments.bench.env import BREAKDOWN_COLUMNS, ENV_COLUMNS, step_breakdown
     from experiments.bench.env import bench_env as run
 
-    km = frames_kwargs(None, keyframe_ms).get("keyframe_ms")
+    km = keyframe_ms  # None: the env's
     counts = tuple(int_list(envs, "--envs", "env count", minimum=1))
     # Every row's scene, length, antialiasing and keyframe interval.
     common = {"scene": scene, "seconds": seconds, "antialias_samples": antialias, "keyframe_ms": km}
@@ -117,7 +117,7 @@ def bench_agent(
     from experiments.bench.agent import LATENCY_COLUMNS, LOOP_COLUMNS, MODES_COLUMNS, loop_modes
     from experiments.bench.agent import bench_agent as run
 
-    fk = frames_kwargs(None, keyframe_ms)
+    fk = {} if keyframe_ms is None else {"keyframe_ms": keyframe_ms}
     rows, loop = run(seconds=seconds, scene=scene, seed=seed, **fk)
     print_table("Agent latency at 128x128 (ms per call)", rows, LATENCY_COLUMNS)
     print_table(

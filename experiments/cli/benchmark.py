@@ -40,7 +40,15 @@ from experiments.benchmark.runner import (
 )
 from experiments.cli.console import progress_bars
 from experiments.cli.errors import fail
-from experiments.cli.options import ForceOpt, option, resolve_out, with_options
+from experiments.cli.options import (
+    AgentAlphaOpt,
+    ForceOpt,
+    RunDirOpt,
+    StreamlinedOpt,
+    option,
+    resolve_out,
+    with_options,
+)
 
 app = typer.Typer(
     help="Benchmarks on real event datasets: sOMS maps against masks (IoU, precision, SSIM), "
@@ -191,38 +199,10 @@ def _finish(out: Path, md: str, started: float) -> None:
 # ----------------------------------------------------------------------------------------
 # Options shared by the commands
 
-OutOpt = Annotated[
-    Path | None,
-    typer.Option(
-        "--out",
-        help="Output folder (default runs/benchmark-<name>-DATE-TIME/; an existing non-empty "
-        "folder needs --force).",
-    ),
-]
 MaxWindowsOpt = Annotated[
     int | None,
     typer.Option(
-        "--max-windows",
-        "--limit",
-        min=1,
-        help="Score only the first N windows of each sequence (a quick run; noted).",
-    ),
-]
-StreamlinedOpt = Annotated[
-    bool,
-    typer.Option(
-        "--streamlined/--split",
-        help="Proto-object stage on V = V+ or V- (the paper's streamlined model) instead of "
-        "one population per polarity line.",
-    ),
-]
-AlphaOpt = Annotated[
-    float | None,
-    typer.Option(
-        "--alpha",
-        min=0.0,
-        max=1.0,
-        help="sOMS threshold α of Eq. (1) (default: the paper's table, 0.80).",
+        min=1, help="Score only the first N windows of each sequence (a quick run; noted)."
     ),
 ]
 MaxSequencesOpt = Annotated[int | None, typer.Option(min=1, help="Only the first N sequences.")]
@@ -243,7 +223,7 @@ StdOverOpt = Annotated[
 # dataset commands (evimo, llevos; in the order run.json lists them, threads and
 # progress aside).
 MAX_WINDOWS = option("max_windows", MaxWindowsOpt, None)
-MODEL_OPTIONS = (option("streamlined", StreamlinedOpt, False), option("alpha", AlphaOpt, None))
+MODEL_OPTIONS = (option("streamlined", StreamlinedOpt, False), option("alpha", AgentAlphaOpt, None))
 RUN_OPTIONS = (
     option("threads", ThreadsOpt, None),
     option("progress", ProgressOpt, True),
@@ -333,7 +313,7 @@ def evimo(
             "floor, table, tabletop, wall) and/or EVIMO2v2 sequence folders; or one .npz."
         ),
     ],
-    out: OutOpt = None,
+    out: RunDirOpt = None,
     subset: Annotated[
         list[str] | None, typer.Option("--subset", help="Only these subsets (repeatable).")
     ] = None,
@@ -370,7 +350,7 @@ def llevos(
             "Lowlight_event/<seq>/<frame>.npz|.npy (or one folder above it)."
         ),
     ],
-    out: OutOpt = None,
+    out: RunDirOpt = None,
     sequence: Annotated[
         list[str] | None, typer.Option("--sequence", help="Only these sequences (repeatable).")
     ] = None,
@@ -410,7 +390,7 @@ def events(
             "mask k covers T - window <= t < T.",
         ),
     ],
-    out: OutOpt = None,
+    out: RunDirOpt = None,
     name: Annotated[
         str | None,
         typer.Option(help="Sequence name (default: file stem, or the folder for events*)."),
@@ -512,7 +492,7 @@ def suppression(
         list[Path],
         typer.Argument(help="Event files, or folders whose event files are all read."),
     ],
-    out: OutOpt = None,
+    out: RunDirOpt = None,
     sensor: Annotated[
         str | None,
         typer.Option(help="Sensor WxH (default: the file's; a bare .npy infers it)."),
@@ -522,7 +502,7 @@ def suppression(
     ] = 2000,
     max_windows: Annotated[
         int | None,
-        typer.Option("--max-windows", "--limit", min=1, help="Only the first N steps of each."),
+        typer.Option(min=1, help="Only the first N steps of each."),
     ] = None,
     **shared: Any,
 ) -> None:

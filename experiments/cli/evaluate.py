@@ -16,8 +16,8 @@ from experiments.cli.options import (
     FRAME_OPTIONS,
     DvsOpt,
     SceneOpt,
+    command_config,
     int_list,
-    job_config,
     resolve_out,
     seconds_option,
     with_options,
@@ -29,6 +29,7 @@ __all__ = ["evaluate"]
 @long_command("wander evaluate")
 @with_options(AGENT_OPTIONS, FRAME_OPTIONS)
 def evaluate(
+    ctx: typer.Context,
     out: Annotated[
         Path | None,
         typer.Option(
@@ -47,10 +48,11 @@ def evaluate(
     from experiments.jobs.run_agent import RunConfig
 
     seed_list = int_list(seeds, "--seeds", "seed")
+    config = command_config(ctx, RunConfig, base=RunConfig(video=False))
     out = resolve_out(out, "evaluate", shared["force"])
-    config = job_config(RunConfig, {**locals(), **shared}, video=False)
     with progress_bars() as bar:
-        task = bar.add_task("evaluate", total=round(seconds / 0.01) * len(seed_list))
+        steps = round(config.seconds / config.env.control_period_s)
+        task = bar.add_task("evaluate", total=steps * len(seed_list))
         done = {s: 0 for s in seed_list}
 
         def tick(seed: int, i: int, n: int) -> None:
@@ -59,7 +61,8 @@ def evaluate(
 
         rows = run_eval(out, config, seed_list, progress=tick)
     print_table(
-        f"Agent quality in '{scene}' ({seconds:g} s per seed; all = the seeds pooled)",
+        f"Agent quality in {config.env.scene!r} ({config.seconds:g} s per seed; all = the "
+        "seeds pooled)",
         rows,
         {
             "seed": "",

@@ -4,13 +4,14 @@ of each flag, its help and its check. Flags that several commands take together 
 agent's switches, the frame source) are option groups, added to a command by
 :func:`with_options`.
 
-Every check runs while the command line is parsed (a Click callback), so a bad value
-is refused before any work starts, with one line naming the option, the allowed values
-and the value (:mod:`experiments.cli.errors`).
+A job command's flags set its config through one table (:data:`FLAG_KEYS`: ``--frames``
+sets ``env.frames``) and the one validator (:func:`command_config`, which also reads
+``--config`` files and ``--set`` items); other checks run while the command line is
+parsed (a Click callback). Either way a bad value is refused before any work starts,
+with one line naming the option, the allowed values and the value
+(:mod:`experiments.cli.errors`).
 
 Examples:
-    >>> agent_alpha(None), agent_alpha(0.8)
-    ({}, {'alpha': 0.8})
     >>> check_seconds(2.5), check_dvs("speck"), check_scene("office")
     (2.5, 'speck', 'office')
     >>> check_seconds(-1.0)
@@ -23,7 +24,7 @@ from __future__ import annotations
 
 import inspect
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
@@ -34,6 +35,7 @@ from experiments.framework import MAX_SEED
 
 __all__ = [
     "AGENT_OPTIONS",
+    "FLAG_KEYS",
     "FRAME_OPTIONS",
     "MAX_SECONDS",
     "MAX_WORKERS",
@@ -43,15 +45,16 @@ __all__ = [
     "ForceOpt",
     "FramesOpt",
     "KeyframeMsOpt",
+    "QualityOpt",
     "RunDirOpt",
     "SceneOpt",
     "SecondsOpt",
     "SeedOpt",
+    "SetOpt",
     "SomsNormOpt",
     "StreamlinedOpt",
     "VideoOpt",
     "WindowOpt",
-    "agent_alpha",
     "check_dvs",
     "check_positive",
     "check_scene",
@@ -59,9 +62,9 @@ __all__ = [
     "check_seed",
     "check_wait",
     "check_workers",
-    "frames_kwargs",
+    "command_config",
+    "flag_name",
     "int_list",
-    "job_config",
     "one_of",
     "option",
     "resolve_out",
@@ -218,7 +221,11 @@ WindowOpt = Annotated[
 ]
 FixationalOpt = Annotated[bool, typer.Option(help="Fixational eye movements during fixations.")]
 StreamlinedOpt = Annotated[
-    bool, typer.Option(help="Streamlined proto-object model (no polarity split).")
+    bool,
+    typer.Option(
+        help="Streamlined proto-object model (V = V+ or V-, the paper's) instead of one "
+        "population per polarity."
+    ),
 ]
 VideoOpt = Annotated[bool, typer.Option(help="Write run.mp4.")]
 AgentAlphaOpt = Annotated[
@@ -226,7 +233,7 @@ AgentAlphaOpt = Annotated[
     typer.Option(
         min=0.0,
         max=1.0,
-        help="sOMS threshold α (default: the paper's table 0.8, on the agent's quantile norm).",
+        help="sOMS threshold α of Eq. (1) (default: the paper's table, 0.8).",
     ),
 ]
 
@@ -241,53 +248,33 @@ SomsNormOpt = Annotated[
 ]
 
 
-FRAME_MODES = ("keyframes", "exact")  # as wander_env.env.FRAME_MODES (no env import here)
 FramesOpt = Annotated[
-    str | None,
+    str,
     typer.Option(
-        callback=one_of(("keyframes", "exact")),
-        help="How the env makes its frames: keyframes (render every --keyframe-ms, "
-        "synthesise the rest) or exact (render every frame; the reference). "
-        "Default: the env's (keyframes).",
+        help="How the env makes its frames: keyframes (render keys where motion needs "
+        "them, synthesise the rest) or exact (render every frame; the reference).",
     ),
 ]
 QualityOpt = Annotated[
     str,
     typer.Option(
-        callback=one_of(("fast", "fine")),
         help="Rendering quality: fast (4 samples a pixel, as exact rendering) or fine "
         "(16 samples a pixel: closer to the world, about 3x the rendering time).",
     ),
 ]
 KeyframeMsOpt = Annotated[
     float | None,
-    typer.Option(min=0.001, help="Keyframe interval (ms) of --frames keyframes (default 2)."),
+    typer.Option(
+        help="Key interval (ms) of --frames keyframes where the image motion has no bound."
+    ),
 ]
-
-
-def frames_kwargs(frames: str | None, keyframe_ms: float | None) -> dict[str, object]:
-    """The env config keywords for ``--frames``/``--keyframe-ms`` (only those given).
-
-    >>> frames_kwargs("exact", None), frames_kwargs(None, 5.0)
-    ({'frames': 'exact'}, {'keyframe_ms': 5.0})
-    """
-    out: dict[str, object] = {}
-    if frames is not None:
-        if frames not in FRAME_MODES:
-            raise typer.BadParameter(f"--frames must be one of {FRAME_MODES}, got {frames!r}")
-        out["frames"] = frames
-    if keyframe_ms is not None:
-        if abs(keyframe_ms - round(keyframe_ms)) > 1e-9 or round(keyframe_ms) < 1:
-            msg = f"--keyframe-ms must be a whole number of 1 ms render ticks, got {keyframe_ms}"
-            raise typer.BadParameter(msg)
-        out["keyframe_ms"] = float(keyframe_ms)
-    return out
-
-
-def agent_alpha(alpha: float | None) -> dict[str, float]:
-    """The config keyword for an ``--alpha`` given on the command line (None: the
-    config's own default, :data:`agents.attention.AGENT_SOMS_ALPHA`)."""
-    return {} if alpha is None else {"alpha": alpha}
+SetOpt = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--set",
+        help="Set any config key: --set env.keyframe_px=4 (repeatable; applied last).",
+    ),
+]
 
 
 T = TypeVar("T")
@@ -326,7 +313,8 @@ def with_options(*groups: Sequence[inspect.Parameter]) -> Callable[[F], F]:
 
 
 # The agent's switches (``wander run``, ``wander evaluate``) and the env's frame source
-# with the run folder's --force (``wander record``, ``run``, ``evaluate``).
+# with the run folder's --force and --set (``wander record``, ``run``, ``evaluate``). The
+# defaults are the config's (:class:`~wander_env.env_config.WanderConfig`): a test checks.
 AGENT_OPTIONS = (
     option("streamlined", StreamlinedOpt, False),
     option("alpha", AgentAlphaOpt, None),
@@ -334,46 +322,103 @@ AGENT_OPTIONS = (
 )
 FRAME_OPTIONS = (
     option("force", ForceOpt, False),
-    option("frames", FramesOpt, None),
-    option("keyframe_ms", KeyframeMsOpt, None),
+    option("frames", FramesOpt, "keyframes"),
+    option("keyframe_ms", KeyframeMsOpt, 2.0),
     option("quality", QualityOpt, "fast"),
+    option("set_", SetOpt, None),
 )
 
-# Flags named otherwise than the config field they set.
-FIELD_OF_FLAG = {"window": "window_s"}
+#: Each flag of the job commands (by its parameter name) and the dotted config key it
+#: sets: the one path from a flag to a job's config, and from there to the env
+#: (``gymnasium.make(..., **config.env)``). ``--set`` reaches every other key.
+FLAG_KEYS: dict[str, str] = {
+    "scene": "env.scene",
+    "seconds": "env.episode_seconds",
+    "dvs": "env.dvs",
+    "frames": "env.frames",
+    "keyframe_ms": "env.keyframe_ms",
+    "quality": "env.quality",
+    "ptu": "env.ptu",
+    "camera": "env.camera",
+    "replay": "env.replay",
+    "hfov_deg": "env.hfov_deg",
+    "seed": "seed",
+    "window": "window_s",
+    "fixational": "fixational",
+    "streamlined": "streamlined",
+    "alpha": "alpha",
+    "soms_norm": "soms_norm",
+    "video": "video",
+    "policy": "policy",
+    "format": "format",
+}
 
 
-def job_config(cls: Callable[..., T], flags: Mapping[str, Any], **fixed: Any) -> T:
-    """A job's config ``cls`` from a command's flags (``locals()`` on entry): every
-    keyword of ``cls`` that a flag of the same name sets (``--window`` sets ``window_s``);
-    ``--alpha``, ``--frames`` and ``--keyframe-ms`` only when given (:func:`agent_alpha`,
-    :func:`frames_kwargs`: the config's defaults otherwise); ``fixed`` sets keywords the
-    command fixes. Flags that are no keyword of ``cls`` (``--out``, ``--force``) are left.
+def flag_name(param: str) -> str:
+    """The command-line spelling of the flag of parameter ``param``.
 
-    >>> from dataclasses import dataclass
-    >>> @dataclass
-    ... class Job:
-    ...     seconds: float = 1.0
-    ...     window_s: float = 0.1
-    ...     alpha: float = 0.8
-    ...     video: bool = True
-    >>> job_config(Job, {"seconds": 2.0, "window": 0.2, "alpha": None, "force": True})
-    Job(seconds=2.0, window_s=0.2, alpha=0.8, video=True)
-    >>> job_config(Job, {"alpha": 0.5, "video": True}, video=False)
-    Job(seconds=1.0, window_s=0.1, alpha=0.5, video=False)
+    >>> flag_name("keyframe_ms"), flag_name("hfov_deg")
+    ('--keyframe-ms', '--hfov')
     """
-    special = ("alpha", "frames", "keyframe_ms")
-    keywords = set(inspect.signature(cls).parameters)
-    kwargs: dict[str, Any] = {
-        FIELD_OF_FLAG.get(flag, flag): value
-        for flag, value in flags.items()
-        if FIELD_OF_FLAG.get(flag, flag) in keywords and flag not in special
-    }
-    if "alpha" in flags:
-        kwargs.update(agent_alpha(flags["alpha"]))
-    if "frames" in flags or "keyframe_ms" in flags:
-        kwargs.update(frames_kwargs(flags.get("frames"), flags.get("keyframe_ms")))
-    return cls(**{**kwargs, **fixed})
+    return "--hfov" if param == "hfov_deg" else "--" + param.replace("_", "-")
+
+
+def _flag_values(ctx: typer.Context, given_only: bool) -> dict[str, Any]:
+    """The dotted keys and values of the command's flags of :data:`FLAG_KEYS` (an
+    optional flag left unset, ``None``, sets nothing); only those typed on the command
+    line with ``given_only``."""
+    from typer._click.core import ParameterSource
+
+    out = {}
+    for name, value in ctx.params.items():
+        key = FLAG_KEYS.get(name)
+        if key is None or value is None:
+            continue
+        if given_only and ctx.get_parameter_source(name) is not ParameterSource.COMMANDLINE:
+            continue
+        out[key] = value
+    return out
+
+
+def _flags_error(text: str) -> typer.BadParameter:
+    """A config error of the flags' layer as a usage error on the flag that set the key."""
+    for name, key in FLAG_KEYS.items():
+        if text.startswith(f"{key}: "):
+            return typer.BadParameter(text[len(key) + 2 :], param_hint=f"'{flag_name(name)}'")
+    return typer.BadParameter(text)
+
+
+def command_config(
+    ctx: typer.Context,
+    cls: Callable[..., T],
+    base: T | None = None,
+    config_file: Path | None = None,
+) -> T:
+    """A job's config ``cls`` from its command line, in layers: ``base`` (or the class's
+    defaults) <- every flag of :data:`FLAG_KEYS` <- the ``--config`` file <- the flags typed
+    on the command line <- ``--set`` items. Each layer goes through the one validator
+    (:func:`wander_env.config.validate`), so a bad value is one line naming its flag, file
+    or ``--set`` (exit 2) before anything runs."""
+    from experiments.cli.errors import fail
+    from experiments.framework import load_yaml_mapping
+    from wander_env.config import ConfigError, parse_sets, validate
+
+    config: Any = base
+    try:
+        config = validate(cls, _flag_values(ctx, given_only=False), config)  # type: ignore[arg-type]
+    except ConfigError as err:
+        raise _flags_error(str(err)) from None
+    try:
+        if config_file is not None:
+            file_values = load_yaml_mapping(config_file)
+            config = validate(cls, file_values, config, str(config_file))  # type: ignore[arg-type]
+            config = validate(cls, _flag_values(ctx, given_only=True), config)  # type: ignore[arg-type]
+        sets = ctx.params.get("set_") or []
+        if sets:
+            config = validate(cls, parse_sets(sets, cls), config, "--set")  # type: ignore[arg-type]
+    except ConfigError as err:
+        raise fail(err) from None
+    return config
 
 
 def resolve_out(out: Path | None, command: str, force: bool) -> Path:
@@ -390,17 +435,11 @@ def resolve_out(out: Path | None, command: str, force: bool) -> Path:
 
 
 def run_env_job(
-    job: Callable[..., T],
-    cls: Callable[..., Any],
-    flags: Mapping[str, Any],
-    command: str,
-    title: str,
+    job: Callable[..., T], config: Any, out: Path | None, force: bool, command: str, title: str
 ) -> tuple[Path, T]:
-    """Run ``job(folder, config, progress=...)`` with the config ``cls`` of a command's
-    ``flags`` (:func:`job_config`) in a new run folder of its ``--out`` and ``--force``
-    (:func:`resolve_out`) under one progress bar of ``config.seconds`` in env steps of
-    10 ms; returns the folder and what the job returned."""
-    config = job_config(cls, flags)
-    folder = resolve_out(flags["out"], command, flags["force"])
-    with step_progress(title, round(config.seconds / 0.01)) as progress:
+    """Run ``job(folder, config, progress=...)`` in a new run folder of ``out`` and
+    ``force`` (:func:`resolve_out`) under one progress bar of the config's env steps."""
+    folder = resolve_out(out, command, force)
+    steps = round(config.env.episode_seconds / config.env.control_period_s)
+    with step_progress(title, steps) as progress:
         return folder, job(folder, config, progress=progress)

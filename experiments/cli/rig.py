@@ -13,7 +13,6 @@ signal (130, 143, 129).
 from __future__ import annotations
 
 import math
-import re
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -26,10 +25,11 @@ from experiments.cli.options import (
     FixationalOpt,
     ForceOpt,
     RunDirOpt,
+    SetOpt,
     StreamlinedOpt,
     VideoOpt,
     WindowOpt,
-    job_config,
+    command_config,
     resolve_out,
     seconds_option,
 )
@@ -80,6 +80,7 @@ def dropped_warning(metrics: dict[str, Any]) -> str | None:
 
 @long_command("wander rig")
 def rig(
+    ctx: typer.Context,
     ptu: Annotated[
         str,
         typer.Option(
@@ -120,17 +121,12 @@ def rig(
     alpha: AgentAlphaOpt = None,
     video: VideoOpt = True,
     force: ForceOpt = False,
+    set_: SetOpt = None,
 ) -> None:
     """Run the attention agent closed-loop on the rig; write the run folder of `wander run`."""
     from experiments.jobs.rig import RigRunConfig, RigRunError, run_rig
 
-    try:
-        config = job_config(RigRunConfig, locals())
-    except ValueError as err:
-        field = re.match(r"Rig(?:Run)?Config\.(\w+)", str(err))
-        flags = {"hfov_deg": "hfov", "window_s": "window"}  # fields named otherwise
-        hint = f"'--{flags.get(field.group(1), field.group(1))}'" if field else None
-        raise typer.BadParameter(str(err), param_hint=hint) from None
+    config = command_config(ctx, RigRunConfig)
     replay_file = Path(camera[len("replay:") :]) if camera.startswith("replay:") else None
     if replay_file is not None and not replay_file.is_file():
         raise typer.BadParameter(

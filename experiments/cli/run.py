@@ -4,33 +4,29 @@ Rerun viewer on one. :mod:`experiments.cli.main` registers them.
 
 ``wander run --config FILE`` reads the run's settings from a YAML file of
 :class:`~experiments.jobs.run_agent.RunConfig` keys, the format ``wander experiment
---config`` reads (:func:`experiments.framework.load_yaml_mapping`, validated by
-:func:`experiments.framework.config_from_dict`), e.g.::
+--config`` reads, e.g.::
 
-    scene: shelf
-    seconds: 5.0
+    env:
+      scene: shelf
+      episode_seconds: 5.0
     window_s: 0.05
     soms_norm: minmax
 
-A flag given on the command line overrides the file's value.
+A flag given on the command line, then ``--set``, overrides the file's value
+(:func:`experiments.cli.options.command_config`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import fields
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
-from typer._click.core import ParameterSource
 
 from experiments.cli.console import console, step_progress
-from experiments.cli.errors import fail, long_command
+from experiments.cli.errors import long_command
 from experiments.cli.options import (
     AGENT_OPTIONS,
-    FIELD_OF_FLAG,
-    FRAME_MODES,
     FRAME_OPTIONS,
     DvsOpt,
     FixationalOpt,
@@ -40,8 +36,7 @@ from experiments.cli.options import (
     SecondsOpt,
     VideoOpt,
     WindowOpt,
-    check_dvs,
-    check_scene,
+    command_config,
     one_of,
     resolve_out,
     run_env_job,
@@ -49,7 +44,7 @@ from experiments.cli.options import (
     with_options,
 )
 
-__all__ = ["demo", "flags_with_config_file", "record", "run_agent", "view"]
+__all__ = ["demo", "record", "run_agent", "view"]
 
 
 @long_command("wander demo")
@@ -80,6 +75,7 @@ def demo(
 @long_command("wander record")
 @with_options(FRAME_OPTIONS)
 def record(
+    ctx: typer.Context,
     out: RunDirOpt = None,
     scene: SceneOpt = "office",
     seconds: SecondsOpt = 5.0,
@@ -108,44 +104,9 @@ def record(
     from experiments.jobs.record import RecordConfig
     from experiments.jobs.record import record as run
 
-    flags = {**locals(), **shared}
-    out, summary = run_env_job(run, RecordConfig, flags, "record", f"record {scene}")
+    config = command_config(ctx, RecordConfig)
+    out, summary = run_env_job(run, config, out, shared["force"], "record", f"record {scene}")
     console.print(f"{summary['events']:,} events over {summary['steps']} steps -> {out}")
-
-
-def flags_with_config_file(ctx: typer.Context, flags: Mapping[str, Any]) -> dict[str, Any]:
-    """``flags`` with every value the ``--config`` file sets that no flag given on the
-    command line overrides (the file checked as the flags are: keys, types, scene, DVS
-    preset, frame mode); a bad file is one line (exit 2)."""
-    from experiments.framework import ConfigError, config_from_dict, load_yaml_mapping
-    from experiments.jobs.run_agent import RunConfig
-
-    path = flags["config"]
-    out = dict(flags)
-    if path is None:
-        return out
-    try:
-        base = config_from_dict(RunConfig, load_yaml_mapping(path), where=str(path))
-        checks = (
-            ("scene", check_scene),
-            ("dvs", check_dvs),
-            ("frames", one_of(FRAME_MODES)),
-            ("quality", one_of(("fast", "fine"))),
-        )
-        for key, check in checks:
-            try:
-                check(getattr(base, key))
-            except typer.BadParameter as err:
-                raise ConfigError(f"{path}: bad value for key {key!r}: {err.message}") from None
-    except ConfigError as err:
-        raise fail(err) from None
-    flag_of = {field: flag for flag, field in FIELD_OF_FLAG.items()}
-    given = {k for k in flags if ctx.get_parameter_source(k) is ParameterSource.COMMANDLINE}
-    for f in fields(RunConfig):
-        flag = flag_of.get(f.name, f.name)
-        if flag not in given:
-            out[flag] = getattr(base, f.name)
-    return out
 
 
 @long_command("wander run")
@@ -165,9 +126,9 @@ def run_agent(
         typer.Option(
             exists=True,
             dir_okay=False,
-            help="A YAML file of the run's settings (RunConfig keys: scene, seconds, seed, "
-            "dvs, window_s, ...; the format of `wander experiment --config`). Flags given "
-            "on the command line override it.",
+            help="A YAML file of the run's settings (RunConfig keys: env (scene, dvs, "
+            "frames, episode_seconds, ...), seed, window_s, ...; the format of `wander "
+            "experiment --config`). Flags given on the command line and --set override it.",
         ),
     ] = None,
     **shared: Any,
@@ -176,8 +137,9 @@ def run_agent(
     from experiments.jobs.run_agent import RunConfig
     from experiments.jobs.run_agent import run as run_loop
 
-    flags = flags_with_config_file(ctx, {**locals(), **shared})
-    out, result = run_env_job(run_loop, RunConfig, flags, "run", f"agent in {flags['scene']}")
+    config = command_config(ctx, RunConfig, config_file=config)
+    title = f"agent in {config.env.scene}"
+    out, result = run_env_job(run_loop, config, out, shared["force"], "run", title)
     m = result.metrics
     detection = (
         f"detection accuracy {m['detection_accuracy']:.0%} ({m['decisions_scored']} scored)"

@@ -139,7 +139,7 @@ def evaluate(
         kept.append(int(m["events_kept_by_soms"]))
         seen.append(int(m["events_into_agent"]))
     total = pooled(rows, kept, seen)
-    rec = run_record("wander evaluate", {"run": config.__dict__, "seeds": seeds}, None)
+    rec = run_record("wander evaluate", {"run": asdict(config), "seeds": seeds}, None)
     RunFolder(out_dir).write_json(
         "quality.json", rec | {"rows": [asdict(r) for r in rows], "pooled": asdict(total)}
     )

@@ -15,24 +15,25 @@ The policies are :class:`agents.scripted.GazePolicy`'s: ``still``, ``fixational`
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import gymnasium as gym
 import h5py
 import numpy as np
+import pydantic
 
 import wander_env  # noqa: F401  (registers the environments)
-from agents.scripted import POLICIES, GazePolicy
-from experiments.jobs.run_agent import env_kwargs
+from agents.scripted import GazePolicy, Policy
+from experiments.framework import MAX_SEED
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
 from experiments.runs.signals import DeferredSignals, SignalExit
 from experiments.runs.viewer import open_run_log
 from wander_env.camera import focal_length_px
-from wander_env.config import check_fields
-from wander_env.env import WanderConfig
+from wander_env.config import check_annotated
+from wander_env.env_config import WanderConfig
 from wander_env.events.formats import write_evimo2_sequence
 from wander_env.events.io import read_events, write_events
 from wander_env.events.stream import EventStreamWriter, H5Appender, VideoSink
@@ -44,25 +45,24 @@ FORMATS = {"h5": "events.h5", "aedat4": "events.aedat4", "evt3": "events.raw", "
 
 @dataclass(frozen=True)
 class RecordConfig:
-    scene: str = "office"
-    seconds: float = 5.0
-    policy: str = "fixational"
-    dvs: str = "ideal"
-    seed: int = 0
-    saccade_interval_s: float = 0.5
+    """What ``wander record`` records: the env's block (its ``episode_seconds`` is the
+    recording's length: 5 s by default), the gaze policy (:data:`agents.scripted.POLICIES`) and its seed,
+    the seconds between its saccades, the video and the events' format (:data:`FORMATS`)."""
+
+    env: WanderConfig = field(default_factory=lambda: WanderConfig(episode_seconds=5.0))
+    policy: Policy = "fixational"
+    seed: Annotated[int, pydantic.Field(ge=0, le=MAX_SEED)] = 0
+    saccade_interval_s: Annotated[float, pydantic.Field(gt=0)] = 0.5
     video: bool = True
-    format: str = "h5"
-    frames: str = WanderConfig.frames  # the env's frame source (keyframes or exact)
-    keyframe_ms: float = WanderConfig.keyframe_ms
-    keyframe_px: float | None = WanderConfig.keyframe_px  # adaptive keys' bound (None: off)
-    quality: str = WanderConfig.quality  # fast, or fine: keys with 16 samples a pixel
+    format: Literal["h5", "aedat4", "evt3", "evimo2"] = "h5"
 
     def __post_init__(self) -> None:
-        if self.policy not in POLICIES:
-            raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
-        if self.format not in FORMATS:
-            raise ValueError(f"format must be one of {tuple(FORMATS)}, got {self.format!r}")
-        check_fields(self, ("seconds",), positive=True)
+        check_annotated(self)
+
+    @property
+    def seconds(self) -> float:
+        """The recording's length: one episode."""
+        return self.env.episode_seconds
 
 
 def record(
@@ -80,7 +80,7 @@ def record(
     """
     RunFolder(out_dir).create()
     render_mode = "rgb_array" if config.video else None
-    env = gym.make("wander/Wander-v0", render_mode=render_mode, **env_kwargs(config))
+    env = gym.make("wander/Wander-v0", render_mode=render_mode, **config.env)
     try:
         with DeferredSignals() as signals:  # a signal sets a flag; the loop takes it up
             summary = _record(out_dir, config, env, progress, signals)

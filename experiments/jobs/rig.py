@@ -34,22 +34,23 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import gymnasium as gym
 import numpy as np
+import pydantic
 
 from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent
+from experiments.framework import MAX_SEED
 from experiments.jobs.run_agent import RunConfig, RunResult, run_for_config
 from experiments.runs.folder import METRICS_JSON, RunFolder
 from experiments.runs.provenance import run_record
-from hardware.ptu_driver import FlirPTUParams, PTUError, PTUPortError, PTUTimeout
-from hardware.ptu_emulator import PTUEmulatorParams
+from hardware.ptu_driver import PTUError, PTUPortError, PTUTimeout
 from hardware.rig_env import RigConfig
-from hardware.speck import SpeckParams
 from wander_env.camera import SPECK_HFOV_DEG
+from wander_env.config import check_annotated
 from wander_env.strict_json import to_strict_json
 
 __all__ = ["RigRunConfig", "RigRunError", "fixed_view_note", "run_rig"]
@@ -57,72 +58,45 @@ __all__ = ["RigRunConfig", "RigRunError", "fixed_view_note", "run_rig"]
 
 @dataclass(frozen=True)
 class RigRunConfig:
-    """What ``wander rig`` runs.
+    """What ``wander rig`` runs: the rig env's block ``env``
+    (:class:`~hardware.rig_env.RigConfig`: the PTU's pyserial URL or ``"emulate"``, the
+    camera ``"speck"``, ``"speck:<serial>"`` or ``"replay:<event file>"``, the replay's
+    pacing, ``episode_seconds`` as the run's length (a replay that ends earlier ends the
+    run), ``hfov_deg`` as the lens's field of view, the device parameter blocks);
+    ``seed``, ``window_s``, ``fixational``, ``streamlined``, ``alpha``, ``video``: as
+    ``wander run``.
 
-    ``ptu``: the PTU's pyserial URL (``/dev/ttyUSB0``, ``socket://host:4000``) or
-    ``"emulate"``; ``camera``: ``"speck"``, ``"speck:<serial>"`` or ``"replay:<event
-    file>"``; ``replay``: ``"fast"`` (windows advance in stream time: the events of
-    every step are fixed by the file) or ``"realtime"`` (paced by the wall clock, as a
-    live camera); ignored for a Speck. ``seconds``: run length (a replay that ends
-    earlier ends the run); ``hfov_deg``: the lens's horizontal field of view in degrees
-    (the Speck's 112.8° by default; a recording from another camera needs its lens's):
-    the agent's and the env's pixel-to-angle geometry; ``seed``, ``window_s``,
-    ``fixational``, ``streamlined``, ``video``: as ``wander run``. ``driver``,
-    ``emulator``, ``speck``: the device parameter blocks handed to
-    :class:`~hardware.rig_env.RigConfig`.
-
-    >>> RigRunConfig(ptu="emulate", camera="replay:walk.npz").env_kwargs()["episode_seconds"]
+    >>> RigRunConfig(RigConfig(ptu="emulate", camera="replay:walk.npz")).seconds
     10.0
     """
 
-    ptu: str = ""
-    camera: str = ""
-    replay: str = "fast"
-    seconds: float = 10.0
-    hfov_deg: float = SPECK_HFOV_DEG
-    seed: int = 0
-    window_s: float = 0.124
+    env: RigConfig
+    seed: Annotated[int, pydantic.Field(ge=0, le=MAX_SEED)] = 0
+    window_s: Annotated[float, pydantic.Field(gt=0)] = 0.124
     fixational: bool = True
     streamlined: bool = False
-    alpha: float = AGENT_SOMS_ALPHA
+    alpha: Annotated[float, pydantic.Field(ge=0, le=1)] = AGENT_SOMS_ALPHA
     video: bool = True
-    driver: FlirPTUParams = field(default_factory=FlirPTUParams)
-    emulator: PTUEmulatorParams = field(default_factory=PTUEmulatorParams)
-    speck: SpeckParams = field(default_factory=SpeckParams)
 
     def __post_init__(self) -> None:
-        s = self.seconds
-        if isinstance(s, bool) or not isinstance(s, (int, float)) or not math.isfinite(s):
-            raise ValueError(f"RigRunConfig.seconds must be a finite number, got {s!r}")
-        if s <= 0:
-            raise ValueError(f"RigRunConfig.seconds must be > 0, got {s!r}")
-        RigConfig(**self.env_kwargs())  # ptu, camera and replay are checked before any device
+        check_annotated(self)
 
-    def env_kwargs(self) -> dict[str, Any]:
-        """The keyword arguments of ``gymnasium.make("wander/Rig-v0", ...)``."""
-        return {
-            "ptu": self.ptu,
-            "camera": self.camera,
-            "replay": self.replay,
-            "episode_seconds": float(self.seconds),
-            "hfov_deg": self.hfov_deg,
-            "driver": self.driver,
-            "emulator": self.emulator,
-            "speck": self.speck,
-        }
+    @property
+    def seconds(self) -> float:
+        """The run's length: one episode."""
+        return self.env.episode_seconds
 
     def agent_params(self, env: Any) -> AgentParams:
         """The agent of ``wander run`` with these switches, matched to the rig's sensor and
         lens."""
         run = RunConfig(
-            seconds=self.seconds,
             seed=self.seed,
             window_s=self.window_s,
             fixational=self.fixational,
             streamlined=self.streamlined,
             alpha=self.alpha,
         )
-        return replace(run.agent_params(env), hfov_deg=self.hfov_deg)
+        return replace(run.agent_params(env), hfov_deg=self.env.hfov_deg)
 
 
 class RigRunError(RuntimeError):
@@ -239,12 +213,12 @@ def fixed_view_note(rig: dict[str, Any]) -> str | None:
 def _device(err: BaseException, config: RigRunConfig) -> str | None:
     """Which device ``err`` comes from (``None``: not a device failure)."""
     if isinstance(err, (PTUError, TimeoutError)):
-        return f"PTU {config.ptu!r}"
+        return f"PTU {config.env.ptu!r}"
     return None
 
 
 def _open_failure(err: Exception, config: RigRunConfig) -> RigRunError:
-    device = _device(err, config) or f"camera {config.camera!r}"
+    device = _device(err, config) or f"camera {config.env.camera!r}"
     if isinstance(err, PTUError) and not isinstance(err, (PTUPortError, PTUTimeout)):
         if err.command is not None:
             why = f"the unit answered '! {err.message}' to {err.command!r}"
@@ -256,7 +230,7 @@ def _open_failure(err: Exception, config: RigRunConfig) -> RigRunError:
 
 
 def _run_failure(err: BaseException, config: RigRunConfig, out: Path, steps: int) -> RigRunError:
-    device = _device(err, config) or f"camera {config.camera!r}"
+    device = _device(err, config) or f"camera {config.env.camera!r}"
     text = str(err)
     if not text.startswith(("PTU ", "camera ")):
         text = f"{device} failed mid-run: {text}"
@@ -294,7 +268,7 @@ def run_rig(
 
     out_dir = Path(out_dir)
     try:
-        env = gym.make("wander/Rig-v0", **config.env_kwargs())
+        env = gym.make("wander/Rig-v0", **config.env)
     except Exception as err:
         raise _open_failure(err, config) from err
     agent: AttentionAgent | None = None

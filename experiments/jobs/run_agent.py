@@ -41,13 +41,15 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
+import pydantic
 
 from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent
 from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
+from experiments.framework import MAX_SEED
 from experiments.jobs.scanpath_figure import plot_scanpath
 from experiments.runs.folder import RunFolder
 from experiments.runs.observers import (
@@ -60,15 +62,14 @@ from experiments.runs.observers import (
 from experiments.runs.provenance import run_record
 from experiments.runs.signals import DeferredSignals, SignalExit
 from wander_env.camera import degrees_to_pixels, focal_length_px, pixel_to_world_angles
-from wander_env.config import check_fields
-from wander_env.env import WanderConfig
+from wander_env.config import check_annotated
+from wander_env.env_config import WanderConfig
 from wander_env.events.stream import EventStreamWriter
 from wander_env.viz import event_image, labelled_frame, saliency_rgb
 
 __all__ = [
     "RunConfig",
     "RunResult",
-    "env_kwargs",
     "run",
     "run_closed_loop",
     "run_for_config",
@@ -78,34 +79,28 @@ __all__ = [
 
 @dataclass(frozen=True)
 class RunConfig:
-    """What ``wander run`` runs: the scene, its length, the seed, the DVS preset and the
-    agent's main switches (the paper's defaults; ``alpha`` is the sOMS threshold on the
-    agent's quantile norm, :data:`agents.attention.AGENT_SOMS_ALPHA`; ``soms_norm="minmax"``
-    runs the paper-literal sOMS)."""
+    """What ``wander run`` runs: the env's block (scene, DVS preset, frames; its
+    ``episode_seconds`` is the run's length), the seed and the agent's main switches
+    (the paper's defaults; ``alpha`` is the sOMS threshold on the agent's quantile norm,
+    :data:`agents.attention.AGENT_SOMS_ALPHA`; ``soms_norm="minmax"`` runs the
+    paper-literal sOMS)."""
 
-    scene: str = "office"
-    seconds: float = 10.0
-    seed: int = 0
-    dvs: str = "ideal"
+    env: WanderConfig = field(default_factory=WanderConfig)
+    seed: Annotated[int, pydantic.Field(ge=0, le=MAX_SEED)] = 0
     video: bool = True
-    window_s: float = 0.124
+    window_s: Annotated[float, pydantic.Field(gt=0)] = 0.124
     fixational: bool = True
     streamlined: bool = False
-    alpha: float = AGENT_SOMS_ALPHA
-    soms_norm: str = "quantile"
-    frames: str = WanderConfig.frames  # the env's frame source (keyframes or exact)
-    keyframe_ms: float = WanderConfig.keyframe_ms
-    keyframe_px: float | None = WanderConfig.keyframe_px  # adaptive keys' bound (None: off)
-    quality: str = WanderConfig.quality  # fast, or fine: keys with 16 samples a pixel
+    alpha: Annotated[float, pydantic.Field(ge=0, le=1)] = AGENT_SOMS_ALPHA
+    soms_norm: Literal["quantile", "minmax"] = "quantile"
 
     def __post_init__(self) -> None:
-        check_fields(self, ("seconds",), positive=True)
-        if not (isinstance(self.alpha, (int, float)) and 0.0 <= self.alpha <= 1.0):
-            raise ValueError(f"RunConfig.alpha must be in [0, 1], got {self.alpha!r}")
-        if self.soms_norm not in ("quantile", "minmax"):
-            raise ValueError(
-                f"RunConfig.soms_norm must be 'quantile' or 'minmax', got {self.soms_norm!r}"
-            )
+        check_annotated(self)
+
+    @property
+    def seconds(self) -> float:
+        """The run's length: one episode."""
+        return self.env.episode_seconds
 
     def agent_params(self, env: Any) -> AgentParams:
         return AgentParams.for_env(
@@ -493,26 +488,6 @@ def run_for_config(
     )
 
 
-def env_kwargs(config: Any) -> dict[str, Any]:
-    """The ``wander/Wander-v0`` keywords of a run (a :class:`RunConfig`, or the
-    :class:`~experiments.jobs.record.RecordConfig` of ``wander record``): scene, DVS,
-    length and frame source (recorded in ``run.json`` with the rest of the config).
-
-    Examples:
-        >>> env_kwargs(RunConfig(frames="exact", seconds=2.0))["frames"]
-        'exact'
-    """
-    return {
-        "scene": config.scene,
-        "dvs": config.dvs,
-        "episode_seconds": config.seconds,
-        "frames": config.frames,
-        "keyframe_ms": config.keyframe_ms,
-        "keyframe_px": config.keyframe_px,
-        "quality": config.quality,
-    }
-
-
 def run(
     out_dir: Path, config: RunConfig, progress: Callable[[int, int], None] | None = None
 ) -> RunResult:
@@ -524,7 +499,7 @@ def run(
     record = run_record("wander run", asdict(config), config.seed)
     env = None
     try:
-        env = gym.make("wander/Wander-v0", **env_kwargs(config))
+        env = gym.make("wander/Wander-v0", **config.env)
         agent = AttentionAgent(config.agent_params(env), seed=config.seed)
     except KeyboardInterrupt as stop:  # Ctrl-C or a signal while setting up
         _stopped_in_setup(Path(out_dir), config, record, stop)
@@ -544,7 +519,7 @@ def _stopped_in_setup(
     """The run folder of a run stopped before its first step: no events, the signal named."""
     from wander_env.scene_config import load_scene_config
 
-    camera = load_scene_config(config.scene).camera
+    camera = load_scene_config(config.env.scene).camera
     folder = RunFolder(out_dir)
     folder.create()
     summary = {"steps": 0, "events": 0}

@@ -19,9 +19,9 @@ not scored. One row per trial: means over the scored windows.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -35,19 +35,16 @@ from experiments.benchmark.protocol import ProtocolConfig, WindowRow, evaluate_s
 from experiments.benchmark.summary import paper_reference
 from experiments.framework import (
     Comparison,
-    DvsPreset,
     Experiment,
-    FrameMode,
     Repeats,
     Row,
-    SceneName,
     TrialSeconds,
     TrialSpec,
+    check_env_block,
 )
 from experiments.stats import mean_std
 from wander_env.actions import gaze_degrees_to_action
-from wander_env.config import block_aliases
-from wander_env.env import WanderConfig
+from wander_env.env_config import SceneName, WanderConfig
 from wander_env.events import concatenate
 from wander_env.ptu.params import PTUParams
 from wander_env.ptu.units import FLIR_RESOLUTION_ARCSEC
@@ -61,31 +58,31 @@ __all__ = [
 ]
 
 
+#: The env fields each trial sets (what sets them): the block leaves them at defaults.
+ENV_SET_PER_TRIAL = {
+    "scene": "scenes",
+    "control_period_s": "soms.dt",
+    "episode_seconds": "duration_s",
+    "ptu": "camera_speeds_deg_s",
+}
+
+
 @dataclass(frozen=True)
 class DetectionConfig:
     """Defaults: the paper's sOMS / proto-object table values and its 8×8 box; scenes,
     speed levels, sweep amplitude and trial length are ours.
 
     ``soms`` and ``proto`` are the two stages' parameter blocks (``--set soms.alpha=0.5``);
-    their ``dt`` is the window of one step, the same in both (:attr:`step_s`). The former
-    flat keys are still read (:data:`CONFIG_ALIASES`: ``alpha`` sets ``soms.alpha``,
-    ``step_s`` both blocks' ``dt``)."""
-
-    CONFIG_ALIASES: ClassVar[dict[str, str | tuple[str, ...]]] = {
-        "step_s": ("soms.dt", "proto.dt"),
-        **block_aliases("soms", ("kernel_size", "sigma_c", "sigma_s", "alpha")),
-        "tau_soms": "soms.tau_mem",
-        **block_aliases("proto", ("r0", "rho", "w", "levels", "polarity_split")),
-        "tau_proto": "proto.tau_mem",
-    }
+    their ``dt`` is the window of one step, the same in both (:attr:`step_s`). ``env`` is
+    the env's block (``--set env.frames=exact``); each trial sets its scene, step,
+    length and PTU (:data:`ENV_SET_PER_TRIAL`)."""
 
     scenes: tuple[SceneName, ...] = ("office", "hand", "gratings")
     camera_speeds_deg_s: tuple[float, ...] = (0.0, 10.0, 30.0, 60.0)
     sweep_amplitude_deg: float = 5.0
     duration_s: TrialSeconds = 2.0
     warmup_s: float = 0.2
-    dvs: DvsPreset = "paper"
-    frames: FrameMode = WanderConfig.frames  # the env\'s frame source: keyframes or exact
+    env: WanderConfig = field(default_factory=lambda: WanderConfig(dvs="paper"))
     box: int = 8
     baseline_sigma_px: float = 2.0
     repeats: Repeats = 2
@@ -93,6 +90,7 @@ class DetectionConfig:
     proto: ProtoObjectParams = field(default_factory=lambda: ProtoObjectParams(dt=0.02))
 
     def __post_init__(self) -> None:
+        check_env_block(self.env, ENV_SET_PER_TRIAL)
         if not self.duration_s > self.warmup_s >= 0:
             raise ValueError(
                 f"need duration_s > warmup_s >= 0, got {self.duration_s}, {self.warmup_s}"
@@ -163,12 +161,13 @@ def record_sequence(
     n = round(cfg.duration_s / cfg.step_s)
     env = gym.make(
         "wander/Wander-v0",
-        scene=scene,
-        dvs=cfg.dvs,
-        frames=cfg.frames,
-        control_period_s=cfg.step_s,
-        episode_seconds=cfg.duration_s + 1.0,
-        ptu=ptu_for_speed(speed),
+        **replace(
+            cfg.env,
+            scene=scene,
+            control_period_s=cfg.step_s,
+            episode_seconds=cfg.duration_s + 1.0,
+            ptu=ptu_for_speed(speed),
+        ),
     )
     try:
         _, info = env.reset(seed=seed)

@@ -43,7 +43,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, ClassVar, Literal, Protocol
+from typing import Any, Literal, Protocol
 
 import gymnasium as gym
 import numpy as np
@@ -52,23 +52,22 @@ from scipy.ndimage import binary_dilation, gaussian_filter
 
 import wander_env  # noqa: F401  (registers the environments)
 from agents.proto_object import saliency_argmax
-from agents.soms import SOMS, TABLE_FIELDS, SOMSParams
+from agents.soms import SOMS, SOMSParams
 from experiments.benchmark.suppression import PAPER_SUPPRESSION
 from experiments.framework import (
     Comparison,
-    DvsPreset,
     Experiment,
     Repeats,
     Row,
-    SceneName,
     TrialSpec,
+    check_env_block,
     load_artifacts,
 )
 from experiments.metrics import detection_hit
 from experiments.stats import mean_ci, wilson_interval
 from wander_env.actions import gaze_degrees_to_action
 from wander_env.camera import focal_length_px
-from wander_env.config import block_aliases
+from wander_env.env_config import WanderConfig
 from wander_env.scene_config import SceneConfig
 from wander_env.trajectories import LinearBounceParams
 from wander_env.viz import save_figure
@@ -163,6 +162,10 @@ class Shake:
         )
 
 
+#: The env fields each trial sets (what sets them): the block leaves them at defaults.
+ENV_SET_PER_TRIAL = {"control_period_s": "window_s", "episode_seconds": "the phases"}
+
+
 @dataclass(frozen=True)
 class EventSuppressionConfig:
     """Defaults: the paper's (2 ms windows, 10 trials, sOMS table values); the scene,
@@ -174,18 +177,13 @@ class EventSuppressionConfig:
     name (:func:`soms_preset`: ``--set soms=agent`` runs the agent's sOMS); its ``dt`` is
     the sOMS step, a whole number of ``window_s`` windows. ``second_soms`` (a block or a
     preset name, same ``dt``) is scored on the same windows too (the ``second:``
-    columns: two sOMS side by side on identical events). The former flat keys
-    ``alpha``... and ``soms_step_s`` are still read (:data:`CONFIG_ALIASES`).
+    columns: two sOMS side by side on identical events). ``env`` is the env's block
+    (the hand scene and the Speck by default); each trial sets its step and length
+    (:data:`ENV_SET_PER_TRIAL`).
     ``hand_margin_px``: the hand's events are those on its swept mask or within that many
     pixels (:func:`swept`)."""
 
-    CONFIG_ALIASES: ClassVar[dict[str, str]] = {
-        "soms_step_s": "soms.dt",
-        **block_aliases("soms", TABLE_FIELDS),
-    }
-
-    scene: SceneName = "hand"
-    dvs: DvsPreset = "speck"
+    env: WanderConfig = field(default_factory=lambda: WanderConfig(scene="hand", dvs="speck"))
     window_s: float = 0.002
     shake_s: Range = (0.6, 1.0)
     hand_s: Range = (0.6, 1.0)
@@ -202,6 +200,7 @@ class EventSuppressionConfig:
     hand_margin_px: int = 2
 
     def __post_init__(self) -> None:
+        check_env_block(self.env, ENV_SET_PER_TRIAL)
         if isinstance(self.soms, str):  # a preset name: its block
             object.__setattr__(self, "soms", soms_preset(self.soms))
         if isinstance(self.second_soms, str):
@@ -553,10 +552,7 @@ def record(cfg: EventSuppressionConfig, phase: str, seed: int) -> Recording:
     n = round(duration / cfg.window_s)
     env = gym.make(
         "wander/Wander-v0",
-        scene=cfg.scene,
-        dvs=cfg.dvs,
-        control_period_s=cfg.window_s,
-        episode_seconds=duration + 1.0,
+        **replace(cfg.env, control_period_s=cfg.window_s, episode_seconds=duration + 1.0),
     )
     base = env.unwrapped
     scale = 1.0

@@ -34,26 +34,26 @@ import math
 import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 import yaml
 
 import wander_env  # noqa: F401  (registers the environments)
-from agents.soms import SOMS, TABLE_FIELDS, SOMSParams
+from agents.soms import SOMS, SOMSParams
 from experiments.framework import (
     Comparison,
-    DvsPreset,
     Experiment,
     Repeats,
     Row,
     TrialSeconds,
     TrialSpec,
+    check_env_block,
     load_artifacts,
 )
 from experiments.metrics import iou, precision
-from wander_env.config import block_aliases
+from wander_env.env_config import WanderConfig
 from wander_env.scene_config import GRATING_MODES, assets_dir
 from wander_env.viz import save_figure
 
@@ -69,23 +69,26 @@ __all__ = [
 Kernel = tuple[float, float, int]
 
 
+#: The env fields each trial sets (what sets them): the block leaves them at defaults.
+ENV_SET_PER_TRIAL = {
+    "scene": "the grid's grating",
+    "control_period_s": "soms.dt",
+    "episode_seconds": "duration_s",
+}
+
+
 @dataclass(frozen=True)
 class OMSCharacterisationConfig:
     """Defaults: the paper's protocol (4 s clips, sOMS updated every 20 ms, IEBCS DVS
     settings, its kernel sweep; sOMS table values) on the ``gratings`` scene's stimulus.
 
     ``soms`` is the sOMS block (``--set soms.alpha=0.6``); its ``dt`` is the step
-    (:attr:`step_s`), and the kernel group replaces its kernel fields. The former flat keys
-    are still read (:data:`CONFIG_ALIASES`: ``alpha`` sets ``soms.alpha``, ``step_s``
-    ``soms.dt``)."""
-
-    CONFIG_ALIASES: ClassVar[dict[str, str]] = {
-        "step_s": "soms.dt",
-        **block_aliases("soms", TABLE_FIELDS),
-    }
+    (:attr:`step_s`), and the kernel group replaces its kernel fields. ``env`` is the
+    env's block (the paper's DVS by default); each trial sets its grating scene, step and
+    length (:data:`ENV_SET_PER_TRIAL`)."""
 
     duration_s: TrialSeconds = 4.0
-    dvs: DvsPreset = "paper"
+    env: WanderConfig = field(default_factory=lambda: WanderConfig(dvs="paper"))
     modes: tuple[str, ...] = GRATING_MODES
     background_cycles_per_deg: float = 0.05
     object_cycles_per_deg: float = 0.1
@@ -126,6 +129,7 @@ class OMSCharacterisationConfig:
     repeats: Repeats = 1
 
     def __post_init__(self) -> None:
+        check_env_block(self.env, ENV_SET_PER_TRIAL)
         if not self.duration_s > 0 or not self.step_s > 0:
             raise ValueError("duration_s and step_s must be > 0")
         ticks = self.step_s * 1000.0
@@ -276,10 +280,12 @@ def run_trial(cfg: OMSCharacterisationConfig, spec: TrialSpec) -> dict[str, Any]
         path.write_text(yaml.safe_dump(scene, sort_keys=False))
         env = gym.make(
             "wander/Wander-v0",
-            scene=str(path),
-            dvs=cfg.dvs,
-            control_period_s=cfg.step_s,
-            episode_seconds=cfg.duration_s + 1.0,
+            **replace(
+                cfg.env,
+                scene=str(path),
+                control_period_s=cfg.step_s,
+                episode_seconds=cfg.duration_s + 1.0,
+            ),
         )
         try:
             env.reset(seed=spec.seed)

@@ -29,7 +29,7 @@ from __future__ import annotations
 import itertools
 import math
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -41,15 +41,12 @@ from agents.attention import AgentParams, AttentionAgent
 from agents.fixation import FixationParams
 from experiments.framework import (
     Comparison,
-    DvsPreset,
     Experiment,
-    FrameMode,
-    PtuPreset,
     Repeats,
     Row,
-    SceneName,
     TrialSeconds,
     TrialSpec,
+    check_env_block,
     load_artifacts,
 )
 from experiments.jobs.run_agent import run_closed_loop
@@ -57,7 +54,7 @@ from experiments.paper import main_sequence
 from experiments.paper.speed_study import AXIS_LABELS, plot_surfaces
 from experiments.stats import ci_text, mean_ci, mean_std, paired_comparison
 from wander_env.camera import SPECK_HFOV_DEG, degrees_to_pixels, pixels_to_degrees
-from wander_env.env import WanderConfig
+from wander_env.env_config import PtuPreset, SceneName, WanderConfig
 from wander_env.ptu.axis import move_duration, peak_speed
 from wander_env.ptu.params import PTUParams
 from wander_env.ptu.units import degrees_to_positions
@@ -97,6 +94,10 @@ FACTORIAL = ("ptu_speed", "ptu_accel", "fixational_amplitude", "fixational_count
 PTU_FACTORS = ("baseline", "ptu_speed", "ptu_accel", "ptu_link")
 
 
+#: The env fields each trial sets (what sets them): the block leaves them at defaults.
+ENV_SET_PER_TRIAL = {"ptu": "the trial's PTU setting", "episode_seconds": "duration_s"}
+
+
 @dataclass(frozen=True)
 class SaccadeSpeedConfig:
     """Defaults: the baseline is the paper's (FLIR defaults, N = 8 steps of ±60 positions,
@@ -106,9 +107,13 @@ class SaccadeSpeedConfig:
     ``design``: ``one_at_a_time`` (the baseline, then each factor's other values) or
     ``factorial`` (every combination of PTU speed × acceleration × fixational step ×
     count × window, the other factors at the baseline). Every setting runs ``repeats``
-    seeds (``seed + r``: paired across settings)."""
+    seeds (``seed + r``: paired across settings).
 
-    scene: SceneName = "office"
+    ``env`` is the env's block of the closed-loop trials (the office); each trial sets
+    its PTU and length (:data:`ENV_SET_PER_TRIAL`). The main-sequence trials run the same
+    block in ``main_sequence_scene`` at 100 Hz frames without sub-frames or ground truth
+    (events play no part in the measure)."""
+
     duration_s: TrialSeconds = 3.0
     window_s: float = 0.124
     design: Literal["one_at_a_time", "factorial"] = "one_at_a_time"
@@ -133,10 +138,10 @@ class SaccadeSpeedConfig:
     )
     main_sequence_scene: SceneName = "shelf"
     repeats: Repeats = 10
-    dvs: DvsPreset = "ideal"
-    frames: FrameMode = WanderConfig.frames  # the env\'s frame source: keyframes or exact
+    env: WanderConfig = field(default_factory=lambda: WanderConfig(scene="office"))
 
     def __post_init__(self) -> None:
+        check_env_block(self.env, ENV_SET_PER_TRIAL)
         if not self.duration_s > 0:
             raise ValueError(f"duration_s must be > 0, got {self.duration_s}")
         for w in (self.window_s, *self.windows_s):
@@ -276,11 +281,7 @@ def _closed_loop(cfg: SaccadeSpeedConfig, p: dict[str, Any], seed: int) -> dict[
     env = ObjectSpeed(
         gym.make(
             "wander/Wander-v0",
-            scene=cfg.scene,
-            dvs=cfg.dvs,
-            frames=cfg.frames,
-            ptu=_trial_ptu(p),
-            episode_seconds=cfg.duration_s + 1.0,
+            **replace(cfg.env, ptu=_trial_ptu(p), episode_seconds=cfg.duration_s + 1.0),
         ),
         float(p["object_speed_scale"]),
     )
@@ -321,14 +322,15 @@ def _closed_loop(cfg: SaccadeSpeedConfig, p: dict[str, Any], seed: int) -> dict[
 def _main_sequence(cfg: SaccadeSpeedConfig, ptu: PTUParams, seed: int) -> dict[str, Any]:
     env = gym.make(
         "wander/Wander-v0",
-        scene=cfg.main_sequence_scene,
-        dvs=cfg.dvs,
-        frames=cfg.frames,
-        ptu=ptu,
-        render_rate_hz=100.0,
-        max_subframes=1,
-        ground_truth=False,
-        episode_seconds=1000.0,
+        **replace(
+            cfg.env,
+            scene=cfg.main_sequence_scene,
+            ptu=ptu,
+            render_rate_hz=100.0,
+            max_subframes=1,
+            ground_truth=False,
+            episode_seconds=1000.0,
+        ),
     )
     base = env.unwrapped
     agent = AttentionAgent(AgentParams.for_env(env, fixational=False), seed=seed)
@@ -708,7 +710,7 @@ def plot(cfg: SaccadeSpeedConfig, rows: list[Row], results_dir: Path, fig_dir: P
     fig.suptitle(
         "One factor at a time around the paper's values (PTU speed and acceleration, "
         f"fixational steps, window, object speed): mean over {n} seeded repeats of "
-        f"{cfg.duration_s:g} s in the {cfg.scene} scene per setting, error bars the "
+        f"{cfg.duration_s:g} s in the {cfg.env.scene} scene per setting, error bars the "
         "bootstrap 95 % interval",
         fontsize=10,
     )

@@ -53,7 +53,7 @@ import math
 import tempfile
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -65,16 +65,14 @@ from agents.attention import AgentParams, AttentionAgent
 from experiments import scanpath_stats
 from experiments.framework import (
     Comparison,
-    DvsPreset,
     Experiment,
-    FrameMode,
     GridStepDeg,
     RadiusDeg,
     Repeats,
     Row,
-    SceneName,
     TrialSeconds,
     TrialSpec,
+    check_env_block,
     load_artifacts,
 )
 from experiments.jobs.run_agent import run_closed_loop
@@ -87,7 +85,7 @@ from experiments.runs.observers import RunObserver
 from experiments.stats import ci_text, mean_std
 from wander_env.camera import SPECK_HFOV_DEG, cast_pixel, focal_length_px, pixel_to_world_angles
 from wander_env.entities import object_body_name
-from wander_env.env import WanderConfig
+from wander_env.env_config import SceneName, WanderConfig
 from wander_env.scene_config import SceneConfig
 from wander_env.viz import save_figure
 
@@ -103,10 +101,15 @@ __all__ = [
 Condition = Literal["saccades", "fixational"]
 
 
+#: The env fields each trial sets (what sets them): the block leaves them at defaults.
+ENV_SET_PER_TRIAL = {"scene": "scenes", "episode_seconds": "duration_s"}
+
+
 @dataclass(frozen=True)
 class ScanpathConfig:
     """Defaults: the paper's two windows (10 ms, 124 ms) and 8×8 box, the shelf scene;
-    the office scene, trial length, radii and DVS preset are ours."""
+    the office scene, trial length, radii and DVS preset are ours. ``env`` is the env's
+    block; each trial sets its scene and length (:data:`ENV_SET_PER_TRIAL`)."""
 
     scenes: tuple[SceneName, ...] = ("shelf", "office")
     conditions: tuple[Condition, ...] = ("saccades", "fixational")
@@ -118,13 +121,13 @@ class ScanpathConfig:
     box: int = 8
     radius_deg: RadiusDeg = 5.0
     mosaic_step_deg: GridStepDeg = 0.5
-    dvs: DvsPreset = "ideal"
-    frames: FrameMode = WanderConfig.frames  # the env\'s frame source: keyframes or exact
+    env: WanderConfig = field(default_factory=WanderConfig)
     # MultiMatch normalises lengths and positions by a "screen": the camera's field of
     # view (degrees; Speck's 112.8° both ways by default).
     multimatch_screen_deg: tuple[float, float] = (SPECK_HFOV_DEG, SPECK_HFOV_DEG)
 
     def __post_init__(self) -> None:
+        check_env_block(self.env, ENV_SET_PER_TRIAL)
         if not self.duration_s > 0:
             raise ValueError(f"duration_s must be > 0, got {self.duration_s}")
         for name in ("saccades_window_s", "fixational_window_s"):
@@ -268,10 +271,7 @@ def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
     scene, condition = str(spec.params["scene"]), str(spec.params["condition"])
     env = gym.make(
         "wander/Wander-v0",
-        scene=scene,
-        dvs=cfg.dvs,
-        frames=cfg.frames,
-        episode_seconds=cfg.duration_s + 1.0,
+        **replace(cfg.env, scene=scene, episode_seconds=cfg.duration_s + 1.0),
     )
     agent = AttentionAgent(agent_params(cfg, condition, env), seed=spec.seed)
     watch = ScanpathObserver(env, cfg.box)
