@@ -324,12 +324,16 @@ def test_wander_env_holds_no_lab_code():
     """Every module of wander_env serves the simulator: wander_env itself, the agents or the
     hardware import it. What only experiments use (the metrics, the Rerun recording, the
     demo's stimulus) lives in experiments. Exempt: the env (Gymnasium reaches it by its
-    entry-point string) and the event library, whose users are anyone with event files."""
+    entry-point string), the event library, whose users are anyone with event files, and
+    a subpackage's ``__init__`` (its modules are what is imported)."""
     lab_only = sorted(
         m
         for m in SOURCES
         if _top(m) == "wander_env"
         and m not in ("wander_env", "wander_env.env")
+        and not (
+            SOURCES[m].name == "__init__.py" and m.count(".") == 1 and m != "wander_env.events"
+        )
         and not (m == "wander_env.events" or m.startswith("wander_env.events."))
         and not any(
             _top(user) in ("wander_env", "agents", "hardware") and m in {t for t, _ in edges}

@@ -31,7 +31,7 @@ import pydantic
 from wander_env.config import FieldsMapping, check_annotated
 from wander_env.dvs import DVSParams
 from wander_env.field_doc import field_doc
-from wander_env.ptu import PTUParams
+from wander_env.ptu.params import PTUParams
 from wander_env.scene_config import SceneConfig, available_scenes, load_scene_config
 
 __all__ = [

@@ -46,8 +46,9 @@ FORMATS = {"h5": "events.h5", "aedat4": "events.aedat4", "evt3": "events.raw", "
 @dataclass(frozen=True)
 class RecordConfig:
     """What ``wander record`` records: the env's block (its ``episode_seconds`` is the
-    recording's length: 5 s by default), the gaze policy (:data:`agents.scripted.POLICIES`) and its seed,
-    the seconds between its saccades, the video and the events' format (:data:`FORMATS`)."""
+    recording's length: 5 s by default), the gaze policy
+    (:data:`agents.scripted.POLICIES`) and its seed, the seconds between its saccades, the
+    video and the events' format (:data:`FORMATS`)."""
 
     env: WanderConfig = field(default_factory=lambda: WanderConfig(episode_seconds=5.0))
     policy: Policy = "fixational"
