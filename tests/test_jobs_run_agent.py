@@ -68,9 +68,7 @@ def test_alpha_is_checked_and_reaches_the_agent() -> None:
     assert result.exit_code == 2 and "--alpha" in result.output
     # The flag's help (written without importing torch) names the agent's default.
     assert RunConfig().alpha == AGENT_SOMS_ALPHA
-    assert f"table {AGENT_SOMS_ALPHA:g}, on the agent's quantile norm" in (
-        AgentAlphaOpt.__metadata__[0].help
-    )
+    assert f"the paper's table, {AGENT_SOMS_ALPHA:g}" in (AgentAlphaOpt.__metadata__[0].help)
 
 
 def test_frame_source_reaches_the_env() -> None:

@@ -311,7 +311,7 @@ def test_a_scene_file_cannot_hold_a_callable(tmp_path):
     with pytest.raises(ConfigError) as info:
         load_scene_config(path)
     assert str(info.value) == (
-        f"{path}: moving_objects[0].trajectory.position: input should be callable, got 'os:system'"
+        f"{path}: moving_objects[0].trajectory.position: expected Callable, got 'os:system'"
     )
 
 

@@ -76,17 +76,31 @@ def _field_locs(cls: type, loc: tuple[Any, ...]) -> tuple[Any, ...]:
     return tuple(out)
 
 
+#: pydantic's errors for a value of the right type that its field still refuses.
+_SPECIFIC_KINDS = frozenset(
+    (
+        "value_error",
+        "greater_than",
+        "greater_than_equal",
+        "less_than",
+        "less_than_equal",
+        "finite_number",
+    )
+)
+
+
 def kept_errors(cls: type, errors: list[Any]) -> list[Any]:
     """Errors of a union field: the one from inside a member where there is one (a
-    nested mapping with a bad key, or one a member's own check refused, says what is
-    wrong there, not that the field is not one of the other members)."""
+    nested mapping with a bad key, a value of a member's type out of its range, or one a
+    member's own check refused, says what is wrong there, not that the field is not one
+    of the other members)."""
     locs = [_field_locs(cls, tuple(e["loc"])) for e in errors]
-    checked = {loc for e, loc in zip(errors, locs, strict=True) if e["type"] == "value_error"}
+    specific = {loc for e, loc in zip(errors, locs, strict=True) if e["type"] in _SPECIFIC_KINDS}
     return [
         e
         for e, loc in zip(errors, locs, strict=True)
         if not any(len(o) > len(loc) and o[: len(loc)] == loc for o in locs)
-        and (e["type"] == "value_error" or loc not in checked)
+        and (e["type"] in _SPECIFIC_KINDS or loc not in specific)
     ]
 
 
@@ -188,7 +202,7 @@ def error_message(cls: Any, err: Mapping[str, Any]) -> str:
         isinstance(loc[-1] if loc else None, str)
         and typing.get_origin(_bare(whole)) in (typing.Union, types.UnionType)
         and not _members(_bare(whole))
-        and kind != "value_error"
+        and kind not in _SPECIFIC_KINDS
     ):  # a value that is none of a plain union's members: name the union
         return _at(path, f"expected {type_name(_bare(whole))}, got {_shown(err['input'])}")
     if kind == "missing":
