@@ -66,6 +66,7 @@ __all__ = [
     "Keyframe",
     "View",
     "adaptive_key_ticks",
+    "blend",
     "make_keyframe",
     "synthesize",
     "view_flow_bounds_px",
@@ -331,7 +332,7 @@ class KeyPair:
 
     def blend(self, w: float) -> np.ndarray:
         """The keys' time-weighted blend (where nothing moves by half a pixel)."""
-        return np.float32(1.0 - w) * self.a.lum + np.float32(w) * self.b.lum
+        return blend(self.a.lum, self.b.lum, w)
 
     def frame(self, view: View, w: float) -> np.ndarray:
         """The frame (H, W) float32 linear luminance of ``view`` at time fraction ``w``.
@@ -398,6 +399,11 @@ class KeyPair:
             moving,
         )
         return out
+
+
+def blend(a: np.ndarray, b: np.ndarray, w: float) -> np.ndarray:
+    """Two keys' luminance blended at the time fraction ``w`` (0: ``a``, 1: ``b``)."""
+    return np.float32(1.0 - w) * a + np.float32(w) * b
 
 
 def synthesize(a: Keyframe, b: Keyframe, view: View, w: float, k: np.ndarray) -> np.ndarray:
