@@ -81,6 +81,7 @@ class Stage:
         self._renderer_pid: int | None = None
         self.posed: tuple[int, float, float] | None = None  # (t_us, pan, tilt) of the model
         self.renders = 0  # colour frames rendered since the counter was last zeroed
+        self.geometry_draws = 0  # layer-and-depth draws since the counter was last zeroed
 
     @property
     def renderer(self) -> CameraRenderer:
@@ -139,6 +140,7 @@ class Stage:
 
     def geometry(self) -> tuple[np.ndarray, np.ndarray]:
         """(motion layers int32, depth m) of the posed model, from one draw."""
+        self.geometry_draws += 1
         self.renderer.update(self.data)
         return self.renderer.segment_depth_current(self.layer_lut)
 
