@@ -78,7 +78,8 @@ _PAD_PX = 3
 # Below this flow bound (px) from both keys, each pixel's nearest source is itself and
 # the frame is the keys' time-weighted blend.
 SUBPIXEL_PX = 0.45
-# Fixed-point iterations on the source depth (moving layers, parallax).
+# Fixed-point iterations on the source depth (moving layers, parallax), at most; they
+# stop at a fixed point (the source depth unchanged), where the rest would change nothing.
 _ITERATIONS = 3
 
 
@@ -276,8 +277,9 @@ def _synth_kernel(
                                 lam = (1.0 + rho * b2) / az
                                 ix = _nearest(lam * ax - rho * b0, w)
                                 iy = _nearest(lam * ay - rho * b1, h)
-                                if layers[kk, iy, ix] == ll:
-                                    rho = inv[kk, iy, ix]
+                                if layers[kk, iy, ix] != ll or inv[kk, iy, ix] == rho:
+                                    break  # a fixed point: the iterations left change nothing
+                                rho = inv[kk, iy, ix]
                         lam = (1.0 + rho * b2) / az
                         px = lam * ax - rho * b0
                         py = lam * ay - rho * b1
