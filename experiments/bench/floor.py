@@ -28,8 +28,8 @@ import wander_env  # noqa: F401  (registers the environments)
 FLOOR_COLUMNS: dict[str, str] = {"part": "", "ms_median": ".3f", "ms_best": ".3f", "note": ""}
 BOUND_COLUMNS: dict[str, str] = {
     "step": "",
-    "colour_renders": ".0f",
-    "geometry_draws": ".0f",
+    "colour_renders": "g",
+    "geometry_draws": "g",
     "gl_ms": ".2f",
     "rtf_bound": ".2f",
 }
