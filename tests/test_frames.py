@@ -155,3 +155,21 @@ def test_a_keys_layers_and_depth_are_drawn_only_where_needed():
         assert u.stage.geometry_draws == u.renders_in_step + 1  # the step's keys and its start's
     finally:
         env.close()
+
+
+def test_a_still_scenes_end_keys_share_the_rendered_keys_geometry():
+    """Shelf (nothing moves), ground truth off: every step's end key is the reset's key,
+    whose geometry it shares directly (no chain through the steps), drawn once when asked."""
+    env = gym.make("wander/Wander-v0", scene="shelf", ground_truth=False)
+    try:
+        env.reset(seed=0)
+        source = env.unwrapped.source
+        first = source.keys[0]
+        for _ in range(4):
+            env.step(np.zeros(2, np.float32))
+            assert source.keys[-1].same_as is first and env.unwrapped.stage.geometry_draws == 0
+        end = source.keyframe(source.keys[-1])
+        assert env.unwrapped.stage.geometry_draws == 1 and first.full is not None
+        assert end.t_us == source.keys[-1].t_us and end.layers is first.full.layers
+    finally:
+        env.close()

@@ -305,8 +305,10 @@ class KeyframeFrames(FrameSource):
             )
         if idx is None:
             idx = [i for i, t in enumerate(ticks) if t == ticks[-1] or t % p.keyframe_us == 0]
-        if not idx:  # nothing moves: the start's key is the step's end too
-            self.keys.append(replace(ref, t_us=ticks[-1], view=views[-1], same_as=ref, full=None))
+        if not idx:  # nothing moves: the start's key is the step's end too (its geometry
+            # that of the key it was rendered as, however many still steps ago)
+            root = ref if ref.same_as is None else ref.same_as
+            self.keys.append(replace(ref, t_us=ticks[-1], view=views[-1], same_as=root, full=None))
         for i in idx:
             self.keys.append(self._render_key(ticks[i], angles[i], views[i]))
         self._key_at = {key.t_us: key for key in self.keys}
