@@ -127,3 +127,51 @@ def test_quality_fine_renders_16_samples_a_pixel():
         WanderConfig(quality="best")
     with pytest.raises(ValueError, match="not both"):
         WanderConfig(quality="fine", supersample=2)
+
+
+@pytest.mark.slow
+def test_a_keys_layers_and_depth_are_drawn_only_where_needed():
+    """Office, still camera, default keys (two a step): the objects move under half a
+    pixel a tick, so no frame is synthesised and only the step end's key draws its layers
+    and depth, for the ground truth's mask (the mask a segmentation of the posed model
+    gives); none with ground truth off. A walk synthesises frames: both keys' geometry."""
+    for gt, draws in ((True, [1, 1, 1]), (False, [0, 0, 0])):
+        env = gym.make("wander/Wander-v0", scene="office", ground_truth=gt)
+        try:
+            env.reset(seed=0)
+            stage, counts = env.unwrapped.stage, []
+            for _ in range(3):
+                info = env.step(np.zeros(2, np.float32))[4]
+                counts.append(stage.geometry_draws)
+                assert env.unwrapped.renders_in_step == 2
+                if gt:
+                    assert np.array_equal(info["object_mask"], stage.object_mask())
+            assert counts == draws
+        finally:
+            env.close()
+    env = gym.make("wander/Wander-v0", scene="office", ground_truth=False)
+    try:
+        env.reset(seed=0)
+        env.step(np.array([0.05, 0.0], np.float32))
+        u = env.unwrapped
+        assert u.stage.geometry_draws == u.renders_in_step + 1  # the step's keys and its start's
+    finally:
+        env.close()
+
+
+def test_a_still_scenes_end_keys_share_the_rendered_keys_geometry():
+    """Shelf (nothing moves), ground truth off: every step's end key is the reset's key,
+    whose geometry it shares directly (no chain through the steps), drawn once when asked."""
+    env = gym.make("wander/Wander-v0", scene="shelf", ground_truth=False)
+    try:
+        env.reset(seed=0)
+        source = env.unwrapped.source
+        first = source.keys[0]
+        for _ in range(4):
+            env.step(np.zeros(2, np.float32))
+            assert source.keys[-1].same_as is first and env.unwrapped.stage.geometry_draws == 0
+        end = source.keyframe(source.keys[-1])
+        assert env.unwrapped.stage.geometry_draws == 1 and first.full is not None
+        assert end.t_us == source.keys[-1].t_us and end.layers is first.full.layers
+    finally:
+        env.close()

@@ -140,7 +140,7 @@ class WanderEnv(CameraEnv):
         c = self.config
         t1 = self._t_us + c.ticks_per_step * c.tick_us
         trajectory = self.ptu.trajectory(self._t_us, t1, c.tick_us)
-        self.stage.renders = 0
+        self.stage.renders = self.stage.geometry_draws = 0
         self.source.plan(trajectory)
         chunks: list[np.ndarray] = []
         frames = extra = 0
@@ -184,7 +184,7 @@ class WanderEnv(CameraEnv):
         pan, tilt = (options or {}).get("gaze_deg", self.config.start_gaze_deg)
         self.ptu.reset(*self.ptu.clip_target(pan, tilt))
         self._t_us = 0
-        self.stage.renders = 0
+        self.stage.renders = self.stage.geometry_draws = 0
         first = self.source.reset(0, (self.ptu.camera_pan_deg, self.ptu.camera_tilt_deg))
         self.dvs.reset(first, 0, seed=int(rng.integers(2**63)))
         empty = self.dvs.flush()

@@ -42,6 +42,7 @@ from wander_env.keyframes import (
     KeyPair,
     View,
     adaptive_key_ticks,
+    blend,
     make_keyframe,
     view_flow_bounds_px,
 )
@@ -56,6 +57,7 @@ __all__ = [
     "FrameParams",
     "FrameSource",
     "KeyframeFrames",
+    "RenderedKey",
     "Stage",
 ]
 
@@ -80,6 +82,7 @@ class Stage:
         self._renderer_pid: int | None = None
         self.posed: tuple[int, float, float] | None = None  # (t_us, pan, tilt) of the model
         self.renders = 0  # colour frames rendered since the counter was last zeroed
+        self.geometry_draws = 0  # layer-and-depth draws since the counter was last zeroed
 
     @property
     def renderer(self) -> CameraRenderer:
@@ -137,7 +140,9 @@ class Stage:
         return self.renderer.render(self.data)
 
     def geometry(self) -> tuple[np.ndarray, np.ndarray]:
-        """(motion layers int32, depth m) of the last frame drawn, from one draw."""
+        """(motion layers int32, depth m) of the posed model, from one draw."""
+        self.geometry_draws += 1
+        self.renderer.update(self.data)
         return self.renderer.segment_depth_current(self.layer_lut)
 
     def object_mask(self) -> np.ndarray:
@@ -217,43 +222,73 @@ class ExactFrames(FrameSource):
         return rgb
 
 
+@dataclass(eq=False)
+class RenderedKey:
+    """A key as rendered: its colour's DVS input and luminance at ``t_us`` from the camera
+    at ``angles`` (``view``). Its geometry (layers and depth, one more draw) is made only
+    when something asks for it (:meth:`KeyframeFrames.keyframe`): a synthesised frame
+    between it and a neighbour, or the ground truth's mask. ``same_as``: an earlier key
+    whose geometry this one shares (nothing moved between them)."""
+
+    t_us: int
+    angles: Angles
+    view: View
+    prepared: LogFrame
+    lum: np.ndarray  # (H, W) float32 linear luminance (a view of ``prepared.lum``)
+    same_as: RenderedKey | None = None
+    full: Keyframe | None = None  # with its geometry, once made
+
+
 class KeyframeFrames(FrameSource):
     """Keys rendered at the step's start along the trajectory where the predicted image
     motion asks for them (:func:`~wander_env.keyframes.adaptive_key_ticks`: as few as one
     a step, none while nothing moves; every ``keyframe_us`` where the motion has no
     bound); the frames between them synthesised (:class:`~wander_env.keyframes.KeyPair`),
-    and none where nothing moves by half a pixel: the DVS interpolates there."""
+    and none where nothing moves by half a pixel: the DVS interpolates there.
+
+    A key's geometry (layers and depth: a second, single-sample draw) is drawn when first
+    needed, with the model posed again at the key's time and angles (the same pixels as
+    drawing it with the colour): a synthesised frame needs both its keys', the ground
+    truth's mask the step end's; a still camera over slow objects, or ground truth off,
+    needs fewer or none."""
 
     def __init__(self, stage: Stage, dvs: DVSEmulator, params: FrameParams) -> None:
         super().__init__(stage, dvs, params)
         self.radii = stage.layer_radii()
-        self.keys: list[Keyframe] = []  # the key at the step's start, then the step's
-        self._inputs: dict[int, LogFrame] = {}  # key t_us -> its prepared DVS input
+        self.keys: list[RenderedKey] = []  # the key at the step's start, then the step's
+        self._key_at: dict[int, RenderedKey] = {}  # key t_us -> key (this step)
         self._views: dict[int, View] = {}  # tick t_us -> its view (this step)
         self._interpolated: set[int] = set()  # ticks the DVS interpolates over
         self._pairs: dict[int, KeyPair] = {}  # later key's t_us -> the pair ending there
-        self._mask: tuple[int, np.ndarray] | None = None  # (t_us, object mask) of a key
 
-    def _render_key(self, t_us: int, angles: Angles, view: View) -> Keyframe:
-        """Render a key of the model posed at ``t_us`` and ``angles``: its colour, then
-        its layers and depth (one more draw), which give the ground truth's mask too."""
+    def _render_key(self, t_us: int, angles: Angles, view: View) -> RenderedKey:
+        """Render the colour of a key of the model posed at ``t_us`` and ``angles``."""
         stage = self.stage
         stage.pose(t_us, *angles)
         rgb = stage.render()
         prepared = self.dvs.prepare(rgb)
-        layers, depth = stage.geometry()
         lum = prepared.lum.reshape(stage.height, stage.width)
-        key = make_keyframe(t_us, lum, view, depth, layers)
-        self._inputs[t_us] = prepared
-        mask = np.where(layers <= stage.scene.num_objects, layers, 0).astype(np.int32)
-        self._mask = (t_us, mask)
         self.camera_frame = rgb
-        return key
+        return RenderedKey(t_us, angles, view, prepared, lum)
+
+    def keyframe(self, key: RenderedKey) -> Keyframe:
+        """``key`` with its geometry: its layers and depth drawn on first use (the model
+        posed again at the key's time and angles), then kept."""
+        if key.full is None:
+            if key.same_as is not None:
+                key.full = replace(self.keyframe(key.same_as), t_us=key.t_us, view=key.view)
+            else:
+                stage = self.stage
+                stage.pose(key.t_us, *key.angles)
+                layers, depth = stage.geometry()
+                key.full = make_keyframe(key.t_us, key.lum, key.view, depth, layers)
+        return key.full
 
     def reset(self, t_us: int, angles: Angles) -> np.ndarray:
-        self._inputs, self._views, self._pairs, self._interpolated = {}, {}, {}, set()
-        self.keys = [self._render_key(t_us, angles, self.stage.camera_view(t_us, *angles))]
-        return self.keys[0].lum
+        self._views, self._pairs, self._interpolated = {}, {}, set()
+        key = self._render_key(t_us, angles, self.stage.camera_view(t_us, *angles))
+        self.keys, self._key_at = [key], {t_us: key}
+        return key.lum
 
     def plan(self, trajectory: Trajectory) -> None:
         p, stage = self.params, self.stage
@@ -262,7 +297,6 @@ class KeyframeFrames(FrameSource):
         views = stage.camera_views(list(ticks), angles)
         self._views = dict(zip(ticks, views, strict=True))
         ref = self.keys[-1]
-        self._inputs = {ref.t_us: self._inputs[ref.t_us]}
         self.keys, self._pairs = [ref], {}
         shape, k = (stage.height, stage.width), stage.k
         idx = None
@@ -272,34 +306,36 @@ class KeyframeFrames(FrameSource):
             )
         if idx is None:
             idx = [i for i, t in enumerate(ticks) if t == ticks[-1] or t % p.keyframe_us == 0]
-        if not idx:  # nothing moves: the start's key is the step's end too
-            end = replace(ref, t_us=ticks[-1], view=views[-1])
-            self.keys.append(end)
-            self._inputs[end.t_us] = self._inputs[ref.t_us]
-            self._mask = (end.t_us, self._mask[1].copy())  # a new array in each info
+        if not idx:  # nothing moves: the start's key is the step's end too (its geometry
+            # that of the key it was rendered as, however many still steps ago)
+            root = ref if ref.same_as is None else ref.same_as
+            self.keys.append(replace(ref, t_us=ticks[-1], view=views[-1], same_as=root, full=None))
         for i in idx:
             self.keys.append(self._render_key(ticks[i], angles[i], views[i]))
+        self._key_at = {key.t_us: key for key in self.keys}
         # The ticks between keys whose content moves by less than half a pixel from both.
-        key_times = {key.t_us for key in self.keys}
-        between = [(t, v) for t, v in zip(ticks, views, strict=True) if t not in key_times]
+        between = [(t, v) for t, v in zip(ticks, views, strict=True) if t not in self._key_at]
         self._interpolated = set()
         if between:
             pairs = [self._pair(t) for t, _ in between]
             tv = [v for _, v in between]
-            refs = [q.a.view for q in pairs] + [q.b.view for q in pairs]
+            refs = [a.view for a, _ in pairs] + [b.view for _, b in pairs]
             both = view_flow_bounds_px(refs, tv + tv, k, self.radii, shape)
             bounds = np.maximum(both[: len(tv)], both[len(tv) :])
             self._interpolated = {
                 t for (t, _), b in zip(between, bounds, strict=True) if b < SUBPIXEL_PX
             }
 
-    def _pair(self, t_us: int) -> KeyPair:
+    def _pair(self, t_us: int) -> tuple[RenderedKey, RenderedKey]:
         """The keys just before and at-or-after ``t_us`` (inside the planned step)."""
         i = bisect.bisect_left([key.t_us for key in self.keys], t_us)
-        later = self.keys[i]
-        pair = self._pairs.get(later.t_us)
+        return self.keys[i - 1], self.keys[i]
+
+    def _keypair(self, a: RenderedKey, b: RenderedKey) -> KeyPair:
+        """The keys' :class:`KeyPair` (with their geometry), made once a step."""
+        pair = self._pairs.get(b.t_us)
         if pair is None:
-            pair = self._pairs[later.t_us] = KeyPair(self.keys[i - 1], later, self.stage.k)
+            pair = self._pairs[b.t_us] = KeyPair(self.keyframe(a), self.keyframe(b), self.stage.k)
         return pair
 
     def interpolated(self, t_us: int) -> bool:
@@ -308,32 +344,32 @@ class KeyframeFrames(FrameSource):
     def frame(self, t_us: int, angles: Angles) -> np.ndarray | LogFrame:
         """A key's own input at its tick; the keys' blend where nothing moves by half a
         pixel; else a synthesised frame."""
-        prepared = self._inputs.get(t_us)
-        if prepared is not None:
-            return prepared
-        pair = self._pair(t_us)
-        w = pair.weight(t_us)
+        key = self._key_at.get(t_us)
+        if key is not None:
+            return key.prepared
+        a, b = self._pair(t_us)
+        w = (t_us - a.t_us) / (b.t_us - a.t_us)
         if t_us in self._interpolated:
-            return pair.blend(w)
+            return blend(a.lum, b.lum, w)
         view = self._views.get(t_us)
         if view is None:  # a sub-frame inside a tick
             view = self.stage.camera_view(t_us, *angles)
             shape, k = (self.stage.height, self.stage.width), self.stage.k
-            refs = [pair.a.view, pair.b.view]
-            bound = view_flow_bounds_px(refs, [view, view], k, self.radii, shape).max()
-            if bound < SUBPIXEL_PX:
-                return pair.blend(w)
-        return self.synthesize(pair, view, w)
+            bound = view_flow_bounds_px([a.view, b.view], [view, view], k, self.radii, shape)
+            if bound.max() < SUBPIXEL_PX:
+                return blend(a.lum, b.lum, w)
+        return self.synthesize(self._keypair(a, b), view, w)
 
     def synthesize(self, pair: KeyPair, view: View, w: float) -> np.ndarray:
         """An in-between frame (a method of its own, for profiling)."""
         return pair.frame(view, w)
 
     def object_mask(self, t_us: int) -> np.ndarray:
-        mask = self._mask
-        if mask is not None and mask[0] == t_us:
-            return mask[1]
-        return super().object_mask(t_us)
+        key = self._key_at.get(t_us)
+        if key is None:
+            return super().object_mask(t_us)
+        layers = self.keyframe(key).layers
+        return np.where(layers <= self.stage.scene.num_objects, layers, 0).astype(np.int32)
 
 
 #: The frame sources by ``WanderConfig.frames`` name.

@@ -66,6 +66,7 @@ __all__ = [
     "Keyframe",
     "View",
     "adaptive_key_ticks",
+    "blend",
     "make_keyframe",
     "synthesize",
     "view_flow_bounds_px",
@@ -77,7 +78,8 @@ _PAD_PX = 3
 # Below this flow bound (px) from both keys, each pixel's nearest source is itself and
 # the frame is the keys' time-weighted blend.
 SUBPIXEL_PX = 0.45
-# Fixed-point iterations on the source depth (moving layers, parallax).
+# Fixed-point iterations on the source depth (moving layers, parallax), at most; they
+# stop at a fixed point (the source depth unchanged), where the rest would change nothing.
 _ITERATIONS = 3
 
 
@@ -134,16 +136,49 @@ def make_keyframe(
     if layers.max() >= n:
         raise ValueError(f"layer id {int(layers.max())} but the view has {n} layers")
     inv = 1.0 / depth
-    present = np.bincount(layers.ravel(), minlength=n) > 0
+    present = np.zeros(n, np.bool_)
     boxes = np.zeros((n, 4), np.int64)
     rho_median, rho_max = np.zeros(n), np.zeros(n)
-    for v in np.flatnonzero(present):  # once per key, a few layers
-        inside = layers == v
-        r = inv[inside]
-        rho_median[v], rho_max[v] = np.median(r), r.max()
-        ys, xs = np.flatnonzero(inside.any(axis=1)), np.flatnonzero(inside.any(axis=0))
-        boxes[v] = (ys[0], ys[-1] + 1, xs[0], xs[-1] + 1)
+    _layer_stats(layers, inv, present, boxes, rho_median, rho_max)
     return Keyframe(int(t_us), lum, view, inv, layers, present, boxes, rho_median, rho_max)
+
+
+@numba.njit(cache=True, nogil=True)
+def _layer_stats(layers, inv, present, boxes, rho_median, rho_max):
+    """Per layer of a key (ids ``< len(present)``): whether it has pixels, their box
+    (y0, y1, x0, x1) and the median and largest inverse depth of its pixels (the median
+    as ``np.median`` takes it: the mean of the two middle values of an even count)."""
+    h, w = layers.shape
+    n = len(present)
+    counts = np.zeros(n, np.int64)
+    boxes[:, 0], boxes[:, 1], boxes[:, 2], boxes[:, 3] = h, 0, w, 0
+    for y in range(h):
+        for x in range(w):
+            v = layers[y, x]
+            r = inv[y, x]
+            if counts[v] == 0 or r > rho_max[v]:
+                rho_max[v] = r
+            counts[v] += 1
+            boxes[v, 0] = min(boxes[v, 0], y)
+            boxes[v, 1] = max(boxes[v, 1], y + 1)
+            boxes[v, 2] = min(boxes[v, 2], x)
+            boxes[v, 3] = max(boxes[v, 3], x + 1)
+    start = np.zeros(n + 1, np.int64)
+    for v in range(n):
+        start[v + 1] = start[v] + counts[v]
+    values = np.empty(h * w)
+    fill = start[:n].copy()
+    for y in range(h):
+        for x in range(w):
+            v = layers[y, x]
+            values[fill[v]] = inv[y, x]
+            fill[v] += 1
+    for v in range(n):
+        present[v] = counts[v] > 0
+        if present[v]:
+            rho_median[v] = np.median(values[start[v] : start[v + 1]])
+        else:
+            boxes[v] = 0
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -242,8 +277,9 @@ def _synth_kernel(
                                 lam = (1.0 + rho * b2) / az
                                 ix = _nearest(lam * ax - rho * b0, w)
                                 iy = _nearest(lam * ay - rho * b1, h)
-                                if layers[kk, iy, ix] == ll:
-                                    rho = inv[kk, iy, ix]
+                                if layers[kk, iy, ix] != ll or inv[kk, iy, ix] == rho:
+                                    break  # a fixed point: the iterations left change nothing
+                                rho = inv[kk, iy, ix]
                         lam = (1.0 + rho * b2) / az
                         px = lam * ax - rho * b0
                         py = lam * ay - rho * b1
@@ -331,7 +367,7 @@ class KeyPair:
 
     def blend(self, w: float) -> np.ndarray:
         """The keys' time-weighted blend (where nothing moves by half a pixel)."""
-        return np.float32(1.0 - w) * self.a.lum + np.float32(w) * self.b.lum
+        return blend(self.a.lum, self.b.lum, w)
 
     def frame(self, view: View, w: float) -> np.ndarray:
         """The frame (H, W) float32 linear luminance of ``view`` at time fraction ``w``.
@@ -398,6 +434,11 @@ class KeyPair:
             moving,
         )
         return out
+
+
+def blend(a: np.ndarray, b: np.ndarray, w: float) -> np.ndarray:
+    """Two keys' luminance blended at the time fraction ``w`` (0: ``a``, 1: ``b``)."""
+    return np.float32(1.0 - w) * a + np.float32(w) * b
 
 
 def synthesize(a: Keyframe, b: Keyframe, view: View, w: float, k: np.ndarray) -> np.ndarray:

@@ -1,5 +1,5 @@
 """``wander bench ...``: the speed benchmarks, each printing tables (speed is measured
-here, never in tests): ``dvs``, ``env``, ``agent``, ``fidelity``, ``formats``.
+here, never in tests): ``dvs``, ``env``, ``agent``, ``floor``, ``fidelity``, ``formats``.
 :mod:`experiments.cli.main` adds :data:`app` as ``bench``.
 """
 
@@ -133,6 +133,33 @@ def bench_agent(
         [both],
         MODES_COLUMNS,
     )
+
+
+@app.command("floor")
+def bench_floor(
+    scene: SceneOpt = "office",
+    calls: Annotated[int, typer.Option(min=1, help="Calls per timed run.")] = 100,
+    repeats: Annotated[
+        int, typer.Option(min=1, help="Timed runs per row; the median is shown.")
+    ] = 5,
+) -> None:
+    """What one render of a key costs here, the real-time factor the renders a step need
+    leave room for, and a per-tick panorama warp (a prototype) against them."""
+    import os
+    import time
+
+    from experiments.bench.floor import BOUND_COLUMNS, FLOOR_COLUMNS, render_floor
+
+    t0 = time.perf_counter()
+    rows, bounds = render_floor(scene=scene, calls=calls, repeats=repeats)
+    print_table(f"The parts of a step, scene '{scene}' (ms per call)", rows, FLOOR_COLUMNS)
+    print_table(
+        "GL passes a step needs and the real-time factor they allow (control period / GL ms)",
+        bounds,
+        BOUND_COLUMNS,
+    )
+    load = ", ".join(f"{v:.2f}" for v in os.getloadavg())
+    console.print(f"{time.perf_counter() - t0:.0f} s; load average {load}")
 
 
 @app.command("fidelity")

@@ -1,0 +1,252 @@
+"""The floor of a simulated step on this machine: what one render of a key costs, what
+the renders a step needs allow, and what a per-tick warp of a precomputed panorama would
+cost instead (a measurement for the panorama route of the speed work; nothing here is
+wired into the env).
+
+Run it as ``wander bench floor``. Each part is timed in place on the env's own renderer
+(the office key, the model posed at a new time and angles before each render, so that
+nothing is reused between renders), each row the median of ``repeats`` runs of
+``calls`` calls. The warps are prototypes: an equirectangular panorama sampled through
+OpenCV's ``remap`` (maps given, or computed from the rotation with NumPy), and a cube map
+sampled by a numba kernel along each pixel's rotated rays (one bilinear sample, or
+``s × s`` nearest samples averaged: area sampling of a panorama rendered at ``s`` times
+the sensor's resolution).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+import wander_env  # noqa: F401  (registers the environments)
+
+FLOOR_COLUMNS: dict[str, str] = {"part": "", "ms_median": ".3f", "ms_best": ".3f", "note": ""}
+BOUND_COLUMNS: dict[str, str] = {
+    "step": "",
+    "colour_renders": "g",
+    "geometry_draws": "g",
+    "gl_ms": ".2f",
+    "rtf_bound": ".2f",
+}
+
+
+@dataclass(frozen=True)
+class FloorRow:
+    """One part: median and best of the runs, ms per call."""
+
+    part: str
+    ms_median: float
+    ms_best: float
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class BoundRow:
+    """A step's GL passes alone and the real-time factor they leave room for."""
+
+    step: str
+    colour_renders: float
+    geometry_draws: float
+    gl_ms: float
+    rtf_bound: float  # control period / GL ms: the RTF if everything else took no time
+
+
+def _time(fn: Callable[[int], object], calls: int, repeats: int) -> tuple[float, float]:
+    """(median, best) ms per call of ``fn(i)`` over ``repeats`` runs of ``calls`` calls."""
+    fn(0)  # warm-up (compilation, first use)
+    runs = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for i in range(calls):
+            fn(i)
+        runs.append(1e3 * (time.perf_counter() - t0) / calls)
+    return float(np.median(runs)), float(min(runs))
+
+
+@numba.njit(cache=True, nogil=True)
+def cube_warp(out, faces, rot, f, cx, cy, s, bilinear):
+    """Sample a cube map ``faces`` (6, F, F) (+x, -x, +y, -y, +z, -z; a face pixel is
+    ``F/2·(a/|m| + 1) - 1/2``) along each sensor pixel's ``s × s`` sub-pixel rays turned by
+    ``rot`` (world-from-camera), averaged; one bilinear or nearest sample per ray."""
+    h, w = out.shape
+    n = faces.shape[1]
+    half = 0.5 * n
+    inv = 1.0 / (s * s)
+    for y in range(h):
+        for x in range(w):
+            acc = 0.0
+            for j in range(s):
+                for i in range(s):
+                    u = (x - 0.5 + (i + 0.5) / s - cx) / f
+                    v = (y - 0.5 + (j + 0.5) / s - cy) / f
+                    d0 = rot[0, 0] * u + rot[0, 1] * v + rot[0, 2]
+                    d1 = rot[1, 0] * u + rot[1, 1] * v + rot[1, 2]
+                    d2 = rot[2, 0] * u + rot[2, 1] * v + rot[2, 2]
+                    a0, a1, a2 = abs(d0), abs(d1), abs(d2)
+                    if a0 >= a1 and a0 >= a2:
+                        face, m, p, q = (0 if d0 > 0 else 1), a0, d1, d2
+                    elif a1 >= a2:
+                        face, m, p, q = (2 if d1 > 0 else 3), a1, d0, d2
+                    else:
+                        face, m, p, q = (4 if d2 > 0 else 5), a2, d0, d1
+                    fx = half * (p / m + 1.0) - 0.5
+                    fy = half * (q / m + 1.0) - 0.5
+                    if bilinear:
+                        ix = min(max(math.floor(fx), 0), n - 2)
+                        iy = min(max(math.floor(fy), 0), n - 2)
+                        tx = min(max(fx - ix, 0.0), 1.0)
+                        ty = min(max(fy - iy, 0.0), 1.0)
+                        row0, row1 = faces[face, iy], faces[face, iy + 1]
+                        top = (1 - tx) * row0[ix] + tx * row0[ix + 1]
+                        bottom = (1 - tx) * row1[ix] + tx * row1[ix + 1]
+                        acc += (1 - ty) * top + ty * bottom
+                    else:
+                        ix = min(max(math.floor(fx + 0.5), 0), n - 1)
+                        iy = min(max(math.floor(fy + 0.5), 0), n - 1)
+                        acc += faces[face, iy, ix]
+            out[y, x] = acc * inv
+
+
+def _pan(deg: float) -> np.ndarray:
+    a = math.radians(deg)
+    return np.array([[math.cos(a), 0, math.sin(a)], [0, 1, 0], [-math.sin(a), 0, math.cos(a)]])
+
+
+def render_floor(
+    scene: str = "office", calls: int = 100, repeats: int = 5, seed: int = 0
+) -> tuple[list[FloorRow], list[BoundRow]]:
+    """The parts' costs (module docstring) and the bounds they set on a step."""
+    import cv2
+    import gymnasium as gym
+
+    from wander_env.camera import focal_length_px
+    from wander_env.dvs import DVSEmulator
+    from wander_env.keyframes import _static_kernel
+
+    env = gym.make("wander/Wander-v0", scene=scene)
+    rows: list[FloorRow] = []
+    try:
+        env.reset(seed=seed)
+        u = env.unwrapped
+        for _ in range(3):
+            env.step(np.zeros(2, np.float32))
+        stage, r = u.stage, u.stage.renderer
+        pan, tilt, t0 = u.ptu.camera_pan_deg, u.ptu.camera_tilt_deg, u._t_us
+        samples = u.scene.camera.antialias_samples
+
+        def pose(i: int) -> None:  # a new time and angles each call: nothing reused
+            stage.pose(t0 + 1000 * (i % 97 + 1), pan + 0.01 * (i % 13), tilt)
+
+        def add(part: str, fn: Callable[[int], object], note: str = "") -> float:
+            med, best = _time(fn, calls, repeats)
+            rows.append(FloorRow(part, med, best, note))
+            return med
+
+        colour = add(
+            f"colour key: pose, scene update, draw, read (MSAA {samples})",
+            lambda i: (pose(i), stage.render()),
+            "llvmpipe",
+        )
+        geometry = add(
+            "key geometry: layer ids + depth, one single-sample draw",
+            lambda i: (pose(i), stage.geometry()),
+            "llvmpipe",
+        )
+        ngeom = r._scene.ngeom
+
+        def empty(i: int) -> None:
+            r._scene.ngeom = 0
+            try:
+                r._draw(r._con)
+            finally:
+                r._scene.ngeom = ngeom
+
+        add(f"empty scene (MSAA {samples}): clear, resolve, read", empty, "any GL pass's overhead")
+        dvs = DVSEmulator(u.width, u.height)
+        pose(1)
+        rgb_a = stage.render()
+        pose(6)
+        rgb_b = stage.render()
+        dvs.reset(rgb_a, 0)
+        frames = (dvs.prepare(rgb_a), dvs.prepare(rgb_b))
+        add("DVS: a key's sRGB to log input", lambda i: dvs.prepare(rgb_a))
+        clock = [0]
+
+        def dvs_step(i: int) -> None:
+            clock[0] += 1000
+            dvs.step(frames[i % 2], clock[0])
+
+        add("DVS: one step (two keys 5 ms apart, alternately)", dvs_step)
+        h, w = u.height, u.width
+        rng = np.random.default_rng(seed)
+        lum = rng.random((2, h, w)).astype(np.float32)
+        out = np.empty((h, w), np.float32)
+        hinv = np.stack([np.eye(3), np.eye(3)])
+        hinv[1, 0, 2] = 0.3
+        weights = np.array([0.5, 0.5])
+        add(
+            "in-between frame today: two keys' homography warp (static world)",
+            lambda i: _static_kernel(out, weights, 0, lum, hinv),
+            "numba, nearest",
+        )
+        # An equirectangular panorama at the sensor's centre resolution, through cv2.remap.
+        f = focal_length_px(w, u.hfov_deg)
+        pw, ph = int(2 * math.pi * f), int(math.pi * f)
+        pano = rng.random((ph, pw)).astype(np.float32)
+        ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
+        rays = np.stack([(xs - (w - 1) / 2) / f, (ys - (h - 1) / 2) / f, np.ones_like(xs)], -1)
+
+        def maps(rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            d = rays @ rot.T
+            lon = np.arctan2(d[..., 0], d[..., 2])
+            lat = np.arctan2(d[..., 1], np.hypot(d[..., 0], d[..., 2]))
+            return ((lon + math.pi) * f).astype(np.float32), ((lat + math.pi / 2) * f).astype(
+                np.float32
+            )
+
+        mx, my = maps(_pan(0.0))
+        threads = cv2.getNumThreads()
+        cv2.setNumThreads(1)
+        try:
+            add(
+                f"panorama warp: cv2.remap bilinear, maps given ({pw}x{ph} equirect.)",
+                lambda i: cv2.remap(pano, mx, my, cv2.INTER_LINEAR),
+                "one thread",
+            )
+            add(
+                "panorama warp: maps from the rotation (NumPy) + cv2.remap bilinear",
+                lambda i: cv2.remap(pano, *maps(_pan(0.01 * i)), cv2.INTER_LINEAR),
+                "one thread",
+            )
+        finally:
+            cv2.setNumThreads(threads)
+        for s, bilinear, what in ((1, True, "1 bilinear sample"), (2, False, "2x2 samples")):
+            n = int(2 * f * s)
+            faces = rng.random((6, n, n)).astype(np.float32)
+            add(
+                f"cube-map warp (faces {n}x{n}): {what} a pixel",
+                lambda i, faces=faces, s=s, b=bilinear: cube_warp(
+                    out, faces, _pan(0.01 * i), f, (w - 1) / 2, (h - 1) / 2, s, b
+                ),
+                "numba, rotation per tick",
+            )
+    finally:
+        env.close()
+    period_ms = 1e3 * u.config.control_period_s
+    steps = [
+        ("default, still camera, ground truth on", 2, 1),
+        ("default, still camera, ground truth off", 2, 0),
+        ("one key a step, ground truth on", 1, 1),
+        ("default, moving camera (keys' geometry too)", 2, 2),
+        ("exact (every tick and sub-frame: 10.2 renders)", 10.2, 1),
+    ]
+    bounds = []
+    for name, n_colour, n_geom in steps:
+        gl = n_colour * colour + n_geom * geometry
+        bounds.append(BoundRow(name, n_colour, n_geom, gl, period_ms / gl))
+    return rows, bounds
