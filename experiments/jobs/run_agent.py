@@ -204,13 +204,10 @@ def run_closed_loop(
             observers,
         )
         if signals.pending:  # it came while the folder was written: the folder is finished
-            stop = SignalExit(signals.signum)
-            folder = RunFolder(out_dir)
-            folder.mark_incomplete(
-                f"{stop} while the run folder was written, after the run's "
-                f"{result.metrics['steps']} steps; every file was finished",
+            RunFolder(out_dir).record_late_signal(
+                signals.signum,
+                f"the run folder was written, after the run's {result.metrics['steps']} steps",
             )
-            folder.record_failure(stop)
     return result  # unless the pending signal, raised on leaving the block
 
 
