@@ -68,6 +68,7 @@ from wander_env.events.stream import EventStreamWriter
 from wander_env.viz import event_image, labelled_frame, saliency_rgb
 
 __all__ = [
+    "OneEpisodeRun",
     "RunConfig",
     "RunResult",
     "run",
@@ -77,8 +78,21 @@ __all__ = [
 ]
 
 
+class OneEpisodeRun:
+    """What the configs of ``wander run`` and ``wander rig`` share: their fields checked
+    against their annotations, and the run one episode of their ``env`` block long."""
+
+    def __post_init__(self) -> None:
+        check_annotated(self)
+
+    @property
+    def seconds(self) -> float:
+        """The run's length: one episode."""
+        return self.env.episode_seconds
+
+
 @dataclass(frozen=True)
-class RunConfig:
+class RunConfig(OneEpisodeRun):
     """What ``wander run`` runs: the env's block (scene, DVS preset, frames; its
     ``episode_seconds`` is the run's length), the seed and the agent's main switches
     (the paper's defaults; ``alpha`` is the sOMS threshold on the agent's quantile norm,
@@ -93,14 +107,6 @@ class RunConfig:
     streamlined: bool = False
     alpha: Annotated[float, pydantic.Field(ge=0, le=1)] = AGENT_SOMS_ALPHA
     soms_norm: Literal["quantile", "minmax"] = "quantile"
-
-    def __post_init__(self) -> None:
-        check_annotated(self)
-
-    @property
-    def seconds(self) -> float:
-        """The run's length: one episode."""
-        return self.env.episode_seconds
 
     def agent_params(self, env: Any) -> AgentParams:
         return AgentParams.for_env(
