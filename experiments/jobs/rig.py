@@ -43,6 +43,7 @@ import numpy as np
 import pydantic
 
 from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent
+from agents.fixation import FIXATION_WINDOW_S
 from experiments.framework import MAX_SEED
 from experiments.jobs.run_agent import OneEpisodeRun, RunConfig, RunResult, run_for_config
 from experiments.runs.folder import METRICS_JSON, RunFolder
@@ -71,7 +72,7 @@ class RigRunConfig(OneEpisodeRun):
 
     env: RigConfig
     seed: Annotated[int, pydantic.Field(ge=0, le=MAX_SEED)] = 0
-    window_s: Annotated[float, pydantic.Field(gt=0)] = 0.124
+    window_s: Annotated[float, pydantic.Field(gt=0)] = FIXATION_WINDOW_S
     fixational: bool = True
     streamlined: bool = False
     alpha: Annotated[float, pydantic.Field(ge=0, le=1)] = AGENT_SOMS_ALPHA

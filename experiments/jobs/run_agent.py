@@ -47,6 +47,7 @@ import numpy as np
 import pydantic
 
 from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent
+from agents.fixation import FIXATION_WINDOW_S
 from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
 from experiments.framework import MAX_SEED
@@ -102,7 +103,7 @@ class RunConfig(OneEpisodeRun):
     env: WanderConfig = field(default_factory=WanderConfig)
     seed: Annotated[int, pydantic.Field(ge=0, le=MAX_SEED)] = 0
     video: bool = True
-    window_s: Annotated[float, pydantic.Field(gt=0)] = 0.124
+    window_s: Annotated[float, pydantic.Field(gt=0)] = FIXATION_WINDOW_S
     fixational: bool = True
     streamlined: bool = False
     alpha: Annotated[float, pydantic.Field(ge=0, le=1)] = AGENT_SOMS_ALPHA

@@ -38,7 +38,7 @@ import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
-from agents.fixation import FixationParams
+from agents.fixation import FIXATION_WINDOW_S, FixationParams
 from experiments.framework import (
     Comparison,
     Experiment,
@@ -115,10 +115,10 @@ class SaccadeSpeedConfig:
     (events play no part in the measure)."""
 
     duration_s: TrialSeconds = 3.0
-    window_s: float = 0.124
+    window_s: float = FIXATION_WINDOW_S
     design: Literal["one_at_a_time", "factorial"] = "one_at_a_time"
     ptu: Literal["ideal", "flir"] = "flir"
-    windows_s: tuple[float, ...] = (0.05, 0.124, 0.25)
+    windows_s: tuple[float, ...] = (0.05, FIXATION_WINDOW_S, 0.25)
     ptu_presets: tuple[PtuPreset, ...] = ("flir", "ideal")
     speeds_pos_s: tuple[float, ...] = (1000.0, 2000.0, 2902.0)
     accels_pos_s2: tuple[float, ...] = (1000.0, 2000.0, 8000.0)
@@ -176,7 +176,9 @@ class SaccadeSpeedConfig:
 # Pure helpers
 
 
-def baseline(window_s: float = 0.124, ptu: str = "flir") -> dict[str, float | int | str]:
+def baseline(
+    window_s: float = FIXATION_WINDOW_S, ptu: str = "flir"
+) -> dict[str, float | int | str]:
     """The grid columns at the paper's values (FLIR defaults, the paper's walk, St_w).
 
     >>> baseline()["speed_pos_s"], baseline()["fixational_n_steps"], baseline()["ptu"]

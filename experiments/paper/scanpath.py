@@ -61,6 +61,7 @@ import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
+from agents.fixation import FIXATION_WINDOW_S
 from experiments import scanpath_stats
 from experiments.framework import (
     Comparison,
@@ -114,7 +115,7 @@ class ScanpathConfig:
     conditions: tuple[Condition, ...] = ("saccades", "fixational")
     duration_s: TrialSeconds = 5.0
     saccades_window_s: float = 0.01
-    fixational_window_s: float = 0.124
+    fixational_window_s: float = FIXATION_WINDOW_S
     saccades_fixational: bool = True
     repeats: Repeats = 10
     box: int = 8
