@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 
 from agents.control import AttentionController, ControlParams
-from agents.fixation import FixationalMovements, FixationParams
+from agents.fixation import FIXATION_WINDOW_S, FixationalMovements, FixationParams
 from agents.pipeline import SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
@@ -133,7 +133,7 @@ class AgentParams:
       these fields by :meth:`resolved` (so they cannot disagree).
     """
 
-    window_s: float = 0.124
+    window_s: float = FIXATION_WINDOW_S
     step_s: float = 0.01
     fixational: bool = True
     saccade_settle_s: float = 0.1

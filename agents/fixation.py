@@ -44,6 +44,7 @@ from wander_env.config import check_fields
 from wander_env.ptu.units import FLIR_RESOLUTION_ARCSEC, positions_to_degrees
 
 __all__ = [
+    "FIXATION_WINDOW_S",
     "FixationParams",
     "FixationStep",
     "FixationalMovements",
@@ -51,6 +52,11 @@ __all__ = [
     "fold_into_bound",
     "positions_to_action",
 ]
+
+
+#: St_w = t_w: the paper's fixation window, seconds (its demonstrator's latency): one
+#: fixational walk, and the attention agent's default window.
+FIXATION_WINDOW_S = 0.124
 
 
 # ----------------------------------------------------------------------------------------
@@ -148,7 +154,7 @@ class FixationParams:
     n_steps: int = 8
     max_step_pos: int = 60
     resolution_arcsec: float = FLIR_RESOLUTION_ARCSEC
-    interval_s: float = 0.124 / 8
+    interval_s: float = FIXATION_WINDOW_S / 8
     max_excursion_pos: int | None = None
     integer_positions: bool = True
     shared_axes: bool = False

@@ -54,7 +54,7 @@ import pydantic
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
 from wander_env.config import ConfigError, coerce, load_yaml, parse_sets, validate
-from wander_env.env_config import DvsPreset, FrameMode, PtuPreset, SceneName, WanderConfig
+from wander_env.env_config import DvsPreset, FrameMode, PtuPreset, SceneName
 
 __all__ = [
     "EXPERIMENT_NAMES",
@@ -74,7 +74,6 @@ __all__ = [
     "SceneName",
     "TrialSeconds",
     "TrialSpec",
-    "check_env_block",
     "coerce",
     "config_from_dict",
     "config_to_dict",
@@ -173,22 +172,6 @@ RadiusDeg = Annotated[float, pydantic.Field(gt=0, le=180)]
 #: A grid step on the pan-tilt plane, degrees: in [0.05, 10] (a finer grid of the
 #: PTU's range outgrows memory).
 GridStepDeg = Annotated[float, pydantic.Field(ge=0.05, le=10)]
-
-
-def check_env_block(env: WanderConfig, fixed: Mapping[str, str]) -> None:
-    """An experiment config's check of its ``env`` block: each field of ``fixed`` (name:
-    what sets it) the experiment sets itself per trial, so the block must leave it at
-    :class:`~wander_env.env_config.WanderConfig`'s default (nothing given is dropped).
-
-    >>> check_env_block(WanderConfig(scene="shelf"), {"scene": "the grid's scenes"})
-    Traceback (most recent call last):
-    ...
-    ValueError: env.scene: set by the experiment (the grid's scenes); leave it out
-    """
-    default = WanderConfig()
-    for name, by in fixed.items():
-        if env[name] != default[name]:
-            raise ValueError(f"env.{name}: set by the experiment ({by}); leave it out")
 
 
 # ----------------------------------------------------------------------------------------

@@ -69,6 +69,8 @@ Unit = Annotated[float, pydantic.Field(ge=0, le=1)]
 Vec2 = tuple[float, float]
 Vec3 = tuple[float, float, float]
 RGBA = tuple[Unit, Unit, Unit, Unit]
+#: The parts' default colour: white, which leaves a texture's own colours as they are.
+WHITE: RGBA = (1.0, 1.0, 1.0, 1.0)
 
 SHAPES = ("box", "sphere", "cylinder", "mesh")
 SHAPE_SIZE_LEN = {"box": 3, "sphere": 1, "cylinder": 2}
@@ -383,12 +385,7 @@ class TableConfig:
         Positive,
         field_doc("Side of the legs' square section; set in by it from the corners", unit="m"),
     ] = 0.05
-    rgba: PartRGBA = (
-        1.0,
-        1.0,
-        1.0,
-        1.0,
-    )
+    rgba: PartRGBA = WHITE
     texture: PartTexture = None
 
     def __post_init__(self) -> None:
@@ -424,12 +421,7 @@ class ShelfConfig:
     yaw_deg: Annotated[
         float, field_doc("Turn about z (0: it faces -x, towards a PTU at the origin)", unit="deg")
     ] = 0.0
-    rgba: PartRGBA = (
-        1.0,
-        1.0,
-        1.0,
-        1.0,
-    )
+    rgba: PartRGBA = WHITE
     texture: PartTexture = None
 
     def __post_init__(self) -> None:
@@ -503,12 +495,7 @@ class MovingObjectConfig(_Body):
         field_doc("Where its centre is at time t: one of the kinds below, chosen by kind"),
         pydantic.Field(discriminator="kind"),
     ]
-    rgba: PartRGBA = (
-        1.0,
-        1.0,
-        1.0,
-        1.0,
-    )
+    rgba: PartRGBA = WHITE
     texture: BodyTexture = None
     name: Annotated[
         str, field_doc("Its name in the ground truth and results (its body is object_k)")

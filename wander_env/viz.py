@@ -35,6 +35,25 @@ def save_figure(
     return path
 
 
+def legend_below(fig: Any, handles: list[Any], fontsize: float) -> None:
+    """A figure legend of ``handles`` in one row along the bottom, without a frame (leave
+    it room with :func:`save_figure`'s ``rect``)."""
+    fig.legend(
+        handles=handles, loc="lower center", ncol=len(handles), fontsize=fontsize, frameon=False
+    )
+
+
+def polarity_patches(on: str, off: str) -> list[Any]:
+    """Legend handles of :func:`event_image`'s ON and OFF colours, labelled ``on`` and
+    ``off``."""
+    from matplotlib.patches import Patch
+
+    return [
+        Patch(color=np.asarray(ON_RGB) / 255, label=on),
+        Patch(color=np.asarray(OFF_RGB) / 255, label=off),
+    ]
+
+
 def event_image(counts: np.ndarray) -> np.ndarray:
     """``(2, H, W)`` per-polarity counts -> ``(H, W, 3)``: red ON, blue OFF, white none.
 

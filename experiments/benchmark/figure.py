@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from wander_env.viz import OFF_RGB, ON_RGB, event_image, save_figure
+from wander_env.viz import event_image, legend_below, polarity_patches, save_figure
 
 __all__ = ["WindowSampler", "WindowView", "plot_maps_vs_masks"]
 
@@ -139,18 +139,12 @@ def plot_maps_vs_masks(path: Path, views: list[WindowView], title: str, box: int
             a.set_xlabel("x (px)", fontsize=7)
         a0.set_ylabel("y (px)", fontsize=7)
     fig.suptitle(title, fontsize=10)
-    fig.legend(
-        handles=[
-            Patch(color=np.asarray(ON_RGB) / 255, label="ON event"),
-            Patch(color=np.asarray(OFF_RGB) / 255, label="OFF event"),
-            Patch(color="black", label="sOMS kept"),
-            Patch(color=plt.get_cmap("Greens")(0.6), label="object mask"),
-            Patch(color=plt.get_cmap("autumn")(0.0), alpha=0.6, label="sOMS on the mask panel"),
-            Patch(facecolor="none", edgecolor="magenta", label="P's 8×8 box (hit: touches mask)"),
-        ],
-        loc="lower center",
-        ncol=6,
-        fontsize=7,
-        frameon=False,
-    )
+    handles = [
+        *polarity_patches("ON event", "OFF event"),
+        Patch(color="black", label="sOMS kept"),
+        Patch(color=plt.get_cmap("Greens")(0.6), label="object mask"),
+        Patch(color=plt.get_cmap("autumn")(0.0), alpha=0.6, label="sOMS on the mask panel"),
+        Patch(facecolor="none", edgecolor="magenta", label="P's 8×8 box (hit: touches mask)"),
+    ]
+    legend_below(fig, handles, fontsize=7)
     return save_figure(fig, path, rect=(0, 0.03, 1, 1))

@@ -19,7 +19,7 @@ import numpy as np
 from experiments.jobs.synthetic import disc_over_texture
 from wander_env.dvs import DVSEmulator, DVSParams
 from wander_env.events import concatenate, time_window, to_frame
-from wander_env.viz import OFF_RGB, ON_RGB, event_image, save_figure
+from wander_env.viz import event_image, legend_below, polarity_patches, save_figure
 
 
 @dataclass(frozen=True)
@@ -86,17 +86,8 @@ def plot_event_panels(
         f"events of {config.panel_ms:g} ms windows every {step_us / 1e3:g} ms",
         fontsize=10,
     )
-    fig.legend(
-        handles=[
-            Patch(color=np.asarray(ON_RGB) / 255, label="ON (brighter)"),
-            Patch(color=np.asarray(OFF_RGB) / 255, label="OFF (darker)"),
-            Patch(facecolor="white", edgecolor="0.5", label="no event"),
-        ],
-        loc="lower center",
-        ncol=3,
-        fontsize=8,
-        frameon=False,
-    )
+    no_event = Patch(facecolor="white", edgecolor="0.5", label="no event")
+    legend_below(fig, [*polarity_patches("ON (brighter)", "OFF (darker)"), no_event], fontsize=8)
     return save_figure(fig, path, rect=(0, 0.04, 1, 1))
 
 

@@ -86,13 +86,10 @@ def record(
         with DeferredSignals() as signals:  # a signal sets a flag; the loop takes it up
             summary = _record(out_dir, config, env, progress, signals)
             if signals.pending:  # it came after the loop: the folder is finished
-                stop = SignalExit(signals.signum)
-                folder = RunFolder(out_dir)
-                folder.mark_incomplete(
-                    f"{stop} while the folder was written, after the recording's "
-                    f"{summary['steps']} steps; every file was finished",
+                RunFolder(out_dir).record_late_signal(
+                    signals.signum,
+                    f"the folder was written, after the recording's {summary['steps']} steps",
                 )
-                folder.record_failure(stop)
         return summary  # unless the pending signal, raised on leaving the block
     finally:
         env.close()

@@ -43,21 +43,21 @@ import numpy as np
 import pydantic
 
 from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent
+from agents.fixation import FIXATION_WINDOW_S
 from experiments.framework import MAX_SEED
-from experiments.jobs.run_agent import RunConfig, RunResult, run_for_config
+from experiments.jobs.run_agent import OneEpisodeRun, RunConfig, RunResult, run_for_config
 from experiments.runs.folder import METRICS_JSON, RunFolder
 from experiments.runs.provenance import run_record
 from hardware.ptu_driver import PTUError, PTUPortError, PTUTimeout
 from hardware.rig_env import RigConfig
 from wander_env.camera import SPECK_HFOV_DEG
-from wander_env.config import check_annotated
 from wander_env.strict_json import to_strict_json
 
 __all__ = ["RigRunConfig", "RigRunError", "fixed_view_note", "run_rig"]
 
 
 @dataclass(frozen=True)
-class RigRunConfig:
+class RigRunConfig(OneEpisodeRun):
     """What ``wander rig`` runs: the rig env's block ``env``
     (:class:`~hardware.rig_env.RigConfig`: the PTU's pyserial URL or ``"emulate"``, the
     camera ``"speck"``, ``"speck:<serial>"`` or ``"replay:<event file>"``, the replay's
@@ -72,19 +72,11 @@ class RigRunConfig:
 
     env: RigConfig
     seed: Annotated[int, pydantic.Field(ge=0, le=MAX_SEED)] = 0
-    window_s: Annotated[float, pydantic.Field(gt=0)] = 0.124
+    window_s: Annotated[float, pydantic.Field(gt=0)] = FIXATION_WINDOW_S
     fixational: bool = True
     streamlined: bool = False
     alpha: Annotated[float, pydantic.Field(ge=0, le=1)] = AGENT_SOMS_ALPHA
     video: bool = True
-
-    def __post_init__(self) -> None:
-        check_annotated(self)
-
-    @property
-    def seconds(self) -> float:
-        """The run's length: one episode."""
-        return self.env.episode_seconds
 
     def agent_params(self, env: Any) -> AgentParams:
         """The agent of ``wander run`` with these switches, matched to the rig's sensor and

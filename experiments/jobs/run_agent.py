@@ -47,6 +47,7 @@ import numpy as np
 import pydantic
 
 from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent
+from agents.fixation import FIXATION_WINDOW_S
 from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
 from experiments.framework import MAX_SEED
@@ -68,6 +69,7 @@ from wander_env.events.stream import EventStreamWriter
 from wander_env.viz import event_image, labelled_frame, saliency_rgb
 
 __all__ = [
+    "OneEpisodeRun",
     "RunConfig",
     "RunResult",
     "run",
@@ -77,8 +79,21 @@ __all__ = [
 ]
 
 
+class OneEpisodeRun:
+    """What the configs of ``wander run`` and ``wander rig`` share: their fields checked
+    against their annotations, and the run one episode of their ``env`` block long."""
+
+    def __post_init__(self) -> None:
+        check_annotated(self)
+
+    @property
+    def seconds(self) -> float:
+        """The run's length: one episode."""
+        return self.env.episode_seconds
+
+
 @dataclass(frozen=True)
-class RunConfig:
+class RunConfig(OneEpisodeRun):
     """What ``wander run`` runs: the env's block (scene, DVS preset, frames; its
     ``episode_seconds`` is the run's length), the seed and the agent's main switches
     (the paper's defaults; ``alpha`` is the sOMS threshold on the agent's quantile norm,
@@ -88,19 +103,11 @@ class RunConfig:
     env: WanderConfig = field(default_factory=WanderConfig)
     seed: Annotated[int, pydantic.Field(ge=0, le=MAX_SEED)] = 0
     video: bool = True
-    window_s: Annotated[float, pydantic.Field(gt=0)] = 0.124
+    window_s: Annotated[float, pydantic.Field(gt=0)] = FIXATION_WINDOW_S
     fixational: bool = True
     streamlined: bool = False
     alpha: Annotated[float, pydantic.Field(ge=0, le=1)] = AGENT_SOMS_ALPHA
     soms_norm: Literal["quantile", "minmax"] = "quantile"
-
-    def __post_init__(self) -> None:
-        check_annotated(self)
-
-    @property
-    def seconds(self) -> float:
-        """The run's length: one episode."""
-        return self.env.episode_seconds
 
     def agent_params(self, env: Any) -> AgentParams:
         return AgentParams.for_env(
@@ -204,13 +211,10 @@ def run_closed_loop(
             observers,
         )
         if signals.pending:  # it came while the folder was written: the folder is finished
-            stop = SignalExit(signals.signum)
-            folder = RunFolder(out_dir)
-            folder.mark_incomplete(
-                f"{stop} while the run folder was written, after the run's "
-                f"{result.metrics['steps']} steps; every file was finished",
+            RunFolder(out_dir).record_late_signal(
+                signals.signum,
+                f"the run folder was written, after the run's {result.metrics['steps']} steps",
             )
-            folder.record_failure(stop)
     return result  # unless the pending signal, raised on leaving the block
 
 

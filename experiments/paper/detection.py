@@ -19,11 +19,10 @@ not scored. One row per trial: means over the scored windows.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
@@ -33,15 +32,8 @@ from agents.soms import SOMSParams
 from experiments.benchmark.datasets.base import MaskWindow, SequenceData
 from experiments.benchmark.protocol import ProtocolConfig, WindowRow, evaluate_sequence
 from experiments.benchmark.summary import paper_reference
-from experiments.framework import (
-    Comparison,
-    Experiment,
-    Repeats,
-    Row,
-    TrialSeconds,
-    TrialSpec,
-    check_env_block,
-)
+from experiments.framework import Comparison, Experiment, Repeats, Row, TrialSeconds, TrialSpec
+from experiments.paper.env_block import check_env_block, trial_env
 from experiments.stats import mean_std
 from wander_env.actions import gaze_degrees_to_action
 from wander_env.env_config import SceneName, WanderConfig
@@ -159,15 +151,12 @@ def record_sequence(
     """Run the env under :class:`SweepPolicy`; (events + one mask window per step,
     mean camera speed in deg/s)."""
     n = round(cfg.duration_s / cfg.step_s)
-    env = gym.make(
-        "wander/Wander-v0",
-        **replace(
-            cfg.env,
-            scene=scene,
-            control_period_s=cfg.step_s,
-            episode_seconds=cfg.duration_s + 1.0,
-            ptu=ptu_for_speed(speed),
-        ),
+    env = trial_env(
+        cfg.env,
+        scene=scene,
+        control_period_s=cfg.step_s,
+        episode_seconds=cfg.duration_s + 1.0,
+        ptu=ptu_for_speed(speed),
     )
     try:
         _, info = env.reset(seed=seed)

@@ -45,7 +45,6 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal, Protocol
 
-import gymnasium as gym
 import numpy as np
 import torch
 from scipy.ndimage import binary_dilation, gaussian_filter
@@ -54,16 +53,9 @@ import wander_env  # noqa: F401  (registers the environments)
 from agents.proto_object import saliency_argmax
 from agents.soms import SOMS, SOMSParams
 from experiments.benchmark.suppression import PAPER_SUPPRESSION
-from experiments.framework import (
-    Comparison,
-    Experiment,
-    Repeats,
-    Row,
-    TrialSpec,
-    check_env_block,
-    load_artifacts,
-)
+from experiments.framework import Comparison, Experiment, Repeats, Row, TrialSpec, load_artifacts
 from experiments.metrics import detection_hit
+from experiments.paper.env_block import check_env_block, trial_env
 from experiments.stats import mean_ci, wilson_interval
 from wander_env.actions import gaze_degrees_to_action
 from wander_env.camera import focal_length_px
@@ -550,10 +542,7 @@ def record(cfg: EventSuppressionConfig, phase: str, seed: int) -> Recording:
     start, sense = shake_start(seed)
     duration = sum(s.length_s for s in segs)
     n = round(duration / cfg.window_s)
-    env = gym.make(
-        "wander/Wander-v0",
-        **replace(cfg.env, control_period_s=cfg.window_s, episode_seconds=duration + 1.0),
-    )
+    env = trial_env(cfg.env, control_period_s=cfg.window_s, episode_seconds=duration + 1.0)
     base = env.unwrapped
     scale = 1.0
     if cfg.hand_ratio is not None:

@@ -36,7 +36,6 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 import yaml
 
@@ -49,10 +48,10 @@ from experiments.framework import (
     Row,
     TrialSeconds,
     TrialSpec,
-    check_env_block,
     load_artifacts,
 )
 from experiments.metrics import iou, precision
+from experiments.paper.env_block import check_env_block, trial_env
 from wander_env.env_config import WanderConfig
 from wander_env.scene_config import GRATING_MODES, assets_dir
 from wander_env.viz import save_figure
@@ -278,14 +277,11 @@ def run_trial(cfg: OMSCharacterisationConfig, spec: TrialSpec) -> dict[str, Any]
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "gratings_variant.yaml"
         path.write_text(yaml.safe_dump(scene, sort_keys=False))
-        env = gym.make(
-            "wander/Wander-v0",
-            **replace(
-                cfg.env,
-                scene=str(path),
-                control_period_s=cfg.step_s,
-                episode_seconds=cfg.duration_s + 1.0,
-            ),
+        env = trial_env(
+            cfg.env,
+            scene=str(path),
+            control_period_s=cfg.step_s,
+            episode_seconds=cfg.duration_s + 1.0,
         )
         try:
             env.reset(seed=spec.seed)

@@ -39,25 +39,17 @@ without adaptive sub-frames or ground truth (10× fewer renders than the default
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-import gymnasium as gym
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
-from experiments.framework import (
-    Comparison,
-    Experiment,
-    Repeats,
-    Row,
-    TrialSeconds,
-    TrialSpec,
-    check_env_block,
-)
+from experiments.framework import Comparison, Experiment, Repeats, Row, TrialSeconds, TrialSpec
 from experiments.metrics import foveation_error_px
+from experiments.paper.env_block import check_env_block, trial_env
 from experiments.stats import mean_std
 from wander_env.camera import cast_pixel, degrees_to_pixels
 from wander_env.env_config import WanderConfig
@@ -173,13 +165,10 @@ def run_trial(cfg: SacAccuracyConfig, spec: TrialSpec) -> dict[str, Any]:
     after the saccade to measure its displacement from the fovea."""
     condition = str(spec.params["ptu"])
     rng = np.random.default_rng(spec.seed)
-    env = gym.make(
-        "wander/Wander-v0",
-        **replace(
-            cfg.env,
-            ptu=ptu_for_condition(cfg, condition),
-            episode_seconds=cfg.max_saccade_s + 1.0,
-        ),
+    env = trial_env(
+        cfg.env,
+        ptu=ptu_for_condition(cfg, condition),
+        episode_seconds=cfg.max_saccade_s + 1.0,
     )
     base = env.unwrapped
     w, h = base.width, base.height

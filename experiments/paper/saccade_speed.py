@@ -29,7 +29,7 @@ from __future__ import annotations
 import itertools
 import math
 import tempfile
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
@@ -38,7 +38,7 @@ import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
-from agents.fixation import FixationParams
+from agents.fixation import FIXATION_WINDOW_S, FixationParams
 from experiments.framework import (
     Comparison,
     Experiment,
@@ -46,11 +46,11 @@ from experiments.framework import (
     Row,
     TrialSeconds,
     TrialSpec,
-    check_env_block,
     load_artifacts,
 )
 from experiments.jobs.run_agent import run_closed_loop
 from experiments.paper import main_sequence
+from experiments.paper.env_block import check_env_block, trial_env
 from experiments.paper.speed_study import AXIS_LABELS, plot_surfaces
 from experiments.stats import ci_text, mean_ci, mean_std, paired_comparison
 from wander_env.camera import SPECK_HFOV_DEG, degrees_to_pixels, pixels_to_degrees
@@ -115,10 +115,10 @@ class SaccadeSpeedConfig:
     (events play no part in the measure)."""
 
     duration_s: TrialSeconds = 3.0
-    window_s: float = 0.124
+    window_s: float = FIXATION_WINDOW_S
     design: Literal["one_at_a_time", "factorial"] = "one_at_a_time"
     ptu: Literal["ideal", "flir"] = "flir"
-    windows_s: tuple[float, ...] = (0.05, 0.124, 0.25)
+    windows_s: tuple[float, ...] = (0.05, FIXATION_WINDOW_S, 0.25)
     ptu_presets: tuple[PtuPreset, ...] = ("flir", "ideal")
     speeds_pos_s: tuple[float, ...] = (1000.0, 2000.0, 2902.0)
     accels_pos_s2: tuple[float, ...] = (1000.0, 2000.0, 8000.0)
@@ -176,7 +176,9 @@ class SaccadeSpeedConfig:
 # Pure helpers
 
 
-def baseline(window_s: float = 0.124, ptu: str = "flir") -> dict[str, float | int | str]:
+def baseline(
+    window_s: float = FIXATION_WINDOW_S, ptu: str = "flir"
+) -> dict[str, float | int | str]:
     """The grid columns at the paper's values (FLIR defaults, the paper's walk, St_w).
 
     >>> baseline()["speed_pos_s"], baseline()["fixational_n_steps"], baseline()["ptu"]
@@ -279,10 +281,7 @@ class ObjectSpeed(gym.Wrapper):
 
 def _closed_loop(cfg: SaccadeSpeedConfig, p: dict[str, Any], seed: int) -> dict[str, Any]:
     env = ObjectSpeed(
-        gym.make(
-            "wander/Wander-v0",
-            **replace(cfg.env, ptu=_trial_ptu(p), episode_seconds=cfg.duration_s + 1.0),
-        ),
+        trial_env(cfg.env, ptu=_trial_ptu(p), episode_seconds=cfg.duration_s + 1.0),
         float(p["object_speed_scale"]),
     )
     fixation = FixationParams(
@@ -320,17 +319,14 @@ def _closed_loop(cfg: SaccadeSpeedConfig, p: dict[str, Any], seed: int) -> dict[
 
 
 def _main_sequence(cfg: SaccadeSpeedConfig, ptu: PTUParams, seed: int) -> dict[str, Any]:
-    env = gym.make(
-        "wander/Wander-v0",
-        **replace(
-            cfg.env,
-            scene=cfg.main_sequence_scene,
-            ptu=ptu,
-            render_rate_hz=100.0,
-            max_subframes=1,
-            ground_truth=False,
-            episode_seconds=1000.0,
-        ),
+    env = trial_env(
+        cfg.env,
+        scene=cfg.main_sequence_scene,
+        ptu=ptu,
+        render_rate_hz=100.0,
+        max_subframes=1,
+        ground_truth=False,
+        episode_seconds=1000.0,
     )
     base = env.unwrapped
     agent = AttentionAgent(AgentParams.for_env(env, fixational=False), seed=seed)

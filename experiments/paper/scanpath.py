@@ -53,15 +53,15 @@ import math
 import tempfile
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-import gymnasium as gym
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
+from agents.fixation import FIXATION_WINDOW_S
 from experiments import scanpath_stats
 from experiments.framework import (
     Comparison,
@@ -72,7 +72,6 @@ from experiments.framework import (
     Row,
     TrialSeconds,
     TrialSpec,
-    check_env_block,
     load_artifacts,
 )
 from experiments.jobs.run_agent import run_closed_loop
@@ -81,6 +80,7 @@ from experiments.jobs.scanpath_figure import (
     saliency_mosaic,
     show_mosaic,
 )
+from experiments.paper.env_block import check_env_block, trial_env
 from experiments.runs.observers import RunObserver
 from experiments.stats import ci_text, mean_std
 from wander_env.camera import SPECK_HFOV_DEG, cast_pixel, focal_length_px, pixel_to_world_angles
@@ -115,7 +115,7 @@ class ScanpathConfig:
     conditions: tuple[Condition, ...] = ("saccades", "fixational")
     duration_s: TrialSeconds = 5.0
     saccades_window_s: float = 0.01
-    fixational_window_s: float = 0.124
+    fixational_window_s: float = FIXATION_WINDOW_S
     saccades_fixational: bool = True
     repeats: Repeats = 10
     box: int = 8
@@ -269,10 +269,7 @@ def agent_params(cfg: ScanpathConfig, condition: str, env: Any) -> AgentParams:
 def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
     """One scene / condition: the closed loop for ``duration_s``, then the statistics."""
     scene, condition = str(spec.params["scene"]), str(spec.params["condition"])
-    env = gym.make(
-        "wander/Wander-v0",
-        **replace(cfg.env, scene=scene, episode_seconds=cfg.duration_s + 1.0),
-    )
+    env = trial_env(cfg.env, scene=scene, episode_seconds=cfg.duration_s + 1.0)
     agent = AttentionAgent(agent_params(cfg, condition, env), seed=spec.seed)
     watch = ScanpathObserver(env, cfg.box)
     record = {"experiment": "scanpath", "params": dict(spec.params), "seed": spec.seed}

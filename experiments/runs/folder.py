@@ -176,6 +176,15 @@ class RunFolder:
         metrics.unlink(missing_ok=True)
         marker.unlink(missing_ok=True)
 
+    def record_late_signal(self, signum: int, written: str) -> None:
+        """A signal ``signum`` that came after the loop, while ``written`` (what was
+        written, e.g. "the run folder was written, after the run's 100 steps") went on:
+        every file was finished, and the folder is marked ``INCOMPLETE`` with the stop
+        recorded (:meth:`record_failure`). The caller raises the signal after."""
+        stop = SignalExit(signum)
+        self.mark_incomplete(f"{stop} while {written}; every file was finished")
+        self.record_failure(stop)
+
     def record_failure(self, err: BaseException) -> None:
         """Add ``err`` (and the signal) to ``metrics.json``; mark a write failure with
         ``INCOMPLETE``. A signal that came before the folder existed (during set-up)

@@ -55,8 +55,9 @@ import sys
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from types import TracebackType
 from typing import Any
+
+from wander_env.closing import Closing
 
 SIGNALS: tuple[signal.Signals, ...] = tuple(
     getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
@@ -136,7 +137,7 @@ def handle_signals(signals: tuple[int, ...] = SIGNALS) -> Iterator[Received]:
             signal.signal(s, h if h is not None else signal.SIG_DFL)
 
 
-class DeferredSignals:
+class DeferredSignals(Closing):
     """Inside ``with DeferredSignals() as signals:`` a termination signal only sets a flag.
 
     The loop that owns the block calls :meth:`check` between steps: a signal that came is
@@ -193,12 +194,9 @@ class DeferredSignals:
             self._raised = True
             self._previous[self.signum](self.signum, None)
 
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
+    def close(self) -> None:
+        """Leave the block: the handlers put back, then a signal that came and was not
+        raised yet raised (by the handler it deferred)."""
         for s, handler in self._previous.items():
             signal.signal(s, handler)
         self.check()
