@@ -17,7 +17,7 @@ Examples:
     >>> WanderConfig(frames="fast")
     Traceback (most recent call last):
     ...
-    ValueError: frames: expected one of 'keyframes', 'exact', got 'fast'
+    ValueError: frames: expected one of 'keyframes', 'exact', 'panorama', got 'fast'
 """
 
 from __future__ import annotations
@@ -73,7 +73,7 @@ DvsPreset = Annotated[str, pydantic.AfterValidator(_dvs_preset)]
 #: A PTU preset (:meth:`wander_env.ptu.PTUParams.preset`).
 PtuPreset = Annotated[str, pydantic.AfterValidator(_ptu_preset)]
 #: How the env makes its frames: one name per class of ``wander_env.frames.FRAME_SOURCES``.
-FrameMode = Literal["keyframes", "exact"]
+FrameMode = Literal["keyframes", "exact", "panorama"]
 #: Rendering quality: ``fast`` (the scene's antialiasing), ``fine`` (16 samples a pixel).
 Quality = Literal["fast", "fine"]
 FRAME_MODES: tuple[str, ...] = typing.get_args(FrameMode)

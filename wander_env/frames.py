@@ -57,6 +57,7 @@ __all__ = [
     "FrameParams",
     "FrameSource",
     "KeyframeFrames",
+    "PanoramaFrames",
     "RenderedKey",
     "Stage",
 ]
@@ -372,5 +373,218 @@ class KeyframeFrames(FrameSource):
         return np.where(layers <= self.stage.scene.num_objects, layers, 0).astype(np.int32)
 
 
+def layers_in_view(
+    views: list[View],
+    k: np.ndarray,
+    radii: np.ndarray,
+    shape: tuple[int, int],
+    margin_px: float = 4.0,
+) -> bool:
+    """Whether any moving layer (a ball of ``radii[layer]`` m about its position; ``inf``:
+    always) may reach the image (widened by ``margin_px``) in any of ``views``."""
+    h, w = shape
+    f = float(k[0, 0])
+    cx, cy = float(k[0, 2]), float(k[1, 2])
+    # Inward normals of the frustum's side planes (camera axes), unit length.
+    normals = np.array(
+        [
+            [f, 0, cx + 0.5 + margin_px],
+            [-f, 0, w - 0.5 - cx + margin_px],
+            [0, f, cy + 0.5 + margin_px],
+            [0, -f, h - 0.5 - cy + margin_px],
+        ]
+    )
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    for view in views:
+        pos = view.layer_positions[1:]
+        r = np.asarray(radii, float)[1 : 1 + len(pos)]
+        if not np.isfinite(r).all():
+            return True
+        p = (pos - view.centre) @ view.rotation  # camera axes
+        inside = (p[:, 2] > -r) & ((p @ normals.T) > -r[:, None]).all(axis=1)
+        if inside.any():
+            return True
+    return False
+
+
+class PanoramaFrames(KeyframeFrames):
+    """The static world from a panorama; the moving layers from keys, over it by depth.
+
+    At reset the static world (every geom of motion layer 0; the moving layers hidden) is
+    rendered once as a cube map from the camera centre (:func:`wander_env.panorama.render_cube`,
+    faces of ``2·f·samples`` pixels, each with the scene's multisampling: ``samples²`` ×
+    MSAA samples a sensor pixel). Every frame's background is that cube warped by the
+    camera's rotation at the frame's time, ``samples × samples`` rays a pixel averaged
+    (:func:`~wander_env.panorama.cube_warp`), with its inverse depth from the cube's ray
+    distances. Keys are rendered as :class:`KeyframeFrames` renders them (the whole
+    scene: an object's edge pixels blend with the real background) only while a moving
+    layer may be in view (:func:`layers_in_view` along the step); their moving layers
+    are synthesised at each frame and composited over the background by depth
+    (:func:`~wander_env.panorama.layers_over`); outside the layers' boxes every pixel is
+    the panorama's.
+
+    Lighting: MuJoCo's headlight turns with the camera, as no room light does. The faces
+    are lit by it held along the camera's axis at reset (``headlight="camera"``; see
+    :func:`~wander_env.panorama.render_cube` for the others): the background is shaded as
+    the sensor sees it at the reset's pose, and keeps that shading as the camera turns
+    (a per-tick render's headlight turns with it).
+
+    Where the camera centre moves (a hinge offset: the scene's ``ptu.camera_forward_m`` or
+    ``camera_up_m`` non-zero), a panorama from one centre is wrong (parallax): the
+    source then is :class:`KeyframeFrames` for the whole stream.
+    """
+
+    samples = 2  # rays a sensor pixel along each axis (faces at samples × the focal length)
+    headlight = "camera"
+
+    def __init__(self, stage: Stage, dvs: DVSEmulator, params: FrameParams) -> None:
+        super().__init__(stage, dvs, params)
+        mount = stage.scene.ptu
+        self.fallback = mount.camera_forward_m != 0 or mount.camera_up_m != 0
+        self._cube: tuple[np.ndarray, np.ndarray] | None = None
+        self._face_renderer = None
+        self._hide = stage.layer_lut != 0
+        self._bg: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+        self._with_keys = False
+        self._end: tuple[int, Angles, View] | None = None  # the last step's end
+
+    def build(self, t_us: int, angles: Angles) -> None:
+        """Render the panorama from the camera centre at ``t_us`` and ``angles``."""
+        from wander_env.panorama import render_cube
+
+        stage = self.stage
+        stage.pose(t_us, *angles)
+        n = round(2 * float(stage.k[0, 0]) * self.samples)
+        lum, dist, self._face_renderer = render_cube(
+            stage.model, stage.data, n, self._hide, self.headlight, self._face_renderer
+        )
+        stage.posed = None  # the camera was turned to the faces
+        self._cube = (lum, dist)
+        self._bg = {}
+
+    def background(
+        self, rotation: np.ndarray, depth: bool = True
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """(luminance, inverse depth (None unless ``depth``)) (H, W) of the static world
+        for a camera rotation (kept for the rotations of the current step)."""
+        from wander_env.panorama import FACE_ROTATIONS, cube_inverse_depth, cube_warp
+
+        key = rotation.tobytes()
+        stage, (faces, dist) = self.stage, self._cube
+        k = stage.k
+        f, cx, cy = float(k[0, 0]), float(k[0, 2]), float(k[1, 2])
+        got = self._bg.get(key)
+        if got is None:
+            lum = np.empty((stage.height, stage.width), np.float32)
+            cube_warp(lum, faces, FACE_ROTATIONS, rotation, f, cx, cy, self.samples, False)
+            got = self._bg[key] = (lum, None)
+        if depth and got[1] is None:
+            rho = np.empty((stage.height, stage.width), np.float64)
+            cube_inverse_depth(rho, dist, FACE_ROTATIONS, rotation, f, cx, cy)
+            got = self._bg[key] = (got[0], rho)
+        return got
+
+    def reset(self, t_us: int, angles: Angles) -> np.ndarray:
+        if self.fallback:
+            return super().reset(t_us, angles)
+        self.build(t_us, angles)
+        view = self.stage.camera_view(t_us, *angles)
+        self._end = (t_us, angles, view)
+        self._with_keys = layers_in_view([view], self.stage.k, self.radii, self._shape)
+        if self._with_keys:
+            super().reset(t_us, angles)
+        else:
+            self.keys, self._key_at, self._pairs = [], {}, {}
+            self._views, self._interpolated = {}, set()
+        return self._composite(t_us, view)
+
+    @property
+    def _shape(self) -> tuple[int, int]:
+        return self.stage.height, self.stage.width
+
+    def plan(self, trajectory: Trajectory) -> None:
+        if self.fallback:
+            return super().plan(trajectory)
+        stage = self.stage
+        ticks = trajectory.t_us
+        angles = [trajectory.angles(i) for i in range(len(ticks))]
+        views = stage.camera_views(list(ticks), angles)
+        t0, a0, v0 = self._end
+        self._bg = {k: v for k, v in self._bg.items() if k == v0.rotation.tobytes()}
+        visible = layers_in_view([v0, *views], stage.k, self.radii, self._shape)
+        if visible:
+            if not self._with_keys:  # a fresh key at the step's start
+                key = self._render_key(t0, a0, v0)
+                self.keys, self._key_at = [key], {t0: key}
+            super().plan(trajectory)
+        else:
+            self.keys, self._key_at, self._pairs = [], {}, {}
+            self._views = dict(zip(ticks, views, strict=True))
+            still = all((v.rotation == v0.rotation).all() for v in views)
+            self._interpolated = set(ticks) if still else set()
+        self._with_keys = visible
+        self._end = (ticks[-1], angles[-1], views[-1])
+
+    def frame(self, t_us: int, angles: Angles) -> np.ndarray | LogFrame:
+        if self.fallback:
+            return super().frame(t_us, angles)
+        view = self._views.get(t_us)
+        if view is None:  # a sub-frame inside a tick
+            view = self.stage.camera_view(t_us, *angles)
+        return self._composite(t_us, view)
+
+    def _composite(self, t_us: int, view: View) -> np.ndarray:
+        """The background of ``view`` with the keys' moving layers over it by depth."""
+        from wander_env.panorama import layers_over
+
+        if not self._with_keys:
+            return self.background(view.rotation, depth=False)[0]
+        bg, rho = self.background(view.rotation)
+        if len(self.keys) == 1 or t_us <= self.keys[0].t_us:
+            a = b = self.keys[0]
+            w = 1.0
+        else:
+            a, b = self._pair(t_us)
+            w = (t_us - a.t_us) / (b.t_us - a.t_us)
+        if a is b:  # the reset's key alone: a pair of it with itself
+            ka = self.keyframe(a)
+            pair = KeyPair(replace(ka, t_us=ka.t_us - 1), ka, self.stage.k)
+        else:
+            pair = self._keypair(a, b)
+        hinv, bvec, moving, boxes = pair.params(view)
+        regions = pair.regions(boxes)
+        if not len(regions):
+            return bg
+        lum, layers, inv, present, rho0 = pair._stacked
+        out = bg.copy()
+        weights = np.array([1.0 - w, w])
+        layers_over(
+            out,
+            bg,
+            rho,
+            regions,
+            weights,
+            lum,
+            layers,
+            inv,
+            present,
+            boxes,
+            hinv,
+            bvec,
+            rho0,
+            moving,
+        )
+        return out
+
+    def object_mask(self, t_us: int) -> np.ndarray:
+        if self.fallback or self._with_keys:
+            return super().object_mask(t_us)
+        return self.stage.object_mask()
+
+
 #: The frame sources by ``WanderConfig.frames`` name.
-FRAME_SOURCES: dict[str, type[FrameSource]] = {"keyframes": KeyframeFrames, "exact": ExactFrames}
+FRAME_SOURCES: dict[str, type[FrameSource]] = {
+    "keyframes": KeyframeFrames,
+    "exact": ExactFrames,
+    "panorama": PanoramaFrames,
+}

@@ -238,16 +238,67 @@ def _nearest(v: float, n: int) -> int:
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
+def _candidate(kk, x, y, first, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving):
+    """Key ``kk``'s nearest candidate for target pixel (x, y) among its layers from
+    ``first`` on (see the module docstring): (its luminance, its inverse depth in the
+    target view); inverse depth -1 where no layer has one."""
+    h, w = layers.shape[1], layers.shape[2]
+    n_layers = present.shape[1]
+    ax = hinv[kk, 0, 0] * x + hinv[kk, 0, 1] * y + hinv[kk, 0, 2]
+    ay = hinv[kk, 1, 0] * x + hinv[kk, 1, 1] * y + hinv[kk, 1, 2]
+    az = hinv[kk, 2, 0] * x + hinv[kk, 2, 1] * y + hinv[kk, 2, 2]
+    best_v = 0.0
+    best_r = -1.0
+    for ll in range(first, n_layers):
+        if not present[kk, ll]:
+            continue
+        if y < boxes[kk, ll, 0] or y >= boxes[kk, ll, 1]:
+            continue
+        if x < boxes[kk, ll, 2] or x >= boxes[kk, ll, 3]:
+            continue
+        b0, b1, b2 = bvec[kk, ll, 0], bvec[kk, ll, 1], bvec[kk, ll, 2]
+        rho = rho0[kk, ll]
+        mov = moving[kk, ll]
+        if mov:
+            for _ in range(_ITERATIONS):
+                lam = (1.0 + rho * b2) / az
+                ix = _nearest(lam * ax - rho * b0, w)
+                iy = _nearest(lam * ay - rho * b1, h)
+                if layers[kk, iy, ix] != ll or inv[kk, iy, ix] == rho:
+                    break  # a fixed point: the iterations left change nothing
+                rho = inv[kk, iy, ix]
+        lam = (1.0 + rho * b2) / az
+        px = lam * ax - rho * b0
+        py = lam * ay - rho * b1
+        if not (-0.5 < px < w - 0.5 and -0.5 < py < h - 0.5):
+            continue
+        ix = _nearest(px, w)
+        iy = _nearest(py, h)
+        if layers[kk, iy, ix] != ll:
+            continue
+        src = inv[kk, iy, ix]
+        if mov:
+            if abs(src - rho) * math.hypot(b0, b1) >= 0.5:
+                continue  # the depth assumed is not the source's: not converged
+        else:
+            rho = src
+        r_t = rho / lam
+        if r_t > best_r:
+            best_r = r_t
+            best_v = lum[kk, iy, ix]
+    return best_v, best_r
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _synth_kernel(
     out, regions, weights, near, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
 ):
     """Fill ``out`` (H, W) inside each of ``regions`` (R, 4) (y0, y1, x0, x1; a pixel in
     two is computed twice, to the same value): per pixel and key (index 0, 1), the
-    nearest layer candidate (see the module docstring), blended with ``weights``. A
+    nearest layer candidate (:func:`_candidate`), blended with ``weights``. A
     pixel neither key sees takes key ``near``'s nearest edge pixel, or, with ``near`` < 0,
     keeps its value."""
     h, w = out.shape
-    n_layers = present.shape[1]
     for r in range(len(regions)):
         for y in range(regions[r, 0], regions[r, 1]):
             for x in range(regions[r, 2], regions[r, 3]):
@@ -257,48 +308,9 @@ def _synth_kernel(
                     wk = weights[kk]
                     if wk <= 0.0:
                         continue
-                    ax = hinv[kk, 0, 0] * x + hinv[kk, 0, 1] * y + hinv[kk, 0, 2]
-                    ay = hinv[kk, 1, 0] * x + hinv[kk, 1, 1] * y + hinv[kk, 1, 2]
-                    az = hinv[kk, 2, 0] * x + hinv[kk, 2, 1] * y + hinv[kk, 2, 2]
-                    best_v = 0.0
-                    best_r = -1.0
-                    for ll in range(n_layers):
-                        if not present[kk, ll]:
-                            continue
-                        if y < boxes[kk, ll, 0] or y >= boxes[kk, ll, 1]:
-                            continue
-                        if x < boxes[kk, ll, 2] or x >= boxes[kk, ll, 3]:
-                            continue
-                        b0, b1, b2 = bvec[kk, ll, 0], bvec[kk, ll, 1], bvec[kk, ll, 2]
-                        rho = rho0[kk, ll]
-                        mov = moving[kk, ll]
-                        if mov:
-                            for _ in range(_ITERATIONS):
-                                lam = (1.0 + rho * b2) / az
-                                ix = _nearest(lam * ax - rho * b0, w)
-                                iy = _nearest(lam * ay - rho * b1, h)
-                                if layers[kk, iy, ix] != ll or inv[kk, iy, ix] == rho:
-                                    break  # a fixed point: the iterations left change nothing
-                                rho = inv[kk, iy, ix]
-                        lam = (1.0 + rho * b2) / az
-                        px = lam * ax - rho * b0
-                        py = lam * ay - rho * b1
-                        if not (-0.5 < px < w - 0.5 and -0.5 < py < h - 0.5):
-                            continue
-                        ix = _nearest(px, w)
-                        iy = _nearest(py, h)
-                        if layers[kk, iy, ix] != ll:
-                            continue
-                        src = inv[kk, iy, ix]
-                        if mov:
-                            if abs(src - rho) * math.hypot(b0, b1) >= 0.5:
-                                continue  # the depth assumed is not the source's: not converged
-                        else:
-                            rho = src
-                        r_t = rho / lam
-                        if r_t > best_r:
-                            best_r = r_t
-                            best_v = lum[kk, iy, ix]
+                    best_v, best_r = _candidate(
+                        kk, x, y, 0, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
+                    )
                     if best_r > 0.0:
                         num += wk * best_v
                         den += wk
@@ -369,14 +381,10 @@ class KeyPair:
         """The keys' time-weighted blend (where nothing moves by half a pixel)."""
         return blend(self.a.lum, self.b.lum, w)
 
-    def frame(self, view: View, w: float) -> np.ndarray:
-        """The frame (H, W) float32 linear luminance of ``view`` at time fraction ``w``.
-
-        Where the camera only rotates, the static world is one nearest-pixel warp of both
-        keys (:func:`_static_kernel`) and the layers' kernel runs over the moving layers'
-        boxes alone; where its centre moves (parallax), over the whole image."""
-        if not 0.0 <= w <= 1.0:
-            raise ValueError(f"time fraction w must be in [0, 1], got {w!r}")
+    def params(self, view: View) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Per key (index 0, 1) toward ``view``: the target-to-source homography (2, 3, 3),
+        each layer's ``b`` (2, L, 3), whether it moves (2, L) and its target box (2, L, 4)
+        (see :func:`_key_params`)."""
         n = len(view.layer_positions)
         hinv, bvec = np.empty((2, 3, 3)), np.empty((2, n, 3))
         moving, boxes = np.empty((2, n), np.bool_), np.empty((2, n, 4), np.int64)
@@ -401,6 +409,29 @@ class KeyPair:
                 moving[i],
                 boxes[i],
             )
+        return hinv, bvec, moving, boxes
+
+    def regions(self, boxes: np.ndarray) -> np.ndarray:
+        """The moving layers' target regions (R, 4): each layer's box, the union of its
+        boxes (``boxes`` from :meth:`params`) from the keys that have it; empty ones left out."""
+        h, wd = self.a.lum.shape
+        present = self._stacked[3]
+        pres = present[:, 1:, None]
+        lo = np.where(pres, boxes[:, 1:], [h, 0, wd, 0]).min(axis=0)
+        hi = np.where(pres, boxes[:, 1:], [0, 0, 0, 0]).max(axis=0)
+        regions = np.stack([lo[:, 0], hi[:, 1], lo[:, 2], hi[:, 3]], axis=1)
+        return regions[(regions[:, 1] > regions[:, 0]) & (regions[:, 3] > regions[:, 2])]
+
+    def frame(self, view: View, w: float) -> np.ndarray:
+        """The frame (H, W) float32 linear luminance of ``view`` at time fraction ``w``.
+
+        Where the camera only rotates, the static world is one nearest-pixel warp of both
+        keys (:func:`_static_kernel`) and the layers' kernel runs over the moving layers'
+        boxes alone; where its centre moves (parallax), over the whole image."""
+        if not 0.0 <= w <= 1.0:
+            raise ValueError(f"time fraction w must be in [0, 1], got {w!r}")
+        hinv, bvec, moving, boxes = self.params(view)
+        h, wd = self.a.lum.shape
         weights = np.array([1.0 - w, w])
         near = int(w > 0.5)
         lum, layers, inv, present, rho0 = self._stacked
@@ -409,12 +440,7 @@ class KeyPair:
             regions = np.array([[0, h, 0, wd]])
         else:
             _static_kernel(out, weights, near, lum, hinv)
-            # Each moving layer's box: the union of its boxes from the keys that have it.
-            pres = present[:, 1:, None]
-            lo = np.where(pres, boxes[:, 1:], [h, 0, wd, 0]).min(axis=0)
-            hi = np.where(pres, boxes[:, 1:], [0, 0, 0, 0]).max(axis=0)
-            regions = np.stack([lo[:, 0], hi[:, 1], lo[:, 2], hi[:, 3]], axis=1)
-            regions = regions[(regions[:, 1] > regions[:, 0]) & (regions[:, 3] > regions[:, 2])]
+            regions = self.regions(boxes)
             if not len(regions):
                 return out
             near = -1

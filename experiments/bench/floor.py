@@ -1,14 +1,14 @@
 """The floor of a simulated step on this machine: what one render of a key costs, what
 the renders a step needs allow, and what a per-tick warp of a precomputed panorama would
-cost instead (a measurement for the panorama route of the speed work; nothing here is
-wired into the env).
+cost instead (a measurement for the panorama route of the speed work).
 
 Run it as ``wander bench floor``. Each part is timed in place on the env's own renderer
 (the office key, the model posed at a new time and angles before each render, so that
 nothing is reused between renders), each row the median of ``repeats`` runs of
-``calls`` calls. The warps are prototypes: an equirectangular panorama sampled through
+``calls`` calls. The warps: an equirectangular panorama sampled through
 OpenCV's ``remap`` (maps given, or computed from the rotation with NumPy), and a cube map
-sampled by a numba kernel along each pixel's rotated rays (one bilinear sample, or
+sampled along each pixel's rotated rays by the kernel the ``panorama`` frame source uses
+(:func:`wander_env.panorama.cube_warp`) (one bilinear sample, or
 ``s × s`` nearest samples averaged: area sampling of a panorama rendered at ``s`` times
 the sensor's resolution).
 """
@@ -20,10 +20,10 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
+from wander_env.panorama import FACE_ROTATIONS, cube_warp
 
 FLOOR_COLUMNS: dict[str, str] = {"part": "", "ms_median": ".3f", "ms_best": ".3f", "note": ""}
 BOUND_COLUMNS: dict[str, str] = {
@@ -66,50 +66,6 @@ def _time(fn: Callable[[int], object], calls: int, repeats: int) -> tuple[float,
             fn(i)
         runs.append(1e3 * (time.perf_counter() - t0) / calls)
     return float(np.median(runs)), float(min(runs))
-
-
-@numba.njit(cache=True, nogil=True)
-def cube_warp(out, faces, rot, f, cx, cy, s, bilinear):
-    """Sample a cube map ``faces`` (6, F, F) (+x, -x, +y, -y, +z, -z; a face pixel is
-    ``F/2·(a/|m| + 1) - 1/2``) along each sensor pixel's ``s × s`` sub-pixel rays turned by
-    ``rot`` (world-from-camera), averaged; one bilinear or nearest sample per ray."""
-    h, w = out.shape
-    n = faces.shape[1]
-    half = 0.5 * n
-    inv = 1.0 / (s * s)
-    for y in range(h):
-        for x in range(w):
-            acc = 0.0
-            for j in range(s):
-                for i in range(s):
-                    u = (x - 0.5 + (i + 0.5) / s - cx) / f
-                    v = (y - 0.5 + (j + 0.5) / s - cy) / f
-                    d0 = rot[0, 0] * u + rot[0, 1] * v + rot[0, 2]
-                    d1 = rot[1, 0] * u + rot[1, 1] * v + rot[1, 2]
-                    d2 = rot[2, 0] * u + rot[2, 1] * v + rot[2, 2]
-                    a0, a1, a2 = abs(d0), abs(d1), abs(d2)
-                    if a0 >= a1 and a0 >= a2:
-                        face, m, p, q = (0 if d0 > 0 else 1), a0, d1, d2
-                    elif a1 >= a2:
-                        face, m, p, q = (2 if d1 > 0 else 3), a1, d0, d2
-                    else:
-                        face, m, p, q = (4 if d2 > 0 else 5), a2, d0, d1
-                    fx = half * (p / m + 1.0) - 0.5
-                    fy = half * (q / m + 1.0) - 0.5
-                    if bilinear:
-                        ix = min(max(math.floor(fx), 0), n - 2)
-                        iy = min(max(math.floor(fy), 0), n - 2)
-                        tx = min(max(fx - ix, 0.0), 1.0)
-                        ty = min(max(fy - iy, 0.0), 1.0)
-                        row0, row1 = faces[face, iy], faces[face, iy + 1]
-                        top = (1 - tx) * row0[ix] + tx * row0[ix + 1]
-                        bottom = (1 - tx) * row1[ix] + tx * row1[ix + 1]
-                        acc += (1 - ty) * top + ty * bottom
-                    else:
-                        ix = min(max(math.floor(fx + 0.5), 0), n - 1)
-                        iy = min(max(math.floor(fy + 0.5), 0), n - 1)
-                        acc += faces[face, iy, ix]
-            out[y, x] = acc * inv
 
 
 def _pan(deg: float) -> np.ndarray:
@@ -231,7 +187,7 @@ def render_floor(
             add(
                 f"cube-map warp (faces {n}x{n}): {what} a pixel",
                 lambda i, faces=faces, s=s, b=bilinear: cube_warp(
-                    out, faces, _pan(0.01 * i), f, (w - 1) / 2, (h - 1) / 2, s, b
+                    out, faces, FACE_ROTATIONS, _pan(0.01 * i), f, (w - 1) / 2, (h - 1) / 2, s, b
                 ),
                 "numba, rotation per tick",
             )

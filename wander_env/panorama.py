@@ -1,0 +1,262 @@
+"""A panorama of the static world from the camera centre: a cube map rendered once,
+sampled per tick along the sensor's rays turned by the camera's rotation.
+
+A cube map is six square faces of ``n × n`` pixels, each a 90° pinhole view from the
+same centre along one world axis (:data:`FACE_ROTATIONS`, world-from-face rotations in
+OpenCV axes: x right, y down, z forward; face ``i`` looks along ``+x, -x, +y, -y, +z, -z``).
+A world direction ``d`` falls on the face of its largest ``|d_j|`` and there on the face
+pixel ``n/2·(c_x/c_z + 1) - 1/2`` (``c``: ``d`` in the face's axes).
+
+:func:`cube_warp` fills a sensor frame from the faces: per pixel, ``s × s`` sub-pixel rays
+turned by the camera's rotation (world-from-camera), one sample each (nearest, or
+bilinear), averaged: with faces rendered at ``s`` times the sensor's focal length
+(``n = 2·f·s``) that is an area average over the pixel (each face pixel being itself the
+renderer's multisampled average). :func:`cube_inverse_depth` gives each sensor pixel's
+inverse depth (along the sensor's optical axis) from a cube of ray distances, and
+:func:`render_cube` renders a model's static world into both from a MuJoCo camera's
+centre. :func:`layers_over` composites moving layers of two keys over such a
+background by depth (see :mod:`wander_env.keyframes` for the keys' lookup).
+
+Examples:
+    >>> import numpy as np
+    >>> faces = np.stack([np.full((4, 4), i, np.float32) for i in range(6)])
+    >>> out = np.empty((3, 3), np.float32)
+    >>> cube_warp(out, faces, FACE_ROTATIONS, np.eye(3), 1.0, 1.0, 1.0, 1, False)
+    >>> int(out[1, 1])  # the centre ray looks along the camera's +z: face 4
+    4
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numba
+import numpy as np
+
+from wander_env.camera import CAMERA_NAME, linearise_depth, rotation_from_mujoco
+from wander_env.dvs import _LUMA, srgb_to_linear
+from wander_env.keyframes import _candidate
+from wander_env.renderer import CameraRenderer, RenderParams
+
+__all__ = [
+    "FACE_ROTATIONS",
+    "cube_inverse_depth",
+    "cube_warp",
+    "layers_over",
+    "render_cube",
+]
+
+
+def _face_rotations() -> np.ndarray:
+    """World-from-face rotations (6, 3, 3): columns x (right), y (down), z (forward)."""
+    axes = np.eye(3)
+    out = []
+    for j in range(3):
+        for sign in (1.0, -1.0):
+            z = sign * axes[j]
+            # A "down" direction not along z: -world z, or +world y for the vertical faces.
+            down = np.array([0.0, 0.0, -1.0]) if j != 2 else np.array([0.0, sign, 0.0])
+            x = np.cross(down, z)
+            x /= np.linalg.norm(x)
+            y = np.cross(z, x)
+            out.append(np.stack([x, y, z], axis=1))
+    return np.array(out)
+
+
+#: World-from-face rotations (OpenCV axes) of the faces ``+x, -x, +y, -y, +z, -z``.
+FACE_ROTATIONS: np.ndarray = _face_rotations()
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _face_pixel(d0, d1, d2, face_rot, half):
+    """(face, x, y) of the world direction ``d`` on a cube of faces ``2·half`` wide."""
+    a0, a1, a2 = abs(d0), abs(d1), abs(d2)
+    if a0 >= a1 and a0 >= a2:
+        face = 0 if d0 > 0 else 1
+    elif a1 >= a2:
+        face = 2 if d1 > 0 else 3
+    else:
+        face = 4 if d2 > 0 else 5
+    r = face_rot[face]
+    c0 = r[0, 0] * d0 + r[1, 0] * d1 + r[2, 0] * d2
+    c1 = r[0, 1] * d0 + r[1, 1] * d1 + r[2, 1] * d2
+    c2 = r[0, 2] * d0 + r[1, 2] * d1 + r[2, 2] * d2
+    return face, half * (c0 / c2 + 1.0) - 0.5, half * (c1 / c2 + 1.0) - 0.5
+
+
+@numba.njit(cache=True, nogil=True)
+def cube_warp(out, faces, face_rot, rot, f, cx, cy, s, bilinear):
+    """Fill ``out`` (H, W) from the cube ``faces`` (6, n, n) (world-from-face rotations
+    ``face_rot``): per sensor pixel the average over its ``s × s`` sub-pixel rays turned
+    by ``rot`` (world-from-camera; focal length ``f`` px, centre ``cx, cy``), one
+    bilinear or nearest sample a ray."""
+    h, w = out.shape
+    n = faces.shape[1]
+    half = 0.5 * n
+    inv = 1.0 / (s * s)
+    for y in range(h):
+        for x in range(w):
+            acc = 0.0
+            for j in range(s):
+                v = (y - 0.5 + (j + 0.5) / s - cy) / f
+                for i in range(s):
+                    u = (x - 0.5 + (i + 0.5) / s - cx) / f
+                    d0 = rot[0, 0] * u + rot[0, 1] * v + rot[0, 2]
+                    d1 = rot[1, 0] * u + rot[1, 1] * v + rot[1, 2]
+                    d2 = rot[2, 0] * u + rot[2, 1] * v + rot[2, 2]
+                    face, fx, fy = _face_pixel(d0, d1, d2, face_rot, half)
+                    if bilinear:
+                        ix = min(max(math.floor(fx), 0), n - 2)
+                        iy = min(max(math.floor(fy), 0), n - 2)
+                        tx = min(max(fx - ix, 0.0), 1.0)
+                        ty = min(max(fy - iy, 0.0), 1.0)
+                        row0, row1 = faces[face, iy], faces[face, iy + 1]
+                        top = (1 - tx) * row0[ix] + tx * row0[ix + 1]
+                        bottom = (1 - tx) * row1[ix] + tx * row1[ix + 1]
+                        acc += (1 - ty) * top + ty * bottom
+                    else:
+                        ix = min(max(math.floor(fx + 0.5), 0), n - 1)
+                        iy = min(max(math.floor(fy + 0.5), 0), n - 1)
+                        acc += faces[face, iy, ix]
+            out[y, x] = acc * inv
+
+
+@numba.njit(cache=True, nogil=True)
+def cube_inverse_depth(out, dist, face_rot, rot, f, cx, cy):
+    """Fill ``out`` (H, W) with each sensor pixel's inverse depth (1/m along the
+    optical axis) from the cube of ray distances ``dist`` (6, n, n), nearest sample of
+    the pixel's central ray (``rot``, ``f``, ``cx``, ``cy`` as :func:`cube_warp`)."""
+    h, w = out.shape
+    n = dist.shape[1]
+    half = 0.5 * n
+    for y in range(h):
+        v = (y - cy) / f
+        for x in range(w):
+            u = (x - cx) / f
+            d0 = rot[0, 0] * u + rot[0, 1] * v + rot[0, 2]
+            d1 = rot[1, 0] * u + rot[1, 1] * v + rot[1, 2]
+            d2 = rot[2, 0] * u + rot[2, 1] * v + rot[2, 2]
+            face, fx, fy = _face_pixel(d0, d1, d2, face_rot, half)
+            ix = min(max(math.floor(fx + 0.5), 0), n - 1)
+            iy = min(max(math.floor(fy + 0.5), 0), n - 1)
+            out[y, x] = math.sqrt(u * u + v * v + 1.0) / dist[face, iy, ix]
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def layers_over(
+    out, bg, bg_rho, regions, weights, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
+):
+    """Composite two keys' moving layers (ids >= 1) over the background ``bg`` (H, W)
+    with inverse depth ``bg_rho`` into ``out`` inside ``regions`` (R, 4): per key, its
+    nearest moving-layer candidate (:func:`wander_env.keyframes._candidate`) where it is
+    not behind the background, else the background, blended with ``weights``; a pixel no
+    key's layer reaches keeps ``bg``. Idempotent per pixel (regions may overlap)."""
+    for r in range(len(regions)):
+        for y in range(regions[r, 0], regions[r, 1]):
+            for x in range(regions[r, 2], regions[r, 3]):
+                num = 0.0
+                hit = False
+                floor = bg_rho[y, x] * 0.999
+                for kk in range(2):
+                    wk = weights[kk]
+                    if wk <= 0.0:
+                        continue
+                    v, rt = _candidate(
+                        kk, x, y, 1, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
+                    )
+                    if rt > 0.0 and rt >= floor:
+                        num += wk * v
+                        hit = True
+                    else:
+                        num += wk * bg[y, x]
+                if hit:
+                    out[y, x] = num
+                else:
+                    out[y, x] = bg[y, x]
+
+
+def _hidden_groups(model: mujoco.MjModel, hide: np.ndarray, group: int):
+    """Context: the geoms ``hide`` (bool, ngeom) moved to geom group ``group``."""
+    import contextlib
+
+    @contextlib.contextmanager
+    def ctx():
+        saved = model.geom_group.copy()
+        model.geom_group[hide] = group
+        try:
+            yield
+        finally:
+            model.geom_group[:] = saved
+
+    return ctx()
+
+
+def render_cube(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    n: int,
+    hide: np.ndarray,
+    headlight: str = "camera",
+    renderer: CameraRenderer | None = None,
+) -> tuple[np.ndarray, np.ndarray, CameraRenderer]:
+    """The static world (the geoms ``hide`` left out) as a cube map of ``n × n`` faces
+    from the centre of ``data``'s camera ``event_camera`` (the model posed):
+    (linear luminance (6, n, n) float32, ray distance (6, n, n) float32 m, the face
+    renderer, to pass back as ``renderer`` next time).
+
+    Each face is the model's own colour render (its multisampling) from the camera with
+    a 90° field of view, turned to the face. MuJoCo's headlight follows the camera that
+    renders: ``headlight="camera"`` holds it along the camera's axis as posed (every face
+    lit as the sensor's own view is at that pose), ``"face"`` lets it turn with each face
+    (each lit head-on), ``"off"`` switches it off.
+    """
+    if headlight not in ("camera", "face", "off"):
+        raise ValueError(f"headlight must be 'camera', 'face' or 'off', got {headlight!r}")
+    cam = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, CAMERA_NAME)
+    glob = model.vis.global_
+    glob.offwidth, glob.offheight = max(glob.offwidth, n), max(glob.offheight, n)
+    if renderer is None or renderer.width != n:
+        renderer = CameraRenderer(model, n, n, params=RenderParams(visible_geom_groups=(0, 1, 2)))
+    lut = srgb_to_linear(np.arange(256) / 255.0)
+    wlut = (_LUMA[:, None] * lut[None, :]).astype(np.float32)
+    lum = np.empty((6, n, n), np.float32)
+    dist = np.empty((6, n, n), np.float32)
+    saved_xmat = data.cam_xmat[cam].copy()
+    forward = -saved_xmat.reshape(3, 3)[:, 2]  # the camera's axis (MuJoCo: -z) in the world
+    saved_fovy = float(model.cam_fovy[cam])
+    saved_head = int(model.vis.headlight.active)
+    a = (np.arange(n) - (n - 1) / 2) / (n / 2)
+    stretch = np.sqrt(1.0 + a[None, :] ** 2 + a[:, None] ** 2)
+    m = model
+    extent = m.stat.extent
+    try:
+        model.cam_fovy[cam] = 90.0
+        if headlight == "off":
+            model.vis.headlight.active = 0
+        with _hidden_groups(model, hide, 5):
+            for i, r_face in enumerate(FACE_ROTATIONS):
+                # OpenCV axes -> MuJoCo's camera axes (x right, y up, z backward).
+                data.cam_xmat[cam] = (r_face @ np.diag([1.0, -1.0, -1.0])).reshape(9)
+                renderer.update(data)
+                if headlight == "camera":
+                    scn = renderer._scene
+                    for j in range(scn.nlight):
+                        if scn.lights[j].headlight:
+                            scn.lights[j].dir[:] = forward
+                rgb = renderer._draw(renderer._con, renderer._depth_buf)[::-1]
+                lum[i] = wlut[0][rgb[..., 0]] + wlut[1][rgb[..., 1]] + wlut[2][rgb[..., 2]]
+                z = linearise_depth(
+                    renderer._depth_buf[::-1], m.vis.map.znear * extent, m.vis.map.zfar * extent
+                )
+                dist[i] = z * stretch
+    finally:
+        data.cam_xmat[cam] = saved_xmat
+        model.cam_fovy[cam] = saved_fovy
+        model.vis.headlight.active = saved_head
+    return lum, dist, renderer
+
+
+def camera_rotation(data: mujoco.MjData, cam: int) -> np.ndarray:
+    """World-from-camera rotation (OpenCV axes) of camera ``cam`` in ``data``."""
+    return rotation_from_mujoco(data.cam_xmat[cam])
