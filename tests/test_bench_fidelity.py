@@ -57,6 +57,7 @@ def test_mode_kwargs_reference_and_modes() -> None:
     assert kw["exact"] == {"frames": "exact"} and kw["default"] == {}
     assert kw["aa16"] == {"frames": "exact", "supersample": 2}
     assert kw["one_key"] == {"frames": "keyframes", "keyframe_ms": 10.0, "keyframe_px": None}
+    assert kw["panorama"] == {"frames": "panorama"}
     assert tuple(kw) == ("reference", *MODES)
 
 
@@ -80,7 +81,14 @@ def _run(events: dict[str, np.ndarray], l1: dict[str, float], moving: list[bool]
     return Run(
         events={m: [e] for m, e in events.items()},
         l1=l1,
-        renders={"reference": 80, "exact": 20, "aa16": 20, "default": 6, "one_key": 2},
+        renders={
+            "reference": 80,
+            "exact": 20,
+            "aa16": 20,
+            "default": 6,
+            "one_key": 2,
+            "panorama": 2,
+        },
         moving=moving,
         steps=2,
         period_us=10_000,
@@ -90,8 +98,15 @@ def _run(events: dict[str, np.ndarray], l1: dict[str, float], moving: list[bool]
 def test_row_pools_seeds_against_the_reference() -> None:
     ref = ev((1, 1, 1000, 1), (2, 2, 5000, 0), (3, 3, 9000, 1), (4, 4, 15_000, 1))
     close = ev((1, 1, 1500, 1), (2, 2, 5000, 0), (4, 4, 19_000, 1))  # 2 of 4 matched
-    events = {"reference": ref, "exact": close, "aa16": ref, "default": close, "one_key": ref}
-    l1 = {"exact": 3.0, "aa16": 0.0, "default": 2.0, "one_key": 1.0}
+    events = {
+        "reference": ref,
+        "exact": close,
+        "aa16": ref,
+        "default": close,
+        "one_key": ref,
+        "panorama": ref,
+    }
+    l1 = {"exact": 3.0, "aa16": 0.0, "default": 2.0, "one_key": 1.0, "panorama": 0.0}
     runs = [_run(events, l1, [True, False]), _run(events, l1, [True, False])]
     row = row_of("shelf", "saccade", runs)
     assert (row.seeds, row.steps, row.reference_events, row.reference_renders) == (2, 4, 8, 40.0)

@@ -434,7 +434,13 @@ class PanoramaFrames(KeyframeFrames):
     source then is :class:`KeyframeFrames` for the whole stream.
     """
 
-    samples = 2  # rays a sensor pixel along each axis (faces at samples × the focal length)
+    # The measured variants (docs/fidelity.md) as class attributes; the defaults are the
+    # faster of the two that are closer to the world than the default keyframes.
+    samples = 4  # faces at samples × 2f pixels (each with the scene's MSAA)
+    prefilter = True  # faces box-filtered (samples × samples) once, one bilinear sample a pixel
+    bilinear = True  # without prefilter: samples × samples rays a pixel, bilinear (or nearest)
+    srgb = True  # average sRGB codes (as a supersampled render's resolve does), not light
+    edge_px = 1  # the moving layers grown by this many pixels over the panorama
     headlight = "camera"
 
     def __init__(self, stage: Stage, dvs: DVSEmulator, params: FrameParams) -> None:
@@ -444,22 +450,27 @@ class PanoramaFrames(KeyframeFrames):
         self._cube: tuple[np.ndarray, np.ndarray] | None = None
         self._face_renderer = None
         self._hide = stage.layer_lut != 0
+        self._wlut = dvs._wlut  # per channel and code: its share of the linear luminance
         self._bg: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
         self._with_keys = False
+        self._edge_pairs: dict[tuple[int, int], KeyPair] = {}
         self._end: tuple[int, Angles, View] | None = None  # the last step's end
 
     def build(self, t_us: int, angles: Angles) -> None:
         """Render the panorama from the camera centre at ``t_us`` and ``angles``."""
-        from wander_env.panorama import render_cube
+        from wander_env.panorama import box_filter, render_cube
 
         stage = self.stage
         stage.pose(t_us, *angles)
         n = round(2 * float(stage.k[0, 0]) * self.samples)
-        lum, dist, self._face_renderer = render_cube(
+        lum, srgb, dist, self._face_renderer = render_cube(
             stage.model, stage.data, n, self._hide, self.headlight, self._face_renderer
         )
         stage.posed = None  # the camera was turned to the faces
-        self._cube = (lum, dist)
+        self._offset = 0.0
+        if self.srgb and self.prefilter:
+            srgb, self._offset = box_filter(srgb, self.samples)
+        self._cube = (srgb if self.srgb else lum, dist)
         self._bg = {}
 
     def background(
@@ -467,7 +478,12 @@ class PanoramaFrames(KeyframeFrames):
     ) -> tuple[np.ndarray, np.ndarray | None]:
         """(luminance, inverse depth (None unless ``depth``)) (H, W) of the static world
         for a camera rotation (kept for the rotations of the current step)."""
-        from wander_env.panorama import FACE_ROTATIONS, cube_inverse_depth, cube_warp
+        from wander_env.panorama import (
+            FACE_ROTATIONS,
+            cube_inverse_depth,
+            cube_warp,
+            cube_warp_srgb,
+        )
 
         key = rotation.tobytes()
         stage, (faces, dist) = self.stage, self._cube
@@ -476,7 +492,37 @@ class PanoramaFrames(KeyframeFrames):
         got = self._bg.get(key)
         if got is None:
             lum = np.empty((stage.height, stage.width), np.float32)
-            cube_warp(lum, faces, FACE_ROTATIONS, rotation, f, cx, cy, self.samples, False)
+            if self.srgb and self.prefilter:  # one bilinear sample of the box-filtered faces
+                cube_warp_srgb(
+                    lum,
+                    faces,
+                    FACE_ROTATIONS,
+                    rotation,
+                    f,
+                    cx,
+                    cy,
+                    1,
+                    True,
+                    self._wlut,
+                    self._offset,
+                )
+            elif self.srgb:
+                cube_warp_srgb(
+                    lum,
+                    faces,
+                    FACE_ROTATIONS,
+                    rotation,
+                    f,
+                    cx,
+                    cy,
+                    self.samples,
+                    self.bilinear,
+                    self._wlut,
+                )
+            else:
+                cube_warp(
+                    lum, faces, FACE_ROTATIONS, rotation, f, cx, cy, self.samples, self.bilinear
+                )
             got = self._bg[key] = (lum, None)
         if depth and got[1] is None:
             rho = np.empty((stage.height, stage.width), np.float64)
@@ -488,6 +534,7 @@ class PanoramaFrames(KeyframeFrames):
         if self.fallback:
             return super().reset(t_us, angles)
         self.build(t_us, angles)
+        self._edge_pairs = {}
         view = self.stage.camera_view(t_us, *angles)
         self._end = (t_us, angles, view)
         self._with_keys = layers_in_view([view], self.stage.k, self.radii, self._shape)
@@ -512,6 +559,7 @@ class PanoramaFrames(KeyframeFrames):
         t0, a0, v0 = self._end
         self._bg = {k: v for k, v in self._bg.items() if k == v0.rotation.tobytes()}
         visible = layers_in_view([v0, *views], stage.k, self.radii, self._shape)
+        self._edge_pairs = {}
         if visible:
             if not self._with_keys:  # a fresh key at the step's start
                 key = self._render_key(t0, a0, v0)
@@ -546,11 +594,11 @@ class PanoramaFrames(KeyframeFrames):
         else:
             a, b = self._pair(t_us)
             w = (t_us - a.t_us) / (b.t_us - a.t_us)
-        if a is b:  # the reset's key alone: a pair of it with itself
-            ka = self.keyframe(a)
-            pair = KeyPair(replace(ka, t_us=ka.t_us - 1), ka, self.stage.k)
-        else:
-            pair = self._keypair(a, b)
+        pair = self._edge_pairs.get((a.t_us, b.t_us))
+        if pair is None:
+            kb = self._edge_key(b)
+            ka = replace(kb, t_us=kb.t_us - 1) if a is b else self._edge_key(a)
+            pair = self._edge_pairs[(a.t_us, b.t_us)] = KeyPair(ka, kb, self.stage.k)
         hinv, bvec, moving, boxes = pair.params(view)
         regions = pair.regions(boxes)
         if not len(regions):
@@ -575,6 +623,25 @@ class PanoramaFrames(KeyframeFrames):
             moving,
         )
         return out
+
+    def _edge_key(self, key: RenderedKey) -> Keyframe:
+        """``key``'s keyframe with each moving layer grown by ``edge_px`` pixels into the
+        static world's (each such pixel takes its nearest neighbour's layer and depth):
+        the object's edge pixels, which the render blended with the real background,
+        move with it over the panorama."""
+        kf = self.keyframe(key)
+        if self.edge_px == 0:
+            return kf
+        layers, inv = kf.layers.copy(), kf.inv_depth.copy()
+        for _ in range(self.edge_px):
+            grown_l, grown_i = layers.copy(), inv.copy()
+            for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1)):
+                nl = np.roll(layers, (dy, dx), axis=(0, 1))
+                ni = np.roll(inv, (dy, dx), axis=(0, 1))
+                take = (layers == 0) & (nl != 0) & (ni > np.where(grown_l == 0, 0.0, grown_i))
+                grown_l[take], grown_i[take] = nl[take], ni[take]
+            layers, inv = grown_l, grown_i
+        return make_keyframe(kf.t_us, kf.lum, kf.view, 1.0 / inv, layers)
 
     def object_mask(self, t_us: int) -> np.ndarray:
         if self.fallback or self._with_keys:

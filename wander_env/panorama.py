@@ -41,8 +41,10 @@ from wander_env.renderer import CameraRenderer, RenderParams
 
 __all__ = [
     "FACE_ROTATIONS",
+    "box_filter",
     "cube_inverse_depth",
     "cube_warp",
+    "cube_warp_srgb",
     "layers_over",
     "render_cube",
 ]
@@ -123,6 +125,56 @@ def cube_warp(out, faces, face_rot, rot, f, cx, cy, s, bilinear):
 
 
 @numba.njit(cache=True, nogil=True)
+def cube_warp_srgb(out, faces, face_rot, rot, f, cx, cy, s, bilinear, wlut, offset=0.0):
+    """:func:`cube_warp` of sRGB faces (6, n, n, 3) (codes, uint8 or float): per sensor
+    pixel each channel's codes averaged over its ``s × s`` rays and rounded (as a
+    supersampled render's resolve averages them), then its linear luminance
+    ``Σ_c wlut[c, code_c]``. ``offset`` (face pixels) is added to every face position
+    (a box-filtered face of even width is centred half a pixel off its index)."""
+    h, w = out.shape
+    n = faces.shape[1]
+    half = 0.5 * n
+    inv = 1.0 / (s * s)
+    acc = np.zeros(3)
+    for y in range(h):
+        for x in range(w):
+            acc[:] = 0.0
+            for j in range(s):
+                v = (y - 0.5 + (j + 0.5) / s - cy) / f
+                for i in range(s):
+                    u = (x - 0.5 + (i + 0.5) / s - cx) / f
+                    d0 = rot[0, 0] * u + rot[0, 1] * v + rot[0, 2]
+                    d1 = rot[1, 0] * u + rot[1, 1] * v + rot[1, 2]
+                    d2 = rot[2, 0] * u + rot[2, 1] * v + rot[2, 2]
+                    face, fx, fy = _face_pixel(d0, d1, d2, face_rot, half)
+                    fx += offset
+                    fy += offset
+                    if bilinear:
+                        ix = min(max(math.floor(fx), 0), n - 2)
+                        iy = min(max(math.floor(fy), 0), n - 2)
+                        tx = min(max(fx - ix, 0.0), 1.0)
+                        ty = min(max(fy - iy, 0.0), 1.0)
+                        for c in range(3):
+                            top = (1 - tx) * faces[face, iy, ix, c] + tx * faces[
+                                face, iy, ix + 1, c
+                            ]
+                            bot = (1 - tx) * faces[face, iy + 1, ix, c] + tx * faces[
+                                face, iy + 1, ix + 1, c
+                            ]
+                            acc[c] += (1 - ty) * top + ty * bot
+                    else:
+                        ix = min(max(math.floor(fx + 0.5), 0), n - 1)
+                        iy = min(max(math.floor(fy + 0.5), 0), n - 1)
+                        for c in range(3):
+                            acc[c] += faces[face, iy, ix, c]
+            lum = 0.0
+            for c in range(3):
+                code = min(max(math.floor(acc[c] * inv + 0.5), 0), 255)
+                lum += wlut[c, code]
+            out[y, x] = lum
+
+
+@numba.njit(cache=True, nogil=True)
 def cube_inverse_depth(out, dist, face_rot, rot, f, cx, cy):
     """Fill ``out`` (H, W) with each sensor pixel's inverse depth (1/m along the
     optical axis) from the cube of ray distances ``dist`` (6, n, n), nearest sample of
@@ -176,6 +228,19 @@ def layers_over(
                     out[y, x] = bg[y, x]
 
 
+def box_filter(faces: np.ndarray, k: int) -> tuple[np.ndarray, float]:
+    """Each face (6, n, n, C) averaged over ``k × k`` pixel boxes (clamped at the face's
+    edge), float32, and the offset (face pixels) that centres a sample on its box:
+    one bilinear sample of the result at a sensor pixel's centre is the ``k × k`` rays'
+    average that :func:`cube_warp_srgb` would take on the unfiltered faces."""
+    import cv2
+
+    out = np.empty(faces.shape, np.float32)
+    for i in range(len(faces)):
+        out[i] = cv2.blur(faces[i].astype(np.float32), (k, k), borderType=cv2.BORDER_REPLICATE)
+    return out, k // 2 - (k - 1) / 2
+
+
 def _hidden_groups(model: mujoco.MjModel, hide: np.ndarray, group: int):
     """Context: the geoms ``hide`` (bool, ngeom) moved to geom group ``group``."""
     import contextlib
@@ -199,11 +264,11 @@ def render_cube(
     hide: np.ndarray,
     headlight: str = "camera",
     renderer: CameraRenderer | None = None,
-) -> tuple[np.ndarray, np.ndarray, CameraRenderer]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, CameraRenderer]:
     """The static world (the geoms ``hide`` left out) as a cube map of ``n × n`` faces
     from the centre of ``data``'s camera ``event_camera`` (the model posed):
-    (linear luminance (6, n, n) float32, ray distance (6, n, n) float32 m, the face
-    renderer, to pass back as ``renderer`` next time).
+    (linear luminance (6, n, n) float32, sRGB (6, n, n, 3) uint8, ray distance
+    (6, n, n) float32 m, the face renderer, to pass back as ``renderer`` next time).
 
     Each face is the model's own colour render (its multisampling) from the camera with
     a 90° field of view, turned to the face. MuJoCo's headlight follows the camera that
@@ -221,6 +286,7 @@ def render_cube(
     lut = srgb_to_linear(np.arange(256) / 255.0)
     wlut = (_LUMA[:, None] * lut[None, :]).astype(np.float32)
     lum = np.empty((6, n, n), np.float32)
+    srgb = np.empty((6, n, n, 3), np.uint8)
     dist = np.empty((6, n, n), np.float32)
     saved_xmat = data.cam_xmat[cam].copy()
     forward = -saved_xmat.reshape(3, 3)[:, 2]  # the camera's axis (MuJoCo: -z) in the world
@@ -245,6 +311,7 @@ def render_cube(
                         if scn.lights[j].headlight:
                             scn.lights[j].dir[:] = forward
                 rgb = renderer._draw(renderer._con, renderer._depth_buf)[::-1]
+                srgb[i] = rgb
                 lum[i] = wlut[0][rgb[..., 0]] + wlut[1][rgb[..., 1]] + wlut[2][rgb[..., 2]]
                 z = linearise_depth(
                     renderer._depth_buf[::-1], m.vis.map.znear * extent, m.vis.map.zfar * extent
@@ -254,7 +321,7 @@ def render_cube(
         data.cam_xmat[cam] = saved_xmat
         model.cam_fovy[cam] = saved_fovy
         model.vis.headlight.active = saved_head
-    return lum, dist, renderer
+    return lum, srgb, dist, renderer
 
 
 def camera_rotation(data: mujoco.MjData, cam: int) -> np.ndarray:

@@ -9,7 +9,9 @@ it, on the same seeds and actions, run:
 - ``aa16``: the same with 16 samples a pixel (``supersample=2``);
 - ``default``: the env's default frames (``WanderConfig``'s defaults);
 - ``one_key``: ``frames="keyframes"`` with one key a step (``keyframe_ms`` = the control
-  period, ``keyframe_px=None``).
+  period, ``keyframe_px=None``);
+- ``panorama``: ``frames="panorama"`` (the static world warped from a cube map rendered
+  once per reset, see :class:`wander_env.frames.PanoramaFrames`).
 
 The motions: ``still`` (zero actions), ``walk`` (the fixational random walk of ``wander
 record --policy fixational``) and ``saccade`` (one 20° pan at the first step, then still).
@@ -48,12 +50,13 @@ SACCADE_DEG = 20.0
 REFERENCE_HZ = 4000.0
 REFERENCE_SUPERSAMPLE = 4
 #: The modes compared against the reference, in the tables' order.
-MODES = ("exact", "aa16", "default", "one_key")
+MODES = ("exact", "aa16", "default", "one_key", "panorama")
 MODE_TITLES = {
     "exact": "exact (4 samples, 1 kHz)",
     "aa16": "16 samples, 1 kHz",
     "default": "default frames",
     "one_key": "one key a step",
+    "panorama": "panorama",
 }
 # The bar's margins: events (points), L1 (factor), matched (points), gap (ms).
 BAR_EVENTS_PTS = 2.0
@@ -234,6 +237,7 @@ def mode_kwargs(
         "aa16": {"frames": "exact", "supersample": 2},
         "default": {},
         "one_key": {"frames": "keyframes", "keyframe_ms": period_s * 1e3, "keyframe_px": None},
+        "panorama": {"frames": "panorama"},
     }
 
 
@@ -403,6 +407,7 @@ class ModeCells:
     aa16: str
     default: str
     one_key: str
+    panorama: str
 
 
 @dataclass(frozen=True)
