@@ -40,8 +40,8 @@ def test_face_rotations_are_rotations_along_the_six_axes() -> None:
 
 def test_a_rotation_maps_a_smooth_panorama_where_the_geometry_says() -> None:
     """Faces holding ``1 + a·d`` (d: each face pixel's world direction): the warp of any
-    rotation is ``1 + a·R·ray`` at every sensor pixel, within 2e-3 (bilinear on 64-pixel
-    faces; the last half pixel of a face clamped: 1.1e-3 measured)."""
+    rotation is ``1 + a·R·ray`` at every sensor pixel, within 5e-3 (bilinear on 64-pixel
+    faces, the last half pixel of a face clamped: 3.9e-3 at most measured)."""
     n, a = 64, np.array([0.3, -0.5, 0.4])
     faces = (1.0 + _face_rays(n) @ a).astype(np.float32)
     k = intrinsics(32, 32, 90.0)
@@ -54,7 +54,7 @@ def test_a_rotation_maps_a_smooth_panorama_where_the_geometry_says() -> None:
         cube_warp(out, faces, FACE_ROTATIONS, rot, f, c, c, 1, True)
         d = rays @ rot.T
         want = 1.0 + (d / np.linalg.norm(d, axis=-1, keepdims=True)) @ a
-        assert np.abs(out - want).max() < 2e-3
+        assert np.abs(out - want).max() < 5e-3
 
 
 def test_a_bright_direction_lands_on_the_pixel_it_projects_to() -> None:
@@ -106,12 +106,54 @@ def test_layers_in_view_sees_a_ball_in_front_not_behind() -> None:
     assert layers_in_view([view((0, 0, -2.0))], k, np.array([np.inf, np.inf]), (128, 128))
 
 
+def test_a_moving_layer_is_composited_in_front_of_the_background_not_behind() -> None:
+    """Two keys 10 µs apart with a square (layer 1, 1 m away, luminance 0.8) moved 4 px
+    right between them over a wall (0.2): at w = 1/2 the square is drawn 2 px right of
+    its first place where the background is farther (2 m) and nowhere where a static
+    occluder is nearer (0.5 m); outside its box every pixel is the background's."""
+    from wander_env.keyframes import KeyPair, make_keyframe
+    from wander_env.panorama import layers_over
+
+    k = intrinsics(32, 32, 90.0)
+    f = k[0, 0]
+
+    def key(t: int, x0: int) -> object:
+        lum = np.full((32, 32), 0.2, np.float32)
+        layers = np.zeros((32, 32), np.int32)
+        lum[12:20, x0 : x0 + 8], layers[12:20, x0 : x0 + 8] = 0.8, 1
+        depth = np.where(layers == 1, 1.0, 2.0)
+        view = View(np.eye(3), np.zeros(3), np.array([[0, 0, 0], [x0 / f, 0, 1.0]]))
+        return make_keyframe(t, lum, view, depth, layers)
+
+    a, b = key(0, 10), key(10, 14)
+    pair = KeyPair(a, b, k)
+    mid = View(np.eye(3), np.zeros(3), np.array([[0, 0, 0], [12 / f, 0, 1.0]]))
+    hinv, bvec, moving, boxes = pair.params(mid)
+    regions = pair.regions(boxes)
+    lum, layers, inv, present, rho0 = pair._stacked
+    bg = np.full((32, 32), 0.3, np.float32)
+    for bg_depth, want_square in ((2.0, True), (0.5, False)):
+        out = bg.copy()
+        rho = np.full((32, 32), 1.0 / bg_depth)
+        w = np.array([0.5, 0.5])
+        layers_over(
+            out, bg, rho, regions, w, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
+        )
+        square = np.zeros((32, 32), bool)
+        square[12:20, 12:20] = True
+        if want_square:
+            assert np.allclose(out[square], 0.8) and np.allclose(out[~square], 0.3)
+        else:
+            assert np.allclose(out, 0.3)
+
+
 @pytest.mark.slow
 def test_still_static_world_matches_a_render_at_the_same_pose() -> None:
     """The office at reset: the panorama's background against the exact render, on the
     static world's pixels: with the headlight held along the camera's axis, median
-    |Δ ln lum| <= 0.02 and mean <= 0.05 (measured 0.009 and 0.033: 16 samples a pixel
-    against the render's 4); with the headlight off on both, median 0."""
+    |Δ ln lum| <= 0.02 and mean <= 0.05 (measured 0.005 and 0.033: 64 samples a pixel
+    against the render's 4, the difference at edges); with the headlight off on both,
+    median 0 (mean 0.033). A headlight turned with each face instead: median 0.19."""
     import gymnasium as gym
 
     import wander_env  # noqa: F401
