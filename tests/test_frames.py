@@ -11,7 +11,7 @@ import pytest
 import wander_env  # noqa: F401  (registers the environments)
 from wander_env.actions import gaze_degrees_to_action
 from wander_env.env_config import FRAME_MODES
-from wander_env.frames import FRAME_SOURCES, ExactFrames, KeyframeFrames
+from wander_env.frames import FRAME_SOURCES, ExactFrames, KeyframeFrames, PanoramaFrames
 from wander_env.ptu.params import PTUParams
 
 FAST_PTU = PTUParams().with_slew(2902.0, 1e5)  # the upper speed, 74.6 deg/s, in 29 ms
@@ -43,8 +43,9 @@ def _run(scene: str, steps: int, kind: str = "still", seed: int = 4, **kw):
 
 
 def test_a_frame_mode_is_one_class():
-    assert FRAME_MODES == tuple(FRAME_SOURCES) == ("keyframes", "exact")
+    assert FRAME_MODES == tuple(FRAME_SOURCES) == ("keyframes", "exact", "panorama")
     assert FRAME_SOURCES["exact"] is ExactFrames and FRAME_SOURCES["keyframes"] is KeyframeFrames
+    assert FRAME_SOURCES["panorama"] is PanoramaFrames
 
 
 @pytest.mark.slow

@@ -454,6 +454,7 @@ class PanoramaFrames(KeyframeFrames):
         self._bg: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
         self._with_keys = False
         self._edge_pairs: dict[tuple[int, int], KeyPair] = {}
+        self._edge_keys: dict[int, tuple[RenderedKey, Keyframe]] = {}  # id(key) -> grown
         self._end: tuple[int, Angles, View] | None = None  # the last step's end
 
     def build(self, t_us: int, angles: Angles) -> None:
@@ -534,7 +535,7 @@ class PanoramaFrames(KeyframeFrames):
         if self.fallback:
             return super().reset(t_us, angles)
         self.build(t_us, angles)
-        self._edge_pairs = {}
+        self._edge_pairs, self._edge_keys = {}, {}
         view = self.stage.camera_view(t_us, *angles)
         self._end = (t_us, angles, view)
         self._with_keys = layers_in_view([view], self.stage.k, self.radii, self._shape)
@@ -560,6 +561,8 @@ class PanoramaFrames(KeyframeFrames):
         self._bg = {k: v for k, v in self._bg.items() if k == v0.rotation.tobytes()}
         visible = layers_in_view([v0, *views], stage.k, self.radii, self._shape)
         self._edge_pairs = {}
+        start = self.keys[-1] if self.keys else None
+        self._edge_keys = {i: v for i, v in self._edge_keys.items() if v[0] is start}
         if visible:
             if not self._with_keys:  # a fresh key at the step's start
                 key = self._render_key(t0, a0, v0)
@@ -590,6 +593,9 @@ class PanoramaFrames(KeyframeFrames):
         bg, rho = self.background(view.rotation)
         if len(self.keys) == 1 or t_us <= self.keys[0].t_us:
             a = b = self.keys[0]
+            w = 1.0
+        elif t_us in self._key_at:  # a key's own tick: that key alone
+            a = b = self._key_at[t_us]
             w = 1.0
         else:
             a, b = self._pair(t_us)
@@ -632,6 +638,9 @@ class PanoramaFrames(KeyframeFrames):
         kf = self.keyframe(key)
         if self.edge_px == 0:
             return kf
+        got = self._edge_keys.get(id(key))
+        if got is not None and got[0] is key:
+            return got[1]
         layers, inv = kf.layers.copy(), kf.inv_depth.copy()
         for _ in range(self.edge_px):
             grown_l, grown_i = layers.copy(), inv.copy()
@@ -641,7 +650,9 @@ class PanoramaFrames(KeyframeFrames):
                 take = (layers == 0) & (nl != 0) & (ni > np.where(grown_l == 0, 0.0, grown_i))
                 grown_l[take], grown_i[take] = nl[take], ni[take]
             layers, inv = grown_l, grown_i
-        return make_keyframe(kf.t_us, kf.lum, kf.view, 1.0 / inv, layers)
+        grown = make_keyframe(kf.t_us, kf.lum, kf.view, 1.0 / inv, layers)
+        self._edge_keys[id(key)] = (key, grown)
+        return grown
 
     def object_mask(self, t_us: int) -> np.ndarray:
         if self.fallback or self._with_keys:

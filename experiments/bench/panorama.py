@@ -1,0 +1,125 @@
+"""The panorama frame source against the others: ms per step and the headlight's effect.
+
+Run it as ``python -m experiments.bench.panorama [scene] [steps]`` (office, 20 steps by
+default). Two tables:
+
+- ms per step (median of ``steps`` steps after 3 still ones, seed 0), still camera (zero
+  actions) and a walk (actions drawn N(0, 0.02) per axis each step, seed 0), for the
+  default keyframes, exact (4 and 16 samples a pixel) and the panorama (its defaults,
+  and 4 × 4 bilinear rays a pixel without the box filter), with the ratio to the default
+  in the same run and the reset's time (the panorama renders its cube map there);
+- the panorama's background at reset against the exact render at the same pose, on
+  the static world's pixels (``|Δ ln lum|``: median, mean, 95th percentile, mean
+  luminance of both), with the faces lit by the headlight held along the camera's axis
+  (the default), turned with each face, and off (the render's headlight off too).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from typing import Any
+
+import numpy as np
+
+import wander_env  # noqa: F401  (registers the environments)
+from wander_env.frames import PanoramaFrames
+
+VARIANTS: dict[str, tuple[dict[str, Any], dict[str, Any]]] = {
+    "keyframes (default)": ({}, {}),
+    "exact": ({"frames": "exact"}, {}),
+    "exact, 16 samples": ({"frames": "exact", "supersample": 2}, {}),
+    "panorama": ({"frames": "panorama"}, {}),
+    "panorama, 4x4 bilinear rays": ({"frames": "panorama"}, {"prefilter": False}),
+}
+
+
+def step_ms(
+    scene: str, kw: dict[str, Any], attrs: dict[str, Any], motion: str, steps: int
+) -> tuple[float, float]:
+    """(median ms per step, reset s) of one variant."""
+    import gymnasium as gym
+
+    saved = {k: getattr(PanoramaFrames, k) for k in attrs}
+    for k, v in attrs.items():
+        setattr(PanoramaFrames, k, v)
+    try:
+        env = gym.make("wander/Wander-v0", scene=scene, **kw)
+        t = time.perf_counter()
+        env.reset(seed=0)
+        reset_s = time.perf_counter() - t
+        for _ in range(3):
+            env.step(np.zeros(2, np.float32))
+        rng = np.random.default_rng(0)
+        times = []
+        for _ in range(steps):
+            a = rng.normal(0, 0.02, 2) if motion == "walk" else np.zeros(2)
+            t = time.perf_counter()
+            env.step(a.astype(np.float32))
+            times.append(time.perf_counter() - t)
+        env.close()
+    finally:
+        for k, v in saved.items():
+            setattr(PanoramaFrames, k, v)
+    return 1e3 * float(np.median(times)), reset_s
+
+
+def headlight_rows(scene: str) -> list[tuple[str, float, float, float, float, float]]:
+    """(headlight, median, mean, p95 |Δ ln lum|, mean lum panorama, mean lum render)."""
+    import gymnasium as gym
+
+    rows = []
+    for headlight in ("camera", "face", "off"):
+        env = gym.make("wander/Wander-v0", scene=scene, frames="panorama")
+        try:
+            u = env.unwrapped
+            u.source.headlight = headlight
+            env.reset(seed=0)
+            stage = u.stage
+            if headlight == "off":
+                u.model.vis.headlight.active = 0
+            pan, tilt = u.ptu.camera_pan_deg, u.ptu.camera_tilt_deg
+            bg, _ = u.source.background(stage.camera_view(0, pan, tilt).rotation, depth=False)
+            stage.posed = None
+            stage.pose(0, pan, tilt)
+            lum = u.dvs.prepare(stage.render()).lum.reshape(bg.shape)
+            layers, _ = stage.geometry()
+            m = layers == 0
+            d = np.abs(np.log(np.maximum(bg, 1e-3)) - np.log(np.maximum(lum, 1e-3)))[m]
+            rows.append(
+                (
+                    headlight,
+                    float(np.median(d)),
+                    float(d.mean()),
+                    float(np.percentile(d, 95)),
+                    float(bg[m].mean()),
+                    float(lum[m].mean()),
+                )
+            )
+        finally:
+            env.close()
+    return rows
+
+
+def main(scene: str = "office", steps: int = 20) -> None:
+    print(f"load average {os.getloadavg()[0]:.2f} (cores: {os.cpu_count()})")
+    print("| motion | frames | ms/step | x default | reset ms |")
+    print("|---|---|---|---|---|")
+    for motion in ("still", "walk"):
+        res = {
+            name: step_ms(scene, kw, attrs, motion, steps) for name, (kw, attrs) in VARIANTS.items()
+        }
+        base = res["keyframes (default)"][0]
+        for name, (ms, reset_s) in res.items():
+            print(f"| {motion} | {name} | {ms:.1f} | {ms / base:.2f} | {1e3 * reset_s:.0f} |")
+    print(f"load average {os.getloadavg()[0]:.2f}")
+    print()
+    print("| faces' headlight | median | mean | p95 | mean lum panorama | mean lum render |")
+    print("|---|---|---|---|---|---|")
+    for h, med, mean, p95, lp, lr in headlight_rows(scene):
+        print(f"| {h} | {med:.4f} | {mean:.4f} | {p95:.3f} | {lp:.4f} | {lr:.4f} |")
+
+
+if __name__ == "__main__":
+    main(*(sys.argv[1:2] or ["office"]), *(int(a) for a in sys.argv[2:3]))
