@@ -212,3 +212,31 @@ def test_same_seed_same_events_and_a_hinge_offset_falls_back_to_keyframes() -> N
     pano = events(frames="panorama", ptu=ptu)
     keys = events(frames="keyframes", ptu=ptu)
     assert all(np.array_equal(x, y) for x, y in zip(pano, keys, strict=True))
+
+
+@pytest.mark.slow
+def test_no_moving_layer_in_view_no_renders_after_reset() -> None:
+    """The shelf from its start gaze has no moving layer in view: a walking camera's
+    steps render nothing (the panorama alone), still make events, and the camera frame
+    is the background in grey."""
+    import gymnasium as gym
+
+    import wander_env  # noqa: F401
+
+    env = gym.make("wander/Wander-v0", scene="shelf", frames="panorama", render_mode="rgb_array")
+    try:
+        env.reset(seed=1)
+        u = env.unwrapped
+        assert not u.source._with_keys
+        events = 0
+        for i in range(4):
+            a = np.array([0.5, 0.2], np.float32) if i == 0 else np.zeros(2, np.float32)
+            info = env.step(a)[4]
+            assert u.renders_in_step == 0 and not u.source._with_keys
+            events += len(info["events"])
+        assert events > 0
+        frame = u.camera_frame
+        assert frame.shape == (128, 128, 3) and (frame[..., 0] == frame[..., 2]).all()
+        assert env.render().ndim == 3
+    finally:
+        env.close()

@@ -444,6 +444,7 @@ class PanoramaFrames(KeyframeFrames):
     headlight = "camera"
 
     def __init__(self, stage: Stage, dvs: DVSEmulator, params: FrameParams) -> None:
+        self._grey_of: np.ndarray | None = None  # a background to show as camera_frame
         super().__init__(stage, dvs, params)
         mount = stage.scene.ptu
         self.fallback = mount.camera_forward_m != 0 or mount.camera_up_m != 0
@@ -456,6 +457,21 @@ class PanoramaFrames(KeyframeFrames):
         self._edge_pairs: dict[tuple[int, int], KeyPair] = {}
         self._edge_keys: dict[int, tuple[RenderedKey, Keyframe]] = {}  # id(key) -> grown
         self._end: tuple[int, Angles, View] | None = None  # the last step's end
+
+    @property
+    def camera_frame(self) -> np.ndarray | None:
+        """The latest colour frame rendered; in a step without keys, the background at
+        the step's end as grey sRGB."""
+        if self._grey_of is not None:
+            lum = np.clip(self._grey_of, 0.0, 1.0)
+            srgb = np.where(lum <= 0.0031308, 12.92 * lum, 1.055 * lum ** (1 / 2.4) - 0.055)
+            grey = np.rint(255 * srgb).astype(np.uint8)
+            self._camera_frame, self._grey_of = np.repeat(grey[..., None], 3, axis=2), None
+        return self._camera_frame
+
+    @camera_frame.setter
+    def camera_frame(self, rgb: np.ndarray | None) -> None:
+        self._camera_frame, self._grey_of = rgb, None
 
     def build(self, t_us: int, angles: Angles) -> None:
         """Render the panorama from the camera centre at ``t_us`` and ``angles``."""
@@ -544,7 +560,10 @@ class PanoramaFrames(KeyframeFrames):
         else:
             self.keys, self._key_at, self._pairs = [], {}, {}
             self._views, self._interpolated = {}, set()
-        return self._composite(t_us, view)
+        first = self._composite(t_us, view)
+        if not self._with_keys:
+            self._grey_of = first
+        return first
 
     @property
     def _shape(self) -> tuple[int, int]:
@@ -573,6 +592,7 @@ class PanoramaFrames(KeyframeFrames):
             self._views = dict(zip(ticks, views, strict=True))
             still = all((v.rotation == v0.rotation).all() for v in views)
             self._interpolated = set(ticks) if still else set()
+            self._grey_of = self.background(views[-1].rotation, depth=False)[0]
         self._with_keys = visible
         self._end = (ticks[-1], angles[-1], views[-1])
 

@@ -3,8 +3,10 @@
 Run it as ``python -m experiments.bench.panorama [scene] [steps]`` (office, 20 steps by
 default). Two tables:
 
-- ms per step (median of ``steps`` steps after 3 still ones, seed 0), still camera (zero
-  actions) and a walk (actions drawn N(0, 0.02) per axis each step, seed 0), for the
+- ms per step (median of ``steps`` steps after 3 still ones, seed 0; the variants'
+  envs stepped in turns, one step of each, the order rotated every step, so that a
+  burst of load slows all alike), still camera (zero actions) and a walk (actions
+  drawn N(0, 0.02) per axis each step, the same for every variant), for the
   default keyframes, exact (4 and 16 samples a pixel) and the panorama (its defaults,
   and 4 × 4 bilinear rays a pixel without the box filter), with the ratio to the default
   in the same run and the reset's time (the panorama renders its cube map there);
@@ -24,7 +26,6 @@ from typing import Any
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
-from wander_env.frames import PanoramaFrames
 
 VARIANTS: dict[str, tuple[dict[str, Any], dict[str, Any]]] = {
     "keyframes (default)": ({}, {}),
@@ -35,34 +36,37 @@ VARIANTS: dict[str, tuple[dict[str, Any], dict[str, Any]]] = {
 }
 
 
-def step_ms(
-    scene: str, kw: dict[str, Any], attrs: dict[str, Any], motion: str, steps: int
-) -> tuple[float, float]:
-    """(median ms per step, reset s) of one variant."""
+def step_ms(scene: str, motion: str, steps: int) -> dict[str, tuple[float, float]]:
+    """Per variant: (median ms per step, reset s), the variants stepped in turns (one
+    step of each, the order rotated every step) on the same actions."""
     import gymnasium as gym
 
-    saved = {k: getattr(PanoramaFrames, k) for k in attrs}
-    for k, v in attrs.items():
-        setattr(PanoramaFrames, k, v)
-    try:
-        env = gym.make("wander/Wander-v0", scene=scene, **kw)
+    envs, reset_s = {}, {}
+    for name, (kw, attrs) in VARIANTS.items():
+        env = envs[name] = gym.make("wander/Wander-v0", scene=scene, **kw)
+        for k, v in attrs.items():  # on this env's source only
+            setattr(env.unwrapped.source, k, v)
         t = time.perf_counter()
         env.reset(seed=0)
-        reset_s = time.perf_counter() - t
-        for _ in range(3):
-            env.step(np.zeros(2, np.float32))
+        reset_s[name] = time.perf_counter() - t
+    try:
+        for env in envs.values():
+            for _ in range(3):
+                env.step(np.zeros(2, np.float32))
         rng = np.random.default_rng(0)
-        times = []
-        for _ in range(steps):
+        times: dict[str, list[float]] = {name: [] for name in envs}
+        order = list(envs.items())
+        for i in range(steps):
             a = rng.normal(0, 0.02, 2) if motion == "walk" else np.zeros(2)
-            t = time.perf_counter()
-            env.step(a.astype(np.float32))
-            times.append(time.perf_counter() - t)
-        env.close()
+            j = i % len(order)
+            for name, env in order[j:] + order[:j]:
+                t = time.perf_counter()
+                env.step(a.astype(np.float32))
+                times[name].append(time.perf_counter() - t)
     finally:
-        for k, v in saved.items():
-            setattr(PanoramaFrames, k, v)
-    return 1e3 * float(np.median(times)), reset_s
+        for env in envs.values():
+            env.close()
+    return {n: (1e3 * float(np.median(times[n])), reset_s[n]) for n in envs}
 
 
 def headlight_rows(scene: str) -> list[tuple[str, float, float, float, float, float]]:
