@@ -234,6 +234,8 @@ def test_no_moving_layer_in_view_no_renders_after_reset() -> None:
             info = env.step(a)[4]
             assert u.renders_in_step == 0 and not u.source._with_keys
             events += len(info["events"])
+            u.stage.pose(u._t_us, u.ptu.camera_pan_deg, u.ptu.camera_tilt_deg)
+            assert not info["object_mask"].any() and not u.stage.object_mask().any()
         assert events > 0
         frame = u.camera_frame
         assert frame.shape == (128, 128, 3) and (frame[..., 0] == frame[..., 2]).all()

@@ -677,7 +677,8 @@ class PanoramaFrames(KeyframeFrames):
     def object_mask(self, t_us: int) -> np.ndarray:
         if self.fallback or self._with_keys:
             return super().object_mask(t_us)
-        return self.stage.object_mask()
+        # No moving layer may reach the image at the step's end: no object in it.
+        return np.zeros((self.stage.height, self.stage.width), np.int32)
 
 
 #: The frame sources by ``WanderConfig.frames`` name.

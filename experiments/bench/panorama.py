@@ -111,9 +111,7 @@ def main(scene: str = "office", steps: int = 20) -> None:
     print("| motion | frames | ms/step | x default | reset ms |")
     print("|---|---|---|---|---|")
     for motion in ("still", "walk"):
-        res = {
-            name: step_ms(scene, kw, attrs, motion, steps) for name, (kw, attrs) in VARIANTS.items()
-        }
+        res = step_ms(scene, motion, steps)
         base = res["keyframes (default)"][0]
         for name, (ms, reset_s) in res.items():
             print(f"| {motion} | {name} | {ms:.1f} | {ms / base:.2f} | {1e3 * reset_s:.0f} |")
