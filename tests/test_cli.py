@@ -130,7 +130,10 @@ def test_run_reads_a_config_file_and_flags_override_it(tmp_path):
         ("scen: shelf\n", "unknown key 'scen' for RunConfig; allowed keys: env (WanderConfig), "),
         ("env: {episode_seconds: abc}\n", "env.episode_seconds: expected float, got 'abc'"),
         ("env: {scene: offce}\n", "env.scene: unknown scene 'offce'; available: "),
-        ("env: {frames: abc}\n", "env.frames: expected one of 'keyframes', 'exact', got 'abc'"),
+        (
+            "env: {frames: abc}\n",
+            "env.frames: expected one of 'keyframes', 'exact', 'panorama', got 'abc'",
+        ),
         ("env: {episode_seconds: -1}\n", "env.episode_seconds: input should be greater than 0"),
     ],
 )

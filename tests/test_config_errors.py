@@ -172,7 +172,7 @@ CASES = [
         ["experiment", "detection", "--set", "env.frames=fast"],
         {},
         "wander experiment: error: --set: env.frames: expected one of 'keyframes', 'exact', "
-        "got 'fast'",
+        "'panorama', got 'fast'",
     ),
     (
         ["experiment", "saccade_speed", "--set", "ptu_presets=[flir, nosuch]"],

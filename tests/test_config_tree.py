@@ -152,12 +152,12 @@ def test_set_env_frames_reaches_the_env_of_run_record_and_evaluate(
         (
             ["run", "--frames", "fast"],
             "wander run: Invalid value for '--frames': expected one of 'keyframes', 'exact', "
-            "got 'fast'",
+            "'panorama', got 'fast'",
         ),
         (
             ["record", "--set", "env.frames=fast"],
             "wander record: error: --set: env.frames: expected one of 'keyframes', 'exact', "
-            "got 'fast'",
+            "'panorama', got 'fast'",
         ),
         (
             ["evaluate", "--set", "env.keyframe_px=-1"],

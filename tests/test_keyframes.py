@@ -226,7 +226,9 @@ def test_same_seed_gives_identical_events_in_keyframes_mode():
 def test_frames_config_is_checked():
     from wander_env.env_config import WanderConfig
 
-    with pytest.raises(ValueError, match=r"^frames: expected one of .keyframes., .exact., got "):
+    with pytest.raises(
+        ValueError, match=r"^frames: expected one of .keyframes., .exact., .panorama., got "
+    ):
         WanderConfig(frames="fast")
     with pytest.raises(ValueError, match=r"^keyframe_ms: 2\.5 must be a whole number"):
         WanderConfig(keyframe_ms=2.5)

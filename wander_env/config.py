@@ -5,7 +5,7 @@ validation; this module only turns its errors into the project's messages, each 
 where the value came from (a file, ``--set``) and the field's path, then what is wrong
 and the value given, e.g.
 ``--set: soms: unknown key 'alph' for SOMSParams; allowed keys: ...``,
-``c.yaml: env.frames: expected one of 'keyframes', 'exact', got 'fast'`` or
+``c.yaml: env.frames: expected one of 'keyframes', 'exact', 'panorama', got 'fast'`` or
 ``scene.yaml: moving_objects[1].trajectory.kind: expected one of ...``.
 
 - :func:`validate` — a dataclass instance from a mapping (nested mappings become nested
