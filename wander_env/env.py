@@ -27,6 +27,9 @@ the DVS no frame at a tick where nothing moves by half a pixel (it interpolates 
 the frames around it). The keys are rendered at the start of the step from the PTU's own
 trajectory, so nothing waits for a later frame.
 ``"exact"`` renders every frame (every tick and sub-frame): the reference.
+``"panorama"`` warps a cube map of the static world, rendered once per reset, by the
+camera's rotation and renders keys only for the moving objects
+(:class:`~wander_env.frames.PanoramaFrames`; docs/fidelity.md has its measurements).
 ``renders_in_step`` counts the RGB renders of the last step.
 
 Action, observation and ``info``: :class:`~wander_env.env_base.CameraEnv` (shared with

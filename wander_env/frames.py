@@ -16,7 +16,9 @@ once per tick, computed once per step) into the frames the DVS sees:
 - :meth:`~FrameSource.object_mask` at the step's end (ground truth).
 
 :class:`ExactFrames` renders every frame. :class:`KeyframeFrames` renders keys and makes
-the frames between them from the keys' geometry (:mod:`wander_env.keyframes`). A new
+the frames between them from the keys' geometry (:mod:`wander_env.keyframes`).
+:class:`PanoramaFrames` warps a cube map of the static world rendered once per reset
+(:mod:`wander_env.panorama`) and composites the keys' moving layers over it. A new
 frame mode is one more subclass, named in :data:`FRAME_SOURCES` and in
 :data:`wander_env.env_config.FrameMode`.
 """
