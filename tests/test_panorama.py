@@ -242,3 +242,15 @@ def test_no_moving_layer_in_view_no_renders_after_reset() -> None:
         assert env.render().ndim == 3
     finally:
         env.close()
+
+
+def test_a_layer_grows_without_wrapping_round_the_image() -> None:
+    """The one-pixel growth of the moving layers shifts the layer map without wrap-around:
+    a layer on the left edge reaches no pixel on the right edge."""
+    from wander_env.frames import _shifted
+
+    layers = np.zeros((4, 5), np.int32)
+    layers[:, 0] = 1
+    assert not _shifted(layers, 0, -1, 0)[:, -1].any()
+    assert (_shifted(layers, 0, 1, 0)[:, 1] == 1).all()
+    assert (_shifted(layers, 1, 1, 0)[1:, 1] == 1).all() and _shifted(layers, 1, 1, 0)[0].sum() == 0

@@ -375,6 +375,17 @@ class KeyframeFrames(FrameSource):
         return np.where(layers <= self.stage.scene.num_objects, layers, 0).astype(np.int32)
 
 
+def _shifted(a: np.ndarray, dy: int, dx: int, fill: float) -> np.ndarray:
+    """``a`` moved by (dy, dx) pixels (``out[y, x] = a[y - dy, x - dx]``), ``fill`` where
+    nothing moves in (no wrap-around)."""
+    out = np.full_like(a, fill)
+    h, w = a.shape
+    out[max(dy, 0) : h + min(dy, 0), max(dx, 0) : w + min(dx, 0)] = a[
+        max(-dy, 0) : h + min(-dy, 0), max(-dx, 0) : w + min(-dx, 0)
+    ]
+    return out
+
+
 def layers_in_view(
     views: list[View],
     k: np.ndarray,
@@ -667,8 +678,7 @@ class PanoramaFrames(KeyframeFrames):
         for _ in range(self.edge_px):
             grown_l, grown_i = layers.copy(), inv.copy()
             for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1)):
-                nl = np.roll(layers, (dy, dx), axis=(0, 1))
-                ni = np.roll(inv, (dy, dx), axis=(0, 1))
+                nl, ni = _shifted(layers, dy, dx, 0), _shifted(inv, dy, dx, 0.0)
                 take = (layers == 0) & (nl != 0) & (ni > np.where(grown_l == 0, 0.0, grown_i))
                 grown_l[take], grown_i[take] = nl[take], ni[take]
             layers, inv = grown_l, grown_i
