@@ -1,7 +1,7 @@
 """The panorama frame source against the others: ms per step and the headlight's effect.
 
-Run it as ``python -m experiments.bench.panorama [scene] [steps]`` (office, 20 steps by
-default). Two tables:
+``wander bench panorama --scene SCENE --steps N`` prints two tables (:func:`step_rows`,
+:func:`headlight_rows`):
 
 - ms per step (median of ``steps`` steps after 3 still ones, seed 0; the variants'
   envs stepped in turns, one step of each, the order rotated every step, so that a
@@ -18,9 +18,8 @@ default). Two tables:
 
 from __future__ import annotations
 
-import os
-import sys
 import time
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -69,8 +68,44 @@ def step_ms(scene: str, motion: str, steps: int) -> dict[str, tuple[float, float
     return {n: (1e3 * float(np.median(times[n])), reset_s[n]) for n in envs}
 
 
-def headlight_rows(scene: str) -> list[tuple[str, float, float, float, float, float]]:
-    """(headlight, median, mean, p95 |Δ ln lum|, mean lum panorama, mean lum render)."""
+@dataclass(frozen=True)
+class StepRow:
+    """A frame mode's step time in one run, and its ratio to the default's."""
+
+    motion: str
+    frames: str
+    ms_per_step: float
+    x_default: float
+    reset_ms: float
+
+
+def step_rows(scene: str, steps: int) -> list[StepRow]:
+    """:func:`step_ms` for a still camera and a walk, each mode against the default."""
+    rows = []
+    for motion in ("still", "walk"):
+        res = step_ms(scene, motion, steps)
+        base = res["keyframes (default)"][0]
+        for name, (ms, reset_s) in res.items():
+            rows.append(StepRow(motion, name, ms, ms / base, 1e3 * reset_s))
+    return rows
+
+
+@dataclass(frozen=True)
+class HeadlightRow:
+    """The panorama's background at reset against a render at the same pose:
+    ``|Δ ln lum|`` over the static world's pixels, and both mean luminances."""
+
+    headlight: str
+    median: float
+    mean: float
+    p95: float
+    lum_panorama: float
+    lum_render: float
+
+
+def headlight_rows(scene: str) -> list[HeadlightRow]:
+    """One :class:`HeadlightRow` per way of lighting the faces: the headlight held along
+    the camera's axis (the default), turned with each face, and off."""
     import gymnasium as gym
 
     rows = []
@@ -92,7 +127,7 @@ def headlight_rows(scene: str) -> list[tuple[str, float, float, float, float, fl
             m = layers == 0
             d = np.abs(np.log(np.maximum(bg, 1e-3)) - np.log(np.maximum(lum, 1e-3)))[m]
             rows.append(
-                (
+                HeadlightRow(
                     headlight,
                     float(np.median(d)),
                     float(d.mean()),
@@ -104,24 +139,3 @@ def headlight_rows(scene: str) -> list[tuple[str, float, float, float, float, fl
         finally:
             env.close()
     return rows
-
-
-def main(scene: str = "office", steps: int = 20) -> None:
-    print(f"load average {os.getloadavg()[0]:.2f} (cores: {os.cpu_count()})")
-    print("| motion | frames | ms/step | x default | reset ms |")
-    print("|---|---|---|---|---|")
-    for motion in ("still", "walk"):
-        res = step_ms(scene, motion, steps)
-        base = res["keyframes (default)"][0]
-        for name, (ms, reset_s) in res.items():
-            print(f"| {motion} | {name} | {ms:.1f} | {ms / base:.2f} | {1e3 * reset_s:.0f} |")
-    print(f"load average {os.getloadavg()[0]:.2f}")
-    print()
-    print("| faces' headlight | median | mean | p95 | mean lum panorama | mean lum render |")
-    print("|---|---|---|---|---|---|")
-    for h, med, mean, p95, lp, lr in headlight_rows(scene):
-        print(f"| {h} | {med:.4f} | {mean:.4f} | {p95:.3f} | {lp:.4f} | {lr:.4f} |")
-
-
-if __name__ == "__main__":
-    main(*(sys.argv[1:2] or ["office"]), *(int(a) for a in sys.argv[2:3]))

@@ -1,5 +1,6 @@
 """``wander bench ...``: the speed benchmarks, each printing tables (speed is measured
-here, never in tests): ``dvs``, ``env``, ``agent``, ``floor``, ``fidelity``, ``formats``.
+here, never in tests): ``dvs``, ``env``, ``agent``, ``floor``, ``panorama``, ``fidelity``,
+``formats``.
 :mod:`experiments.cli.main` adds :data:`app` as ``bench``.
 """
 
@@ -160,6 +161,40 @@ def bench_floor(
     )
     load = ", ".join(f"{v:.2f}" for v in os.getloadavg())
     console.print(f"{time.perf_counter() - t0:.0f} s; load average {load}")
+
+
+@app.command("panorama")
+def bench_panorama(
+    scene: SceneOpt = "office",
+    steps: Annotated[int, typer.Option(min=1, help="Timed steps per mode and motion.")] = 20,
+) -> None:
+    """The panorama frame source against the default, exact and 16 samples a pixel (ms a
+    step, modes stepped in turns), and its background against a render by headlight."""
+    import os
+
+    from experiments.bench.panorama import headlight_rows, step_rows
+
+    load = os.getloadavg()[0]
+    rows = step_rows(scene, steps)
+    print_table(
+        f"ms a step in '{scene}', seed 0, the modes stepped in turns (x default: ratio to "
+        f"the default in this run; load average {load:.2f} -> {os.getloadavg()[0]:.2f})",
+        rows,
+        {"motion": "", "frames": "", "ms_per_step": ".1f", "x_default": ".2f", "reset_ms": ".0f"},
+    )
+    print_table(
+        f"The panorama's background at reset against a render at the same pose, '{scene}' "
+        "(|d ln lum| over the static world's pixels)",
+        headlight_rows(scene),
+        {
+            "headlight": "",
+            "median": ".4f",
+            "mean": ".4f",
+            "p95": ".3f",
+            "lum_panorama": ".4f",
+            "lum_render": ".4f",
+        },
+    )
 
 
 @app.command("fidelity")
