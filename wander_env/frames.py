@@ -522,37 +522,13 @@ class PanoramaFrames(KeyframeFrames):
         got = self._bg.get(key)
         if got is None:
             lum = np.empty((stage.height, stage.width), np.float32)
-            if self.srgb and self.prefilter:  # one bilinear sample of the box-filtered faces
-                cube_warp_srgb(
-                    lum,
-                    faces,
-                    FACE_ROTATIONS,
-                    rotation,
-                    f,
-                    cx,
-                    cy,
-                    1,
-                    True,
-                    self._wlut,
-                    self._offset,
-                )
-            elif self.srgb:
-                cube_warp_srgb(
-                    lum,
-                    faces,
-                    FACE_ROTATIONS,
-                    rotation,
-                    f,
-                    cx,
-                    cy,
-                    self.samples,
-                    self.bilinear,
-                    self._wlut,
-                )
+            if self.srgb:  # prefiltered: one bilinear sample of the box-filtered faces
+                s, bilinear = (1, True) if self.prefilter else (self.samples, self.bilinear)
+                args = (f, cx, cy, s, bilinear, self._wlut, self._offset)
+                cube_warp_srgb(lum, faces, FACE_ROTATIONS, rotation, *args)
             else:
-                cube_warp(
-                    lum, faces, FACE_ROTATIONS, rotation, f, cx, cy, self.samples, self.bilinear
-                )
+                args = (f, cx, cy, self.samples, self.bilinear)
+                cube_warp(lum, faces, FACE_ROTATIONS, rotation, *args)
             got = self._bg[key] = (lum, None)
         if depth and got[1] is None:
             rho = np.empty((stage.height, stage.width), np.float64)
@@ -642,25 +618,9 @@ class PanoramaFrames(KeyframeFrames):
         regions = pair.regions(boxes)
         if not len(regions):
             return bg
-        lum, layers, inv, present, rho0 = pair._stacked
         out = bg.copy()
         weights = np.array([1.0 - w, w])
-        layers_over(
-            out,
-            bg,
-            rho,
-            regions,
-            weights,
-            lum,
-            layers,
-            inv,
-            present,
-            boxes,
-            hinv,
-            bvec,
-            rho0,
-            moving,
-        )
+        layers_over(out, bg, rho, regions, weights, *pair.kernel_args(hinv, bvec, moving, boxes))
         return out
 
     def _edge_key(self, key: RenderedKey) -> Keyframe:

@@ -237,6 +237,15 @@ def _nearest(v: float, n: int) -> int:
     return min(max(i, 0), n - 1)
 
 
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _source_pixel(hinv, kk, x, y):
+    """Where key ``kk``'s homography ``hinv[kk]`` (target to source) maps pixel (x, y)."""
+    az = hinv[kk, 2, 0] * x + hinv[kk, 2, 1] * y + hinv[kk, 2, 2]
+    px = (hinv[kk, 0, 0] * x + hinv[kk, 0, 1] * y + hinv[kk, 0, 2]) / az
+    py = (hinv[kk, 1, 0] * x + hinv[kk, 1, 1] * y + hinv[kk, 1, 2]) / az
+    return px, py
+
+
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _candidate(kk, x, y, first, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving):
     """Key ``kk``'s nearest candidate for target pixel (x, y) among its layers from
@@ -317,9 +326,7 @@ def _synth_kernel(
                 if den > 0.0:
                     out[y, x] = num / den
                 elif near >= 0:  # seen by neither key: the nearer key's nearest edge pixel
-                    az = hinv[near, 2, 0] * x + hinv[near, 2, 1] * y + hinv[near, 2, 2]
-                    px = (hinv[near, 0, 0] * x + hinv[near, 0, 1] * y + hinv[near, 0, 2]) / az
-                    py = (hinv[near, 1, 0] * x + hinv[near, 1, 1] * y + hinv[near, 1, 2]) / az
+                    px, py = _source_pixel(hinv, near, x, y)
                     out[y, x] = lum[near, _nearest(py, h), _nearest(px, w)]
 
 
@@ -331,24 +338,17 @@ def _static_kernel(out, weights, near, lum, hinv):
     h, w = out.shape
     for y in range(h):
         for x in range(w):
-            num = 0.0
-            den = 0.0
+            num = den = 0.0
             for kk in range(2):
-                wk = weights[kk]
-                if wk <= 0.0:
-                    continue
-                az = hinv[kk, 2, 0] * x + hinv[kk, 2, 1] * y + hinv[kk, 2, 2]
-                px = (hinv[kk, 0, 0] * x + hinv[kk, 0, 1] * y + hinv[kk, 0, 2]) / az
-                py = (hinv[kk, 1, 0] * x + hinv[kk, 1, 1] * y + hinv[kk, 1, 2]) / az
-                if -0.5 <= px < w - 0.5 and -0.5 <= py < h - 0.5:
-                    num += wk * lum[kk, _nearest(py, h), _nearest(px, w)]
-                    den += wk
+                if weights[kk] > 0.0:  # a key at weight 0 adds nothing
+                    px, py = _source_pixel(hinv, kk, x, y)
+                    if -0.5 <= px < w - 0.5 and -0.5 <= py < h - 0.5:
+                        num += weights[kk] * lum[kk, _nearest(py, h), _nearest(px, w)]
+                        den += weights[kk]
             if den > 0.0:
                 out[y, x] = num / den
             else:
-                az = hinv[near, 2, 0] * x + hinv[near, 2, 1] * y + hinv[near, 2, 2]
-                px = (hinv[near, 0, 0] * x + hinv[near, 0, 1] * y + hinv[near, 0, 2]) / az
-                py = (hinv[near, 1, 0] * x + hinv[near, 1, 1] * y + hinv[near, 1, 2]) / az
+                px, py = _source_pixel(hinv, near, x, y)
                 out[y, x] = lum[near, _nearest(py, h), _nearest(px, w)]
 
 
@@ -434,32 +434,26 @@ class KeyPair:
         h, wd = self.a.lum.shape
         weights = np.array([1.0 - w, w])
         near = int(w > 0.5)
-        lum, layers, inv, present, rho0 = self._stacked
         out = np.empty_like(self.a.lum)
         if moving[:, 0].any():  # the camera centre moved: parallax everywhere
             regions = np.array([[0, h, 0, wd]])
         else:
-            _static_kernel(out, weights, near, lum, hinv)
+            _static_kernel(out, weights, near, self._stacked[0], hinv)
             regions = self.regions(boxes)
             if not len(regions):
                 return out
             near = -1
-        _synth_kernel(
-            out,
-            regions,
-            weights,
-            near,
-            lum,
-            layers,
-            inv,
-            present,
-            boxes,
-            hinv,
-            bvec,
-            rho0,
-            moving,
-        )
+        _synth_kernel(out, regions, weights, near, *self.kernel_args(hinv, bvec, moving, boxes))
         return out
+
+    def kernel_args(
+        self, hinv: np.ndarray, bvec: np.ndarray, moving: np.ndarray, boxes: np.ndarray
+    ) -> tuple[np.ndarray, ...]:
+        """The two keys' stacked layers with a view's :meth:`params`, in the order the
+        layers' kernels take them (``lum, layers, inv, present, boxes, hinv, bvec, rho0,
+        moving``)."""
+        lum, layers, inv, present, rho0 = self._stacked
+        return lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
 
 
 def blend(a: np.ndarray, b: np.ndarray, w: float) -> np.ndarray:

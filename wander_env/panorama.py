@@ -87,6 +87,32 @@ def _face_pixel(d0, d1, d2, face_rot, half):
     return face, half * (c0 / c2 + 1.0) - 0.5, half * (c1 / c2 + 1.0) - 0.5
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _ray_face(x, y, i, j, s, f, cx, cy, rot, face_rot, half):
+    """(face, x, y) on the cube where sub-pixel ray ``(i, j)`` of the ``s × s`` rays of
+    sensor pixel ``(x, y)``, turned by ``rot``, lands."""
+    v = (y - 0.5 + (j + 0.5) / s - cy) / f
+    u = (x - 0.5 + (i + 0.5) / s - cx) / f
+    d0 = rot[0, 0] * u + rot[0, 1] * v + rot[0, 2]
+    d1 = rot[1, 0] * u + rot[1, 1] * v + rot[1, 2]
+    d2 = rot[2, 0] * u + rot[2, 1] * v + rot[2, 2]
+    return _face_pixel(d0, d1, d2, face_rot, half)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _bilinear_at(fx, fy, n):
+    """The top-left face pixel of a bilinear sample at ``(fx, fy)`` and its weights."""
+    ix = min(max(math.floor(fx), 0), n - 2)
+    iy = min(max(math.floor(fy), 0), n - 2)
+    return ix, iy, min(max(fx - ix, 0.0), 1.0), min(max(fy - iy, 0.0), 1.0)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _nearest_at(fx, fy, n):
+    """The face pixel nearest ``(fx, fy)``."""
+    return min(max(math.floor(fx + 0.5), 0), n - 1), min(max(math.floor(fy + 0.5), 0), n - 1)
+
+
 @numba.njit(cache=True, nogil=True)
 def cube_warp(out, faces, face_rot, rot, f, cx, cy, s, bilinear):
     """Fill ``out`` (H, W) from the cube ``faces`` (6, n, n) (world-from-face rotations
@@ -101,25 +127,16 @@ def cube_warp(out, faces, face_rot, rot, f, cx, cy, s, bilinear):
         for x in range(w):
             acc = 0.0
             for j in range(s):
-                v = (y - 0.5 + (j + 0.5) / s - cy) / f
                 for i in range(s):
-                    u = (x - 0.5 + (i + 0.5) / s - cx) / f
-                    d0 = rot[0, 0] * u + rot[0, 1] * v + rot[0, 2]
-                    d1 = rot[1, 0] * u + rot[1, 1] * v + rot[1, 2]
-                    d2 = rot[2, 0] * u + rot[2, 1] * v + rot[2, 2]
-                    face, fx, fy = _face_pixel(d0, d1, d2, face_rot, half)
+                    face, fx, fy = _ray_face(x, y, i, j, s, f, cx, cy, rot, face_rot, half)
                     if bilinear:
-                        ix = min(max(math.floor(fx), 0), n - 2)
-                        iy = min(max(math.floor(fy), 0), n - 2)
-                        tx = min(max(fx - ix, 0.0), 1.0)
-                        ty = min(max(fy - iy, 0.0), 1.0)
+                        ix, iy, tx, ty = _bilinear_at(fx, fy, n)
                         row0, row1 = faces[face, iy], faces[face, iy + 1]
                         top = (1 - tx) * row0[ix] + tx * row0[ix + 1]
                         bottom = (1 - tx) * row1[ix] + tx * row1[ix + 1]
                         acc += (1 - ty) * top + ty * bottom
                     else:
-                        ix = min(max(math.floor(fx + 0.5), 0), n - 1)
-                        iy = min(max(math.floor(fy + 0.5), 0), n - 1)
+                        ix, iy = _nearest_at(fx, fy, n)
                         acc += faces[face, iy, ix]
             out[y, x] = acc * inv
 
@@ -140,20 +157,12 @@ def cube_warp_srgb(out, faces, face_rot, rot, f, cx, cy, s, bilinear, wlut, offs
         for x in range(w):
             acc[:] = 0.0
             for j in range(s):
-                v = (y - 0.5 + (j + 0.5) / s - cy) / f
                 for i in range(s):
-                    u = (x - 0.5 + (i + 0.5) / s - cx) / f
-                    d0 = rot[0, 0] * u + rot[0, 1] * v + rot[0, 2]
-                    d1 = rot[1, 0] * u + rot[1, 1] * v + rot[1, 2]
-                    d2 = rot[2, 0] * u + rot[2, 1] * v + rot[2, 2]
-                    face, fx, fy = _face_pixel(d0, d1, d2, face_rot, half)
+                    face, fx, fy = _ray_face(x, y, i, j, s, f, cx, cy, rot, face_rot, half)
                     fx += offset
                     fy += offset
                     if bilinear:
-                        ix = min(max(math.floor(fx), 0), n - 2)
-                        iy = min(max(math.floor(fy), 0), n - 2)
-                        tx = min(max(fx - ix, 0.0), 1.0)
-                        ty = min(max(fy - iy, 0.0), 1.0)
+                        ix, iy, tx, ty = _bilinear_at(fx, fy, n)
                         for c in range(3):
                             top = (1 - tx) * faces[face, iy, ix, c] + tx * faces[
                                 face, iy, ix + 1, c
@@ -163,8 +172,7 @@ def cube_warp_srgb(out, faces, face_rot, rot, f, cx, cy, s, bilinear, wlut, offs
                             ]
                             acc[c] += (1 - ty) * top + ty * bot
                     else:
-                        ix = min(max(math.floor(fx + 0.5), 0), n - 1)
-                        iy = min(max(math.floor(fy + 0.5), 0), n - 1)
+                        ix, iy = _nearest_at(fx, fy, n)
                         for c in range(3):
                             acc[c] += faces[face, iy, ix, c]
             lum = 0.0
@@ -190,8 +198,7 @@ def cube_inverse_depth(out, dist, face_rot, rot, f, cx, cy):
             d1 = rot[1, 0] * u + rot[1, 1] * v + rot[1, 2]
             d2 = rot[2, 0] * u + rot[2, 1] * v + rot[2, 2]
             face, fx, fy = _face_pixel(d0, d1, d2, face_rot, half)
-            ix = min(max(math.floor(fx + 0.5), 0), n - 1)
-            iy = min(max(math.floor(fy + 0.5), 0), n - 1)
+            ix, iy = _nearest_at(fx, fy, n)
             out[y, x] = math.sqrt(u * u + v * v + 1.0) / dist[face, iy, ix]
 
 

@@ -103,39 +103,38 @@ class HeadlightRow:
     lum_render: float
 
 
+def background_error(scene: str, headlight: str) -> tuple[np.ndarray, tuple[float, float]]:
+    """``|Δ ln lum|`` over the static world's pixels between the panorama's background at
+    reset and a render at the same pose, its faces lit with ``headlight`` (``"off"``:
+    the render's headlight off too); and (mean lum panorama, mean lum render) there."""
+    import gymnasium as gym
+
+    env = gym.make("wander/Wander-v0", scene=scene, frames="panorama")
+    try:
+        u = env.unwrapped
+        u.source.headlight = headlight
+        env.reset(seed=0)
+        stage = u.stage
+        if headlight == "off":
+            u.model.vis.headlight.active = 0
+        pan, tilt = u.ptu.camera_pan_deg, u.ptu.camera_tilt_deg
+        bg, _ = u.source.background(stage.camera_view(0, pan, tilt).rotation, depth=False)
+        stage.posed = None
+        stage.pose(0, pan, tilt)
+        lum = u.dvs.prepare(stage.render()).lum.reshape(bg.shape)
+        static = stage.geometry()[0] == 0
+    finally:
+        env.close()
+    d = np.abs(np.log(np.maximum(bg, 1e-3)) - np.log(np.maximum(lum, 1e-3)))[static]
+    return d, (float(bg[static].mean()), float(lum[static].mean()))
+
+
 def headlight_rows(scene: str) -> list[HeadlightRow]:
     """One :class:`HeadlightRow` per way of lighting the faces: the headlight held along
     the camera's axis (the default), turned with each face, and off."""
-    import gymnasium as gym
-
     rows = []
     for headlight in ("camera", "face", "off"):
-        env = gym.make("wander/Wander-v0", scene=scene, frames="panorama")
-        try:
-            u = env.unwrapped
-            u.source.headlight = headlight
-            env.reset(seed=0)
-            stage = u.stage
-            if headlight == "off":
-                u.model.vis.headlight.active = 0
-            pan, tilt = u.ptu.camera_pan_deg, u.ptu.camera_tilt_deg
-            bg, _ = u.source.background(stage.camera_view(0, pan, tilt).rotation, depth=False)
-            stage.posed = None
-            stage.pose(0, pan, tilt)
-            lum = u.dvs.prepare(stage.render()).lum.reshape(bg.shape)
-            layers, _ = stage.geometry()
-            m = layers == 0
-            d = np.abs(np.log(np.maximum(bg, 1e-3)) - np.log(np.maximum(lum, 1e-3)))[m]
-            rows.append(
-                HeadlightRow(
-                    headlight,
-                    float(np.median(d)),
-                    float(d.mean()),
-                    float(np.percentile(d, 95)),
-                    float(bg[m].mean()),
-                    float(lum[m].mean()),
-                )
-            )
-        finally:
-            env.close()
+        d, (lum_panorama, lum_render) = background_error(scene, headlight)
+        median, mean, p95 = float(np.median(d)), float(d.mean()), float(np.percentile(d, 95))
+        rows.append(HeadlightRow(headlight, median, mean, p95, lum_panorama, lum_render))
     return rows
