@@ -58,6 +58,7 @@ def test_mode_kwargs_reference_and_modes() -> None:
     assert kw["aa16"] == {"frames": "exact", "supersample": 2}
     assert kw["one_key"] == {"frames": "keyframes", "keyframe_ms": 10.0, "keyframe_px": None}
     assert kw["panorama"] == {"frames": "panorama"}
+    assert kw["fine"] == {"quality": "fine"}
     assert tuple(kw) == ("reference", *MODES)
 
 
@@ -86,6 +87,7 @@ def _run(events: dict[str, np.ndarray], l1: dict[str, float], moving: list[bool]
             "exact": 20,
             "aa16": 20,
             "default": 6,
+            "fine": 6,
             "one_key": 2,
             "panorama": 2,
         },
@@ -103,10 +105,11 @@ def test_row_pools_seeds_against_the_reference() -> None:
         "exact": close,
         "aa16": ref,
         "default": close,
+        "fine": ref,
         "one_key": ref,
         "panorama": ref,
     }
-    l1 = {"exact": 3.0, "aa16": 0.0, "default": 2.0, "one_key": 1.0, "panorama": 0.0}
+    l1 = {"exact": 3.0, "aa16": 0.0, "default": 2.0, "fine": 2.5, "one_key": 1.0, "panorama": 0.0}
     runs = [_run(events, l1, [True, False]), _run(events, l1, [True, False])]
     row = row_of("shelf", "saccade", runs)
     assert (row.seeds, row.steps, row.reference_events, row.reference_renders) == (2, 4, 8, 40.0)
@@ -122,6 +125,7 @@ def test_row_pools_seeds_against_the_reference() -> None:
     cells = bar_cells(row)
     assert cells.gap == "5.0 ≤ 2 ✗" and cells.verdict == "FAIL"
     assert cells.l1 == "0.500 ≤ 0.825"
+    assert cells.fine_l1 == "0.625 ≤ 0.562 ✗"  # fine: 2.5 / 4 events against 0.75 x 0.75
     still = row_of("shelf", "still", runs)
     assert still.modes["exact"].max_gap_ms is None and still.bar.ok
     none = ev()

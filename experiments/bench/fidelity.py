@@ -8,6 +8,7 @@ it, on the same seeds and actions, run:
 - ``exact``: every 1 ms tick rendered with the scenes' 4 samples a pixel (MSAA 4);
 - ``aa16``: the same with 16 samples a pixel (``supersample=2``);
 - ``default``: the env's default frames (``WanderConfig``'s defaults);
+- ``fine``: the default frames with ``quality="fine"`` (keys with 16 samples a pixel);
 - ``one_key``: ``frames="keyframes"`` with one key a step (``keyframe_ms`` = the control
   period, ``keyframe_px=None``);
 - ``panorama``: ``frames="panorama"`` (the static world warped from a cube map rendered
@@ -26,7 +27,8 @@ saccade row (ms) and the RGB renders per step. The old comparison against 4-samp
 
 The bar (:func:`bar_check`), per row: the default's ``|events deviation|`` no more than
 exact's + 2 points, its L1 no more than 1.1 × exact's, its matched share at least exact's
-− 3 points, and no event gap above 2 ms during a saccade.
+− 3 points, and no event gap above 2 ms during a saccade; and ``fine``'s L1 no more than
+0.75 × exact's (its own column, not the default's verdict).
 
 Examples:
     >>> rows = bench_fidelity(scenes=("shelf",), motions=("still",), seeds=(0,),
@@ -50,11 +52,12 @@ SACCADE_DEG = 20.0
 REFERENCE_HZ = 4000.0
 REFERENCE_SUPERSAMPLE = 4
 #: The modes compared against the reference, in the tables' order.
-MODES = ("exact", "aa16", "default", "one_key", "panorama")
+MODES = ("exact", "aa16", "default", "fine", "one_key", "panorama")
 MODE_TITLES = {
     "exact": "exact (4 samples, 1 kHz)",
     "aa16": "16 samples, 1 kHz",
     "default": "default frames",
+    "fine": "default frames, quality fine",
     "one_key": "one key a step",
     "panorama": "panorama",
 }
@@ -63,6 +66,8 @@ BAR_EVENTS_PTS = 2.0
 BAR_L1_FACTOR = 1.1
 BAR_MATCHED_PTS = 3.0
 BAR_GAP_MS = 2.0
+# `fine`'s bar: its L1 no more than this times exact's.
+BAR_FINE_L1_FACTOR = 0.75
 
 # The columns of `wander bench fidelity`'s tables (field -> format spec).
 MODE_COLUMNS: dict[str, str] = {
@@ -81,6 +86,7 @@ BAR_COLUMNS: dict[str, str] = {
     "gap": "",
     "default_vs_exact_pct": ".1f",
     "verdict": "",
+    "fine_l1": "",
 }
 
 
@@ -236,6 +242,7 @@ def mode_kwargs(
         "exact": {"frames": "exact"},
         "aa16": {"frames": "exact", "supersample": 2},
         "default": {},
+        "fine": {"quality": "fine"},
         "one_key": {"frames": "keyframes", "keyframe_ms": period_s * 1e3, "keyframe_px": None},
         "panorama": {"frames": "panorama"},
     }
@@ -406,6 +413,7 @@ class ModeCells:
     exact: str
     aa16: str
     default: str
+    fine: str
     one_key: str
     panorama: str
 
@@ -423,6 +431,7 @@ class BarCells:
     gap: str
     default_vs_exact_pct: float
     verdict: str
+    fine_l1: str
 
 
 def _num(x: float | None, fmt: str) -> str:
@@ -450,7 +459,7 @@ def mode_cells(row: FidelityRow) -> ModeCells:
 
 def bar_cells(row: FidelityRow) -> BarCells:
     """The bar table's cells of one row: ``value ≤ limit`` (``✗`` where it fails)."""
-    d, e, b = row.modes["default"], row.modes["exact"], row.bar
+    d, e, f, b = row.modes["default"], row.modes["exact"], row.modes["fine"], row.bar
 
     def mark(ok: bool) -> str:
         return "" if ok else " ✗"
@@ -468,4 +477,6 @@ def bar_cells(row: FidelityRow) -> BarCells:
         else "–",
         row.default_vs_exact_pct,
         "pass" if b.ok else "FAIL",
+        f"{f.l1_per_event:.3f} ≤ {BAR_FINE_L1_FACTOR * e.l1_per_event:.3f}"
+        + mark(f.l1_per_event <= BAR_FINE_L1_FACTOR * e.l1_per_event),
     )
