@@ -43,10 +43,14 @@ __all__ = [
     "Quality",
     "SceneName",
     "WanderConfig",
+    "check_dvs_preset",
+    "check_scene_name",
 ]
 
 
-def _scene_name(name: str) -> str:
+def check_scene_name(name: str) -> str:
+    """``name`` when it is a scene name of ``assets/scenes`` or a scene file that loads;
+    ValueError naming the scenes otherwise."""
     try:
         load_scene_config(name)
     except FileNotFoundError as err:
@@ -56,7 +60,8 @@ def _scene_name(name: str) -> str:
     return name
 
 
-def _dvs_preset(name: str) -> str:
+def check_dvs_preset(name: str) -> str:
+    """``name`` when it is a DVS preset (ValueError naming the presets otherwise)."""
     DVSParams.preset(name)  # ValueError naming the presets
     return name
 
@@ -67,9 +72,9 @@ def _ptu_preset(name: str) -> str:
 
 
 #: A scene: a name of ``assets/scenes`` or a scene file that loads.
-SceneName = Annotated[str, pydantic.AfterValidator(_scene_name)]
+SceneName = Annotated[str, pydantic.AfterValidator(check_scene_name)]
 #: A DVS preset (:meth:`wander_env.dvs.DVSParams.preset`).
-DvsPreset = Annotated[str, pydantic.AfterValidator(_dvs_preset)]
+DvsPreset = Annotated[str, pydantic.AfterValidator(check_dvs_preset)]
 #: A PTU preset (:meth:`wander_env.ptu.PTUParams.preset`).
 PtuPreset = Annotated[str, pydantic.AfterValidator(_ptu_preset)]
 #: How the env makes its frames: one name per class of ``wander_env.frames.FRAME_SOURCES``.

@@ -34,7 +34,7 @@ import mujoco
 import numba
 import numpy as np
 
-from wander_env.camera import CAMERA_NAME, linearise_depth, rotation_from_mujoco
+from wander_env.camera import CAMERA_NAME, linearise_depth
 from wander_env.dvs import _LUMA, srgb_to_linear
 from wander_env.keyframes import _candidate
 from wander_env.renderer import CameraRenderer, RenderParams
@@ -329,8 +329,3 @@ def render_cube(
         model.cam_fovy[cam] = saved_fovy
         model.vis.headlight.active = saved_head
     return lum, srgb, dist, renderer
-
-
-def camera_rotation(data: mujoco.MjData, cam: int) -> np.ndarray:
-    """World-from-camera rotation (OpenCV axes) of camera ``cam`` in ``data``."""
-    return rotation_from_mujoco(data.cam_xmat[cam])

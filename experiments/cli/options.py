@@ -126,15 +126,13 @@ def check_window(value: float) -> float:
 
 
 def check_scene(value: str) -> str:
-    """A scene name (``assets/scenes/NAME.yaml``) or a YAML file that loads."""
-    from wander_env.scene_config import available_scenes, load_scene_config
+    """A scene name (``assets/scenes/NAME.yaml``) or a YAML file that loads
+    (:func:`wander_env.env_config.check_scene_name`)."""
+    from wander_env.env_config import check_scene_name
+    from wander_env.scene_config import available_scenes
 
     try:
-        load_scene_config(value)
-    except FileNotFoundError as err:
-        raise typer.BadParameter(
-            f"{err}; allowed: {', '.join(available_scenes())} or a scene .yaml file"
-        ) from None
+        return check_scene_name(value)
     except ValueError as err:
         text = str(err)
         if text.startswith("unknown scene"):
@@ -143,18 +141,16 @@ def check_scene(value: str) -> str:
                 "or a scene .yaml file"
             )
         raise typer.BadParameter(text) from None
-    return value
 
 
 def check_dvs(value: str) -> str:
-    """A DVS preset name (:meth:`wander_env.dvs.DVSParams.preset`)."""
-    from wander_env.dvs import DVSParams
+    """A DVS preset name (:func:`wander_env.env_config.check_dvs_preset`)."""
+    from wander_env.env_config import check_dvs_preset
 
     try:
-        DVSParams.preset(value)
+        return check_dvs_preset(value)
     except ValueError as err:
         raise typer.BadParameter(str(err)) from None
-    return value
 
 
 def one_of(allowed: Sequence[str]) -> Callable[[str], str]:
