@@ -85,7 +85,7 @@ AGENT_SOMS_ALPHA = 0.80
 #: on the whole even-seed half of the stimulus family
 #: (``wander experiment oms_scorecard``; README "The sOMS threshold").
 AGENT_SOMS = SOMSParams(
-    conv="fft",
+    conv="separable",
     alpha=AGENT_SOMS_ALPHA,
     norm="quantile",
     pool_sigma=6.0,

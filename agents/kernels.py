@@ -190,6 +190,11 @@ class FFTConv2d:
     Inputs may also be given as spectra (:meth:`spectrum`, :meth:`from_spectrum`) so one
     input FFT can feed several kernel banks of the same padded size.
 
+    The transforms write into workspaces the convolution keeps (one per batch size), so
+    a step allocates nothing: fresh megabyte buffers cost more in page faults than the
+    FFTs themselves. **A result is a view of that workspace, valid until the next call
+    with the same batch size**; copy it to keep it.
+
     Examples:
         >>> import torch
         >>> w = torch.randn(3, 1, 31, 31)
@@ -238,23 +243,37 @@ class FFTConv2d:
         kp[:, :, rows[:, None], cols[None, :]] = w
         spec = torch.fft.rfft2(kp)  # (C_out, C_in/g, fh, fw//2+1)
         self._spec = spec.reshape(groups, c_out // groups, c_in_g, fh, fw // 2 + 1)
+        self._buffers: dict[str, torch.Tensor] = {}
+
+    def _workspace(self, name: str, shape: tuple[int, ...], dtype: torch.dtype) -> torch.Tensor:
+        """The kept buffer ``name`` of ``shape`` (made on first use, or for a new shape)."""
+        buf = self._buffers.get(name)
+        if buf is None or buf.shape != shape:
+            buf = self._buffers[name] = torch.empty(shape, dtype=dtype)
+        return buf
 
     def spectrum(self, x: torch.Tensor) -> torch.Tensor:
-        """Zero-padded ``rfft2`` of ``x`` ``(N, C_in, H, W)`` on this convolution's grid."""
-        return torch.fft.rfft2(x, s=self.fft_shape)
+        """Zero-padded ``rfft2`` of ``x`` ``(N, C_in, H, W)`` on this convolution's grid
+        (a view of a workspace: see the class)."""
+        fh, fw = self.fft_shape
+        out = self._workspace("x", (*x.shape[:-2], fh, fw // 2 + 1), torch.complex64)
+        return torch.fft.rfft2(x, s=self.fft_shape, out=out)
 
     def from_spectrum(self, xs: torch.Tensor) -> torch.Tensor:
-        """Convolution output ``(N, C_out, H, W)`` from an input spectrum (:meth:`spectrum`)."""
+        """Convolution output ``(N, C_out, H, W)`` from an input spectrum (:meth:`spectrum`;
+        a view of a workspace: see the class)."""
         n = xs.shape[0]
         g = self.groups
         xs = xs.reshape(n, g, self.in_channels // g, *xs.shape[-2:])
         # sum over the input channels of each group; multiply-accumulate in place
         # (several times faster than a complex einsum on the CPU)
-        ys = torch.mul(xs[:, :, 0:1], self._spec[:, :, 0])
+        ys = self._workspace("y", (n, g, self.out_channels // g, *xs.shape[-2:]), torch.complex64)
+        torch.mul(xs[:, :, 0:1], self._spec[:, :, 0], out=ys)
         for c in range(1, xs.shape[2]):
             ys.addcmul_(xs[:, :, c : c + 1], self._spec[:, :, c])
         ys = ys.reshape(n, self.out_channels, *xs.shape[-2:])
-        y = torch.fft.irfft2(ys, s=self.fft_shape)
+        out = self._workspace("out", (n, self.out_channels, *self.fft_shape), torch.float32)
+        y = torch.fft.irfft2(ys, s=self.fft_shape, out=out)
         return y[..., : self.height, : self.width]
 
     def __call__(self, x: torch.Tensor) -> torch.Tensor:

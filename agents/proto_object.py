@@ -74,6 +74,7 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
+import numba
 import numpy as np
 import torch
 import torch.nn.functional as F
@@ -239,6 +240,47 @@ def _coverage_gain(
     return torch.where(cover >= min_coverage, 1.0 / cover.clamp_min(min_coverage), 0.0)
 
 
+def _flat_gains(g_exc: torch.Tensor, g_inh: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
+    """Gains ``(1, 2n, h, w)`` as the contiguous float32 ``(2n, h, w)`` arrays of
+    :func:`_gated_border_cells`."""
+    return tuple(  # type: ignore[return-value]
+        np.ascontiguousarray(g[0].numpy(), dtype=np.float32) for g in (g_exc, g_inh)
+    )
+
+
+@numba.njit(cache=True, nogil=True)
+def _gated_border_cells(
+    v: np.ndarray,
+    conv: np.ndarray,
+    swap: np.ndarray,
+    g_exc: np.ndarray,
+    g_inh: np.ndarray,
+    out: np.ndarray,
+    on: np.ndarray,
+) -> None:
+    """Eq. (3)'s cells where ``V`` fired: for every pixel ``p`` with ``v[:, p] > 0`` and
+    cell ``i = (c, j)``, ``out[i, p] = conv[i, p] g_exc[j, p] + conv[swap[i], p]
+    g_inh[j, p]`` (float32, the two products then their sum, as the tensors' operations
+    did); ``out`` elsewhere is left as it is (zeros). ``v`` ``(C, h, w)``, ``conv`` (any
+    strides) and ``out`` ``(C 2n, h, w)``, gains ``(2n, h, w)``; ``on`` (at least
+    ``(h w, 2)`` integers) is scratch space for the fired pixels."""
+    n_cells, h, w = conv.shape
+    m = g_exc.shape[0]
+    n_on = 0  # the pixels where V fired, listed in on
+    for y in range(h):
+        for x in range(w):
+            for c in range(v.shape[0]):
+                if v[c, y, x] > 0:
+                    on[n_on, 0], on[n_on, 1] = y, x
+                    n_on += 1
+                    break
+    for i in range(n_cells):  # cell by cell: the cells' planes lie 2^k floats apart
+        j, k = i % m, swap[i]
+        for q in range(n_on):
+            y, x = on[q, 0], on[q, 1]
+            out[i, y, x] = conv[i, y, x] * g_exc[j, y, x] + conv[k, y, x] * g_inh[j, y, x]
+
+
 class _DirectConv2d:
     """``conv2d(padding='same')`` with the call signature of :class:`FFTConv2d`."""
 
@@ -277,6 +319,7 @@ class ProtoObjectSaliency(MapLayer[ProtoObjectParams]):
         self._swap = torch.tensor(
             [(n_c - 1 - c) * m + self._opp[j] for c in range(n_c) for j in range(m)]
         )
+        self._swap_np = self._swap.numpy().astype(np.int64)
         self._g_weight = grouping_weights(self.bank)
         self.border_lif = lif_layer(p.tau_mem, p.dt, p.spike_threshold)
         self.grouping_lif = lif_layer(p.tau_mem, p.dt, p.spike_threshold)
@@ -295,7 +338,7 @@ class ProtoObjectSaliency(MapLayer[ProtoObjectParams]):
         self._level_shapes = [
             (self._padded[0] // 2**s, self._padded[1] // 2**s) for s in range(p.levels)
         ]
-        k = p.kernel_size
+        k, m = p.kernel_size, self.bank.shape[0]
         vm = self.bank.unsqueeze(1)  # (2n, 1, k, k): one input channel -> every V * VM_j
         self._vm_conv: list[FFTConv2d | _DirectConv2d] = []
         self._g_conv: list[FFTConv2d | _DirectConv2d] = []
@@ -305,20 +348,23 @@ class ProtoObjectSaliency(MapLayer[ProtoObjectParams]):
             self._g_conv.append(
                 _conv(self._g_weight, hs, ws, p.conv, groups=2, flip=True, fft_shape=fft)
             )
-        # Per level: the gains (1, 2n, h_s, w_s) of the excitation and of the inhibition
+        # Per level: the gains (2n, h_s w_s) of the excitation and of the inhibition
         # (-w folded in) of the cells of direction j; border "zero": 1 and -w.
-        self._gain: list[tuple[torch.Tensor | float, torch.Tensor | float]] = []
+        self._gain: list[tuple[np.ndarray, np.ndarray]] = []
         for valid in self._levels(torch.ones(2, h, w)):
             if p.border == "zero":
-                self._gain.append((1.0, -p.w))
+                g = torch.ones(1, m, *valid.shape[-2:])
+                self._gain.append(_flat_gains(g, -p.w * g))
                 continue
             g = _coverage_gain(vm, valid[:, :1], p.min_coverage, p.conv)
             g_inh = g[:, self._opp]
             known = (g > 0) & (g_inh > 0)
-            self._gain.append((g * known, -p.w * g_inh * known))
+            self._gain.append(_flat_gains(g * known, -p.w * g_inh * known))
         n_bo = self._swap.numel()
         self._bo_sizes = [n_bo * hs * ws for hs, ws in self._level_shapes]
         self.border_lif.init_state_with_shape((1, sum(self._bo_sizes)))
+        self._currents = np.zeros(sum(self._bo_sizes), np.float32)  # the border LIF's input
+        self._on = np.empty((self._padded[0] * self._padded[1], 2), np.int64)
         self.grouping_lif.init_state_with_shape((1, 4, h, w))
         self._saliency = None
 
@@ -343,22 +389,30 @@ class ProtoObjectSaliency(MapLayer[ProtoObjectParams]):
             out.append(F.max_pool2d(out[-1], 2))
         return out
 
-    def _border_currents(self, levels: list[torch.Tensor]) -> torch.Tensor:
+    def _border_currents(self, levels: list[torch.Tensor]) -> np.ndarray:
         """Border-ownership currents of Eq. (3), ``V ⊙ (excitation − w · inhibition)``, as
         the border LIF holds them: one flat buffer of the levels' ``(C, 2n, h_s, w_s)``
         blocks (cell ``(c, j)``, see ``_swap``; sizes ``_bo_sizes``), from the distinct
         convolutions ``V_c * VM_j`` of each level (one input transform). The gate ``V ⊙``
         is applied by computing the cells only where ``V`` fired (elsewhere 0)."""
-        buf = torch.zeros(sum(self._bo_sizes))
-        for s, (v, part) in enumerate(zip(levels, torch.split(buf, self._bo_sizes), strict=True)):
-            conv = self._vm_conv[s](v.transpose(0, 1))  # (C, 2n, h_s, w_s)
-            on = torch.nonzero(v.amax(dim=1).reshape(-1)).squeeze(1)
-            c = conv.flatten(2)[:, :, on]
-            inh = c.flatten(0, 1)[self._swap].view_as(c)
+        buf = self._currents
+        buf.fill(0.0)
+        start = 0
+        for s, v in enumerate(levels):
+            conv = self._vm_conv[s](v.transpose(0, 1))  # (C, 2n, h_s, w_s), a view
+            cells = conv.numpy().reshape(-1, *conv.shape[-2:])
             g_exc, g_inh = self._gain[s]
-            if isinstance(g_exc, torch.Tensor):
-                g_exc, g_inh = g_exc.flatten(2)[:, :, on], g_inh.flatten(2)[:, :, on]
-            part.view(c.shape[0], c.shape[1], -1)[:, :, on] = c * g_exc + inh * g_inh
+            stop = start + cells[0].size * len(cells)
+            _gated_border_cells(
+                v[0].numpy(),
+                cells,
+                self._swap_np,
+                g_exc,
+                g_inh,
+                buf[start:stop].reshape(cells.shape),
+                self._on,
+            )
+            start = stop
         return buf
 
     @torch.no_grad()
@@ -367,7 +421,7 @@ class ProtoObjectSaliency(MapLayer[ProtoObjectParams]):
         x = self._input(oms_map, "oms_map")
         h, w = x.shape[1:]
         currents = self._border_currents(self._levels(x))
-        spikes = torch.from_numpy(lif_step(self.border_lif, currents.numpy())[0])
+        spikes = torch.from_numpy(lif_step(self.border_lif, currents)[0])
         # Grouping currents, Eq. (4), pooled over orientations and levels.
         group = torch.zeros(1, 4, *self._padded)
         for s, b in enumerate(torch.split(spikes, self._bo_sizes)):

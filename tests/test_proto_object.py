@@ -218,7 +218,7 @@ def test_border_currents_equal_the_full_two_channel_convolutions(split, border):
     rng = np.random.default_rng(7)
     oms = (rng.random((2, 72, 88)) < 0.06).astype(np.float32)
     po = ProtoObjectSaliency(ProtoObjectParams(polarity_split=split, border=border), 72, 88)
-    flat = po._border_currents(po._levels(torch.as_tensor(oms)))
+    flat = torch.from_numpy(po._border_currents(po._levels(torch.as_tensor(oms))))
     ref = _reference_currents(po, oms)
     m = po.bank.shape[0]
     got = [

@@ -280,7 +280,8 @@ class ImplTimes:
 
 def _record_inputs(agent: AttentionAgent, record: dict[str, list], keep: int = 200) -> None:
     """Wrap the agent's sOMS and sAC so that their inputs land in ``record`` (the first
-    ``keep`` sOMS maps, every sAC call)."""
+    ``keep`` sOMS event maps and ``diff`` maps, every sAC call)."""
+    record.setdefault("events", [])
     record.setdefault("diff", [])
     record.setdefault("control", [])
     soms_step, ctrl_step = agent.soms.step, agent.controller.step
@@ -288,6 +289,7 @@ def _record_inputs(agent: AttentionAgent, record: dict[str, list], keep: int = 2
     def soms(x: Any) -> Any:
         out = soms_step(x)
         if len(record["diff"]) < keep:
+            record["events"].append(np.array(x, dtype=np.float32))
             record["diff"].append(out.diff.clone())
         return out
 
@@ -300,11 +302,13 @@ def _record_inputs(agent: AttentionAgent, record: dict[str, list], keep: int = 2
 
 def compare_impls(record: dict[str, list], seed: int = 0) -> list[ImplTimes]:
     """Old against new implementation of the parts this speed work replaced, on the
-    inputs recorded from a run (``record["diff"]``: sOMS ``diff`` maps ``(2, H, W)``;
-    ``record["control"]``: sAC calls ``(target, duration_s)``): the sOMS quantile
-    norm's pooling + 90th percentile (FFT pair + ``np.quantile`` against the separable
-    Gaussian + one ``np.partition``) and the sAC's 10 nengo steps per env step
-    (``Simulator.run_steps`` against :class:`agents.control.FusedSteps`)."""
+    inputs recorded from a run (``record["events"]``, ``record["diff"]``: sOMS event
+    and ``diff`` maps ``(2, H, W)``; ``record["control"]``: sAC calls ``(target,
+    duration_s)``): the sOMS centre and surround filters (an FFT pair against two 1-D
+    passes of each Gaussian's factor), the sOMS quantile norm's pooling + 90th
+    percentile (FFT pair + ``np.quantile`` against the separable Gaussian + one
+    ``np.partition``) and the sAC's 10 nengo steps per env step (``Simulator.run_steps``
+    against :class:`agents.control.FusedSteps`)."""
     import torch
 
     from agents.control import AttentionController
@@ -313,6 +317,24 @@ def compare_impls(record: dict[str, list], seed: int = 0) -> list[ImplTimes]:
 
     p = AgentParams().resolved()
     rows = []
+    events = record.get("events", [])
+    if events:
+        h, w = events[0].shape[-2:]
+        soms = SOMS(p.soms, h, w)
+        old_filter = FFTConv2d(soms.weight, h, w)
+        t_old, t_new, worst = [], [], 0.0
+        with torch.no_grad():
+            for ev in events:
+                x = torch.from_numpy(ev)
+                t0 = time.perf_counter()
+                old = old_filter(x.unsqueeze(1))
+                t1 = time.perf_counter()
+                new = soms.filter(x)
+                t2 = time.perf_counter()
+                t_old.append(t1 - t0)
+                t_new.append(t2 - t1)
+                worst = max(worst, float((old - new).abs().max()))
+        rows.append(ImplTimes("sOMS centre + surround filters", t_old, t_new, worst))
     diffs = record.get("diff", [])
     if diffs and p.soms.norm == "quantile":
         h, w = diffs[0].shape[-2:]

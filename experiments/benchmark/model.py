@@ -50,15 +50,16 @@ class ModelConfig:
 
     ``dt`` is the nominal step in seconds (the dataset's window); ``streamlined`` runs
     the proto-object stage on ``V = V+ ∨ V−`` (the paper's streamlined model) instead of
-    splitting the polarities; ``alpha`` is the sOMS threshold; ``soms_conv`` and
-    ``proto_conv`` pick direct or FFT convolution (same result); ``follow_dt`` lets each
+    splitting the polarities; ``alpha`` is the sOMS threshold; ``soms_conv`` picks
+    the sOMS's direct or separable convolution and ``proto_conv`` the proto-object's
+    direct or FFT one (same results); ``follow_dt`` lets each
     call's ``dt_s`` set the LIF decay (module docstring).
     """
 
     dt: float = 0.005
     streamlined: bool = False
     alpha: float = 0.80
-    soms_conv: Literal["direct", "fft"] = "direct"
+    soms_conv: Literal["direct", "separable"] = "direct"
     proto_conv: Literal["direct", "fft"] = "fft"
     follow_dt: bool = True
 

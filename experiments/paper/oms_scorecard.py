@@ -121,7 +121,7 @@ def variants() -> dict[str, SOMSParams]:
     ``agent``: the agent's default (``AgentParams().resolved().soms``)."""
     from agents.attention import AgentParams
 
-    return {"paper": SOMSParams(conv="fft"), "agent": AgentParams().resolved().soms}
+    return {"paper": SOMSParams(conv="separable"), "agent": AgentParams().resolved().soms}
 
 
 def stimuli(cfg: OMSScorecardConfig, seed: int) -> list:
