@@ -155,13 +155,13 @@ def test_still_static_world_matches_a_render_at_the_same_pose() -> None:
     against the render's 4, the difference at edges); with the headlight off on both,
     median 0 (mean 0.033). A headlight turned with each face instead: median 0.19."""
     from experiments.bench.panorama import background_error
-    from wander_env.frames import PanoramaFrames
+    from wander_env.frames import PanoramaParams
 
     for headlight, median_max, mean_max in (("camera", 0.02, 0.05), ("off", 0.0, 0.05)):
         d, _ = background_error("office", headlight)
         assert d.size > 10000  # static-world pixels
         assert np.median(d) <= median_max and d.mean() <= mean_max, (headlight, d.mean())
-    assert PanoramaFrames.headlight == "camera"
+    assert PanoramaParams().headlight == "camera"
 
 
 @pytest.mark.slow
@@ -235,3 +235,18 @@ def test_a_layer_grows_without_wrapping_round_the_image() -> None:
     assert not _shifted(layers, 0, -1, 0)[:, -1].any()
     assert (_shifted(layers, 0, 1, 0)[:, 1] == 1).all()
     assert (_shifted(layers, 1, 1, 0)[1:, 1] == 1).all() and _shifted(layers, 1, 1, 0)[0].sum() == 0
+
+
+def test_panorama_params_default_to_the_measured_variant_and_refuse_bad_values() -> None:
+    from wander_env.frames import PanoramaParams
+
+    p = PanoramaParams()
+    assert (p.samples, p.prefilter, p.bilinear, p.srgb, p.edge_px) == (4, True, True, True, 1)
+    for bad, match in (
+        ({"samples": 0}, "samples must be an integer in \\[1, 8\\], got 0"),
+        ({"samples": 2.5}, "samples must be an integer in \\[1, 8\\], got 2.5"),
+        ({"edge_px": 5}, "edge_px must be an integer in \\[0, 4\\], got 5"),
+        ({"headlight": "sun"}, "headlight must be one of 'camera', 'face', 'off', got 'sun'"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            PanoramaParams(**bad)

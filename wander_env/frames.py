@@ -30,6 +30,7 @@ import math
 import os
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, replace
+from typing import Literal
 
 import mujoco
 import numpy as np
@@ -60,6 +61,7 @@ __all__ = [
     "FrameSource",
     "KeyframeFrames",
     "PanoramaFrames",
+    "PanoramaParams",
     "RenderedKey",
     "Stage",
 ]
@@ -420,6 +422,52 @@ def layers_in_view(
     return False
 
 
+#: How :class:`PanoramaFrames` may light its faces (see :func:`wander_env.panorama.render_cube`).
+Headlight = Literal["camera", "face", "off"]
+
+
+@dataclass(frozen=True)
+class PanoramaParams:
+    """How :class:`PanoramaFrames` renders and samples its panorama: the defaults are the
+    faster of the two variants measured closer to the world than the default keyframes
+    (docs/fidelity.md, "The panorama").
+
+    - ``samples`` 4: the faces are ``samples × 2f`` pixels, each with the scene's MSAA;
+    - ``prefilter`` True: the faces box-filtered (``samples × samples``) once, then one
+      bilinear sample a sensor pixel; False: ``samples × samples`` rays a pixel;
+    - ``bilinear`` True: without ``prefilter``, each ray samples bilinearly (False: the
+      nearest face pixel);
+    - ``srgb`` True: average sRGB codes, as a supersampled render's resolve does (False:
+      linear light);
+    - ``edge_px`` 1: the moving layers grown by this many pixels over the panorama (an
+      object's edge pixels, which the key blended with the real background, move with it);
+    - ``headlight`` ``"camera"``: the faces lit by the headlight held along the camera's
+      axis at reset (``"face"``: turned with each face; ``"off"``).
+    """
+
+    samples: int = 4
+    prefilter: bool = True
+    bilinear: bool = True
+    srgb: bool = True
+    edge_px: int = 1
+    headlight: Headlight = "camera"
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.samples, int) and 1 <= self.samples <= 8):
+            raise ValueError(
+                f"PanoramaParams.samples must be an integer in [1, 8], got {self.samples!r}"
+            )
+        if not (isinstance(self.edge_px, int) and 0 <= self.edge_px <= 4):
+            raise ValueError(
+                f"PanoramaParams.edge_px must be an integer in [0, 4], got {self.edge_px!r}"
+            )
+        if self.headlight not in ("camera", "face", "off"):
+            raise ValueError(
+                "PanoramaParams.headlight must be one of 'camera', 'face', 'off', "
+                f"got {self.headlight!r}"
+            )
+
+
 class PanoramaFrames(KeyframeFrames):
     """The static world from a panorama; the moving layers from keys, over it by depth.
 
@@ -445,20 +493,21 @@ class PanoramaFrames(KeyframeFrames):
     Where the camera centre moves (a hinge offset: the scene's ``ptu.camera_forward_m`` or
     ``camera_up_m`` non-zero), a panorama from one centre is wrong (parallax): the
     source then is :class:`KeyframeFrames` for the whole stream.
+
+    The way it renders and samples the panorama is :attr:`panorama`, a
+    :class:`PanoramaParams` (the measured variants; set it before the reset).
     """
 
-    # The measured variants (docs/fidelity.md) as class attributes; the defaults are the
-    # faster of the two that are closer to the world than the default keyframes.
-    samples = 4  # faces at samples × 2f pixels (each with the scene's MSAA)
-    prefilter = True  # faces box-filtered (samples × samples) once, one bilinear sample a pixel
-    bilinear = True  # without prefilter: samples × samples rays a pixel, bilinear (or nearest)
-    srgb = True  # average sRGB codes (as a supersampled render's resolve does), not light
-    edge_px = 1  # the moving layers grown by this many pixels over the panorama
-    headlight = "camera"
-
-    def __init__(self, stage: Stage, dvs: DVSEmulator, params: FrameParams) -> None:
+    def __init__(
+        self,
+        stage: Stage,
+        dvs: DVSEmulator,
+        params: FrameParams,
+        panorama: PanoramaParams | None = None,
+    ) -> None:
         self._grey_of: np.ndarray | None = None  # a background to show as camera_frame
         super().__init__(stage, dvs, params)
+        self.panorama = panorama or PanoramaParams()
         mount = stage.scene.ptu
         self.fallback = mount.camera_forward_m != 0 or mount.camera_up_m != 0
         self._cube: tuple[np.ndarray, np.ndarray] | None = None
@@ -490,17 +539,17 @@ class PanoramaFrames(KeyframeFrames):
         """Render the panorama from the camera centre at ``t_us`` and ``angles``."""
         from wander_env.panorama import box_filter, render_cube
 
-        stage = self.stage
+        stage, pp = self.stage, self.panorama
         stage.pose(t_us, *angles)
-        n = round(2 * float(stage.k[0, 0]) * self.samples)
+        n = round(2 * float(stage.k[0, 0]) * pp.samples)
         lum, srgb, dist, self._face_renderer = render_cube(
-            stage.model, stage.data, n, self._hide, self.headlight, self._face_renderer
+            stage.model, stage.data, n, self._hide, pp.headlight, self._face_renderer
         )
         stage.posed = None  # the camera was turned to the faces
         self._offset = 0.0
-        if self.srgb and self.prefilter:
-            srgb, self._offset = box_filter(srgb, self.samples)
-        self._cube = (srgb if self.srgb else lum, dist)
+        if pp.srgb and pp.prefilter:
+            srgb, self._offset = box_filter(srgb, pp.samples)
+        self._cube = (srgb if pp.srgb else lum, dist)
         self._bg = {}
 
     def background(
@@ -522,12 +571,13 @@ class PanoramaFrames(KeyframeFrames):
         got = self._bg.get(key)
         if got is None:
             lum = np.empty((stage.height, stage.width), np.float32)
-            if self.srgb:  # prefiltered: one bilinear sample of the box-filtered faces
-                s, bilinear = (1, True) if self.prefilter else (self.samples, self.bilinear)
+            pp = self.panorama
+            if pp.srgb:  # prefiltered: one bilinear sample of the box-filtered faces
+                s, bilinear = (1, True) if pp.prefilter else (pp.samples, pp.bilinear)
                 args = (f, cx, cy, s, bilinear, self._wlut, self._offset)
                 cube_warp_srgb(lum, faces, FACE_ROTATIONS, rotation, *args)
             else:
-                args = (f, cx, cy, self.samples, self.bilinear)
+                args = (f, cx, cy, pp.samples, pp.bilinear)
                 cube_warp(lum, faces, FACE_ROTATIONS, rotation, *args)
             got = self._bg[key] = (lum, None)
         if depth and got[1] is None:
@@ -629,13 +679,13 @@ class PanoramaFrames(KeyframeFrames):
         the object's edge pixels, which the render blended with the real background,
         move with it over the panorama."""
         kf = self.keyframe(key)
-        if self.edge_px == 0:
+        if self.panorama.edge_px == 0:
             return kf
         got = self._edge_keys.get(id(key))
         if got is not None and got[0] is key:
             return got[1]
         layers, inv = kf.layers.copy(), kf.inv_depth.copy()
-        for _ in range(self.edge_px):
+        for _ in range(self.panorama.edge_px):
             grown_l, grown_i = layers.copy(), inv.copy()
             for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1)):
                 nl, ni = _shifted(layers, dy, dx, 0), _shifted(inv, dy, dx, 0.0)

@@ -19,13 +19,14 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
 
+#: name -> (env keywords, fields of the panorama's PanoramaParams)
 VARIANTS: dict[str, tuple[dict[str, Any], dict[str, Any]]] = {
     "keyframes (default)": ({}, {}),
     "exact": ({"frames": "exact"}, {}),
@@ -43,8 +44,9 @@ def step_ms(scene: str, motion: str, steps: int) -> dict[str, tuple[float, float
     envs, reset_s = {}, {}
     for name, (kw, attrs) in VARIANTS.items():
         env = envs[name] = gym.make("wander/Wander-v0", scene=scene, **kw)
-        for k, v in attrs.items():  # on this env's source only
-            setattr(env.unwrapped.source, k, v)
+        if attrs:  # on this env's source only, before its reset
+            source = env.unwrapped.source
+            source.panorama = replace(source.panorama, **attrs)
         t = time.perf_counter()
         env.reset(seed=0)
         reset_s[name] = time.perf_counter() - t
@@ -112,7 +114,7 @@ def background_error(scene: str, headlight: str) -> tuple[np.ndarray, tuple[floa
     env = gym.make("wander/Wander-v0", scene=scene, frames="panorama")
     try:
         u = env.unwrapped
-        u.source.headlight = headlight
+        u.source.panorama = replace(u.source.panorama, headlight=headlight)
         env.reset(seed=0)
         stage = u.stage
         if headlight == "off":
