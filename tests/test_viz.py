@@ -25,3 +25,8 @@ def test_tile_and_upscale_shapes():
     ims = [np.zeros((4, 5, 3), np.uint8)] * 5
     assert tile(ims, columns=3, gap=1).shape == (2 * 4 + 1, 3 * 5 + 2, 3)
     assert upscale(np.ones((2, 3, 3), np.uint8), 4).shape == (8, 12, 3)
+    # every pixel a factor x factor block, as np.repeat along both axes makes it
+    im = np.random.default_rng(0).integers(0, 256, (9, 7, 3)).astype(np.uint8)
+    for f in (1, 2, 3, 5):
+        assert np.array_equal(upscale(im, f), np.repeat(np.repeat(im, f, 0), f, 1))
+    assert upscale(im[..., :1], 2).shape == (18, 14, 1)

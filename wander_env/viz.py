@@ -83,8 +83,21 @@ def tile(images: list[np.ndarray], columns: int, gap: int = 2) -> np.ndarray:
 
 
 def upscale(image: np.ndarray, factor: int) -> np.ndarray:
-    """Nearest-neighbour enlargement, so single pixels stay visible."""
-    return np.repeat(np.repeat(image, factor, axis=0), factor, axis=1)
+    """Nearest-neighbour enlargement by an integer ``factor``, so single pixels stay
+    visible: every pixel becomes a ``factor × factor`` block (OpenCV's nearest resize,
+    which for an integer factor is exactly that; an image ``(H, W)`` or ``(H, W, C)``
+    of a dtype OpenCV resizes, e.g. uint8 or float32).
+
+    >>> upscale(np.array([[1, 2]], np.uint8), 2).tolist()
+    [[1, 1, 2, 2], [1, 1, 2, 2]]
+    """
+    import cv2
+
+    if not (isinstance(factor, int) and factor >= 1):
+        raise ValueError(f"factor must be an integer >= 1, got {factor!r}")
+    h, w = image.shape[:2]
+    big = cv2.resize(image, None, fx=factor, fy=factor, interpolation=cv2.INTER_NEAREST)
+    return big.reshape(h * factor, w * factor, *image.shape[2:])  # cv2 drops a last axis of 1
 
 
 # ----------------------------------------------------------------------------------------

@@ -443,6 +443,10 @@ class VideoSink:
                     size,
                     fps=self.fps,
                     quality=None,  # libx264's own default rate control, as imageio's writer
+                    # libx264's "veryfast" preset: on a run's labelled frames 7 ms of CPU
+                    # a frame against 18.5 ms for its default ("medium"), the file 2 %
+                    # larger; the encoder shares the machine's cores with the simulation
+                    output_params=["-preset", "veryfast"],
                     macro_block_size=1,
                     ffmpeg_log_level="warning",
                     ffmpeg_timeout=self.close_timeout_s,
