@@ -240,9 +240,9 @@ def _coverage_gain(
     return torch.where(cover >= min_coverage, 1.0 / cover.clamp_min(min_coverage), 0.0)
 
 
-def _flat_gains(g_exc: torch.Tensor, g_inh: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
-    """Gains ``(1, 2n, h, w)`` as the contiguous float32 ``(2n, h, w)`` arrays of
-    :func:`_gated_border_cells`."""
+def _gain_arrays(g_exc: torch.Tensor, g_inh: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
+    """Gains ``(1, 2n, h, w)`` as the contiguous float32 ``(2n, h, w)`` arrays that
+    :func:`_gated_border_cells` reads."""
     return tuple(  # type: ignore[return-value]
         np.ascontiguousarray(g[0].numpy(), dtype=np.float32) for g in (g_exc, g_inh)
     )
@@ -348,18 +348,18 @@ class ProtoObjectSaliency(MapLayer[ProtoObjectParams]):
             self._g_conv.append(
                 _conv(self._g_weight, hs, ws, p.conv, groups=2, flip=True, fft_shape=fft)
             )
-        # Per level: the gains (2n, h_s w_s) of the excitation and of the inhibition
+        # Per level: the gains (2n, h_s, w_s) of the excitation and of the inhibition
         # (-w folded in) of the cells of direction j; border "zero": 1 and -w.
         self._gain: list[tuple[np.ndarray, np.ndarray]] = []
         for valid in self._levels(torch.ones(2, h, w)):
             if p.border == "zero":
                 g = torch.ones(1, m, *valid.shape[-2:])
-                self._gain.append(_flat_gains(g, -p.w * g))
+                self._gain.append(_gain_arrays(g, -p.w * g))
                 continue
             g = _coverage_gain(vm, valid[:, :1], p.min_coverage, p.conv)
             g_inh = g[:, self._opp]
             known = (g > 0) & (g_inh > 0)
-            self._gain.append(_flat_gains(g * known, -p.w * g_inh * known))
+            self._gain.append(_gain_arrays(g * known, -p.w * g_inh * known))
         n_bo = self._swap.numel()
         self._bo_sizes = [n_bo * hs * ws for hs, ws in self._level_shapes]
         self.border_lif.init_state_with_shape((1, sum(self._bo_sizes)))
@@ -394,7 +394,8 @@ class ProtoObjectSaliency(MapLayer[ProtoObjectParams]):
         the border LIF holds them: one flat buffer of the levels' ``(C, 2n, h_s, w_s)``
         blocks (cell ``(c, j)``, see ``_swap``; sizes ``_bo_sizes``), from the distinct
         convolutions ``V_c * VM_j`` of each level (one input transform). The gate ``V ⊙``
-        is applied by computing the cells only where ``V`` fired (elsewhere 0)."""
+        is applied by computing the cells only where ``V`` fired (elsewhere 0). The buffer
+        is the layer's own, overwritten by the next call."""
         buf = self._currents
         buf.fill(0.0)
         start = 0

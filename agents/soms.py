@@ -126,7 +126,7 @@ def lif_layer(tau_s: float, dt_s: float, spike_threshold: float = 1.0) -> sl.LIF
 
 
 def lif_step(layer: sl.LIF, current: np.ndarray) -> np.ndarray:
-    """One time step of a :func:`lif_layer` on its own state, in NumPy: the membrane
+    """One time step of a :func:`lif_layer` on its own state (NumPy arrays): the membrane
     ``v <- alpha v + I`` (float32, ``alpha`` the layer's ``alpha_mem_calculated``), the
     ``MultiSpike`` count ``trunc(v / threshold)`` where ``v > 0``, the subtractive reset.
     The same float32 operations as the layer's forward on ``current[None, None]`` in one
@@ -450,7 +450,7 @@ class SOMS(MapLayer[SOMSParams]):
     step of ``params.dt`` seconds); LIF membranes carry over between calls until
     :meth:`reset`. Any ``H, W`` works; a new size rebuilds and resets the layers.
 
-    A step runs in NumPy on the sinabs layer's own state (:func:`lif_step`), with the
+    A step runs on NumPy views of the sinabs layer's own state (:func:`lif_step`), with the
     convolutions by ``params.conv`` (``"separable"`` also pools the ``"quantile"`` norm
     by two 1-D passes); its outputs are tensors sharing that memory.
 
