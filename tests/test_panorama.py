@@ -243,10 +243,11 @@ def test_panorama_params_default_to_the_measured_variant_and_refuse_bad_values()
     p = PanoramaParams()
     assert (p.samples, p.prefilter, p.bilinear, p.srgb, p.edge_px) == (4, True, True, True, 1)
     for bad, match in (
-        ({"samples": 0}, "samples must be an integer in \\[1, 8\\], got 0"),
-        ({"samples": 2.5}, "samples must be an integer in \\[1, 8\\], got 2.5"),
-        ({"edge_px": 5}, "edge_px must be an integer in \\[0, 4\\], got 5"),
-        ({"headlight": "sun"}, "headlight must be one of 'camera', 'face', 'off', got 'sun'"),
+        ({"samples": 0}, "samples: input should be greater than or equal to 1, got 0"),
+        ({"samples": 2.5}, "samples: input should be a valid integer, got 2.5"),
+        ({"edge_px": 5}, "edge_px: input should be less than or equal to 4, got 5"),
+        ({"headlight": "sun"}, "headlight: expected one of 'camera', 'face', 'off', got 'sun'"),
+        ({"prefilter": 1}, "prefilter: input should be a valid boolean, got 1"),
     ):
         with pytest.raises(ValueError, match=match):
             PanoramaParams(**bad)

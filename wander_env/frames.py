@@ -30,14 +30,16 @@ import math
 import os
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, replace
-from typing import Literal
+from typing import Annotated, Literal
 
 import mujoco
 import numpy as np
 
 from wander_env.camera import CAMERA_NAME, intrinsics, rotation_from_mujoco
+from wander_env.config import check_annotated
 from wander_env.dvs import DVSEmulator, LogFrame
 from wander_env.entities import PAN_JOINT, TILT_JOINT
+from wander_env.field_doc import field_doc
 from wander_env.gl_fork import ForkedGLError, fork_error_message
 from wander_env.keyframes import (
     SUBPIXEL_PX,
@@ -445,27 +447,19 @@ class PanoramaParams:
       axis at reset (``"face"``: turned with each face; ``"off"``).
     """
 
-    samples: int = 4
-    prefilter: bool = True
-    bilinear: bool = True
-    srgb: bool = True
-    edge_px: int = 1
+    samples: Annotated[
+        int, field_doc("Face pixels a sensor pixel, along each axis", ge=1, le=8)
+    ] = 4
+    prefilter: Annotated[
+        bool, field_doc("Box-filter the faces once, one bilinear sample a pixel")
+    ] = True
+    bilinear: Annotated[bool, field_doc("Without prefilter: bilinear rays, else nearest")] = True
+    srgb: Annotated[bool, field_doc("Average sRGB codes, not linear light")] = True
+    edge_px: Annotated[int, field_doc("Growth of the moving layers", unit="px", ge=0, le=4)] = 1
     headlight: Headlight = "camera"
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.samples, int) and 1 <= self.samples <= 8):
-            raise ValueError(
-                f"PanoramaParams.samples must be an integer in [1, 8], got {self.samples!r}"
-            )
-        if not (isinstance(self.edge_px, int) and 0 <= self.edge_px <= 4):
-            raise ValueError(
-                f"PanoramaParams.edge_px must be an integer in [0, 4], got {self.edge_px!r}"
-            )
-        if self.headlight not in ("camera", "face", "off"):
-            raise ValueError(
-                "PanoramaParams.headlight must be one of 'camera', 'face', 'off', "
-                f"got {self.headlight!r}"
-            )
+        check_annotated(self)
 
 
 class PanoramaFrames(KeyframeFrames):
