@@ -15,6 +15,7 @@ Examples:
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -300,6 +301,27 @@ def _record_inputs(agent: AttentionAgent, record: dict[str, list], keep: int = 2
     agent.soms.step, agent.controller.step = soms, ctrl
 
 
+def _alternate(
+    part: str, inputs: list[Any], old: Callable[[Any], Any], new: Callable[[Any], Any]
+) -> ImplTimes:
+    """``old`` and ``new`` called alternately on each of ``inputs`` (tensors in, tensors
+    out, no gradients): each call timed, and the largest difference of their outputs."""
+    import torch
+
+    t_old, t_new, worst = [], [], 0.0
+    with torch.no_grad():
+        for x in inputs:
+            t0 = time.perf_counter()
+            a = old(x)
+            t1 = time.perf_counter()
+            b = new(x)
+            t2 = time.perf_counter()
+            t_old.append(t1 - t0)
+            t_new.append(t2 - t1)
+            worst = max(worst, float((a - b).abs().max()))
+    return ImplTimes(part, t_old, t_new, worst)
+
+
 def compare_impls(record: dict[str, list], seed: int = 0) -> list[ImplTimes]:
     """Old against new implementation of the parts this speed work replaced, on the
     inputs recorded from a run (``record["events"]``, ``record["diff"]``: sOMS event
@@ -322,41 +344,30 @@ def compare_impls(record: dict[str, list], seed: int = 0) -> list[ImplTimes]:
         h, w = events[0].shape[-2:]
         soms = SOMS(p.soms, h, w)
         old_filter = FFTConv2d(soms.weight, h, w)
-        t_old, t_new, worst = [], [], 0.0
-        with torch.no_grad():
-            for ev in events:
-                x = torch.from_numpy(ev)
-                t0 = time.perf_counter()
-                old = old_filter(x.unsqueeze(1))
-                t1 = time.perf_counter()
-                new = soms.filter(x)
-                t2 = time.perf_counter()
-                t_old.append(t1 - t0)
-                t_new.append(t2 - t1)
-                worst = max(worst, float((old - new).abs().max()))
-        rows.append(ImplTimes("sOMS centre + surround filters", t_old, t_new, worst))
+        xs = [torch.from_numpy(ev) for ev in events]
+        rows.append(
+            _alternate(
+                "sOMS centre + surround filters",
+                xs,
+                lambda x: old_filter(x.unsqueeze(1)),
+                soms.filter,
+            )
+        )
     diffs = record.get("diff", [])
     if diffs and p.soms.norm == "quantile":
         h, w = diffs[0].shape[-2:]
         soms = SOMS(p.soms, h, w)
         old_pool = FFTConv2d(soms.pool_weight, h, w)
         sp = p.soms
-        t_old, t_new, worst = [], [], 0.0
-        with torch.no_grad():
-            for d in diffs:
-                t0 = time.perf_counter()
-                pooled = old_pool(-d.unsqueeze(1))[:, 0]
-                a = pooled.numpy().ravel()
-                q = float(np.quantile(a, sp.quantile))
-                scale = peak_scale(q, float(a.max()), sp.gain, sp.peak_ratio, sp.floor_spikes)
-                old = torch.clamp(pooled / scale, 0.0, 1.0)
-                t1 = time.perf_counter()
-                new = soms.score(d)
-                t2 = time.perf_counter()
-                t_old.append(t1 - t0)
-                t_new.append(t2 - t1)
-                worst = max(worst, float((old - new).abs().max()))
-        rows.append(ImplTimes("sOMS score: pooling + quantile", t_old, t_new, worst))
+
+        def old_score(d: torch.Tensor) -> torch.Tensor:
+            pooled = old_pool(-d.unsqueeze(1))[:, 0]
+            a = pooled.numpy().ravel()
+            q = float(np.quantile(a, sp.quantile))
+            scale = peak_scale(q, float(a.max()), sp.gain, sp.peak_ratio, sp.floor_spikes)
+            return torch.clamp(pooled / scale, 0.0, 1.0)
+
+        rows.append(_alternate("sOMS score: pooling + quantile", diffs, old_score, soms.score))
     calls = record.get("control", [])
     if calls:
         ctrl = {
