@@ -316,10 +316,9 @@ class ProtoObjectSaliency(MapLayer[ProtoObjectParams]):
         # (1, j) is line 1 of Eq. (3) for θ_j (V+ excites) and (0, j) line 2 (V− excites).
         # _swap gathers the inhibiting convolution of every cell from the (c, j) stack.
         n_c = 2 if p.polarity_split else 1
-        self._swap = torch.tensor(
-            [(n_c - 1 - c) * m + self._opp[j] for c in range(n_c) for j in range(m)]
+        self._swap = np.array(
+            [(n_c - 1 - c) * m + self._opp[j] for c in range(n_c) for j in range(m)], np.int64
         )
-        self._swap_np = self._swap.numpy().astype(np.int64)
         self._g_weight = grouping_weights(self.bank)
         self.border_lif = lif_layer(p.tau_mem, p.dt, p.spike_threshold)
         self.grouping_lif = lif_layer(p.tau_mem, p.dt, p.spike_threshold)
@@ -360,7 +359,7 @@ class ProtoObjectSaliency(MapLayer[ProtoObjectParams]):
             g_inh = g[:, self._opp]
             known = (g > 0) & (g_inh > 0)
             self._gain.append(_gain_arrays(g * known, -p.w * g_inh * known))
-        n_bo = self._swap.numel()
+        n_bo = self._swap.size
         self._bo_sizes = [n_bo * hs * ws for hs, ws in self._level_shapes]
         self.border_lif.init_state_with_shape((1, sum(self._bo_sizes)))
         self._currents = np.zeros(sum(self._bo_sizes), np.float32)  # the border LIF's input
@@ -407,7 +406,7 @@ class ProtoObjectSaliency(MapLayer[ProtoObjectParams]):
             _gated_border_cells(
                 v[0].numpy(),
                 cells,
-                self._swap_np,
+                self._swap,
                 g_exc,
                 g_inh,
                 buf[start:stop].reshape(cells.shape),
