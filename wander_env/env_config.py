@@ -32,12 +32,14 @@ from wander_env.config import FieldsMapping, check_annotated
 from wander_env.dvs import DVSParams
 from wander_env.field_doc import field_doc
 from wander_env.ptu.params import PTUParams
+from wander_env.readout import ReadoutParams
 from wander_env.scene_config import SceneConfig, available_scenes, load_scene_config
 
 __all__ = [
     "FRAME_MODES",
     "QUALITIES",
     "DvsPreset",
+    "ReadoutPreset",
     "FrameMode",
     "PtuPreset",
     "Quality",
@@ -75,6 +77,13 @@ def _ptu_preset(name: str) -> str:
 SceneName = Annotated[str, pydantic.AfterValidator(check_scene_name)]
 #: A DVS preset (:meth:`wander_env.dvs.DVSParams.preset`).
 DvsPreset = Annotated[str, pydantic.AfterValidator(check_dvs_preset)]
+def _readout_preset(name: str) -> str:
+    ReadoutParams.preset(name)  # ValueError naming the presets
+    return name
+
+
+#: A readout preset (:meth:`wander_env.readout.ReadoutParams.preset`).
+ReadoutPreset = Annotated[str, pydantic.AfterValidator(_readout_preset)]
 #: A PTU preset (:meth:`wander_env.ptu.PTUParams.preset`).
 PtuPreset = Annotated[str, pydantic.AfterValidator(_ptu_preset)]
 #: How the env makes its frames: one name per class of ``wander_env.frames.FRAME_SOURCES``.
@@ -190,6 +199,14 @@ class WanderConfig(FieldsMapping):
         ),
     ] = "fast"
 
+    readout: Annotated[
+        ReadoutPreset | ReadoutParams | None,
+        field_doc(
+            "Speck's readout after the DVS (wander_env.readout): None (off), a preset "
+            "(ideal, speck, speck_filtered) or a readout block"
+        ),
+    ] = None
+
     def __post_init__(self) -> None:
         check_annotated(self)
         ticks = self.control_period_s * self.render_rate_hz
@@ -215,6 +232,13 @@ class WanderConfig(FieldsMapping):
                 )
         if self.quality == "fine" and self.supersample != 1:
             raise ValueError("quality: give quality='fine' or a supersample, not both")
+
+    @property
+    def readout_params(self) -> ReadoutParams | None:
+        """The readout's parameters (None: no readout stage)."""
+        if isinstance(self.readout, str):
+            return ReadoutParams.preset(self.readout)
+        return self.readout
 
     @property
     def ticks_per_step(self) -> int:
