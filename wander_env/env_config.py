@@ -39,10 +39,10 @@ __all__ = [
     "FRAME_MODES",
     "QUALITIES",
     "DvsPreset",
-    "ReadoutPreset",
     "FrameMode",
     "PtuPreset",
     "Quality",
+    "ReadoutPreset",
     "SceneName",
     "WanderConfig",
     "check_dvs_preset",
@@ -77,6 +77,8 @@ def _ptu_preset(name: str) -> str:
 SceneName = Annotated[str, pydantic.AfterValidator(check_scene_name)]
 #: A DVS preset (:meth:`wander_env.dvs.DVSParams.preset`).
 DvsPreset = Annotated[str, pydantic.AfterValidator(check_dvs_preset)]
+
+
 def _readout_preset(name: str) -> str:
     ReadoutParams.preset(name)  # ValueError naming the presets
     return name
