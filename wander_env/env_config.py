@@ -73,15 +73,15 @@ def _ptu_preset(name: str) -> str:
     return name
 
 
+def _readout_preset(name: str) -> str:
+    ReadoutParams.preset(name)  # ValueError naming the presets
+    return name
+
+
 #: A scene: a name of ``assets/scenes`` or a scene file that loads.
 SceneName = Annotated[str, pydantic.AfterValidator(check_scene_name)]
 #: A DVS preset (:meth:`wander_env.dvs.DVSParams.preset`).
 DvsPreset = Annotated[str, pydantic.AfterValidator(check_dvs_preset)]
-
-
-def _readout_preset(name: str) -> str:
-    ReadoutParams.preset(name)  # ValueError naming the presets
-    return name
 
 
 #: A readout preset (:meth:`wander_env.readout.ReadoutParams.preset`).
