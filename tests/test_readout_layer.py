@@ -70,9 +70,9 @@ def test_mirroring_flips_the_region_then_swaps_the_axes():
     assert _xyp(out) == [(7, 0, 1), (4, 1, 0), (2, 2, 1), (0, 7, 0), (1, 4, 1)]
     out, _ = _run(dvs_layer=DvsLayerParams(mirror=(False, True)))
     assert _xyp(out) == [(0, 7, 1), (3, 6, 0), (5, 5, 1), (7, 0, 0), (6, 3, 1)]
-    out, ro = _run(width=8, height=6, dvs_layer=DvsLayerParams(mirror_diagonal=True, cut=(7, 5)))
+    out, ro = _run(dvs_layer=DvsLayerParams(mirror_diagonal=True, cut=(6, 4)))
     assert _xyp(out) == [(0, 0, 1), (1, 3, 0), (2, 5, 1), (4, 6, 1)]
-    assert ro.output_size == (6, 8)
+    assert ro.output_size == (5, 7)
     # Within a region: flip x of the 5-wide region (2..6), then swap.
     out, _ = _run(
         dvs_layer=DvsLayerParams(
@@ -91,3 +91,14 @@ def test_a_cut_beyond_the_grid_is_refused():
         DvsLayerParams(origin=(5, 5), cut=(4, 9))
     with pytest.raises(ValueError, match="pooling"):
         DvsLayerParams(pooling=(3, 1))
+    with pytest.raises(ValueError, match="the swapped 6x8 region does not fit the 8x6 array"):
+        SpeckReadout(8, 6, ReadoutParams(dvs_layer=DvsLayerParams(mirror_diagonal=True)))
+
+
+def test_events_outside_the_array_are_refused():
+    ro = SpeckReadout(8, 8, ReadoutParams())
+    ro.reset(0)
+    with pytest.raises(ValueError, match="events outside the 8x8 array"):
+        ro.step(make_events([8], [0], [1], [1]), t_us=10)
+    with pytest.raises(ValueError, match="events after the window's end: t=11 > 10"):
+        ro.step(make_events([1], [0], [11], [1]), t_us=10)

@@ -82,7 +82,7 @@ Examples:
 from __future__ import annotations
 
 import typing
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Annotated, Any
 
 import numba
@@ -158,8 +158,8 @@ class DvsLayerParams:
 
     @property
     def active(self) -> bool:
-        """Whether the layer changes any event."""
-        return self != DvsLayerParams()
+        """Whether the layer changes any event (a field off its default)."""
+        return any(getattr(self, f.name) != f.default for f in fields(self))
 
 
 @dataclass(frozen=True)
@@ -476,6 +476,12 @@ class SpeckReadout:
                 raise ValueError(
                     f"dvs_layer.cut: {p.dvs_layer.cut} is outside the pooled {pw}x{ph} grid"
                 )
+        w, h = self.output_size
+        if w > self.width or h > self.height:
+            raise ValueError(
+                f"dvs_layer.mirror_diagonal: the swapped {w}x{h} region does not fit the "
+                f"{self.width}x{self.height} array"
+            )
         self._alive = np.ones((self.height, self.width), bool)
         for x, y in p.kill_pixels:
             self._alive[y, x] = False
@@ -517,8 +523,12 @@ class SpeckReadout:
         t_us = int(t_us)
         if t_us < self._t_prev:
             raise ValueError(f"time must not go back: t_us={t_us} < previous {self._t_prev}")
-        if len(events) and int(events["t"][-1]) > t_us:
-            raise ValueError(f"events after the window's end: t={events['t'][-1]} > {t_us}")
+        if len(events):
+            if int(events["t"][-1]) > t_us:
+                raise ValueError(f"events after the window's end: t={events['t'][-1]} > {t_us}")
+            x, y = events["x"], events["y"]
+            if min(x.min(), y.min()) < 0 or x.max() >= self.width or y.max() >= self.height:
+                raise ValueError(f"events outside the {self.width}x{self.height} array")
         self._t_prev = t_us
         p = self.params
         c = dict.fromkeys(COUNTERS, 0)
