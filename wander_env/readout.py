@@ -261,7 +261,7 @@ class ReadoutParams:
         (``speck`` with the datasheet's noise + hot-pixel filter example), with optional
         field overrides."""
         # Values marked "assumption" have no published Speck figure: each says what it
-        # stands on. Fit them to the rig where it can measure them (docs/readout.md).
+        # stands on; measure them on the rig (docs/readout.md).
         speck = dict(
             # samna defaults (sinabs play_with_speck_dvs.ipynb): pooling 1, whole array,
             # no mirror, both channels, no merge; dvs_filter off (its examples enable it).
@@ -272,10 +272,9 @@ class ReadoutParams:
             # Datasheet §3.2.6.3.2: the dev kit's example slow clock, set_slow_clk_rate(1000).
             slow_clk_rate_hz=1000,
             # Assumption: no arbiter rate is published for Speck (datasheet, samna, sinabs);
-            # 1 Meps is of the order of 128 × 128 AER sensors' buses (not a Speck value).
+            # 1 Meps is a round order of magnitude for a 128 × 128 AER readout.
             throughput_eps=1e6,
-            # Assumption: 1024 events buffered (one 128-pixel row of 8 events per pixel);
-            # Speck publishes no FIFO size.
+            # Assumption: 1024 events; Speck publishes no FIFO size.
             queue_depth=1024,
             # Assumption: host packets every 1 ms (USB 3 bulk transfers, 125 µs microframes,
             # batched by samna), delivered 1 ms after closing; the rig's reader waits up
