@@ -45,6 +45,23 @@ The samna calls used, and where they are documented (public sources):
 * ``handle.get_stop_watch().set_enable_value(True)`` and ``.reset()`` — the paper's
   public Speck script; sinabs ``io.py`` uses ``.start()`` / ``.stop()`` / ``.reset()``
   on the same object. Without it events carry no usable timestamps.
+
+With a readout (``SpeckParams.readout``, a :class:`~wander_env.readout.ReadoutParams`,
+the block the simulated camera takes as ``env.readout``), :func:`write_readout_config`
+writes its samna fields to the configuration and the source reads the chip's
+pre-processed stream instead of the raw one: ``dvs_layer.pooling`` / ``.origin`` /
+``.cut`` / ``.mirror`` / ``.mirror_diagonal`` / ``.merge`` / ``.on_channel`` /
+``.off_channel`` and ``dvs_filter.enable`` / ``.filter_size`` /
+``.hot_pixel_filter_enable`` / ``.low_pass_mode_enable`` / ``.threshold`` — the Speck Dev
+Kit Datasheet (Aug 2023) §3.2.3 and sinabs ``play_with_speck_dvs.ipynb``; the slow clock
+timing the filter, ``handle.get_io_module().set_slow_clock(True)`` and
+``.set_slow_clk_rate(hz)`` — datasheet §3.2.6.3.2; the pre-processed events,
+``dvs_layer.monitor_enable`` → ``Spike`` with ``layer == 13`` (x, y, ``feature`` = the
+channel: 1 ON, 0 OFF or merged) — sinabs ``play_with_speck_dvs.ipynb``. The monitor does
+not show the DVS layer's pooling (sinabs ``DynapcnnNetwork`` warns so), so a readout
+with pooling is refused here; the kill bits have no public samna field, so a readout
+with ``kill_pixels`` is refused too. The arbiter, queue and host packets are the chip's
+own (nothing to write).
 """
 
 from __future__ import annotations
@@ -67,6 +84,7 @@ import numpy as np
 
 from hardware.event_source import EventSourceBase
 from wander_env.events import EVENT_DTYPE, SensorSize, empty_events
+from wander_env.readout import ReadoutParams, SpeckReadout
 
 #: Resolution of the Speck DVS (sinabs ``play_with_speck_dvs.ipynb``, datasheet §2.2);
 #: used only when the configuration does not give the DVS region.
@@ -167,6 +185,7 @@ class SpeckParams:
     latency_margin_us: int = 20_000
     join_timeout_s: float = 2.0
     sensor_size_fallback: tuple[int, int] = SPECK_DVS_SIZE
+    readout: ReadoutParams | None = None
 
     def __post_init__(self) -> None:
         prefixes = self.device_type_prefixes
@@ -185,6 +204,8 @@ class SpeckParams:
             )
         if self.latency_margin_us < 0 or self.join_timeout_s < 0:
             raise ValueError("latency_margin_us and join_timeout_s must be >= 0")
+        if self.readout is not None:
+            check_readout_for_chip(self.readout)
 
 
 def _chip_family(device_type_name: str) -> str:
@@ -203,6 +224,53 @@ def _sensor_size_from(config: Any, fallback: tuple[int, int]) -> tuple[SensorSiz
     if 0 < w <= 4096 and 0 < h <= 4096:
         return (w, h, 2), "configuration dvs_layer.origin/cut"
     return (int(fallback[0]), int(fallback[1]), 2), "fallback (configuration gave no region)"
+
+
+def check_readout_for_chip(readout: ReadoutParams) -> None:
+    """ValueError (one line) when the chip cannot do what ``readout`` asks and the host
+    see it (see the module docstring)."""
+    if readout.dvs_layer.pooling != (1, 1):
+        raise ValueError(
+            f"readout.dvs_layer.pooling: {readout.dvs_layer.pooling} is not shown by the "
+            "chip's DVS monitor (sinabs warns so), which the rig reads; use (1, 1) here"
+        )
+    if readout.kill_pixels:
+        raise ValueError(
+            "readout.kill_pixels: the kill bits have no public samna field to write; leave "
+            "it empty on the rig"
+        )
+
+
+def write_readout_config(config: Any, readout: ReadoutParams) -> None:
+    """Write ``readout``'s samna fields (``dvs_layer.*``, ``dvs_filter.*``) to a samna
+    ``SpeckConfiguration``; ``cut`` None leaves the configuration's own."""
+    layer, filt = readout.dvs_layer, readout.dvs_filter
+    dvs = config.dvs_layer
+    dvs.pooling.x, dvs.pooling.y = layer.pooling
+    dvs.origin.x, dvs.origin.y = layer.origin
+    if layer.cut is not None:
+        dvs.cut.x, dvs.cut.y = layer.cut
+    dvs.mirror.x, dvs.mirror.y = layer.mirror
+    dvs.mirror_diagonal = layer.mirror_diagonal
+    dvs.merge = layer.merge
+    dvs.on_channel, dvs.off_channel = layer.on_channel, layer.off_channel
+    f = config.dvs_filter
+    f.enable = filt.enable
+    f.filter_size.x, f.filter_size.y = filt.filter_size
+    f.hot_pixel_filter_enable = filt.hot_pixel_filter_enable
+    f.low_pass_mode_enable = filt.low_pass_mode_enable
+    f.threshold = filt.threshold
+
+
+def _configure_processed_dvs_only(config: Any) -> None:
+    """Stream the DVS layer's pre-processed events (``Spike``, layer 13) and nothing else."""
+    _configure_raw_dvs_only(config)
+    config.dvs_layer.raw_monitor_enable = False
+    config.dvs_layer.monitor_enable = True
+
+
+#: samna's layer number of the DVS layer's monitored events (sinabs play_with_speck_dvs).
+DVS_LAYER_ID = 13
 
 
 def _configure_raw_dvs_only(config: Any) -> None:
@@ -415,7 +483,15 @@ class SpeckSource(EventSourceBase):
         self._sensor_size, self._sensor_size_from = _sensor_size_from(
             config, self.params.sensor_size_fallback
         )
-        _configure_raw_dvs_only(config)
+        readout = self.params.readout
+        if readout is None:
+            _configure_raw_dvs_only(config)
+        else:
+            write_readout_config(config, readout)
+            _configure_processed_dvs_only(config)
+            w, h = SpeckReadout(*self._sensor_size[:2], readout).output_size
+            self._sensor_size, self._sensor_size_from = (w, h, 2), "readout dvs_layer region"
+            self._dvs_event_type = chip.event.Spike
 
         device = samna.device.open_device(info)
         if device is None:
@@ -432,6 +508,10 @@ class SpeckSource(EventSourceBase):
         graph.start()
 
         device.get_model().apply_configuration(config)
+        if readout is not None and readout.dvs_filter.enable:  # the filter's slow clock
+            io = device.get_io_module()
+            io.set_slow_clock(True)
+            io.set_slow_clk_rate(readout.slow_clk_rate_hz)
         stop_watch = device.get_stop_watch()
         self._stop_watch = stop_watch
         stop_watch.set_enable_value(True)
@@ -469,16 +549,23 @@ class SpeckSource(EventSourceBase):
         """DVS events of a samna batch as an event array (unsorted); other events counted."""
         dvs_type = self._dvs_event_type
         assert dvs_type is not None
-        dvs = [e for e in batch if isinstance(e, dvs_type)]
+        processed = self.params.readout is not None  # Spike events of the DVS layer
+        dvs = [
+            e
+            for e in batch
+            if isinstance(e, dvs_type) and (not processed or e.layer == DVS_LAYER_ID)
+        ]
         other: Counter[str] = Counter()
         if len(dvs) != len(batch):
-            other.update(type(e).__name__ for e in batch if not isinstance(e, dvs_type))
+            dvs_ids = {id(e) for e in dvs}
+            other.update(type(e).__name__ for e in batch if id(e) not in dvs_ids)
         n = len(dvs)
         ev = np.empty(n, dtype=EVENT_DTYPE)
         if n:
             x = np.fromiter((e.x for e in dvs), dtype=np.int64, count=n)
             y = np.fromiter((e.y for e in dvs), dtype=np.int64, count=n)
-            p = np.fromiter((e.p for e in dvs), dtype=np.int64, count=n)
+            polarity = (lambda e: e.feature) if processed else (lambda e: e.p)
+            p = np.fromiter((polarity(e) for e in dvs), dtype=np.int64, count=n)
             t = np.fromiter((e.timestamp for e in dvs), dtype=np.int64, count=n)
             w, h = self._sensor_size[0], self._sensor_size[1]
             ok = (x >= 0) & (x < w) & (y >= 0) & (y < h)

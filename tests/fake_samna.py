@@ -119,12 +119,62 @@ class CnnLayerConfig(_Strict):
         self.destinations = [Destination(), Destination()]
 
 
+# -- readout (helper `readout`): the DVS filter block and the slow clock ---------------
+# Field names: Speck Dev Kit Datasheet (Aug 2023) §3.2.2, §3.2.3.5 and §3.2.6.3.2; sinabs
+# play_with_speck_dvs.ipynb. Defaults: filter off (the documented examples switch it on).
+
+
+class DvsFilterConfig(_Strict):
+    __slots__ = (
+        "enable",
+        "filter_size",
+        "hot_pixel_filter_enable",
+        "low_pass_mode_enable",
+        "threshold",
+    )
+    _bools = ("enable", "hot_pixel_filter_enable", "low_pass_mode_enable")
+
+    def __init__(self) -> None:
+        self.enable = False
+        self.filter_size = Vec2(3, 3)
+        self.hot_pixel_filter_enable = False
+        self.low_pass_mode_enable = False
+        self.threshold = 5
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name == "threshold" and type(value) is not int:
+            raise TypeError(f"DvsFilterConfig.threshold takes an int, got {value!r}")
+        super().__setattr__(name, value)
+
+
+class IoModule:
+    """``handle.get_io_module()``: the dev kit's slow clock (datasheet §3.2.6.3.2)."""
+
+    def __init__(self) -> None:
+        self.slow_clock = False
+        self.slow_clk_rate: int | None = None
+
+    def set_slow_clock(self, enable: bool) -> None:
+        if type(enable) is not bool:
+            raise TypeError(f"set_slow_clock takes a bool, got {enable!r}")
+        self.slow_clock = enable
+
+    def set_slow_clk_rate(self, rate: int) -> None:
+        if type(rate) is not int:
+            raise TypeError(f"set_slow_clk_rate takes an int (Hz), got {rate!r}")
+        self.slow_clk_rate = rate
+
+
+# -- end of the readout block -----------------------------------------------------------
+
+
 class _SpeckConfigurationBase(_Strict):
-    __slots__ = ("cnn_layers", "dvs_layer")
+    __slots__ = ("cnn_layers", "dvs_filter", "dvs_layer")
     family = ""
 
     def __init__(self) -> None:
         self.dvs_layer = DvsLayerConfig()
+        self.dvs_filter = DvsFilterConfig()  # readout block
         self.cnn_layers = [CnnLayerConfig() for _ in range(9)]
 
 
@@ -318,6 +368,7 @@ class DeviceHandle:
         self.fail_on_apply = False
         self.applied: list[_SpeckConfigurationBase] = []
         self._stop_watch = StopWatch(self)
+        self._io = IoModule()  # readout block
         self._source_node = DeviceSourceNode(self)
         self._model = Model(self)
         self._sinks: list[BasicSinkNode] = []
@@ -333,6 +384,9 @@ class DeviceHandle:
 
     def get_stop_watch(self) -> StopWatch:
         return self._stop_watch
+
+    def get_io_module(self) -> IoModule:  # readout block
+        return self._io
 
     def _pump(self) -> None:
         """Push the recorded events that are due by now to every running sink."""
@@ -361,7 +415,9 @@ class DeviceHandle:
                     out.append(e)
                     self.speck.emitted_dvs += 1
                 if config.dvs_layer.monitor_enable:  # pre-processed copy: Spike from layer 13
-                    out.append(self._other(ev_mod.Spike, stamp, layer=13, x=int(ev["x"][i])))
+                    # (unprocessed here: the fake does not model the DVS layer; feature = p)
+                    x, y, p = int(ev["x"][i]), int(ev["y"][i]), int(ev["p"][i])
+                    out.append(self._other(ev_mod.Spike, stamp, layer=13, x=x, y=y, feature=p))
                 if every and (i + 1) % every == 0:
                     out.append(self._other(ev_mod.Spike, stamp, layer=2, feature=1))
                     if (i + 1) % (3 * every) == 0:

@@ -71,6 +71,7 @@ from wander_env.frames import FRAME_SOURCES, FrameParams, Stage
 from wander_env.mjcf import SceneAnimator, build_mjcf
 from wander_env.ptu.params import PTUParams
 from wander_env.ptu.unit import PanTiltUnit
+from wander_env.readout import SpeckReadout
 from wander_env.renderer import RenderParams, project_points
 from wander_env.scene_config import SceneConfig, load_scene_config
 from wander_env.viz import event_image, labelled_frame
@@ -106,6 +107,9 @@ class WanderEnv(CameraEnv):
         params = FrameParams(c.tick_us, c.keyframe_us, c.keyframe_px, max_ticks, c.ground_truth)
         self.source = FRAME_SOURCES[c.frames](self.stage, self.dvs, params)
         self._t_us = 0
+        # Speck's readout after the DVS (wander_env.readout); None: events as the DVS gives them.
+        readout = c.readout_params
+        self.readout = None if readout is None else SpeckReadout(self.width, self.height, readout)
 
     @staticmethod
     def _scene_with_mount(scene: SceneConfig, ptu: PTUParams) -> SceneConfig:
@@ -165,6 +169,8 @@ class WanderEnv(CameraEnv):
         self._t_us = t1
         self.source.finish(t1, trajectory.angles(-1))
         events = concatenate(chunks)
+        if self.readout is not None:  # Speck's readout (wander_env.readout)
+            events = self.readout.step(events, t1)
         return events, self._info(events, frames, extra, clipped)
 
     def truncated(self, info: StepInfo) -> bool:
@@ -191,6 +197,8 @@ class WanderEnv(CameraEnv):
         first = self.source.reset(0, (self.ptu.camera_pan_deg, self.ptu.camera_tilt_deg))
         self.dvs.reset(first, 0, seed=int(rng.integers(2**63)))
         empty = self.dvs.flush()
+        if self.readout is not None:  # Speck's readout (wander_env.readout)
+            self.readout.reset(0)
         return self.observe(None), self._info(empty, frames=1, extra=0, clipped=False)
 
     @property
@@ -218,6 +226,8 @@ class WanderEnv(CameraEnv):
             frames=frames,
             extra_frames=extra,
         )
+        if self.readout is not None:  # the readout's counters of the step
+            info["readout"] = dict(self.readout.counts)
         if self.config.ground_truth:
             mask = self.source.object_mask(self._t_us)
             info["object_mask"] = mask

@@ -56,13 +56,16 @@ class _StepInfoBase(TypedDict):
 class StepInfo(_StepInfoBase, total=False):
     """``info`` of a step (and of ``reset``) of either env: the keys above always; the
     sim adds ``frames`` and ``extra_frames`` (frames made in the step, rendered or
-    synthesised) and, with ground truth on, ``object_mask`` and ``objects``; the rig
+    synthesised), with a readout stage ``readout`` (its counters of the step,
+    :data:`wander_env.readout.COUNTERS`) and, with ground truth on, ``object_mask`` and
+    ``objects``; the rig
     adds ``command_latency_s``, ``dropped_events`` and ``lag_s``."""
 
     frames: int
     extra_frames: int
     object_mask: np.ndarray  # (H, W) int32 object ids, 0 = background
     objects: list[dict[str, Any]]
+    readout: dict[str, int]
     command_latency_s: float
     dropped_events: int
     lag_s: float

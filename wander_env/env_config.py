@@ -32,6 +32,7 @@ from wander_env.config import FieldsMapping, check_annotated
 from wander_env.dvs import DVSParams
 from wander_env.field_doc import field_doc
 from wander_env.ptu.params import PTUParams
+from wander_env.readout import ReadoutParams
 from wander_env.scene_config import SceneConfig, available_scenes, load_scene_config
 
 __all__ = [
@@ -41,6 +42,7 @@ __all__ = [
     "FrameMode",
     "PtuPreset",
     "Quality",
+    "ReadoutPreset",
     "SceneName",
     "WanderConfig",
     "check_dvs_preset",
@@ -71,10 +73,19 @@ def _ptu_preset(name: str) -> str:
     return name
 
 
+def _readout_preset(name: str) -> str:
+    ReadoutParams.preset(name)  # ValueError naming the presets
+    return name
+
+
 #: A scene: a name of ``assets/scenes`` or a scene file that loads.
 SceneName = Annotated[str, pydantic.AfterValidator(check_scene_name)]
 #: A DVS preset (:meth:`wander_env.dvs.DVSParams.preset`).
 DvsPreset = Annotated[str, pydantic.AfterValidator(check_dvs_preset)]
+
+
+#: A readout preset (:meth:`wander_env.readout.ReadoutParams.preset`).
+ReadoutPreset = Annotated[str, pydantic.AfterValidator(_readout_preset)]
 #: A PTU preset (:meth:`wander_env.ptu.PTUParams.preset`).
 PtuPreset = Annotated[str, pydantic.AfterValidator(_ptu_preset)]
 #: How the env makes its frames: one name per class of ``wander_env.frames.FRAME_SOURCES``.
@@ -190,6 +201,14 @@ class WanderConfig(FieldsMapping):
         ),
     ] = "fast"
 
+    readout: Annotated[
+        ReadoutPreset | ReadoutParams | None,
+        field_doc(
+            "Speck's readout after the DVS (wander_env.readout): None (off), a preset "
+            "(ideal, speck, speck_filtered) or a readout block"
+        ),
+    ] = None
+
     def __post_init__(self) -> None:
         check_annotated(self)
         ticks = self.control_period_s * self.render_rate_hz
@@ -215,6 +234,13 @@ class WanderConfig(FieldsMapping):
                 )
         if self.quality == "fine" and self.supersample != 1:
             raise ValueError("quality: give quality='fine' or a supersample, not both")
+
+    @property
+    def readout_params(self) -> ReadoutParams | None:
+        """The readout's parameters (None: no readout stage)."""
+        if isinstance(self.readout, str):
+            return ReadoutParams.preset(self.readout)
+        return self.readout
 
     @property
     def ticks_per_step(self) -> int:
