@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from experiments.bench.floor import render_floor
 from experiments.cli.main import app
-from wander_env.panorama import FACE_ROTATIONS, cube_warp
+from wander_env.frames.cube import FACE_ROTATIONS, cube_warp
 
 
 def test_cube_warp_samples_the_face_the_rays_point_at() -> None:

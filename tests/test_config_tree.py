@@ -70,7 +70,7 @@ def test_keyframe_px_is_defined_once_as_a_field() -> None:
     assert sorted(owners) == [
         "experiments/bench/env.py:EnvBenchRow",
         "wander_env/env_config.py:WanderConfig",
-        "wander_env/frames.py:FrameParams",
+        "wander_env/frames/source.py:FrameParams",
     ]
 
 

@@ -1,6 +1,6 @@
-"""Frame sources (wander_env.frames): the key schedule in the env on a still scene, a slow
-walk and a saccade (key counts stated), the DVS handed fewer frames where nothing moves,
-and the sources against each other (exact expectations)."""
+"""Frame sources (wander_env.frames): the registry, the key schedule in the env on a
+still scene, a slow walk and a saccade (key counts stated), the DVS handed fewer frames
+where nothing moves, and the sources against each other (exact expectations)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,10 @@ import pytest
 import wander_env  # noqa: F401  (registers the environments)
 from wander_env.actions import gaze_degrees_to_action
 from wander_env.env_config import FRAME_MODES
-from wander_env.frames import FRAME_SOURCES, ExactFrames, KeyframeFrames, PanoramaFrames
+from wander_env.frames.exact import ExactFrames
+from wander_env.frames.keyframes import KeyframeFrames
+from wander_env.frames.panorama import PanoramaFrames
+from wander_env.frames.registry import MODE_NAMES, REGISTRY, frame_modes_help
 from wander_env.ptu.params import PTUParams
 
 FAST_PTU = PTUParams().with_slew(2902.0, 1e5)  # the upper speed, 74.6 deg/s, in 29 ms
@@ -42,10 +45,37 @@ def _run(scene: str, steps: int, kind: str = "still", seed: int = 4, **kw):
         env.close()
 
 
-def test_a_frame_mode_is_one_class():
-    assert FRAME_MODES == tuple(FRAME_SOURCES) == ("keyframes", "exact", "panorama")
-    assert FRAME_SOURCES["exact"] is ExactFrames and FRAME_SOURCES["keyframes"] is KeyframeFrames
-    assert FRAME_SOURCES["panorama"] is PanoramaFrames
+def test_a_frame_mode_is_one_registered_class():
+    assert FRAME_MODES == MODE_NAMES == tuple(REGISTRY) == ("keyframes", "exact", "panorama")
+    classes = {name: mode.source_class() for name, mode in REGISTRY.items()}
+    assert classes == {
+        "keyframes": KeyframeFrames,
+        "exact": ExactFrames,
+        "panorama": PanoramaFrames,
+    }
+    help = frame_modes_help()
+    assert help.startswith("keyframes (render keys where the image motion needs them")
+    assert "); exact (render every frame" in help and "); panorama (warp a cube map" in help
+
+
+def test_the_frames_help_lists_every_registered_mode_from_a_light_registry():
+    """The --frames help names every registered mode; the registry (names,
+    descriptions) imports neither MuJoCo nor numba: a fresh interpreter that imports it
+    has neither loaded."""
+    import subprocess
+    import sys
+
+    from experiments.cli.options import FramesOpt
+
+    help = FramesOpt.__metadata__[0].help
+    assert all(f"{name} (" in help for name in REGISTRY) and len(REGISTRY) == 3
+    code = (
+        "import sys\n"
+        "import wander_env.frames.registry\n"
+        "print('mujoco' in sys.modules, 'numba' in sys.modules)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "False"]
 
 
 @pytest.mark.slow

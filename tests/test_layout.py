@@ -221,13 +221,24 @@ def test_the_cycle_finder_finds_a_circle():
 
 
 def test_the_frame_sources_sit_between_the_renderer_and_the_env():
-    """wander_env.frames (the frame sources) draws through the renderer and reads the PTU's
-    trajectory; the env picks a source and never the other way round; the rig shares
-    only the CameraEnv base with the sim."""
-    frames = {t for t, _ in GRAPH["wander_env.frames"]}
-    assert {"wander_env.renderer", "wander_env.keyframes", "wander_env.ptu.unit"} <= frames
-    assert "wander_env.env" not in frames and "wander_env.env_base" not in frames
-    assert "wander_env.frames" in {t for t, _ in GRAPH["wander_env.env"]}
+    """wander_env.frames (the stage and the frame sources) draws through the renderer and
+    reads the PTU's trajectory; the env picks a source from the registry and never the
+    other way round; the rig shares only the CameraEnv base with the sim."""
+    frames = {m: {t for t, _ in GRAPH[m]} for m in GRAPH if m.startswith("wander_env.frames.")}
+    assert "wander_env.renderer" in frames["wander_env.frames.stage"]
+    assert "wander_env.ptu.unit" in frames["wander_env.frames.source"]
+    assert "wander_env.frames.keyframe_maths" in frames["wander_env.frames.keyframes"]
+    assert "wander_env.frames.keyframes" in frames["wander_env.frames.panorama"]  # has one
+    for targets in frames.values():
+        assert "wander_env.env" not in targets and "wander_env.env_base" not in targets
+    # The registry is light: no source, renderer or kernel at import.
+    assert frames["wander_env.frames.registry"] <= {
+        "wander_env.frames.source",
+        "wander_env.frames.stage",
+        "wander_env.dvs",
+    }
+    env = {t for t, _ in GRAPH["wander_env.env"]}
+    assert {"wander_env.frames.registry", "wander_env.frames.stage"} <= env
     rig = {t for t, _ in GRAPH["hardware.rig_env"]}
     assert "wander_env.env_base" in rig and "wander_env.env" not in rig
     assert {t for t, _ in GRAPH["wander_env.env_base"]} <= {
@@ -324,13 +335,17 @@ def test_wander_env_holds_no_lab_code():
     """Every module of wander_env serves the simulator: wander_env itself, the agents or the
     hardware import it. What only experiments use (the metrics, the Rerun recording, the
     demo's stimulus) lives in experiments. Exempt: the env (Gymnasium reaches it by its
-    entry-point string), the event library, whose users are anyone with event files, and
-    a subpackage's ``__init__`` (its modules are what is imported)."""
+    entry-point string), the frame sources (the frame registry names them by string), the
+    event library, whose users are anyone with event files, and a subpackage's
+    ``__init__`` (its modules are what is imported)."""
+    from wander_env.frames.registry import REGISTRY
+
+    by_name = {f"wander_env.frames.{m.source.partition(':')[0]}" for m in REGISTRY.values()}
     lab_only = sorted(
         m
         for m in SOURCES
         if _top(m) == "wander_env"
-        and m not in ("wander_env", "wander_env.env")
+        and m not in ("wander_env", "wander_env.env", *by_name)
         and not (
             SOURCES[m].name == "__init__.py" and m.count(".") == 1 and m != "wander_env.events"
         )
@@ -341,3 +356,85 @@ def test_wander_env_holds_no_lab_code():
         )
     )
     assert lab_only == []
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def _own_names(cls: ast.ClassDef) -> set[str]:
+    """The names a class defines: its body's functions and assignments, and every
+    ``self.<name>`` (or ``cls.<name>``) its methods assign."""
+    names = set()
+    for node in ast.walk(cls):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.add(node.name)
+        elif isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+            names.add(node.id)
+        elif (
+            isinstance(node, ast.Attribute)
+            and isinstance(node.ctx, ast.Store)
+            and isinstance(node.value, ast.Name)
+            and node.value.id in ("self", "cls")
+        ):
+            names.add(node.attr)
+    return names
+
+
+def private_reaches(module: str) -> list[str]:
+    """Where ``module`` reads another's private name: ``x._name`` where ``x`` is not
+    ``self``/``cls`` and ``_name`` is not one the enclosing class defines itself (its
+    own instances' state: a copy method sets its twin's), and ``from m import _name``
+    from another of our modules (dunders are public)."""
+    path = SOURCES[module]
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    found = []
+
+    def visit(node: ast.AST, own: set[str]) -> None:
+        if isinstance(node, ast.ClassDef):
+            own = own | _own_names(node)
+        if isinstance(node, ast.Attribute) and _private(node.attr):
+            mine = isinstance(node.value, ast.Name) and node.value.id in ("self", "cls")
+            if not mine and node.attr not in own:
+                found.append(f"{module}:{node.lineno} {ast.unparse(node)}")
+        if isinstance(node, ast.ImportFrom) and node.module and _resolve(node.module):
+            if _resolve(node.module) != module:
+                for alias in node.names:
+                    if _private(alias.name):
+                        found.append(
+                            f"{module}:{node.lineno} from {node.module} import {alias.name}"
+                        )
+        for child in ast.iter_child_nodes(node):
+            visit(child, own)
+
+    visit(tree, set())
+    return found
+
+
+def test_no_simulator_module_reaches_into_another_ones_private_names():
+    """Across wander_env a module uses another's public seams, never its ``_private``
+    names (attributes of other objects, or imports)."""
+    reaches = [r for m in SOURCES if m.split(".")[0] == "wander_env" for r in private_reaches(m)]
+    assert reaches == []
+
+
+def test_the_private_name_check_finds_a_reach(tmp_path, monkeypatch):
+    code = (
+        "from wander_env.dvs import _LUT\n"
+        "class A:\n"
+        "    def __init__(self):\n"
+        "        self._x = 1\n"
+        "    def copy(self, other):\n"
+        "        other._x = self._x\n"
+        "        return other._y, other.__class__\n"
+        "def f(dvs):\n"
+        "    return dvs._wlut\n"
+    )
+    path = tmp_path / "probe.py"
+    path.write_text(code)
+    monkeypatch.setitem(SOURCES, "probe", path)
+    assert private_reaches("probe") == [
+        "probe:1 from wander_env.dvs import _LUT",
+        "probe:7 other._y",
+        "probe:9 dvs._wlut",
+    ]

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from wander_env.camera import intrinsics
-from wander_env.keyframes import View
-from wander_env.panorama import FACE_ROTATIONS, cube_inverse_depth, cube_warp
+from wander_env.frames.cube import FACE_ROTATIONS, cube_inverse_depth, cube_warp
+from wander_env.frames.keyframe_maths import View
 
 
 def _face_rays(n: int) -> np.ndarray:
@@ -90,7 +90,7 @@ def test_inverse_depth_of_a_sphere_of_distances() -> None:
 
 
 def test_layers_in_view_sees_a_ball_in_front_not_behind() -> None:
-    from wander_env.frames import layers_in_view
+    from wander_env.frames.keyframe_maths import layers_in_view
 
     k = intrinsics(128, 128, 90.0)
     radii = np.array([np.inf, 0.1])
@@ -111,8 +111,7 @@ def test_a_moving_layer_is_composited_in_front_of_the_background_not_behind() ->
     right between them over a wall (0.2): at w = 1/2 the square is drawn 2 px right of
     its first place where the background is farther (2 m) and nowhere where a static
     occluder is nearer (0.5 m); outside its box every pixel is the background's."""
-    from wander_env.keyframes import KeyPair, make_keyframe
-    from wander_env.panorama import layers_over
+    from wander_env.frames.keyframe_maths import KeyPair, layers_over, make_keyframe
 
     k = intrinsics(32, 32, 90.0)
     f = k[0, 0]
@@ -155,7 +154,7 @@ def test_still_static_world_matches_a_render_at_the_same_pose() -> None:
     against the render's 4, the difference at edges); with the headlight off on both,
     median 0 (mean 0.033). A headlight turned with each face instead: median 0.19."""
     from experiments.bench.panorama import background_error
-    from wander_env.frames import PanoramaParams
+    from wander_env.frames.panorama import PanoramaParams
 
     for headlight, median_max, mean_max in (("camera", 0.02, 0.05), ("off", 0.0, 0.05)):
         d, _ = background_error("office", headlight)
@@ -169,6 +168,8 @@ def test_same_seed_same_events_and_a_hinge_offset_falls_back_to_keyframes() -> N
     import gymnasium as gym
 
     import wander_env  # noqa: F401
+    from wander_env.frames.keyframes import KeyframeFrames
+    from wander_env.frames.panorama import PanoramaFrames
     from wander_env.ptu.params import PTUParams
 
     def events(**kw: object) -> list[np.ndarray]:
@@ -179,9 +180,9 @@ def test_same_seed_same_events_and_a_hinge_offset_falls_back_to_keyframes() -> N
             for i in range(4):
                 a = np.array([0.4, -0.2], np.float32) if i == 0 else np.zeros(2, np.float32)
                 out.append(np.asarray(env.step(a)[4]["events"]))
-            assert kw.get("frames") != "panorama" or env.unwrapped.source.fallback == bool(
-                kw.get("ptu")
-            )
+            if kw.get("frames") == "panorama":  # a hinge offset: the keyframe source
+                kind = KeyframeFrames if kw.get("ptu") else PanoramaFrames
+                assert type(env.unwrapped.source) is kind
             return out
         finally:
             env.close()
@@ -208,12 +209,12 @@ def test_no_moving_layer_in_view_no_renders_after_reset() -> None:
     try:
         env.reset(seed=1)
         u = env.unwrapped
-        assert not u.source._with_keys
+        assert not u.source.with_keys
         events = 0
         for i in range(4):
             a = np.array([0.5, 0.2], np.float32) if i == 0 else np.zeros(2, np.float32)
             info = env.step(a)[4]
-            assert u.renders_in_step == 0 and not u.source._with_keys
+            assert u.renders_in_step == 0 and not u.source.with_keys
             events += len(info["events"])
             u.stage.pose(u._t_us, u.ptu.camera_pan_deg, u.ptu.camera_tilt_deg)
             assert not info["object_mask"].any() and not u.stage.object_mask().any()
@@ -228,7 +229,7 @@ def test_no_moving_layer_in_view_no_renders_after_reset() -> None:
 def test_a_layer_grows_without_wrapping_round_the_image() -> None:
     """The one-pixel growth of the moving layers shifts the layer map without wrap-around:
     a layer on the left edge reaches no pixel on the right edge."""
-    from wander_env.frames import _shifted
+    from wander_env.frames.keyframe_maths import _shifted
 
     layers = np.zeros((4, 5), np.int32)
     layers[:, 0] = 1
@@ -238,7 +239,7 @@ def test_a_layer_grows_without_wrapping_round_the_image() -> None:
 
 
 def test_panorama_params_default_to_the_measured_variant_and_refuse_bad_values() -> None:
-    from wander_env.frames import PanoramaParams
+    from wander_env.frames.panorama import PanoramaParams
 
     p = PanoramaParams()
     assert (p.samples, p.prefilter, p.bilinear, p.srgb, p.edge_px) == (4, True, True, True, 1)
@@ -251,3 +252,26 @@ def test_panorama_params_default_to_the_measured_variant_and_refuse_bad_values()
     ):
         with pytest.raises(ValueError, match=match):
             PanoramaParams(**bad)
+
+
+def test_a_panorama_refuses_a_moving_camera_centre_and_create_names_the_keyframes() -> None:
+    """With the camera offset from the tilt hinge the panorama is wrong (parallax):
+    the class refuses the stage, and ``create`` (what the registry calls) gives the
+    keyframe source instead, decided once, at construction."""
+    import gymnasium as gym
+
+    import wander_env  # noqa: F401
+    from wander_env.frames.keyframes import KeyframeFrames
+    from wander_env.frames.panorama import PanoramaFrames
+    from wander_env.frames.source import FrameParams
+    from wander_env.ptu.params import PTUParams
+
+    env = gym.make("wander/Wander-v0", scene="office", ptu=PTUParams(camera_up_m=0.05))
+    try:
+        u = env.unwrapped
+        assert u.stage.camera_centre_moves()
+        with pytest.raises(ValueError, match=r"^frames: a panorama needs a camera centre"):
+            PanoramaFrames(u.stage, u.dvs, FrameParams())
+        assert type(PanoramaFrames.create(u.stage, u.dvs, FrameParams())) is KeyframeFrames
+    finally:
+        env.close()

@@ -50,8 +50,8 @@ import numpy as np
 from wander_env.config import check_fields
 from wander_env.events import EVENT_DTYPE
 
-# Rec. 709 luminance weights for linear RGB.
-_LUMA = np.array([0.2126, 0.7152, 0.0722])
+#: Rec. 709 luminance weights for linear RGB.
+LUMA = np.array([0.2126, 0.7152, 0.0722])
 # Per-pixel state is float32 (half the memory traffic of float64, and twice the SIMD
 # width for the log). A change meant to be exactly k thresholds may round to a hair
 # under; this relative tolerance counts it as k.
@@ -385,7 +385,7 @@ class DVSEmulator:
         # computed by the same operations the per-pixel path used, so events are
         # bit-for-bit those of converting every pixel.
         self._lut = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
-        self._wlut = _LUMA.astype(np.float32)[:, None] * self._lut[None, :]
+        self._wlut = LUMA.astype(np.float32)[:, None] * self._lut[None, :]
         self._log_lut = np.log(np.maximum(self._lut, np.float32(self.params.linlog_intensity)))
         n = self.width * self.height
         self._lum = np.empty(n, np.float32)
@@ -398,6 +398,12 @@ class DVSEmulator:
         self._t_prev: int | None = None
         self.max_log_change = 0.0
         self._init_pixels(seed)
+
+    @property
+    def channel_luminance(self) -> np.ndarray:
+        """(3, 256) float32: each sRGB channel code's weighted share of the linear
+        luminance, as this emulator sums it (read, never write)."""
+        return self._wlut
 
     # -- set-up -------------------------------------------------------------------------
     def _init_pixels(self, seed: int | None) -> None:
@@ -416,12 +422,13 @@ class DVSEmulator:
             hot[self._rng.choice(n, size=k, replace=False)] = True
         self.hot_pixels = np.flatnonzero(hot)
 
-    def reset(self, frame: np.ndarray, t_us: int, seed: int | None = None) -> None:
-        """Start a new stream at ``t_us`` with ``frame``; optionally re-seed."""
+    def reset(self, frame: np.ndarray | LogFrame, t_us: int, seed: int | None = None) -> None:
+        """Start a new stream at ``t_us`` with ``frame`` (or its :class:`LogFrame`);
+        optionally re-seed."""
         if seed is not None:
             self.seed = seed
             self._init_pixels(seed)
-        lum = self._luminance(frame)
+        lum = self._prepared(frame).lum
         log_in = linlog(lum, self.params.linlog_intensity).astype(np.float32)
         self._log_in_prev = log_in
         self._level = log_in.copy()

@@ -10,9 +10,10 @@ span since the previous frame), and the emulator turns the frames into events.
 
 The step runs on one timeline: the PTU's :meth:`~wander_env.ptu.unit.PanTiltUnit.trajectory`
 (the unit stepped once per tick) is computed at the step's start and the frame source
-(:mod:`wander_env.frames`, chosen by ``frames``) reads the camera's angles from it; the
-env itself only turns frames into events (this module) and commands into targets
-(:class:`~wander_env.env_base.CameraEnv`, shared with the rig).
+(:mod:`wander_env.frames`, chosen by ``frames`` from :mod:`wander_env.frames.registry`)
+reads the camera's angles from it; the env itself only turns frames into events (this
+module) and commands into targets (:class:`~wander_env.env_base.CameraEnv`, shared with
+the rig).
 
 Frames (``frames``): ``"keyframes"`` (the default) renders keys where the image motion
 predicted from the poses (the camera's rotation along the PTU's trajectory, the objects'
@@ -20,7 +21,7 @@ known motion) since the last key would pass ``keyframe_px`` (2 px): the step's e
 less moves, more keys in a fast saccade, none while nothing moves at all (the last key
 stands); every ``keyframe_ms`` where the motion has no bound (a camera centre that
 moves, a sliding screen) or with ``keyframe_px=None``. It makes the frames in between
-from the two neighbouring keys with the scene's geometry (:mod:`wander_env.keyframes`:
+from the two neighbouring keys with the scene's geometry (:mod:`wander_env.frames.keyframe_maths`:
 the camera's rotation homography, each moving object's rigid motion from the keys' depth
 and motion layers, reprojection with depth where the camera centre moves), and hands
 the DVS no frame at a tick where nothing moves by half a pixel (it interpolates between
@@ -29,7 +30,7 @@ trajectory, so nothing waits for a later frame.
 ``"exact"`` renders every frame (every tick and sub-frame): the reference.
 ``"panorama"`` warps a cube map of the static world, rendered once per reset, by the
 camera's rotation and renders keys only for the moving objects
-(:class:`~wander_env.frames.PanoramaFrames`; docs/fidelity.md has its measurements).
+(:class:`~wander_env.frames.panorama.PanoramaFrames`; docs/fidelity.md has its measurements).
 ``renders_in_step`` counts the RGB renders of the last step.
 
 Action, observation and ``info``: :class:`~wander_env.env_base.CameraEnv` (shared with
@@ -62,12 +63,14 @@ from typing import Any
 import numpy as np
 
 from wander_env.camera import focal_length_px
-from wander_env.dvs import DVSEmulator, DVSParams, LogFrame
+from wander_env.dvs import DVSEmulator, DVSParams
 from wander_env.env_base import CameraEnv, StepInfo
 from wander_env.env_config import WanderConfig
 from wander_env.events import concatenate
 from wander_env.events.packet import EventPacket
-from wander_env.frames import FRAME_SOURCES, FrameParams, Stage
+from wander_env.frames.registry import make_source
+from wander_env.frames.source import FrameParams
+from wander_env.frames.stage import Stage
 from wander_env.mjcf import SceneAnimator, build_mjcf
 from wander_env.ptu.params import PTUParams
 from wander_env.ptu.unit import PanTiltUnit
@@ -105,7 +108,7 @@ class WanderEnv(CameraEnv):
         if c.keyframe_max_ms is not None:
             max_ticks = max(round(c.keyframe_max_ms * 1e3) // c.tick_us, 1)
         params = FrameParams(c.tick_us, c.keyframe_us, c.keyframe_px, max_ticks, c.ground_truth)
-        self.source = FRAME_SOURCES[c.frames](self.stage, self.dvs, params)
+        self.source = make_source(c.frames, self.stage, self.dvs, params)
         self._t_us = 0
         # Speck's readout after the DVS (wander_env.readout); None: events as the DVS gives them.
         readout = c.readout_params
@@ -147,7 +150,7 @@ class WanderEnv(CameraEnv):
         c = self.config
         t1 = self._t_us + c.ticks_per_step * c.tick_us
         trajectory = self.ptu.trajectory(self._t_us, t1, c.tick_us)
-        self.stage.renders = self.stage.geometry_draws = 0
+        self.stage.begin_step()
         self.source.plan(trajectory)
         chunks: list[np.ndarray] = []
         frames = extra = 0
@@ -156,15 +159,14 @@ class WanderEnv(CameraEnv):
             if self.source.interpolated(t):  # nothing moves by half a pixel
                 continue
             frame = self.source.frame(t, trajectory.angles(i))
-            prepared = frame if isinstance(frame, LogFrame) else self.dvs.prepare(frame)
-            change = self.dvs.log_change(prepared)
+            change = self.dvs.log_change(frame)
             m = 1
             if change > c.adaptive_log_change:
                 m = min(c.max_subframes, math.ceil(change / c.adaptive_log_change))
             times = [t_prev + (t - t_prev) * j // m for j in range(1, m)]
             for tj, angles in zip(times, trajectory.at(times), strict=True):
                 chunks.append(self.dvs.step(self.source.frame(tj, angles), tj))
-            chunks.append(self.dvs.step(prepared, t))
+            chunks.append(self.dvs.step(frame, t))
             frames, extra, t_prev = frames + m, extra + m - 1, t
         self._t_us = t1
         self.source.finish(t1, trajectory.angles(-1))
@@ -186,14 +188,12 @@ class WanderEnv(CameraEnv):
     ) -> tuple[dict[str, np.ndarray], StepInfo]:
         super().reset(seed=seed)
         rng = self.np_random
-        self.stage.animator = SceneAnimator(
-            self.model, self.scene, np.random.default_rng(rng.integers(2**63))
+        self.stage.begin_episode(
+            SceneAnimator(self.model, self.scene, np.random.default_rng(rng.integers(2**63)))
         )
-        self.stage.posed = None
         pan, tilt = (options or {}).get("gaze_deg", self.config.start_gaze_deg)
         self.ptu.reset(*self.ptu.clip_target(pan, tilt))
         self._t_us = 0
-        self.stage.renders = self.stage.geometry_draws = 0
         first = self.source.reset(0, (self.ptu.camera_pan_deg, self.ptu.camera_tilt_deg))
         self.dvs.reset(first, 0, seed=int(rng.integers(2**63)))
         empty = self.dvs.flush()

@@ -31,6 +31,7 @@ import pydantic
 from wander_env.config import FieldsMapping, check_annotated
 from wander_env.dvs import DVSParams
 from wander_env.field_doc import field_doc
+from wander_env.frames.registry import MODE_NAMES, frame_modes_help
 from wander_env.ptu.params import PTUParams
 from wander_env.readout import ReadoutParams
 from wander_env.scene_config import SceneConfig, available_scenes, load_scene_config
@@ -88,8 +89,8 @@ DvsPreset = Annotated[str, pydantic.AfterValidator(check_dvs_preset)]
 ReadoutPreset = Annotated[str, pydantic.AfterValidator(_readout_preset)]
 #: A PTU preset (:meth:`wander_env.ptu.PTUParams.preset`).
 PtuPreset = Annotated[str, pydantic.AfterValidator(_ptu_preset)]
-#: How the env makes its frames: one name per class of ``wander_env.frames.FRAME_SOURCES``.
-FrameMode = Literal["keyframes", "exact", "panorama"]
+#: How the env makes its frames: one name per mode of ``wander_env.frames.registry``.
+FrameMode = Literal[MODE_NAMES]
 #: Rendering quality: ``fast`` (the scene's antialiasing), ``fine`` (16 samples a pixel).
 Quality = Literal["fast", "fine"]
 FRAME_MODES: tuple[str, ...] = typing.get_args(FrameMode)
@@ -148,11 +149,7 @@ class WanderConfig(FieldsMapping):
     ] = None
     frames: Annotated[
         FrameMode,
-        field_doc(
-            "How frames are made (wander_env.frames): keyframes renders keys and "
-            "synthesises the frames in between from the keys' depth and motion layers; "
-            "exact renders every frame (every tick and adaptive sub-frame)"
-        ),
+        field_doc("How frames are made (wander_env.frames.registry): " + frame_modes_help()),
     ] = "keyframes"
     keyframe_ms: Annotated[
         float,

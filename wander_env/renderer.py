@@ -8,7 +8,8 @@ skybox, fog and haze off, and renders from the camera ``event_camera``:
 - :meth:`CameraRenderer.segment`: int32 (H, W) object ids: 0 background, k for the
   geoms of body ``object_k`` (see :func:`wander_env.mjcf.geom_object_ids`);
 - :meth:`CameraRenderer.render_with_mask`: both from one scene update;
-- :meth:`CameraRenderer.segment_depth_current`: ids and depth (metres) from one draw.
+- :meth:`CameraRenderer.segment_depth_current`: ids and depth (metres) from one draw;
+- :meth:`CameraRenderer.render_depth_current`: RGB and depth from one colour draw.
 
 :func:`project_points` maps world points to pixel coordinates (x right, y down, pixel
 centres at integers; the sensor centre is ((W-1)/2, (H-1)/2)).
@@ -206,14 +207,43 @@ class CameraRenderer(Closing):
             self._scene,
         )
 
+    def aim_headlight(self, direction: np.ndarray) -> None:
+        """Point the headlight of the last :meth:`update`'s scene along ``direction``
+        (world axes) for the draws until the next update."""
+        scn = self._scene
+        for j in range(scn.nlight):
+            if scn.lights[j].headlight:
+                scn.lights[j].dir[:] = direction
+
     def render_current(self) -> np.ndarray:
         """RGB uint8 (H, W, 3) of the last :meth:`update` (a new array)."""
-        top = self._draw(self._con)[::-1]
+        return self._resolved(self._draw(self._con))
+
+    def render_depth_current(self) -> tuple[np.ndarray, np.ndarray]:
+        """(RGB as :meth:`render_current`, depth (H, W) float64 in metres along the
+        optical axis, each pixel's central sample) of the last :meth:`update`, from one
+        colour draw."""
+        rgb = self._resolved(self._draw(self._con, self._depth_buf))
+        return rgb, self._depth_m()
+
+    def _resolved(self, rgb: np.ndarray) -> np.ndarray:
+        """The drawn buffer (bottom row first) as a new top-first (H, W, 3) image, each
+        ``supersample²`` block averaged."""
+        top = rgb[::-1]
         s = self.params.supersample
         if s == 1:
             return top.copy()
         blocks = top.reshape(self.height, s, self.width, s, 3).astype(np.float32)
         return np.rint(blocks.mean(axis=(1, 3))).astype(np.uint8)
+
+    def _depth_m(self) -> np.ndarray:
+        """The depth buffer of the last draw with depth: metres along the optical axis,
+        each pixel's central sample."""
+        m = self.model
+        extent = m.stat.extent
+        s = self.params.supersample
+        top = self._depth_buf[::-1][s // 2 :: s, s // 2 :: s]
+        return linearise_depth(top, m.vis.map.znear * extent, m.vis.map.zfar * extent)
 
     def segment_current(self, lut: np.ndarray | None = None) -> np.ndarray:
         """Object ids int32 (H, W) of the last :meth:`update`.
@@ -227,14 +257,8 @@ class CameraRenderer(Closing):
         """(ids int32 (H, W), depth (H, W) float64 in metres along the optical axis) of
         the last :meth:`update`, from one single-sample draw: each pixel's id and depth
         belong to the same surface."""
-        depth = self._depth_buf
-        ids = self._segment(lut, depth)
-        m = self.model
-        extent = m.stat.extent
-        s = self.params.supersample
-        top = depth[::-1][s // 2 :: s, s // 2 :: s]  # each pixel's central sample
-        z = linearise_depth(top, m.vis.map.znear * extent, m.vis.map.zfar * extent)
-        return ids, z
+        ids = self._segment(lut, self._depth_buf)
+        return ids, self._depth_m()
 
     def _segment(self, lut: np.ndarray | None, depth: np.ndarray | None) -> np.ndarray:
         flags = self._scene.flags

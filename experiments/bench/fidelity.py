@@ -12,7 +12,7 @@ it, on the same seeds and actions, run:
 - ``one_key``: ``frames="keyframes"`` with one key a step (``keyframe_ms`` = the control
   period, ``keyframe_px=None``);
 - ``panorama``: ``frames="panorama"`` (the static world warped from a cube map rendered
-  once per reset, see :class:`wander_env.frames.PanoramaFrames`).
+  once per reset, see :class:`wander_env.frames.panorama.PanoramaFrames`).
 
 The motions: ``still`` (zero actions), ``walk`` (the fixational random walk of ``wander
 record --policy fixational``) and ``saccade`` (one 20° pan at the first step, then still).

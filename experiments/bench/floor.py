@@ -8,7 +8,7 @@ nothing is reused between renders), each row the median of ``repeats`` runs of
 ``calls`` calls. The warps: an equirectangular panorama sampled through
 OpenCV's ``remap`` (maps given, or computed from the rotation with NumPy), and a cube map
 sampled along each pixel's rotated rays by the kernel the ``panorama`` frame source uses
-(:func:`wander_env.panorama.cube_warp`) (one bilinear sample, or
+(:func:`wander_env.frames.cube.cube_warp`) (one bilinear sample, or
 ``s × s`` nearest samples averaged: area sampling of a panorama rendered at ``s`` times
 the sensor's resolution).
 """
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
-from wander_env.panorama import FACE_ROTATIONS, cube_warp
+from wander_env.frames.cube import FACE_ROTATIONS, cube_warp
 
 FLOOR_COLUMNS: dict[str, str] = {"part": "", "ms_median": ".3f", "ms_best": ".3f", "note": ""}
 BOUND_COLUMNS: dict[str, str] = {
@@ -82,7 +82,7 @@ def render_floor(
 
     from wander_env.camera import focal_length_px
     from wander_env.dvs import DVSEmulator
-    from wander_env.keyframes import _static_kernel
+    from wander_env.frames.keyframe_maths import _static_kernel
 
     env = gym.make("wander/Wander-v0", scene=scene)
     rows: list[FloorRow] = []

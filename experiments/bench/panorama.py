@@ -121,7 +121,7 @@ def background_error(scene: str, headlight: str) -> tuple[np.ndarray, tuple[floa
             u.model.vis.headlight.active = 0
         pan, tilt = u.ptu.camera_pan_deg, u.ptu.camera_tilt_deg
         bg, _ = u.source.background(stage.camera_view(0, pan, tilt).rotation, depth=False)
-        stage.posed = None
+        stage.invalidate()
         stage.pose(0, pan, tilt)
         lum = u.dvs.prepare(stage.render()).lum.reshape(bg.shape)
         static = stage.geometry()[0] == 0

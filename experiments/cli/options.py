@@ -32,6 +32,7 @@ import typer
 
 from experiments.cli.console import step_progress
 from experiments.framework import MAX_SEED
+from wander_env.frames.registry import frame_modes_help
 
 __all__ = [
     "AGENT_OPTIONS",
@@ -246,10 +247,7 @@ SomsNormOpt = Annotated[
 
 FramesOpt = Annotated[
     str,
-    typer.Option(
-        help="How the env makes its frames: keyframes (render keys where motion needs "
-        "them, synthesise the rest) or exact (render every frame; the reference).",
-    ),
+    typer.Option(help="How the env makes its frames: " + frame_modes_help() + "."),
 ]
 QualityOpt = Annotated[
     str,

@@ -14,8 +14,8 @@ bilinear), averaged: with faces rendered at ``s`` times the sensor's focal lengt
 renderer's multisampled average). :func:`cube_inverse_depth` gives each sensor pixel's
 inverse depth (along the sensor's optical axis) from a cube of ray distances, and
 :func:`render_cube` renders a model's static world into both from a MuJoCo camera's
-centre. :func:`layers_over` composites moving layers of two keys over such a
-background by depth (see :mod:`wander_env.keyframes` for the keys' lookup).
+centre (:func:`wander_env.frames.keyframe_maths.layers_over` composites moving layers of
+two keys over such a background by depth).
 
 Examples:
     >>> import numpy as np
@@ -34,9 +34,8 @@ import mujoco
 import numba
 import numpy as np
 
-from wander_env.camera import CAMERA_NAME, linearise_depth
-from wander_env.dvs import _LUMA, srgb_to_linear
-from wander_env.keyframes import _candidate
+from wander_env.camera import CAMERA_NAME
+from wander_env.dvs import LUMA, srgb_to_linear
 from wander_env.renderer import CameraRenderer, RenderParams
 
 __all__ = [
@@ -45,7 +44,6 @@ __all__ = [
     "cube_inverse_depth",
     "cube_warp",
     "cube_warp_srgb",
-    "layers_over",
     "render_cube",
 ]
 
@@ -202,39 +200,6 @@ def cube_inverse_depth(out, dist, face_rot, rot, f, cx, cy):
             out[y, x] = math.sqrt(u * u + v * v + 1.0) / dist[face, iy, ix]
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def layers_over(
-    out, bg, bg_rho, regions, weights, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
-):
-    """Composite two keys' moving layers (ids >= 1) over the background ``bg`` (H, W)
-    with inverse depth ``bg_rho`` into ``out`` inside ``regions`` (R, 4): per key, its
-    nearest moving-layer candidate (:func:`wander_env.keyframes._candidate`) where it is
-    not behind the background, else the background, blended with ``weights``; a pixel no
-    key's layer reaches keeps ``bg``. Idempotent per pixel (regions may overlap)."""
-    for r in range(len(regions)):
-        for y in range(regions[r, 0], regions[r, 1]):
-            for x in range(regions[r, 2], regions[r, 3]):
-                num = 0.0
-                hit = False
-                floor = bg_rho[y, x] * 0.999
-                for kk in range(2):
-                    wk = weights[kk]
-                    if wk <= 0.0:
-                        continue
-                    v, rt = _candidate(
-                        kk, x, y, 1, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
-                    )
-                    if rt > 0.0 and rt >= floor:
-                        num += wk * v
-                        hit = True
-                    else:
-                        num += wk * bg[y, x]
-                if hit:
-                    out[y, x] = num
-                else:
-                    out[y, x] = bg[y, x]
-
-
 def box_filter(faces: np.ndarray, k: int) -> tuple[np.ndarray, float]:
     """Each face (6, n, n, C) averaged over ``k × k`` pixel boxes (clamped at the face's
     edge), float32, and the offset (face pixels) that centres a sample on its box:
@@ -291,7 +256,7 @@ def render_cube(
     if renderer is None or renderer.width != n:
         renderer = CameraRenderer(model, n, n, params=RenderParams(visible_geom_groups=(0, 1, 2)))
     lut = srgb_to_linear(np.arange(256) / 255.0)
-    wlut = (_LUMA[:, None] * lut[None, :]).astype(np.float32)
+    wlut = (LUMA[:, None] * lut[None, :]).astype(np.float32)
     lum = np.empty((6, n, n), np.float32)
     srgb = np.empty((6, n, n, 3), np.uint8)
     dist = np.empty((6, n, n), np.float32)
@@ -301,8 +266,6 @@ def render_cube(
     saved_head = int(model.vis.headlight.active)
     a = (np.arange(n) - (n - 1) / 2) / (n / 2)
     stretch = np.sqrt(1.0 + a[None, :] ** 2 + a[:, None] ** 2)
-    m = model
-    extent = m.stat.extent
     try:
         model.cam_fovy[cam] = 90.0
         if headlight == "off":
@@ -313,16 +276,10 @@ def render_cube(
                 data.cam_xmat[cam] = (r_face @ np.diag([1.0, -1.0, -1.0])).reshape(9)
                 renderer.update(data)
                 if headlight == "camera":
-                    scn = renderer._scene
-                    for j in range(scn.nlight):
-                        if scn.lights[j].headlight:
-                            scn.lights[j].dir[:] = forward
-                rgb = renderer._draw(renderer._con, renderer._depth_buf)[::-1]
+                    renderer.aim_headlight(forward)
+                rgb, z = renderer.render_depth_current()
                 srgb[i] = rgb
                 lum[i] = wlut[0][rgb[..., 0]] + wlut[1][rgb[..., 1]] + wlut[2][rgb[..., 2]]
-                z = linearise_depth(
-                    renderer._depth_buf[::-1], m.vis.map.znear * extent, m.vis.map.zfar * extent
-                )
                 dist[i] = z * stretch
     finally:
         data.cam_xmat[cam] = saved_xmat

@@ -35,7 +35,10 @@ with a still camera, this one -1.8 %, both with 5 ms keys).
 
 :func:`view_flow_bounds_px` bounds how far any pixel's content moves between views from
 the poses alone, and :func:`adaptive_key_ticks` places a step's keys where that bound
-would pass a number of pixels.
+would pass a number of pixels. For a background made elsewhere (the panorama,
+:mod:`wander_env.frames.cube`): :func:`layers_in_view` tells whether a moving layer may
+reach the image, :func:`grow_layers` grows a key's moving layers by a pixel or more, and
+:func:`layers_over` composites two keys' moving layers over the background by depth.
 
 Examples:
     >>> import numpy as np
@@ -67,6 +70,9 @@ __all__ = [
     "View",
     "adaptive_key_ticks",
     "blend",
+    "grow_layers",
+    "layers_in_view",
+    "layers_over",
     "make_keyframe",
     "synthesize",
     "view_flow_bounds_px",
@@ -454,6 +460,101 @@ class KeyPair:
         moving``)."""
         lum, layers, inv, present, rho0 = self._stacked
         return lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def layers_over(
+    out, bg, bg_rho, regions, weights, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
+):
+    """Composite two keys' moving layers (ids >= 1) over the background ``bg`` (H, W)
+    with inverse depth ``bg_rho`` into ``out`` inside ``regions`` (R, 4): per key, its
+    nearest moving-layer candidate (the synthesis's own lookup) where it is
+    not behind the background, else the background, blended with ``weights``; a pixel no
+    key's layer reaches keeps ``bg``. Idempotent per pixel (regions may overlap)."""
+    for r in range(len(regions)):
+        for y in range(regions[r, 0], regions[r, 1]):
+            for x in range(regions[r, 2], regions[r, 3]):
+                num = 0.0
+                hit = False
+                floor = bg_rho[y, x] * 0.999
+                for kk in range(2):
+                    wk = weights[kk]
+                    if wk <= 0.0:
+                        continue
+                    v, rt = _candidate(
+                        kk, x, y, 1, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
+                    )
+                    if rt > 0.0 and rt >= floor:
+                        num += wk * v
+                        hit = True
+                    else:
+                        num += wk * bg[y, x]
+                if hit:
+                    out[y, x] = num
+                else:
+                    out[y, x] = bg[y, x]
+
+
+def _shifted(a: np.ndarray, dy: int, dx: int, fill: float) -> np.ndarray:
+    """``a`` moved by (dy, dx) pixels (``out[y, x] = a[y - dy, x - dx]``), ``fill`` where
+    nothing moves in (no wrap-around)."""
+    out = np.full_like(a, fill)
+    h, w = a.shape
+    out[max(dy, 0) : h + min(dy, 0), max(dx, 0) : w + min(dx, 0)] = a[
+        max(-dy, 0) : h + min(-dy, 0), max(-dx, 0) : w + min(-dx, 0)
+    ]
+    return out
+
+
+def layers_in_view(
+    views: list[View],
+    k: np.ndarray,
+    radii: np.ndarray,
+    shape: tuple[int, int],
+    margin_px: float = 4.0,
+) -> bool:
+    """Whether any moving layer (a ball of ``radii[layer]`` m about its position; ``inf``:
+    always) may reach the image (widened by ``margin_px``) in any of ``views``."""
+    h, w = shape
+    f = float(k[0, 0])
+    cx, cy = float(k[0, 2]), float(k[1, 2])
+    # Inward normals of the frustum's side planes (camera axes), unit length.
+    normals = np.array(
+        [
+            [f, 0, cx + 0.5 + margin_px],
+            [-f, 0, w - 0.5 - cx + margin_px],
+            [0, f, cy + 0.5 + margin_px],
+            [0, -f, h - 0.5 - cy + margin_px],
+        ]
+    )
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    for view in views:
+        pos = view.layer_positions[1:]
+        r = np.asarray(radii, float)[1 : 1 + len(pos)]
+        if not np.isfinite(r).all():
+            return True
+        p = (pos - view.centre) @ view.rotation  # camera axes
+        inside = (p[:, 2] > -r) & ((p @ normals.T) > -r[:, None]).all(axis=1)
+        if inside.any():
+            return True
+    return False
+
+
+def grow_layers(
+    layers: np.ndarray, inv_depth: np.ndarray, px: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """(layers, inverse depth) with each moving layer grown by ``px`` pixels into the
+    static world's (layer 0): each such pixel takes its nearest neighbour's layer and
+    inverse depth (the nearer where two meet); new arrays."""
+    layers, inv = layers.copy(), inv_depth.copy()
+    for _ in range(px):
+        grown_l, grown_i = layers.copy(), inv.copy()
+        for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1)):
+            nl, ni = _shifted(layers, dy, dx, 0), _shifted(inv, dy, dx, 0.0)
+            take = (layers == 0) & (nl != 0) & (ni > np.where(grown_l == 0, 0.0, grown_i))
+            grown_l[take], grown_i[take] = nl[take], ni[take]
+        layers, inv = grown_l, grown_i
+    return layers, inv
 
 
 def blend(a: np.ndarray, b: np.ndarray, w: float) -> np.ndarray:

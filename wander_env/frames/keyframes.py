@@ -1,0 +1,191 @@
+"""The keyframe source: keys rendered where the image motion needs them, the frames
+between them synthesised from the keys' geometry (:mod:`wander_env.frames.keyframe_maths`)."""
+
+from __future__ import annotations
+
+import bisect
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from wander_env.dvs import DVSEmulator, LogFrame
+from wander_env.frames.keyframe_maths import (
+    SUBPIXEL_PX,
+    Keyframe,
+    KeyPair,
+    View,
+    adaptive_key_ticks,
+    blend,
+    make_keyframe,
+    view_flow_bounds_px,
+)
+from wander_env.frames.source import FrameParams, FrameSource
+from wander_env.frames.stage import Angles, Stage
+from wander_env.ptu.unit import Trajectory
+
+__all__ = ["KeyframeFrames", "RenderedKey"]
+
+
+@dataclass(eq=False)
+class RenderedKey:
+    """A key as rendered: its colour's DVS input and luminance at ``t_us`` from the camera
+    at ``angles`` (``view``). Its geometry (layers and depth, one more draw) is made only
+    when something asks for it (:meth:`KeyframeFrames.keyframe`): a synthesised frame
+    between it and a neighbour, or the ground truth's mask. ``same_as``: an earlier key
+    whose geometry this one shares (nothing moved between them)."""
+
+    t_us: int
+    angles: Angles
+    view: View
+    prepared: LogFrame
+    lum: np.ndarray  # (H, W) float32 linear luminance (a view of ``prepared.lum``)
+    same_as: RenderedKey | None = None
+    full: Keyframe | None = None  # with its geometry, once made
+
+
+class KeyframeFrames(FrameSource):
+    """Keys rendered at the step's start along the trajectory where the predicted image
+    motion asks for them (:func:`~wander_env.frames.keyframe_maths.adaptive_key_ticks`: as
+    few as one a step, none while nothing moves; every ``keyframe_us`` where the motion
+    has no bound); the frames between them synthesised
+    (:class:`~wander_env.frames.keyframe_maths.KeyPair`), and none where nothing moves by
+    half a pixel: the DVS interpolates there.
+
+    A key's geometry (layers and depth: a second, single-sample draw) is drawn when first
+    needed, with the model posed again at the key's time and angles (the same pixels as
+    drawing it with the colour): a synthesised frame needs both its keys', the ground
+    truth's mask the step end's; a still camera over slow objects, or ground truth off,
+    needs fewer or none."""
+
+    def __init__(self, stage: Stage, dvs: DVSEmulator, params: FrameParams) -> None:
+        super().__init__(stage, dvs, params)
+        self.radii = stage.layer_radii()
+        self.keys: list[RenderedKey] = []  # the key at the step's start, then the step's
+        self._camera_frame: np.ndarray | None = None
+        self._key_at: dict[int, RenderedKey] = {}  # key t_us -> key (this step)
+        self._views: dict[int, View] = {}  # tick t_us -> its view (this step)
+        self._interpolated: set[int] = set()  # ticks the DVS interpolates over
+        self._pairs: dict[int, KeyPair] = {}  # later key's t_us -> the pair ending there
+
+    @property
+    def camera_frame(self) -> np.ndarray | None:
+        """The latest key's colour frame."""
+        return self._camera_frame
+
+    def render_key(self, t_us: int, angles: Angles, view: View) -> RenderedKey:
+        """Render the colour of a key of the model posed at ``t_us`` and ``angles``."""
+        stage = self.stage
+        stage.pose(t_us, *angles)
+        rgb = stage.render()
+        prepared = self.dvs.prepare(rgb)
+        lum = prepared.lum.reshape(stage.height, stage.width)
+        self._camera_frame = rgb
+        return RenderedKey(t_us, angles, view, prepared, lum)
+
+    def keyframe(self, key: RenderedKey) -> Keyframe:
+        """``key`` with its geometry: its layers and depth drawn on first use (the model
+        posed again at the key's time and angles), then kept."""
+        if key.full is None:
+            if key.same_as is not None:
+                key.full = replace(self.keyframe(key.same_as), t_us=key.t_us, view=key.view)
+            else:
+                stage = self.stage
+                stage.pose(key.t_us, *key.angles)
+                layers, depth = stage.geometry()
+                key.full = make_keyframe(key.t_us, key.lum, key.view, depth, layers)
+        return key.full
+
+    def start_with(self, keys: list[RenderedKey]) -> None:
+        """The stream's keys from here on: ``keys`` (none: no key, nothing planned)."""
+        self.keys, self._key_at = keys, {key.t_us: key for key in keys}
+        self._views, self._pairs, self._interpolated = {}, {}, set()
+
+    def key_at(self, t_us: int) -> RenderedKey | None:
+        """The key of this step rendered at ``t_us`` (None: none there)."""
+        return self._key_at.get(t_us)
+
+    def reset(self, t_us: int, angles: Angles) -> LogFrame:
+        key = self.render_key(t_us, angles, self.stage.camera_view(t_us, *angles))
+        self.start_with([key])
+        return key.prepared
+
+    def plan(self, trajectory: Trajectory) -> None:
+        p, stage = self.params, self.stage
+        ticks = trajectory.t_us
+        angles = [trajectory.angles(i) for i in range(len(ticks))]
+        views = stage.camera_views(list(ticks), angles)
+        self._views = dict(zip(ticks, views, strict=True))
+        ref = self.keys[-1]
+        self.keys, self._pairs = [ref], {}
+        shape, k = (stage.height, stage.width), stage.k
+        idx = None
+        if p.keyframe_px is not None:
+            idx = adaptive_key_ticks(
+                ref.view, views, k, self.radii, shape, p.keyframe_px, p.key_max_ticks
+            )
+        if idx is None:
+            idx = [i for i, t in enumerate(ticks) if t == ticks[-1] or t % p.keyframe_us == 0]
+        if not idx:  # nothing moves: the start's key is the step's end too (its geometry
+            # that of the key it was rendered as, however many still steps ago)
+            root = ref if ref.same_as is None else ref.same_as
+            self.keys.append(replace(ref, t_us=ticks[-1], view=views[-1], same_as=root, full=None))
+        for i in idx:
+            self.keys.append(self.render_key(ticks[i], angles[i], views[i]))
+        self._key_at = {key.t_us: key for key in self.keys}
+        # The ticks between keys whose content moves by less than half a pixel from both.
+        between = [(t, v) for t, v in zip(ticks, views, strict=True) if t not in self._key_at]
+        self._interpolated = set()
+        if between:
+            pairs = [self.pair(t) for t, _ in between]
+            tv = [v for _, v in between]
+            refs = [a.view for a, _ in pairs] + [b.view for _, b in pairs]
+            both = view_flow_bounds_px(refs, tv + tv, k, self.radii, shape)
+            bounds = np.maximum(both[: len(tv)], both[len(tv) :])
+            self._interpolated = {
+                t for (t, _), b in zip(between, bounds, strict=True) if b < SUBPIXEL_PX
+            }
+
+    def pair(self, t_us: int) -> tuple[RenderedKey, RenderedKey]:
+        """The keys just before and at-or-after ``t_us`` (inside the planned step)."""
+        i = bisect.bisect_left([key.t_us for key in self.keys], t_us)
+        return self.keys[i - 1], self.keys[i]
+
+    def _keypair(self, a: RenderedKey, b: RenderedKey) -> KeyPair:
+        """The keys' :class:`KeyPair` (with their geometry), made once a step."""
+        pair = self._pairs.get(b.t_us)
+        if pair is None:
+            pair = self._pairs[b.t_us] = KeyPair(self.keyframe(a), self.keyframe(b), self.stage.k)
+        return pair
+
+    def interpolated(self, t_us: int) -> bool:
+        return t_us in self._interpolated
+
+    def frame(self, t_us: int, angles: Angles) -> LogFrame:
+        """A key's own input at its tick; the keys' blend where nothing moves by half a
+        pixel; else a synthesised frame."""
+        key = self._key_at.get(t_us)
+        if key is not None:
+            return key.prepared
+        a, b = self.pair(t_us)
+        w = (t_us - a.t_us) / (b.t_us - a.t_us)
+        if t_us in self._interpolated:
+            return self.dvs.prepare(blend(a.lum, b.lum, w))
+        view = self._views.get(t_us)
+        if view is None:  # a sub-frame inside a tick
+            view = self.stage.camera_view(t_us, *angles)
+            shape, k = (self.stage.height, self.stage.width), self.stage.k
+            bound = view_flow_bounds_px([a.view, b.view], [view, view], k, self.radii, shape)
+            if bound.max() < SUBPIXEL_PX:
+                return self.dvs.prepare(blend(a.lum, b.lum, w))
+        return self.dvs.prepare(self.synthesize(self._keypair(a, b), view, w))
+
+    def synthesize(self, pair: KeyPair, view: View, w: float) -> np.ndarray:
+        """An in-between frame (a method of its own, for profiling)."""
+        return pair.frame(view, w)
+
+    def object_mask(self, t_us: int) -> np.ndarray:
+        key = self._key_at.get(t_us)
+        if key is None:
+            return super().object_mask(t_us)
+        layers = self.keyframe(key).layers
+        return np.where(layers <= self.stage.scene.num_objects, layers, 0).astype(np.int32)

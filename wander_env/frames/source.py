@@ -1,0 +1,83 @@
+"""What a frame source is: the camera frames of a stream, read along the PTU's trajectory.
+
+A :class:`FrameSource` turns a step's :class:`~wander_env.ptu.unit.Trajectory` (the PTU
+stepped once per tick, computed once per step) into the frames the DVS sees, each as the
+DVS's own input (a :class:`~wander_env.dvs.LogFrame`):
+
+- :meth:`~FrameSource.reset` at an episode's start: the first frame;
+- :meth:`~FrameSource.plan` at the step's start, with the whole trajectory (a source
+  may render its keys there: everything it needs is known, nothing waits for later);
+- :meth:`~FrameSource.frame` at each render tick and adaptive sub-frame, with that
+  time's camera angles;
+- :meth:`~FrameSource.object_mask` at the step's end (ground truth).
+
+The sources themselves: :mod:`wander_env.frames.registry`.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from wander_env.dvs import DVSEmulator, LogFrame
+from wander_env.frames.stage import Angles, Stage
+from wander_env.ptu.unit import Trajectory
+
+__all__ = ["FrameParams", "FrameSource"]
+
+
+@dataclass(frozen=True)
+class FrameParams:
+    """What a frame source needs of the env's configuration (see ``WanderConfig``)."""
+
+    tick_us: int = 1000
+    keyframe_us: int = 2000
+    keyframe_px: float | None = 2.0
+    key_max_ticks: int | None = None  # keys no more ticks apart while anything moves
+    ground_truth: bool = True
+
+
+class FrameSource(ABC):
+    """The camera frames of a stream (see the module docstring); ``dvs`` is the
+    emulator the frames are for (a frame is its :meth:`~DVSEmulator.prepare` d input)."""
+
+    def __init__(self, stage: Stage, dvs: DVSEmulator, params: FrameParams) -> None:
+        self.stage, self.dvs, self.params = stage, dvs, params
+
+    @classmethod
+    def create(cls, stage: Stage, dvs: DVSEmulator, params: FrameParams) -> FrameSource:
+        """The source of this mode for ``stage`` (a mode that cannot serve a stage names
+        the one that stands in for it here)."""
+        return cls(stage, dvs, params)
+
+    @property
+    @abstractmethod
+    def camera_frame(self) -> np.ndarray | None:
+        """The latest colour frame (H, W, 3) uint8 (None before the first reset)."""
+
+    @abstractmethod
+    def reset(self, t_us: int, angles: Angles) -> LogFrame:
+        """Start a stream at ``t_us``; the first frame (for the DVS's reset)."""
+
+    @abstractmethod
+    def plan(self, trajectory: Trajectory) -> None:
+        """A step's start: the camera's trajectory through the step."""
+
+    @abstractmethod
+    def frame(self, t_us: int, angles: Angles) -> LogFrame:
+        """The frame at ``t_us`` (a tick of the planned step or a time inside one)."""
+
+    def interpolated(self, t_us: int) -> bool:
+        """Whether the DVS may go without the frame of this tick of the planned step and
+        interpolate over it (nothing in it moves but by a fraction of a pixel)."""
+        return False
+
+    def finish(self, t_us: int, angles: Angles) -> None:
+        """The step's end: the model posed there (ground truth reads it)."""
+        self.stage.pose(t_us, *angles)
+
+    def object_mask(self, t_us: int) -> np.ndarray:
+        """Object ids (H, W) int32 at the step's end ``t_us``."""
+        return self.stage.object_mask()
