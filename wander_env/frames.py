@@ -53,6 +53,7 @@ from wander_env.keyframes import (
 )
 from wander_env.mjcf import SceneAnimator, geom_layer_ids, geom_layer_radii
 from wander_env.ptu.unit import Trajectory
+from wander_env.raycast import PrimitiveCaster, RaycastParams, unsupported_geoms
 from wander_env.renderer import CameraRenderer, RenderParams
 from wander_env.scene_config import SceneConfig
 
@@ -75,7 +76,13 @@ class Stage:
     """A scene's model and data, its animator (set at each reset) and the camera's
     renderer: the world posed at a time and camera angles, and what the camera sees."""
 
-    def __init__(self, model: mujoco.MjModel, scene: SceneConfig, params: RenderParams) -> None:
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        scene: SceneConfig,
+        params: RenderParams,
+        raycast: RaycastParams | None = None,
+    ) -> None:
         self.model, self.scene, self.params = model, scene, params
         self.data = mujoco.MjData(model)
         self.width, self.height = scene.camera.width, scene.camera.height
@@ -90,6 +97,15 @@ class Stage:
         self.posed: tuple[int, float, float] | None = None  # (t_us, pan, tilt) of the model
         self.renders = 0  # colour frames rendered since the counter was last zeroed
         self.geometry_draws = 0  # layer-and-depth draws since the counter was last zeroed
+        # -- ray casting (wander_env.raycast): masks and key geometry without a GL pass where
+        # every moving geom is a primitive; None: GL draws them (set it to None for GL).
+        rc = raycast or RaycastParams()
+        self.caster: PrimitiveCaster | None = None
+        if (rc.ground_truth or rc.key_layers) and not unsupported_geoms(model):
+            self.caster = PrimitiveCaster(
+                model, self.width, self.height, rc, params.visible_geom_groups
+            )
+        self._cast_for: SceneAnimator | None = None  # the reset the caster's cube is of
 
     @property
     def renderer(self) -> CameraRenderer:
@@ -146,18 +162,40 @@ class Stage:
         self.renders += 1
         return self.renderer.render(self.data)
 
+    def casts(self, what: Literal["ground_truth", "key_layers"]) -> bool:
+        """Whether ray casting (:attr:`caster`) draws the object masks (``ground_truth``)
+        or the keys' layers and depth (``key_layers``: the camera on its hinge only)."""
+        c = self.caster
+        if c is None or not getattr(c.params, what):
+            return False
+        return what == "ground_truth" or c.exact_depth
+
+    def _ready_caster(self) -> PrimitiveCaster:
+        """The caster, its static cube dropped at each reset (a new animator)."""
+        if self._cast_for is not self.animator:
+            self.caster.reset()
+            self._cast_for = self.animator
+        return self.caster
+
     def geometry(self) -> tuple[np.ndarray, np.ndarray]:
-        """(motion layers int32, depth m) of the posed model, from one draw."""
+        """(motion layers int32, depth m) of the posed model, from one draw (or ray cast:
+        not counted in :attr:`geometry_draws`)."""
+        if self.casts("key_layers"):
+            return self._ready_caster().geometry(self.data)
         self.geometry_draws += 1
         self.renderer.update(self.data)
         return self.renderer.segment_depth_current(self.layer_lut)
 
     def object_mask(self) -> np.ndarray:
         """Object ids (H, W) int32 of the posed model (0 = background)."""
+        if self.casts("ground_truth"):
+            return self._ready_caster().object_mask(self.data)
         return self.renderer.segment(self.data)
 
     def close(self) -> None:
         # Freeing is safe in a forked child too (only creating and drawing hang there).
+        if self.caster is not None:
+            self.caster.close()
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
@@ -373,7 +411,7 @@ class KeyframeFrames(FrameSource):
 
     def object_mask(self, t_us: int) -> np.ndarray:
         key = self._key_at.get(t_us)
-        if key is None:
+        if key is None or self.stage.casts("ground_truth"):  # ray cast: no key's layers
             return super().object_mask(t_us)
         layers = self.keyframe(key).layers
         return np.where(layers <= self.stage.scene.num_objects, layers, 0).astype(np.int32)
