@@ -160,6 +160,7 @@ def test_a_keys_layers_and_depth_are_drawn_only_where_needed():
             env.close()
     env = gym.make("wander/Wander-v0", scene="office", ground_truth=False)
     try:
+        env.unwrapped.stage.caster = None  # GL draws the keys' geometry
         env.reset(seed=0)
         env.step(np.array([0.05, 0.0], np.float32))
         u = env.unwrapped
@@ -173,6 +174,7 @@ def test_a_still_scenes_end_keys_share_the_rendered_keys_geometry():
     whose geometry it shares directly (no chain through the steps), drawn once when asked."""
     env = gym.make("wander/Wander-v0", scene="shelf", ground_truth=False)
     try:
+        env.unwrapped.stage.caster = None  # GL draws the geometry (counted)
         env.reset(seed=0)
         source = env.unwrapped.source
         first = source.keys[0]
