@@ -18,6 +18,7 @@ from scene_files import write_cube_obj
 import wander_env  # noqa: F401  (registers the envs)
 from wander_env.camera import intrinsics
 from wander_env.frames import Stage
+from wander_env.gl_fork import ForkedGLError
 from wander_env.mjcf import SceneAnimator, build_mjcf
 from wander_env.raycast import (
     PrimitiveCaster,
@@ -281,3 +282,34 @@ def test_cast_key_layers_draw_no_gl_geometry_and_keep_the_events():
     assert draws == 0 and gl_draws >= 2
     for (ev_c, _), (ev_g, _) in zip(cast, gl, strict=True):
         assert abs(len(ev_c) - len(ev_g)) <= 0.01 * len(ev_g)
+
+
+def _cube_in_child(stage: Stage, out) -> None:
+    """In a forked child: the caster asked for a new cube (a reset) after its parent
+    rendered one."""
+    try:
+        stage.caster.reset()
+        stage.object_mask()
+        out.put("rendered")
+    except ForkedGLError as e:
+        out.put(f"ForkedGLError: {e}")
+
+
+def test_the_cube_refuses_a_process_forked_after_it_rendered():
+    """A child forked after the parent rendered the static cube raises ForkedGLError
+    (naming spawn) when it would render its own, as the stage's renderer does."""
+    import multiprocessing
+
+    stage = _stage("office")
+    try:
+        stage.pose(0, 0.0, 0.0)
+        stage.object_mask()  # the parent renders the cube
+        ctx = multiprocessing.get_context("fork")
+        out = ctx.Queue()
+        child = ctx.Process(target=_cube_in_child, args=(stage, out))
+        child.start()
+        got = out.get(timeout=60)
+        child.join(timeout=60)
+        assert got.startswith("ForkedGLError: ") and "context='spawn'" in got
+    finally:
+        stage.close()
