@@ -74,7 +74,9 @@ Angles = tuple[float, float]  # camera (pan, tilt) in degrees
 
 class Stage:
     """A scene's model and data, its animator (set at each reset) and the camera's
-    renderer: the world posed at a time and camera angles, and what the camera sees."""
+    renderer: the world posed at a time and camera angles, and what the camera sees.
+    Where every moving object is a primitive, :attr:`caster` (:mod:`wander_env.raycast`)
+    draws the object masks and the keys' layers and depth without a GL pass."""
 
     def __init__(
         self,
