@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import pytest
@@ -21,6 +22,9 @@ def test_latency_row_percentiles() -> None:
     assert row.calls == 100 and row.median_ms == pytest.approx(50.5)
     assert row.p95_ms == pytest.approx(95.05) and row.max_ms == pytest.approx(100.0)
     assert math.isnan(latency_row("empty", []).median_ms)
+    assert math.isnan(row.cpu_median_ms) and row.load == "–"
+    cpu = latency_row("x", [0.002] * 3, [0.001, 0.003, 0.002], "1.00-2.00")
+    assert cpu.cpu_median_ms == pytest.approx(2.0) and cpu.load == "1.00-2.00"
 
 
 def test_bench_agent_times_every_stage_call() -> None:
@@ -35,6 +39,10 @@ def test_bench_agent_times_every_stage_call() -> None:
     assert by["proto-object, split (per decision)"].calls == decisions >= 1
     assert by["proto-object, streamlined (same maps)"].calls == decisions
     assert loop.simulated_s == pytest.approx(0.3) and loop.realtime_factor > 0
+    # Beside each wall time, the process's CPU time and the load average around the run.
+    assert loop.cpu_s > 0 and re.match(r"^\d+\.\d\d-\d+\.\d\d$", loop.load)
+    assert all(r.load == loop.load for r in rows)
+    assert all(math.isfinite(r.cpu_median_ms) for r in rows if r.calls)
 
 
 def test_pooled_quality() -> None:

@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import importlib.util
+import re
 
 import numpy as np
 import pytest
 
-from experiments.bench.dvs import PEERS, bench_inputs, bench_peers, linear_frames
+from experiments.bench.dvs import PEERS, bench_dvs, bench_inputs, bench_peers, linear_frames
 from experiments.jobs.synthetic import drifting_texture
 from wander_env.dvs import DVSEmulator
+
+LOAD = r"^\d+\.\d\d-\d+\.\d\d$"  # the load average column: start-end
 
 
 def test_linear_frames_give_the_events_of_their_srgb_frames():
@@ -35,6 +38,14 @@ def test_input_rows_share_the_events_and_the_linear_row_is_the_unit():
         assert srgb.events == lin.events > 0  # the same luminance, bit for bit
         assert lin.time_ratio == 1.0
         assert srgb.frames_per_s > 0 and grey.frames_per_s > 0
+    # Beside each wall-time rate, the rate by the process's CPU time; the load average.
+    assert all(r.cpu_frames_per_s > 0 and re.match(LOAD, r.load) for r in rows)
+
+
+def test_dvs_rows_report_cpu_and_load():
+    rows = bench_dvs(n_frames=4, repeats=1)
+    assert len(rows) == 8 and all(r.frames_per_s > 0 and r.cpu_frames_per_s > 0 for r in rows)
+    assert all(re.match(LOAD, r.load) for r in rows)
 
 
 def test_peer_rows_wander_first_and_missing_peers_say_so():
@@ -43,6 +54,7 @@ def test_peer_rows_wander_first_and_missing_peers_say_so():
     for r in rows:
         if r.emulator == "wander":
             assert r.wander_speedup == 1.0 and r.events_diff_pct == 0.0 and r.events > 0
+            assert r.cpu_frames_per_s > 0 and re.match(LOAD, r.load)
         elif r.frames_per_s is None:
             assert r.note.startswith("not installed")
             assert r.events is None and r.wander_speedup is None

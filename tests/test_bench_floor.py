@@ -4,6 +4,7 @@ cube map sampled where its rays point (exact expectations)."""
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -32,12 +33,18 @@ def test_cube_warp_samples_the_face_the_rays_point_at() -> None:
 @pytest.mark.slow
 def test_render_floor_times_every_part_and_bounds_each_step() -> None:
     rows, bounds = render_floor(scene="shelf", calls=2, repeats=1)
-    assert len(rows) == 10 and all(r.ms_median > 0 for r in rows)
+    assert len(rows) == 11 and all(r.ms_median > 0 for r in rows)
+    assert rows[2].part == "key geometry by ray casting (wander_env.frames.raycast)"
     colour, geometry = rows[0].ms_median, rows[1].ms_median
     by = {b.step: b for b in bounds}
     still = by["default, still camera, ground truth on"]
     assert still.gl_ms == pytest.approx(2 * colour + geometry)
     assert still.rtf_bound == pytest.approx(10.0 / still.gl_ms)
+    # Beside each wall time, the CPU time of the same runs and the load average.
+    assert still.gl_cpu_ms == pytest.approx(2 * rows[0].cpu_ms_median + rows[1].cpu_ms_median)
+    load = r"^\d+\.\d\d-\d+\.\d\d$"
+    assert all(re.match(load, r.load) and r.cpu_ms_median >= 0 for r in rows)
+    assert all(re.match(load, b.load) for b in bounds)
 
 
 @pytest.mark.slow

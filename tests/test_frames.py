@@ -165,12 +165,20 @@ def test_a_keys_layers_and_depth_are_drawn_only_where_needed():
     """Office, still camera, default keys (two a step): the objects move under half a
     pixel a tick, so no frame is synthesised and only the step end's key draws its layers
     and depth, for the ground truth's mask (the mask a segmentation of the posed model
-    gives); none with ground truth off. A walk synthesises frames: both keys' geometry."""
-    for gt, draws in ((True, [1, 1, 1]), (False, [0, 0, 0])):
+    gives); none with ground truth off, nor with the mask ray cast (the default where the
+    objects are primitives: wander_env.frames.raycast). A walk synthesises frames: both keys'
+    geometry."""
+    for gt, cast, draws in (
+        (True, False, [1, 1, 1]),
+        (True, True, [0, 0, 0]),
+        (False, False, [0, 0, 0]),
+    ):
         env = gym.make("wander/Wander-v0", scene="office", ground_truth=gt)
         try:
-            env.reset(seed=0)
             stage, counts = env.unwrapped.stage, []
+            if not cast:
+                stage.caster = None  # GL draws the masks
+            env.reset(seed=0)
             for _ in range(3):
                 info = env.step(np.zeros(2, np.float32))[4]
                 counts.append(stage.geometry_draws)
@@ -182,6 +190,7 @@ def test_a_keys_layers_and_depth_are_drawn_only_where_needed():
             env.close()
     env = gym.make("wander/Wander-v0", scene="office", ground_truth=False)
     try:
+        env.unwrapped.stage.caster = None  # GL draws the keys' geometry
         env.reset(seed=0)
         env.step(np.array([0.05, 0.0], np.float32))
         u = env.unwrapped
@@ -195,6 +204,7 @@ def test_a_still_scenes_end_keys_share_the_rendered_keys_geometry():
     whose geometry it shares directly (no chain through the steps), drawn once when asked."""
     env = gym.make("wander/Wander-v0", scene="shelf", ground_truth=False)
     try:
+        env.unwrapped.stage.caster = None  # GL draws the geometry (counted)
         env.reset(seed=0)
         source = env.unwrapped.source
         first = source.keys[0]

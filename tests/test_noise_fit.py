@@ -1,10 +1,10 @@
-"""Fitting background activity and hot pixels to a recording (wander_env.noise_fit)."""
+"""Fitting background activity and hot pixels to a recording (experiments.benchmark.noise_fit)."""
 
 import numpy as np
 import pytest
 
+from experiments.benchmark.noise_fit import IEBCS_FREQ_HZ, fit_noise, rates_from_interval_histogram
 from wander_env.events import make_events
-from wander_env.noise_fit import IEBCS_FREQ_HZ, fit_noise, rates_from_interval_histogram
 
 
 def _recording() -> np.ndarray:

@@ -6,7 +6,8 @@ The agent runs closed-loop in a scene; every call of each stage is timed in plac
 the proto-object model once per fixation window (at the decision), the whole
 :meth:`AttentionAgent.act` every step (split into ordinary and decision steps), and the
 env's step. The streamlined proto-object model (no polarity split) is timed afterwards
-on the same OMS maps.
+on the same OMS maps. Every table has the process's CPU time beside the wall time and
+the load average around its measurement (:mod:`experiments.bench.clock`).
 
 Examples:
     >>> rows, loop = bench_agent(seconds=0.3, scene="shelf")  # doctest: +SKIP
@@ -16,14 +17,14 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from agents.attention import AgentParams, AttentionAgent
 from agents.proto_object import ProtoObjectSaliency
-from experiments.bench.env import timed
+from experiments.bench.clock import LOAD_COLUMN, Clock, Timings, timed
 
 # The columns of `wander bench agent`'s tables (row field -> format spec).
 LATENCY_COLUMNS: dict[str, str] = {
@@ -32,14 +33,18 @@ LATENCY_COLUMNS: dict[str, str] = {
     "median_ms": ".2f",
     "p95_ms": ".2f",
     "max_ms": ".2f",
+    "cpu_median_ms": ".2f",
+    **LOAD_COLUMN,
 }
 LOOP_COLUMNS: dict[str, str] = {
     "scene": "",
     "simulated_s": ".1f",
     "wall_s": ".1f",
+    "cpu_s": ".1f",
     "env_ms_per_step": ".1f",
     "agent_ms_per_step": ".2f",
     "realtime_factor": ".2f",
+    **LOAD_COLUMN,
 }
 MODES_COLUMNS: dict[str, str] = {
     "scene": "",
@@ -52,20 +57,26 @@ MODES_COLUMNS: dict[str, str] = {
     "keyframes_env_ms": ".1f",
     "exact_agent_ms": ".2f",
     "keyframes_agent_ms": ".2f",
+    "exact_cpu_ms": ".1f",
+    "keyframes_cpu_ms": ".1f",
     "exact_decisions": "d",
     "keyframes_decisions": "d",
+    **LOAD_COLUMN,
 }
 
 
 @dataclass(frozen=True)
 class LatencyRow:
-    """One stage: number of calls and the median / 95th percentile / max, in ms."""
+    """One stage: number of calls and the median / 95th percentile / max wall time, the
+    median CPU time of this process, in ms; the load average around the run."""
 
     stage: str
     calls: int
     median_ms: float
     p95_ms: float
     max_ms: float
+    cpu_median_ms: float = float("nan")
+    load: str = "–"
 
 
 @dataclass(frozen=True)
@@ -78,15 +89,27 @@ class LoopRow:
     env_ms_per_step: float
     agent_ms_per_step: float
     realtime_factor: float
+    cpu_s: float = float("nan")  # this process's CPU time over the loop
+    load: str = "–"
 
 
-def latency_row(stage: str, seconds: list[float]) -> LatencyRow:
-    """Summarise call durations (s) as a row in milliseconds."""
+def latency_row(
+    stage: str, seconds: list[float], cpu_seconds: list[float] | None = None, load: str = "–"
+) -> LatencyRow:
+    """Summarise call durations (s: wall, and the process's CPU when given) as a row in
+    milliseconds."""
     ms = np.asarray(seconds, dtype=np.float64) * 1e3
     if ms.size == 0:
-        return LatencyRow(stage, 0, float("nan"), float("nan"), float("nan"))
+        return LatencyRow(stage, 0, float("nan"), float("nan"), float("nan"), load=load)
+    cpu = float("nan") if not cpu_seconds else 1e3 * float(np.median(cpu_seconds))
     return LatencyRow(
-        stage, int(ms.size), float(np.median(ms)), float(np.percentile(ms, 95)), float(ms.max())
+        stage,
+        int(ms.size),
+        float(np.median(ms)),
+        float(np.percentile(ms, 95)),
+        float(ms.max()),
+        cpu,
+        load,
     )
 
 
@@ -101,66 +124,72 @@ def bench_agent(
     ``env_kwargs`` (e.g. ``frames``) go to the env. Afterwards the parts the speed work
     replaced are timed old against new on the run's own inputs (:func:`compare_impls`)."""
     env, agent = _agent_in_env(scene, dvs, seconds, seed, **env_kwargs)
-    acc: dict[str, list[float]] = {"soms": [], "proto": [], "control": []}
+    acc = Timings()
     record: dict[str, list] = {}
     _record_inputs(agent, record)
     agent.soms.step = timed(agent.soms.step, acc, "soms")
     agent.proto.step = timed(agent.proto.step, acc, "proto")
     agent.controller.step = timed(agent.controller.step, acc, "control")
-    t_soms, t_proto, t_ctrl = acc["soms"], acc["proto"], acc["control"]
-    t_act: list[float] = []
-    t_decide: list[float] = []
-    t_env: list[float] = []
+    act, env_step = timed(agent.act, acc, "act"), timed(env.step, acc, "env")
     oms_maps: list[np.ndarray] = []
+    decided: list[bool] = []
     obs, info = env.reset(seed=seed)
     steps = round(seconds / agent.params.step_s)
-    wall0 = time.perf_counter()
-    for _ in range(steps):
-        t0 = time.perf_counter()
-        action = agent.act(obs, info)
-        t1 = time.perf_counter()
-        (t_decide if agent.decided else t_act).append(t1 - t0)
-        if agent.decided:
-            oms_maps.append(agent.oms_map.copy())
-        obs, _, terminated, truncated, info = env.step(action)
-        t_env.append(time.perf_counter() - t1)
-        if terminated or truncated:
-            break
-    wall = time.perf_counter() - wall0
-    n = len(t_env)
+    clock = Clock()
+    with clock.span():
+        for _ in range(steps):
+            action = act(obs, info)
+            decided.append(agent.decided)
+            if agent.decided:
+                oms_maps.append(agent.oms_map.copy())
+            obs, _, terminated, truncated, info = env_step(action)
+            if terminated or truncated:
+                break
+    n = len(decided)
     streamlined = ProtoObjectSaliency(
         replace(agent.params.proto, polarity_split=False),
         agent.params.height_px,
         agent.params.width_px,
     )
-    t_stream: list[float] = []
+    stream = timed(streamlined.step, acc, "stream")
     for m in oms_maps:
-        t0 = time.perf_counter()
-        streamlined.step(m)
-        t_stream.append(time.perf_counter() - t0)
+        stream(m)
     agent.close()
     env.close()
+    load = clock.load
+
+    def row(stage: str, key: str, only: list[bool] | None = None) -> LatencyRow:
+        wall, cpu = acc.wall.get(key, []), acc.cpu.get(key, [])
+        if only is not None:
+            wall = [w for w, keep in zip(wall, only, strict=True) if keep]
+            cpu = [c for c, keep in zip(cpu, only, strict=True) if keep]
+        return latency_row(stage, wall, cpu, load)
+
     rows = [
-        latency_row("sOMS (every step)", t_soms),
-        latency_row("proto-object, split (per decision)", t_proto),
-        latency_row("proto-object, streamlined (same maps)", t_stream),
-        latency_row("sAC nengo (every step)", t_ctrl),
+        row("sOMS (every step)", "soms"),
+        row("proto-object, split (per decision)", "proto"),
+        row("proto-object, streamlined (same maps)", "stream"),
+        row("sAC nengo (every step)", "control"),
         *(
-            latency_row(f"{r.part}, {which} (same inputs; max |diff| {r.max_abs_diff:.1e})", t)
+            latency_row(
+                f"{r.part}, {which} (same inputs; max |diff| {r.max_abs_diff:.1e})", t, c, load
+            )
             for r in compare_impls(record, seed=seed)
-            for which, t in (("replaced", r.old_s), ("today", r.new_s))
+            for which, t, c in (("replaced", r.old_s, r.old_cpu_s), ("today", r.new_s, r.new_cpu_s))
         ),
-        latency_row("agent act, all steps", t_act + t_decide),
-        latency_row("agent act, decision steps", t_decide),
-        latency_row("env step", t_env),
+        row("agent act, all steps", "act"),
+        row("agent act, decision steps", "act", decided),
+        row("env step", "env"),
     ]
     loop = LoopRow(
         scene=scene,
         simulated_s=n * agent.params.step_s,
-        wall_s=wall,
-        env_ms_per_step=1e3 * float(np.mean(t_env)),
-        agent_ms_per_step=1e3 * float(np.mean(t_act + t_decide)),
-        realtime_factor=n * agent.params.step_s / wall,
+        wall_s=clock.wall_s,
+        env_ms_per_step=1e3 * float(np.mean(acc.wall["env"])),
+        agent_ms_per_step=1e3 * float(np.mean(acc.wall["act"])),
+        realtime_factor=n * agent.params.step_s / clock.wall_s,
+        cpu_s=clock.cpu_s,
+        load=load,
     )
     return rows, loop
 
@@ -181,6 +210,9 @@ class ModesRow:
     keyframes_agent_ms: float
     exact_decisions: int
     keyframes_decisions: int
+    exact_cpu_ms: float = float("nan")  # env + agent, this process's CPU time a step
+    keyframes_cpu_ms: float = float("nan")
+    load: str = "–"
 
 
 def loop_modes(
@@ -208,17 +240,19 @@ def loop_modes(
                 "info": info,
                 "t_env": 0.0,
                 "t_agent": 0.0,
+                "clock": Clock(),
                 "steps": 0,
                 "decisions": 0,
             }
         step_s = loops["exact"]["agent"].params.step_s
         for _ in range(round(seconds / step_s)):
             for lp in loops.values():
-                t0 = time.perf_counter()
-                action = lp["agent"].act(lp["obs"], lp["info"])
-                t1 = time.perf_counter()
-                lp["obs"], _, _, _, lp["info"] = lp["env"].step(action)
-                t2 = time.perf_counter()
+                with lp["clock"].span():
+                    t0 = time.perf_counter()
+                    action = lp["agent"].act(lp["obs"], lp["info"])
+                    t1 = time.perf_counter()
+                    lp["obs"], _, _, _, lp["info"] = lp["env"].step(action)
+                    t2 = time.perf_counter()
                 lp["t_agent"] += t1 - t0
                 lp["t_env"] += t2 - t1
                 lp["steps"] += 1
@@ -245,6 +279,9 @@ def loop_modes(
         keyframes_agent_ms=1e3 * kf["t_agent"] / kf["steps"],
         exact_decisions=ex["decisions"],
         keyframes_decisions=kf["decisions"],
+        exact_cpu_ms=ex["clock"].ms_per(ex["steps"])[1],
+        keyframes_cpu_ms=kf["clock"].ms_per(kf["steps"])[1],
+        load=f"{ex['clock'].load_start:.2f}-{kf['clock'].load_end:.2f}",
     )
 
 
@@ -277,6 +314,8 @@ class ImplTimes:
     old_s: list[float]
     new_s: list[float]
     max_abs_diff: float
+    old_cpu_s: list[float] = field(default_factory=list)  # the process's CPU time a call
+    new_cpu_s: list[float] = field(default_factory=list)
 
 
 def _record_inputs(agent: AttentionAgent, record: dict[str, list], keep: int = 200) -> None:
@@ -308,18 +347,16 @@ def _alternate(
     out, no gradients): each call timed, and the largest difference of their outputs."""
     import torch
 
-    t_old, t_new, worst = [], [], 0.0
+    acc, worst = Timings(), 0.0
+    old, new = timed(old, acc, "old"), timed(new, acc, "new")
     with torch.no_grad():
         for x in inputs:
-            t0 = time.perf_counter()
-            a = old(x)
-            t1 = time.perf_counter()
-            b = new(x)
-            t2 = time.perf_counter()
-            t_old.append(t1 - t0)
-            t_new.append(t2 - t1)
+            a, b = old(x), new(x)
             worst = max(worst, float((a - b).abs().max()))
-    return ImplTimes(part, t_old, t_new, worst)
+    get = acc.wall.get
+    return ImplTimes(
+        part, get("old", []), get("new", []), worst, acc.cpu.get("old", []), acc.cpu.get("new", [])
+    )
 
 
 def compare_impls(record: dict[str, list], seed: int = 0) -> list[ImplTimes]:
@@ -374,18 +411,17 @@ def compare_impls(record: dict[str, list], seed: int = 0) -> list[ImplTimes]:
             k: AttentionController(replace(p.control, seed=seed, stepper=k))
             for k in ("nengo", "fused")
         }
-        t = {"nengo": [], "fused": []}
-        worst = 0.0
+        acc, worst = Timings(), 0.0
+        steps = {k: timed(c.step, acc, k) for k, c in ctrl.items()}
         try:
             for target, duration in calls:
-                u = {}
-                for k, c in ctrl.items():
-                    t0 = time.perf_counter()
-                    u[k] = c.step(target, duration)
-                    t[k].append(time.perf_counter() - t0)
+                u = {k: step(target, duration) for k, step in steps.items()}
                 worst = max(worst, float(np.abs(u["nengo"] - u["fused"]).max()))
         finally:
             for c in ctrl.values():
                 c.close()
-        rows.append(ImplTimes("sAC: nengo steps", t["nengo"], t["fused"], worst))
+        w, c = acc.wall, acc.cpu
+        rows.append(
+            ImplTimes("sAC: nengo steps", w["nengo"], w["fused"], worst, c["nengo"], c["fused"])
+        )
     return rows

@@ -7,7 +7,9 @@ first call compiles the kernels and is not timed. Each row is the median of ``re
 runs over ``n_frames`` frames at 1 kHz. Rows compared by a ratio are timed in turns,
 frame by frame (frame i through every emulator, then frame i + 1), and a row's time is
 the sum over frames of the median over the repeats: a stall of this shared machine
-falls on one sample of one row, not on its total.
+falls on one sample of one row, not on its total. Beside each frame rate (wall time),
+the rate by the process's CPU time and the load average around the row's runs
+(:mod:`experiments.bench.clock`).
 
 Input paths (:func:`bench_inputs`): the moving pattern as uint8 sRGB, as its grey
 channel (uint8) and as float32 linear luminance — the emulator's own luminance of the
@@ -35,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from experiments.bench.clock import LOAD_COLUMN, Clock
 from experiments.jobs.synthetic import drifting_texture
 from wander_env.dvs import DVSEmulator, DVSParams
 
@@ -51,25 +54,31 @@ DVS_COLUMNS: dict[str, str] = {
     "scene": "",
     "noise": "",
     "frames_per_s": ",.0f",
+    "cpu_frames_per_s": ",.0f",
     "mev_per_s": ".2f",
     "events_per_frame": ",.0f",
     "on_frame_time_pct": ".1f",
     "peak_mib": ".1f",
+    **LOAD_COLUMN,
 }
 INPUT_COLUMNS: dict[str, str] = {
     "sensor": "",
     "input": "",
     "frames_per_s": ",.0f",
+    "cpu_frames_per_s": ",.0f",
     "events": ",d",
     "time_ratio": ".2f",
+    **LOAD_COLUMN,
 }
 PEER_COLUMNS: dict[str, str] = {
     "sensor": "",
     "emulator": "",
     "frames_per_s": ",.0f",
+    "cpu_frames_per_s": ",.0f",
     "wander_speedup": ".2f",
     "events": ",d",
     "events_diff_pct": "+.2f",
+    **LOAD_COLUMN,
     "note": "",
 }
 
@@ -84,6 +93,8 @@ class DVSBenchRow:
     events_per_frame: float
     on_frame_time_pct: float  # events stamped exactly on a frame time (interpolation check)
     peak_mib: float
+    cpu_frames_per_s: float = float("nan")  # by the process's CPU time
+    load: str = "–"
 
 
 @dataclass
@@ -96,6 +107,8 @@ class InputPathRow:
     frames_per_s: float
     events: int
     time_ratio: float
+    cpu_frames_per_s: float = float("nan")  # by the process's CPU time
+    load: str = "–"
 
 
 @dataclass
@@ -111,18 +124,21 @@ class PeerRow:
     events: int | None
     events_diff_pct: float | None
     note: str
+    cpu_frames_per_s: float | None = None  # by the process's CPU time
+    load: str = "–"
 
 
-def _run(emu: DVSEmulator, frames: np.ndarray) -> tuple[float, int, int]:
-    """Seconds taken, events, and events stamped exactly on a frame time."""
+def _run(emu: DVSEmulator, frames: np.ndarray, clock: Clock | None = None) -> tuple[int, int]:
+    """Events, and events stamped exactly on a frame time; the steps timed into
+    ``clock``."""
     emu.reset(frames[0], 0)
     n = on_frame = 0
-    t = time.perf_counter()
-    for i in range(1, len(frames)):
-        ev = emu.step(frames[i], i * 1000)
-        n += len(ev)
-        on_frame += int(np.count_nonzero(ev["t"] % 1000 == 0))
-    return time.perf_counter() - t, n, on_frame
+    with (clock or Clock()).span():
+        for i in range(1, len(frames)):
+            ev = emu.step(frames[i], i * 1000)
+            n += len(ev)
+            on_frame += int(np.count_nonzero(ev["t"] % 1000 == 0))
+    return n, on_frame
 
 
 def bench_dvs(n_frames: int = 1000, repeats: int = 3, seed: int = 0) -> list[DVSBenchRow]:
@@ -135,10 +151,13 @@ def bench_dvs(n_frames: int = 1000, repeats: int = 3, seed: int = 0) -> list[DVS
             for noise, params in noises:
                 emu = DVSEmulator(w, h, params, seed=seed)
                 _run(emu, frames[:3])  # compile
-                times, count, on_frame = [], 0, 0
+                times, cpus, count, on_frame, whole = [], [], 0, 0, Clock()
                 for _ in range(repeats):
-                    dt, count, on_frame = _run(emu, frames)
-                    times.append(dt)
+                    clock = Clock()
+                    count, on_frame = _run(emu, frames, clock)
+                    whole.add(clock.wall_s, clock.cpu_s)
+                    times.append(clock.wall_s)
+                    cpus.append(clock.cpu_s)
                 dt = statistics.median(times)
                 # Peak memory from a separate run: tracing allocations slows them down.
                 tracemalloc.start()
@@ -155,6 +174,8 @@ def bench_dvs(n_frames: int = 1000, repeats: int = 3, seed: int = 0) -> list[DVS
                         events_per_frame=count / n_frames,
                         on_frame_time_pct=100 * on_frame / max(count, 1),
                         peak_mib=peak,
+                        cpu_frames_per_s=n_frames / max(statistics.median(cpus), 1e-12),
+                        load=whole.load,
                     )
                 )
     return rows
@@ -185,22 +206,31 @@ def _wander_stepper(emu: DVSEmulator, frames: np.ndarray) -> Stepper:
 
 
 def _interleaved(steppers: dict[str, Stepper], n_frames: int, repeats: int):
-    """Seconds per run of ``n_frames`` frames and the events of each stepper, timed frame
-    by frame in turns (frame i of every stepper, then frame i + 1): a run's time is the
-    sum over frames of the median over ``repeats`` of that frame's time, so a stall of
-    the machine lands on one sample of one stepper, not on its total."""
+    """Seconds per run of ``n_frames`` frames (wall, and the process's CPU), the events
+    of each stepper and the load average around the runs, timed frame by frame in turns
+    (frame i of every stepper, then frame i + 1): a run's time is the sum over frames of
+    the median over ``repeats`` of that frame's time, so a stall of the machine lands on
+    one sample of one stepper, not on its total."""
     times = {k: np.empty((repeats, n_frames)) for k in steppers}
+    cpus = {k: np.empty((repeats, n_frames)) for k in steppers}
     events: dict[str, int] = {}
+    whole = Clock()
     for r in range(repeats):
         steps = {k: start() for k, start in steppers.items()}
         counts = dict.fromkeys(steppers, 0)
         for i in range(1, n_frames + 1):
             for k, step in steps.items():
-                t = time.perf_counter()
+                t, c = time.perf_counter(), time.process_time()
                 counts[k] += step(i)
                 times[k][r, i - 1] = time.perf_counter() - t
+                cpus[k][r, i - 1] = time.process_time() - c
+                whole.add(times[k][r, i - 1], cpus[k][r, i - 1])
         events = counts
-    return {k: float(np.median(v, axis=0).sum()) for k, v in times.items()}, events
+
+    def total(v: dict[str, np.ndarray]) -> dict[str, float]:
+        return {k: float(np.median(a, axis=0).sum()) for k, a in v.items()}
+
+    return total(times), total(cpus), events, whole.load
 
 
 def bench_inputs(n_frames: int = 1000, repeats: int = 3, seed: int = 0) -> list[InputPathRow]:
@@ -217,7 +247,7 @@ def bench_inputs(n_frames: int = 1000, repeats: int = 3, seed: int = 0) -> list[
             k: _wander_stepper(DVSEmulator(w, h, DVSParams(), seed=seed), f)
             for k, f in inputs.items()
         }
-        med, events = _interleaved(steppers, n_frames, repeats)
+        med, cpu, events, load = _interleaved(steppers, n_frames, repeats)
         for k in inputs:
             rows.append(
                 InputPathRow(
@@ -226,6 +256,8 @@ def bench_inputs(n_frames: int = 1000, repeats: int = 3, seed: int = 0) -> list[
                     frames_per_s=n_frames / med[k],
                     events=events[k],
                     time_ratio=med[k] / med["float32 linear"],
+                    cpu_frames_per_s=n_frames / max(cpu[k], 1e-12),
+                    load=load,
                 )
             )
     return rows
@@ -326,7 +358,7 @@ def bench_peers(n_frames: int = 1000, repeats: int = 3, seed: int = 0) -> list[P
                     notes[name] = _version(name)
                 except ImportError as e:
                     notes[name] = f"not installed ({e})"
-            med, events = _interleaved(runs, n_frames, repeats)
+            med, cpu, events, load = _interleaved(runs, n_frames, repeats)
             base_t, base_n = med["wander"], events["wander"]
             for name in PEERS:
                 if name not in runs:
@@ -341,6 +373,8 @@ def bench_peers(n_frames: int = 1000, repeats: int = 3, seed: int = 0) -> list[P
                         events=events[name],
                         events_diff_pct=100.0 * (events[name] - base_n) / max(base_n, 1),
                         note=notes[name],
+                        cpu_frames_per_s=n_frames / max(cpu[name], 1e-12),
+                        load=load,
                     )
                 )
         return rows

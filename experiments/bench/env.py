@@ -2,9 +2,15 @@
 
 Run it as ``wander bench env``. The camera holds still while the scene's objects
 move (zero actions), at 1 kHz rendering; one row per DVS preset and number of
-environments (1 in-process; 2 and 4 as ``AsyncVectorEnv`` worker processes), with both
-frame modes (``exact`` and ``keyframes``) side by side and their step-time ratio.
+environments (1 in-process; 2 and 4 as ``AsyncVectorEnv`` worker processes), with the
+frame modes (``exact``, ``keyframes`` at a fixed interval, ``adaptive``: the env's
+default keys) stepped in turns and their step-time ratio, then the adaptive env stepped
+alone (the same steps again from its reset): in turns, each env's caches and the CPU's
+are shared with the others, which costs it time that the alone column does not pay.
 The real-time factor of a vector row counts the simulated time of all its envs.
+Beside each wall time, the process's CPU time of the same steps (NaN in a vector row:
+its workers' time is not this process's) and the load average around the row
+(:mod:`experiments.bench.clock`).
 
 :func:`step_breakdown` splits one env's step into its parts (renders, DVS,
 segmentation, posing the model, the rest) by timing those calls in place.
@@ -12,8 +18,6 @@ segmentation, posing the model, the rest) by timing those calls in place.
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -21,6 +25,7 @@ import gymnasium as gym
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
+from experiments.bench.clock import LOAD_COLUMN, Clock, Timings, timed
 
 # The columns of `wander bench env`'s tables (row field -> format spec).
 BREAKDOWN_COLUMNS: dict[str, str] = {
@@ -28,6 +33,7 @@ BREAKDOWN_COLUMNS: dict[str, str] = {
     "frames": "",
     "antialias_samples": "d",
     "ms_per_step": ".2f",
+    "cpu_ms_per_step": ".2f",
     "renders_per_step": ".1f",
     "ms_per_render": ".2f",
     "render_ms": ".2f",
@@ -36,25 +42,44 @@ BREAKDOWN_COLUMNS: dict[str, str] = {
     "segment_ms": ".2f",
     "pose_ms": ".2f",
     "other_ms": ".2f",
+    **LOAD_COLUMN,
 }
+# `wander bench env`'s rows as three tables: real-time factors, times, counts.
 ENV_COLUMNS: dict[str, str] = {
+    "dvs": "",
+    "envs": "d",
+    "exact_rtf": ".2f",
+    "keyframes_rtf": ".2f",
+    "adaptive_rtf": ".2f",
+    "adaptive_alone_rtf": ".2f",
+    "speedup": ".2f",
+    "adaptive_speedup": ".2f",
+    **LOAD_COLUMN,
+}
+ENV_TIME_COLUMNS: dict[str, str] = {
+    "dvs": "",
+    "envs": "d",
+    "exact_ms_per_step": ".1f",
+    "exact_cpu_ms_per_step": ".1f",
+    "keyframes_ms_per_step": ".1f",
+    "keyframes_cpu_ms_per_step": ".1f",
+    "adaptive_ms_per_step": ".1f",
+    "adaptive_cpu_ms_per_step": ".1f",
+    "adaptive_alone_ms_per_step": ".1f",
+    "adaptive_alone_cpu_ms_per_step": ".1f",
+    **LOAD_COLUMN,
+}
+ENV_COUNT_COLUMNS: dict[str, str] = {
     "dvs": "",
     "envs": "d",
     "ground_truth": "",
     "keyframe_ms": "g",
-    "exact_rtf": ".2f",
-    "keyframes_rtf": ".2f",
-    "adaptive_rtf": ".2f",
-    "speedup": ".2f",
-    "adaptive_speedup": ".2f",
-    "exact_ms_per_step": ".1f",
-    "keyframes_ms_per_step": ".1f",
-    "adaptive_ms_per_step": ".1f",
     "exact_renders_per_step": ".1f",
     "keyframes_renders_per_step": ".1f",
     "adaptive_renders_per_step": ".1f",
     "events_diff_pct": "+.2f",
     "adaptive_events_diff_pct": "+.2f",
+    "adaptive_alone_events_diff_pct": "+.2f",
 }
 
 
@@ -84,6 +109,16 @@ class EnvBenchRow:
     exact_renders_per_step: float = float("nan")  # RGB renders (frames drawn)
     keyframes_renders_per_step: float = float("nan")
     adaptive_renders_per_step: float = float("nan")
+    # CPU time of this process for the same steps (NaN for a vector env: its workers').
+    exact_cpu_ms_per_step: float = float("nan")
+    keyframes_cpu_ms_per_step: float = float("nan")
+    adaptive_cpu_ms_per_step: float = float("nan")
+    # The adaptive env stepped alone (the same steps again from its reset).
+    adaptive_alone_rtf: float = float("nan")
+    adaptive_alone_ms_per_step: float = float("nan")
+    adaptive_alone_cpu_ms_per_step: float = float("nan")
+    adaptive_alone_events_diff_pct: float = float("nan")  # against its events in turns
+    load: str = "–"  # 1-minute load average at the row's start and end
 
 
 def _make(
@@ -115,7 +150,8 @@ def bench_env(
     The frame modes (exact, keyframes every ``keyframe_ms``, adaptive keys bounded by
     ``keyframe_px``) run in one process at once, stepped in turn (one step of each, the
     order rotated every step), so that a noisy machine slows all alike; each step is
-    timed.
+    timed (wall and CPU). Then the adaptive env is reset and stepped alone through the
+    same steps.
     """
     from wander_env.env_config import WanderConfig
 
@@ -137,7 +173,8 @@ def bench_env(
             period = 0.01
             steps = round(seconds / period)
             action = np.zeros((n, 2) if n > 1 else 2, np.float32)
-            wall = dict.fromkeys(modes, 0.0)
+            clocks = {m: Clock() for m in modes}
+            row_clock = Clock()
             frames = dict.fromkeys(modes, 0)
             renders = dict.fromkeys(modes, 0)
             events = dict.fromkeys(modes, 0)
@@ -149,21 +186,28 @@ def bench_env(
                 for k in range(steps):  # each step in a rotated order: none always first
                     j = k % len(order)
                     for mode, env in order[j:] + order[:j]:
-                        t0 = time.perf_counter()
-                        obs, _, _, _, info = env.step(action)
-                        wall[mode] += time.perf_counter() - t0
+                        with clocks[mode].span(), row_clock.span():
+                            obs, _, _, _, info = env.step(action)
                         events[mode] += int(obs["events"].sum())
                         frames[mode] += int(np.sum(info["frames"]))
                         renders[mode] += _renders(env)
+                alone, alone_events = Clock(), 0
+                env = envs["adaptive"]
+                env.reset(seed=seed)
+                env.step(action)  # as in turns: the warm-up step first
+                for _ in range(steps):
+                    with alone.span(), row_clock.span():
+                        obs = env.step(action)[0]
+                    alone_events += int(obs["events"].sum())
             finally:
                 for env in envs.values():
                     env.close()
+            wall = {m: c.wall_s for m, c in clocks.items()}
             ms = {m: 1e3 * wall[m] / steps for m in modes}
+            cpu = {m: c.ms_per(steps)[1] if n == 1 else float("nan") for m, c in clocks.items()}
 
-            def diff_pct(mode: str, events=events) -> float:
-                if not events["exact"]:
-                    return float("nan")
-                return 100.0 * (events[mode] / events["exact"] - 1.0)
+            def diff_pct(n: int, base: int) -> float:
+                return 100.0 * (n / base - 1.0) if base else float("nan")
 
             rows.append(
                 EnvBenchRow(
@@ -179,15 +223,25 @@ def bench_env(
                     keyframes_ms_per_step=ms["keyframes"],
                     exact_frames_per_step=frames["exact"] / (n * steps),
                     keyframes_frames_per_step=frames["keyframes"] / (n * steps),
-                    events_diff_pct=diff_pct("keyframes"),
+                    events_diff_pct=diff_pct(events["keyframes"], events["exact"]),
                     keyframe_px=keyframe_px,
                     adaptive_rtf=n * steps * period / wall["adaptive"],
                     adaptive_speedup=ms["exact"] / ms["adaptive"],
                     adaptive_ms_per_step=ms["adaptive"],
-                    adaptive_events_diff_pct=diff_pct("adaptive"),
+                    adaptive_events_diff_pct=diff_pct(events["adaptive"], events["exact"]),
                     exact_renders_per_step=renders["exact"] / (n * steps),
                     keyframes_renders_per_step=renders["keyframes"] / (n * steps),
                     adaptive_renders_per_step=renders["adaptive"] / (n * steps),
+                    exact_cpu_ms_per_step=cpu["exact"],
+                    keyframes_cpu_ms_per_step=cpu["keyframes"],
+                    adaptive_cpu_ms_per_step=cpu["adaptive"],
+                    adaptive_alone_rtf=n * steps * period / alone.wall_s,
+                    adaptive_alone_ms_per_step=alone.ms_per(steps)[0],
+                    adaptive_alone_cpu_ms_per_step=alone.ms_per(steps)[1]
+                    if n == 1
+                    else float("nan"),
+                    adaptive_alone_events_diff_pct=diff_pct(alone_events, events["adaptive"]),
+                    load=row_clock.load,
                 )
             )
     return rows
@@ -209,27 +263,16 @@ class StepBreakdown:
     frames: str
     antialias_samples: int
     ms_per_step: float
+    cpu_ms_per_step: float  # the process's CPU time a step
     renders_per_step: float
     ms_per_render: float
     render_ms: float  # RGB frames: render ticks and sub-frames (exact), keyframes
     synth_ms: float  # in-between frames made from the keys (keyframes mode)
     dvs_ms: float  # frame -> log input, change check, emulator step
-    segment_ms: float  # segmentation (ground truth) and keys' layers + depth
+    segment_ms: float  # ground truth's masks and keys' layers + depth (drawn or ray cast)
     pose_ms: float  # PTU angles and objects into the model, kinematics
     other_ms: float  # the rest: PTU model, events to counts, info
-
-
-def timed(fn: Callable[..., Any], acc: dict[str, list[float]], key: str) -> Callable[..., Any]:
-    """``fn`` wrapped so that each call's duration (s) is appended to ``acc[key]``."""
-
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        t = time.perf_counter()
-        try:
-            return fn(*args, **kwargs)
-        finally:
-            acc[key].append(time.perf_counter() - t)
-
-    return wrapper
+    load: str  # 1-minute load average at the start and end of the timed steps
 
 
 def step_breakdown(
@@ -250,11 +293,14 @@ def step_breakdown(
     env = _make(scene, dvs, True, antialias_samples, **kw)()
     u = env.unwrapped
     keys = ("render", "dvs", "segment", "pose", "synth")
-    acc: dict[str, list[float]] = {k: [] for k in keys}
+    acc = Timings()
     stage, renderer = u.stage, u.stage.renderer
     renderer.render = timed(renderer.render, acc, "render")
     renderer.segment = timed(renderer.segment, acc, "segment")
     renderer.segment_depth_current = timed(renderer.segment_depth_current, acc, "segment")
+    if stage.caster is not None:  # ray-cast masks and key geometry (wander_env.frames.raycast)
+        stage.caster.object_mask = timed(stage.caster.object_mask, acc, "segment")
+        stage.caster.geometry = timed(stage.caster.geometry, acc, "segment")
     if hasattr(u.source, "synthesize"):  # in-between frames (keyframes)
         u.source.synthesize = timed(u.source.synthesize, acc, "synth")
     for name in ("prepare", "log_change", "step"):
@@ -264,15 +310,16 @@ def step_breakdown(
     env.reset(seed=seed)
     action = np.zeros(2, np.float32)
     env.step(action)  # warm-up
-    for v in acc.values():
-        v.clear()
+    acc.clear()
     steps = round(seconds / u.config.control_period_s)
-    t0 = time.perf_counter()
+    clock = Clock()
     for _ in range(steps):
-        env.step(action)
-    wall = time.perf_counter() - t0
+        with clock.span():
+            env.step(action)
+    wall = clock.wall_s
     env.close()
-    ms = {k: 1e3 * sum(v) / steps for k, v in acc.items()}
+    ms = {k: 1e3 * sum(acc.wall.get(k, [])) / steps for k in keys}
+    n_renders = len(acc.wall.get("render", []))
     synth = ms["synth"]
     parts = ms["render"] + synth + ms["dvs"] + ms["segment"] + ms["pose"]
     return StepBreakdown(
@@ -281,12 +328,14 @@ def step_breakdown(
         frames="adaptive" if frames == "keyframes" and keyframe_px is not None else frames,
         antialias_samples=u.scene.camera.antialias_samples,
         ms_per_step=1e3 * wall / steps,
-        renders_per_step=len(acc["render"]) / steps,
-        ms_per_render=1e3 * sum(acc["render"]) / max(len(acc["render"]), 1),
+        cpu_ms_per_step=clock.ms_per(steps)[1],
+        renders_per_step=n_renders / steps,
+        ms_per_render=1e3 * sum(acc.wall.get("render", [])) / max(n_renders, 1),
         render_ms=ms["render"],
         synth_ms=synth,
         dvs_ms=ms["dvs"],
         segment_ms=ms["segment"],
         pose_ms=ms["pose"],
         other_ms=1e3 * wall / steps - parts,
+        load=clock.load,
     )

@@ -5,7 +5,8 @@ cost instead (a measurement for the panorama route of the speed work).
 Run it as ``wander bench floor``. Each part is timed in place on the env's own renderer
 (the office key, the model posed at a new time and angles before each render, so that
 nothing is reused between renders), each row the median of ``repeats`` runs of
-``calls`` calls. The warps: an equirectangular panorama sampled through
+``calls`` calls, wall time and the process's CPU time, with the load average around the
+row's runs (:mod:`experiments.bench.clock`). The warps: an equirectangular panorama sampled through
 OpenCV's ``remap`` (maps given, or computed from the rotation with NumPy), and a cube map
 sampled along each pixel's rotated rays by the kernel the ``panorama`` frame source uses
 (:func:`wander_env.frames.cube.cube_warp`) (one bilinear sample, or
@@ -16,33 +17,45 @@ the sensor's resolution).
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
+from experiments.bench.clock import LOAD_COLUMN, Clock
 from wander_env.frames.cube import FACE_ROTATIONS, cube_warp
 
-FLOOR_COLUMNS: dict[str, str] = {"part": "", "ms_median": ".3f", "ms_best": ".3f", "note": ""}
+FLOOR_COLUMNS: dict[str, str] = {
+    "part": "",
+    "ms_median": ".3f",
+    "ms_best": ".3f",
+    "cpu_ms_median": ".3f",
+    **LOAD_COLUMN,
+    "note": "",
+}
 BOUND_COLUMNS: dict[str, str] = {
     "step": "",
     "colour_renders": "g",
     "geometry_draws": "g",
     "gl_ms": ".2f",
+    "gl_cpu_ms": ".2f",
     "rtf_bound": ".2f",
+    **LOAD_COLUMN,
 }
 
 
 @dataclass(frozen=True)
 class FloorRow:
-    """One part: median and best of the runs, ms per call."""
+    """One part: median and best of the runs' wall time and the median of their CPU
+    time, ms per call; the load average around the runs."""
 
     part: str
     ms_median: float
     ms_best: float
     note: str = ""
+    cpu_ms_median: float = float("nan")
+    load: str = "–"
 
 
 @dataclass(frozen=True)
@@ -54,18 +67,25 @@ class BoundRow:
     geometry_draws: float
     gl_ms: float
     rtf_bound: float  # control period / GL ms: the RTF if everything else took no time
+    gl_cpu_ms: float = float("nan")  # the same from the parts' CPU times
+    load: str = "–"  # around the whole measurement
 
 
-def _time(fn: Callable[[int], object], calls: int, repeats: int) -> tuple[float, float]:
-    """(median, best) ms per call of ``fn(i)`` over ``repeats`` runs of ``calls`` calls."""
+def _time(fn: Callable[[int], object], calls: int, repeats: int) -> tuple[float, float, float, str]:
+    """(median, best wall, median CPU) ms per call of ``fn(i)`` over ``repeats`` runs of
+    ``calls`` calls, and the load average around them."""
     fn(0)  # warm-up (compilation, first use)
-    runs = []
+    runs, cpus = [], []
+    whole = Clock()
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        for i in range(calls):
-            fn(i)
-        runs.append(1e3 * (time.perf_counter() - t0) / calls)
-    return float(np.median(runs)), float(min(runs))
+        clock = Clock()
+        with clock.span(), whole.span():
+            for i in range(calls):
+                fn(i)
+        wall, cpu = clock.ms_per(calls)
+        runs.append(wall)
+        cpus.append(cpu)
+    return float(np.median(runs)), float(min(runs)), float(np.median(cpus)), whole.load
 
 
 def _pan(deg: float) -> np.ndarray:
@@ -86,6 +106,8 @@ def render_floor(
 
     env = gym.make("wander/Wander-v0", scene=scene)
     rows: list[FloorRow] = []
+    cpu_of: dict[str, float] = {}
+    whole = Clock()
     try:
         env.reset(seed=seed)
         u = env.unwrapped
@@ -99,20 +121,26 @@ def render_floor(
             stage.pose(t0 + 1000 * (i % 97 + 1), pan + 0.01 * (i % 13), tilt)
 
         def add(part: str, fn: Callable[[int], object], note: str = "") -> float:
-            med, best = _time(fn, calls, repeats)
-            rows.append(FloorRow(part, med, best, note))
+            with whole.span():
+                med, best, cpu, load = _time(fn, calls, repeats)
+            rows.append(FloorRow(part, med, best, note, cpu, load))
+            cpu_of[part] = cpu
             return med
 
-        colour = add(
-            f"colour key: pose, scene update, draw, read (MSAA {samples})",
-            lambda i: (pose(i), stage.render()),
-            "llvmpipe",
-        )
-        geometry = add(
-            "key geometry: layer ids + depth, one single-sample draw",
-            lambda i: (pose(i), stage.geometry()),
-            "llvmpipe",
-        )
+        colour_part = f"colour key: pose, scene update, draw, read (MSAA {samples})"
+        colour = add(colour_part, lambda i: (pose(i), stage.render()), "llvmpipe")
+        geometry_part = "key geometry: layer ids + depth, one single-sample draw"
+        caster, stage.caster = stage.caster, None  # GL draws it for this row
+        try:
+            geometry = add(geometry_part, lambda i: (pose(i), stage.geometry()), "llvmpipe")
+        finally:
+            stage.caster = caster
+        if caster is not None:
+            add(
+                "key geometry by ray casting (wander_env.frames.raycast)",
+                lambda i: (pose(i), caster.layers_depth(stage.data)),
+                "numba, primitives",
+            )
         ngeom = r._scene.ngeom
 
         def empty(i: int) -> None:
@@ -204,5 +232,6 @@ def render_floor(
     bounds = []
     for name, n_colour, n_geom in steps:
         gl = n_colour * colour + n_geom * geometry
-        bounds.append(BoundRow(name, n_colour, n_geom, gl, period_ms / gl))
+        gl_cpu = n_colour * cpu_of[colour_part] + n_geom * cpu_of[geometry_part]
+        bounds.append(BoundRow(name, n_colour, n_geom, gl, period_ms / gl, gl_cpu, whole.load))
     return rows, bounds

@@ -78,7 +78,13 @@ def bench_env(
 ) -> None:
     """Real-time factor of the environment: exact, keyframe and adaptive-keyframe frames
     side by side."""
-    from experiments.bench.env import BREAKDOWN_COLUMNS, ENV_COLUMNS, step_breakdown
+    from experiments.bench.env import (
+        BREAKDOWN_COLUMNS,
+        ENV_COLUMNS,
+        ENV_COUNT_COLUMNS,
+        ENV_TIME_COLUMNS,
+        step_breakdown,
+    )
     from experiments.bench.env import bench_env as run
 
     km = keyframe_ms  # None: the env's
@@ -97,12 +103,28 @@ def bench_env(
             BREAKDOWN_COLUMNS,
         )
     rows = run(ground_truth=ground_truth, env_counts=counts, keyframe_px=keyframe_px, **common)
+    modes = (
+        f"exact, keyframe and adaptive-keyframe frames ({keyframe_px:g} px) stepped in turn, "
+        "then the adaptive env (the default keys) stepped alone through the same steps"
+    )
     print_table(
-        f"Environment, scene '{scene}': exact, keyframe and adaptive-keyframe frames "
-        f"({keyframe_px:g} px), stepped in turn (real-time factor = simulated s / wall s; "
-        "speedup = exact / keyframes step time)",
+        f"Environment, scene '{scene}': {modes} (real-time factor = simulated s / wall s; "
+        "speedup = exact / keyframes step time; load: the 1-minute load average at "
+        "start-end)",
         rows,
         ENV_COLUMNS,
+    )
+    print_table(
+        "The same steps' wall and CPU time (ms per step; cpu: this process's, NaN with "
+        "worker processes)",
+        rows,
+        ENV_TIME_COLUMNS,
+    )
+    print_table(
+        "The same steps' renders and events (diff: keyframes and adaptive against exact; "
+        "alone against in turn)",
+        rows,
+        ENV_COUNT_COLUMNS,
     )
 
 

@@ -10,7 +10,9 @@ one PTU trajectory per step.
   :mod:`~wander_env.frames.panorama` (a cube map of the static world, a keyframe source
   for the moving objects);
 - their maths: :mod:`~wander_env.frames.keyframe_maths` (in-between frames from two keys
-  and the scene's geometry) and :mod:`~wander_env.frames.cube` (the cube map);
+  and the scene's geometry), :mod:`~wander_env.frames.cube` (the cube map) and
+  :mod:`~wander_env.frames.raycast` (masks and key geometry by ray casting where the
+  moving objects are primitives);
 - :mod:`~wander_env.frames.registry`: the modes by name (``WanderConfig.frames``), with
   nothing heavy imported: a new mode is one more source module and one registry entry.
 

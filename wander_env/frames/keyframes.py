@@ -185,7 +185,7 @@ class KeyframeFrames(FrameSource):
 
     def object_mask(self, t_us: int) -> np.ndarray:
         key = self._key_at.get(t_us)
-        if key is None:
-            return super().object_mask(t_us)
+        if key is None or (key.full is None and self.stage.casts("ground_truth")):
+            return super().object_mask(t_us)  # ray cast (a key's layers made: those)
         layers = self.keyframe(key).layers
         return np.where(layers <= self.stage.scene.num_objects, layers, 0).astype(np.int32)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import os
+from typing import Literal
 
 import mujoco
 import numpy as np
@@ -23,6 +24,7 @@ import numpy as np
 from wander_env.camera import CAMERA_NAME, intrinsics, rotation_from_mujoco
 from wander_env.entities import PAN_JOINT, TILT_JOINT
 from wander_env.frames.keyframe_maths import View
+from wander_env.frames.raycast import PrimitiveCaster, RaycastParams, unsupported_geoms
 from wander_env.gl_fork import ForkedGLError, fork_error_message
 from wander_env.mjcf import SceneAnimator, geom_layer_ids, geom_layer_radii
 from wander_env.renderer import CameraRenderer, RenderParams
@@ -35,9 +37,18 @@ Angles = tuple[float, float]  # camera (pan, tilt) in degrees
 
 class Stage:
     """A scene's model and data, its animator (set at each reset) and the camera's
-    renderer: the world posed at a time and camera angles, and what the camera sees."""
+    renderer: the world posed at a time and camera angles, and what the camera sees.
+    Where every moving object is a primitive, :attr:`caster`
+    (:mod:`wander_env.frames.raycast`) draws the object masks and the keys' layers and
+    depth without a GL pass."""
 
-    def __init__(self, model: mujoco.MjModel, scene: SceneConfig, params: RenderParams) -> None:
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        scene: SceneConfig,
+        params: RenderParams,
+        raycast: RaycastParams | None = None,
+    ) -> None:
         self.model, self.scene, self.params = model, scene, params
         self.data = mujoco.MjData(model)
         self.width, self.height = scene.camera.width, scene.camera.height
@@ -52,6 +63,15 @@ class Stage:
         self._posed: tuple[int, float, float] | None = None  # (t_us, pan, tilt) of the data
         self._renders = 0
         self._geometry_draws = 0
+        # Ray casting: masks and key geometry without a GL pass where every moving geom is
+        # a primitive; None: GL draws them.
+        rc = raycast or RaycastParams()
+        self.caster: PrimitiveCaster | None = None
+        if (rc.ground_truth or rc.key_layers) and not unsupported_geoms(model):
+            self.caster = PrimitiveCaster(
+                model, self.width, self.height, rc, params.visible_geom_groups
+            )
+        self._cast_for: SceneAnimator | None = None  # the reset the caster's cube is of
 
     # -- the env's verbs --------------------------------------------------------------------
     def begin_episode(self, animator: SceneAnimator) -> None:
@@ -151,18 +171,40 @@ class Stage:
         self._renders += 1
         return self.renderer.render(self.data)
 
+    def casts(self, what: Literal["ground_truth", "key_layers"]) -> bool:
+        """Whether ray casting (:attr:`caster`) draws the object masks (``ground_truth``)
+        or the keys' layers and depth (``key_layers``: the camera on its hinge only)."""
+        c = self.caster
+        if c is None or not getattr(c.params, what):
+            return False
+        return what == "ground_truth" or c.exact_depth
+
+    def _ready_caster(self) -> PrimitiveCaster:
+        """The caster, its static cube dropped at each reset (a new animator)."""
+        if self._cast_for is not self._animator:
+            self.caster.reset()
+            self._cast_for = self._animator
+        return self.caster
+
     def geometry(self) -> tuple[np.ndarray, np.ndarray]:
-        """(motion layers int32, depth m) of the posed model, from one draw."""
+        """(motion layers int32, depth m) of the posed model, from one draw (or ray cast:
+        not counted in :attr:`geometry_draws`)."""
+        if self.casts("key_layers"):
+            return self._ready_caster().geometry(self.data)
         self._geometry_draws += 1
         self.renderer.update(self.data)
         return self.renderer.segment_depth_current(self.layer_lut)
 
     def object_mask(self) -> np.ndarray:
         """Object ids (H, W) int32 of the posed model (0 = background)."""
+        if self.casts("ground_truth"):
+            return self._ready_caster().object_mask(self.data)
         return self.renderer.segment(self.data)
 
     def close(self) -> None:
         # Freeing is safe in a forked child too (only creating and drawing hang there).
+        if self.caster is not None:
+            self.caster.close()
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
