@@ -53,7 +53,7 @@ Examples:
     >>> path = f"{tmp.name}/two.npz"
     >>> ev = make_events(x=[1, 2], y=[3, 4], t=[0, 15_000], p=[1, 0])
     >>> write_events(path, EventRecording(ev, (128, 128, 2)))
-    >>> env = gymnasium.make("wander/Rig-v0", ptu="emulate", camera=f"replay:{path}",
+    >>> env = gymnasium.make("wander/Rig-v0", ptu_port="emulate", camera=f"replay:{path}",
     ...                      replay="fast", driver=FlirPTUParams(banner_quiet_s=0.02))
     >>> obs, info = env.reset()
     >>> obs, reward, terminated, truncated, info = env.step(np.zeros(2, np.float32))
@@ -96,22 +96,24 @@ _REPLAY_MODES = ("realtime", "fast")
 class RigConfig(FieldsMapping):
     """What a :class:`RigEnv` opens and how it runs.
 
-    ``ptu``: a pyserial URL of the FLIR PTU (``"/dev/ttyUSB0"``, ``"socket://host:4000"``)
-    or ``"emulate"`` (a :class:`~hardware.ptu_emulator.PTUEmulator` with ``emulator``
-    parameters); ``camera``: ``"speck"`` (``"speck:<serial>"`` for one board) or
-    ``"replay:<event file>"``; ``replay``: ``"realtime"`` (paced by the wall clock) or
-    ``"fast"`` (windows advance in stream time); ``replay_loop`` repeats the file.
+    ``ptu_port``: a pyserial URL of the FLIR PTU (``"/dev/ttyUSB0"``,
+    ``"socket://host:4000"``) or ``"emulate"`` (a :class:`~hardware.ptu_emulator.PTUEmulator`
+    with ``emulator`` parameters, its unit's ``emulator.ptu``: ``ptu`` is a
+    :class:`~wander_env.ptu.params.PTUParams` block in every config); ``camera``:
+    ``"speck"`` (``"speck:<serial>"`` for one board) or ``"replay:<event file>"``;
+    ``replay``: ``"realtime"`` (paced by the wall clock) or ``"fast"`` (windows advance
+    in stream time); ``replay_loop`` repeats the file.
     ``control_period_s``: the step window; ``episode_seconds``: truncation;
     ``start_gaze_deg``: where :meth:`RigEnv.reset` points the PTU (``None``: leave it);
     ``hfov_deg``: the lens's horizontal field of view (not queryable; Speck's by
     default); ``ptu_poll_s``: position polling period; ``driver``, ``emulator``,
     ``speck``: the parameters of those parts.
 
-    >>> RigConfig(ptu="emulate", camera="replay:walk.npz").control_period_us
+    >>> RigConfig(ptu_port="emulate", camera="replay:walk.npz").control_period_us
     10000
     """
 
-    ptu: str = ""
+    ptu_port: str = ""
     camera: str = ""
     replay: str = "realtime"
     replay_loop: bool = False
@@ -125,10 +127,10 @@ class RigConfig(FieldsMapping):
     speck: SpeckParams = field(default_factory=SpeckParams)
 
     def __post_init__(self) -> None:
-        if not isinstance(self.ptu, str) or not self.ptu.strip():
+        if not isinstance(self.ptu_port, str) or not self.ptu_port.strip():
             raise ValueError(
-                "RigConfig.ptu is required: the PTU's serial URL ('/dev/ttyUSB0', "
-                f"'socket://host:4000') or 'emulate'; got {self.ptu!r}"
+                "RigConfig.ptu_port is required: the PTU's serial URL ('/dev/ttyUSB0', "
+                f"'socket://host:4000') or 'emulate'; got {self.ptu_port!r}"
             )
         self.camera_kind()  # raises for a malformed camera
         if self.replay not in _REPLAY_MODES:
@@ -161,7 +163,7 @@ class RigConfig(FieldsMapping):
     def camera_kind(self) -> tuple[str, str]:
         """``("speck", serial or "")`` or ``("replay", path)``, from ``camera``.
 
-        >>> RigConfig(ptu="emulate", camera="speck:sf-1").camera_kind()
+        >>> RigConfig(ptu_port="emulate", camera="speck:sf-1").camera_kind()
         ('speck', 'sf-1')
         """
         kind, _, arg = str(self.camera).partition(":")
@@ -375,7 +377,7 @@ class RigEnv(CameraEnv):
     def _open(self) -> None:
         """PTU first (a camera stream should not run while the PTU is found faulty)."""
         c = self.config
-        url = c.ptu
+        url = c.ptu_port
         if url == "emulate":
             self.emulator = PTUEmulator(c.emulator)
             url = self.emulator.port

@@ -136,7 +136,7 @@ def test_simulated_latency_matches_the_rig_env_on_the_emulator_at_9600_baud(tmp_
     emulator = PTUEmulatorParams(banner="", baudrate=9600)
     env = gym.make(
         "wander/Rig-v0",
-        ptu="emulate",
+        ptu_port="emulate",
         camera=f"replay:{path}",
         replay="realtime",
         emulator=emulator,
