@@ -254,13 +254,30 @@ class CommandLink:
         self._reply: int | None = None
         self._next = self.schedule.due_s()
 
-    # The schedule's state, as the rig reports it.
-    latency_s = property(lambda self: self.schedule.latency_s)
-    latencies_s = property(lambda self: self.schedule.latencies_s)
-    counts = property(lambda self: self.schedule.counts)
-    acked = property(lambda self: self.schedule.acked)
-    positions = property(lambda self: self.schedule.positions)
-    poll_target = property(lambda self: self.schedule.poll_target)
+    @property
+    def latency_s(self) -> float:
+        """The latest acknowledged command's latency (NaN before the first)."""
+        return self.schedule.latency_s
+
+    @property
+    def latencies_s(self) -> list[float]:
+        """Every acknowledged command's latency, in order."""
+        return self.schedule.latencies_s
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """Commands sent and replaced, polls (as the rig's ``stats``)."""
+        return self.schedule.counts
+
+    @property
+    def positions(self) -> Target:
+        """The last poll's answer."""
+        return self.schedule.positions
+
+    @property
+    def poll_target(self) -> Target:
+        """The acknowledged target when the last poll began."""
+        return self.schedule.poll_target
 
     def copy(self) -> CommandLink:
         """An independent link in the same state."""
