@@ -280,7 +280,7 @@ class PTULinkThread:
         """Discard any queued target and halt (``H``) from the calling thread; the result
         is kept in ``halt_result`` (for ``metrics.json``)."""
         with self._cond:
-            self.schedule.want = None
+            self.schedule.discard()
         result = self._halt()
         with self._cond:
             self.halt_result = result

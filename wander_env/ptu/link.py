@@ -174,6 +174,10 @@ class LinkSchedule:
             self.counts["commands_replaced"] += 1
         self.want, self.want_at = (int(target[0]), int(target[1])), t_s
 
+    def discard(self) -> None:
+        """Drop the target that waits, unsent (a halt)."""
+        self.want = None
+
     def due_s(self) -> float:
         """When the next exchange begins: at once for a waiting target, else the next poll
         (never while an exchange is on the line)."""
