@@ -37,12 +37,15 @@ Examples:
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import fcntl
 import hashlib
 import importlib
 import io
 import json
 import math
+import os
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
@@ -51,8 +54,9 @@ from typing import Annotated, Any
 
 import pydantic
 
-from experiments.runs.folder import RunFolder
+from experiments.runs.folder import RUN_JSON, RunFolder
 from experiments.runs.provenance import run_record
+from experiments.runs.trials import TrialStore, save_artifacts, split_artifacts
 from wander_env.config import ConfigError, coerce, load_yaml, parse_sets, validate
 from wander_env.env_config import DvsPreset, FrameMode, PtuPreset, SceneName
 
@@ -79,6 +83,8 @@ __all__ = [
     "config_to_dict",
     "configs_dir",
     "get_experiment",
+    "hold_folder",
+    "is_unfinished_run",
     "load_artifacts",
     "make_trials",
     "parse_sets",
@@ -89,6 +95,7 @@ __all__ = [
     "run_experiment",
     "run_spec",
     "trial_id",
+    "unfinished_folder",
     "write_csv",
     "write_result_folder",
 ]
@@ -367,25 +374,6 @@ def columns_of(rows: Sequence[Mapping[str, Any]]) -> list[str]:
     return list(dict.fromkeys(k for r in rows for k in r if not k.startswith("_")))
 
 
-def split_artifacts(row: Mapping[str, Any]) -> tuple[Row, dict[str, Any]]:
-    """(the row without ``_*`` keys, the artifacts with the ``_`` stripped from their names)."""
-    plain = {k: v for k, v in row.items() if not k.startswith("_")}
-    arts = {k[1:]: v for k, v in row.items() if k.startswith("_")}
-    return plain, arts
-
-
-def save_artifacts(folder: Path, tid: str, artifacts: Mapping[str, Any]) -> Path | None:
-    """``folder/artifacts/<tid>.npz`` (nothing when there are none)."""
-    if not artifacts:
-        return None
-    import numpy as np
-
-    path = folder / "artifacts" / f"{tid}.npz"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, **{k: np.asarray(v) for k, v in artifacts.items()})
-    return path
-
-
 def load_artifacts(folder: Path, row: Mapping[str, Any]) -> dict[str, Any]:
     """The artifacts saved for ``row`` in the result folder ({} when none)."""
     import numpy as np
@@ -441,8 +429,9 @@ def write_result_folder(
     command: str,
     timings: Mapping[str, Any],
 ) -> list[Path]:
-    """results.csv, config.json, run.json, summary.md, artifacts and the plots; returns
-    the files. ``rows`` may carry artifacts (``_*`` keys)."""
+    """results.csv, config.json, run.json (keeping the ``stops`` of a resumed run),
+    summary.md, artifacts and the plots; returns the files. ``rows`` may carry artifacts
+    (``_*`` keys)."""
     folder = RunFolder(out_dir)
     folder.create()
     plain = []
@@ -455,14 +444,70 @@ def write_result_folder(
     files.append(
         folder.write_json("config.json", {"experiment": experiment.name, **config_to_dict(config)})
     )
-    rec = run_record(command, config_to_dict(config), seed)
-    files.append(folder.write_run({"experiment": experiment.name, **rec, "timing": timings}))
+    rec = {"experiment": experiment.name, **run_record(command, config_to_dict(config), seed)}
+    stops = folder.read_json(RUN_JSON).get("stops")  # of a resumed run: kept
+    rec.update(timing=timings, **({"stops": stops} if stops else {}))
+    files.append(folder.write_run(rec))
     summary = out_dir / "summary.md"
     summary.write_text(render_summary(experiment, config, rows, command))
     files.append(summary)
     if experiment.plot is not None:
         files += experiment.plot(config, rows, out_dir, out_dir)
     return files
+
+
+@contextlib.contextmanager
+def hold_folder(path: Path) -> Iterator[None]:
+    """Hold ``path`` (a folder) for this process: an exclusive ``flock`` on the folder,
+    released when the block ends or the process dies (a killed run leaves no lock).
+    ConfigError when another run holds it."""
+    fd = os.open(path, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise ConfigError(f"{str(path)!r} is in use by another run") from None
+        yield
+    finally:
+        os.close(fd)
+
+
+def _held(path: Path) -> bool:
+    try:
+        with hold_folder(path):
+            return False
+    except ConfigError:
+        return True
+    except OSError:
+        return True  # gone or unreadable: not ours to resume
+
+
+def is_unfinished_run(path: Path, name: str, config: Any, seed: int) -> bool:
+    """Whether ``path`` holds an unfinished run of experiment ``name`` with this config and
+    seed, free to resume: its ``config.json`` and ``run.json`` (written when a run starts)
+    say so, it has no ``results.csv`` yet, and no running process holds it."""
+    path = Path(path)
+    if not path.is_dir() or (path / "results.csv").exists():
+        return False
+    folder = RunFolder(path)
+    if folder.read_json("config.json") != {"experiment": name, **config_to_dict(config)}:
+        return False
+    return folder.read_json(RUN_JSON).get("seed") == seed and not _held(path)
+
+
+def unfinished_folder(
+    name: str, config: Any, seed: int, out: Path | None, root: Path = Path("results")
+) -> Path | None:
+    """The folder a rerun of ``wander experiment NAME`` continues: ``out`` when it holds an
+    unfinished run of the same experiment, config and seed (:func:`is_unfinished_run`);
+    without ``out``, the newest such folder under ``root/NAME`` (by its start); None when
+    there is none (a new run)."""
+    if out is not None:
+        return Path(out) if is_unfinished_run(Path(out), name, config, seed) else None
+    base = root / name
+    candidates = sorted(base.iterdir()) if base.is_dir() else []
+    found = [p for p in candidates if is_unfinished_run(p, name, config, seed)]
+    return max(found, key=lambda p: (p / "config.json").stat().st_mtime_ns, default=None)
 
 
 def run_experiment(
@@ -474,25 +519,51 @@ def run_experiment(
     executor: Executor | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> tuple[list[Row], list[Path]]:
-    """Run every trial, write the result folder; returns (rows, files)."""
+    """Run every trial not yet stored in ``out_dir`` (each stored as it finishes:
+    :class:`~experiments.runs.trials.TrialStore`), then write the result folder; returns
+    (rows, files). A folder holding an unfinished run of the same experiment, config and
+    seed is resumed (its finished trials kept); the stop its former run recorded moves to
+    ``run.json``'s ``stops``."""
     exp = get_experiment(name)
     specs = make_trials(exp, config, seed)
-    by_index: dict[int, Row] = {}
-    seconds: dict[int, float] = {}
-    t0 = time.perf_counter()
-    for done, (spec, row, secs) in enumerate((executor or serial_executor)(specs), 1):
-        by_index[spec.index] = row
-        seconds[spec.index] = round(secs, 3)
+    folder = RunFolder(out_dir)
+    folder.create()
+    cmd = command or f"wander experiment {name} --seed {seed}"
+    with hold_folder(folder.path):
+        folder.take_stop()
+        stops = folder.read_json(RUN_JSON).get("stops")
+        start = {"experiment": name, **run_record(cmd, config_to_dict(config), seed)}
+        if stops:
+            start["stops"] = stops
+        folder.write_json("config.json", {"experiment": exp.name, **config_to_dict(config)})
+        folder.write_run(start)  # says which run this folder holds (a rerun resumes it)
+        store = TrialStore(out_dir, keep_artifacts=True)
+        todo = [s for s in specs if not store.has(s)]
+        done = len(specs) - len(todo)
         if progress is not None:
             progress(done, len(specs))
-    rows = [by_index[i] for i in range(len(specs))]
-    total = time.perf_counter() - t0
-    timings = {
-        "total_s": round(total, 3),
-        "trials": len(specs),
-        "trial_s": [seconds[i] for i in range(len(specs))],
-        "real_time_factor": real_time_factor(rows, total),
-    }
-    cmd = command or f"wander experiment {name} --seed {seed}"
-    files = write_result_folder(out_dir, exp, config, rows, seed, cmd, timings)
-    return [split_artifacts(r)[0] for r in rows], files
+        t0 = time.perf_counter()
+        stream = (executor or serial_executor)(todo)
+        try:
+            for spec, row, secs in stream:
+                store.put(spec, row, secs)
+                done += 1
+                if progress is not None:
+                    progress(done, len(specs))
+        finally:
+            close = getattr(stream, "close", None)
+            if close is not None:
+                close()  # ends any workers at once, whatever stopped the loop
+        rows = [store.row(s) for s in specs]
+        total = time.perf_counter() - t0
+        ran = {s.id for s in todo}
+        timings = {
+            "total_s": round(total, 3),
+            "trials": len(specs),
+            "ran": len(todo),
+            "resumed": len(specs) - len(todo),
+            "trial_s": [store.seconds(s) for s in specs],
+            "real_time_factor": real_time_factor([r for r in rows if r["trial_id"] in ran], total),
+        }
+        files = write_result_folder(out_dir, exp, config, rows, seed, cmd, timings)
+    return rows, files

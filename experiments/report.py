@@ -320,8 +320,9 @@ def _studies_table(root: Path, report_dir: Path) -> list[str]:
         def link_cost() -> str | None:
             rows = loaded.rows
             base = [r for r in rows if r["factor"] == "baseline"]
-            ideal = [r for r in rows if r["factor"] == "ptu_link" and r["ptu"] == "ideal"]
-            if not (base and ideal and base[0]["ptu"] == "flir"):
+            link = [r for r in rows if r["factor"] == "ptu_link"]
+            ideal = [r for r in link if r.get("ptu_preset") == "ideal"]  # (no column: older)
+            if not (base and ideal and base[0].get("ptu_preset") == "flir"):
                 return None
             by = {int(r["seed"]): float(r["time_to_foveate_s"]) for r in ideal}
             pairs = [

@@ -12,7 +12,9 @@ A sweep file (YAML)::
 Each grid point is resolved to a full config (defaults <- ``configs/NAME.yaml`` <- ``set``
 <- the point), then expanded to the experiment's trials (:func:`make_trials`). A trial is
 keyed by :func:`experiments.framework.trial_id` — a hash of (experiment, resolved config,
-parameters, seed) — and, once run, stored as ``trials/<id>.json`` (written atomically).
+parameters, seed) — and, as it finishes, stored as ``trials/<id>.json``
+(:class:`~experiments.runs.trials.TrialStore`, the store ``wander experiment`` resumes
+from too).
 A rerun skips every trial whose file exists, so an interrupted sweep resumes where it
 stopped and an edited sweep runs only what is new; the stop a former run recorded in the
 folder (``metrics.json``'s error and signal, an ``INCOMPLETE`` marker) moves to the
@@ -36,9 +38,12 @@ terminal reaches only the sweep, which then ends them) and are ended — SIGTERM
 SIGKILL — whenever the sweep stops (finished, failed, signalled); if the sweep itself is
 killed with SIGKILL they die with it (``PR_SET_PDEATHSIG`` on Linux, and a thread that
 watches the parent elsewhere). Every wait on a worker or a Ray task is bounded by
-``timeout_s`` (no trial finishing for that long is an error saying so). A trial file that
-is empty, truncated, garbled, nested too deep or holds a row that is not its trial's is
-named in a warning, set aside (``*.json.corrupt``) and its trial is run again.
+``timeout_s`` (no trial finishing for that long is an error saying so). A local worker
+that dies in a trial (the out-of-memory killer's SIGKILL, a crash) breaks its pool: that
+trial is run once more, with the others not yet finished, in a fresh pool (as Ray retries a
+task), with a warning; a second death of the same trial ends the sweep with one line
+(:class:`TrialCrashed`), the finished trials kept. A damaged trial file is named in a
+warning, set aside and its trial run again (:mod:`experiments.runs.trials`).
 """
 
 from __future__ import annotations
@@ -51,10 +56,12 @@ import multiprocessing
 import os
 import signal
 import sys
+import tempfile
 import threading
 import time
 import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -73,19 +80,18 @@ from experiments.framework import (
     real_time_factor,
     run_spec,
     serial_executor,
-    split_artifacts,
     write_csv,
 )
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
-from wander_env.strict_json import dumps_strict
+from experiments.runs.trials import TrialStore
 
 __all__ = [
     "BACKENDS",
-    "MAX_TRIAL_FILE_BYTES",
     "SweepConfig",
     "SweepEntry",
     "SweepResult",
+    "TrialCrashed",
     "expand",
     "load_sweep",
     "local_executor",
@@ -289,6 +295,46 @@ def end_workers(processes: Sequence[Any], grace_s: float = 5.0) -> None:
             return
 
 
+class TrialCrashed(RuntimeError):
+    """A trial whose worker process died twice (killed by the out-of-memory killer, a
+    crash); the message is one line."""
+
+
+def _attempt(runner: Runner, spec: TrialSpec, marks: str) -> tuple[Row, float]:
+    """In a worker: run the trial with ``marks/<pid>`` naming it while it runs (a worker
+    that dies leaves it behind, so the sweep knows whose trial died)."""
+    mark = Path(marks) / str(os.getpid())
+    mark.write_text(spec.id)
+    try:
+        return _timed(runner, spec)
+    finally:
+        mark.unlink(missing_ok=True)
+
+
+def _death(code: int) -> str:
+    """How a worker process ended, from its exit code."""
+    if code == -signal.SIGKILL:
+        return "killed by SIGKILL, as the out-of-memory killer does"
+    if code < 0:
+        return f"killed by {signal.Signals(-code).name}"
+    return f"exit status {code}"
+
+
+def _crashed(processes: Mapping[int, Any], marks: Path) -> list[tuple[str, str]]:
+    """(trial id, how its worker died) for each worker that died on its own while running
+    a trial (the pool ends the other workers with SIGTERM, which is not counted); every
+    trial then running when no worker can be told apart."""
+    running = {int(m.name): m.read_text() for m in marks.iterdir() if m.name.isdigit()}
+    own = []
+    deadline = time.monotonic() + 5.0  # a dead worker's exit code is there a moment later
+    for pid, proc in processes.items():
+        proc.join(max(0.0, deadline - time.monotonic()))
+        code = proc.exitcode
+        if code is not None and code not in (0, -signal.SIGTERM) and pid in running:
+            own.append((running[pid], _death(code)))
+    return own or [(tid, "the worker pool broke") for tid in running.values()]
+
+
 def local_executor(
     specs: Sequence[TrialSpec],
     workers: int | None = None,
@@ -296,9 +342,48 @@ def local_executor(
     timeout_s: float = WAIT_TIMEOUT_S,
 ) -> Iterator[tuple[TrialSpec, Row, float]]:
     """Worker processes (spawn: no forked GL or torch state); ``runner`` must be a
-    module-level function. The workers are ended on any exit (module docstring)."""
-    if not specs:
-        return
+    module-level function. A trial whose worker dies (the out-of-memory killer's SIGKILL,
+    a crash) is run once more in a fresh pool with the trials not yet finished, as Ray
+    retries a task; dying twice is :class:`TrialCrashed` (one line). The workers are ended
+    on any exit (module docstring)."""
+    todo = list(specs)
+    deaths: dict[str, int] = {}
+    with tempfile.TemporaryDirectory(prefix="wander-workers-") as marks:
+        while todo:
+            finished: set[str] = set()
+            crashed = yield from _pool(todo, workers, runner, timeout_s, Path(marks), finished)
+            for mark in Path(marks).iterdir():
+                mark.unlink()
+            if not crashed:
+                return
+            by_id = {s.id: s for s in todo}
+            for tid, how in crashed:
+                spec = by_id[tid]  # (a trial of this pool: the marks were cleared)
+                deaths[tid] = deaths.get(tid, 0) + 1
+                where = f"trial {tid} ({spec.experiment} #{spec.index}, seed {spec.seed})"
+                if deaths[tid] >= 2:
+                    raise TrialCrashed(
+                        f"{where}: its worker process died twice ({how}); the trials that "
+                        "finished are kept: rerun the same command to resume"
+                    )
+                warnings.warn(
+                    f"{where}: its worker process died ({how}); running it once more",
+                    RuntimeWarning,
+                    stacklevel=2,
+                )
+            todo = [s for s in todo if s.id not in finished]
+
+
+def _pool(
+    specs: Sequence[TrialSpec],
+    workers: int | None,
+    runner: Runner,
+    timeout_s: float,
+    marks: Path,
+    finished: set[str],
+) -> Iterator[tuple[TrialSpec, Row, float]]:
+    """One process pool over ``specs``, yielding as trials finish (their ids added to
+    ``finished``); returns the crashed trials (:func:`_crashed`) when a worker died."""
     n = max(1, min(workers or os.cpu_count() or 1, len(specs)))
     ctx = multiprocessing.get_context("spawn")
     pool = cf.ProcessPoolExecutor(
@@ -306,7 +391,7 @@ def local_executor(
     )
     futures: dict[cf.Future, TrialSpec] = {}
     try:
-        futures = {pool.submit(_timed, runner, s): s for s in specs}
+        futures = {pool.submit(_attempt, runner, s, str(marks)): s for s in specs}
         pending = set(futures)
         while pending:
             done, pending = cf.wait(pending, timeout=timeout_s, return_when=cf.FIRST_COMPLETED)
@@ -315,9 +400,16 @@ def local_executor(
                     f"no trial finished within {timeout_s:g} s ({len(pending)} not done); "
                     "the workers were ended"
                 )
+            broken = [f for f in done if isinstance(f.exception(), BrokenProcessPool)]
+            crashed = _crashed(getattr(pool, "_processes", None) or {}, marks) if broken else []
             for fut in done:
-                row, secs = fut.result()
-                yield futures[fut], row, secs
+                if fut not in broken:  # finished before the pool broke
+                    row, secs = fut.result()
+                    finished.add(futures[fut].id)
+                    yield futures[fut], row, secs
+            if broken:
+                return crashed
+        return []
     finally:
         # End the workers first and leave the futures as they are: the pool's manager
         # thread then fails every unfinished one with BrokenProcessPool and exits. (A
@@ -384,65 +476,6 @@ def ray_executor(
 # Running
 
 
-#: The largest trial file read back (bytes); a larger one is damaged.
-MAX_TRIAL_FILE_BYTES = 1 << 24
-
-
-def _trial_file(out_dir: Path, spec: TrialSpec) -> Path:
-    return out_dir / "trials" / f"{spec.id}.json"
-
-
-def _store(out_dir: Path, spec: TrialSpec, row: Row, secs: float) -> None:
-    plain, _ = split_artifacts(row)  # artifacts are not kept by sweeps
-    path = _trial_file(out_dir, spec)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    rec = {"spec": asdict(spec), "row": plain, "seconds": round(secs, 3)}
-    tmp.write_text(dumps_strict(rec) + "\n")  # NaN as null: strict JSON
-    os.replace(tmp, path)
-
-
-def _stored(out_dir: Path, spec: TrialSpec) -> bool:
-    """True if ``spec``'s trial file holds a row; a damaged one is set aside (warned)."""
-    path = _trial_file(out_dir, spec)
-    if not path.exists():
-        return False
-    try:
-        size = path.stat().st_size
-        if size > MAX_TRIAL_FILE_BYTES:  # a row is a few kB: not read into memory
-            raise ValueError(f"{size} bytes; at most {MAX_TRIAL_FILE_BYTES}")
-        rec = json.loads(path.read_text())
-        if not isinstance(rec, dict) or not isinstance(rec.get("row"), dict):
-            raise ValueError("no 'row' object")
-        if rec["row"].get("trial_id") != spec.id:
-            raise ValueError(f"its row has no 'trial_id' {spec.id!r}")
-        return True
-    except (OSError, ValueError, RecursionError) as err:  # RecursionError: nested too deep
-        aside = path.with_name(path.name + ".corrupt")
-        k = 1
-        while aside.exists():
-            k += 1
-            aside = path.with_name(f"{path.name}.corrupt{k}")
-        os.replace(path, aside)
-        why = " ".join(str(err).split()) or type(err).__name__
-        warnings.warn(
-            f"{path}: damaged trial file ({why}); set aside as {aside.name}, the trial is rerun",
-            RuntimeWarning,
-            stacklevel=2,
-        )
-        return False
-
-
-def _load_row(out_dir: Path, spec: TrialSpec) -> Row:
-    row = json.loads(_trial_file(out_dir, spec).read_text())["row"]
-    row = {k: math.nan if v is None else v for k, v in row.items()}  # null: a missing figure
-    # ids and sweep columns from the current sweep file (indices shift when it is edited)
-    row.update({"trial": spec.index, "repeat": spec.repeat, "seed": spec.seed})
-    row.update(spec.extra)
-    head = ["trial", "trial_id", "repeat", "seed", *spec.extra]
-    return {**{k: row[k] for k in head}, **{k: v for k, v in row.items() if k not in head}}
-
-
 def run_sweep(
     sweep: SweepConfig,
     out_dir: Path,
@@ -458,7 +491,8 @@ def run_sweep(
     if backend not in BACKENDS:
         raise ConfigError(f"backend must be one of {BACKENDS}, got {backend!r}")
     specs = expand(sweep)
-    todo = [s for s in specs if not _stored(out_dir, s)]
+    store = TrialStore(out_dir)  # artifacts are not kept by sweeps
+    todo = [s for s in specs if not store.has(s)]
     skipped = len(specs) - len(todo)
     folder = RunFolder(out_dir)
     folder.create()
@@ -475,13 +509,13 @@ def run_sweep(
         progress(done, len(specs))
     try:
         for spec, row, secs in stream:
-            _store(out_dir, spec, row, secs)
+            store.put(spec, row, secs)
             done += 1
             if progress is not None:
                 progress(done, len(specs))
     finally:
         stream.close()  # ends the workers at once, whatever stopped the loop
-    rows = [_load_row(out_dir, s) for s in specs]
+    rows = [store.row(s) for s in specs]
     write_csv(rows, out_dir / "results.csv")
     seconds = time.perf_counter() - t0
     ran_ids = {s.id for s in todo}

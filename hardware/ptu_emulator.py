@@ -69,8 +69,9 @@ _TOKEN = re.compile(r"([A-Z@_]+)([-+]?\d+)?(.*)", re.DOTALL)
 class PTUEmulatorParams:
     """Parameters of the emulated unit.
 
-    ``motion`` holds resolution (``PR``/``TR``), limits (``PN``/``PX``/``TN``/``TX``),
-    speeds (``PS``), accelerations (``PA``), base (``PB``) and upper (``PU``) speeds;
+    ``ptu`` (the unit's :class:`~wander_env.ptu.params.PTUParams`) holds resolution
+    (``PR``/``TR``), limits (``PN``/``PX``/``TN``/``TX``), speeds (``PS``), accelerations
+    (``PA``), base (``PB``) and upper (``PU``) speeds;
     ``lower_speed`` is ``PL``/``TL`` (pos/s). ``echo`` and ``verbose`` are the power-up
     modes (on, as a factory unit). ``banner`` (``None``: the firmware line and
     ``Initializing...``) is printed ``banner_delay_s`` after start. ``eol`` ends every
@@ -82,7 +83,7 @@ class PTUEmulatorParams:
     last byte has arrived, and a reply is readable once its last byte has been sent.
     """
 
-    motion: PTUParams = field(default_factory=PTUParams)
+    ptu: PTUParams = field(default_factory=PTUParams)
     lower_speed: float = 31.0
     firmware: str = DEFAULT_FIRMWARE
     banner: str | None = None
@@ -117,10 +118,10 @@ class PTUEmulatorParams:
         if self.silent_after is not None and self.silent_after < 0:
             raise ValueError(f"silent_after must be >= 0, got {self.silent_after!r}")
         for axis in ("pan", "tilt"):
-            speed = getattr(self.motion, f"{axis}_speed")
+            speed = getattr(self.ptu, f"{axis}_speed")
             if speed < self.lower_speed:
                 raise ValueError(
-                    f"motion.{axis}_speed ({speed}) is below lower_speed ({self.lower_speed})"
+                    f"ptu.{axis}_speed ({speed}) is below lower_speed ({self.lower_speed})"
                 )
 
     @property
@@ -185,7 +186,7 @@ class _Axis:
 
 
 def _axes_from(params: PTUEmulatorParams) -> dict[str, _Axis]:
-    m = params.motion
+    m = params.ptu
     axes = {}
     for letter, axis in (("P", "pan"), ("T", "tilt")):
         axes[letter] = _Axis(

@@ -53,7 +53,7 @@ Examples:
     >>> path = f"{tmp.name}/two.npz"
     >>> ev = make_events(x=[1, 2], y=[3, 4], t=[0, 15_000], p=[1, 0])
     >>> write_events(path, EventRecording(ev, (128, 128, 2)))
-    >>> env = gymnasium.make("wander/Rig-v0", ptu="emulate", camera=f"replay:{path}",
+    >>> env = gymnasium.make("wander/Rig-v0", ptu_port="emulate", camera=f"replay:{path}",
     ...                      replay="fast", driver=FlirPTUParams(banner_quiet_s=0.02))
     >>> obs, info = env.reset()
     >>> obs, reward, terminated, truncated, info = env.step(np.zeros(2, np.float32))
@@ -69,6 +69,7 @@ import logging
 import math
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -84,6 +85,7 @@ from wander_env.config import FieldsMapping, check_fields
 from wander_env.env_base import CameraEnv, StepInfo
 from wander_env.events import empty_events
 from wander_env.events.packet import EventPacket
+from wander_env.ptu.link import LinkSchedule
 from wander_env.ptu.units import degrees_to_positions, positions_to_degrees, round_position
 from wander_env.viz import event_image, labelled_frame
 
@@ -94,22 +96,24 @@ _REPLAY_MODES = ("realtime", "fast")
 class RigConfig(FieldsMapping):
     """What a :class:`RigEnv` opens and how it runs.
 
-    ``ptu``: a pyserial URL of the FLIR PTU (``"/dev/ttyUSB0"``, ``"socket://host:4000"``)
-    or ``"emulate"`` (a :class:`~hardware.ptu_emulator.PTUEmulator` with ``emulator``
-    parameters); ``camera``: ``"speck"`` (``"speck:<serial>"`` for one board) or
-    ``"replay:<event file>"``; ``replay``: ``"realtime"`` (paced by the wall clock) or
-    ``"fast"`` (windows advance in stream time); ``replay_loop`` repeats the file.
+    ``ptu_port``: a pyserial URL of the FLIR PTU (``"/dev/ttyUSB0"``,
+    ``"socket://host:4000"``) or ``"emulate"`` (a :class:`~hardware.ptu_emulator.PTUEmulator`
+    with ``emulator`` parameters, its unit's ``emulator.ptu``: ``ptu`` is a
+    :class:`~wander_env.ptu.params.PTUParams` block in every config); ``camera``:
+    ``"speck"`` (``"speck:<serial>"`` for one board) or ``"replay:<event file>"``;
+    ``replay``: ``"realtime"`` (paced by the wall clock) or ``"fast"`` (windows advance
+    in stream time); ``replay_loop`` repeats the file.
     ``control_period_s``: the step window; ``episode_seconds``: truncation;
     ``start_gaze_deg``: where :meth:`RigEnv.reset` points the PTU (``None``: leave it);
     ``hfov_deg``: the lens's horizontal field of view (not queryable; Speck's by
     default); ``ptu_poll_s``: position polling period; ``driver``, ``emulator``,
     ``speck``: the parameters of those parts.
 
-    >>> RigConfig(ptu="emulate", camera="replay:walk.npz").control_period_us
+    >>> RigConfig(ptu_port="emulate", camera="replay:walk.npz").control_period_us
     10000
     """
 
-    ptu: str = ""
+    ptu_port: str = ""
     camera: str = ""
     replay: str = "realtime"
     replay_loop: bool = False
@@ -123,10 +127,10 @@ class RigConfig(FieldsMapping):
     speck: SpeckParams = field(default_factory=SpeckParams)
 
     def __post_init__(self) -> None:
-        if not isinstance(self.ptu, str) or not self.ptu.strip():
+        if not isinstance(self.ptu_port, str) or not self.ptu_port.strip():
             raise ValueError(
-                "RigConfig.ptu is required: the PTU's serial URL ('/dev/ttyUSB0', "
-                f"'socket://host:4000') or 'emulate'; got {self.ptu!r}"
+                "RigConfig.ptu_port is required: the PTU's serial URL ('/dev/ttyUSB0', "
+                f"'socket://host:4000') or 'emulate'; got {self.ptu_port!r}"
             )
         self.camera_kind()  # raises for a malformed camera
         if self.replay not in _REPLAY_MODES:
@@ -159,7 +163,7 @@ class RigConfig(FieldsMapping):
     def camera_kind(self) -> tuple[str, str]:
         """``("speck", serial or "")`` or ``("replay", path)``, from ``camera``.
 
-        >>> RigConfig(ptu="emulate", camera="speck:sf-1").camera_kind()
+        >>> RigConfig(ptu_port="emulate", camera="speck:sf-1").camera_kind()
         ('speck', 'sf-1')
         """
         kind, _, arg = str(self.camera).partition(":")
@@ -180,31 +184,34 @@ def _fault(err: PTUError, text: str) -> PTUError:
     return out
 
 
-class _PTULink:
-    """The PTU driver behind one thread: targets go in, polled positions come out.
+class PTULinkThread:
+    """The rig's PTU link: the driver behind one thin thread that steps the shared
+    :class:`~wander_env.ptu.link.LinkSchedule` (the sim's scheduling too) in the time of
+    ``clock`` (``time.monotonic``): targets go in, polled positions come out.
 
-    All serial traffic after start-up happens in the thread, so a caller never
-    waits on the line. Positions are whole PTU positions (ints).
+    All serial traffic after start-up happens in the thread (:meth:`start`), each
+    exchange in :meth:`serve`, so a caller never waits on the line. Positions are whole
+    PTU positions (ints).
     """
 
-    def __init__(self, ptu: FlirPTU, poll_s: float) -> None:
+    def __init__(
+        self, ptu: FlirPTU, poll_s: float, clock: Callable[[], float] = time.monotonic
+    ) -> None:
         self.ptu = ptu
-        self.poll_s = poll_s
+        self.clock = clock
         self._res = ptu.resolution_arcsec
         self._cond = threading.Condition()
         self._stop = False
-        self._want: tuple[int, int] | None = None  # newest target not yet sent
-        self._want_at = 0.0
-        target, positions = ptu.target(), ptu.position()  # the unit's own state at start
-        self._acked = self.to_positions(target)  # the last target the unit acknowledged
-        self._positions = self.to_positions(positions)  # the last poll
-        self._poll_target = self._acked  # the acknowledged target when that poll started
-        self._next_poll = time.monotonic() + poll_s  # just polled above
+        start = self.to_positions(ptu.target())  # the unit's own state at start
+        positions = self.to_positions(ptu.position())
+        self.schedule = LinkSchedule(poll_s, start, clock())  # just polled above
+        self.schedule.positions = positions
         self.error: PTUError | None = None
         self.halt_result = "not needed"
-        self.latency_s = float("nan")
-        self.counts = {"commands_sent": 0, "commands_replaced": 0, "polls": 0}
         self._thread = threading.Thread(target=self._run, name=f"rig-ptu-{ptu.url}", daemon=True)
+
+    def start(self) -> None:
+        """Start the thread that serves the line."""
         self._thread.start()
 
     # -- conversions --------------------------------------------------------------------
@@ -223,37 +230,37 @@ class _PTULink:
 
     # -- caller side ----------------------------------------------------------------------
 
+    @property
+    def counts(self) -> dict[str, int]:
+        """Commands sent and replaced, polls."""
+        with self._cond:
+            return dict(self.schedule.counts)
+
     def command(self, target: tuple[int, int]) -> None:
         """Queue ``target`` (positions); replaces a queued one not yet sent."""
         with self._cond:
-            if self._want is not None:
-                self.counts["commands_replaced"] += 1
-            self._want, self._want_at = target, time.monotonic()
+            self.schedule.submit(target, self.clock())
             self._cond.notify_all()
 
-    def snapshot(self) -> dict[str, Any]:
-        """Positions of the last poll, the acknowledged target and the poll's target."""
+    def snapshot(self, target: tuple[int, int] | None = None) -> dict[str, Any]:
+        """Positions of the last poll, the acknowledged target, the latest latency and,
+        given a ``target``, whether the unit is still ``moving`` to it (one state: gaze
+        and motion come from the same poll)."""
         with self._cond:
+            s = self.schedule
             return {
-                "positions": self._positions,
-                "acked": self._acked,
-                "poll_target": self._poll_target,
-                "queued": self._want is not None,
-                "latency_s": self.latency_s,
+                "positions": s.positions,
+                "acked": s.acked,
+                "latency_s": s.latency_s,
+                "moving": None if target is None else s.moving(target),
             }
-
-    def moving(self, target: tuple[int, int], snap: dict[str, Any] | None = None) -> bool:
-        """False once a poll made after ``target`` was acknowledged found the unit on it
-        (judged on ``snap`` when given, so that gaze and motion come from one poll)."""
-        s = snap if snap is not None else self.snapshot()
-        return s["queued"] or s["poll_target"] != target or s["positions"] != target
 
     def wait(self, target: tuple[int, int], timeout_s: float) -> bool:
         """Block until the unit rests on ``target`` (True), a fault, or the timeout (False)."""
         deadline = time.monotonic() + timeout_s
         with self._cond:
             while self.error is None and not self._stop:
-                if self._want is None and self._poll_target == target == self._positions:
+                if not self.schedule.moving(target):
                     return True
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
@@ -266,14 +273,14 @@ class _PTULink:
         with self._cond:
             self._stop = True
             self._cond.notify_all()
-        if self._thread is not threading.current_thread():
+        if self._thread.is_alive() and self._thread is not threading.current_thread():
             self._thread.join(self.ptu.params.timeout_s + self.ptu.params.halt_timeout_s + 1.0)
 
     def halt_now(self) -> str:
         """Discard any queued target and halt (``H``) from the calling thread; the result
         is kept in ``halt_result`` (for ``metrics.json``)."""
         with self._cond:
-            self._want = None
+            self.schedule.discard()
         result = self._halt()
         with self._cond:
             self.halt_result = result
@@ -284,47 +291,36 @@ class _PTULink:
     def _run(self) -> None:
         while True:
             with self._cond:
-                while not self._stop and self._want is None:
-                    wait = self._next_poll - time.monotonic()
-                    if wait <= 0:
-                        break
+                while not self._stop and (wait := self.schedule.due_s() - self.clock()) > 0:
                     self._cond.wait(wait)
                 if self._stop:
                     return
-                job, submitted = self._want, self._want_at
-                self._want = None
-                acked = self._acked
-            try:
-                if job is not None and job != acked:
-                    self._send(job, acked, submitted)
-                else:
-                    self._poll(acked)
-            except Exception as err:  # any failure ends the thread; the env raises it
-                self._fail(err if isinstance(err, PTUError) else PTUError(f"{err!r}"))
+            self.serve()
+            if self.error is not None:
                 return
-            finally:
-                with self._cond:
-                    self._cond.notify_all()
 
-    def _send(self, job: tuple[int, int], acked: tuple[int, int], submitted: float) -> None:
-        pan, tilt = self.to_degrees(job)
-        self.ptu.move_to(
-            pan_deg=pan if job[0] != acked[0] else None,
-            tilt_deg=tilt if job[1] != acked[1] else None,
-        )
-        done = time.monotonic()
+    def serve(self) -> bool:
+        """Run the exchange that is due now through the driver (``PP<n>``/``TP<n>``, or
+        the ``PP``/``TP`` poll); False when none is due or the link has failed. A failure
+        halts the unit and is kept in ``error`` (the env raises it)."""
         with self._cond:
-            self._acked = job
-            self.latency_s = done - submitted
-            self.counts["commands_sent"] += 1
-            self._next_poll = done  # poll right after a command
-
-    def _poll(self, acked: tuple[int, int]) -> None:
-        positions = self.to_positions(self.ptu.position())
+            if self.error is not None or self.schedule.due_s() > self.clock():
+                return False
+            ex = self.schedule.begin(self.clock())
+        try:
+            if ex.is_poll:
+                polled = self.to_positions(self.ptu.position())
+            else:
+                deg = {a: positions_to_degrees(v, self._res[a]) for a, v in ex.words}
+                self.ptu.move_to(pan_deg=deg.get(0), tilt_deg=deg.get(1))
+                polled = None
+        except Exception as err:  # any failure ends the thread; the env raises it
+            self._fail(err if isinstance(err, PTUError) else PTUError(f"{err!r}"))
+            return False
         with self._cond:
-            self._positions, self._poll_target = positions, acked
-            self.counts["polls"] += 1
-            self._next_poll = time.monotonic() + self.poll_s
+            self.schedule.end(self.clock(), polled)
+            self._cond.notify_all()
+        return True
 
     def _fail(self, err: PTUError) -> None:
         halt = self._halt()
@@ -353,7 +349,7 @@ class RigEnv(CameraEnv):
         self.emulator: PTUEmulator | None = None
         self.ptu: FlirPTU | None = None
         self.camera: EventSource | None = None
-        self._link: _PTULink | None = None
+        self._link: PTULinkThread | None = None
         self._closed = False
         try:
             self._open()
@@ -381,12 +377,13 @@ class RigEnv(CameraEnv):
     def _open(self) -> None:
         """PTU first (a camera stream should not run while the PTU is found faulty)."""
         c = self.config
-        url = c.ptu
+        url = c.ptu_port
         if url == "emulate":
             self.emulator = PTUEmulator(c.emulator)
             url = self.emulator.port
         self.ptu = FlirPTU(url, c.driver)
-        self._link = _PTULink(self.ptu, c.ptu_poll_s)
+        self._link = PTULinkThread(self.ptu, c.ptu_poll_s)
+        self._link.start()
         kind, arg = c.camera_kind()
         if kind == "speck":
             params = replace(c.speck, serial_number=arg) if arg else c.speck
@@ -565,7 +562,7 @@ class RigEnv(CameraEnv):
 
     def _info(self, events: np.ndarray, clipped: bool, lag_s: float) -> StepInfo:
         events["t"] -= self._t0_us
-        snap = self._link.snapshot()
+        snap = self._link.snapshot(self._target)
         self._positions = snap["positions"]
         return StepInfo(
             events=EventPacket(events),
@@ -573,7 +570,7 @@ class RigEnv(CameraEnv):
             ptu_positions=snap["positions"],
             ptu_target_positions=self._target,
             ptu_target_deg=self._link.to_degrees(self._target),
-            moving=self._link.moving(self._target, snap),
+            moving=snap["moving"],
             target_clipped=clipped,
             command_latency_s=snap["latency_s"],
             dropped_events=self.camera.dropped - self._dropped_at_reset,
@@ -590,4 +587,4 @@ class RigEnv(CameraEnv):
         return labelled_frame(panel, 3, f"t = {t:5.2f} s", keys=("polarity", "fovea"))
 
 
-__all__ = ["RigConfig", "RigEnv"]
+__all__ = ["PTULinkThread", "RigConfig", "RigEnv"]

@@ -40,7 +40,7 @@ RES = PTUParams().pan_resolution_arcsec  # 92.5714″ on both axes of the emulat
 T_OFFSET = 5_000_000  # the synthetic file's first timestamp (µs); the replay rebases it to 0
 # A unit quick enough that a saccade has settled well inside a short real-time run.
 QUICK = PTUEmulatorParams(
-    motion=PTUParams(
+    ptu=PTUParams(
         pan_speed=100_000.0,
         tilt_speed=100_000.0,
         pan_upper_speed=100_000.0,
@@ -183,7 +183,7 @@ def test_emulated_ptu_and_replay_end_to_end(app, square, tmp_path, monkeypatch):
     # run.json: the config, and what the devices reported.
     assert run["command"] == "wander rig" and run["seed"] == 3
     cfg, env = run["config"], run["config"]["env"]
-    assert (env["ptu"], env["camera"], env["replay"], env["episode_seconds"]) == (
+    assert (env["ptu_port"], env["camera"], env["replay"], env["episode_seconds"]) == (
         "emulate",
         camera,
         "fast",
@@ -309,7 +309,7 @@ def test_a_saccade_moves_the_ptu_to_the_chosen_point(app, square, emu, tmp_path)
         (["--ptu", "emulate"], "Missing option '--camera'"),
         (["--ptu", "emulate", "--camera", "davis"], "'replay:<event file>', got 'davis'"),
         (["--ptu", "emulate", "--camera", "speck", "--replay", "slow"], "replay must be one of"),
-        (["--ptu", " ", "--camera", "speck"], "ptu is required"),
+        (["--ptu", " ", "--camera", "speck"], "ptu_port is required"),
         (
             ["--ptu", "emulate", "--camera", "speck", "--seconds", "0"],
             "seconds in (0, 86400], got 0.0",
@@ -395,7 +395,7 @@ def test_no_speck_found_lists_what_was_found(app, monkeypatch, tmp_path):
 
 def test_open_failure_through_run_rig_keeps_the_cause(square, tmp_path):
     camera, _ = square
-    config = RigRunConfig(RigConfig(ptu="/dev/no-such-ptu-port", camera=camera))
+    config = RigRunConfig(RigConfig(ptu_port="/dev/no-such-ptu-port", camera=camera))
     with pytest.raises(RigRunError) as info:
         run_rig(tmp_path / "r", config)
     err = info.value
@@ -485,7 +485,8 @@ def test_mid_run_fault_through_run_rig_keeps_the_cause(square, emu, tmp_path):
     camera, _ = square
     watcher = on_first_move(emu, emu.stop_answering)
     config = RigRunConfig(
-        RigConfig(ptu=emu.port, camera=camera, replay="realtime", episode_seconds=3.0), video=False
+        RigConfig(ptu_port=emu.port, camera=camera, replay="realtime", episode_seconds=3.0),
+        video=False,
     )
     with pytest.raises(RigRunError) as info:
         run_rig(tmp_path / "r", config)
@@ -542,7 +543,7 @@ def test_queue_overflow_is_counted_and_reported(monkeypatch, tmp_path):
     install(monkeypatch, FakeSamna([("Speck2fDevKit", "sf", FakeSpeck(ev))]))
     config = RigRunConfig(
         RigConfig(
-            ptu="emulate",
+            ptu_port="emulate",
             camera="speck",
             episode_seconds=0.5,
             speck=SpeckParams(queue_events=capacity),

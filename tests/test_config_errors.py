@@ -181,9 +181,10 @@ CASES = [
         "expected 'ideal' or 'flir'",
     ),
     (
-        ["experiment", "saccade_speed", "--set", "ptu=nosuch"],
+        ["experiment", "saccade_speed", "--set", "ptu_preset=nosuch"],
         {},
-        "wander experiment: error: --set: ptu: expected one of 'ideal', 'flir', got 'nosuch'",
+        "wander experiment: error: --set: ptu_preset: expected one of 'ideal', 'flir', got "
+        "'nosuch'",
     ),
     (
         ["experiment", "event_suppression", "--set", "soms=nosuch"],

@@ -15,7 +15,8 @@ import pytest
 from test_sweep import TOY_SWEEP, CountingRunner
 
 from experiments.framework import TrialSpec
-from experiments.sweep import MAX_TRIAL_FILE_BYTES, local_executor, run_sweep, sweep_from_dict
+from experiments.runs.trials import MAX_TRIAL_FILE_BYTES
+from experiments.sweep import TrialCrashed, expand, local_executor, run_sweep, sweep_from_dict
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -134,3 +135,52 @@ def test_a_stopped_or_killed_sweep_leaves_no_worker(tmp_path, sig):
     while any(alive(p) for p in pids) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert [p for p in pids if alive(p)] == []
+
+
+@pytest.mark.slow
+def test_a_worker_killed_in_a_trial_costs_that_trial_one_more_run_and_the_sweep_goes_on(
+    tmp_path, monkeypatch
+):
+    """As the out-of-memory killer would: SIGKILL in trial 1's first attempt."""
+    attempts = tmp_path / "attempts"
+    attempts.mkdir()
+    monkeypatch.setenv("SWEEP_PIDS", str(attempts))
+    from sweep_workers import killed_first_time
+
+    sweep = sweep_from_dict(TOY_SWEEP)
+    with pytest.warns(RuntimeWarning) as warned:
+        res = run_sweep(
+            sweep, tmp_path / "out", backend="local", workers=1, runner=killed_first_time
+        )
+    victim = res.rows[1]["trial_id"]
+    assert [str(w.message) for w in warned] == [
+        f"trial {victim} (event_suppression #1, seed 1): its worker process died (killed by "
+        "SIGKILL, as the out-of-memory killer does); running it once more"
+    ]
+    runs = {r["trial_id"]: len(list(attempts.glob(f"{r['trial_id']}.*"))) for r in res.rows}
+    assert runs == {r["trial_id"]: 2 if r["trial"] == 1 else 1 for r in res.rows}
+    assert (res.ran, res.skipped, len(res.rows)) == (12, 0, 12)
+
+
+@pytest.mark.slow
+def test_a_trial_whose_worker_dies_twice_ends_the_sweep_with_one_line(tmp_path, monkeypatch):
+    attempts = tmp_path / "attempts"
+    attempts.mkdir()
+    monkeypatch.setenv("SWEEP_PIDS", str(attempts))
+    from sweep_workers import killed_always
+
+    sweep = sweep_from_dict(TOY_SWEEP)
+    out = tmp_path / "out"
+    with pytest.warns(RuntimeWarning), pytest.raises(TrialCrashed) as raised:
+        run_sweep(sweep, out, backend="local", workers=1, runner=killed_always)
+    first, victim = (s.id for s in expand(sweep)[:2])
+    assert str(raised.value) == (
+        f"trial {victim} (event_suppression #1, seed 1): its worker process died twice "
+        "(killed by SIGKILL, as the out-of-memory killer does); the trials that finished are "
+        "kept: rerun the same command to resume"
+    )
+    assert len(list(attempts.glob(f"{victim}.*"))) == 2
+    assert [p.name for p in (out / "trials").iterdir()] == [f"{first}.json"]  # kept
+    again = CountingRunner()
+    res = run_sweep(sweep, out, backend="serial", runner=again)
+    assert (res.ran, res.skipped) == (11, 1) and first not in again.calls

@@ -11,6 +11,7 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
+from experiments import framework
 from experiments.cli.experiment import register
 from experiments.framework import (
     EXPERIMENT_NAMES,
@@ -22,16 +23,22 @@ from experiments.framework import (
     config_from_dict,
     configs_dir,
     get_experiment,
+    hold_folder,
+    is_unfinished_run,
     load_artifacts,
     make_trials,
     parse_sets,
     read_csv,
     resolve_config,
     run_experiment,
+    run_spec,
+    serial_executor,
     trial_id,
+    unfinished_folder,
     write_csv,
     write_result_folder,
 )
+from experiments.runs.folder import RunFolder
 
 # A tiny event_suppression run: the hand phase alone, 20 windows of 2 ms (two sOMS steps).
 TINY = ["repeats=2", "phases=[hand]", "hand_s=[0.04, 0.04]", "lead_s=0"]
@@ -207,7 +214,68 @@ def test_same_seed_gives_identical_csv_bytes_and_another_seed_does_not(tmp_path)
         "results.csv",
         "run.json",
         "summary.md",
+        "trials",
     ]
+
+
+class StoppingRunner:
+    """Stands in for ``run_spec``: a row from the spec (no simulation), calls counted; a
+    KeyboardInterrupt (a Ctrl-C) in call number ``stop_at``."""
+
+    def __init__(self, stop_at: int | None = None) -> None:
+        self.calls: list[str] = []
+        self.stop_at = stop_at
+
+    def __call__(self, spec: TrialSpec) -> dict:
+        if len(self.calls) + 1 == self.stop_at:
+            raise KeyboardInterrupt
+        self.calls.append(spec.id)
+        row = {"trial": spec.index, "trial_id": spec.id, "repeat": spec.repeat, "seed": spec.seed}
+        return {**row, **spec.params, "value": spec.index * 0.1 + spec.seed, "nan": math.nan}
+
+
+def _run(cfg, out, runner):  # type: ignore[no-untyped-def]
+    return run_experiment("toy", cfg, 7, out, executor=lambda s: serial_executor(s, runner))
+
+
+def test_a_stopped_experiment_reruns_to_completion_keeping_its_finished_trials(
+    tmp_path, monkeypatch
+):
+    toy = toy_experiment()
+    monkeypatch.setattr(framework, "get_experiment", lambda name: toy)
+    cfg, other = ToyConfig(n=4, repeats=1), ToyConfig(n=4, repeats=1, x=0.25)
+    ids = [s.id for s in make_trials(toy, cfg, 7)]
+    root = tmp_path / "results"
+    out = root / "toy" / "20260101-000000-seed7"
+    stopped = StoppingRunner(stop_at=3)
+    with pytest.raises(KeyboardInterrupt):
+        _run(cfg, out, stopped)
+    assert stopped.calls == ids[:2]
+    assert sorted(p.name for p in (out / "trials").iterdir()) == sorted(
+        f"{i}.json" for i in ids[:2]
+    )
+    assert not (out / "results.csv").exists()
+    RunFolder(out).record_failure(RuntimeError("stopped"))  # as the CLI records a stop
+    # A rerun finds the folder: the one given, or the newest unfinished one of the default name
+    assert unfinished_folder("toy", cfg, 7, out) == out
+    assert unfinished_folder("toy", cfg, 7, None, root=root) == out
+    assert unfinished_folder("toy", cfg, 8, None, root=root) is None  # another seed
+    assert unfinished_folder("toy", other, 7, None, root=root) is None  # another config
+    with hold_folder(out):  # a run still writing there is not resumed
+        assert unfinished_folder("toy", cfg, 7, out) is None
+    rerun = StoppingRunner()
+    rows, _ = _run(cfg, out, rerun)
+    assert rerun.calls == ids[2:]  # the two finished trials were not run again
+    assert [r["trial_id"] for r in rows] == ids and math.isnan(rows[0]["nan"])
+    whole = StoppingRunner()
+    _run(cfg, tmp_path / "whole", whole)
+    assert whole.calls == ids
+    assert (out / "results.csv").read_bytes() == (tmp_path / "whole" / "results.csv").read_bytes()
+    run = json.loads((out / "run.json").read_text())
+    assert (run["timing"]["ran"], run["timing"]["resumed"], run["seed"]) == (2, 2, 7)
+    assert run["stops"] == [{"error": "RuntimeError: stopped"}]
+    assert not (out / "metrics.json").exists()  # the folder says only how this run ended
+    assert not is_unfinished_run(out, "toy", cfg, 7)  # finished: a rerun starts anew
 
 
 # ----------------------------------------------------------------------------------------
@@ -252,3 +320,33 @@ def test_cli_rejects_unknown_keys_and_bad_values_by_name():
     assert res.exit_code == 2 and "soms.alpha: alpha must be in [0, 1], got 2.0" in res.output
     res = runner.invoke(_app(), ["experiment", "detection", "--show-config", "--set", "repeats=1"])
     assert res.exit_code == 0 and '"repeats": 1' in res.output
+
+
+@pytest.mark.slow
+def test_cli_experiment_resumes_the_run_it_stopped(tmp_path):
+    exp = get_experiment("event_suppression")
+    cfg = resolve_config(exp, sets=TINY)  # 2 trials
+    out = tmp_path / "run"
+    calls: list[str] = []
+
+    def first_only(spec: TrialSpec) -> dict:
+        if calls:
+            raise KeyboardInterrupt
+        calls.append(spec.id)
+        return run_spec(spec)
+
+    with pytest.raises(KeyboardInterrupt):
+        run_experiment(
+            "event_suppression", cfg, 0, out, executor=lambda s: serial_executor(s, first_only)
+        )
+    args = ["experiment", "event_suppression", "--out", str(out)]
+    for s in TINY:
+        args += ["--set", s]
+    res = CliRunner().invoke(_app(), args)
+    assert res.exit_code == 0, res.output
+    assert "2 trials, 1 kept from the stopped run ->" in " ".join(res.output.split())
+    run = json.loads((out / "run.json").read_text())
+    assert (run["timing"]["ran"], run["timing"]["resumed"]) == (1, 1)
+    assert [r["trial_id"] for r in read_csv(out / "results.csv")] == [
+        s.id for s in make_trials(exp, cfg, 0)
+    ]

@@ -55,7 +55,7 @@ DP, DT = PAN_RES / 3600.0, TILT_RES / 3600.0  # degrees per position
 
 @pytest.fixture
 def emu():
-    with PTUEmulator(PTUEmulatorParams(motion=MOTION)) as e:
+    with PTUEmulator(PTUEmulatorParams(ptu=MOTION)) as e:
         yield e
 
 
@@ -95,7 +95,7 @@ def test_init_sets_modes_and_queries_the_unit(emu, ptu):
 def test_banner_arriving_after_open_is_drained():
     # The banner ends in a reset's "!T!T!P!P*", which must not be taken for FT's "*".
     banner = "Pan-Tilt Controller v2.14.0\r\nInitializing...\r\n!T!T!P!P*\r\n"
-    params = PTUEmulatorParams(motion=MOTION, banner=banner, banner_delay_s=0.02)
+    params = PTUEmulatorParams(ptu=MOTION, banner=banner, banner_delay_s=0.02)
     with PTUEmulator(params) as emu, FlirPTU(emu.port, DRIVER) as ptu:
         assert emu.banner_sent
         assert ptu.resolution_arcsec == pytest.approx((PAN_RES, TILT_RES))
@@ -105,7 +105,7 @@ def test_banner_arriving_after_open_is_drained():
 @pytest.mark.parametrize("eol", ["\n", "\r"])
 def test_lf_or_cr_line_endings(eol):
     with (
-        PTUEmulator(PTUEmulatorParams(motion=MOTION, eol=eol)) as emu,
+        PTUEmulator(PTUEmulatorParams(ptu=MOTION, eol=eol)) as emu,
         FlirPTU(emu.port, DRIVER) as ptu,
     ):
         ptu.goto(pan_deg=40 * DP, tilt_deg=-20 * DT)
@@ -320,7 +320,7 @@ def test_busy_port_names_it(emu):
 
 def test_no_threads_or_ports_left_behind():
     before = threading.active_count()
-    emu = PTUEmulator(PTUEmulatorParams(motion=MOTION))
+    emu = PTUEmulator(PTUEmulatorParams(ptu=MOTION))
     ptu = FlirPTU(emu.port, DRIVER)
     ptu.close()
     emu.close()
@@ -383,7 +383,7 @@ def exchange(port, command: bytes) -> bytes:
 
 
 def test_emulator_replies_byte_for_byte():
-    params = PTUEmulatorParams(motion=MOTION, banner="")
+    params = PTUEmulatorParams(ptu=MOTION, banner="")
     with PTUEmulator(params) as emu, serial.Serial(emu.port, timeout=1.0) as port:
         # Power-up: echo on, verbose.
         assert exchange(port, b"PP ") == b"PP * Current Pan position is 0\r\n"
@@ -426,7 +426,7 @@ def test_emulator_replies_byte_for_byte():
 
 
 def test_emulator_goes_silent_after_n_commands():
-    params = PTUEmulatorParams(motion=MOTION, banner="", silent_after=1)
+    params = PTUEmulatorParams(ptu=MOTION, banner="", silent_after=1)
     with PTUEmulator(params) as emu, serial.Serial(emu.port, timeout=0.1) as port:
         assert exchange(port, b"ED ") == b"ED *\r\n"
         assert exchange(port, b"PP ") == b""

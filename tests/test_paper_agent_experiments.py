@@ -77,7 +77,7 @@ def test_tilt_backlash_shifts_the_target_vertically_by_half_the_play():
     sets += ["camera_forward_m=0", "camera_up_m=0"]
     cfg = resolve_config(sac_accuracy.EXPERIMENT, sets=sets)
     ideal, real = (run_spec(s) for s in make_trials(sac_accuracy.EXPERIMENT, cfg, 2))
-    assert (ideal["ptu"], real["ptu"]) == ("ideal", "backlash_offset")
+    assert (ideal["condition"], real["condition"]) == ("ideal", "backlash_offset")
     assert (real["target_x_px"], real["target_y_px"]) == (
         ideal["target_x_px"],
         ideal["target_y_px"],
@@ -179,7 +179,7 @@ def test_grid_varies_one_factor_at_a_time_around_the_paper_values():
         "fixational_n_steps": 8,
         "window_s": 0.124,
         "object_speed_scale": 1.0,
-        "ptu": "flir",
+        "ptu_preset": "flir",
         "main_sequence": True,
     }
     speeds = [r["speed_pos_s"] for r in rows if r["factor"] == "ptu_speed"]
@@ -243,7 +243,7 @@ def test_main_sequence_durations_grow_with_amplitude():
         "object_speed_scales=[1.0]",
         "windows_s=[0.124]",
         "ptu_presets=[ideal]",
-        "ptu=ideal",
+        "ptu_preset=ideal",
         "repeats=1",
         "main_sequence_amplitudes_deg=[2, 10, 30]",
     ]

@@ -97,7 +97,7 @@ def test_speed_sweep_files_are_valid() -> None:
     full = load_sweep(configs_dir() / "sweep_speed.yaml")
     quick = load_sweep(configs_dir() / "sweep_speed_quick.yaml")
     assert full.experiments[0].set["design"] == "factorial"
-    assert full.experiments[0].grid == {"ptu": ["flir", "ideal"]}
+    assert full.experiments[0].grid == {"ptu_preset": ["flir", "ideal"]}
     assert quick.experiments[0].set["repeats"] == 10
 
 
@@ -118,7 +118,7 @@ TINY = {
                 "windows_s": [0.05],
                 "main_sequence_amplitudes_deg": [5.0],
             },
-            "grid": {"ptu": ["flir", "ideal"]},
+            "grid": {"ptu_preset": ["flir", "ideal"]},
         }
     ],
 }
@@ -141,7 +141,7 @@ def test_factorial_sweep_resumes_and_local_and_ray_agree(tmp_path) -> None:
     assert res.ran == 2
     assert (tmp_path / "ray" / "results.csv").read_bytes() == table
     rows = read_csv(local / "results.csv")
-    assert [r["cfg.ptu"] for r in rows] == ["flir", "ideal"]
+    assert [r["cfg.ptu_preset"] for r in rows] == ["flir", "ideal"]
     flir, ideal = rows
     assert flir["command_latency_mean_s"] > 0.009 and ideal["command_latency_mean_s"] == 0.0
     # the serial link delays the move: command to standstill is longer on the FLIR unit

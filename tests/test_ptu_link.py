@@ -136,7 +136,7 @@ def test_simulated_latency_matches_the_rig_env_on_the_emulator_at_9600_baud(tmp_
     emulator = PTUEmulatorParams(banner="", baudrate=9600)
     env = gym.make(
         "wander/Rig-v0",
-        ptu="emulate",
+        ptu_port="emulate",
         camera=f"replay:{path}",
         replay="realtime",
         emulator=emulator,
@@ -177,3 +177,118 @@ def test_simulated_latency_matches_the_rig_env_on_the_emulator_at_9600_baud(tmp_
         f"{np.mean(sim_latencies) * 1e3:.2f}), {len(rig_latencies)} / {len(sim_latencies)} commands"
     )
     assert sim_med == pytest.approx(rig_med, rel=0.2)
+
+
+class _Clock:
+    """A clock the test moves (the rig link's time)."""
+
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+class _Line:
+    """The rig's serial port as a 9600-baud line: every byte written or read advances the
+    clock by its time on the line (so the rig's exchanges last what the sim's do); keeps
+    the bytes written."""
+
+    def __init__(self, port: serial.SerialBase, clock: _Clock, byte_s: float) -> None:
+        self.port, self.clock, self.byte_s = port, clock, byte_s
+        self.sent = bytearray()
+
+    def write(self, data: bytes) -> int:
+        self.sent += data
+        self.clock.t += len(data) * self.byte_s
+        return self.port.write(data)
+
+    def read(self, size: int = 1) -> bytes:
+        data = self.port.read(size)
+        self.clock.t += len(data) * self.byte_s
+        return data
+
+    def __getattr__(self, name: str):  # in_waiting, flush, reset_input_buffer, ...
+        return getattr(self.port, name)
+
+
+class _Unit:
+    """The sim link's unit: answers a poll with its latest target; keeps the words received."""
+
+    def __init__(self, start: tuple[int, int]) -> None:
+        self.pos = list(start)
+        self.words: list[str] = []
+
+    def step_counter(self, axis: int) -> int:
+        self.words.append("PT"[axis] + "P")
+        return self.pos[axis]
+
+    def drive_axis(self, axis: int, pos: float) -> None:
+        self.words.append(f"{'PT'[axis]}P{int(pos)}")
+        self.pos[axis] = int(pos)
+
+
+def test_the_sim_link_and_the_rig_link_put_the_same_bytes_on_the_wire() -> None:
+    """One command sequence through :class:`CommandLink` (simulated time) and through the
+    rig's :class:`~hardware.rig_env.PTULinkThread` against the emulator on a pty (its clock
+    injected and moved by the bytes on the line): the same bytes sent, in the same order
+    (queue-replace, pan before tilt, changed axes only, polls every ``poll_s``)."""
+    from hardware.ptu_driver import FlirPTU
+    from hardware.rig_env import PTULinkThread
+    from wander_env.ptu.units import positions_to_degrees
+
+    start = (200, 150)  # every position on the way is 3 digits: the replies' lengths agree
+    script = [
+        (0.005, (300, 150)),  # pan only
+        (0.050, (300, 250)),  # tilt only
+        (0.080, (300, 250)),  # the acknowledged target: a poll, no command
+        (0.120, (400, 350)),  # both axes
+        (0.200, (500, 300)),  # goes at once...
+        (0.201, (600, 200)),  # ...this waits...
+        (0.202, (700, 400)),  # ...and is replaced by this one
+        (0.300, None),
+    ]
+    params = PTULinkParams()
+    sim = CommandLink(params, start)
+    unit = _Unit(start)
+    for t, target in script:
+        while sim.next_time() <= t:
+            sim.fire(unit)
+        if target is not None:
+            sim.submit(target, t)
+    while sim.schedule.current is not None:  # the exchange begun by the end, to its end
+        sim.fire(unit)
+    sim_wire = "".join(w + params.delimiter for w in unit.words).encode()
+
+    quiet = PTUEmulatorParams(banner="")
+    with PTUEmulator(quiet) as emu, FlirPTU(emu.port, FlirPTUParams(banner_quiet_s=0.02)) as ptu:
+        res = ptu.resolution_arcsec
+        ptu.goto(*(positions_to_degrees(p, r) for p, r in zip(start, res, strict=True)))
+        clock = _Clock()
+        rig = PTULinkThread(ptu, params.poll_s, clock)  # not started: the test serves it
+        line = _Line(ptu._proto.port, clock, params.byte_s)
+        ptu._proto.port = line
+        emu.clear_commands()
+        for t, target in script:
+            while (due := rig.schedule.due_s()) <= t:
+                clock.t = max(clock.t, due)
+                assert rig.serve()
+            clock.t = max(clock.t, t)
+            if target is not None:
+                rig.command(target)
+        received, sent = emu.commands, bytes(line.sent)
+        rig.close()  # (the driver's halt on leaving the block is not part of the sequence)
+
+    assert sent == sim_wire
+    assert received == unit.words
+    poll = ["PP", "TP"]
+    assert unit.words == [
+        *["PP300", *poll, *poll],  # a poll at once after a command, the next poll_s later
+        *["TP250", *poll, *poll],
+        *["PP400", "TP350", *poll, *poll],
+        *["PP500", "TP300", "PP700", "TP400"],  # (600, 200) replaced while PP500 was out
+        *poll,
+        *poll,
+        *poll,
+    ]
+    assert sim.counts == rig.counts == {"commands_sent": 5, "commands_replaced": 1, "polls": 9}

@@ -68,7 +68,7 @@ def test_studies_section_shows_the_flir_main_sequence_and_the_links_cost(tmp_pat
                     "seed": seed,
                     "factor": factor,
                     **base,
-                    "ptu": ptu,
+                    "ptu_preset": ptu,
                     "main_sequence": seed == 0,
                     "time_to_foveate_s": ttf + 0.125 * seed,
                     "detection_accuracy": 1.0,

@@ -32,7 +32,7 @@ WALK = REALDATA / "dvs128_people" / "alex_walking_for_10secs_txyp.npy"
 DRIVER = FlirPTUParams(timeout_s=2.0, await_timeout_s=10.0, halt_timeout_s=0.5, banner_quiet_s=0.02)
 # The default unit (so the spaces match the simulated env's), with quick axes.
 FAST = PTUEmulatorParams(
-    motion=PTUParams(pan_speed=2900.0, tilt_speed=2900.0, pan_accel=50000.0, tilt_accel=50000.0)
+    ptu=PTUParams(pan_speed=2900.0, tilt_speed=2900.0, pan_accel=50000.0, tilt_accel=50000.0)
 )
 RES = PTUParams().pan_resolution_arcsec  # 92.5714″ on both axes
 T_OFFSET = 7_000_000  # the synthetic file's first timestamp (µs); replay rebases it to 0
@@ -74,7 +74,7 @@ def moves(emu: PTUEmulator) -> list[str]:
 
 def make_rig(ptu: str, camera: str, **kw) -> RigEnv:
     kw = {"replay": "fast", "driver": DRIVER, "emulator": FAST, **kw}
-    return RigEnv(ptu=ptu, camera=camera, **kw)
+    return RigEnv(ptu_port=ptu, camera=camera, **kw)
 
 
 def expected_offset_pos(action) -> tuple[int, int]:
@@ -92,7 +92,7 @@ def test_registered_nondeterministic_with_the_sim_envs_spaces(recording):
     assert spec.nondeterministic is True
     assert spec.entry_point == "hardware.rig_env:RigEnv"
     camera, _ = recording
-    rig = gym.make("wander/Rig-v0", ptu="emulate", camera=camera, replay="fast", driver=DRIVER)
+    rig = gym.make("wander/Rig-v0", ptu_port="emulate", camera=camera, replay="fast", driver=DRIVER)
     sim = gym.make("wander/Wander-v0", scene="shelf", ground_truth=False)
     try:
         assert rig.observation_space == sim.observation_space
@@ -127,7 +127,7 @@ def test_sensor_size_and_ptu_limits_come_from_the_devices(tmp_path):
         tilt_min_pos=-700,
         tilt_max_pos=500,
     )
-    env = make_rig("emulate", f"replay:{path}", emulator=PTUEmulatorParams(motion=motion))
+    env = make_rig("emulate", f"replay:{path}", emulator=PTUEmulatorParams(ptu=motion))
     try:
         assert env.sensor_size == (64, 48, 2)
         assert env.observation_space["events"].shape == (2, 48, 64)
@@ -145,17 +145,17 @@ def test_sensor_size_and_ptu_limits_come_from_the_devices(tmp_path):
 
 
 def test_config_is_checked():
-    with pytest.raises(ValueError, match="ptu is required"):
+    with pytest.raises(ValueError, match="ptu_port is required"):
         RigConfig(camera="speck")
     with pytest.raises(ValueError, match="'speck', 'speck:<serial number>' or 'replay:"):
-        RigConfig(ptu="emulate", camera="davis")
+        RigConfig(ptu_port="emulate", camera="davis")
     with pytest.raises(ValueError, match="replay must be one of"):
-        RigConfig(ptu="emulate", camera="speck", replay="slow")
+        RigConfig(ptu_port="emulate", camera="speck", replay="slow")
     with pytest.raises(ValueError, match="whole number of µs"):
-        RigConfig(ptu="emulate", camera="speck", control_period_s=1.5e-7)
+        RigConfig(ptu_port="emulate", camera="speck", control_period_s=1.5e-7)
     with pytest.raises(ValueError, match="start_gaze_deg"):
-        RigConfig(ptu="emulate", camera="speck", start_gaze_deg=(math.nan, 0.0))
-    assert RigConfig(ptu="emulate", camera="speck:sf-2").camera_kind() == ("speck", "sf-2")
+        RigConfig(ptu_port="emulate", camera="speck", start_gaze_deg=(math.nan, 0.0))
+    assert RigConfig(ptu_port="emulate", camera="speck:sf-2").camera_kind() == ("speck", "sf-2")
 
 
 # -- events --------------------------------------------------------------------------------

@@ -442,7 +442,7 @@ def test_a_signal_halts_the_rig_before_its_folder_is_written(tmp_path, monkeypat
         monkeypatch.setattr(RunFolder, "write_json", noting)
         out = tmp_path / "rig"
         config = RigRunConfig(
-            RigConfig(ptu=emu.port, camera=f"replay:{tmp_path / 'walk.npz'}"), video=False
+            RigConfig(ptu_port=emu.port, camera=f"replay:{tmp_path / 'walk.npz'}"), video=False
         )
         assert exit_code_of(lambda: run_rig(out, config, progress=stop_at_step_20)) == 143
     # halted as the loop stopped, before the folder; the rig's counters are added to

@@ -40,7 +40,12 @@ def experiment(
     ] = None,
     seed: SeedOpt = 0,
     out: Annotated[
-        Path | None, typer.Option(help="Result folder (default: results/NAME/<time>-seedN).")
+        Path | None,
+        typer.Option(
+            help="Result folder (default: results/NAME/<time>-seedN). A folder where the same "
+            "command stopped (same config and seed; without --out the newest under "
+            "results/NAME) is resumed, its finished trials kept."
+        ),
     ] = None,
     workers: Annotated[
         int, typer.Option(callback=check_workers, help="Worker processes (1 = this process).")
@@ -57,20 +62,25 @@ def experiment(
         make_trials,
         resolve_config,
         run_experiment,
+        unfinished_folder,
     )
-    from experiments.sweep import local_executor
+    from experiments.sweep import TrialCrashed, local_executor
     from wander_env.strict_json import dumps_strict
 
     try:
         exp = get_experiment(name)
         cfg = resolve_config(exp, config, set_ or [])
         n = len(make_trials(exp, cfg, seed))
+        resume = None if show_config else unfinished_folder(name, cfg, seed, out)
     except ConfigError as e:
         raise fail(str(e)) from None
     if show_config:
         console.print_json(dumps_strict(config_to_dict(cfg)))
         return
-    run = RunFolder.for_experiment(name, seed, out, current=current_run())
+    if resume is not None:  # the same command stopped there: its finished trials are kept
+        run = RunFolder(resume, current_run())
+    else:
+        run = RunFolder.for_experiment(name, seed, out, current=current_run())
     folder = run.path
 
     streams: list = []
@@ -91,15 +101,21 @@ def experiment(
                 executor=executor if workers > 1 else None,
                 progress=lambda i, total: bar.update(task, completed=i, total=total),
             )
+        except ConfigError as e:  # another run holds the folder: not this run's to mark
+            raise fail(str(e)) from None
+        except TrialCrashed as e:
+            run.record_failure(e)
+            raise fail(f"{e} ({folder})") from None
         except BaseException as e:  # any error, also one no signal or write: the folder says so
             run.record_failure(e)
             raise
         finally:
             for stream in streams:
                 stream.close()  # the workers end now, not when their trials do
-    console.print(f"{len(rows)} trials -> {folder}/results.csv ({len(files)} files)")
-    print_markdown((folder / "summary.md").read_text())
     timing = json.loads((folder / "run.json").read_text())["timing"]
+    kept = f", {timing['resumed']} kept from the stopped run" if timing["resumed"] else ""
+    console.print(f"{len(rows)} trials{kept} -> {folder}/results.csv ({len(files)} files)")
+    print_markdown((folder / "summary.md").read_text())
     _print_rtf(timing.get("real_time_factor"))
 
 
@@ -136,7 +152,7 @@ def sweep(
     ] = 6 * 3600.0,
 ) -> None:
     """Run a grid of (experiment, parameters, seeds); reruns skip finished trials."""
-    from experiments.sweep import expand, load_sweep, run_sweep
+    from experiments.sweep import TrialCrashed, expand, load_sweep, run_sweep
 
     try:
         sw = load_sweep(config)
@@ -163,6 +179,9 @@ def sweep(
         except TimeoutError as e:
             run.record_failure(e)
             raise fail(f"{e} ({folder}: rerun to resume)") from None
+        except TrialCrashed as e:
+            run.record_failure(e)
+            raise fail(f"{e} ({folder})") from None
         except BaseException as e:  # a signal: the folder says so; the workers are ended
             run.record_failure(e)
             raise

@@ -332,7 +332,7 @@ FLAG_KEYS: dict[str, str] = {
     "frames": "env.frames",
     "keyframe_ms": "env.keyframe_ms",
     "quality": "env.quality",
-    "ptu": "env.ptu",
+    "ptu": "env.ptu_port",
     "camera": "env.camera",
     "replay": "env.replay",
     "hfov_deg": "env.hfov_deg",

@@ -66,7 +66,7 @@ class RigRunConfig(OneEpisodeRun):
     ``seed``, ``window_s``, ``fixational``, ``streamlined``, ``alpha``, ``video``: as
     ``wander run``.
 
-    >>> RigRunConfig(RigConfig(ptu="emulate", camera="replay:walk.npz")).seconds
+    >>> RigRunConfig(RigConfig(ptu_port="emulate", camera="replay:walk.npz")).seconds
     10.0
     """
 
@@ -205,7 +205,7 @@ def fixed_view_note(rig: dict[str, Any]) -> str | None:
 def _device(err: BaseException, config: RigRunConfig) -> str | None:
     """Which device ``err`` comes from (``None``: not a device failure)."""
     if isinstance(err, (PTUError, TimeoutError)):
-        return f"PTU {config.env.ptu!r}"
+        return f"PTU {config.env.ptu_port!r}"
     return None
 
 

@@ -163,7 +163,7 @@ def draw_target(
 def run_trial(cfg: SacAccuracyConfig, spec: TrialSpec) -> dict[str, Any]:
     """One forced saccade to a random pixel; the target's world point is projected back
     after the saccade to measure its displacement from the fovea."""
-    condition = str(spec.params["ptu"])
+    condition = str(spec.params["condition"])
     rng = np.random.default_rng(spec.seed)
     env = trial_env(
         cfg.env,
@@ -217,7 +217,7 @@ def run_trial(cfg: SacAccuracyConfig, spec: TrialSpec) -> dict[str, Any]:
 
 
 def grid(cfg: SacAccuracyConfig) -> list[dict[str, Any]]:
-    return [{"ptu": c} for c in cfg.conditions]
+    return [{"condition": c} for c in cfg.conditions]
 
 
 # ----------------------------------------------------------------------------------------
@@ -226,7 +226,7 @@ def grid(cfg: SacAccuracyConfig) -> list[dict[str, Any]]:
 
 def condition_stats(rows: list[Row], condition: str) -> dict[str, tuple[float, float]]:
     """Mean and std (over trials) of |dx|, |dy| and the distance for one condition."""
-    sel = [r for r in rows if r["ptu"] == condition]
+    sel = [r for r in rows if r["condition"] == condition]
     return {
         k: mean_std(float(r[f"{k}_px"]) for r in sel) for k in ("abs_dx", "abs_dy", "displacement")
     }
@@ -235,7 +235,7 @@ def condition_stats(rows: list[Row], condition: str) -> dict[str, tuple[float, f
 def compare(cfg: SacAccuracyConfig, rows: list[Row]) -> list[Comparison]:
     """The paper's x and y displacement beside ours, per PTU condition."""
     out = []
-    conditions = list(dict.fromkeys(str(r["ptu"]) for r in rows))
+    conditions = list(dict.fromkeys(str(r["condition"]) for r in rows))
     for axis, key in (("x", "abs_dx"), ("y", "abs_dy")):
         m, s = PAPER_DISPLACEMENT_PX[axis]
         for i, c in enumerate(conditions):
@@ -245,11 +245,11 @@ def compare(cfg: SacAccuracyConfig, rows: list[Row]) -> list[Comparison]:
                     f"displacement {axis} (absolute), {c} PTU",
                     f"{m} ± {s} px" if i == 0 else "″",
                     f"{mean:.2f} ± {std:.2f} px",
-                    f"{sum(r['ptu'] == c for r in rows)} trials; 1 px ≈ 1.35° at the fovea",
+                    f"{sum(r['condition'] == c for r in rows)} trials; 1 px ≈ 1.35° at the fovea",
                 )
             )
     for i, c in enumerate(conditions):
-        sel = [r for r in rows if r["ptu"] == c]
+        sel = [r for r in rows if r["condition"] == c]
 
         def mean_abs(key: str, sel: list[Row] = sel) -> float:
             return mean_std(abs(float(r[key])) for r in sel)[0]
@@ -275,10 +275,10 @@ def plot(cfg: SacAccuracyConfig, rows: list[Row], results_dir: Path, fig_dir: Pa
     import matplotlib.pyplot as plt
 
     fig_dir.mkdir(parents=True, exist_ok=True)
-    conditions = list(dict.fromkeys(str(r["ptu"]) for r in rows))
+    conditions = list(dict.fromkeys(str(r["condition"]) for r in rows))
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
     for i, c in enumerate(conditions):
-        sel = [r for r in rows if r["ptu"] == c]
+        sel = [r for r in rows if r["condition"] == c]
         axes[0].scatter(
             [float(r["dx_px"]) for r in sel],
             [float(r["dy_px"]) for r in sel],

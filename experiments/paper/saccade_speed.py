@@ -80,7 +80,7 @@ FACTORS = {
     "fixational_count": ("fixational_n_steps", "fixational_counts"),
     "window": ("window_s", "windows_s"),
     "object_speed": ("object_speed_scale", "object_speed_scales"),
-    "ptu_link": ("ptu", "ptu_presets"),
+    "ptu_link": ("ptu_preset", "ptu_presets"),
 }
 # The numeric factors (one plot column each); ``ptu_link`` is compared by a test.
 NUMERIC_FACTORS = {k: v for k, v in FACTORS.items() if k != "ptu_link"}
@@ -117,7 +117,7 @@ class SaccadeSpeedConfig:
     duration_s: TrialSeconds = 3.0
     window_s: float = FIXATION_WINDOW_S
     design: Literal["one_at_a_time", "factorial"] = "one_at_a_time"
-    ptu: Literal["ideal", "flir"] = "flir"
+    ptu_preset: Literal["ideal", "flir"] = "flir"
     windows_s: tuple[float, ...] = (0.05, FIXATION_WINDOW_S, 0.25)
     ptu_presets: tuple[PtuPreset, ...] = ("flir", "ideal")
     speeds_pos_s: tuple[float, ...] = (1000.0, 2000.0, 2902.0)
@@ -177,11 +177,11 @@ class SaccadeSpeedConfig:
 
 
 def baseline(
-    window_s: float = FIXATION_WINDOW_S, ptu: str = "flir"
+    window_s: float = FIXATION_WINDOW_S, ptu_preset: str = "flir"
 ) -> dict[str, float | int | str]:
     """The grid columns at the paper's values (FLIR defaults, the paper's walk, St_w).
 
-    >>> baseline()["speed_pos_s"], baseline()["fixational_n_steps"], baseline()["ptu"]
+    >>> baseline()["speed_pos_s"], baseline()["fixational_n_steps"], baseline()["ptu_preset"]
     (2000.0, 8, 'flir')
     """
     ptu_, fix = PTUParams(), FixationParams()
@@ -192,7 +192,7 @@ def baseline(
         "fixational_n_steps": int(fix.n_steps),
         "window_s": float(window_s),
         "object_speed_scale": 1.0,
-        "ptu": ptu,
+        "ptu_preset": ptu_preset,
     }
 
 
@@ -208,7 +208,7 @@ def ptu_for(speed_pos_s: float, accel_pos_s2: float, preset: str = "ideal") -> P
 
 
 def _trial_ptu(p: dict[str, Any]) -> PTUParams:
-    return ptu_for(float(p["speed_pos_s"]), float(p["accel_pos_s2"]), str(p["ptu"]))
+    return ptu_for(float(p["speed_pos_s"]), float(p["accel_pos_s2"]), str(p["ptu_preset"]))
 
 
 def theory_main_sequence(
@@ -390,7 +390,7 @@ def grid(cfg: SaccadeSpeedConfig) -> list[dict[str, Any]]:
     """``one_at_a_time``: the baseline, then each factor's other values with the rest at
     the baseline; ``factorial``: every combination of :data:`FACTORIAL`'s values. The
     first setting of each PTU (speed, acceleration, link) is marked ``main_sequence``."""
-    base = baseline(cfg.window_s, cfg.ptu)
+    base = baseline(cfg.window_s, cfg.ptu_preset)
     rows: list[dict[str, Any]] = []
     if cfg.design == "factorial":
         cols = [FACTORS[f] for f in FACTORIAL]
@@ -405,7 +405,7 @@ def grid(cfg: SaccadeSpeedConfig) -> list[dict[str, Any]]:
                     rows.append({"factor": factor, **base, column: v})
     seen: set[tuple[Any, ...]] = set()
     for r in rows:
-        key = (r["speed_pos_s"], r["accel_pos_s2"], r["ptu"])
+        key = (r["speed_pos_s"], r["accel_pos_s2"], r["ptu_preset"])
         r["main_sequence"] = key not in seen
         seen.add(key)
     return rows
@@ -433,7 +433,7 @@ SETTING_COLUMNS = (
     "fixational_n_steps",
     "window_s",
     "object_speed_scale",
-    "ptu",
+    "ptu_preset",
 )
 # (column, label, format) of the closed-loop measures summarised per setting.
 MEASURES = (
@@ -547,7 +547,7 @@ def compare(cfg: SaccadeSpeedConfig, rows: list[Row]) -> list[Comparison]:
             r0 = g[0]
             name = (
                 f"{float(r0['speed_pos_s']):g} pos/s, {float(r0['accel_pos_s2']):g} pos/s², "
-                f"{r0['ptu']} PTU"
+                f"{r0['ptu_preset']} PTU"
             )
             out.append(
                 Comparison(
@@ -618,7 +618,7 @@ def plot(cfg: SaccadeSpeedConfig, rows: list[Row], results_dir: Path, fig_dir: P
         ptu = _trial_ptu(r)
         label = (
             f"{ptu.pan_speed * ptu.pan_deg_per_pos:.0f} °/s, "
-            f"{ptu.pan_accel * ptu.pan_deg_per_pos:.0f} °/s², {r['ptu']}"
+            f"{ptu.pan_accel * ptu.pan_deg_per_pos:.0f} °/s², {r['ptu_preset']}"
         )
         v, t = theory_main_sequence(amps, ptu)
         c = f"C{k}"

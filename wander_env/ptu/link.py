@@ -1,13 +1,14 @@
-"""The PTU's command latency: the 9600-baud serial link between host and unit.
+"""The PTU's serial link: one model of its command scheduling, for the sim and the rig.
 
 The real unit talks ASCII at 9600 baud, so every command and position query costs
 milliseconds on the serial line (:class:`PTULinkParams`, the ``flir`` preset of
 :meth:`~wander_env.ptu.params.PTUParams.preset`; off in ``ideal``, the default).
-:class:`CommandLink` replays, in simulated time, what the rig's PTU thread
-(``hardware/rig_env.py``) does with the driver (``hardware/ptu_driver.py``): a new target
-is queued (replacing one not yet sent) and sent as ``PP<n>`` then ``TP<n>`` (only the axes
-that changed), each answered ``*`` CR LF; between commands the thread polls ``PP`` and
-``TP`` (answers ``* <n>`` CR LF) every ``poll_s``. Each byte costs
+:class:`LinkSchedule` is the scheduling, a pure state machine: a new target is queued
+(replacing one not yet sent) and sent as ``PP<n>`` then ``TP<n>`` (only the axes that
+changed), each answered ``*`` CR LF; between commands ``PP`` and ``TP`` are polled
+(answers ``* <n>`` CR LF) every ``poll_s``. The rig's PTU thread (``hardware/rig_env.py``)
+steps it in wall-clock time with the driver (``hardware/ptu_driver.py``) on the port;
+:class:`CommandLink` steps it in simulated time: each byte costs
 ``bits_per_byte / baudrate`` (8N1: 10 bits); an axis takes its new target when the unit
 has received the command's last byte; the position a query reports is the unit's step
 counter when the query arrived. With a link,
@@ -63,14 +64,23 @@ class PTULinkParams:
         return self.bits_per_byte / self.baudrate
 
 
+def command_word(axis: int, value: int | None) -> str:
+    """A position command (``PP-500``) or query (``TP``) of axis 0 (pan) or 1 (tilt), as
+    the driver sends it (without the delimiter).
+
+    >>> command_word(0, -500), command_word(1, None)
+    ('PP-500', 'TP')
+    """
+    return f"{'PT'[axis]}P{'' if value is None else value}"
+
+
 def command_bytes(axis: int, value: int | None, link: PTULinkParams) -> int:
     """Bytes of a position command (``PP-500 ``) or query (``PP ``) for axis 0 (pan) or 1.
 
     >>> command_bytes(0, -500, PTULinkParams()), command_bytes(1, None, PTULinkParams())
     (7, 3)
     """
-    letter = "PT"[axis]
-    return len(f"{letter}P{'' if value is None else value}{link.delimiter}")
+    return len(command_word(axis, value) + link.delimiter)
 
 
 def reply_bytes(value: int | None, link: PTULinkParams) -> int:
@@ -80,6 +90,137 @@ def reply_bytes(value: int | None, link: PTULinkParams) -> int:
     (3, 9)
     """
     return len(("*" if value is None else f"* {value}") + link.eol)
+
+
+Target = tuple[int, int]
+
+
+@dataclass(frozen=True)
+class Exchange:
+    """One exchange on the line: a target's position commands (``PP<n>`` then ``TP<n>``,
+    the changed axes only), or a position poll (``PP``, ``TP``).
+
+    ``words``: (axis, value) in the order sent, value ``None`` for a query; ``target``: the
+    target the commands send (``None``: a poll); ``submitted_s``: when that target was
+    handed over (a poll: when it began); ``acked``: the acknowledged target when the
+    exchange began (a poll's answer is judged against it).
+    """
+
+    words: tuple[tuple[int, int | None], ...]
+    target: Target | None
+    submitted_s: float
+    acked: Target
+
+    @property
+    def is_poll(self) -> bool:
+        """True for a position poll."""
+        return self.target is None
+
+    def text(self) -> list[str]:
+        """The words as sent (``["PP100", "TP-50"]``, ``["PP", "TP"]``)."""
+        return [command_word(axis, value) for axis, value in self.words]
+
+
+class LinkSchedule:
+    """The PTU link's command scheduling, a pure state machine in the caller's time.
+
+    One exchange on the line at a time. A target handed over (:meth:`submit`) replaces one
+    that waits, unsent; when the line is free (:meth:`due_s` has come) :meth:`begin` takes
+    the waiting target as a command exchange (the axes that differ from the acknowledged
+    target, pan first), or, with no target waiting (or one equal to the acknowledged
+    target), a poll of both axes, ``poll_s`` after the previous poll ended (at once after
+    a command). :meth:`end` takes the exchange's outcome. The simulated link
+    (:class:`CommandLink`, byte timing in simulated time) and the rig's PTU thread
+    (``hardware/rig_env.py``, the driver on a serial port, in wall-clock time) both step it.
+
+    >>> s = LinkSchedule(0.01, (0, 0))
+    >>> s.submit((100, 0), 0.0)
+    >>> s.submit((100, -50), 0.001)         # replaces the unsent (100, 0)
+    >>> ex = s.begin(0.002); ex.text()
+    ['PP100', 'TP-50']
+    >>> s.end(0.02); s.acked, s.latencies_s, s.due_s()   # a poll at once after a command
+    ((100, -50), [0.019], 0.02)
+    >>> ex = s.begin(0.02); ex.text(); s.end(0.03, (40, -20)); s.positions, s.due_s()
+    ['PP', 'TP']
+    ((40, -20), 0.04)
+    """
+
+    def __init__(self, poll_s: float, start: Target, t_s: float = 0.0) -> None:
+        self.poll_s = poll_s
+        self.acked: Target = tuple(start)  # the last target the unit acknowledged
+        self.positions: Target = tuple(start)  # the last poll's answer
+        self.poll_target: Target = tuple(start)  # the acknowledged target when it began
+        self.want: Target | None = None  # the newest target not yet sent
+        self.want_at = 0.0
+        self.current: Exchange | None = None  # the exchange on the line
+        self.latencies_s: list[float] = []
+        self.counts = {"commands_sent": 0, "commands_replaced": 0, "polls": 0}
+        self.next_poll = t_s + poll_s
+
+    @property
+    def latency_s(self) -> float:
+        """The latest acknowledged command's latency (NaN before the first)."""
+        return self.latencies_s[-1] if self.latencies_s else math.nan
+
+    def copy(self) -> LinkSchedule:
+        """An independent schedule in the same state."""
+        twin = copy.copy(self)
+        twin.latencies_s, twin.counts = list(self.latencies_s), dict(self.counts)
+        return twin
+
+    def submit(self, target: Target, t_s: float) -> None:
+        """Hand over a new target (whole positions) at ``t_s``."""
+        if self.want is not None:
+            self.counts["commands_replaced"] += 1
+        self.want, self.want_at = (int(target[0]), int(target[1])), t_s
+
+    def discard(self) -> None:
+        """Drop the target that waits, unsent (a halt)."""
+        self.want = None
+
+    def due_s(self) -> float:
+        """When the next exchange begins: at once for a waiting target, else the next poll
+        (never while an exchange is on the line)."""
+        if self.current is not None:
+            return math.inf
+        return self.want_at if self.want is not None else self.next_poll
+
+    def begin(self, t_s: float) -> Exchange:
+        """Start the next exchange at ``t_s`` (the line is free) and return it."""
+        if self.current is not None:
+            raise RuntimeError("an exchange is already on the line")
+        job, self.want = self.want, None
+        if job is not None and job != self.acked:
+            words = tuple((i, job[i]) for i in (0, 1) if job[i] != self.acked[i])
+            self.current = Exchange(words, job, self.want_at, self.acked)
+        else:
+            self.current = Exchange(((0, None), (1, None)), None, t_s, self.acked)
+        return self.current
+
+    def end(self, t_s: float, polled: Target | None = None) -> None:
+        """The exchange on the line ended at ``t_s``: its commands were acknowledged, or
+        its poll answered ``polled`` (whole positions)."""
+        ex, self.current = self.current, None
+        if ex is None:
+            raise RuntimeError("no exchange is on the line")
+        if ex.target is not None:
+            self.acked = ex.target
+            self.latencies_s.append(t_s - ex.submitted_s)
+            self.counts["commands_sent"] += 1
+            self.next_poll = t_s  # poll right after a command
+        else:
+            if polled is None:
+                raise ValueError("a poll ends with the polled positions")
+            self.positions, self.poll_target = (int(polled[0]), int(polled[1])), ex.acked
+            self.counts["polls"] += 1
+            self.next_poll = t_s + self.poll_s
+
+    def moving(self, target: Target) -> bool:
+        """The rig's test: a target waits or is being sent, or the last poll (begun after
+        ``target`` was acknowledged) did not find the unit on it."""
+        sending = self.current is not None and not self.current.is_poll
+        busy = self.want is not None or sending
+        return busy or self.poll_target != tuple(target) or self.positions != tuple(target)
 
 
 class LinkedUnit(Protocol):
@@ -95,11 +236,8 @@ class LinkedUnit(Protocol):
 
 
 class CommandLink:
-    """The rig's PTU thread (``hardware/rig_env.py`` ``_PTULink``) replayed in simulated
-    time: one exchange on the line at a time; a submitted target waits for the exchange
-    in progress, replaces a queued one not yet sent, then goes out as ``PP<n>``/``TP<n>``
-    (changed axes only); when no target waits, ``PP``/``TP`` are polled ``poll_s`` after
-    the previous poll ended (at once after a command).
+    """The PTU link in simulated time: a :class:`LinkSchedule` whose exchanges take their
+    bytes' time on the line, word by word (command, then the unit's reply).
 
     Driven by :class:`~wander_env.ptu.unit.PanTiltUnit` (:meth:`next_time`, :meth:`fire`);
     ``latencies_s`` holds each acknowledged command's latency (submission to the last
@@ -111,49 +249,55 @@ class CommandLink:
     6.25
     """
 
-    def __init__(self, params: PTULinkParams, start: tuple[int, int], t_s: float = 0.0) -> None:
+    def __init__(self, params: PTULinkParams, start: Target, t_s: float = 0.0) -> None:
         self.params = params
-        self.acked = tuple(start)
-        self.positions = tuple(start)  # the last poll's answer
-        self.poll_target = tuple(start)  # the acknowledged target when that poll began
-        self.want: tuple[int, int] | None = None
-        self.want_at = 0.0
-        self.latencies_s: list[float] = []
-        self.counts = {"commands_sent": 0, "commands_replaced": 0, "polls": 0}
-        self._next_poll = t_s + params.poll_s
-        self._stage = "idle"  # idle | sending (command on the line) | replying
-        self._next = self._next_poll
-        self._tx: list[tuple[int, int | None]] = []  # (axis, value or None = query)
-        self._job: tuple[int, int] | None = None
-        self._job_at = 0.0
-        self._poll_acked = self.acked
+        self.schedule = LinkSchedule(params.poll_s, start, t_s)
+        self._replying = False  # the unit's reply to the first of _tx is on the line
+        self._tx: list[tuple[int, int | None]] = []  # the exchange's words not yet answered
         self._samples = list(start)
         self._reply: int | None = None
+        self._next = self.schedule.due_s()
 
     @property
     def latency_s(self) -> float:
         """The latest acknowledged command's latency (NaN before the first)."""
-        return self.latencies_s[-1] if self.latencies_s else math.nan
+        return self.schedule.latency_s
+
+    @property
+    def latencies_s(self) -> list[float]:
+        """Every acknowledged command's latency, in order."""
+        return self.schedule.latencies_s
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """Commands sent and replaced, polls (as the rig's ``stats``)."""
+        return self.schedule.counts
+
+    @property
+    def positions(self) -> Target:
+        """The last poll's answer."""
+        return self.schedule.positions
+
+    @property
+    def poll_target(self) -> Target:
+        """The acknowledged target when the last poll began."""
+        return self.schedule.poll_target
 
     def copy(self) -> CommandLink:
         """An independent link in the same state."""
         twin = copy.copy(self)
-        twin.latencies_s, twin.counts = list(self.latencies_s), dict(self.counts)
+        twin.schedule = self.schedule.copy()
         twin._tx, twin._samples = list(self._tx), list(self._samples)
         return twin
 
-    def moving(self, target: tuple[int, int]) -> bool:
-        """The rig's test: a target is queued or being sent, or the last poll (begun after
-        ``target`` was acknowledged) did not find the unit on it."""
-        busy = self.want is not None or (self._stage != "idle" and self._job is not None)
-        return busy or self.poll_target != tuple(target) or self.positions != tuple(target)
+    def moving(self, target: Target) -> bool:
+        """:meth:`LinkSchedule.moving`."""
+        return self.schedule.moving(target)
 
-    def submit(self, target: tuple[int, int], t_s: float) -> None:
-        """Hand a new target (whole positions) to the thread at ``t_s``."""
-        if self.want is not None:
-            self.counts["commands_replaced"] += 1
-        self.want, self.want_at = tuple(target), t_s
-        if self._stage == "idle":
+    def submit(self, target: Target, t_s: float) -> None:
+        """Hand a new target (whole positions) to the link at ``t_s``."""
+        self.schedule.submit(target, t_s)
+        if self.schedule.current is None:  # the line is idle: it goes out now
             self._begin(t_s)
 
     def next_time(self) -> float:
@@ -163,9 +307,9 @@ class CommandLink:
     def fire(self, unit: LinkedUnit) -> None:
         """Do what happens at :meth:`next_time` (the unit's motion is advanced to it)."""
         t = self._next
-        if self._stage == "idle":  # the poll is due
+        if self.schedule.current is None:  # the poll is due
             self._begin(t)
-        elif self._stage == "sending":  # the unit has the command: act, start the reply
+        elif not self._replying:  # the unit has the word: act, start the reply
             axis, value = self._tx[0]
             if value is None:
                 self._reply = unit.step_counter(axis)
@@ -173,47 +317,27 @@ class CommandLink:
             else:
                 unit.drive_axis(axis, float(value))
                 self._reply = None
-            self._stage = "replying"
-            self._next = (
-                t
-                + self.params.turnaround_s
-                + reply_bytes(self._reply, self.params) * (self.params.byte_s)
-            )
-        else:  # the reply is in: next command of the exchange, or the exchange is over
+            self._replying = True
+            reply = reply_bytes(self._reply, self.params) * self.params.byte_s
+            self._next = t + self.params.turnaround_s + reply
+        else:  # the reply is in: the exchange's next word, or the exchange is over
             self._tx.pop(0)
+            self._replying = False
             if self._tx:
                 self._send_next(t)
             else:
-                self._finish(t)
+                polled = tuple(self._samples) if self.schedule.current.is_poll else None
+                self.schedule.end(t, polled)
+                due = self.schedule.due_s()
+                if due <= t:
+                    self._begin(t)
+                else:
+                    self._next = due
 
     def _begin(self, t: float) -> None:
-        job, self.want = self.want, None
-        if job is not None and job != self.acked:
-            self._job, self._job_at = job, self.want_at
-            self._tx = [(i, job[i]) for i in (0, 1) if job[i] != self.acked[i]]
-        else:
-            self._job = None
-            self._poll_acked = self.acked
-            self._tx = [(0, None), (1, None)]
+        self._tx = list(self.schedule.begin(t).words)
         self._send_next(t)
 
     def _send_next(self, t: float) -> None:
         axis, value = self._tx[0]
-        self._stage = "sending"
         self._next = t + command_bytes(axis, value, self.params) * self.params.byte_s
-
-    def _finish(self, t: float) -> None:
-        if self._job is not None:
-            self.acked = self._job
-            self.latencies_s.append(t - self._job_at)
-            self.counts["commands_sent"] += 1
-            self._next_poll = t  # poll right after a command
-            self._job = None
-        else:
-            self.positions, self.poll_target = tuple(self._samples), self._poll_acked
-            self.counts["polls"] += 1
-            self._next_poll = t + self.params.poll_s
-        if self.want is not None or self._next_poll <= t:
-            self._begin(t)
-        else:
-            self._stage, self._next = "idle", self._next_poll
