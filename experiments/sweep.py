@@ -79,6 +79,7 @@ from experiments.framework import (
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
 from wander_env.strict_json import dumps_strict
+from wander_env.untrusted import FileLimits, read_json
 
 __all__ = [
     "BACKENDS",
@@ -408,10 +409,7 @@ def _stored(out_dir: Path, spec: TrialSpec) -> bool:
     if not path.exists():
         return False
     try:
-        size = path.stat().st_size
-        if size > MAX_TRIAL_FILE_BYTES:  # a row is a few kB: not read into memory
-            raise ValueError(f"{size} bytes; at most {MAX_TRIAL_FILE_BYTES}")
-        rec = json.loads(path.read_text())
+        rec = read_json(path, FileLimits(json_bytes=MAX_TRIAL_FILE_BYTES))  # a regular file
         if not isinstance(rec, dict) or not isinstance(rec.get("row"), dict):
             raise ValueError("no 'row' object")
         if rec["row"].get("trial_id") != spec.id:
@@ -424,7 +422,7 @@ def _stored(out_dir: Path, spec: TrialSpec) -> bool:
             k += 1
             aside = path.with_name(f"{path.name}.corrupt{k}")
         os.replace(path, aside)
-        why = " ".join(str(err).split()) or type(err).__name__
+        why = " ".join(getattr(err, "problem", str(err)).split()) or type(err).__name__
         warnings.warn(
             f"{path}: damaged trial file ({why}); set aside as {aside.name}, the trial is rerun",
             RuntimeWarning,
@@ -434,7 +432,7 @@ def _stored(out_dir: Path, spec: TrialSpec) -> bool:
 
 
 def _load_row(out_dir: Path, spec: TrialSpec) -> Row:
-    row = json.loads(_trial_file(out_dir, spec).read_text())["row"]
+    row = read_json(_trial_file(out_dir, spec), FileLimits(json_bytes=MAX_TRIAL_FILE_BYTES))["row"]
     row = {k: math.nan if v is None else v for k, v in row.items()}  # null: a missing figure
     # ids and sweep columns from the current sweep file (indices shift when it is edited)
     row.update({"trial": spec.index, "repeat": spec.repeat, "seed": spec.seed})

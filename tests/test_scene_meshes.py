@@ -185,7 +185,7 @@ def test_a_mesh_file_over_the_cap_is_refused_unread(tmp_path):
     msg = _mesh_error(tmp_path, {"file": "big.obj"})
     assert msg.endswith(
         f"moving_objects[0].mesh.file: {big}: {LIMITS.mesh_bytes + 1} bytes; "
-        f"at most {LIMITS.mesh_bytes} (the limit)"
+        f"at most {LIMITS.mesh_bytes}"
     )
 
 

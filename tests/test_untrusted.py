@@ -5,6 +5,7 @@ through the CLI each case is one line, exit 2 and a resident peak under 1 GB."""
 from __future__ import annotations
 
 import io
+import json
 import os
 import struct
 import subprocess
@@ -134,10 +135,7 @@ def test_a_file_over_its_cap_is_refused_unread_and_a_read_is_logged(tmp_path):
         f.truncate(LIMITS.json_bytes + 1)  # sparse: reading it would take 8 MiB
     with pytest.raises(UntrustedFileError) as info:
         read_json(big)
-    assert (
-        str(info.value)
-        == f"{big}: {LIMITS.json_bytes + 1} bytes; at most {LIMITS.json_bytes} (the limit)"
-    )
+    assert str(info.value) == f"{big}: {LIMITS.json_bytes + 1} bytes; at most {LIMITS.json_bytes}"
     (tmp_path / "a.bin").write_bytes(b"abc")
     log = ReadLog()
     assert read_bytes(tmp_path / "a.bin", 3, log=log) == b"abc"
@@ -151,7 +149,7 @@ def test_json_nested_100000_deep_is_one_line(tmp_path):
     path.write_text("[" * 100_000 + "]" * 100_000)
     with pytest.raises(UntrustedFileError) as info:
         read_json(path)
-    assert str(info.value) == f"{path}: JSON nested 100000 deep; at most 64 (the limit)"
+    assert str(info.value) == f"{path}: JSON nested 100000 deep; at most 64"
     assert json_nesting('["[[[", {"a": "\\"[["}]') == 2
 
 
@@ -169,8 +167,7 @@ def test_a_zip_bombed_npz_is_refused_before_it_inflates(tmp_path):
     with pytest.raises(UntrustedFileError) as info:
         read_npz(bomb)
     assert str(info.value) == (
-        f"{bomb}: its members inflate to {declared} bytes; at most {LIMITS.npz_inflated_bytes} "
-        "(the limit)"
+        f"{bomb}: its members inflate to {declared} bytes; at most {LIMITS.npz_inflated_bytes}"
     )
 
 
@@ -215,7 +212,7 @@ def test_a_png_bomb_texture_is_refused_from_its_header(tmp_path):
         load_mjcf(tmp_path / "tex.xml", FileLimits(texture_pixels=4000 * 4000))
     assert str(info.value) == (
         f"{tmp_path / 'bomb.png'}: texture file: a 5000 x 5000 PNG (25000000 pixels); "
-        "at most 16000000 (the limit)"
+        "at most 16000000"
     )
 
 
@@ -224,15 +221,14 @@ def test_a_png_bomb_texture_is_refused_from_its_header(tmp_path):
     [
         (
             REPLICATE_BOMB,
-            "replicate count: nested <replicate> counts multiply to 1000000; "
-            "at most 10000 (the limit)",
+            "replicate count: nested <replicate> counts multiply to 1000000; at most 10000",
         ),
         (
             '<mujoco><asset><texture name="t" builtin="checker" width="100000" '
             'height="100000"/></asset></mujoco>',
-            "texture width: 100000 x 100000 x 1 pixels; at most 16777216 (the limit)",
+            "texture width: 100000 x 100000 x 1 pixels; at most 16777216",
         ),
-        ('<mujoco><include file="x.xml"/></mujoco>', "includes nested deeper than 8 (the limit)"),
+        ('<mujoco><include file="x.xml"/></mujoco>', "includes nested deeper than 8"),
         (
             '<!DOCTYPE m [<!ENTITY a "aaaa">]><mujoco/>',
             "a DOCTYPE or ENTITY declaration: refused",
@@ -267,7 +263,7 @@ def test_a_png_bomb_inside_an_included_mjcf_is_one_line_within_1_gb(tmp_path):
         [
             "wander run: Invalid value for '--scene': scene.yaml: mjcf_includes[0].file: "
             f"{tmp_path / 'bomb.png'}: texture file: a 40000 x 40000 PNG "
-            f"(1600000000 pixels); at most {LIMITS.texture_pixels} (the limit)"
+            f"(1600000000 pixels); at most {LIMITS.texture_pixels}"
         ],
     )
     assert 0 < peak < GIB
@@ -284,7 +280,7 @@ def test_a_204_byte_nested_replicate_is_one_line_within_1_gb(tmp_path):
         [
             "wander run: Invalid value for '--scene': scene.yaml: mjcf_includes[0].file: "
             f"{tmp_path / 'rep.xml'}: replicate count: nested <replicate> counts multiply to "
-            "1000000; at most 10000 (the limit)"
+            "1000000; at most 10000"
         ],
     )
     assert 0 < peak < GIB
@@ -304,3 +300,150 @@ def test_a_fifo_named_by_an_mjcf_include_is_one_line_not_a_hang(tmp_path):
             "refused"
         ],
     )
+
+
+# ----------------------------------------------------------------------------------------
+# Archives, results and trial files through the CLI
+
+
+def _npy(arr: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, arr, allow_pickle=False)
+    return buf.getvalue()
+
+
+def npz_bomb(path: Path, bomb: str, mib: int = 600, **members: np.ndarray) -> Path:
+    """An .npz whose member ``bomb`` is ``mib`` MiB of zeros (written in pieces: the test
+    never holds it), beside small ``members``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
+        for name, arr in members.items():
+            zf.writestr(f"{name}.npy", _npy(arr))
+        with zf.open(f"{bomb}.npy", "w", force_zip64=True) as fh:
+            header = {"descr": "|u1", "fortran_order": False, "shape": (mib << 20,)}
+            np.lib.format.write_array_header_1_0(fh, header)
+            piece = bytes(16 << 20)
+            for _ in range(mib // 16):
+                fh.write(piece)
+    return path
+
+
+def declared(path: Path) -> int:
+    """What the members of the zip ``path`` declare they inflate to."""
+    with zipfile.ZipFile(path) as zf:
+        return sum(i.file_size for i in zf.infolist())
+
+
+EVIMO_META = json.dumps({"frames": [{"ts": 0.05, "id": 0}], "meta": {"res_x": 4, "res_y": 3}})
+
+
+@pytest.mark.slow
+def test_a_zip_bombed_evimo_npz_is_one_line_within_1_gb(tmp_path):
+    seq = npz_bomb(
+        tmp_path / "evimo" / "box" / "seq_00.npz",
+        "mask",
+        events=np.zeros((5, 4)),
+        meta=np.asarray(EVIMO_META),
+    )
+    assert seq.stat().st_size < 1 << 20 and declared(seq) > 600_000_000
+    args = ["benchmark", "evimo", "evimo", "--no-progress", "--out", "out"]
+    rc, err, peak = run_limited(args, tmp_path)
+    assert (rc, err) == (
+        2,
+        [
+            "wander benchmark evimo: error: evimo/box/seq_00.npz: its members inflate to "
+            f"{declared(seq)} bytes; at most {LIMITS.npz_inflated_bytes}"
+        ],
+    )
+    assert 0 < peak < GIB
+
+
+@pytest.mark.slow
+def test_evimo_metadata_nested_100000_deep_is_one_line(tmp_path):
+    seq = tmp_path / "evimo" / "box" / "seq_00.npz"
+    seq.parent.mkdir(parents=True)
+    deep = '{"frames": ' + "[" * 100_000 + "]" * 100_000 + "}"
+    np.savez_compressed(
+        seq, events=np.zeros((5, 4)), mask=np.zeros((1, 3, 4)), meta=np.asarray(deep)
+    )
+    rc, err, peak = run_limited(["benchmark", "evimo", "evimo", "--no-progress"], tmp_path)
+    assert (rc, err) == (
+        2,
+        [
+            "wander benchmark evimo: error: evimo/box/seq_00.npz: "
+            "'meta' nested 100001 deep; at most 64"
+        ],
+    )
+    assert 0 < peak < GIB
+
+
+def _result_folder(root: Path) -> Path:
+    from test_report import _scanpath_folder
+
+    return _scanpath_folder(root / "results")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["/dev/zero", "fifo"])
+def test_a_config_json_that_is_not_a_file_is_one_line_not_a_hang(tmp_path, kind):
+    config = _result_folder(tmp_path) / "config.json"
+    config.unlink()
+    if kind == "fifo":
+        os.mkfifo(config)
+    else:
+        config.symlink_to(kind)
+    rc, err, peak = run_limited(["report", "--results", "results", "--out", "R.md"], tmp_path)
+    what = "a FIFO" if kind == "fifo" else "a character device"
+    assert (rc, err) == (
+        2,
+        [
+            "wander report: error: results/scanpath/x/config.json: not a regular file "
+            f"({what}): refused"
+        ],
+    )
+    assert 0 < peak < GIB and not (tmp_path / "R.md").exists()
+
+
+@pytest.mark.slow
+def test_a_zip_bombed_scanpath_artifact_is_one_line_within_1_gb(tmp_path):
+    folder = _result_folder(tmp_path)
+    bomb = npz_bomb(folder / "artifacts" / "t0.npz", "gaze")
+    rc, err, peak = run_limited(["report", "--results", "results", "--out", "R.md"], tmp_path)
+    assert (rc, err) == (
+        2,
+        [
+            "wander report: error: results/scanpath/x/results.csv: scanpath's figures failed on "
+            "its rows (UntrustedFileError: results/scanpath/x/artifacts/t0.npz: its members "
+            f"inflate to {declared(bomb)} bytes; at most {LIMITS.npz_inflated_bytes})"
+        ],
+    )
+    assert 0 < peak < GIB
+
+
+@pytest.mark.parametrize("kind", ["/dev/zero", "fifo"])
+def test_a_trial_file_that_is_not_a_file_is_set_aside_on_resume(tmp_path, kind):
+    from test_sweep import TOY_SWEEP, CountingRunner
+
+    from experiments.sweep import run_sweep, sweep_from_dict
+
+    sweep = sweep_from_dict(TOY_SWEEP)
+    runner = CountingRunner()
+    first = run_sweep(sweep, tmp_path, backend="serial", runner=runner)
+    victim = first.rows[4]["trial_id"]
+    path = tmp_path / "trials" / f"{victim}.json"
+    path.unlink()
+    if kind == "fifo":
+        os.mkfifo(path)
+    else:
+        path.symlink_to(kind)
+    runner.calls.clear()
+    with pytest.warns(RuntimeWarning) as warned:
+        res = run_sweep(sweep, tmp_path, backend="serial", runner=runner)
+    what = "a FIFO" if kind == "fifo" else "a character device"
+    assert [str(w.message) for w in warned] == [
+        f"{path}: damaged trial file (not a regular file ({what}): refused); set aside as "
+        f"{victim}.json.corrupt, the trial is rerun"
+    ]
+    assert len(runner.calls) == 1 and [r["trial_id"] for r in res.rows] == [
+        r["trial_id"] for r in first.rows
+    ]

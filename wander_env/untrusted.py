@@ -58,10 +58,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
-import numpy as np
-
 if TYPE_CHECKING:
     import mujoco
+    import numpy as np
 
 __all__ = [
     "LIMITS",
@@ -134,12 +133,20 @@ LIMITS = FileLimits()
 
 
 class UntrustedFileError(ValueError):
-    """A file refused: one line, ``FILE: [field: ]what is wrong``."""
+    """A file refused: one line, ``FILE: [field: ]what is wrong``; ``missing`` when there
+    is no such file."""
 
-    def __init__(self, path: str | os.PathLike, problem: str, field: str | None = None) -> None:
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        problem: str,
+        field: str | None = None,
+        missing: bool = False,
+    ) -> None:
         self.path = str(path)
         self.problem = problem
         self.field = field
+        self.missing = missing
         where = f"{field}: " if field else ""
         super().__init__(" ".join(f"{self.path}: {where}{problem}".split()))
 
@@ -192,7 +199,7 @@ def open_regular(path: str | os.PathLike, what: str | None = None) -> io.Buffere
     try:
         fd = os.open(path, flags)
     except FileNotFoundError:
-        raise UntrustedFileError(path, "no such file", what) from None
+        raise UntrustedFileError(path, "no such file", what, missing=True) from None
     except OSError as err:
         raise UntrustedFileError(path, f"cannot be opened ({err.strerror or err})", what) from None
     try:
@@ -212,13 +219,13 @@ def _read_capped(
 ) -> bytes:
     size = os.fstat(fh.fileno()).st_size
     if size > cap:
-        raise UntrustedFileError(path, f"{size} bytes; at most {cap} (the limit)", what)
+        raise UntrustedFileError(path, f"{size} bytes; at most {cap}", what)
     try:
         data = fh.read(cap + 1)
     except OSError as err:
         raise UntrustedFileError(path, f"cannot be read ({err.strerror or err})", what) from None
     if len(data) > cap:
-        raise UntrustedFileError(path, f"grew past {cap} bytes while read (the limit)", what)
+        raise UntrustedFileError(path, f"grew past {cap} bytes while read", what)
     return data
 
 
@@ -234,9 +241,10 @@ def read_bytes(
     return data
 
 
-def json_nesting(text: str) -> int:
-    """How deep lists and objects nest in JSON ``text``, counted on the text (strings
-    skipped), so that a document too deep is refused before it is parsed.
+def json_nesting(text: str, quotes: str = '"') -> int:
+    """How deep lists and objects nest in JSON ``text``, counted on the text (strings in
+    ``quotes`` skipped; ``"'`` for a Python literal), so that a document too deep is
+    refused before it is parsed.
 
     >>> json_nesting('{"a": [1, {"b": "[[["}]}'), json_nesting("3")
     (3, 0)
@@ -244,14 +252,14 @@ def json_nesting(text: str) -> int:
     deepest = depth = 0
     i, n = 0, len(text)
     while i < n:
-        j = min((k for k in (text.find(c, i) for c in '"[{]}') if k >= 0), default=n)
+        j = min((k for k in (text.find(c, i) for c in quotes + "[{(]})") if k >= 0), default=n)
         if j >= n:
             break
         c = text[j]
-        if c == '"':  # skip the string, escapes included
+        if c in quotes:  # skip the string, escapes included
             k = j + 1
             while True:
-                k = text.find('"', k)
+                k = text.find(c, k)
                 if k < 0:
                     return deepest
                 back = k - 1
@@ -262,7 +270,7 @@ def json_nesting(text: str) -> int:
                 k += 1
             i = k + 1
             continue
-        depth += 1 if c in "[{" else -1
+        depth += 1 if c in "[{(" else -1
         deepest = max(deepest, depth)
         i = j + 1
     return deepest
@@ -273,9 +281,7 @@ def parse_json(text: str, where: str | os.PathLike, limits: FileLimits = LIMITS)
     :class:`UntrustedFileError` naming ``where`` otherwise."""
     depth = json_nesting(text)
     if depth > limits.json_depth:
-        raise UntrustedFileError(
-            where, f"JSON nested {depth} deep; at most {limits.json_depth} (the limit)"
-        )
+        raise UntrustedFileError(where, f"JSON nested {depth} deep; at most {limits.json_depth}")
     try:
         return json.loads(text)
     except json.JSONDecodeError as err:
@@ -292,7 +298,7 @@ def read_json(
         text = data.decode("utf-8")
     except UnicodeDecodeError as err:
         raise UntrustedFileError(
-            path, f"not UTF-8 text (byte 0x{data[err.start]:02x} at offset {err.start})"
+            path, f"not UTF-8 text ({err.reason} at byte {err.start})"
         ) from None
     return parse_json(text, path, limits)
 
@@ -319,7 +325,7 @@ def npz_members(
             declared = sum(i.file_size for i in infos)
             if declared > cap:
                 raise UntrustedFileError(
-                    path, f"its members inflate to {declared} bytes; at most {cap} (the limit)"
+                    path, f"its members inflate to {declared} bytes; at most {cap}"
                 )
             out: dict[str, bytes] = {}
             for info in infos:  # zipfile stops at the declared size and checks the CRC
@@ -334,6 +340,8 @@ def npz_members(
 
 def npy_array(path: str | os.PathLike, name: str, body: bytes) -> np.ndarray:
     """One ``.npy`` member (no pickled objects); :class:`UntrustedFileError` otherwise."""
+    import numpy as np  # here: the report reads JSON without it
+
     try:
         return np.load(io.BytesIO(body), allow_pickle=False)
     except (ValueError, OSError, EOFError) as err:
@@ -385,7 +393,7 @@ def check_png(
     if width * height > max_pixels:
         raise UntrustedFileError(
             where,
-            f"a {width} x {height} PNG ({width * height} pixels); at most {max_pixels} (the limit)",
+            f"a {width} x {height} PNG ({width * height} pixels); at most {max_pixels}",
             what,
         )
 
@@ -463,7 +471,7 @@ class _MJCFScan:
         self.files += 1
         if self.files > self.limits.mjcf_files:
             raise UntrustedFileError(
-                self.main, f"names more than {self.limits.mjcf_files} files (the limit)", what
+                self.main, f"names more than {self.limits.mjcf_files} files", what
             )
         path = Path(name) if os.path.isabs(name) else self.main.parent / name
         return read_bytes(path, cap, f"{what} {name[:200]!r}", self.log)
@@ -472,7 +480,7 @@ class _MJCFScan:
         self.bytes_read += len(data)
         if self.bytes_read > self.limits.mjcf_bytes:
             raise UntrustedFileError(
-                where, f"the MJCF files together exceed {self.limits.mjcf_bytes} bytes (the limit)"
+                where, f"the MJCF files together exceed {self.limits.mjcf_bytes} bytes"
             )
         if b"<!DOCTYPE" in data or b"<!ENTITY" in data:
             raise UntrustedFileError(where, "a DOCTYPE or ENTITY declaration: refused")
@@ -490,7 +498,7 @@ class _MJCFScan:
             if self.elements > self.limits.mjcf_elements:
                 raise UntrustedFileError(
                     where,
-                    f"expands to more than {self.limits.mjcf_elements} elements (the limit)",
+                    f"expands to more than {self.limits.mjcf_elements} elements",
                 )
             tag = el.tag
             if tag == "replicate":
@@ -499,7 +507,7 @@ class _MJCFScan:
                     raise UntrustedFileError(
                         where,
                         f"nested <replicate> counts multiply to {m}; at most "
-                        f"{self.limits.replicate_product} (the limit)",
+                        f"{self.limits.replicate_product}",
                         "replicate count",
                     )
             elif tag in ("flexcomp", "composite"):
@@ -507,7 +515,7 @@ class _MJCFScan:
                 if n > self.limits.replicate_product:
                     raise UntrustedFileError(
                         where,
-                        f"{n} elements; at most {self.limits.replicate_product} (the limit)",
+                        f"{n} elements; at most {self.limits.replicate_product}",
                         f"{tag} count",
                     )
             elif tag == "compiler":
@@ -529,7 +537,7 @@ class _MJCFScan:
             if w * h * faces > lim.texture_pixels:
                 raise UntrustedFileError(
                     where,
-                    f"{w} x {h} x {faces} pixels; at most {lim.texture_pixels} (the limit)",
+                    f"{w} x {h} x {faces} pixels; at most {lim.texture_pixels}",
                     "texture width",
                 )
         if el.tag == "hfield" and ("nrow" in el.attrib or "ncol" in el.attrib):
@@ -538,13 +546,13 @@ class _MJCFScan:
             )
             if cells > lim.hfield_cells:
                 raise UntrustedFileError(
-                    where, f"{cells} cells; at most {lim.hfield_cells} (the limit)", "hfield nrow"
+                    where, f"{cells} cells; at most {lim.hfield_cells}", "hfield nrow"
                 )
 
     def include(self, name: str, where: str, depth: int, mult: int) -> None:
         if depth > self.limits.include_depth:
             raise UntrustedFileError(
-                where, f"includes nested deeper than {self.limits.include_depth} (the limit)"
+                where, f"includes nested deeper than {self.limits.include_depth}"
             )
         data = self.read(name, self.limits.mjcf_bytes, "include file")
         self.includes[name] = data
@@ -620,6 +628,4 @@ def check_model_size(
     bytes, height-field cells); :class:`UntrustedFileError` naming the count otherwise."""
     for name, value, cap in _model_sizes(model, limits):
         if value > cap:
-            raise UntrustedFileError(
-                where, f"the model has {value}; at most {cap} (the limit)", name
-            )
+            raise UntrustedFileError(where, f"the model has {value}; at most {cap}", name)
