@@ -55,10 +55,10 @@ WRITE = """
     import numpy as np
     from wander_env.events import make_events
     from wander_env.events.io import EventRecording, write_events
-    from wander_env.events import stream
+    from wander_env.events import io
 
     if sys.argv[2] == "unchecked":
-        stream.check_space = lambda path, need: None
+        io.check_space = lambda path, need: None
     rng = np.random.default_rng(0)
     n = 2_000_000
     ev = make_events(

@@ -57,7 +57,7 @@ import numpy as np
 import pydantic
 
 from wander_env.camera import SPECK_HFOV_DEG
-from wander_env.config import ConfigError, check_annotated, load_yaml, validate
+from wander_env.config import MAX_YAML_BYTES, ConfigError, check_annotated, parse_yaml, validate
 from wander_env.field_doc import field_doc
 from wander_env.textures import TextureSpec
 from wander_env.trajectories import TrajectoryParams
@@ -762,6 +762,17 @@ class SceneConfig:
         textured = sum(p.texture is not None for p in parts)
         return room + textured + (1 if self.gratings is not None else 0)
 
+    def files_read(self) -> tuple[FileRecord, ...]:
+        """The files the scene's meshes and MJCF includes read when it was made (each
+        with its SHA-256), in config order."""
+        meshes = [
+            p.mesh.files_read()
+            for p in (*self.static_objects, *self.moving_objects)
+            if p.mesh is not None
+        ]
+        includes = [inc.files_read() for inc in self.mjcf_includes]
+        return tuple(r for group in (*meshes, *includes) for r in group)
+
     @property
     def num_objects(self) -> int:
         """Number of segmentable objects (ids 1..n): moving objects, or the grating patch."""
@@ -792,16 +803,21 @@ def available_scenes() -> tuple[str, ...]:
 
 def load_scene_config(
     scene: str | Path | Mapping[str, Any] | SceneConfig = DEFAULT_SCENE,
+    log: ReadLog | None = None,
 ) -> SceneConfig:
     """The scene ``scene`` names: a :class:`SceneConfig` as it is, a mapping (a parsed
     scene document) validated, a name (``assets/scenes/NAME.yaml``) or a YAML file path.
 
-    Relative mesh and MJCF file paths in a YAML file are relative to its folder.
+    Relative mesh and MJCF file paths in a YAML file are relative to its folder. ``log``
+    records every file the scene read (the YAML file, meshes, MJCF includes and the files
+    they name) with its SHA-256.
     """
-    if isinstance(scene, SceneConfig):
-        return scene
-    if isinstance(scene, Mapping):
-        return scene_config_from_dict(scene)
+    if isinstance(scene, (SceneConfig, Mapping)):
+        config = scene if isinstance(scene, SceneConfig) else scene_config_from_dict(scene)
+        if log is not None:
+            for record in config.files_read():
+                log.add_record(record)
+        return config
     text = str(scene)
     is_path = isinstance(scene, Path) or text.endswith((".yaml", ".yml")) or "/" in text
     if is_path:
@@ -820,8 +836,16 @@ def load_scene_config(
             raise ValueError(
                 f"unknown scene {text[:200]!r}; available: {', '.join(available_scenes())}"
             )
-    data = _files_relative_to(load_yaml(path, "scene file"), path.parent)
-    return scene_config_from_dict(data, default_name=path.stem, where=str(path))
+    try:
+        text = read_bytes(path, MAX_YAML_BYTES, log=log)
+    except UntrustedFileError as e:
+        raise ConfigError(str(e)) from None
+    data = _files_relative_to(parse_yaml(text, str(path)), path.parent)
+    config = scene_config_from_dict(data, default_name=path.stem, where=str(path))
+    if log is not None:
+        for record in config.files_read():
+            log.add_record(record)
+    return config
 
 
 def _files_relative_to(data: Any, folder: Path) -> Any:

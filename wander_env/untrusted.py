@@ -70,6 +70,7 @@ __all__ = [
     "ReadLog",
     "UntrustedFileError",
     "check_model_size",
+    "hash_file",
     "json_nesting",
     "load_mjcf",
     "npz_members",
@@ -239,6 +240,22 @@ def read_bytes(
     if log is not None:
         log.add(path, data)
     return data
+
+
+def hash_file(path: str | os.PathLike, what: str | None = None) -> FileRecord:
+    """The SHA-256 of the regular file ``path``, read in 1 MiB pieces (any size: nothing
+    is kept)."""
+    digest, size = hashlib.sha256(), 0
+    with open_regular(path, what) as fh:
+        try:
+            while piece := fh.read(1 << 20):
+                digest.update(piece)
+                size += len(piece)
+        except OSError as err:
+            raise UntrustedFileError(
+                path, f"cannot be read ({err.strerror or err})", what
+            ) from None
+    return FileRecord(str(Path(path).absolute()), size, digest.hexdigest())
 
 
 def json_nesting(text: str, quotes: str = '"') -> int:

@@ -41,6 +41,7 @@ import errno
 import io
 import os
 import re
+import shutil
 import uuid
 import zipfile
 from pathlib import Path
@@ -64,6 +65,38 @@ from wander_env.events.checks import (
 from wander_env.strict_json import dumps_strict
 
 FORMAT_TAG = "wander-events/1"
+#: Free bytes kept beyond a write's own size (HDF5 metadata, attributes, the run folder).
+SPACE_MARGIN = 1 << 20
+
+
+class OutputError(OSError):
+    """A result file could not be written (disk full, folder not writable): names it."""
+
+    def __init__(self, path: str | os.PathLike, cause: BaseException | str) -> None:
+        code = getattr(cause, "errno", None) if not isinstance(cause, str) else None
+        text = cause if isinstance(cause, str) else (getattr(cause, "strerror", None) or str(cause))
+        super().__init__(code or errno.EIO, text, str(path))
+
+    def __str__(self) -> str:
+        return f"cannot write {self.filename}: {self.strerror}"
+
+
+def check_space(path: str | os.PathLike, need_bytes: int) -> None:
+    """Raise :class:`OutputError` (ENOSPC) unless ``need_bytes`` + a margin are free."""
+    folder = Path(path).parent
+    try:
+        free = shutil.disk_usage(folder).free
+    except OSError as err:
+        raise OutputError(path, err) from err
+    if free < need_bytes + SPACE_MARGIN:
+        raise OutputError(
+            path,
+            OSError(
+                errno.ENOSPC,
+                f"No space left on device ({free:,} bytes free; {need_bytes:,} needed plus "
+                f"a reserve of {SPACE_MARGIN:,})",
+            ),
+        )
 
 
 def _npy_header(
@@ -338,13 +371,12 @@ def write_events(path: str | os.PathLike, recording: EventRecording) -> None:
     """Write ``.npz``, ``.h5``/``.hdf5``, ``.aedat4`` or ``.raw`` (EVT3); validates first.
 
     A file that cannot be written (a full disk, a read-only folder) is
-    :class:`~wander_env.events.stream.OutputError` (an ``OSError`` naming the file and the
+    :class:`OutputError` (an ``OSError`` naming the file and the
     errno) and no partial file is left. ``.npz`` and ``.h5`` files are built in memory
     (HDF5's core driver: h5py never writes to the disk, so a full disk cannot leave it
     to fail in a dealloc, which segfaults) and written once the free space is checked.
     """
     from wander_env.events import formats  # AEDAT4/EVT3 writers, the HDF5 ms_to_idx index
-    from wander_env.events.stream import OutputError, check_space
 
     path = Path(path)
     validate_events(recording.events, recording.sensor_size, where=str(path))
@@ -384,9 +416,7 @@ def as_os_error(err: BaseException) -> OSError:
 
 def write_file(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` whole: the free space checked first, a failed write an
-    :class:`~wander_env.events.stream.OutputError` naming it with no partial file left."""
-    from wander_env.events.stream import OutputError, check_space
-
+    :class:`OutputError` naming it with no partial file left."""
     check_space(path, len(data))
     try:
         with open(path, "wb") as fh:
