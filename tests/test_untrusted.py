@@ -447,3 +447,10 @@ def test_a_trial_file_that_is_not_a_file_is_set_aside_on_resume(tmp_path, kind):
     assert len(runner.calls) == 1 and [r["trial_id"] for r in res.rows] == [
         r["trial_id"] for r in first.rows
     ]
+
+
+def test_the_docs_list_every_cap_with_its_value_and_reason():
+    from wander_env.untrusted import limits_table
+
+    page = (ROOT / "docs" / "limits.md").read_text(encoding="utf-8")
+    assert limits_table() in page

@@ -45,6 +45,7 @@ Examples:
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import io
 import json
@@ -72,6 +73,7 @@ __all__ = [
     "check_model_size",
     "hash_file",
     "json_nesting",
+    "limits_table",
     "load_mjcf",
     "npz_members",
     "open_regular",
@@ -84,53 +86,75 @@ __all__ = [
 MiB = 1 << 20
 
 
+def _cap(value: int, why: str) -> Any:
+    """A field of :class:`FileLimits`: its default and why (``metadata["why"]``)."""
+    return field(default=value, metadata={"why": why})
+
+
 @dataclass(frozen=True)
 class FileLimits:
     """The caps on what an untrusted file may cost, each with its reason.
 
     Together they keep any one file's reading within about 1 GB resident (the bound the
-    fault-injection tests hold the CLI to).
+    fault-injection tests hold the CLI to). ``docs/limits.md`` is :func:`limits_table`.
     """
 
-    #: A JSON document: config.json, run.json, a trial file (each a few kB).
-    json_bytes: int = 8 * MiB
-    #: Lists and objects nested in a JSON document (ours nest 4-6 deep).
-    json_depth: int = 64
-    #: An MJCF file, and all the MJCF files one include brings together.
-    mjcf_bytes: int = 8 * MiB
-    #: ``<include>`` files within files.
-    include_depth: int = 8
-    #: Files one MJCF include may name (includes, meshes, textures, height fields).
-    mjcf_files: int = 1000
-    #: The product of nested ``<replicate count>``s: what one element may become.
-    replicate_product: int = 10_000
-    #: Elements the MJCF documents expand to (replicates multiplied out).
-    mjcf_elements: int = 200_000
-    #: A mesh file (OBJ/STL): an OBJ of ~3.5e5 vertices, which MuJoCo reads in 10-20 s.
-    mesh_bytes: int = 16 * MiB
-    #: A texture file (PNG) as stored.
-    texture_bytes: int = 16 * MiB
-    #: A texture's pixels, decoded (from its IHDR) or built in (width x height x faces):
-    #: MuJoCo holds 3-4 bytes a pixel, and the GL driver a copy: 4096 x 4096 is ~130 MB.
-    texture_pixels: int = 4096 * 4096
-    #: A height field's cells (nrow x ncol, or its PNG's pixels): 4 bytes each.
-    hfield_cells: int = 4096 * 4096
-    #: Bodies of a compiled model (the scene builds a few hundred).
-    model_bodies: int = 10_000
-    #: Geoms of a compiled model (each costs the renderer a draw call per frame).
-    model_geoms: int = 50_000
-    #: Mesh vertices of a compiled model (12 bytes each, plus normals and faces).
-    model_vertices: int = 4_000_000
-    #: Texture bytes of a compiled model (MuJoCo's own copy; the GL driver holds another).
-    model_texture_bytes: int = 256 * MiB
-    #: An .npz archive as stored.
-    npz_bytes: int = 512 * MiB
-    #: An .npz archive's members inflated, all together (declared, then counted).
-    npz_inflated_bytes: int = 512 * MiB
+    json_bytes: int = _cap(
+        8 * MiB, "A JSON document: config.json, run.json, a trial file (a few kB)."
+    )
+    json_depth: int = _cap(64, "Lists and objects nested in a JSON document (ours nest 4-6 deep).")
+    mjcf_bytes: int = _cap(8 * MiB, "An MJCF file, and all the MJCF files one include brings.")
+    include_depth: int = _cap(8, "`<include>` files within files.")
+    mjcf_files: int = _cap(1000, "Files one MJCF include may name (MJCF, meshes, textures).")
+    replicate_product: int = _cap(
+        10_000, "The product of nested `<replicate>` counts: what one element may become."
+    )
+    mjcf_elements: int = _cap(200_000, "Elements the MJCF files expand to (replicates multiplied).")
+    mesh_bytes: int = _cap(
+        16 * MiB, "A mesh file (OBJ/STL): an OBJ of ~3.5e5 vertices, which MuJoCo reads in 10-20 s."
+    )
+    texture_bytes: int = _cap(16 * MiB, "A texture file (PNG) as stored.")
+    texture_pixels: int = _cap(
+        4096 * 4096,
+        "A texture's pixels, decoded (read from its PNG header) or built in (width x height x "
+        "faces): MuJoCo holds 3-4 bytes a pixel and the GL driver a copy, ~130 MB at the cap.",
+    )
+    hfield_cells: int = _cap(4096 * 4096, "A height field's cells (nrow x ncol): 4 bytes each.")
+    model_bodies: int = _cap(10_000, "Bodies of a compiled model (a scene builds a few hundred).")
+    model_geoms: int = _cap(50_000, "Geoms of a compiled model (a draw call each, every frame).")
+    model_vertices: int = _cap(
+        4_000_000, "Mesh vertices of a compiled model (12 bytes each, plus normals and faces)."
+    )
+    model_texture_bytes: int = _cap(
+        256 * MiB, "Texture bytes of a compiled model (MuJoCo's copy; the GL driver holds another)."
+    )
+    npz_bytes: int = _cap(512 * MiB, "An .npz archive as stored.")
+    npz_inflated_bytes: int = _cap(
+        512 * MiB, "An .npz archive's members inflated, together (their declared sizes)."
+    )
 
 
 #: The limits every reader uses unless its caller passes others.
 LIMITS = FileLimits()
+
+
+def _amount(name: str, value: int) -> str:
+    if name.endswith("_bytes") and value % MiB == 0:
+        return f"{value // MiB} MiB"
+    return f"{value:,}"
+
+
+def limits_table(limits: FileLimits = LIMITS) -> str:
+    """The caps as a Markdown table: name, value, why.
+
+    >>> limits_table().splitlines()[2]
+    '| `json_bytes` | 8 MiB | A JSON document: config.json, run.json, a trial file (a few kB). |'
+    """
+    rows = [
+        f"| `{f.name}` | {_amount(f.name, getattr(limits, f.name))} | {f.metadata['why']} |"
+        for f in dataclasses.fields(limits)
+    ]
+    return "\n".join(["| cap | value | why |", "|---|---|---|", *rows])
 
 
 class UntrustedFileError(ValueError):
