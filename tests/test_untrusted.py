@@ -454,3 +454,18 @@ def test_the_docs_list_every_cap_with_its_value_and_reason():
 
     page = (ROOT / "docs" / "limits.md").read_text(encoding="utf-8")
     assert limits_table() in page
+
+
+def test_a_compiled_model_over_its_size_is_refused(tmp_path):
+    from wander_env.untrusted import check_model_size
+
+    path = tmp_path / "boxes.xml"
+    path.write_text(
+        '<mujoco><worldbody><replicate count="30"><geom type="box" size=".1 .1 .1"/>'
+        "</replicate></worldbody></mujoco>"
+    )
+    model = load_mjcf(path).spec().compile()
+    check_model_size(model, path)  # within the default caps
+    with pytest.raises(UntrustedFileError) as info:
+        check_model_size(model, path, FileLimits(model_geoms=20))
+    assert str(info.value) == f"{path}: ngeom: the model has 30; at most 20"
