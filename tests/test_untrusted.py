@@ -469,3 +469,37 @@ def test_a_compiled_model_over_its_size_is_refused(tmp_path):
     with pytest.raises(UntrustedFileError) as info:
         check_model_size(model, path, FileLimits(model_geoms=20))
     assert str(info.value) == f"{path}: ngeom: the model has 30; at most 20"
+
+
+def test_an_included_files_textures_are_attached_under_its_prefix(tmp_path):
+    from PIL import Image
+
+    (tmp_path / "tex").mkdir()
+    for side in ("right", "left", "up", "down", "front", "back"):
+        Image.new("RGB", (8, 8), (200, 10, 10)).save(tmp_path / "tex" / f"{side}.png")
+    Image.new("RGB", (8, 8), (10, 200, 10)).save(tmp_path / "tex" / "flat.png")
+    faces = " ".join(f'file{s}="{s}.png"' for s in ("right", "left", "up", "down", "front", "back"))
+    (tmp_path / "box.xml").write_text(
+        f'<mujoco><compiler texturedir="tex"/><asset><texture name="c" type="cube" {faces}/>'
+        '<texture name="f" type="2d" file="flat.png"/>'
+        '<material name="m" texture="c"/><material name="n" texture="f"/></asset>'
+        '<worldbody><body name="b"><geom type="box" size=".1 .1 .1" material="m"/>'
+        '<geom type="box" pos="0 0 1" size=".1 .1 .1" material="n"/></body></worldbody>'
+        "</mujoco>"
+    )
+    from wander_env.mjcf import compile_scene
+    from wander_env.scene_config import scene_config_from_dict
+
+    cfg = scene_config_from_dict({"mjcf_includes": [{"file": str(tmp_path / "box.xml")}]})
+    assert [Path(r.path).name for r in cfg.files_read()] == [
+        "box.xml",
+        "right.png",
+        "left.png",
+        "up.png",
+        "down.png",
+        "front.png",
+        "back.png",
+        "flat.png",
+    ]
+    model = compile_scene(cfg)
+    assert model.texture("include_0/c").id >= 0 and model.texture("include_0/f").id >= 0

@@ -463,10 +463,10 @@ class MJCFFiles(NamedTuple):
         if prefix:
             folders = {"textures": spec.texturedir}
             for kind in ("meshes", "textures", "hfields", "skins"):
+                folder = folders.get(kind, spec.meshdir)
                 for asset in getattr(spec, kind):
                     if asset.file:
-                        name = _combine(folders.get(kind, spec.meshdir), asset.file)
-                        asset.file = prefix + name
+                        asset.file = prefix + _combine(folder, asset.file)
             spec.meshdir = spec.texturedir = ""
         return spec
 
