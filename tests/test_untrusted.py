@@ -503,3 +503,14 @@ def test_an_included_files_textures_are_attached_under_its_prefix(tmp_path):
     ]
     model = compile_scene(cfg)
     assert model.texture("include_0/c").id >= 0 and model.texture("include_0/f").id >= 0
+
+
+def test_a_config_file_that_is_a_fifo_is_one_line_not_a_hang(tmp_path):
+    from wander_env.config import ConfigError, load_yaml
+
+    os.mkfifo(tmp_path / "sweep.yaml")
+    with pytest.raises(ConfigError) as info:
+        load_yaml(tmp_path / "sweep.yaml", "sweep file")
+    assert str(info.value) == (
+        f"{tmp_path / 'sweep.yaml'}: the sweep file: not a regular file (a FIFO): refused"
+    )

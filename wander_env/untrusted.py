@@ -159,7 +159,7 @@ def limits_table(limits: FileLimits = LIMITS) -> str:
 
 class UntrustedFileError(ValueError):
     """A file refused: one line, ``FILE: [field: ]what is wrong``; ``missing`` when there
-    is no such file."""
+    is no such file, ``kind`` what it is when it is not a regular file ("a folder", ...)."""
 
     def __init__(
         self,
@@ -167,11 +167,13 @@ class UntrustedFileError(ValueError):
         problem: str,
         field: str | None = None,
         missing: bool = False,
+        kind: str | None = None,
     ) -> None:
         self.path = str(path)
         self.problem = problem
         self.field = field
         self.missing = missing
+        self.kind = kind
         where = f"{field}: " if field else ""
         super().__init__(" ".join(f"{self.path}: {where}{problem}".split()))
 
@@ -231,7 +233,7 @@ def open_regular(path: str | os.PathLike, what: str | None = None) -> io.Buffere
         mode = os.fstat(fd).st_mode
         if not stat.S_ISREG(mode):
             kind = next((name for test, name in _KINDS if test(mode)), "not a file")
-            raise UntrustedFileError(path, f"not a regular file ({kind}): refused", what)
+            raise UntrustedFileError(path, f"not a regular file ({kind}): refused", what, kind=kind)
         os.set_blocking(fd, True)
         return os.fdopen(fd, "rb")
     except BaseException:
