@@ -52,14 +52,14 @@ import json
 import os
 import stat
 import struct
-import xml.etree.ElementTree as ET
-import zipfile
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # (zipfile and ElementTree are imported where used: config.py imports this)
+    import xml.etree.ElementTree as ET
+
     import mujoco
     import numpy as np
 
@@ -361,6 +361,8 @@ def npz_members(
         data = _read_capped(fh, path, limits.npz_bytes, None)
     if log is not None:
         log.add(path, data)
+    import zipfile
+
     cap = limits.npz_inflated_bytes
     try:
         with zipfile.ZipFile(io.BytesIO(data)) as zf:
@@ -520,6 +522,8 @@ class _MJCFScan:
         return read_bytes(path, cap, f"{what} {name[:200]!r}", self.log)
 
     def parse(self, name: str, data: bytes, where: str) -> ET.Element:
+        import xml.etree.ElementTree as ET
+
         self.bytes_read += len(data)
         if self.bytes_read > self.limits.mjcf_bytes:
             raise UntrustedFileError(
