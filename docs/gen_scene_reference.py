@@ -31,14 +31,13 @@ from wander_env.scene_config import (
     MAX_CAMERA_SIDE,
     MAX_LIGHTS,
     MAX_MATERIALS,
-    MAX_MESH_BYTES,
-    MAX_MJCF_BYTES,
     MAX_PARTS,
     MAX_TEXTURES,
     SceneConfig,
     assets_dir,
     available_scenes,
 )
+from wander_env.untrusted import LIMITS
 
 PAGE = Path(__file__).resolve().parent / "scenes.md"
 
@@ -75,10 +74,14 @@ def _limits_table() -> str:
         ("lights", f"{MAX_LIGHTS}", "MuJoCo's limit"),
         (
             "mesh file",
-            f"{MAX_MESH_BYTES // 2**20} MiB",
+            f"{LIMITS.mesh_bytes // 2**20} MiB",
             "OBJ or STL, read by MuJoCo when validated",
         ),
-        ("MJCF file", f"{MAX_MJCF_BYTES // 2**20} MiB", "compiled alone by MuJoCo when validated"),
+        (
+            "MJCF file",
+            f"{LIMITS.mjcf_bytes // 2**20} MiB",
+            "compiled alone by MuJoCo when validated",
+        ),
     ]
     lines = ["| what | limit | why |", "|---|---|---|"]
     return "\n".join([*lines, *(f"| {a} | {b} | {c} |" for a, b, c in rows)])

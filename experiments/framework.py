@@ -376,13 +376,12 @@ def columns_of(rows: Sequence[Mapping[str, Any]]) -> list[str]:
 
 def load_artifacts(folder: Path, row: Mapping[str, Any]) -> dict[str, Any]:
     """The artifacts saved for ``row`` in the result folder ({} when none)."""
-    import numpy as np
+    from wander_env.untrusted import read_npz  # bounded, regular files only
 
     path = Path(folder) / "artifacts" / f"{row['trial_id']}.npz"
     if not path.is_file():
         return {}
-    with np.load(path) as data:
-        return {k: data[k] for k in data.files}
+    return read_npz(path)
 
 
 def write_csv(rows: Sequence[Mapping[str, Any]], path: Path) -> Path:

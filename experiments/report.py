@@ -17,7 +17,6 @@ too few or too many cells, ``abc`` in a number column, rows the experiment canno
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 import shutil
@@ -33,6 +32,7 @@ from experiments.framework import (
     get_experiment,
     read_csv,
 )
+from wander_env import untrusted
 
 __all__ = [
     "PAPER_REFERENCE",
@@ -67,15 +67,9 @@ class ReportInputError(ValueError):
 def read_json(path: Path) -> dict[str, Any]:
     """A JSON object from ``path``, or :class:`ReportInputError`."""
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ReportInputError(path, "missing") from None
-    except UnicodeDecodeError as err:
-        raise ReportInputError(path, f"not UTF-8 text ({err.reason} at byte {err.start})") from None
-    except json.JSONDecodeError as err:
-        raise ReportInputError(path, f"not valid JSON, cut short or damaged ({err})") from None
-    except RecursionError:
-        raise ReportInputError(path, "JSON nested too deep") from None
+        data = untrusted.read_json(path)  # a regular file, bounded in size and nesting
+    except untrusted.UntrustedFileError as err:
+        raise ReportInputError(path, "missing" if err.missing else err.problem) from None
     if not isinstance(data, dict):
         raise ReportInputError(path, f"expected a JSON object, got {type(data).__name__}")
     return data
@@ -128,7 +122,7 @@ def _checked(path: Path, what: str, fn: Callable[..., _T], *args: Any, **kwargs:
 
 def _created(folder: Path) -> tuple[str, str]:
     try:
-        run = json.loads((folder / "run.json").read_text())
+        run = untrusted.read_json(folder / "run.json")
     except (OSError, ValueError, RecursionError):
         return ("", folder.name)
     return (str(run.get("created", "")) if isinstance(run, dict) else "", folder.name)

@@ -24,7 +24,6 @@ from wander_env.config import ConfigError
 from wander_env.mjcf import SceneAnimator, build_mjcf, compile_scene, geom_layer_radii
 from wander_env.renderer import CameraRenderer
 from wander_env.scene_config import (
-    MAX_MESH_BYTES,
     MeshConfig,
     MovingObjectConfig,
     SceneConfig,
@@ -34,6 +33,7 @@ from wander_env.scene_config import (
 )
 from wander_env.textures import TextureSpec
 from wander_env.trajectories import LinearBounceParams, ScriptedParams, make_trajectory
+from wander_env.untrusted import LIMITS
 
 
 def _moving_cube(obj: Path, **changes) -> dict:
@@ -165,8 +165,8 @@ def _mesh_error(tmp_path: Path, mesh: dict, **changes) -> str:
 def test_a_missing_mesh_file_is_one_line(tmp_path):
     msg = _mesh_error(tmp_path, {"file": "nope.obj"})
     assert msg == (
-        f"{tmp_path / 'scene.yaml'}: moving_objects[0].mesh.file: cannot be read "
-        f"(No such file or directory), got {str(tmp_path / 'nope.obj')!r}"
+        f"{tmp_path / 'scene.yaml'}: moving_objects[0].mesh.file: "
+        f"{tmp_path / 'nope.obj'}: no such file"
     )
 
 
@@ -181,18 +181,20 @@ def test_a_mesh_of_another_format_is_refused(tmp_path):
 def test_a_mesh_file_over_the_cap_is_refused_unread(tmp_path):
     big = tmp_path / "big.obj"
     with open(big, "wb") as f:
-        f.truncate(MAX_MESH_BYTES + 1)  # sparse: nothing to read
+        f.truncate(LIMITS.mesh_bytes + 1)  # sparse: nothing to read
     msg = _mesh_error(tmp_path, {"file": "big.obj"})
     assert msg.endswith(
-        f"moving_objects[0].mesh.file: larger than 16 MiB ({MAX_MESH_BYTES + 1} bytes), "
-        f"got {str(big)!r}"
+        f"moving_objects[0].mesh.file: {big}: {LIMITS.mesh_bytes + 1} bytes; "
+        f"at most {LIMITS.mesh_bytes}"
     )
 
 
 def test_a_directory_or_a_device_is_not_a_mesh(tmp_path):
     (tmp_path / "dir.obj").mkdir()
     msg = _mesh_error(tmp_path, {"file": "dir.obj"})
-    assert msg.endswith(f"mesh.file: not a regular file, got {str(tmp_path / 'dir.obj')!r}")
+    assert msg.endswith(
+        f"mesh.file: {tmp_path / 'dir.obj'}: not a regular file (a folder): refused"
+    )
 
 
 def test_a_mesh_mujoco_cannot_read_is_one_line(tmp_path):

@@ -58,6 +58,7 @@ from wander_env.config_messages import (
     kept_errors,
     type_name,
 )
+from wander_env.untrusted import UntrustedFileError, open_regular
 
 __all__ = [
     "MAX_KEY_PARTS",
@@ -206,12 +207,14 @@ def load_yaml(path: str | Path, what: str = "config file") -> Any:
     """
     path = Path(path)
     try:
-        with path.open("rb") as f:
+        with open_regular(path) as f:  # a FIFO or a device is refused, never waited on
             data = f.read(MAX_YAML_BYTES + 1)
-    except FileNotFoundError:
-        raise ConfigError(f"{what} not found: {path}") from None
-    except IsADirectoryError:
-        raise ConfigError(f"{path}: a folder, not a {what}") from None
+    except UntrustedFileError as err:
+        if err.missing:
+            raise ConfigError(f"{what} not found: {path}") from None
+        if err.kind == "a folder":
+            raise ConfigError(f"{path}: a folder, not a {what}") from None
+        raise ConfigError(f"{path}: the {what}: {err.problem}") from None
     except OSError as err:
         raise ConfigError(f"{path}: cannot read the {what}: {err.strerror or err}") from None
     return parse_yaml(data, str(path))

@@ -302,7 +302,7 @@ class MJCFDocument:
         name = f"mesh_{self._n_meshes}"
         path = Path(mesh.file)
         file = f"{name}{path.suffix.lower()}"
-        self.assets[file] = path.read_bytes()
+        self.assets[file] = mesh.data
         lo, hi = mesh.bounds()
         # "shell" inertia: MuJoCo then also takes open and flat meshes (nothing here has mass)
         self.element(
@@ -635,7 +635,7 @@ class MJCFInclude:
     def attach_spec(self, spec: mujoco.MjSpec) -> None:
         """Attach the file's bodies to ``spec``'s worldbody (static: no joints)."""
         inc = self.include
-        child = mujoco.MjSpec.from_file(inc.file)
+        child = inc.spec(self.prefix)  # its files' bytes: inc.assets(self.prefix)
         for joint in list(child.joints):
             child.delete(joint)
         for key in list(child.keys):  # their qpos sizes no longer fit

@@ -94,6 +94,7 @@ from wander_env.entities import (
 )
 from wander_env.scene_config import SceneConfig
 from wander_env.trajectories import Trajectory
+from wander_env.untrusted import check_model_size
 
 __all__ = [
     "Arena",
@@ -132,9 +133,14 @@ class MJCFScene:
     def compile(self) -> mujoco.MjModel:
         """Compile to a ``mujoco.MjModel`` (with the included files' bodies)."""
         spec = mujoco.MjSpec.from_string(self.xml, assets=self.assets)
+        assets = dict(self.assets)
         for include in self.includes:
             include.attach_spec(spec)
-        return spec.compile()
+            assets.update(include.include.assets(include.prefix))
+        spec.assets = assets
+        model = spec.compile()
+        check_model_size(model, f"scene {self.config.name!r}")
+        return model
 
 
 class Arena:

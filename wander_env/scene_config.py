@@ -25,9 +25,10 @@ checks, and a trajectory is a union tagged by its ``kind``. A bad value, a missi
 required key or an unknown key raises :class:`wander_env.config.ConfigError` (a
 ``ValueError``) whose message starts with the field's path, e.g.
 ``moving_objects[1].trajectory.kind: expected one of 'circular', ..., got 'zigzag'``.
-Mesh and MJCF files are checked when validated (a regular file of at most
-:data:`MAX_MESH_BYTES` / :data:`MAX_MJCF_BYTES` that MuJoCo reads; relative paths in a
-YAML file are relative to its folder).
+Mesh and MJCF files are read once, when validated, through :mod:`wander_env.untrusted`
+(regular files within :data:`wander_env.untrusted.LIMITS`, an MJCF file with every file it
+names, checked before MuJoCo compiles them from memory); relative paths in a YAML file are
+relative to its folder. :meth:`SceneConfig.files_read` lists them with their SHA-256.
 
 Size limits (what the work holds, checked at validation; the lists' lengths before the
 rest, so that a million objects cost no more than the file): camera sides
@@ -46,7 +47,6 @@ from __future__ import annotations
 
 import importlib.resources
 import math
-import stat
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -57,10 +57,20 @@ import numpy as np
 import pydantic
 
 from wander_env.camera import SPECK_HFOV_DEG
-from wander_env.config import ConfigError, check_annotated, load_yaml, validate
+from wander_env.config import MAX_YAML_BYTES, ConfigError, check_annotated, parse_yaml, validate
 from wander_env.field_doc import field_doc
 from wander_env.textures import TextureSpec
 from wander_env.trajectories import TrajectoryParams
+from wander_env.untrusted import (
+    LIMITS,
+    FileRecord,
+    MJCFFiles,
+    ReadLog,
+    UntrustedFileError,
+    check_model_size,
+    load_mjcf,
+    read_bytes,
+)
 
 Finite = Annotated[float, pydantic.Field(allow_inf_nan=False)]
 Positive = Annotated[float, pydantic.Field(gt=0)]
@@ -75,10 +85,6 @@ WHITE: RGBA = (1.0, 1.0, 1.0, 1.0)
 SHAPES = ("box", "sphere", "cylinder", "mesh")
 SHAPE_SIZE_LEN = {"box": 3, "sphere": 1, "cylinder": 2}
 MESH_SUFFIXES = (".obj", ".stl")
-# an OBJ of ~3.5 10^5 vertices, which MuJoCo reads in ~10-20 s here (its STL reader takes
-# 200000 faces, 9.5 MiB)
-MAX_MESH_BYTES = 16 * 2**20
-MAX_MJCF_BYTES = 8 * 2**20
 # Scene size limits (validated): the work holds these.
 MAX_CAMERA_SIDE = 4096  # px, each side (within llvmpipe's 16384 offscreen limit)
 MAX_CAMERA_PIXELS = 2048 * 2048  # the env takes ~0.3 kB a pixel: 2048^2 is ~1.7 GB
@@ -114,25 +120,22 @@ def _check_shape(shape: str, size: Sequence[float], mesh: MeshConfig | None) -> 
         raise ValueError(f"size of a {shape} must be {n} extents > 0 (m), got {tuple(size)}")
 
 
-def checked_file(file: str, suffixes: tuple[str, ...], max_bytes: int) -> Path:
-    """The absolute path of an existing regular ``file`` (relative paths: to the current
-    directory) with one of ``suffixes`` and at most ``max_bytes``; ValueError
-    ``file: what is wrong, got value`` otherwise (nothing is read)."""
+def checked_file(file: str, suffixes: tuple[str, ...]) -> Path:
+    """The absolute path of ``file`` (relative paths: to the current directory) if it ends
+    in one of ``suffixes``; ValueError ``file: what is wrong, got value`` otherwise (nothing
+    is read: :mod:`wander_env.untrusted` reads it)."""
     path = Path(file).expanduser()
     if path.suffix.lower() not in suffixes:
         raise ValueError(f"file: must end in {' or '.join(suffixes)}, got {file!r}")
     try:
-        path = path.resolve()
-        st = path.stat()
+        return path.resolve()
     except (OSError, RuntimeError) as e:
         raise ValueError(f"file: cannot be read ({e.strerror or e}), got {file!r}") from None
-    if not stat.S_ISREG(st.st_mode):
-        raise ValueError(f"file: not a regular file, got {file!r}")
-    if st.st_size > max_bytes:
-        raise ValueError(
-            f"file: larger than {max_bytes // 2**20} MiB ({st.st_size} bytes), got {file!r}"
-        )
-    return path
+
+
+def _untrusted(e: UntrustedFileError) -> ValueError:
+    """A refused file as the ``file`` field's error."""
+    return ValueError(f"file: {e}")
 
 
 def _mujoco_error(e: Exception) -> str:
@@ -143,14 +146,15 @@ def _mujoco_error(e: Exception) -> str:
     return text if len(text) <= 300 else text[:297] + "..."
 
 
-def mesh_bounds(path: Path, scale: Vec3) -> tuple[np.ndarray, np.ndarray]:
-    """(min, max) corners (m) of the bounding box of mesh file ``path`` (OBJ or STL) in
-    its file's frame, times ``scale``, as MuJoCo reads it; ValueError ``file: ...``
-    when MuJoCo cannot read it."""
+def mesh_bounds(path: Path, data: bytes, scale: Vec3) -> tuple[np.ndarray, np.ndarray]:
+    """(min, max) corners (m) of the bounding box of mesh file ``path`` (OBJ or STL, its
+    contents ``data``) in its file's frame, times ``scale``, as MuJoCo reads it; ValueError
+    ``file: ...`` when MuJoCo cannot read it."""
     spec = mujoco.MjSpec()
+    spec.assets = {path.name: data}
     spec.add_mesh(
         name=path.name,
-        file=str(path),
+        file=path.name,
         scale=scale,
         inertia=mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL,
     )
@@ -171,15 +175,20 @@ def mesh_bounds(path: Path, scale: Vec3) -> tuple[np.ndarray, np.ndarray]:
     return verts.min(axis=0), verts.max(axis=0)
 
 
-def mjcf_counts(path: Path) -> tuple[int, int]:
-    """(materials, textures) of the MJCF file ``path`` as MuJoCo compiles it alone;
-    ValueError ``file: ...`` when MuJoCo cannot."""
+def mjcf_counts(files: MJCFFiles) -> tuple[int, int]:
+    """(materials, textures) of the MJCF file read as ``files`` as MuJoCo compiles it
+    alone; ValueError ``file: ...`` when MuJoCo cannot, or the model is larger than
+    :data:`wander_env.untrusted.LIMITS` allows."""
     try:
-        model = mujoco.MjSpec.from_file(str(path)).compile()
+        model = files.spec().compile()
     except ValueError as e:
         raise ValueError(
-            f"file: MuJoCo cannot read the MJCF ({_mujoco_error(e)}), got {str(path)!r}"
+            f"file: MuJoCo cannot read the MJCF ({_mujoco_error(e)}), got {files.path!r}"
         ) from None
+    try:
+        check_model_size(model, files.path)
+    except UntrustedFileError as e:
+        raise _untrusted(e) from None
     return int(model.nmat), int(model.ntex)
 
 
@@ -192,9 +201,12 @@ class MeshConfig:
     ``texture`` is wrapped round the mesh as a cube map.
     """
 
-    # the bounds read by __post_init__, an instance attribute (ClassVar keeps it out of
-    # the fields, so it is no part of the config's value, repr, schema or asdict)
+    # the file as read and its bounds, instance attributes set by __post_init__ (ClassVar
+    # keeps them out of the fields, so they are no part of the config's value, repr,
+    # schema or asdict)
     _bounds: ClassVar[tuple[np.ndarray, np.ndarray]]
+    _data: ClassVar[bytes]
+    _record: ClassVar[FileRecord]
     file: Annotated[
         str,
         field_doc(
@@ -214,10 +226,26 @@ class MeshConfig:
 
     def __post_init__(self) -> None:
         check_annotated(self)
-        path = checked_file(self.file, MESH_SUFFIXES, MAX_MESH_BYTES)
+        path = checked_file(self.file, MESH_SUFFIXES)
+        log = ReadLog()
+        try:
+            data = read_bytes(path, LIMITS.mesh_bytes, log=log)
+        except UntrustedFileError as e:
+            raise _untrusted(e) from None
         object.__setattr__(self, "file", str(path))
-        # read once, here: the build uses these bounds
-        object.__setattr__(self, "_bounds", mesh_bounds(path, self.scale_xyz))
+        # read once, here: the build uses these bytes and bounds
+        object.__setattr__(self, "_data", data)
+        object.__setattr__(self, "_record", log.records[0])
+        object.__setattr__(self, "_bounds", mesh_bounds(path, data, self.scale_xyz))
+
+    @property
+    def data(self) -> bytes:
+        """The file's contents, as read when the config was made."""
+        return self._data
+
+    def files_read(self) -> tuple[FileRecord, ...]:
+        """The file, as read when the config was made (path, size, SHA-256)."""
+        return (self._record,)
 
     @property
     def scale_xyz(self) -> Vec3:
@@ -510,9 +538,10 @@ class MJCFIncludeConfig:
     materials and textures count towards MuJoCo's limits; geoms in groups above 2 are
     not rendered by the camera; mask id 0 (not an object)."""
 
-    # (materials, textures) of the file, an instance attribute set by __post_init__
-    # (ClassVar keeps it out of the fields)
+    # (materials, textures) of the file and the files read, instance attributes set by
+    # __post_init__ (ClassVar keeps them out of the fields)
     _counts: ClassVar[tuple[int, int]]
+    _files: ClassVar[MJCFFiles]
     file: Annotated[
         str,
         field_doc(
@@ -539,9 +568,27 @@ class MJCFIncludeConfig:
 
     def __post_init__(self) -> None:
         check_annotated(self)
-        path = checked_file(self.file, (".xml", ".mjcf"), MAX_MJCF_BYTES)
+        path = checked_file(self.file, (".xml", ".mjcf"))
+        try:
+            files = load_mjcf(path)  # read once, here: every build compiles these bytes
+        except UntrustedFileError as e:
+            raise _untrusted(e) from None
         object.__setattr__(self, "file", str(path))
-        object.__setattr__(self, "_counts", mjcf_counts(path))  # compiled once, here
+        object.__setattr__(self, "_files", files)
+        object.__setattr__(self, "_counts", mjcf_counts(files))
+
+    def spec(self, prefix: str = "") -> mujoco.MjSpec:
+        """A fresh ``mujoco.MjSpec`` of the file as read when the config was made, its
+        assets' files renamed ``prefix + name`` (see :meth:`assets`)."""
+        return self._files.spec(prefix)
+
+    def assets(self, prefix: str) -> dict[str, bytes]:
+        """The bytes of the files :meth:`spec` with ``prefix`` names (meshes, textures)."""
+        return self._files.prefixed_assets(prefix)
+
+    def files_read(self) -> tuple[FileRecord, ...]:
+        """The file and every file it names, as read when the config was made."""
+        return self._files.records
 
     def counts(self) -> tuple[int, int]:
         """(materials, textures) the file brings, counted as it compiled alone when the
@@ -715,6 +762,17 @@ class SceneConfig:
         textured = sum(p.texture is not None for p in parts)
         return room + textured + (1 if self.gratings is not None else 0)
 
+    def files_read(self) -> tuple[FileRecord, ...]:
+        """The files the scene's meshes and MJCF includes read when it was made (each
+        with its SHA-256), in config order."""
+        meshes = [
+            p.mesh.files_read()
+            for p in (*self.static_objects, *self.moving_objects)
+            if p.mesh is not None
+        ]
+        includes = [inc.files_read() for inc in self.mjcf_includes]
+        return tuple(r for group in (*meshes, *includes) for r in group)
+
     @property
     def num_objects(self) -> int:
         """Number of segmentable objects (ids 1..n): moving objects, or the grating patch."""
@@ -745,16 +803,21 @@ def available_scenes() -> tuple[str, ...]:
 
 def load_scene_config(
     scene: str | Path | Mapping[str, Any] | SceneConfig = DEFAULT_SCENE,
+    log: ReadLog | None = None,
 ) -> SceneConfig:
     """The scene ``scene`` names: a :class:`SceneConfig` as it is, a mapping (a parsed
     scene document) validated, a name (``assets/scenes/NAME.yaml``) or a YAML file path.
 
-    Relative mesh and MJCF file paths in a YAML file are relative to its folder.
+    Relative mesh and MJCF file paths in a YAML file are relative to its folder. ``log``
+    records every file the scene read (the YAML file, meshes, MJCF includes and the files
+    they name) with its SHA-256.
     """
-    if isinstance(scene, SceneConfig):
-        return scene
-    if isinstance(scene, Mapping):
-        return scene_config_from_dict(scene)
+    if isinstance(scene, (SceneConfig, Mapping)):
+        config = scene if isinstance(scene, SceneConfig) else scene_config_from_dict(scene)
+        if log is not None:
+            for record in config.files_read():
+                log.add_record(record)
+        return config
     text = str(scene)
     is_path = isinstance(scene, Path) or text.endswith((".yaml", ".yml")) or "/" in text
     if is_path:
@@ -773,8 +836,16 @@ def load_scene_config(
             raise ValueError(
                 f"unknown scene {text[:200]!r}; available: {', '.join(available_scenes())}"
             )
-    data = _files_relative_to(load_yaml(path, "scene file"), path.parent)
-    return scene_config_from_dict(data, default_name=path.stem, where=str(path))
+    try:
+        text = read_bytes(path, MAX_YAML_BYTES, log=log)
+    except UntrustedFileError as e:
+        raise ConfigError(str(e)) from None
+    data = _files_relative_to(parse_yaml(text, str(path)), path.parent)
+    config = scene_config_from_dict(data, default_name=path.stem, where=str(path))
+    if log is not None:
+        for record in config.files_read():
+            log.add_record(record)
+    return config
 
 
 def _files_relative_to(data: Any, folder: Path) -> Any:

@@ -44,7 +44,7 @@ from experiments.cli.options import (
     with_options,
 )
 
-__all__ = ["demo", "record", "run_agent", "view"]
+__all__ = ["demo", "record", "rerun", "run_agent", "view"]
 
 
 @long_command("wander demo")
@@ -150,6 +150,29 @@ def run_agent(
         f"{m['decisions']} decisions, {m['saccades']} saccades, {detection}, sOMS suppression "
         f"{m['soms_suppression']:.1%}, real-time factor {m['real_time_factor']:.2f} -> {out}"
     )
+
+
+@long_command("wander rerun")
+def rerun(
+    run_dir: Annotated[Path, typer.Argument(help="A folder that `wander run` wrote.")],
+    out: RunDirOpt = None,
+    force: ForceOpt = False,
+) -> None:
+    """Run a `wander run` folder's run again from its run.json: its config, seed and the
+    scene as it resolved; refused if a file the run read (scene, meshes, MJCF) changed."""
+    from experiments.cli.errors import fail
+    from experiments.jobs.run_agent import RunConfig
+    from experiments.jobs.run_agent import run as run_loop
+    from experiments.runs.provenance import rerun_config
+
+    try:
+        config = rerun_config(run_dir / "run.json", RunConfig, "wander run")
+    except ValueError as err:
+        raise fail(err) from None
+    title = f"agent in {config.env.scene.name}, again"
+    out, result = run_env_job(run_loop, config, out, force, "run", title)
+    m = result.metrics
+    console.print(f"{m['decisions']} decisions, {m['saccades']} saccades -> {out}")
 
 
 def view(

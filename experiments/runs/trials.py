@@ -24,7 +24,6 @@ Examples:
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import warnings
@@ -34,6 +33,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from wander_env.strict_json import dumps_strict
+from wander_env.untrusted import FileLimits, read_json
 
 __all__ = ["MAX_TRIAL_FILE_BYTES", "TrialStore", "save_artifacts", "split_artifacts"]
 
@@ -114,7 +114,7 @@ class TrialStore:
                 k += 1
                 aside = path.with_name(f"{path.name}.corrupt{k}")
             os.replace(path, aside)
-            why = " ".join(str(err).split()) or type(err).__name__
+            why = " ".join(getattr(err, "problem", str(err)).split()) or type(err).__name__
             warnings.warn(
                 f"{path}: damaged trial file ({why}); set aside as {aside.name}, the trial is "
                 "rerun",
@@ -140,10 +140,9 @@ class TrialStore:
 
     @staticmethod
     def _read(path: Path, spec: TrialSpec) -> dict[str, Any]:
-        size = path.stat().st_size
-        if size > MAX_TRIAL_FILE_BYTES:  # a row is a few kB: not read into memory
-            raise ValueError(f"{size} bytes; at most {MAX_TRIAL_FILE_BYTES}")
-        rec = json.loads(path.read_text())
+        # A regular file of at most MAX_TRIAL_FILE_BYTES (a row is a few kB), nested within
+        # the JSON depth cap: a FIFO, a /dev/zero link or a bomb is refused, never read.
+        rec = read_json(path, FileLimits(json_bytes=MAX_TRIAL_FILE_BYTES))
         if not isinstance(rec, dict) or not isinstance(rec.get("row"), dict):
             raise ValueError("no 'row' object")
         if rec["row"].get("trial_id") != spec.id:

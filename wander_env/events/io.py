@@ -37,7 +37,12 @@ Examples:
 
 from __future__ import annotations
 
+import errno
+import io
 import os
+import re
+import shutil
+import uuid
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -60,6 +65,38 @@ from wander_env.events.checks import (
 from wander_env.strict_json import dumps_strict
 
 FORMAT_TAG = "wander-events/1"
+#: Free bytes kept beyond a write's own size (HDF5 metadata, attributes, the run folder).
+SPACE_MARGIN = 1 << 20
+
+
+class OutputError(OSError):
+    """A result file could not be written (disk full, folder not writable): names it."""
+
+    def __init__(self, path: str | os.PathLike, cause: BaseException | str) -> None:
+        code = getattr(cause, "errno", None) if not isinstance(cause, str) else None
+        text = cause if isinstance(cause, str) else (getattr(cause, "strerror", None) or str(cause))
+        super().__init__(code or errno.EIO, text, str(path))
+
+    def __str__(self) -> str:
+        return f"cannot write {self.filename}: {self.strerror}"
+
+
+def check_space(path: str | os.PathLike, need_bytes: int) -> None:
+    """Raise :class:`OutputError` (ENOSPC) unless ``need_bytes`` + a margin are free."""
+    folder = Path(path).parent
+    try:
+        free = shutil.disk_usage(folder).free
+    except OSError as err:
+        raise OutputError(path, err) from err
+    if free < need_bytes + SPACE_MARGIN:
+        raise OutputError(
+            path,
+            OSError(
+                errno.ENOSPC,
+                f"No space left on device ({free:,} bytes free; {need_bytes:,} needed plus "
+                f"a reserve of {SPACE_MARGIN:,})",
+            ),
+        )
 
 
 def _npy_header(
@@ -331,50 +368,117 @@ def read_events(
 
 
 def write_events(path: str | os.PathLike, recording: EventRecording) -> None:
-    """Write ``.npz``, ``.h5``/``.hdf5``, ``.aedat4`` or ``.raw`` (EVT3); validates first."""
+    """Write ``.npz``, ``.h5``/``.hdf5``, ``.aedat4`` or ``.raw`` (EVT3); validates first.
+
+    A file that cannot be written (a full disk, a read-only folder) is
+    :class:`OutputError` (an ``OSError`` naming the file and the
+    errno) and no partial file is left. ``.npz`` and ``.h5`` files are built in memory
+    (HDF5's core driver: h5py never writes to the disk, so a full disk cannot leave it
+    to fail in a dealloc, which segfaults) and written once the free space is checked.
+    """
     from wander_env.events import formats  # AEDAT4/EVT3 writers, the HDF5 ms_to_idx index
 
     path = Path(path)
     validate_events(recording.events, recording.sensor_size, where=str(path))
-    meta = dumps_strict(recording.metadata)
-    size = np.asarray(recording.sensor_size, dtype=np.int64)
     suffix = path.suffix.lower()
-    if suffix == ".npz":
-        np.savez_compressed(
-            path,
-            events=recording.events.astype(EVENT_DTYPE, copy=False),
-            sensor_size=size,
-            metadata=np.asarray(meta),
-            format=np.asarray(FORMAT_TAG),
-        )
-    elif suffix in (".h5", ".hdf5"):
-        import h5py
-
-        with h5py.File(path, "w") as f:
-            g = f.create_group("events")
-            n = len(recording.events)
-            # An empty recording (e.g. a run that failed at its first step) is stored
-            # uncompressed: HDF5 cannot chunk a zero-length dataset.
-            packing = (
-                {
-                    "compression": "gzip",
-                    "compression_opts": 4,
-                    "shuffle": True,
-                    "chunks": (min(n, 1 << 16),),
-                }
-                if n
-                else {}
-            )
-            for name in ("x", "y", "t", "p"):
-                g.create_dataset(name, data=recording.events[name], **packing)
-            f.attrs["sensor_size"] = size
-            f.attrs["metadata"] = meta
-            f.attrs["format"] = FORMAT_TAG
-            formats.write_ms_to_idx(f, recording.events)
-    elif suffix in formats.WRITERS:
-        formats.WRITERS[suffix](path, recording)
-    else:
+    if suffix not in (".npz", ".h5", ".hdf5", *formats.WRITERS):
         writable = [".npz", ".h5", ".hdf5", *formats.WRITERS]
         raise EventFileError(
             path, f"cannot write suffix {path.suffix!r}; writable: {', '.join(writable)}"
         )
+    if suffix == ".npz":
+        write_file(path, _npz_image(recording))
+    elif suffix in (".h5", ".hdf5"):
+        write_file(path, _h5_image(recording))
+    else:
+        # at most 16 bytes an event (AEDAT 4: 13 bytes LZ4-packed; EVT3: 2-6)
+        check_space(path, 16 * len(recording.events) + (1 << 16))
+        try:
+            formats.WRITERS[suffix](path, recording)
+        except (OSError, RuntimeError) as err:  # faery's Rust I/O errors are RuntimeErrors
+            path.unlink(missing_ok=True)
+            raise OutputError(path, as_os_error(err)) from None
+
+
+def as_os_error(err: BaseException) -> OSError:
+    """``err`` as an ``OSError`` with its errno: itself, or one from a Rust library's
+    ``... (os error N)`` message (``EIO`` when it names none).
+
+    >>> as_os_error(RuntimeError("No space left on device (os error 28)")).errno
+    28
+    """
+    if isinstance(err, OSError):
+        return err
+    found = re.search(r"\(os error (\d+)\)", str(err))
+    code = int(found.group(1)) if found else errno.EIO
+    return OSError(code, os.strerror(code))
+
+
+def write_file(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` whole: the free space checked first, a failed write an
+    :class:`OutputError` naming it with no partial file left."""
+    check_space(path, len(data))
+    try:
+        with open(path, "wb") as fh:
+            fh.write(data)
+    except OSError as err:
+        path.unlink(missing_ok=True)
+        raise OutputError(path, err) from None
+
+
+def _npz_image(recording: EventRecording) -> bytes:
+    buf = io.BytesIO()
+    np.savez_compressed(
+        buf,
+        events=recording.events.astype(EVENT_DTYPE, copy=False),
+        sensor_size=np.asarray(recording.sensor_size, dtype=np.int64),
+        metadata=np.asarray(dumps_strict(recording.metadata)),
+        format=np.asarray(FORMAT_TAG),
+    )
+    return buf.getvalue()
+
+
+def _h5_image(recording: EventRecording) -> bytes:
+    """The bytes of the ``.h5`` file of ``recording``, built in memory."""
+    import h5py
+
+    from wander_env.events import formats
+
+    name = f"wander-events-{uuid.uuid4().hex}.h5"  # the core driver's name, never a file
+    with h5py.File(name, "w", driver="core", backing_store=False) as f:
+        g = f.create_group("events")
+        n = len(recording.events)
+        # An empty recording (e.g. a run that failed at its first step) is stored
+        # uncompressed: HDF5 cannot chunk a zero-length dataset.
+        packing = (
+            {
+                "compression": "gzip",
+                "compression_opts": 4,
+                "shuffle": True,
+                "chunks": (min(n, 1 << 16),),
+            }
+            if n
+            else {}
+        )
+        for field in ("x", "y", "t", "p"):
+            g.create_dataset(field, data=recording.events[field], **packing)
+        f.attrs["sensor_size"] = np.asarray(recording.sensor_size, dtype=np.int64)
+        f.attrs["metadata"] = dumps_strict(recording.metadata)
+        f.attrs["format"] = FORMAT_TAG
+        formats.write_ms_to_idx(f, recording.events)
+        f.flush()
+        return f.id.get_file_image()
+
+
+def divert_h5(file: Any) -> None:
+    """Point the open h5py ``file``'s descriptor at ``/dev/null``: call it as soon as a
+    write or flush of the file fails (a full disk). Every later write (the close's flush,
+    a dealloc's) then succeeds without touching the disk, so h5py never deallocs an object
+    whose close fails, which segfaults (h5py 3.16, plain h5py too). What reached the disk
+    stays as it is (its attributes say what was flushed). Then close the file as usual."""
+    fd = file.id.get_vfd_handle()
+    null = os.open(os.devnull, os.O_RDWR)
+    try:
+        os.dup2(null, fd)
+    finally:
+        os.close(null)

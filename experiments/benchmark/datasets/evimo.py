@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import ast
 import importlib
+import io
 import json
 import os
 import pickle
@@ -72,6 +73,15 @@ from experiments.benchmark.datasets.base import (
     SequenceData,
     events_from_columns,
     seconds_to_us,
+)
+from wander_env.events.checks import json_depth
+from wander_env.untrusted import (
+    LIMITS,
+    UntrustedFileError,
+    json_nesting,
+    npy_array,
+    npz_members,
+    open_regular,
 )
 
 EVIMO1_SUBSETS = ("box", "fast", "floor", "table", "tabletop", "wall")
@@ -182,6 +192,9 @@ class _RestrictedUnpickler(pickle.Unpickler):
 
 
 def _parse_meta_text(text: str, where: Path) -> dict[str, Any]:
+    depth = json_nesting(text, quotes="\"'")
+    if depth > LIMITS.json_depth:
+        raise DatasetLayoutError(where, f"'meta' nested {depth} deep; at most {LIMITS.json_depth}")
     try:
         value = json.loads(text)
     except ValueError:
@@ -196,27 +209,49 @@ def _parse_meta_text(text: str, where: Path) -> dict[str, Any]:
     return value
 
 
-def read_npz_meta(path: str | os.PathLike, key: str = "meta") -> dict[str, Any]:
-    """The ``meta`` dict of an EVIMO ``.npz`` (pickled dict, JSON or Python-literal text)."""
-    path = Path(path)
+def _members(path: Path) -> dict[str, bytes]:
+    """The members of the ``.npz`` ``path``, read through :mod:`wander_env.untrusted`."""
     try:
-        with zipfile.ZipFile(path) as z:
-            member = f"{key}.npy"
-            if member not in z.namelist():
-                raise DatasetLayoutError(path, f"no '{key}' array", "an EVIMO .npz with 'meta'")
-            with z.open(member) as f:
-                version = np.lib.format.read_magic(f)
-                if version == (1, 0):
-                    shape, _, dtype = np.lib.format.read_array_header_1_0(f)
-                else:
-                    shape, _, dtype = np.lib.format.read_array_header_2_0(f)
-                if dtype.hasobject:
-                    arr = _RestrictedUnpickler(f).load()
-                else:
-                    arr = np.frombuffer(f.read(), dtype=dtype).reshape(shape)
-    except (OSError, zipfile.BadZipFile, ValueError, pickle.UnpicklingError, EOFError) as err:
-        if isinstance(err, DatasetLayoutError):
-            raise
+        return npz_members(path)
+    except UntrustedFileError as err:
+        where = f"{err.field}: " if err.field else ""
+        raise DatasetLayoutError(path, where + err.problem) from None
+
+
+def _arrays(path: Path, members: dict[str, bytes], *keys: str) -> list[np.ndarray]:
+    """Arrays ``keys`` of an ``.npz``'s ``members`` (no pickled objects)."""
+    try:
+        return [npy_array(path, f"{k}.npy", members[f"{k}.npy"]) for k in keys]
+    except KeyError as err:
+        raise DatasetLayoutError(path, f"no {err} array", EXPECTED_LAYOUT) from None
+    except UntrustedFileError as err:
+        raise DatasetLayoutError(path, f"{err.field}: {err.problem}", EXPECTED_LAYOUT) from None
+
+
+def read_npz_meta(path: str | os.PathLike, key: str = "meta") -> dict[str, Any]:
+    """The ``meta`` dict of an EVIMO ``.npz`` (pickled dict, JSON or Python-literal text),
+    the archive read through :mod:`wander_env.untrusted`, nested at most
+    ``LIMITS.json_depth`` deep."""
+    path = Path(path)
+    return _meta(path, _members(path), key)
+
+
+def _meta(path: Path, members: dict[str, bytes], key: str = "meta") -> dict[str, Any]:
+    member = f"{key}.npy"
+    if member not in members:
+        raise DatasetLayoutError(path, f"no '{key}' array", "an EVIMO .npz with 'meta'")
+    f = io.BytesIO(members[member])
+    try:
+        version = np.lib.format.read_magic(f)
+        if version == (1, 0):
+            shape, _, dtype = np.lib.format.read_array_header_1_0(f)
+        else:
+            shape, _, dtype = np.lib.format.read_array_header_2_0(f)
+        if dtype.hasobject:
+            arr = _RestrictedUnpickler(f).load()
+        else:
+            arr = np.frombuffer(f.read(), dtype=dtype).reshape(shape)
+    except (OSError, ValueError, pickle.UnpicklingError, EOFError) as err:
         raise DatasetLayoutError(path, f"cannot read '{key}' ({err})") from None
     value = arr.item() if isinstance(arr, np.ndarray) and arr.size == 1 else arr
     if isinstance(value, bytes):
@@ -225,6 +260,9 @@ def read_npz_meta(path: str | os.PathLike, key: str = "meta") -> dict[str, Any]:
         return _parse_meta_text(value, path)
     if not isinstance(value, dict):
         raise DatasetLayoutError(path, f"'{key}' holds a {type(value).__name__}, not a dict")
+    depth = json_depth(value)
+    if depth > LIMITS.json_depth:
+        raise DatasetLayoutError(path, f"'{key}' nested {depth} deep; at most {LIMITS.json_depth}")
     return value
 
 
@@ -274,8 +312,10 @@ def _subset_from_parts(parts: Sequence[str]) -> str | None:
 
 def _check_evimo1_keys(path: Path) -> None:
     try:
-        with zipfile.ZipFile(path) as z:
+        with open_regular(path) as fh, zipfile.ZipFile(fh) as z:  # its directory only
             keys = {n[:-4] for n in z.namelist() if n.endswith(".npy")}
+    except UntrustedFileError as err:
+        raise DatasetLayoutError(path, err.problem, EXPECTED_LAYOUT) from None
     except (OSError, zipfile.BadZipFile) as err:
         raise DatasetLayoutError(path, f"not a readable .npz ({err})", EXPECTED_LAYOUT) from None
     missing = [k for k in EVIMO1_KEYS if k not in keys]
@@ -389,16 +429,11 @@ def _windows(
 
 def _load_evimo1(src: EvimoSource, mode: str, window_us: int | None) -> SequenceData:
     path = src.path
-    meta = read_npz_meta(path)
+    members = _members(path)
+    meta = _meta(path, members)
     frames = _frames(meta, path)
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            raw_events = np.asarray(data["events"])
-            masks = np.asarray(data["mask"])
-    except (OSError, ValueError, zipfile.BadZipFile) as err:
-        raise DatasetLayoutError(
-            path, f"cannot read events/mask ({err})", EXPECTED_LAYOUT
-        ) from None
+    raw_events, masks = _arrays(path, members, "events", "mask")
+    del members
     if raw_events.ndim != 2 or raw_events.shape[1] < 4:
         raise DatasetLayoutError(
             path, f"'events' has shape {raw_events.shape}", "'events' (N, 4): t [s], x, y, p"
@@ -434,6 +469,8 @@ def _load_evimo2(src: EvimoSource, mode: str, window_us: int | None) -> Sequence
     meta = read_npz_meta(d / "dataset_info.npz")
     frames = _frames(meta, d / "dataset_info.npz")
     try:
+        for name in ("t", "xy", "p"):  # regular files (mapped, not read, below)
+            open_regular(d / f"dataset_events_{name}.npy").close()
         t = np.load(d / "dataset_events_t.npy", mmap_mode="r")
         xy = np.load(d / "dataset_events_xy.npy", mmap_mode="r")
         p = np.load(d / "dataset_events_p.npy", mmap_mode="r")
@@ -454,16 +491,18 @@ def _load_evimo2(src: EvimoSource, mode: str, window_us: int | None) -> Sequence
     sources: list[str] = []
     first_id = int(frames[0].get("id", 0)) if frames else 0
     missing = 0
-    with np.load(d / "dataset_mask.npz", allow_pickle=False) as mz:
-        keys = set(mz.files)
-        for i, f in enumerate(frames):
-            key = f"mask_{int(f.get('id', i)) - first_id:010d}"
-            if key not in keys:
-                missing += 1
-                continue
-            ts_s.append(float(f["ts"]))
-            labels.append(mask_labels(mz[key]))
-            sources.append(f"{d / 'dataset_mask.npz'}:{key}")
+    mask_path = d / "dataset_mask.npz"
+    mz = _members(mask_path)
+    keys = {name.removesuffix(".npy") for name in mz}
+    for i, f in enumerate(frames):
+        key = f"mask_{int(f.get('id', i)) - first_id:010d}"
+        if key not in keys:
+            missing += 1
+            continue
+        ts_s.append(float(f["ts"]))
+        (mask,) = _arrays(mask_path, mz, key)
+        labels.append(mask_labels(mask))
+        sources.append(f"{mask_path}:{key}")
     if not labels:
         raise DatasetLayoutError(
             d / "dataset_mask.npz",
