@@ -143,7 +143,7 @@ def test_run_folders_are_new_per_run_and_never_overwritten(tmp_path, monkeypatch
     assert refused.exit_code == 2
     assert refused.stderr.splitlines() == [
         f"wander demo: Invalid value for '--out': {str(out)!r} is not empty: pass --force to "
-        "write into it, or leave --out out for a new folder"
+        "replace it, or leave --out out for a new folder"
     ]
     assert (out / "run.json").read_bytes() == before
     assert runner.invoke(app, [*args, "--out", str(out), "--force"]).exit_code == 0

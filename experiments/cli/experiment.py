@@ -15,7 +15,14 @@ import typer
 
 from experiments.cli.console import console, print_markdown, progress_bars
 from experiments.cli.errors import current_run, fail, long_command
-from experiments.cli.options import SeedOpt, check_wait, check_workers, one_of
+from experiments.cli.options import (
+    ForceOpt,
+    SeedOpt,
+    check_wait,
+    check_workers,
+    one_of,
+    own_folder,
+)
 from experiments.framework import EXPERIMENT_NAMES, ConfigError
 from experiments.runs.folder import RunFolder
 from experiments.sweep import BACKENDS
@@ -40,8 +47,13 @@ def experiment(
     ] = None,
     seed: SeedOpt = 0,
     out: Annotated[
-        Path | None, typer.Option(help="Result folder (default: results/NAME/<time>-seedN).")
+        Path | None,
+        typer.Option(
+            help="Result folder (default: a new results/NAME/DATE-TIME-seedN; an existing "
+            "non-empty folder needs --force)."
+        ),
     ] = None,
+    force: ForceOpt = False,
     workers: Annotated[
         int, typer.Option(callback=check_workers, help="Worker processes (1 = this process).")
     ] = 1,
@@ -70,7 +82,7 @@ def experiment(
     if show_config:
         console.print_json(dumps_strict(config_to_dict(cfg)))
         return
-    run = RunFolder.for_experiment(name, seed, out, current=current_run())
+    run = own_folder(lambda now: RunFolder.for_experiment(name, seed, out, force, current=now))
     folder = run.path
 
     streams: list = []
@@ -97,7 +109,7 @@ def experiment(
         finally:
             for stream in streams:
                 stream.close()  # the workers end now, not when their trials do
-    console.print(f"{len(rows)} trials -> {folder}/results.csv ({len(files)} files)")
+    console.print(f"{len(rows)} trials -> {run.final}/results.csv ({len(files)} files)")
     print_markdown((folder / "summary.md").read_text())
     timing = json.loads((folder / "run.json").read_text())["timing"]
     _print_rtf(timing.get("real_time_factor"))
