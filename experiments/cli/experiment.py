@@ -20,6 +20,7 @@ from experiments.cli.options import (
     SeedOpt,
     check_wait,
     check_workers,
+    folder_problem,
     one_of,
     own_folder,
 )
@@ -188,12 +189,12 @@ def sweep(
 def report(
     results: Annotated[Path, typer.Option(help="Folder of result folders.")] = Path("results"),
     out: Annotated[
-        Path,
+        str,
         typer.Option(
-            help="Report file, or a folder to hold REPORT.md; its figures go to "
-            "report_figures/ beside the report."
+            help="Report file, or a folder to hold REPORT.md (an existing one, or a name "
+            "ending with /); its figures go to report_figures/ beside the report."
         ),
-    ] = Path("REPORT.md"),
+    ] = "REPORT.md",
     force: Annotated[bool, typer.Option("--force", help="Overwrite an existing report.")] = False,
 ) -> None:
     """Build REPORT.md (and its figures) from the latest results of each experiment.
@@ -204,6 +205,12 @@ def report(
     """
     from experiments.report import build_report, report_path
 
+    if not results.is_dir():
+        raise typer.BadParameter(
+            f"no results folder {str(results)!r}: run `wander experiment NAME` first, or "
+            "give the folder that holds its results",
+            param_hint="'--results'",
+        )
     if report_path(out).exists() and not force:
         raise typer.BadParameter(
             f"{str(report_path(out))!r} exists: pass --force to overwrite it, or --out "
@@ -214,6 +221,8 @@ def report(
         path = build_report(results, out)
     except ValueError as err:  # ReportInputError, ConfigError: a damaged result file
         raise fail(err, "wander report") from None
+    except OSError as err:  # --out under a file, in /proc, a name too long
+        raise typer.BadParameter(folder_problem(err), param_hint="'--out'") from None
     console.print(f"-> {path}")
 
 
