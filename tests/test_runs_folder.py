@@ -72,6 +72,28 @@ def test_a_forced_run_that_wrote_nothing_leaves_the_earlier_run(tmp_path):
     assert sorted(p.name for p in out.iterdir()) == ["metrics.json"] and _siblings(out) == []
 
 
+def test_a_swap_the_file_system_refuses_keeps_the_earlier_run(tmp_path, monkeypatch):
+    import os
+
+    out = tmp_path / "run"
+    RunFolder.new("run", out).write_metrics({"steps": 3})
+    new = RunFolder.new("run", out, force=True)
+    new.write_metrics({"steps": 5})
+    real_rename = os.rename
+
+    def refuse_the_build(src, dst):
+        if str(src) == str(new.path):
+            raise OSError(18, "Invalid cross-device link")
+        real_rename(src, dst)
+
+    monkeypatch.setattr(os, "rename", refuse_the_build)
+    build = new.path
+    assert new.finish() == build  # never raises; the new run stays where it was built
+    assert RunFolder(out).read_json("metrics.json") == {"steps": 3}
+    assert RunFolder(build).read_json("metrics.json") == {"steps": 5}
+    assert _siblings(out) == [build.name]  # no .wander-old-* left
+
+
 def test_a_made_folder_left_empty_is_removed_and_an_empty_one_given_is_kept(tmp_path):
     made = RunFolder.new("run", root=tmp_path)
     assert made.path.is_dir()

@@ -180,22 +180,38 @@ class RunFolder:
         A folder built beside an earlier run (``--force``) replaces it: the earlier one is
         renamed aside, this one renamed into its place, the earlier one deleted; one that
         holds nothing is removed and the earlier run stays. A folder this process made
-        that stayed empty is removed."""
-        if self.path != self.final:
-            if _empty(self.path):
+        that stayed empty is removed. Never raises: a swap the file system refuses leaves
+        the earlier run in place and the new one in its build folder (returned)."""
+        try:
+            if self.path != self.final:
+                if _empty(self.path):
+                    self.path.rmdir()
+                else:
+                    self._swap_in()
+            elif self.made and _empty(self.path):
                 self.path.rmdir()
-            else:
-                old = Path(tempfile.mkdtemp(prefix=".wander-old-", dir=self.final.parent))
-                try:
-                    os.rename(self.final, old)  # onto the empty folder: atomic
-                except FileNotFoundError:  # the earlier run was removed meanwhile
-                    pass
-                os.rename(self.path, self.final)
-                shutil.rmtree(old, ignore_errors=True)
-        elif self.made and _empty(self.path):
-            self.path.rmdir()
+        except OSError:
+            return self.path
         self.path = self.final
         return self.final
+
+    def _swap_in(self) -> None:
+        """Replace ``final`` with ``path`` by renames (the earlier run back on failure)."""
+        old = Path(tempfile.mkdtemp(prefix=".wander-old-", dir=self.final.parent))
+        try:
+            os.rename(self.final, old)  # onto the empty folder: atomic
+            moved = True
+        except FileNotFoundError:  # the earlier run was removed meanwhile
+            moved = False
+        try:
+            os.rename(self.path, self.final)
+        except OSError:
+            if moved:
+                os.rename(old, self.final)  # should this fail, the earlier run stays in old
+            else:
+                old.rmdir()
+            raise
+        shutil.rmtree(old, ignore_errors=True)
 
     def create(self) -> Path:
         """Make the folder (and its parents); returns its path."""
