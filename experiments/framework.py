@@ -486,7 +486,10 @@ def is_unfinished_run(path: Path, name: str, config: Any, seed: int) -> bool:
     seed, free to resume: its ``config.json`` and ``run.json`` (written when a run starts)
     say so, it has no ``results.csv`` yet, and no running process holds it."""
     path = Path(path)
-    if not path.is_dir() or (path / "results.csv").exists():
+    try:
+        if not path.is_dir() or (path / "results.csv").exists():
+            return False
+    except OSError:  # a name too long, a loop: no run there (making it says why, in one line)
         return False
     folder = RunFolder(path)
     if folder.read_json("config.json") != {"experiment": name, **config_to_dict(config)}:

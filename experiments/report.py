@@ -10,21 +10,30 @@ experiment's comparison table (``Experiment.compare``). Sweeps found under
 Result folders are read as untrusted input: every file the report uses (``run.json``,
 ``config.json``, ``results.csv``, ``sweep.json``) is read and checked, and every comparison
 computed, before anything is written; a damaged one (cut short, random bytes, a row with
-too few or too many cells, ``abc`` in a number column, rows the experiment cannot use) is a
-:class:`ReportInputError` naming the file, and nothing is written.
+too few or too many cells, ``abc`` in a number column, rows the experiment cannot use, a
+``trial_id`` that is not a plain name such as ``../../outside``, which would name a file
+outside the folder) is a :class:`ReportInputError` naming the file, and nothing is written.
+Every text the report copies from those files (commands, revisions, folder names, the
+comparisons' cells) is escaped (:func:`md_text`): HTML is shown as text and Markdown's link,
+image and table syntax is neutralised, so a result folder cannot put a script, an
+``onerror`` handler or a remote image into REPORT.md.
 """
 
 from __future__ import annotations
 
 import csv
+import errno
+import html
 import math
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
+from urllib.parse import quote
 
 from experiments.framework import (
     EXPERIMENT_NAMES,
@@ -33,6 +42,7 @@ from experiments.framework import (
     read_csv,
 )
 from wander_env import untrusted
+from wander_env.config_messages import shown
 
 __all__ = [
     "PAPER_REFERENCE",
@@ -41,6 +51,8 @@ __all__ = [
     "build_report",
     "latest_result",
     "load_result",
+    "md_link",
+    "md_text",
     "read_json",
     "read_rows",
     "render_report",
@@ -62,6 +74,38 @@ class ReportInputError(ValueError):
     def __init__(self, path: Path, problem: str) -> None:
         self.path = str(path)
         super().__init__(f"{path}: {problem}")
+
+
+#: A trial id: a plain file name (``artifacts/<trial_id>.npz``), never a path.
+_TRIAL_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
+
+
+def md_text(value: object, cell: bool = False) -> str:
+    """``value`` as Markdown text that shows exactly it on one line: white space folded,
+    ``&``, ``<`` and ``>`` as HTML entities (no tag, script, ``onerror`` handler or
+    autolink reaches the page), ``\\`` and ````` escaped (no code span), the ``](`` of an
+    inline link or image broken (``]\\(``: no link, no remote image), and in a table
+    ``cell`` ``|`` escaped (no cell break).
+
+    >>> print(md_text('<img src=x onerror="alert(1)"> ![t](http://a.b/c.png) `a|b` [1, 2]'))
+    &lt;img src=x onerror="alert(1)"&gt; ![t]\\(http://a.b/c.png) \\`a|b\\` [1, 2]
+    >>> print(md_text("a|b", cell=True))
+    a\\|b
+    """
+    text = " ".join(str(value).split()).replace("\\", "\\\\").replace("`", "\\`")
+    text = html.escape(text, quote=False).replace("](", "]\\(")
+    return text.replace("|", "\\|") if cell else text
+
+
+def md_link(path: str, cell: bool = False) -> str:
+    """A Markdown link to the relative ``path``, its text escaped (:func:`md_text`, in a
+    table ``cell`` or not) and its target percent-encoded (a folder name cannot end the
+    link or start another).
+
+    >>> print(md_link("x)![i](http:/e)/results.csv"))
+    [x)![i]\\(http:/e)/results.csv](x%29%21%5Bi%5D%28http%3A/e%29/results.csv)
+    """
+    return f"[{md_text(path, cell)}]({quote(path)})"
 
 
 def read_json(path: Path) -> dict[str, Any]:
@@ -105,7 +149,17 @@ def read_rows(path: Path) -> list[dict[str, Any]]:
         if len(kinds) > 1:
             i, bad = next((i, r[col]) for i, r in enumerate(rows) if isinstance(r[col], str))
             raise ReportInputError(
-                path, f"column {col!r}, line {i + 2}: {bad!r} where the other rows hold numbers"
+                path,
+                f"column {shown(col)}, line {i + 2}: {shown(bad)} where the other rows hold "
+                "numbers",
+            )
+    for i, row in enumerate(rows):
+        tid = row.get("trial_id")
+        if tid is not None and not _TRIAL_ID.fullmatch(str(tid)):
+            raise ReportInputError(
+                path,
+                f"line {i + 2}: trial_id {shown(tid)} is not a plain name (letters, digits, "
+                "'_', '-', '.'): it would name a file outside the result folder",
             )
     return rows
 
@@ -190,16 +244,17 @@ def _section(name: str, result: LoadedResult | None, report_dir: Path, figures: 
     timing = run.get("timing")
     total = timing.get("total_s") if isinstance(timing, dict) else None
     lines += [
-        f"- command: `{run.get('command', '')}`",
-        f"- seed {run.get('seed')}, git revision `{run.get('git_revision', 'unknown')}`, "
-        f"created {run.get('created', '?')}",
+        f"- command: <code>{md_text(run.get('command', ''))}</code>",
+        f"- seed {md_text(run.get('seed'))}, git revision "
+        f"<code>{md_text(run.get('git_revision', 'unknown'))}</code>, "
+        f"created {md_text(run.get('created', '?'))}",
         f"- {len(rows)} trials in {_seconds(total)}; table: "
-        f"[{_rel(folder / 'results.csv', report_dir)}]({_rel(folder / 'results.csv', report_dir)})",
+        f"{md_link(_rel(folder / 'results.csv', report_dir))}",
         "",
     ]
     if result.comparisons:
         lines += ["| result | paper | ours | note |", "|---|---|---|---|"]
-        lines += [f"| {c.result} | {c.paper} | {c.ours} | {c.note} |" for c in result.comparisons]
+        lines += [_row(c.result, c.paper, c.ours, c.note) for c in result.comparisons]
         lines.append("")
     if exp.plot is not None:
         plot = exp.plot
@@ -210,6 +265,15 @@ def _section(name: str, result: LoadedResult | None, report_dir: Path, figures: 
         lines += [_figure_link(p, figures) for p in figs]
         lines.append("")
     return lines
+
+
+#: The keys of ``sweep.json`` the report's sweep table shows (after the sweep's name).
+SWEEP_KEYS = ("trials", "backend", "command")
+
+
+def _row(*cells: object) -> str:
+    """A Markdown table row of ``cells``, each escaped (:func:`md_text`)."""
+    return "| " + " | ".join(md_text(c, cell=True) for c in cells) + " |"
 
 
 def _sweep_folders(root: Path) -> list[tuple[Path, dict[str, Any]]]:
@@ -262,7 +326,7 @@ def ratio_section(root: Path, figures: Path) -> list[str]:
         path = figures / f"sweep_{d.name}_ratio.png"
         fig = _checked(d / "results.csv", "the speed-ratio figure", plot, rows, path, shake)
         lines += [
-            f"## The hand against the shake: sweep {d.name}",
+            f"## The hand against the shake: sweep {md_text(d.name)}",
             "",
             text,
             _figure_link(fig, figures),
@@ -282,11 +346,11 @@ def _sweeps(root: Path, report_dir: Path) -> list[str]:
         "|---|---:|---|---|---|",
     ]
     for d, s in found:
-        table = _rel(d / "results.csv", report_dir)
-        lines.append(
-            f"| {d.name} | {s.get('trials')} | {s.get('backend')} | `{s.get('command', '')}` "
-            f"| [{table}]({table}) |"
+        table = md_link(_rel(d / "results.csv", report_dir), cell=True)
+        name, trials, backend, command = (
+            md_text(v, cell=True) for v in (d.name, *(s.get(k, "") for k in SWEEP_KEYS))
         )
+        lines.append(f"| {name} | {trials} | {backend} | <code>{command}</code> | {table} |")
     return [*lines, ""]
 
 
@@ -298,18 +362,18 @@ def _studies_table(root: Path, report_dir: Path) -> list[str]:
     folder = latest_result(root, "scanpath")
     if folder is not None:
         loaded = load_result(folder, "scanpath")
-        src = _rel(folder / "results.csv", report_dir)
+        src = md_link(_rel(folder / "results.csv", report_dir), cell=True)
         for c in loaded.comparisons:
             if c.result.endswith(": object hit rate") or "repeatability" in c.result:
                 ours = c.ours + (f"; {c.note}" if c.note.startswith("fixational") else "")
-                rows_out.append(f"| {c.result} | {c.paper} | {ours} | [{src}]({src}) |")
+                rows_out.append(f"{_row(c.result, c.paper, ours)} {src} |")
     folder = latest_result(root, "saccade_speed")
     if folder is not None:
         loaded = load_result(folder, "saccade_speed")
-        src = _rel(folder / "results.csv", report_dir)
+        src = md_link(_rel(folder / "results.csv", report_dir), cell=True)
         for c in loaded.comparisons:
             if c.result.startswith("main sequence, 2000 pos/s, 2000 pos/s²"):
-                rows_out.append(f"| {c.result} | {c.paper} | {c.ours} | [{src}]({src}) |")
+                rows_out.append(f"{_row(c.result, c.paper, c.ours)} {src} |")
 
         def link_cost() -> str | None:
             rows = loaded.rows
@@ -330,7 +394,7 @@ def _studies_table(root: Path, report_dir: Path) -> list[str]:
         if cost is not None:
             rows_out.append(
                 f"| time to foveate (s): FLIR link (9600 baud) − ideal PTU | — (the paper's "
-                f"rig talks to the PTU at 9600 baud) | {cost} | [{src}]({src}) |"
+                f"rig talks to the PTU at 9600 baud) | {md_text(cost, cell=True)} | {src} |"
             )
     return rows_out if len(rows_out) > 2 else []
 
@@ -402,17 +466,21 @@ def render_report(
     return "\n".join(lines).rstrip() + "\n"
 
 
-def report_path(out: Path) -> Path:
+def report_path(out: str | os.PathLike) -> Path:
     """The report file of ``--out``: ``out`` itself, or ``out/REPORT.md`` when ``out`` is an
-    existing folder.
+    existing folder or ends with a slash (a folder, made when missing).
 
-    >>> report_path(Path("docs/results.md")).as_posix(), report_path(Path("/")).as_posix()
+    >>> report_path("docs/results.md").as_posix(), report_path("/").as_posix()
     ('docs/results.md', '/REPORT.md')
+    >>> report_path("newdir/").as_posix()
+    'newdir/REPORT.md'
     """
-    return out / "REPORT.md" if out.is_dir() else out
+    text = os.fspath(out)
+    folder = text.endswith(("/", os.sep)) or Path(text).is_dir()
+    return Path(text) / "REPORT.md" if folder else Path(text)
 
 
-def build_report(root: Path = Path("results"), out: Path = Path("REPORT.md")) -> Path:
+def build_report(root: Path = Path("results"), out: str | os.PathLike = "REPORT.md") -> Path:
     """Write ``out`` (a file, or a folder: :func:`report_path`) and its figures in
     ``report_figures/`` beside it; returns the report's path.
 
@@ -422,6 +490,10 @@ def build_report(root: Path = Path("results"), out: Path = Path("REPORT.md")) ->
     out = report_path(out)
     with tempfile.TemporaryDirectory(prefix="wander-report-") as tmp:
         text = render_report(root, out.parent, Path(tmp))
+        try:
+            out.parent.mkdir(parents=True, exist_ok=True)
+        except FileExistsError:  # a file where a folder of the path should be
+            raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(out)) from None
         figures = out.parent / "report_figures"
         for f in sorted(Path(tmp).rglob("*")):
             if f.is_file():

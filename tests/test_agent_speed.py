@@ -109,8 +109,19 @@ def _voltages(c: AttentionController) -> np.ndarray:
     return np.concatenate([c.sim.signals[sig[e.neurons]["voltage"]] for e in c.network.ensembles])
 
 
+#: How far the fused steps' membrane voltages may be from nengo's. Both run the same
+#: float64 operations, but numpy picks its SIMD kernels (and so the order of a dot
+#: product's additions) by CPU: on an AMD EPYC with AVX-512, 1-2 of 100 voltages differed
+#: from nengo's by up to 3.3e-15 (about 15 ulps of 1.0, the threshold) while every action
+#: was identical. 1e-12 is 300 times that and a million times smaller than any change a
+#: spike makes (it resets a voltage by O(1)), so a real divergence still fails.
+VOLTAGE_ATOL = 1e-12
+
+
 @pytest.mark.parametrize("seed", [0, 3])
-def test_fused_sac_steps_are_nengos_bit_for_bit(seed: int) -> None:
+def test_fused_sac_steps_are_nengos(seed: int) -> None:
+    """The actions are nengo's bit for bit (spikes decide them); the voltages within
+    :data:`VOLTAGE_ATOL` (the rounding of a dot product, which differs by CPU)."""
     ref = AttentionController(ControlParams(seed=seed, stepper="nengo"))
     fast = AttentionController(ControlParams(seed=seed))
     assert ref._fused is None and isinstance(fast._fused, FusedSteps)
@@ -126,7 +137,7 @@ def test_fused_sac_steps_are_nengos_bit_for_bit(seed: int) -> None:
         u_ref, u_fast = ref.step(target, 0.01), fast.step(target, 0.01)
         fast._fused = fused
         assert np.array_equal(u_ref, u_fast), k
-    assert np.array_equal(_voltages(ref), _voltages(fast))
+    np.testing.assert_allclose(_voltages(fast), _voltages(ref), rtol=0, atol=VOLTAGE_ATOL)
     assert (fast.n_steps, fast.time) == (ref.n_steps, ref.time) == (500, pytest.approx(0.5))
     ref.close()
     fast.close()

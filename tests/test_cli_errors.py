@@ -143,7 +143,7 @@ def test_run_folders_are_new_per_run_and_never_overwritten(tmp_path, monkeypatch
     assert refused.exit_code == 2
     assert refused.stderr.splitlines() == [
         f"wander demo: Invalid value for '--out': {str(out)!r} is not empty: pass --force to "
-        "write into it, or leave --out out for a new folder"
+        "replace it, or leave --out out for a new folder"
     ]
     assert (out / "run.json").read_bytes() == before
     assert runner.invoke(app, [*args, "--out", str(out), "--force"]).exit_code == 0
@@ -191,3 +191,69 @@ def test_strict_json_and_versions():
     assert versions["numpy"] == np.__version__
     assert versions["torch"] == torch.__version__
     assert versions["python"] == ".".join(map(str, sys.version_info[:3]))
+
+
+SCENE_PART = "{shape: sphere, size: [0.1], position: [1, %s, 1], name: %s}"
+
+
+@pytest.mark.parametrize(
+    ("names", "problem"),
+    [
+        (["ball", "ball"], "static_objects: names must differ, got ball twice"),
+        (["cup", "ball", "cup", "ball"], "static_objects: names must differ, got ball, cup twice"),
+        (['"b\\0all"'], r"static_objects: a name must not hold control characters, got 'b\x00all'"),
+        (['"b\\nall"'], r"static_objects: a name must not hold control characters, got 'b\nall'"),
+    ],
+)
+def test_scene_object_names_are_checked_in_one_line(tmp_path, monkeypatch, names, problem):
+    """Two objects of one name, or a NUL in a name, made MuJoCo's XML reader fail with a
+    traceback; the scene's validation names them first."""
+    monkeypatch.chdir(tmp_path)
+    parts = [SCENE_PART % (0.3 * i, n) for i, n in enumerate(names)]
+    (tmp_path / "s.yaml").write_text("static_objects:\n" + "".join(f"  - {p}\n" for p in parts))
+    args = ["run", "--scene", "s.yaml", "--seconds", "0.1"]
+    result = runner.invoke(app, args, prog_name="wander")
+    assert result.exit_code == 2
+    assert result.stderr.splitlines() == [
+        f"wander run: Invalid value for '--scene': s.yaml: {problem}"
+    ]
+    assert not (tmp_path / "runs").exists()
+
+
+def test_an_error_quotes_at_most_200_characters_of_a_file(tmp_path, monkeypatch):
+    """The issue's case: ``--scene /etc/passwd`` quoted 1.3 KB of the file."""
+    import yaml
+
+    from wander_env.config_messages import SHOWN_CHARS
+
+    monkeypatch.chdir(tmp_path)
+    text = "".join(f"user{i}:x:{i}:{i}::/home/user{i}:/bin/sh\n" for i in range(40))
+    (tmp_path / "etc").mkdir()
+    (tmp_path / "etc" / "passwd").write_text(text)
+    result = runner.invoke(app, ["run", "--scene", "etc/passwd"], prog_name="wander")
+    assert result.exit_code == 2
+    quoted = repr(yaml.safe_load(text))[: SHOWN_CHARS - 3] + "..."
+    assert result.stderr.splitlines() == [
+        f"wander run: Invalid value for '--scene': etc/passwd: expected a mapping of key: value, "
+        f"got {quoted}"
+    ]
+    assert len(quoted) == 200 and len(text) > 1300
+
+
+def test_unknown_keys_are_named_once_with_the_allowed_keys(tmp_path):
+    """A scanpath config.json read as another experiment's said the allowed keys once per
+    unknown key (2,885 characters); now once per block, at most ten keys named."""
+    from dataclasses import dataclass
+
+    from wander_env.config import ConfigError, validate
+
+    @dataclass(frozen=True)
+    class Box:
+        size: float = 1.0
+
+    with pytest.raises(ConfigError) as err:
+        validate(Box, {**{f"k{i}": 1 for i in range(12)}, "size": "x"}, where="b.yaml")
+    assert str(err.value) == (
+        "b.yaml: size: expected float, got 'x'; unknown keys 'k0', 'k1', 'k2', 'k3', 'k4', "
+        "'k5', 'k6', 'k7', 'k8', 'k9' and 2 more for Box; allowed keys: size (float)"
+    )

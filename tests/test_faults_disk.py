@@ -105,10 +105,12 @@ def test_a_read_only_folder_is_one_line(tmp_path):
 
         from experiments.cli.main import app
 
-        result = CliRunner().invoke(app, ["record", "--seconds", "0.1", "--out", str(ro / "x")])
-        assert result.exit_code == 1
+        args = ["record", "--seconds", "0.1", "--out", str(ro / "x")]
+        result = CliRunner().invoke(app, args, prog_name="wander")
+        assert result.exit_code == 2  # refused when the folder is made, before any step
         assert result.stderr.strip() == (
-            f"wander record: cannot write {ro / 'x'}: Read-only file system"
+            f"wander record: Invalid value for '--out': cannot create {str(ro / 'x')!r}: "
+            "Read-only file system"
         )
     finally:
         _umount(ro)

@@ -243,3 +243,98 @@ def test_report_figures_go_beside_the_report_not_the_cwd(tmp_path, monkeypatch) 
 def test_report_help_shows_no_double_backticks() -> None:
     result = CliRunner().invoke(app, ["report", "--help"])
     assert result.exit_code == 0 and "``" not in result.output and "--force" in result.output
+
+
+def test_what_the_report_copies_from_files_is_escaped(tmp_path) -> None:
+    """run.json's command, revision and time reach REPORT.md as text: no tag, no handler,
+    no remote image, in the file or in the page it renders to."""
+    import markdown
+
+    folder = _scanpath_folder(tmp_path / "results")
+    hostile = {
+        "created": "2026-01-01T00:00:00<script>alert(1)</script>",
+        "command": "wander x `rm` | ![t](https://evil.example/t.png)",
+        "git_revision": '<img src=x onerror="alert(2)">',
+        "seed": "[a](javascript:alert(3))",
+    }
+    (folder / "run.json").write_text(json.dumps(hostile))
+    out = tmp_path / "REPORT.md"
+    result = CliRunner().invoke(
+        app, ["report", "--results", str(tmp_path / "results"), "--out", str(out)]
+    )
+    assert result.exit_code == 0, result.output
+    text = out.read_text()
+    (command,) = [line for line in text.splitlines() if line.startswith("- command:")]
+    assert command == (
+        r"- command: <code>wander x \`rm\` | ![t]\(https://evil.example/t.png)</code>"
+    )
+    (seed,) = [line for line in text.splitlines() if line.startswith("- seed ")]
+    assert seed == (
+        r"- seed [a]\(javascript:alert(3)), git revision "
+        r'<code>&lt;img src=x onerror="alert(2)"&gt;</code>, created '
+        r"2026-01-01T00:00:00&lt;script&gt;alert(1)&lt;/script&gt;"
+    )
+    page = markdown.markdown(text, extensions=["tables"])
+    for raw in ("<script", "<img src=x", '<img alt="t"', 'evil.example/t.png"', 'href="javascript'):
+        assert raw not in page
+    assert "<code>wander x `rm` | ![t](https://evil.example/t.png)</code>" in page
+
+
+def test_a_trial_id_that_names_a_path_is_refused(tmp_path) -> None:
+    folder = _scanpath_folder(tmp_path / "results")
+    csv_path = folder / "results.csv"
+    lines = _lines(csv_path)
+    header = lines[0].split(",")
+    cells = lines[1].split(",")
+    cells[header.index("trial_id")] = "../../outside"
+    lines[1] = ",".join(cells)
+    csv_path.write_text("\n".join(lines) + "\n")
+    result = CliRunner().invoke(
+        app,
+        ["report", "--results", str(tmp_path / "results"), "--out", str(tmp_path / "R.md")],
+        prog_name="wander",
+    )
+    assert result.exit_code == 2
+    assert result.stderr.splitlines() == [
+        f"wander report: error: {csv_path}: line 2: trial_id '../../outside' is not a plain "
+        "name (letters, digits, '_', '-', '.'): it would name a file outside the result folder"
+    ]
+    assert not (tmp_path / "R.md").exists()
+
+
+def test_a_missing_results_folder_is_one_line(tmp_path, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    result = CliRunner().invoke(app, ["report", "--results", "nodir"], prog_name="wander")
+    assert result.exit_code == 2
+    assert result.stderr.splitlines() == [
+        "wander report: Invalid value for '--results': no results folder 'nodir': run "
+        "`wander experiment NAME` first, or give the folder that holds its results"
+    ]
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("out", "problem"),
+    [
+        ("file/REPORT.md", "cannot create 'file/REPORT.md': Not a directory"),
+        ("/proc/wander/", "cannot create '/proc/wander': No such file or directory"),
+    ],
+)
+def test_an_out_that_cannot_be_written_is_one_line(tmp_path, monkeypatch, out, problem) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "results").mkdir()
+    (tmp_path / "file").write_text("x")
+    args = ["report", "--results", "results", "--out", out]
+    result = CliRunner().invoke(app, args, prog_name="wander")
+    assert result.exit_code == 2
+    assert result.stderr.splitlines() == [f"wander report: Invalid value for '--out': {problem}"]
+
+
+def test_an_out_ending_with_a_slash_is_a_folder(tmp_path, monkeypatch) -> None:
+    """The issue's case: ``--out newdir/`` wrote a file named ``newdir``."""
+    _scanpath_folder(tmp_path / "results")
+    monkeypatch.chdir(tmp_path)
+    result = CliRunner().invoke(app, ["report", "--results", "results", "--out", "newdir/"])
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "newdir").is_dir() and (tmp_path / "newdir" / "REPORT.md").is_file()
+    assert (tmp_path / "newdir" / "report_figures" / "scanpath" / "scanpath.png").is_file()

@@ -152,8 +152,9 @@ def pixel_to_world_angles(
     the gaze plus the exact rotation that brings the pixel to the fovea
     (:func:`pixel_to_rotation`; at the tilt of the gaze).
 
-    >>> [round(a, 9) for a in pixel_to_world_angles((63.5, 63.5), (10.0, -5.0), 42.5, (63.5, 63.5))]
-    [10.0, -5.0]
+    >>> pan, tilt = pixel_to_world_angles((63.5, 63.5), (10.0, -5.0), 42.5, (63.5, 63.5))
+    >>> round(pan, 9), round(tilt, 9)  # the centre pixel: the gaze itself
+    (10.0, -5.0)
     >>> pan, tilt = pixel_to_world_angles((127.0, 0.0), (0.0, 0.0), 42.5, (63.5, 63.5))
     >>> round(pan, 2), round(tilt, 2)  # a corner: atan per axis would say (-56.21, 56.21)
     (-56.21, 39.73)

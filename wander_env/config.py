@@ -53,9 +53,10 @@ import yaml
 
 from wander_env.config_messages import (
     allowed_keys,
-    error_message,
+    error_messages,
     field_types,
     kept_errors,
+    shown,
     type_name,
 )
 from wander_env.untrusted import UntrustedFileError, open_regular
@@ -496,10 +497,10 @@ def validate(
     """
     head = f"{where}: " if where else ""
     if not isinstance(values, Mapping):
-        raise ConfigError(f"{head}expected a mapping of key: value, got {values!r}")
+        raise ConfigError(f"{head}expected a mapping of key: value, got {shown(values)}")
     bad = [k for k in values if not isinstance(k, str)]
     if bad:
-        raise ConfigError(f"{head}keys must be strings, got {bad!r}")
+        raise ConfigError(f"{head}keys must be strings, got {shown(bad)}")
     try:
         values = _expand(values)
     except ConfigError as e:
@@ -509,8 +510,7 @@ def validate(
         return _run(cls, data, _FINITE)
     except pydantic.ValidationError as e:
         errors = [_as_given(data, err) for err in kept_errors(cls, e.errors())]
-        msgs = list(dict.fromkeys(error_message(cls, err) for err in errors))
-        raise ConfigError(head + "; ".join(msgs)) from None
+        raise ConfigError(head + "; ".join(error_messages(cls, errors))) from None
     except (ValueError, TypeError) as e:
         raise ConfigError(f"{head}{e}") from None
 

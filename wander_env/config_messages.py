@@ -18,7 +18,17 @@ import typing
 from collections.abc import Iterable, Mapping
 from typing import Any, Literal
 
-__all__ = ["allowed_keys", "error_message", "field_types", "kept_errors", "type_name"]
+__all__ = [
+    "MAX_MESSAGES",
+    "SHOWN_CHARS",
+    "allowed_keys",
+    "error_message",
+    "error_messages",
+    "field_types",
+    "kept_errors",
+    "shown",
+    "type_name",
+]
 
 
 def type_name(tp: Any) -> str:
@@ -104,13 +114,23 @@ def kept_errors(cls: type, errors: list[Any]) -> list[Any]:
     ]
 
 
-_SHOWN_CHARS = 200
+#: The most characters of a value (a file's contents, a device's reply) a message quotes.
+SHOWN_CHARS = 200
+#: The most problems one message lists (then "and N more").
+MAX_MESSAGES = 10
 
 
-def _shown(value: Any) -> str:
-    """``repr(value)``, cut to :data:`_SHOWN_CHARS` characters (a message stays a line)."""
+def shown(value: Any) -> str:
+    """``repr(value)``, cut to :data:`SHOWN_CHARS` characters (a message stays a short
+    line however much a file or a device sent).
+
+    >>> shown("x" * 1000) == repr("x" * 196)[:197] + "..."
+    True
+    >>> len(shown("x" * 1000))
+    200
+    """
     text = repr(value)
-    return text if len(text) <= _SHOWN_CHARS else text[: _SHOWN_CHARS - 3] + "..."
+    return text if len(text) <= SHOWN_CHARS else text[: SHOWN_CHARS - 3] + "..."
 
 
 def _lower(msg: str) -> str:
@@ -192,10 +212,10 @@ def error_message(cls: Any, err: Mapping[str, Any]) -> str:
         owner = _bare(tp)
         name = getattr(owner, "__name__", "this block")
         allowed = allowed_keys(owner) if dataclasses.is_dataclass(owner) else "none"
-        return _at(path, f"unknown key {loc[-1]!r} for {name}; allowed keys: {allowed}")
+        return _at(path, f"unknown key {shown(loc[-1])} for {name}; allowed keys: {allowed}")
     if kind == "missing" and loc and isinstance(loc[-1], int):  # a list too short
         path, tp = _walk(cls, loc[:-1])
-        return _at(path, f"expected {type_name(_bare(tp))}, got {_shown(err['input'])}")
+        return _at(path, f"expected {type_name(_bare(tp))}, got {shown(err['input'])}")
     path, tp = _walk(cls, loc)
     whole = _walk(cls, loc[:-1])[1] if loc else None
     if (
@@ -204,7 +224,7 @@ def error_message(cls: Any, err: Mapping[str, Any]) -> str:
         and not _members(_bare(whole))
         and kind not in _SPECIFIC_KINDS
     ):  # a value that is none of a plain union's members: name the union
-        return _at(path, f"expected {type_name(_bare(whole))}, got {_shown(err['input'])}")
+        return _at(path, f"expected {type_name(_bare(whole))}, got {shown(err['input'])}")
     if kind == "missing":
         return _at(path, "required")
     if kind in ("union_tag_invalid", "union_tag_not_found"):
@@ -227,5 +247,34 @@ def error_message(cls: Any, err: Mapping[str, Any]) -> str:
                 text = text[m.end() :]
         return _at(path, text)
     if kind == "literal_error" or (kind.endswith("_type") and tp is not None):
-        return _at(path, f"expected {type_name(_bare(tp))}, got {_shown(err['input'])}")
-    return _at(path, f"{_lower(err['msg'])}, got {_shown(err['input'])}")
+        return _at(path, f"expected {type_name(_bare(tp))}, got {shown(err['input'])}")
+    return _at(path, f"{_lower(err['msg'])}, got {shown(err['input'])}")
+
+
+def error_messages(cls: Any, errors: Iterable[Mapping[str, Any]]) -> list[str]:
+    """The messages of pydantic ``errors`` (:func:`error_message`), each once: the unknown
+    keys of one block in one message (``unknown keys 'a', 'b' for X; allowed keys: ...``,
+    the allowed keys said once), at most :data:`MAX_MESSAGES` of them, then ``and N more
+    problems``."""
+    unknown: dict[tuple[Any, ...], tuple[int, list[str]]] = {}  # block: (message, keys)
+    msgs: list[str] = []
+    for err in errors:
+        loc = tuple(err["loc"])
+        if err["type"] != "unexpected_keyword_argument":
+            msgs.append(error_message(cls, err))
+        elif loc[:-1] in unknown:
+            unknown[loc[:-1]][1].append(shown(loc[-1]))
+        else:
+            unknown[loc[:-1]] = (len(msgs), [shown(loc[-1])])
+            msgs.append(error_message(cls, err))
+    for index, keys in unknown.values():
+        if len(keys) > 1:
+            named = ", ".join(keys[:MAX_MESSAGES])
+            if len(keys) > MAX_MESSAGES:
+                named += f" and {len(keys) - MAX_MESSAGES} more"
+            old, new = f"unknown key {keys[0]} ", f"unknown keys {named} "
+            msgs[index] = msgs[index].replace(old, new, 1)
+    msgs = list(dict.fromkeys(msgs))
+    if len(msgs) > MAX_MESSAGES:
+        msgs = [*msgs[:MAX_MESSAGES], f"and {len(msgs) - MAX_MESSAGES} more problems"]
+    return msgs

@@ -730,9 +730,20 @@ class SceneConfig:
                 f"({self.camera.hfov_deg:.1f} deg), got {self.gratings.object_size_deg}"
             )
         prefixes = [include_name(i, inc) for i, inc in enumerate(self.mjcf_includes)]
-        twice = sorted({p for p in prefixes if prefixes.count(p) > 1})
-        if twice:
-            raise ValueError(f"mjcf_includes: names must differ, got {', '.join(twice)} twice")
+        statics = [o.name or f"static_{i}" for i, o in enumerate(self.static_objects)]
+        movers = [o.name for o in self.moving_objects if o.name]
+        for key, names in (
+            ("name", [self.name]),
+            ("mjcf_includes", prefixes),
+            ("static_objects", statics),
+            ("moving_objects", movers),
+        ):
+            odd = next((n for n in names if any(c < " " or c == "\x7f" for c in n)), None)
+            if odd is not None:
+                raise ValueError(f"{key}: a name must not hold control characters, got {odd!r}")
+            twice = sorted({n for n in names if names.count(n) > 1})
+            if twice:
+                raise ValueError(f"{key}: names must differ, got {', '.join(twice)} twice")
         included = [inc.counts() for inc in self.mjcf_includes]
         materials = self.own_materials() + sum(m for m, _ in included)
         if materials > MAX_MATERIALS:

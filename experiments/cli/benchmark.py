@@ -49,6 +49,7 @@ from experiments.cli.options import (
     resolve_out,
     with_options,
 )
+from experiments.runs.folder import RunFolder
 
 app = typer.Typer(
     help="Benchmarks on real event datasets: sOMS maps against masks (IoU, precision, SSIM), "
@@ -186,11 +187,13 @@ def _progress_context(show: bool) -> AbstractContextManager[Any]:
     return progress_bars() if show else nullcontext(None)
 
 
-def _finish(out: Path, md: str, started: float) -> None:
+def _finish(folder: RunFolder, md: str, started: float) -> None:
+    """Print the results and the files written (named where the folder ends)."""
     typer.echo(md)
+    out, maps = folder.final, (folder.path / "maps_vs_masks.png").is_file()
     typer.echo(
         f"wrote {out}/results.csv, {out}/results.md, {out}/run.json"
-        + (f", {out}/maps_vs_masks.png" if (out / "maps_vs_masks.png").is_file() else "")
+        + (f", {out}/maps_vs_masks.png" if maps else "")
         + " "
         f"({time.monotonic() - started:.1f} s)"
     )
@@ -275,7 +278,8 @@ def _score_dataset(
     model = _model_config(flags)
     config = {"dataset": dataset, "path": str(flags["path"]), **options}
     config.update({p.name: flags[p.name] for p in DATASET_OPTIONS}, alpha=model.alpha)
-    out = resolve_out(flags["out"], f"benchmark-{dataset}", flags["force"])
+    folder = resolve_out(flags["out"], f"benchmark-{dataset}", flags["force"])
+    out = folder.path
     sampler = WindowSampler()
     try:
         seqs, n = load(flags["max_sequences"])
@@ -296,7 +300,7 @@ def _score_dataset(
         std_over=std_over,
         views=sampler.views,
     )
-    _finish(out, md, started)
+    _finish(folder, md, started)
 
 
 # ----------------------------------------------------------------------------------------
@@ -426,7 +430,8 @@ def events(
     sensor_size = parse_sensor(sensor) if sensor else None
     offset = parse_offset(mask_offset) if mask_offset else None
     seq_name = name or default_name(file)
-    out = resolve_out(out, f"benchmark-events-{seq_name}", shared["force"])
+    folder = resolve_out(out, f"benchmark-events-{seq_name}", shared["force"])
+    out = folder.path
     _set_threads(shared["threads"])
     try:
         seq = load_generic(file, masks, sensor_size, window_us, name=seq_name, subset="events")
@@ -482,7 +487,7 @@ def events(
         extra_record={**extra_rec, "elapsed_s": time.monotonic() - started},
         views=sampler.views,
     )
-    _finish(out, md, started)
+    _finish(folder, md, started)
 
 
 @app.command("suppression")
@@ -513,7 +518,8 @@ def suppression(
 
     started = time.monotonic()
     sensor_size = parse_sensor(sensor) if sensor else None
-    out = resolve_out(out, "benchmark-suppression", shared["force"])
+    folder = resolve_out(out, "benchmark-suppression", shared["force"])
+    out = folder.path
     _set_threads(shared["threads"])
     notes: dict[str, list[str]] = {}
     try:
@@ -550,7 +556,7 @@ def suppression(
     md = write_suppression_outputs(
         out, recs, results, config, notes, elapsed_s=time.monotonic() - started
     )
-    _finish(out, md, started)
+    _finish(folder, md, started)
 
 
 def main() -> None:  # pragma: no cover - ``python -m experiments.cli.benchmark``

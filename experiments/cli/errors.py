@@ -96,7 +96,7 @@ def long_command(name: str) -> Callable[[_F], _F]:
                     folder = current.folder
                     if folder is not None:
                         folder.record_failure(stop)
-                    where = f"; {str(folder.path)!r} holds what was recorded" if folder else ""
+                    where = f"; {str(folder.final)!r} holds what was recorded" if folder else ""
                     typer.echo(f"{name}: {stop}{where}", err=True)
                     raise typer.Exit(stop.exit_code) from None
                 if not isinstance(err, OSError) or write_failure(err) is None:
@@ -105,7 +105,7 @@ def long_command(name: str) -> Callable[[_F], _F]:
                 if folder is not None:
                     folder.record_failure(err)
                 marked = folder is not None and folder.incomplete()
-                mark = f"; {str(folder.path)!r} is marked INCOMPLETE" if marked else ""
+                mark = f"; {str(folder.final)!r} is marked INCOMPLETE" if marked else ""
                 typer.echo(f"{name}: {describe(err)}{mark}", err=True)
                 raise typer.Exit(1) from None
 

@@ -49,7 +49,7 @@ def evaluate(
 
     seed_list = int_list(seeds, "--seeds", "seed")
     config = command_config(ctx, RunConfig, base=RunConfig(video=False))
-    out = resolve_out(out, "evaluate", shared["force"])
+    folder = resolve_out(out, "evaluate", shared["force"])
     with progress_bars() as bar:
         steps = round(config.seconds / config.env.control_period_s)
         task = bar.add_task("evaluate", total=steps * len(seed_list))
@@ -59,7 +59,7 @@ def evaluate(
             done[seed] = i
             bar.update(task, completed=sum(done.values()))
 
-        rows = run_eval(out, config, seed_list, progress=tick)
+        rows = run_eval(folder.path, config, seed_list, progress=tick)
     print_table(
         f"Agent quality in {config.env.scene!r} ({config.seconds:g} s per seed; all = the "
         "seeds pooled)",
@@ -79,7 +79,7 @@ def evaluate(
             "real_time_factor": ".2f",
         },
     )
-    total = rows[-1]
+    total, out = rows[-1], folder.final
     console.print(
         f"{total.simulated_s:g} simulated s in {total.wall_s:.1f} wall s: real-time factor "
         f"{total.real_time_factor:.2f} -> {out}/quality.csv, {out}/quality.json"

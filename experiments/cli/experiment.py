@@ -15,7 +15,15 @@ import typer
 
 from experiments.cli.console import console, print_markdown, progress_bars
 from experiments.cli.errors import current_run, fail, long_command
-from experiments.cli.options import SeedOpt, check_wait, check_workers, one_of
+from experiments.cli.options import (
+    ForceOpt,
+    SeedOpt,
+    check_wait,
+    check_workers,
+    folder_problem,
+    one_of,
+    own_folder,
+)
 from experiments.framework import EXPERIMENT_NAMES, ConfigError
 from experiments.runs.folder import RunFolder
 from experiments.sweep import BACKENDS
@@ -42,11 +50,13 @@ def experiment(
     out: Annotated[
         Path | None,
         typer.Option(
-            help="Result folder (default: results/NAME/<time>-seedN). A folder where the same "
-            "command stopped (same config and seed; without --out the newest under "
-            "results/NAME) is resumed, its finished trials kept."
+            help="Result folder (default: a new results/NAME/DATE-TIME-seedN). A folder where "
+            "the same command stopped (same config and seed; without --out the newest under "
+            "results/NAME) is resumed, its finished trials kept; any other non-empty folder "
+            "needs --force, which starts afresh."
         ),
     ] = None,
+    force: ForceOpt = False,
     workers: Annotated[
         int, typer.Option(callback=check_workers, help="Worker processes (1 = this process).")
     ] = 1,
@@ -71,7 +81,7 @@ def experiment(
         exp = get_experiment(name)
         cfg = resolve_config(exp, config, set_ or [])
         n = len(make_trials(exp, cfg, seed))
-        resume = None if show_config else unfinished_folder(name, cfg, seed, out)
+        resume = None if show_config or force else unfinished_folder(name, cfg, seed, out)
     except ConfigError as e:
         raise fail(str(e)) from None
     if show_config:
@@ -80,7 +90,7 @@ def experiment(
     if resume is not None:  # the same command stopped there: its finished trials are kept
         run = RunFolder(resume, current_run())
     else:
-        run = RunFolder.for_experiment(name, seed, out, current=current_run())
+        run = own_folder(lambda now: RunFolder.for_experiment(name, seed, out, force, current=now))
     folder = run.path
 
     streams: list = []
@@ -114,7 +124,7 @@ def experiment(
                 stream.close()  # the workers end now, not when their trials do
     timing = json.loads((folder / "run.json").read_text())["timing"]
     kept = f", {timing['resumed']} kept from the stopped run" if timing["resumed"] else ""
-    console.print(f"{len(rows)} trials{kept} -> {folder}/results.csv ({len(files)} files)")
+    console.print(f"{len(rows)} trials{kept} -> {run.final}/results.csv ({len(files)} files)")
     print_markdown((folder / "summary.md").read_text())
     _print_rtf(timing.get("real_time_factor"))
 
@@ -195,12 +205,12 @@ def sweep(
 def report(
     results: Annotated[Path, typer.Option(help="Folder of result folders.")] = Path("results"),
     out: Annotated[
-        Path,
+        str,
         typer.Option(
-            help="Report file, or a folder to hold REPORT.md; its figures go to "
-            "report_figures/ beside the report."
+            help="Report file, or a folder to hold REPORT.md (an existing one, or a name "
+            "ending with /); its figures go to report_figures/ beside the report."
         ),
-    ] = Path("REPORT.md"),
+    ] = "REPORT.md",
     force: Annotated[bool, typer.Option("--force", help="Overwrite an existing report.")] = False,
 ) -> None:
     """Build REPORT.md (and its figures) from the latest results of each experiment.
@@ -211,6 +221,12 @@ def report(
     """
     from experiments.report import build_report, report_path
 
+    if not results.is_dir():
+        raise typer.BadParameter(
+            f"no results folder {str(results)!r}: run `wander experiment NAME` first, or "
+            "give the folder that holds its results",
+            param_hint="'--results'",
+        )
     if report_path(out).exists() and not force:
         raise typer.BadParameter(
             f"{str(report_path(out))!r} exists: pass --force to overwrite it, or --out "
@@ -221,6 +237,8 @@ def report(
         path = build_report(results, out)
     except ValueError as err:  # ReportInputError, ConfigError: a damaged result file
         raise fail(err, "wander report") from None
+    except OSError as err:  # --out under a file, in /proc, a name too long
+        raise typer.BadParameter(folder_problem(err), param_hint="'--out'") from None
     console.print(f"-> {path}")
 
 

@@ -32,6 +32,7 @@ import typer
 
 from experiments.cli.console import step_progress
 from experiments.framework import MAX_SEED
+from experiments.runs.folder import CurrentRun, RunFolder
 from wander_env.frames.registry import frame_modes_help
 
 __all__ = [
@@ -211,7 +212,12 @@ RunDirOpt = Annotated[
     ),
 ]
 ForceOpt = Annotated[
-    bool, typer.Option("--force", help="Write into an existing, non-empty --out folder.")
+    bool,
+    typer.Option(
+        "--force",
+        help="Replace an existing, non-empty --out folder (the new run is built beside it, "
+        "then swapped in: nothing of the earlier run remains).",
+    ),
 ]
 WindowOpt = Annotated[
     float, typer.Option(callback=check_window, help="Fixation window St_w in seconds.")
@@ -415,25 +421,53 @@ def command_config(
     return config
 
 
-def resolve_out(out: Path | None, command: str, force: bool) -> Path:
-    """The path of the run folder (:meth:`experiments.runs.folder.RunFolder.new`, registered
-    as the command's current run), or a usage error on ``--out`` when it holds an earlier
-    run."""
+def own_folder(make: Callable[[CurrentRun | None], RunFolder]) -> RunFolder:
+    """The run folder ``make(current)`` names and creates
+    (:class:`experiments.runs.folder.RunFolder`; ``current``: the command's
+    :class:`~experiments.runs.folder.CurrentRun`, where it registers), with its
+    :meth:`~experiments.runs.folder.RunFolder.finish` called when the command ends, however
+    it ends; or a one-line usage error on ``--out`` when the folder is refused (it holds an
+    earlier run, it is a file) or cannot be created (under a file, in ``/proc``, a name too
+    long), before anything runs."""
+    from typer._click.globals import get_current_context
+
     from experiments.cli.errors import current_run
-    from experiments.runs.folder import RunFolder
 
     try:
-        return RunFolder.new(command, out, force, current=current_run()).path
-    except FileExistsError as err:
-        raise typer.BadParameter(str(err), param_hint="'--out'") from None
+        folder = make(current_run())
+    except OSError as err:
+        raise typer.BadParameter(folder_problem(err), param_hint="'--out'") from None
+    ctx = get_current_context(silent=True)
+    if ctx is not None:
+        ctx.call_on_close(folder.finish)
+    return folder
+
+
+def folder_problem(err: OSError) -> str:
+    """What an :class:`OSError` of creating a folder says, on one line: the refusal's own
+    words, or the path and the system's reason.
+
+    >>> folder_problem(NotADirectoryError(20, "Not a directory", "/etc/passwd/x"))
+    "cannot create '/etc/passwd/x': Not a directory"
+    """
+    if err.errno is None:
+        return str(err)
+    return f"cannot create {str(err.filename)!r}: {err.strerror}"
+
+
+def resolve_out(out: Path | None, command: str, force: bool) -> RunFolder:
+    """The command's run folder (:meth:`experiments.runs.folder.RunFolder.new` through
+    :func:`own_folder`): a job writes into its ``path``, the command names its ``final``."""
+    return own_folder(lambda current: RunFolder.new(command, out, force, current=current))
 
 
 def run_env_job(
     job: Callable[..., T], config: Any, out: Path | None, force: bool, command: str, title: str
 ) -> tuple[Path, T]:
     """Run ``job(folder, config, progress=...)`` in a new run folder of ``out`` and
-    ``force`` (:func:`resolve_out`) under one progress bar of the config's env steps."""
+    ``force`` (:func:`resolve_out`) under one progress bar of the config's env steps;
+    returns the folder's final path and the job's result."""
     folder = resolve_out(out, command, force)
     steps = round(config.env.episode_seconds / config.env.control_period_s)
     with step_progress(title, steps) as progress:
-        return folder, job(folder, config, progress=progress)
+        return folder.final, job(folder.path, config, progress=progress)

@@ -34,7 +34,6 @@ from experiments.cli.options import (
     seconds_option,
 )
 from experiments.runs.failure import exit_code
-from experiments.runs.folder import RunFolder
 from experiments.runs.signals import SignalExit
 from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.events.checks import EventFileError
@@ -132,16 +131,17 @@ def rig(
         raise typer.BadParameter(
             f"no such event file: {str(replay_file)!r}", param_hint="'--camera'"
         )
-    out = resolve_out(out, "rig", force)
+    folder = resolve_out(out, "rig", force)
+    out = folder.final
     try:
         with step_progress(f"agent on the rig ({camera})", round(seconds / 0.01)) as progress:
-            result = run_rig(out, config, progress=progress)
+            result = run_rig(folder.path, config, progress=progress)
     except RigRunError as err:
         typer.echo(f"wander rig: {err}", err=True)
         bad_file = isinstance(err.__cause__, EventFileError)  # a replay file refused: input
         raise typer.Exit(2 if bad_file else 1) from err
     except KeyboardInterrupt as err:  # Ctrl-C, SIGTERM, SIGHUP (experiments.runs.signals)
-        RunFolder(out).record_failure(err)
+        folder.record_failure(err)
         what = str(err) if isinstance(err, SignalExit) else "interrupted"
         typer.echo(
             f"wander rig: {what}; the PTU was halted; if the run had started, "

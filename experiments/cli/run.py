@@ -63,9 +63,10 @@ def demo(
         config = DemoConfig(seconds=seconds, preset=preset, seed=seed)
     except ValueError as err:
         raise typer.BadParameter(str(err), param_hint="'--seconds'") from None
-    out = resolve_out(out, "demo", force)
+    folder = resolve_out(out, "demo", force)
     with step_progress("DVS demo", round(seconds * config.frame_rate_hz)) as progress:
-        summary = run_demo(out, config, progress=progress)
+        summary = run_demo(folder.path, config, progress=progress)
+    out = folder.final
     console.print(
         f"{summary['events']:,} events ({summary['events_per_frame']:.0f} per frame, "
         f"{summary['on_fraction']:.0%} ON) -> {out}/events.h5, {out}/events.png"

@@ -1,24 +1,34 @@
 """The run folder: where a run's files go, and the one writer of its records.
 
-A :class:`RunFolder` names the folder, refuses to write into an earlier run's folder
-unless forced, writes ``run.json`` (provenance: :func:`experiments.runs.provenance.run_record`)
-and ``metrics.json`` as strict JSON, and says in the folder how a run ended badly
-(``metrics.json``'s ``error`` and ``signal``, an ``INCOMPLETE`` marker).
+A :class:`RunFolder` names the folder and makes it this process's own, refuses to write
+into an earlier run's folder unless forced, writes ``run.json`` (provenance:
+:func:`experiments.runs.provenance.run_record`) and ``metrics.json`` as strict JSON, and
+says in the folder how a run ended badly (``metrics.json``'s ``error`` and ``signal``, an
+``INCOMPLETE`` marker).
 
 Naming, one convention:
 
 - a job or a benchmark (``wander run``, ``record``, ``rig``, ``evaluate``, ``demo``,
   ``benchmark …``): ``runs/<command>-YYYYmmdd-HHMMSS/`` (local time; ``-2``, ``-3``… when
   that exists), or ``--out``;
-- an experiment: ``results/<name>/YYYYmmdd-HHMMSS-seedN/``, or ``--out``: the same stamp,
-  grouped by experiment because ``wander report`` reads the newest folder of each
-  experiment under ``results/<name>/``;
+- an experiment: ``results/<name>/YYYYmmdd-HHMMSS-seedN[-2…]/``, or ``--out``: grouped by
+  experiment because ``wander report`` reads the newest folder of each experiment under
+  ``results/<name>/``;
 - a sweep: ``results/sweeps/<name>/``, or ``--out``: one folder per sweep file, not per
   run, because a rerun resumes the trials stored there (:meth:`take_stop`).
 
-An explicit folder that exists and is not empty is refused (:class:`FileExistsError`)
-unless ``force``. The folder is not created when named: a run that fails before it
-starts leaves nothing behind, except a signal, which creates it to say so.
+Owned exclusively: a default folder is created when named, by one ``os.mkdir`` that fails
+when the name exists (then the next suffix is tried), never by a check and a later
+creation, so runs started in the same second (or twenty at once) each get their own
+folder, and a run's failure marks only the folder it made. An explicit folder that does not
+exist is made the same way; one that exists empty is used; one that is not empty is refused
+(:class:`FileExistsError`) unless ``force``: then the run is built in a new sibling folder
+(``.wander-new-*``) and :meth:`RunFolder.finish` swaps it in by renames, so nothing of the
+earlier run (an old ``INCOMPLETE``, an old ``run.mp4``) survives beside the new one, and a
+reader never sees the two mixed. :meth:`RunFolder.finish` ends every run (the command line
+calls it when the command ends, however it ends): it swaps a forced folder in (a forced run
+that wrote nothing leaves the earlier run as it was) and removes a folder it made that
+stayed empty (a run refused during its set-up leaves nothing behind).
 
 A command owns a :class:`CurrentRun`; a folder named with it registers itself there, so
 that the command's failure handling finds the folder whether ``--out`` named it or not.
@@ -28,8 +38,8 @@ Examples:
     >>> root = Path(tempfile.mkdtemp())
     >>> current = CurrentRun()
     >>> run = RunFolder.new("run", root=root, current=current)
-    >>> run.path.name[:4], len(run.path.name) == len("run-20260101-120000"), run.path.exists()
-    ('run-', True, False)
+    >>> run.path.name[:4], len(run.path.name) == len("run-20260101-120000"), run.path.is_dir()
+    ('run-', True, True)
     >>> current.folder is run
     True
     >>> _ = run.write_metrics({"detection": float("nan")})
@@ -38,16 +48,25 @@ Examples:
     >>> RunFolder.new("run", run.path)
     Traceback (most recent call last):
     ...
-    FileExistsError: ... is not empty: pass --force to write into it, ...for a new folder
+    FileExistsError: ... is not empty: pass --force to replace it, ...for a new folder
     >>> run.record_failure(OSError(28, "No space left on device"))
     >>> (run.path / "INCOMPLETE").read_text(), run.read_json("metrics.json")["incomplete"]
     ('cannot write the output folder: No space left on device\\n', True)
+    >>> again = RunFolder.new("run", run.path, force=True)
+    >>> again.path != run.path, sorted(p.name for p in run.path.iterdir())
+    (True, ['INCOMPLETE', 'metrics.json'])
+    >>> _ = again.write_metrics({"steps": 1})
+    >>> again.finish() == run.path, sorted(p.name for p in run.path.iterdir())
+    (True, ['metrics.json'])
 """
 
 from __future__ import annotations
 
+import errno
 import json
 import os
+import shutil
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -59,6 +78,8 @@ from wander_env.strict_json import dumps_strict
 RUN_JSON = "run.json"
 METRICS_JSON = "metrics.json"
 INCOMPLETE = "INCOMPLETE"
+#: The most suffixes (``-2`` … ``-N``) tried for a default folder name.
+MAX_SUFFIX = 10_000
 
 __all__ = ["INCOMPLETE", "METRICS_JSON", "RUN_JSON", "CurrentRun", "RunFolder"]
 
@@ -72,10 +93,20 @@ class CurrentRun:
 
 class RunFolder:
     """One run's folder at ``path`` (see the module docstring); ``current``: the command's
-    :class:`CurrentRun`, where the folder registers itself."""
+    :class:`CurrentRun`, where the folder registers itself. ``final``: where the folder
+    ends once :meth:`finish` swaps it in (``path`` itself unless ``--force`` replaces an
+    earlier run); ``made``: whether this process created ``path``."""
 
-    def __init__(self, path: str | os.PathLike, current: CurrentRun | None = None) -> None:
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        current: CurrentRun | None = None,
+        final: str | os.PathLike | None = None,
+        made: bool = False,
+    ) -> None:
         self.path = Path(path)
+        self.final = self.path if final is None else Path(final)
+        self.made = made
         if current is not None:
             current.folder = self
 
@@ -88,16 +119,13 @@ class RunFolder:
         root: Path = Path("runs"),
         current: CurrentRun | None = None,
     ) -> RunFolder:
-        """A job's or a benchmark's folder: ``out`` (refused when it holds an earlier run,
-        unless ``force``), or a new ``root/COMMAND-YYYYmmdd-HHMMSS[-N]``."""
+        """A job's or a benchmark's folder, created: ``out`` (:meth:`claim`), or a new
+        ``root/COMMAND-YYYYmmdd-HHMMSS[-N]``."""
         if out is not None:
-            return cls(_writable(Path(out), force), current)
-        stamp = time.strftime("%Y%m%d-%H%M%S")
-        for k in range(1, 1000):
-            path = root / (f"{command}-{stamp}" if k == 1 else f"{command}-{stamp}-{k}")
-            if not path.exists():
-                return cls(path, current)
-        raise FileExistsError(f"no free run folder for {command}-{stamp} under {root}")
+            return cls.claim(Path(out), force, current)
+        return cls(
+            _make_unique(root, f"{command}-{time.strftime('%Y%m%d-%H%M%S')}"), current, made=True
+        )
 
     @classmethod
     def for_experiment(
@@ -105,13 +133,85 @@ class RunFolder:
         name: str,
         seed: int,
         out: str | os.PathLike | None = None,
+        force: bool = False,
         root: Path = Path("results"),
         current: CurrentRun | None = None,
     ) -> RunFolder:
-        """An experiment's folder: ``out``, or ``root/NAME/YYYYmmdd-HHMMSS-seedN``."""
+        """An experiment's folder, created: ``out`` (:meth:`claim`), or a new
+        ``root/NAME/YYYYmmdd-HHMMSS-seedN[-N]``."""
         if out is not None:
+            return cls.claim(Path(out), force, current)
+        stamp = f"{time.strftime('%Y%m%d-%H%M%S')}-seed{seed}"
+        return cls(_make_unique(root / name, stamp), current, made=True)
+
+    @classmethod
+    def claim(cls, out: Path, force: bool = False, current: CurrentRun | None = None) -> RunFolder:
+        """The folder ``out`` made this run's: created when missing, used when empty,
+        refused when it is a file or (unless ``force``) holds an earlier run; with ``force``
+        the run is built in a new sibling that :meth:`finish` swaps in. Raises
+        :class:`FileExistsError` for a refusal, :class:`OSError` when ``out`` cannot be
+        created (under a file, a name too long, a read-only place)."""
+        if out.exists() and not out.is_dir():
+            raise FileExistsError(f"{str(out)!r} exists and is not a folder")
+        try:
+            out.parent.mkdir(parents=True, exist_ok=True)
+            os.mkdir(out)
+        except FileExistsError:
+            if not out.is_dir():  # a parent is a file
+                raise NotADirectoryError(
+                    errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(out)
+                ) from None
+        except OSError as err:  # the path itself named: not a parent
+            raise type(err)(err.errno, err.strerror, str(out)) from None
+        else:
+            return cls(out, current, made=True)
+        if not any(out.iterdir()):
             return cls(out, current)
-        return cls(root / name / f"{time.strftime('%Y%m%d-%H%M%S')}-seed{seed}", current)
+        if not force:
+            raise FileExistsError(
+                f"{str(out)!r} is not empty: pass --force to replace it, "
+                "or leave --out out for a new folder"
+            )
+        build = tempfile.mkdtemp(prefix=".wander-new-", dir=out.parent)
+        return cls(build, current, final=out, made=True)
+
+    def finish(self) -> Path:
+        """End the run's hold on its folder; returns where the folder now is (``final``).
+        A folder built beside an earlier run (``--force``) replaces it: the earlier one is
+        renamed aside, this one renamed into its place, the earlier one deleted; one that
+        holds nothing is removed and the earlier run stays. A folder this process made
+        that stayed empty is removed. Never raises: a swap the file system refuses leaves
+        the earlier run in place and the new one in its build folder (returned)."""
+        try:
+            if self.path != self.final:
+                if _empty(self.path):
+                    self.path.rmdir()
+                else:
+                    self._swap_in()
+            elif self.made and _empty(self.path):
+                self.path.rmdir()
+        except OSError:
+            return self.path
+        self.path = self.final
+        return self.final
+
+    def _swap_in(self) -> None:
+        """Replace ``final`` with ``path`` by renames (the earlier run back on failure)."""
+        old = Path(tempfile.mkdtemp(prefix=".wander-old-", dir=self.final.parent))
+        try:
+            os.rename(self.final, old)  # onto the empty folder: atomic
+            moved = True
+        except FileNotFoundError:  # the earlier run was removed meanwhile
+            moved = False
+        try:
+            os.rename(self.path, self.final)
+        except OSError:
+            if moved:
+                os.rename(old, self.final)  # should this fail, the earlier run stays in old
+            else:
+                old.rmdir()
+            raise
+        shutil.rmtree(old, ignore_errors=True)
 
     def create(self) -> Path:
         """Make the folder (and its parents); returns its path."""
@@ -214,13 +314,25 @@ class RunFolder:
             pass
 
 
-def _writable(out: Path, force: bool) -> Path:
-    """``out``, unless it is a file, or a folder holding an earlier run and not ``force``."""
-    if out.exists() and not out.is_dir():
-        raise FileExistsError(f"{str(out)!r} exists and is not a folder")
-    if out.is_dir() and any(out.iterdir()) and not force:
-        raise FileExistsError(
-            f"{str(out)!r} is not empty: pass --force to write into it, "
-            "or leave --out out for a new folder"
-        )
-    return out
+def _make_unique(parent: Path, name: str) -> Path:
+    """``parent/name``, or the first of ``parent/name-2``, ``-3``… that did not exist,
+    created by this call (``os.mkdir``: of concurrent callers exactly one gets each)."""
+    parent.mkdir(parents=True, exist_ok=True)
+    for k in range(1, MAX_SUFFIX + 1):
+        path = parent / (name if k == 1 else f"{name}-{k}")
+        try:
+            os.mkdir(path)
+        except FileExistsError:
+            continue
+        return path
+    raise FileExistsError(
+        f"no free folder name {name}-N (N up to {MAX_SUFFIX}) under {str(parent)!r}"
+    )
+
+
+def _empty(path: Path) -> bool:
+    """Whether ``path`` is a folder holding nothing."""
+    try:
+        return path.is_dir() and not any(path.iterdir())
+    except OSError:
+        return False
