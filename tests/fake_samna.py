@@ -511,7 +511,6 @@ class FakeSamna:
 
 def install(monkeypatch: Any, fake: FakeSamna) -> FakeSamna:
     """Put ``fake`` into ``sys.modules`` as ``samna`` (and its submodules) for one test."""
-    VALIDATED.clear()  # speckcores block
     monkeypatch.setitem(sys.modules, "samna", fake.module)
     for name, mod in fake.submodules.items():
         monkeypatch.setitem(sys.modules, name, mod)
@@ -573,19 +572,16 @@ class SpeckCnnLayerConfig(_Strict):
         super().__setattr__(name, value)
 
 
-def validate_configuration(config: _SpeckConfigurationBase) -> tuple[bool, str]:
+def _validate(fake: FakeSamna, config: _SpeckConfigurationBase) -> tuple[bool, str]:
     """The stand-in for ``samna.<family>.validate_configuration``: enabled destinations
-    must name one of the 9 cores; every call is counted in ``VALIDATED``."""
-    VALIDATED.append(config)
+    must name one of the 9 cores; every configuration checked is kept in
+    ``fake.validated``."""
+    fake.validated.append(config)
     for i, layer in enumerate(config.cnn_layers):
         for d in layer.destinations:
             if d.enable and not 0 <= d.layer < len(config.cnn_layers):
                 return False, f"cnn_layers[{i}] sends to core {d.layer}"
     return True, ""
-
-
-#: The configurations :func:`validate_configuration` saw (cleared by :func:`install`).
-VALIDATED: list[Any] = []
 
 
 class BasicSourceNode(_Strict):
@@ -602,7 +598,9 @@ class BasicSourceNode(_Strict):
 
 def _add_cnn_api(fake: FakeSamna, fam: str, mod: types.ModuleType) -> None:
     """Add the CNN-core API of family ``fam`` to its module (called by ``_family_module``)."""
-    mod.validate_configuration = validate_configuration
+    if not hasattr(fake, "validated"):
+        fake.validated = []  # the configurations checked, in order
+    mod.validate_configuration = lambda config: _validate(fake, config)
     for name in (
         f"BasicSourceNode_{fam}_event_input_event",
         f"BasicSourceNode_{fam}_event_{fam}_input_event",

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from fake_samna import VALIDATED, FakeSamna, FakeSpeck, forget_dynapcnn, install, spike
+from fake_samna import FakeSamna, FakeSpeck, forget_dynapcnn, install, spike
 
 from agents.attention import AgentParams, AttentionAgent
 from agents.speck_front import SpeckFront, SpeckFrontParams, build_front
@@ -35,7 +35,7 @@ def test_make_config_writes_the_quantised_model_to_three_cores(fake):
     dep = deploy(SpeckFrontParams(), "speck2fmodule")
     assert dep.layer2core == {1: 0, 2: 1, 3: 2} and (dep.oms_core, dep.saliency_core) == (0, 2)
     assert dep.report.cores == (0, 1, 2)
-    assert len(VALIDATED) == 1 and VALIDATED[0] is dep.config
+    assert fake.validated == [dep.config]
     model = build_front(SpeckFrontParams())
     convs = [m for m in model if isinstance(m, torch.nn.Conv2d)]
     cores = dep.config.cnn_layers
