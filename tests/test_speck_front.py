@@ -161,3 +161,16 @@ def test_the_experiments_score_the_speck_front_end_by_name():
     m = measure(s, {"speck": SpeckFrontParams(), "agent": AgentParams().soms})
     assert m["speck"].events_in == m["agent"].events_in > 0
     assert 0 < m["speck"].kept < m["speck"].events_in
+
+
+def test_wander_run_and_evaluate_pick_the_front_end_by_soms():
+    from types import SimpleNamespace
+
+    from experiments.jobs.run_agent import RunConfig
+
+    space = {"events": SimpleNamespace(shape=(2, 128, 128))}
+    env = SimpleNamespace(observation_space=space)
+    env.unwrapped = SimpleNamespace(config=SimpleNamespace(control_period_s=0.01))
+    assert RunConfig(soms="speck").agent_params(env).soms == SpeckFrontParams()
+    host = RunConfig(alpha=0.6).agent_params(env).soms
+    assert (host.alpha, host.norm) == (0.6, "quantile")
