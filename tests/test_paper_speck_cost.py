@@ -7,7 +7,15 @@ import math
 
 import pytest
 
-from experiments.paper.speck_cost import Cost, detection_costs, hand_costs, plot, table
+from experiments.paper.speck_cost import (
+    Cost,
+    detection_costs,
+    hand_costs,
+    plot,
+    read_costs,
+    table,
+    write_costs,
+)
 
 
 def phase(seed: int, name: str, ins: int, outs: int, hits: int, steps: int, second_out: int):
@@ -78,5 +86,7 @@ def test_table_and_plot(tmp_path):
     lines = table(costs).splitlines()
     assert lines[2] == "| x | a (%) | 50.0 [40.0, 60.0] (n 3) | 90.0 (n 1) | trials |"
     assert lines[3] == "| x | b (%) | — | 1.0 [0.5, 1.5] (n 2) | trials |"
+    back = read_costs(write_costs(costs, tmp_path / "c.json"))
+    assert table(back) == table(costs) and back[0].speck == costs[0].speck
     out = plot(costs, tmp_path / "p.png")
     assert out.is_file() and out.stat().st_size > 1000

@@ -20,7 +20,8 @@ Three sources, each from the command that measures it (docs/speck.md lists them)
   (Wilson interval, as ``wander evaluate`` prints it) and the sOMS suppression (mean over
   seeds, bootstrap interval).
 
-:func:`table` gives the markdown table, :func:`plot` the picture.
+:func:`table` gives the markdown table, :func:`plot` the picture; :func:`write_costs` and
+:func:`read_costs` keep figures as JSON, so a slow part (the family) is measured once.
 """
 
 from __future__ import annotations
@@ -39,7 +40,16 @@ from experiments.paper.oms_stimuli import Stimulus
 from experiments.stats import mean_ci
 from wander_env.viz import save_figure
 
-__all__ = ["Cost", "detection_costs", "family_costs", "hand_costs", "plot", "table"]
+__all__ = [
+    "Cost",
+    "detection_costs",
+    "family_costs",
+    "hand_costs",
+    "plot",
+    "read_costs",
+    "table",
+    "write_costs",
+]
 
 #: A figure's value: (mean, low, high, n).
 Figure = tuple[float, float, float, int]
@@ -156,6 +166,30 @@ def detection_costs(speck_quality: Path, host_quality: Path) -> list[Cost]:
             *map(suppression, data),
             "seeds",
         ),
+    ]
+
+
+def write_costs(costs: Sequence[Cost], path: Path) -> Path:
+    """``costs`` as a JSON list (NaN as null)."""
+
+    def fig(f: Figure) -> list[float | int | None]:
+        return [None if isinstance(v, float) and math.isnan(v) else v for v in f]
+
+    data = [{**c.__dict__, "speck": fig(c.speck), "host": fig(c.host)} for c in costs]
+    path.write_text(json.dumps(data, indent=1))
+    return path
+
+
+def read_costs(path: Path) -> list[Cost]:
+    """The costs :func:`write_costs` wrote."""
+
+    def fig(v: list) -> Figure:
+        m, lo, hi, n = (math.nan if x is None else x for x in v)
+        return float(m), float(lo), float(hi), int(n)
+
+    return [
+        Cost(**{**d, "speck": fig(d["speck"]), "host": fig(d["host"])})
+        for d in json.loads(Path(path).read_text())
     ]
 
 
