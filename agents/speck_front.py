@@ -20,8 +20,9 @@ cores (conv → IAF each)::
 * **Border ownership**, Eq. (3) of the paper as one linear sum (both polarity lines
   together, :mod:`agents.proto_object`): ``B_j = (V+ + V−) * (VM_j − w VM_j+π)``, the
   von Mises kernels at ``R0 = r0`` (the paper's 8 px at half resolution) cut to
-  ``bo_kernel_px``; no ``V ⊙`` gate (a core cannot multiply two maps) and zero padding
-  (Speck pads with zeros; padding 7 keeps the 64×64 grid).
+  ``bo_kernel_px``; the gate ``V ⊙`` as a coincidence (a core cannot multiply two
+  maps: a strong centre tap ``gate`` and a threshold to match, :class:`SpeckFrontParams`)
+  and zero padding (Speck pads with zeros; padding 7 keeps the 64×64 grid).
 * **Grouping**, Eqs. (4)–(5) folded into one population:
   ``(G1 − G1*) + (G2 − G2*) = Σ_j B_j · (VM_j − VM_j+π)`` (``·`` a true convolution),
   so one IAF channel spikes where the saliency is positive; the host sums its spikes
@@ -39,6 +40,13 @@ Speck adds the bias every slow-clock tick; the simulation adds it every step of 
 A leak beyond the int8 bias range is refused (a shorter step fits).
 :func:`quantisation_report` gives each layer's scale, relative L1 error and how many
 excitatory taps round to 0.
+
+**Time.** The simulation steps the network once per step of ``dt`` on the step's event
+counts, and an IAF layer emits as many spikes as its membrane holds thresholds
+(sinabs' ``MultiSpike``, subtractive reset); the chip updates on every event and a
+neuron spikes at most once per input event, so where one event drives a membrane past
+two thresholds the chip spikes once and keeps the rest for the next event, the
+simulation spikes twice in the step.
 
 **The sensor grid.** Output ``(i, j)`` of the stride-2 layer is centred on sensor
 pixel ``(2i, 2j)`` (the 9 px kernel, padding 4) and stands for the 2×2 block
