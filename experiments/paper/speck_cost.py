@@ -38,7 +38,7 @@ from experiments.framework import Row
 from experiments.paper.oms_family import Measure, group_of, measure
 from experiments.paper.oms_stimuli import Stimulus
 from experiments.stats import mean_ci
-from wander_env.viz import save_figure
+from wander_env.viz import legend_below, save_figure
 
 __all__ = [
     "Cost",
@@ -71,8 +71,8 @@ class Cost:
 _HAND = (
     ("suppressed", "events suppressed over a trial"),
     ("shake_suppressed", "shake-only events suppressed"),
-    ("hand_kept", "hand's events kept (hand-moving phases)"),
-    ("background_kept", "background's events kept (hand-moving phases)"),
+    ("hand_kept", "hand's events kept (hand moving)"),
+    ("background_kept", "background's events kept (hand moving)"),
     ("hit", "hand hit (hand-moving sOMS steps)"),
 )
 
@@ -224,7 +224,8 @@ def plot(costs: Sequence[Cost], path: Path, note: str = "") -> Path:
     import matplotlib.pyplot as plt
 
     y = np.arange(len(costs))
-    fig, ax = plt.subplots(figsize=(9, 0.45 * len(costs) + 1.6))
+    fig, ax = plt.subplots(figsize=(10, 0.45 * len(costs) + 1.8))
+    handles = []
     for j, (attr, label, colour) in enumerate(
         (
             ("speck", "front end on Speck's cores (int8, IAF)", "tab:red"),
@@ -235,7 +236,7 @@ def plot(costs: Sequence[Cost], path: Path, note: str = "") -> Path:
         m = np.array([f[0] for f in figs])
         lo = np.array([f[1] if not math.isnan(f[1]) else f[0] for f in figs])
         hi = np.array([f[2] if not math.isnan(f[2]) else f[0] for f in figs])
-        ax.barh(
+        bars = ax.barh(
             y + (j - 0.5) * 0.38,
             m,
             0.38,
@@ -244,12 +245,12 @@ def plot(costs: Sequence[Cost], path: Path, note: str = "") -> Path:
             label=label,
             capsize=2,
         )
+        handles.append(bars)
     ax.set_yticks(y, [f"{c.source}: {c.measure}" for c in costs], fontsize=7)
     ax.invert_yaxis()
-    ax.set(xlim=(0, 105), xlabel="percent (mean, bars: 95 % interval)")
+    ax.set(xlim=(0, 105), xlabel="percent (mean; bars: 95 % interval)")
     ax.set_title(
         "What going on-chip costs: Speck front end vs the agent's float sOMS" + note, fontsize=9
     )
-    ax.legend(fontsize=8, loc="lower right")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    return save_figure(fig, path)
+    legend_below(fig, handles, 8)
+    return save_figure(fig, path, rect=(0, 0.05, 1, 1))
