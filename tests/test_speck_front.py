@@ -157,6 +157,12 @@ def test_the_experiments_score_the_speck_front_end_by_name():
         96,
         80,
     )
+    from experiments.paper.oms_scorecard import OMSScorecardConfig, variants
+
+    assert list(variants("speck")) == ["speck", "agent"]
+    assert variants("speck")["speck"] == SpeckFrontParams()
+    with pytest.raises(ValueError, match="compare must be one of"):
+        OMSScorecardConfig(compare="chip")
     s = Stimulus("sine", "patch", 16, "ratio-4", "ideal", seed=0, duration_s=0.05)
     m = measure(s, {"speck": SpeckFrontParams(), "agent": AgentParams().soms})
     assert m["speck"].events_in == m["agent"].events_in > 0

@@ -425,6 +425,8 @@ def compare(cfg: OMSScorecardConfig, rows: list[Row]) -> list[Comparison]:
     ]
     if out:
         out.append(choice_comparison(cfg.compare))
+    if out and cfg.compare != "paper":  # the table's first column holds another variant
+        out.insert(0, Comparison("columns", _LABELS[cfg.compare], _LABELS["agent"], "compare"))
     return out
 
 
