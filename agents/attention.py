@@ -56,9 +56,10 @@ import numpy as np
 
 from agents.control import AttentionController, ControlParams
 from agents.fixation import FIXATION_WINDOW_S, FixationalMovements, FixationParams
-from agents.pipeline import SaliencyPipeline
+from agents.pipeline import PipelineBase, SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
+from agents.speck_front import SpeckFrontParams, SpeckPipeline
 from agents.torch_fork import set_torch_threads
 from wander_env.actions import gaze_degrees_to_action
 from wander_env.camera import SPECK_HFOV_DEG, pixel_to_rotation
@@ -72,6 +73,7 @@ __all__ = [
     "Fixation",
     "Phase",
     "Saccade",
+    "soms_block",
 ]
 
 _EPS = 1e-9
@@ -93,6 +95,24 @@ AGENT_SOMS = SOMSParams(
     gain=3.5,
     peak_ratio=2.0,
 )
+
+
+def soms_block(name: str) -> SOMSParams | SpeckFrontParams:
+    """The agent's front end by name: ``"agent"`` :data:`AGENT_SOMS` (the default),
+    ``"paper"`` the paper-literal sOMS (``SOMSParams(conv="separable")``), ``"speck"``
+    the front end on Speck's cores (``SpeckFrontParams()``).
+
+    >>> type(soms_block("speck")).__name__, soms_block("paper").norm
+    ('SpeckFrontParams', 'minmax')
+    """
+    blocks: dict[str, SOMSParams | SpeckFrontParams] = {
+        "agent": AGENT_SOMS,
+        "paper": SOMSParams(conv="separable"),
+        "speck": SpeckFrontParams(),
+    }
+    if name not in blocks:
+        raise ValueError(f"soms must be one of {sorted(blocks)} or a parameter block, got {name!r}")
+    return blocks[name]
 
 
 @dataclass(frozen=True)
@@ -127,7 +147,12 @@ class AgentParams:
       three family claims with the largest margin on the whole even-seed half of the
       stimulus family (``experiments.paper.oms_family.tune``); ``wander experiment
       oms_scorecard`` prints its scorecard beside the paper-literal one (docs/experiments.md,
-      "The sOMS threshold"). ``SOMSParams()`` alone is the paper-literal sOMS;
+      "The sOMS threshold"). ``SOMSParams()`` alone is the paper-literal sOMS.
+      A :class:`agents.speck_front.SpeckFrontParams` block instead runs the front end
+      shaped for Speck's cores (the quantised DoG → border-ownership → grouping network,
+      :class:`agents.speck_front.SpeckPipeline`; ``proto`` is then unused): the names
+      ``"agent"``, ``"paper"`` and ``"speck"`` give the three blocks
+      (:func:`soms_block`);
     - sensor geometry (128×128 Speck, HFOV 112.83°) and one parameter block per
       component. The components' ``dt``, sizes and fixation interval are set from
       these fields by :meth:`resolved` (so they cannot disagree).
@@ -144,12 +169,14 @@ class AgentParams:
     width_px: int = 128
     height_px: int = 128
     hfov_deg: float = SPECK_HFOV_DEG
-    soms: SOMSParams = field(default_factory=lambda: AGENT_SOMS)
+    soms: SOMSParams | SpeckFrontParams = field(default_factory=lambda: AGENT_SOMS)
     proto: ProtoObjectParams = field(default_factory=ProtoObjectParams)
     control: ControlParams = field(default_factory=ControlParams)
     fixation: FixationParams = field(default_factory=FixationParams)
 
     def __post_init__(self) -> None:
+        if isinstance(self.soms, str):  # a name: its block
+            object.__setattr__(self, "soms", soms_block(self.soms))
         names = ("window_s", "step_s", "saccade_settle_s", "max_saccade_s", "hfov_deg")
         check_fields(self, names, positive=True)
         if self.window_s + _EPS < self.step_s:
@@ -166,9 +193,12 @@ class AgentParams:
     def resolved(self) -> AgentParams:
         """These parameters with every component's time step and geometry made consistent."""
         n = max(self.fixation.n_steps, 1)
+        soms = replace(self.soms, dt=self.step_s)
+        if isinstance(soms, SpeckFrontParams):
+            soms = replace(soms, width_px=self.width_px, height_px=self.height_px)
         return replace(
             self,
-            soms=replace(self.soms, dt=self.step_s),
+            soms=soms,
             proto=replace(self.proto, dt=self.window_steps * self.step_s),
             control=replace(self.control, width_px=self.width_px, height_px=self.height_px),
             fixation=replace(
@@ -248,17 +278,33 @@ class AttentionAgent:
     ``observation`` is the env's ``{"events": (2, H, W), "gaze": (pan, tilt)}``; from
     ``info`` the agent reads ``moving`` (whether the PTU is still moving), and ``t`` and
     ``ptu_target_positions``/``ptu_resolution_deg`` when present. The same code drives the
-    simulated env and the rig.
+    simulated env and the rig. ``pipeline`` replaces the one the parameters choose (the
+    front end running on a real Speck: :class:`hardware.speck_network.ChipPipeline`).
     """
 
-    def __init__(self, params: AgentParams | None = None, seed: int | None = None) -> None:
+    def __init__(
+        self,
+        params: AgentParams | None = None,
+        seed: int | None = None,
+        pipeline: PipelineBase | None = None,
+    ) -> None:
         self.params = (params if params is not None else AgentParams()).resolved()
         p = self.params
         if p.torch_threads is not None:
             set_torch_threads(p.torch_threads)  # one only in a forked child
         self.seed = seed
-        # One pipeline (agents.pipeline): the sOMS every step, the saliency once a window.
-        self.pipeline = SaliencyPipeline(p.soms, p.proto, p.height_px, p.width_px, lockstep=False)
+        # One pipeline (agents.pipeline): the sOMS every step, the saliency once a window;
+        # ``pipeline`` replaces it (the front end on a real Speck,
+        # hardware.speck_network.ChipPipeline).
+        self.pipeline: PipelineBase
+        if pipeline is not None:
+            self.pipeline = pipeline
+        elif isinstance(p.soms, SpeckFrontParams):
+            self.pipeline = SpeckPipeline(p.soms)
+        else:
+            self.pipeline = SaliencyPipeline(
+                p.soms, p.proto, p.height_px, p.width_px, lockstep=False
+            )
         self.soms, self.proto = self.pipeline.soms, self.pipeline.proto
         self.controller = AttentionController(replace(p.control, seed=seed))
         self.fixation = FixationalMovements(p.fixation, np.random.default_rng(seed))

@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import torch
@@ -52,7 +52,7 @@ from scipy.ndimage import gaussian_filter
 from agents.proto_object import ProtoObjectParams, ProtoObjectSaliency, saliency_argmax
 from agents.soms import SOMS, SOMSParams, tau_steps
 
-__all__ = ["OMSSaliencyMaps", "Saliency", "SaliencyPipeline"]
+__all__ = ["OMSSaliencyMaps", "PipelineBase", "Saliency", "SaliencyPipeline"]
 
 Saliency = Literal["proto", "oms_density"]
 
@@ -76,7 +76,54 @@ def _set_tau_steps(layer: torch.nn.Module, steps: float) -> None:
         tau.fill_(steps)
 
 
-class SaliencyPipeline:
+class PipelineBase:
+    """The stages' interface (:class:`SaliencyPipeline`, and
+    :class:`agents.speck_front.SpeckPipeline` for the front end on Speck's cores):
+    ``reset``, ``oms_step``, ``saliency_of``, ``argmax``, and :meth:`process` built on them;
+    ``soms`` and ``proto`` are the stages' stepped objects where a pipeline has them
+    (``None`` otherwise)."""
+
+    soms: Any = None
+    proto: Any = None
+
+    def reset(self) -> None:
+        """Zero every membrane."""
+        raise NotImplementedError(f"{type(self).__name__} defines no reset")
+
+    def oms_step(self, event_counts: np.ndarray | torch.Tensor, dt_s: float | None = None):
+        """The OMS map ``(2, H, W)`` of one step of event counts ``(2, H, W)``."""
+        raise NotImplementedError(f"{type(self).__name__} defines no oms_step")
+
+    def saliency_of(
+        self, oms_map: np.ndarray | torch.Tensor, dt_s: float | None = None
+    ) -> torch.Tensor:
+        """The saliency ``(H, W)`` of an OMS map."""
+        raise NotImplementedError(f"{type(self).__name__} defines no saliency_of")
+
+    def argmax(self) -> tuple[int, int] | None:
+        """``P(x, y)`` of the last saliency map (None when nothing is salient)."""
+        raise NotImplementedError(f"{type(self).__name__} defines no argmax")
+
+    def process(self, event_counts: np.ndarray, dt_s: float) -> OMSSaliencyMaps:
+        """Both stages on the event counts ``(2, H, W)`` of one step of ``dt_s`` seconds."""
+        counts = np.asarray(event_counts)
+        if counts.ndim != 3 or counts.shape[0] != 2:
+            raise ValueError(f"event_counts must be (2, H, W), got shape {counts.shape}")
+        if not (dt_s > 0 and math.isfinite(dt_s)):
+            raise ValueError(f"dt_s must be a positive number of seconds, got {dt_s}")
+        oms = self.oms_step(counts, float(dt_s))
+        sal = self.saliency_of(oms, float(dt_s))
+        point = self.argmax()
+        oms_pol = oms.numpy() > 0
+        return OMSSaliencyMaps(
+            oms=oms_pol.any(axis=0),
+            oms_polarity=oms_pol,
+            saliency=sal.numpy().astype(np.float32),
+            point_xy=None if point is None else (float(point[0]), float(point[1])),
+        )
+
+
+class SaliencyPipeline(PipelineBase):
     """sOMS → saliency (module docstring).
 
     ``soms`` and ``proto`` are the stages' full parameter blocks (defaults: the
@@ -182,21 +229,3 @@ class SaliencyPipeline:
         if self._last_saliency is None:
             return None
         return saliency_argmax(self._last_saliency)
-
-    def process(self, event_counts: np.ndarray, dt_s: float) -> OMSSaliencyMaps:
-        """Both stages on the event counts ``(2, H, W)`` of one step of ``dt_s`` seconds."""
-        counts = np.asarray(event_counts)
-        if counts.ndim != 3 or counts.shape[0] != 2:
-            raise ValueError(f"event_counts must be (2, H, W), got shape {counts.shape}")
-        if not (dt_s > 0 and math.isfinite(dt_s)):
-            raise ValueError(f"dt_s must be a positive number of seconds, got {dt_s}")
-        oms = self.oms_step(counts, float(dt_s))
-        sal = self.saliency_of(oms, float(dt_s))
-        point = self.argmax()
-        oms_pol = oms.numpy() > 0
-        return OMSSaliencyMaps(
-            oms=oms_pol.any(axis=0),
-            oms_polarity=oms_pol,
-            saliency=sal.numpy().astype(np.float32),
-            point_xy=None if point is None else (float(point[0]), float(point[1])),
-        )

@@ -110,15 +110,6 @@ class DvsLayerConfig(_Strict):
         self.destinations = [Destination(True, 0), Destination(False, 0)]
 
 
-class CnnLayerConfig(_Strict):
-    __slots__ = ("destinations", "monitor_enable")
-    _bools = ("monitor_enable",)
-
-    def __init__(self) -> None:
-        self.monitor_enable = False
-        self.destinations = [Destination(), Destination()]
-
-
 # -- readout (helper `readout`): the DVS filter block and the slow clock ---------------
 # Field names: Speck Dev Kit Datasheet (Aug 2023) §3.2.2, §3.2.3.5 and §3.2.6.3.2; sinabs
 # play_with_speck_dvs.ipynb. Defaults: filter off (the documented examples switch it on).
@@ -175,7 +166,7 @@ class _SpeckConfigurationBase(_Strict):
     def __init__(self) -> None:
         self.dvs_layer = DvsLayerConfig()
         self.dvs_filter = DvsFilterConfig()  # readout block
-        self.cnn_layers = [CnnLayerConfig() for _ in range(9)]
+        self.cnn_layers = [SpeckCnnLayerConfig() for _ in range(9)]  # speckcores block
 
 
 class _Event(_Strict):
@@ -499,6 +490,7 @@ class FakeSamna:
         device.get_all_devices = lambda: list(self.infos)
         device.open_device = self.open_device
         device.close_device = self.close_device
+        device.DeviceInfo = DeviceInfo  # speckcores block: an annotation in sinabs' io.py
         graph = types.ModuleType("samna.graph")
         graph.EventFilterGraph = EventFilterGraph
         graph.sink_from = self.sink_from
@@ -520,6 +512,7 @@ class FakeSamna:
             setattr(event, name, type(name, (base,), {"__slots__": (), "family": fam}))
         mod.configuration, mod.event = configuration, event
         setattr(self.module, fam, mod)
+        _add_cnn_api(self, fam, mod)  # speckcores block
         sink_name = f"BasicSinkNode_{fam}_event_output_event"
         setattr(self.module, sink_name, type(sink_name, (BasicSinkNode,), {"family": fam}))
         self.submodules.update(
@@ -578,3 +571,115 @@ def install(monkeypatch: Any, fake: FakeSamna) -> FakeSamna:
     for name, mod in fake.submodules.items():
         monkeypatch.setitem(sys.modules, name, mod)
     return fake
+
+
+# == speckcores: the CNN cores, for sinabs' DynapcnnNetwork.make_config ==================
+# (issue 35, item 4). What ``sinabs.backend.dynapcnn`` (3.1.3) touches when it builds and
+# checks a configuration offline: ``samna.<family>.configuration.SpeckConfiguration``'s
+# ``cnn_layers[i]`` fields written by ``chips/dynapcnn.py``
+# (``write_dynapcnn_layer_config``: dimensions, weights, biases, leak_enable,
+# thresholds, neuron states, destinations with pooling, monitor_enable),
+# ``samna.<family>.validate_configuration`` (a stand-in: it checks only that every
+# enabled destination names a core and records the call; samna's own rules cannot run
+# here), the input-buffer class, and the ``samnagui`` module that
+# ``sinabs/backend/dynapcnn/io.py`` imports at module level.
+
+
+class CnnDestination(_Strict):
+    __slots__ = ("enable", "layer", "pooling")
+    _bools = ("enable",)
+
+    def __init__(self) -> None:
+        self.enable, self.layer, self.pooling = False, 0, 1
+
+
+class SpeckCnnLayerConfig(_Strict):
+    """``cnn_layers[i]``: the fields sinabs writes, with the types it writes."""
+
+    __slots__ = (
+        "biases",
+        "destinations",
+        "dimensions",
+        "leak_enable",
+        "monitor_enable",
+        "neurons_initial_value",
+        "return_to_zero",
+        "threshold_high",
+        "threshold_low",
+        "weights",
+    )
+    _bools = ("leak_enable", "monitor_enable", "return_to_zero")
+
+    def __init__(self) -> None:
+        self.monitor_enable = False
+        self.destinations = [CnnDestination(), CnnDestination()]
+        self.dimensions: dict[str, Any] = {}
+        self.weights: list[Any] = []
+        self.biases: list[int] = []
+        self.neurons_initial_value: list[Any] = []
+        self.leak_enable = False
+        self.return_to_zero = False
+        self.threshold_high = 0
+        self.threshold_low = 0
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name == "leak_enable" and hasattr(value, "item"):  # sinabs passes a 0-d tensor
+            value = bool(value.item())
+        super().__setattr__(name, value)
+
+
+def _validate(fake: FakeSamna, config: _SpeckConfigurationBase) -> tuple[bool, str]:
+    """The stand-in for ``samna.<family>.validate_configuration``: enabled destinations
+    must name one of the 9 cores; every configuration checked is kept in
+    ``fake.validated``."""
+    fake.validated.append(config)
+    for i, layer in enumerate(config.cnn_layers):
+        for d in layer.destinations:
+            if d.enable and not 0 <= d.layer < len(config.cnn_layers):
+                return False, f"cnn_layers[{i}] sends to core {d.layer}"
+    return True, ""
+
+
+class BasicSourceNode(_Strict):
+    """``BasicSourceNode_<family>_event_input_event``: the input buffer sinabs makes."""
+
+    __slots__ = ("written",)
+
+    def __init__(self) -> None:
+        self.written: list[Any] = []
+
+    def write(self, events: list[Any]) -> None:
+        self.written.extend(events)
+
+
+def _add_cnn_api(fake: FakeSamna, fam: str, mod: types.ModuleType) -> None:
+    """Add the CNN-core API of family ``fam`` to its module (called by ``_family_module``)."""
+    if not hasattr(fake, "validated"):
+        fake.validated = []  # the configurations checked, in order
+    mod.validate_configuration = lambda config: _validate(fake, config)
+    for name in (
+        f"BasicSourceNode_{fam}_event_input_event",
+        f"BasicSourceNode_{fam}_event_{fam}_input_event",
+    ):
+        setattr(fake.module, name, type(name, (BasicSourceNode,), {"__slots__": ()}))
+    fake.submodules.setdefault("samnagui", types.ModuleType("samnagui"))
+
+
+def spike(fake: FakeSamna, fam: str, layer: int, feature: int, x: int, y: int, t: int) -> Any:
+    """A ``samna.<fam>.event.Spike`` from core ``layer`` (the chip's output events)."""
+    e = fake.families[fam].event.Spike()
+    e.layer, e.feature, e.x, e.y, e.timestamp = layer, feature, x, y, t
+    return e
+
+
+def forget_dynapcnn(monkeypatch: Any) -> None:
+    """Drop ``sinabs.backend.dynapcnn`` from ``sys.modules`` for one test: it binds
+    samna's classes at import, so each test's fake needs its own import."""
+    for name in [n for n in sys.modules if n.startswith("sinabs.backend.dynapcnn")]:
+        monkeypatch.delitem(sys.modules, name)
+    backend = sys.modules.get("sinabs.backend")
+    if backend is not None and hasattr(backend, "dynapcnn"):
+        monkeypatch.delattr(backend, "dynapcnn")
+
+
+# == end speckcores ========================================================================

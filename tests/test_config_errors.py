@@ -190,7 +190,7 @@ CASES = [
         ["experiment", "event_suppression", "--set", "soms=nosuch"],
         {},
         "wander experiment: error: --set: soms: "
-        "expected SOMSParams or one of 'table', 'agent', got 'nosuch'",
+        "expected SOMSParams or one of 'table', 'agent', 'speck', got 'nosuch'",
     ),
     # ranges
     (

@@ -307,7 +307,7 @@ def test_soms_is_a_block_or_a_preset_name_and_bad_values_say_which():
     with pytest.raises(ConfigError) as e:
         validate(EventSuppressionConfig, {"soms": "bogus"}, where="--set")
     assert str(e.value) == (
-        "--set: soms: expected SOMSParams or one of 'table', 'agent', got 'bogus'"
+        "--set: soms: expected SOMSParams or one of 'table', 'agent', 'speck', got 'bogus'"
     )
     cfg = validate(EventSuppressionConfig, parse_sets(["soms.alpha=0.3"], EventSuppressionConfig))
     assert (cfg.soms_params.alpha, cfg.soms_params.norm, cfg.windows_per_step) == (

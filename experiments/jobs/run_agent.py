@@ -46,7 +46,7 @@ from typing import Annotated, Any, Literal
 import numpy as np
 import pydantic
 
-from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent
+from agents.attention import AGENT_SOMS, AGENT_SOMS_ALPHA, AgentParams, AttentionAgent, soms_block
 from agents.fixation import FIXATION_WINDOW_S
 from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
@@ -98,7 +98,9 @@ class RunConfig(OneEpisodeRun):
     ``episode_seconds`` is the run's length), the seed and the agent's main switches
     (the paper's defaults; ``alpha`` is the sOMS threshold on the agent's quantile norm,
     :data:`agents.attention.AGENT_SOMS_ALPHA`; ``soms_norm="minmax"`` runs the
-    paper-literal sOMS)."""
+    paper-literal sOMS; ``soms="speck"`` (``--set soms=speck``) runs the front end shaped
+    for Speck's cores instead, :class:`agents.speck_front.SpeckFrontParams`, where
+    ``alpha``, ``soms_norm`` and ``streamlined`` do not apply)."""
 
     env: WanderConfig = field(default_factory=WanderConfig)
     seed: Annotated[int, pydantic.Field(ge=0, le=MAX_SEED)] = 0
@@ -108,13 +110,15 @@ class RunConfig(OneEpisodeRun):
     streamlined: bool = False
     alpha: Annotated[float, pydantic.Field(ge=0, le=1)] = AGENT_SOMS_ALPHA
     soms_norm: Literal["quantile", "minmax"] = "quantile"
+    soms: Literal["agent", "speck"] = "agent"
 
     def agent_params(self, env: Any) -> AgentParams:
+        host = replace(AGENT_SOMS, alpha=self.alpha, norm=self.soms_norm)
         return AgentParams.for_env(
             env,
             window_s=self.window_s,
             fixational=self.fixational,
-            soms=replace(AgentParams().soms, alpha=self.alpha, norm=self.soms_norm),
+            soms=soms_block("speck") if self.soms == "speck" else host,
             proto=replace(ProtoObjectParams(), polarity_split=not self.streamlined),
         )
 

@@ -52,6 +52,7 @@ from scipy.ndimage import binary_dilation, gaussian_filter
 import wander_env  # noqa: F401  (registers the environments)
 from agents.proto_object import saliency_argmax
 from agents.soms import SOMS, SOMSParams
+from agents.speck_front import SpeckFront, SpeckFrontParams
 from experiments.benchmark.suppression import PAPER_SUPPRESSION
 from experiments.framework import Comparison, Experiment, Repeats, Row, TrialSpec, load_artifacts
 from experiments.metrics import detection_hit
@@ -77,6 +78,7 @@ __all__ = [
     "Shake",
     "hand_hit",
     "image_speeds",
+    "map_model",
     "phase_row",
     "pooled_mean_std",
     "record",
@@ -94,15 +96,20 @@ PHASES: tuple[str, ...] = ("shake", "hand", "both", "pause")
 SHAKE_PHASES: frozenset[str] = frozenset({"shake", "both"})
 HAND_PHASES: frozenset[str] = frozenset({"hand", "both"})
 
-#: The named sOMS blocks of ``soms=...``: the paper's table, or the agent's default.
-SOMSPreset = Literal["table", "agent"]
+#: The named sOMS blocks of ``soms=...``: the paper's table, the agent's default, or the
+#: front end on Speck's cores.
+SOMSPreset = Literal["table", "agent", "speck"]
+#: An sOMS block: the host's float sOMS or the front end on Speck's cores.
+FrontBlock = SOMSParams | SpeckFrontParams
 
 Range = tuple[float, float]
 
 
-def soms_preset(name: str, dt: float = 0.02) -> SOMSParams:
+def soms_preset(name: str, dt: float = 0.02) -> FrontBlock:
     """The sOMS block ``name`` at step ``dt``: ``"table"`` the paper's table (min-max norm),
-    ``"agent"`` the agent's default (:data:`agents.attention.AGENT_SOMS`).
+    ``"agent"`` the agent's default (:data:`agents.attention.AGENT_SOMS`), ``"speck"`` the
+    front end on Speck's cores (:class:`agents.speck_front.SpeckFrontParams`; its DoG
+    spikes on the sensor grid are the OMS map).
 
     >>> soms_preset("table").norm, soms_preset("agent").norm, soms_preset("agent").dt
     ('minmax', 'quantile', 0.02)
@@ -113,7 +120,17 @@ def soms_preset(name: str, dt: float = 0.02) -> SOMSParams:
         return replace(AGENT_SOMS, dt=dt)
     if name == "table":
         return SOMSParams(dt=dt)
-    raise ValueError(f"soms must be a parameter block or 'table' or 'agent', got {name!r}")
+    if name == "speck":
+        return SpeckFrontParams(dt=dt)
+    raise ValueError(f"soms must be a parameter block or 'table', 'agent' or 'speck', got {name!r}")
+
+
+def map_model(block: FrontBlock, height: int, width: int) -> MapModel:
+    """What :func:`score` steps for ``block``: the sOMS, or the Speck front end built for
+    an ``height`` × ``width`` sensor."""
+    if isinstance(block, SpeckFrontParams):
+        return SpeckFront(replace(block, height_px=height, width_px=width))
+    return SOMS(block)
 
 
 @dataclass(frozen=True)
@@ -166,7 +183,8 @@ class EventSuppressionConfig:
 
     ``shake_s``, ``hand_s``, ``both_s``, ``pause_s``: each phase's length range (s),
     drawn per trial. ``soms`` is the sOMS block (``--set soms.alpha=0.6``) or a preset
-    name (:func:`soms_preset`: ``--set soms=agent`` runs the agent's sOMS); its ``dt`` is
+    name (:func:`soms_preset`: ``--set soms=agent`` runs the agent's sOMS, ``soms=speck``
+    the front end on Speck's cores, kept as the name); its ``dt`` is
     the sOMS step, a whole number of ``window_s`` windows. ``second_soms`` (a block or a
     preset name, same ``dt``) is scored on the same windows too (the ``second:``
     columns: two sOMS side by side on identical events). ``env`` is the env's block
@@ -193,14 +211,14 @@ class EventSuppressionConfig:
 
     def __post_init__(self) -> None:
         check_env_block(self.env, ENV_SET_PER_TRIAL)
-        if isinstance(self.soms, str):  # a preset name: its block
+        # a preset name: its block ("speck" stays a name: its block is not a config block)
+        if isinstance(self.soms, str) and self.soms != "speck":
             object.__setattr__(self, "soms", soms_preset(self.soms))
-        if isinstance(self.second_soms, str):
-            object.__setattr__(self, "second_soms", soms_preset(self.second_soms, self.soms.dt))
-        if self.second_soms is not None and self.second_soms.dt != self.soms.dt:
-            raise ValueError(
-                f"second_soms.dt={self.second_soms.dt} must equal soms.dt={self.soms.dt}"
-            )
+        if isinstance(self.second_soms, str) and self.second_soms != "speck":
+            object.__setattr__(self, "second_soms", soms_preset(self.second_soms, self.soms_step_s))
+        second = self.second_params
+        if second is not None and second.dt != self.soms_step_s:
+            raise ValueError(f"second_soms.dt={second.dt} must equal soms.dt={self.soms_step_s}")
         for name in ("window_s", "hit_sigma_px"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
@@ -243,10 +261,20 @@ class EventSuppressionConfig:
         return self.soms_params.dt
 
     @property
-    def soms_params(self) -> SOMSParams:
+    def soms_params(self) -> FrontBlock:
         """The sOMS block (``soms``, a preset name resolved)."""
+        if self.soms == "speck":
+            return soms_preset("speck")
         assert isinstance(self.soms, SOMSParams)
         return self.soms
+
+    @property
+    def second_params(self) -> FrontBlock | None:
+        """The second sOMS block (``second_soms`` resolved at ``soms``' step), or None."""
+        if self.second_soms == "speck":
+            return soms_preset("speck", self.soms_step_s)
+        assert self.second_soms is None or isinstance(self.second_soms, SOMSParams)
+        return self.second_soms
 
     @property
     def windows_per_step(self) -> int:
@@ -575,7 +603,7 @@ def record(cfg: EventSuppressionConfig, phase: str, seed: int) -> Recording:
 
 
 def phase_row(
-    cfg: EventSuppressionConfig, phase: str, seed: int, rec: Recording, soms: SOMSParams
+    cfg: EventSuppressionConfig, phase: str, seed: int, rec: Recording, soms: FrontBlock
 ) -> dict[str, Any]:
     """The figures of the row of ``phase`` of the trial of ``seed`` from its recording,
     with the sOMS ``soms``; the gaze and the hand's image centre as artifacts."""
@@ -585,7 +613,7 @@ def phase_row(
     row = score(
         rec.counts,
         rec.masks,
-        SOMS(soms),
+        map_model(soms, *rec.counts.shape[-2:]),
         cfg.windows_per_step,
         round(cfg.lead_s / cfg.soms_step_s),
         phase in HAND_PHASES,
@@ -608,9 +636,8 @@ def run_trial(cfg: EventSuppressionConfig, spec: TrialSpec) -> dict[str, Any]:
     phase = str(spec.params["phase"])
     rec = record(cfg, phase, spec.seed)
     row = phase_row(cfg, phase, spec.seed, rec, cfg.soms_params)
-    if cfg.second_soms is not None:
-        assert isinstance(cfg.second_soms, SOMSParams)
-        other = phase_row(cfg, phase, spec.seed, rec, cfg.second_soms)
+    if cfg.second_params is not None:
+        other = phase_row(cfg, phase, spec.seed, rec, cfg.second_params)
         row |= {
             f"second:{k}": v
             for k, v in other.items()
@@ -758,8 +785,11 @@ def compare(cfg: EventSuppressionConfig, rows: list[Row]) -> list[Comparison]:
 PHASE_COLOURS = {"shake": "tab:orange", "hand": "tab:green", "both": "tab:purple", "pause": "0.8"}
 
 
-def soms_label(sp: SOMSParams) -> str:
-    """Which sOMS: the agent's, the paper-literal one, or another block."""
+def soms_label(sp: FrontBlock) -> str:
+    """Which sOMS: the agent's, the paper-literal one, the Speck front end, or another
+    block."""
+    if isinstance(sp, SpeckFrontParams):
+        return "front end on Speck's cores (int8 DoG, IAF)"
     if sp == soms_preset("agent", sp.dt):
         return f"agent's sOMS ({sp.norm} norm, α {sp.alpha:g})"
     if sp == soms_preset("table", sp.dt):

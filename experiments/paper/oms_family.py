@@ -29,6 +29,7 @@ import numpy as np
 import torch
 
 from agents.soms import SOMS, SOMSParams, peak_scale
+from agents.speck_front import SpeckFront, SpeckFrontParams
 from experiments.paper.oms_stimuli import Recording, Stimulus, render
 
 __all__ = [
@@ -99,15 +100,33 @@ def _lif_key(p: SOMSParams) -> tuple:
     return (p.kernel_size, p.sigma_c, p.sigma_s, p.tau_mem, p.dt, p.spike_threshold, p.kernel_norm)
 
 
-def measure_recording(rec: Recording, variants: Mapping[str, SOMSParams]) -> dict[str, Measure]:
+def measure_recording(
+    rec: Recording, variants: Mapping[str, SOMSParams | SpeckFrontParams]
+) -> dict[str, Measure]:
     """Step every variant (``dt`` set to the recording's bin) over the recording's
-    counts. Variants sharing the LIF stage share one run of it."""
+    counts. Variants sharing the LIF stage share one run of it; a Speck front end
+    (:class:`agents.speck_front.SpeckFrontParams`, built for the recording's sensor)
+    keeps the events its DoG layer's spikes cover."""
     mask = torch.from_numpy(rec.mask)
-    params = {k: replace(p, dt=rec.stimulus.bin_s) for k, p in variants.items()}
+    h, w = rec.counts.shape[-2:]
+    bin_s = rec.stimulus.bin_s
+    params = {k: replace(p, dt=bin_s) for k, p in variants.items() if isinstance(p, SOMSParams)}
+    fronts = {
+        k: SpeckFront(replace(p, dt=bin_s, height_px=h, width_px=w))
+        for k, p in variants.items()
+        if isinstance(p, SpeckFrontParams)
+    }
     groups: dict[tuple, list[str]] = {}
     for k, p in params.items():
         groups.setdefault(_lif_key(p), []).append(k)
-    acc = {k: np.zeros(4, np.int64) for k in params}
+    acc = {k: np.zeros(4, np.int64) for k in variants}
+    for k, front in fronts.items():
+        for counts in rec.counts:
+            x = counts.astype(np.float32)
+            kept = x * front.step(x).oms
+            obj_in = int(x[:, rec.mask].sum())
+            ev_in = int(counts.sum(dtype=np.int64))
+            acc[k] += (ev_in, int(kept.sum()), obj_in, int(kept[:, rec.mask].sum()))
     with torch.no_grad():
         for names in groups.values():
             # built for the map size: a variant that only pools (never steps) gets its
@@ -142,7 +161,9 @@ def measure_recording(rec: Recording, variants: Mapping[str, SOMSParams]) -> dic
     return {k: Measure(*(int(v) for v in a)) for k, a in acc.items()}
 
 
-def measure(s: Stimulus, variants: Mapping[str, SOMSParams]) -> dict[str, Measure]:
+def measure(
+    s: Stimulus, variants: Mapping[str, SOMSParams | SpeckFrontParams]
+) -> dict[str, Measure]:
     """Render ``s`` and measure every variant on it."""
     return measure_recording(render(s), variants)
 

@@ -43,11 +43,12 @@ import json
 import math
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
 from agents.soms import SOMSParams
+from agents.speck_front import SpeckFrontParams
 from experiments.framework import Comparison, Experiment, Repeats, Row, TrialSeconds, TrialSpec
 from experiments.paper.oms_family import (
     OBJECT_KEPT_BAR,
@@ -72,13 +73,25 @@ __all__ = ["EXPERIMENT", "OMSScorecardConfig", "variants"]
 PARTS = ("family-train", "family-test", "real", "hand", "office")
 #: The hand part's bars (%, issue 25): hit, suppression over a trial, shake-only, hand kept.
 HAND_BARS = {"hit": 90.0, "suppressed": 75.0, "shake_suppressed": 90.0, "hand_kept": 50.0}
-VARIANTS = ("paper", "agent")
+#: What the first column can hold (``compare``): the paper-literal sOMS or the front end
+#: on Speck's cores (:class:`agents.speck_front.SpeckFrontParams`).
+COMPARED = ("paper", "speck")
+#: Each first-column variant's sOMS block name in :func:`event_suppression.soms_preset`.
+_PRESET = {"paper": "table", "speck": "speck", "agent": "agent"}
+_LABELS = {
+    "paper": "paper-literal (min-max, α 0.80)",
+    "speck": "front end on Speck's cores (int8 DoG, IAF)",
+    "agent": "agent default (quantile norm)",
+}
 REAL_CLIPS = ("poster_6dof", "poster_translation")
 
 
 @dataclass(frozen=True)
 class OMSScorecardConfig:
-    """The scorecard's parts and their sizes (module docstring)."""
+    """The scorecard's parts and their sizes (module docstring); ``compare`` is the
+    variant scored beside the agent's default: ``paper`` the paper-literal sOMS, ``speck``
+    the front end on Speck's cores (``--set compare=speck``; ``office_results_paper``
+    then names its ``wander evaluate --set soms=speck`` results)."""
 
     parts: tuple[str, ...] = PARTS
     textures: tuple[str, ...] = TEXTURES
@@ -94,8 +107,11 @@ class OMSScorecardConfig:
     office_results: tuple[str, ...] = ()
     office_results_paper: tuple[str, ...] = ()
     reuse: tuple[str, ...] = ()
+    compare: Literal["paper", "speck"] = "paper"
 
     def __post_init__(self) -> None:
+        if self.compare not in COMPARED:
+            raise ValueError(f"compare must be one of {COMPARED}, got {self.compare!r}")
         bad = [p for p in self.parts if p not in PARTS]
         if bad:
             raise ValueError(f"parts must be among {PARTS}, got {bad}")
@@ -116,12 +132,15 @@ class OMSScorecardConfig:
             raise ValueError(f"hand_repeats must be >= 1, got {self.hand_repeats}")
 
 
-def variants() -> dict[str, SOMSParams]:
-    """``paper``: the paper-literal sOMS (``SOMSParams()``, min-max, α 0.80);
-    ``agent``: the agent's default (``AgentParams().resolved().soms``)."""
-    from agents.attention import AgentParams
+def variants(compare: str = "paper") -> dict[str, SOMSParams | SpeckFrontParams]:
+    """The first column's variant ``compare`` (``paper``: the paper-literal sOMS,
+    ``SOMSParams()``, min-max, α 0.80; ``speck``: the front end on Speck's cores,
+    ``SpeckFrontParams()``) and ``agent``: the agent's default
+    (``AgentParams().resolved().soms``)."""
+    from agents.attention import AGENT_SOMS
 
-    return {"paper": SOMSParams(conv="separable"), "agent": AgentParams().resolved().soms}
+    first = SOMSParams(conv="separable") if compare == "paper" else SpeckFrontParams()
+    return {compare: first, "agent": AGENT_SOMS}
 
 
 def stimuli(cfg: OMSScorecardConfig, seed: int) -> list:
@@ -145,7 +164,7 @@ def stimuli(cfg: OMSScorecardConfig, seed: int) -> list:
 def _family_row(cfg: OMSScorecardConfig, seed: int, half: str) -> dict[str, Any]:
     train, test = split(stimuli(cfg, seed))
     chosen = train if half == "train" else test
-    vs = variants()
+    vs = variants(cfg.compare)
     items: dict[str, list] = {k: [] for k in vs}
     for s in chosen:
         for k, m in measure(s, vs).items():
@@ -159,7 +178,8 @@ def _family_row(cfg: OMSScorecardConfig, seed: int, half: str) -> dict[str, Any]
 
 
 def _real_row(cfg: OMSScorecardConfig) -> dict[str, Any]:
-    from agents.pipeline import SaliencyPipeline
+    from agents.pipeline import PipelineBase, SaliencyPipeline
+    from agents.speck_front import SpeckPipeline
     from experiments.benchmark.suppression import event_suppression
     from wander_env.events.io import read_events
 
@@ -171,8 +191,13 @@ def _real_row(cfg: OMSScorecardConfig) -> dict[str, Any]:
             raise FileNotFoundError(f"real_dir: {path} not found (set real_dir)")
         rec = read_events(path, (240, 180))  # DAVIS240C
         for ms in cfg.real_bins_ms:
-            for k, p in variants().items():
-                model = SaliencyPipeline(replace(p, dt=ms / 1000.0), saliency="oms_density")
+            for k, p in variants(cfg.compare).items():
+                model: PipelineBase
+                if isinstance(p, SpeckFrontParams):
+                    w, h = rec.sensor_size
+                    model = SpeckPipeline(replace(p, dt=ms / 1000.0, width_px=w, height_px=h))
+                else:
+                    model = SaliencyPipeline(replace(p, dt=ms / 1000.0), saliency="oms_density")
                 r = event_suppression(rec.events, rec.sensor_size, model, ms * 1000, name=clip)
                 row[f"{k}:{clip}:{ms}ms:suppressed"] = r.fraction_suppressed
                 row[f"{k}:{clip}:{ms}ms:windows"] = r.n_windows
@@ -193,12 +218,12 @@ def _hand_row(cfg: OMSScorecardConfig, seed: int) -> dict[str, Any]:
     )
 
     hc = EventSuppressionConfig(repeats=cfg.hand_repeats)
-    rows: dict[str, list[dict[str, Any]]] = {"paper": [], "agent": []}
+    rows: dict[str, list[dict[str, Any]]] = {cfg.compare: [], "agent": []}
     for r in range(cfg.hand_repeats):
         for phase in PHASES:
             rec = record(hc, phase, seed + r)
-            for k, name in (("paper", "table"), ("agent", "agent")):
-                m = phase_row(hc, phase, seed + r, rec, soms_preset(name))
+            for k in rows:
+                m = phase_row(hc, phase, seed + r, rec, soms_preset(_PRESET[k]))
                 rows[k].append({"seed": seed + r, "phase": phase, **m})
     row: dict[str, Any] = {}
     for k, mine in rows.items():
@@ -212,7 +237,7 @@ def _hand_row(cfg: OMSScorecardConfig, seed: int) -> dict[str, Any]:
 
 def _office_row(cfg: OMSScorecardConfig) -> dict[str, Any]:
     row: dict[str, Any] = {}
-    for k, files in (("agent", cfg.office_results), ("paper", cfg.office_results_paper)):
+    for k, files in (("agent", cfg.office_results), (cfg.compare, cfg.office_results_paper)):
         for i, f in enumerate(files):
             data = json.loads(Path(f).read_text())
             pooled = data["pooled"]
@@ -296,12 +321,14 @@ def _ok(flag: bool) -> str:
     return "**pass**" if flag else "FAIL"
 
 
-def _family_lines(row: Row, half: str) -> list[tuple[str, str, dict[str, str]]]:
+def _family_lines(
+    row: Row, half: str, keys: tuple[str, ...]
+) -> list[tuple[str, str, dict[str, str]]]:
     out = []
     n = row["stimuli"]
     label = "held-out (odd seeds)" if half == "test" else "tuning half (even seeds)"
     cells: dict[str, dict[str, str]] = {}
-    for k in VARIANTS:
+    for k in keys:
         g = lambda grp, name, k=k: row.get(f"{k}:{grp}:{name}")  # noqa: E731
         cells.setdefault("eye-only", {})[k] = (
             f"{_ok(bool(g('eye-only', 'pass')))} {_pct(g('eye-only', 'suppressed'))} suppressed "
@@ -335,14 +362,15 @@ def scorecard(cfg: OMSScorecardConfig, rows: list[Row]) -> list[tuple[str, str, 
     """``(claim, bar, {variant: cell})`` for every claim the rows hold."""
     out: list[tuple[str, str, dict[str, str]]] = []
     by = {str(r["part"]): r for r in rows}
+    keys = (cfg.compare, "agent")
     for half in ("test", "train"):
         if f"family-{half}" in by:
-            out += _family_lines(by[f"family-{half}"], half)
+            out += _family_lines(by[f"family-{half}"], half, keys)
     if "real" in by:
         r = by["real"]
         for clip in REAL_CLIPS:
             cells = {}
-            for k in VARIANTS:
+            for k in keys:
                 parts = []
                 for ms in cfg.real_bins_ms:
                     v = r.get(f"{k}:{clip}:{ms}ms:suppressed")
@@ -354,7 +382,7 @@ def scorecard(cfg: OMSScorecardConfig, rows: list[Row]) -> list[tuple[str, str, 
     if "hand" in by:
         r = by["hand"]
         cells = {}
-        for k in VARIANTS:
+        for k in keys:
             f = {n: float(r[f"{k}:hand:{n}"]) for n in HAND_BARS}
             ok = all(f[n] >= bar / 100 for n, bar in HAND_BARS.items())
             cells[k] = (
@@ -370,7 +398,7 @@ def scorecard(cfg: OMSScorecardConfig, rows: list[Row]) -> list[tuple[str, str, 
     if "office" in by:
         r = by["office"]
         cells = {}
-        for k in VARIANTS:
+        for k in keys:
             parts, ok = [], True
             i = 0
             while f"{k}:office{i}:accuracy" in r:
@@ -388,29 +416,39 @@ def scorecard(cfg: OMSScorecardConfig, rows: list[Row]) -> list[tuple[str, str, 
 
 
 def compare(cfg: OMSScorecardConfig, rows: list[Row]) -> list[Comparison]:
-    """The scorecard as the report's table: paper column = the paper-literal sOMS, ours
-    = the agent's default; the bar in the note."""
+    """The scorecard as the report's table: paper column = ``compare`` (the paper-literal
+    sOMS, or the front end on Speck's cores), ours = the agent's default; the bar in the
+    note."""
     out = [
-        Comparison(claim, cells.get("paper", "—"), cells.get("agent", "—"), bar)
+        Comparison(claim, cells.get(cfg.compare, "—"), cells.get("agent", "—"), bar)
         for claim, bar, cells in scorecard(cfg, rows)
     ]
     if out:
-        out.append(choice_comparison())
+        out.append(choice_comparison(cfg.compare))
+    if out and cfg.compare != "paper":  # the table's first column holds another variant
+        out.insert(0, Comparison("columns", _LABELS[cfg.compare], _LABELS["agent"], "compare"))
     return out
 
 
-def choice_comparison() -> Comparison:
+def choice_comparison(compare: str = "paper") -> Comparison:
     """The report's line on the two variants' thresholds and how ours was chosen."""
-    p = variants()["agent"]
+    from agents.attention import AGENT_SOMS
+
+    p = AGENT_SOMS
     how = (
         f"divisor: the map's peak clipped to [{p.peak_ratio:g}, {p.gain:g}] × its "
         f"{p.quantile:g} quantile"
         if p.peak_ratio is not None
         else f"divisor: {p.gain:g} × its {p.quantile:g} quantile"
     )
+    first = (
+        "min-max over the map, α 0.80"
+        if compare == "paper"
+        else "none: a fixed int8 threshold per layer (IAF, no map-wide norm)"
+    )
     return Comparison(
         "sOMS threshold (Eq. 1's norm)",
-        "min-max over the map, α 0.80",
+        first,
         f"{p.norm} norm of the σ {p.pool_sigma:g} px pooled surround excess, {how}, α {p.alpha:g}",
         "ours chosen on the even-seed half (most family claims, then the largest margin: "
         "`experiments.paper.oms_family.tune`); the odd half held out",
@@ -437,9 +475,8 @@ def plot(cfg: OMSScorecardConfig, rows: list[Row], results_dir: Path, fig_dir: P
     ]
     x = np.arange(len(figs))
     fig, ax = plt.subplots(figsize=(9, 3.8))
-    for j, (k, label) in enumerate(
-        (("paper", "paper-literal (min-max, α 0.80)"), ("agent", "agent default (quantile norm)"))
-    ):
+    for j, k in enumerate((cfg.compare, "agent")):
+        label = _LABELS[k]
         vals = [float(row[f"{k}:{g}:{n}"]) for g, n, _ in figs]
         ax.bar(x + (j - 0.5) * 0.38, vals, 0.38, label=label)
     for xi, bar in zip(x, (0.9, 0.9, 0.3, 0.9, 0.3, None), strict=True):
