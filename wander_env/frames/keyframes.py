@@ -160,36 +160,52 @@ class KeyframeFrames(FrameSource):
             )
         if idx is None:
             idx = [i for i, t in enumerate(ticks) if t == ticks[-1] or t % p.keyframe_us == 0]
-        if not idx:  # nothing moves: the start's key is the step's end too (its geometry
-            # that of the key it was rendered as, however many still steps ago)
-            root = ref if ref.same_as is None else ref.same_as
-            self.keys.append(
-                replace(ref, t_us=ticks[-1], view=views[-1], same_as=root, full=None, geometry=None)
-            )
-        for i in idx:
-            self.keys.append(self.render_key(ticks[i], angles[i], views[i]))
-        self._key_at = {key.t_us: key for key in self.keys}
+        # The first new key goes to the draw side now; the rest follow in time order, each
+        # with its geometry where that is sure to be needed (below), so that the frames up
+        # to a key are made while the next one is drawn.
+        first = self.render_key(ticks[idx[0]], angles[idx[0]], views[idx[0]]) if idx else None
+        if idx:
+            key_t = [ref.t_us, *(ticks[i] for i in idx)]
+            key_v = [ref.view, *(views[i] for i in idx)]
+        else:  # nothing moves: the start's key is the step's end too
+            key_t, key_v = [ref.t_us, ticks[-1]], [ref.view, views[-1]]
         # The ticks between keys whose content moves by less than half a pixel from both.
-        between = [(t, v) for t, v in zip(ticks, views, strict=True) if t not in self._key_at]
+        at_key = set(key_t)
+        between = [(t, v) for t, v in zip(ticks, views, strict=True) if t not in at_key]
+        later = [bisect.bisect_left(key_t, t) for t, _ in between]  # each one's later key
         self._interpolated = set()
         if between:
-            pairs = [self.pair(t) for t, _ in between]
             tv = [v for _, v in between]
-            refs = [a.view for a, _ in pairs] + [b.view for _, b in pairs]
+            refs = [key_v[j - 1] for j in later] + [key_v[j] for j in later]
             both = view_flow_bounds_px(refs, tv + tv, k, self.radii, shape)
             bounds = np.maximum(both[: len(tv)], both[len(tv) :])
             self._interpolated = {
                 t for (t, _), b in zip(between, bounds, strict=True) if b < SUBPIXEL_PX
             }
-        # The geometry sure to be needed, drawn while the frames before it are made: both
-        # keys of every synthesised tick, and the step end's for the ground truth.
-        for t, _ in between:
+        # The geometry sure to be needed: both keys of every synthesised tick, and the
+        # step end's for the ground truth.
+        need = set()
+        for (t, _), j in zip(between, later, strict=True):
             if t not in self._interpolated:
-                for key in self.pair(t):
-                    self.request_geometry(key)
-        end = self._key_at.get(ticks[-1])
-        if p.ground_truth and end is not None:
-            self.request_geometry(end)
+                need |= {j - 1, j}
+        if p.ground_truth and key_t[-1] == ticks[-1]:
+            need.add(len(key_t) - 1)
+        if 0 in need:
+            self.request_geometry(ref)
+        if not idx:  # its geometry that of the key it was rendered as, however many
+            # still steps ago
+            root = ref if ref.same_as is None else ref.same_as
+            self.keys.append(
+                replace(ref, t_us=ticks[-1], view=views[-1], same_as=root, full=None, geometry=None)
+            )
+            if 1 in need:
+                self.request_geometry(self.keys[1])
+        for n, i in enumerate(idx):
+            key = first if n == 0 else self.render_key(ticks[i], angles[i], views[i])
+            self.keys.append(key)
+            if n + 1 in need:
+                self.request_geometry(key)
+        self._key_at = {key.t_us: key for key in self.keys}
 
     def pair(self, t_us: int) -> tuple[RenderedKey, RenderedKey]:
         """The keys just before and at-or-after ``t_us`` (inside the planned step)."""
