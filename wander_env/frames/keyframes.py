@@ -75,8 +75,15 @@ class KeyframeFrames(FrameSource):
     truth's mask the step end's; a still camera over slow objects, or ground truth off,
     needs fewer or none."""
 
-    def __init__(self, stage: Stage, dvs: DVSEmulator, params: FrameParams) -> None:
+    def __init__(
+        self,
+        stage: Stage,
+        dvs: DVSEmulator,
+        params: FrameParams,
+        geometry_at_keys: bool = False,
+    ) -> None:
         super().__init__(stage, dvs, params)
+        self.geometry_at_keys = geometry_at_keys  # each key's geometry used at its own tick
         self.radii = stage.layer_radii()
         self.keys: list[RenderedKey] = []  # the key at the step's start, then the step's
         self._latest: RenderedKey | None = None  # the latest key rendered
@@ -182,9 +189,10 @@ class KeyframeFrames(FrameSource):
             self._interpolated = {
                 t for (t, _), b in zip(between, bounds, strict=True) if b < SUBPIXEL_PX
             }
-        # The geometry sure to be needed: both keys of every synthesised tick, and the
-        # step end's for the ground truth.
-        need = set()
+        # The geometry sure to be needed: both keys of every synthesised tick, the step
+        # end's for the ground truth, and with geometry_at_keys (a source compositing the
+        # keys' layers at every frame) every new key's.
+        need = set(range(1, len(key_t))) if self.geometry_at_keys else set()
         for (t, _), j in zip(between, later, strict=True):
             if t not in self._interpolated:
                 need |= {j - 1, j}

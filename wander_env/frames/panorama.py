@@ -113,7 +113,8 @@ class PanoramaFrames(FrameSource):
             )
         super().__init__(stage, dvs, params)
         self.panorama = panorama or PanoramaParams()
-        self.moving = KeyframeFrames(stage, dvs, params)  # the keys of the moving layers
+        # The keys of the moving layers, each composited at every frame near it.
+        self.moving = KeyframeFrames(stage, dvs, params, geometry_at_keys=True)
         self._cube: tuple[np.ndarray, np.ndarray] | None = None
         self._offset = 0.0
         self._face_renderer: CameraRenderer | None = None  # the cube's, on the draw side
@@ -250,8 +251,6 @@ class PanoramaFrames(FrameSource):
             if not self._with_keys:  # a fresh key at the step's start
                 self.moving.start_with([self.moving.render_key(t0, a0, v0)])
             self.moving.plan(trajectory)
-            for key in self.moving.keys[1:]:  # each composited at its own tick
-                self.moving.request_geometry(key)
         else:
             self.moving.start_with([])
             still = all((v.rotation == v0.rotation).all() for v in views)
