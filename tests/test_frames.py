@@ -184,7 +184,9 @@ def test_a_keys_layers_and_depth_are_drawn_only_where_needed():
                 counts.append(stage.geometry_draws)
                 assert env.unwrapped.renders_in_step == 2
                 if gt:
-                    assert np.array_equal(info["object_mask"], stage.object_mask())
+                    u = env.unwrapped
+                    end = (u.ptu.camera_pan_deg, u.ptu.camera_tilt_deg)
+                    assert np.array_equal(info["object_mask"], stage.object_mask_at(u._t_us, end))
             assert counts == draws
         finally:
             env.close()

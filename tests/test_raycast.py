@@ -140,10 +140,10 @@ def test_the_cast_mask_and_depth_match_the_gl_pass_but_for_rim_pixels(scene):
     try:
         for t_us, (pan, tilt) in POSES:
             stage.pose(t_us, pan, tilt)
-            gl = stage.renderer.segment(stage.data)
+            gl = stage.renderer.segment(stage.draw_data)
             mask = stage.object_mask()
             _, gl_depth = stage.renderer.segment_depth_current(stage.layer_lut)
-            layers, depth = caster.geometry(stage.data)
+            layers, depth = caster.geometry(stage.draw_data)
             assert np.array_equal(mask, layers)
             diff = gl != mask
             assert diff.sum() <= 0.02 * max((gl > 0).sum(), 1)
@@ -178,13 +178,13 @@ def test_a_hinge_offset_casts_masks_from_the_true_centre_and_keeps_gl_key_geomet
         assert stage.casts("ground_truth") and not stage.casts("key_layers")
         for t_us, (pan, tilt) in POSES:
             stage.pose(t_us, pan, tilt)
-            gl = stage.renderer.segment(stage.data)
+            gl = stage.renderer.segment(stage.draw_data)
             mask = stage.object_mask()
             diff = gl != mask
             assert diff.sum() <= 0.02 * max((gl > 0).sum(), 1)
             assert not (diff & ~_rim(gl, mask)).any()
         with pytest.raises(ValueError, match="camera on its hinge"):
-            caster.geometry(stage.data)
+            caster.geometry(stage.draw_data)
         draws = stage.geometry_draws
         stage.geometry()  # GL
         assert stage.geometry_draws == draws + 1
@@ -229,7 +229,7 @@ def test_meshes_and_the_gratings_screen_keep_the_gl_pass(tmp_path):
         )
     off = RaycastParams(ground_truth=False, key_layers=False)
     office = load_scene_config("office")
-    assert Stage(build_mjcf(office).compile(), office, RenderParams(), off).caster is None
+    assert Stage(build_mjcf(office).compile(), office, RenderParams(), raycast=off).caster is None
 
 
 def _run(scene: str, raycast: RaycastParams | None, actions: list[np.ndarray], frames: str):

@@ -39,11 +39,15 @@ in the step, and how many of them were adaptive sub-frames) and, with ground tru
 ``object_mask`` ((H, W) int32 object ids, 0 = background) and ``objects`` (per moving
 object: id, name, pixel centre of its projection, mask pixels, visible).
 
-Processes: the renderer (an OpenGL context) is created at the first ``reset``, in the
-process that renders; constructing an env touches no GL, so ``AsyncVectorEnv`` with the
-default ("fork") start method works. A process forked after its parent rendered cannot
-render: there ``reset`` raises :class:`~wander_env.gl_fork.ForkedGLError`, which says to
-use ``context="spawn"`` (see :mod:`wander_env.gl_fork`).
+Processes and threads: the renderer (an OpenGL context) is created at the first
+``reset``, in the process that renders, and with ``render_thread`` (the default) on a
+thread of its own that draws the step's keys while this thread makes the frames between
+them and runs the DVS (:mod:`wander_env.frames.stage`; the same events without it);
+:meth:`WanderEnv.close` joins it. Constructing an env touches no GL and starts no thread,
+so ``AsyncVectorEnv`` with the default ("fork") start method works. A process forked
+after its parent rendered cannot render: there ``reset`` or ``step`` raises
+:class:`~wander_env.gl_fork.ForkedGLError`, which says to use ``context="spawn"`` (see
+:mod:`wander_env.gl_fork`).
 
 Examples:
     >>> import gymnasium, wander_env
@@ -94,7 +98,10 @@ class WanderEnv(CameraEnv):
         self.scene: SceneConfig = scene
         self.hfov_deg = scene.camera.hfov_deg
         self.stage = Stage(
-            build_mjcf(scene).compile(), scene, RenderParams(supersample=c.render_supersample)
+            build_mjcf(scene).compile(),
+            scene,
+            RenderParams(supersample=c.render_supersample),
+            render_thread=c.render_thread,
         )
         self.model, self.data = self.stage.model, self.stage.data
         self.ptu = PanTiltUnit(c.ptu)
@@ -194,7 +201,9 @@ class WanderEnv(CameraEnv):
         pan, tilt = (options or {}).get("gaze_deg", self.config.start_gaze_deg)
         self.ptu.reset(*self.ptu.clip_target(pan, tilt))
         self._t_us = 0
-        first = self.source.reset(0, (self.ptu.camera_pan_deg, self.ptu.camera_tilt_deg))
+        angles = (self.ptu.camera_pan_deg, self.ptu.camera_tilt_deg)
+        first = self.source.reset(0, angles)
+        self.source.finish(0, angles)
         self.dvs.reset(first, 0, seed=int(rng.integers(2**63)))
         empty = self.dvs.flush()
         if self.readout is not None:  # Speck's readout (wander_env.readout)
@@ -276,6 +285,7 @@ class WanderEnv(CameraEnv):
 
     def close(self) -> None:
         if getattr(self, "stage", None) is not None:
+            self.source.close()
             self.stage.close()
         super().close()
 

@@ -197,6 +197,13 @@ class WanderConfig(FieldsMapping):
             "16 samples a pixel (supersample 2), about twice the cost of a render"
         ),
     ] = "fast"
+    render_thread: Annotated[
+        bool,
+        field_doc(
+            "Draw on a render thread of its own (GL beside the main thread's frame "
+            "synthesis and DVS); the same events either way"
+        ),
+    ] = True
 
     readout: Annotated[
         ReadoutPreset | ReadoutParams | None,

@@ -12,7 +12,10 @@ So the env creates its renderer lazily, in the process that renders (constructin
 as ``AsyncVectorEnv`` does in the parent to read the spaces, touches no GL), and
 :func:`claim_gl` is called before each GL context is created: in a process forked after
 GL was initialised it raises :class:`ForkedGLError` at once, naming the fix (the
-``"spawn"`` start method), instead of hanging.
+``"spawn"`` start method), instead of hanging. The env's renderer may live on a render
+thread (:mod:`wander_env.frames.stage`), which a forked child does not have: there the
+stage raises the same error before handing the thread any work, and forgets the parent's
+GL objects when closed, freeing nothing.
 
 Which process initialised GL is process-wide state by nature; it is kept here, in one
 place: the pid that created a context through :func:`claim_gl`, or, where something else

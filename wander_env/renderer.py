@@ -311,6 +311,11 @@ class CameraRenderer(Closing):
             self._gl.free()
             self._gl = None
 
+    def abandon(self) -> None:
+        """Forget the GL objects without freeing them: in a process forked from the one
+        that made them they are the parent's (closing is then a no-op)."""
+        self._con = self._seg_con = self._gl = None
+
     def __del__(self) -> None:
         with contextlib.suppress(Exception):  # interpreter shutdown: nothing to report to
             self.close()

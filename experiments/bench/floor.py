@@ -104,7 +104,8 @@ def render_floor(
     from wander_env.dvs import DVSEmulator
     from wander_env.frames.keyframe_maths import _static_kernel
 
-    env = gym.make("wander/Wander-v0", scene=scene)
+    # The renderer is driven from here, on this thread: no render thread.
+    env = gym.make("wander/Wander-v0", scene=scene, render_thread=False)
     rows: list[FloorRow] = []
     cpu_of: dict[str, float] = {}
     whole = Clock()

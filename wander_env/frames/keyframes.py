@@ -4,6 +4,7 @@ between them synthesised from the keys' geometry (:mod:`wander_env.frames.keyfra
 from __future__ import annotations
 
 import bisect
+from concurrent.futures import Future
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -28,8 +29,9 @@ __all__ = ["KeyframeFrames", "RenderedKey"]
 
 @dataclass(eq=False)
 class RenderedKey:
-    """A key as rendered: its colour's DVS input and luminance at ``t_us`` from the camera
-    at ``angles`` (``view``). Its geometry (layers and depth, one more draw) is made only
+    """A key as rendered: its colour, the colour's DVS input and luminance at ``t_us``
+    from the camera at ``angles`` (``view``), drawn on the stage's draw side (``drawn``:
+    read when first needed). Its geometry (layers and depth, one more draw) is made only
     when something asks for it (:meth:`KeyframeFrames.keyframe`): a synthesised frame
     between it and a neighbour, or the ground truth's mask. ``same_as``: an earlier key
     whose geometry this one shares (nothing moved between them)."""
@@ -37,10 +39,26 @@ class RenderedKey:
     t_us: int
     angles: Angles
     view: View
-    prepared: LogFrame
-    lum: np.ndarray  # (H, W) float32 linear luminance (a view of ``prepared.lum``)
+    drawn: Future[tuple[np.ndarray, LogFrame]]  # (RGB, its DVS input)
+    shape: tuple[int, int]  # (H, W)
     same_as: RenderedKey | None = None
     full: Keyframe | None = None  # with its geometry, once made
+    geometry: Future[Keyframe] | None = None  # its geometry, once asked for
+
+    @property
+    def rgb(self) -> np.ndarray:
+        """The key's colour frame (H, W, 3) uint8."""
+        return self.drawn.result()[0]
+
+    @property
+    def prepared(self) -> LogFrame:
+        """The key's DVS input."""
+        return self.drawn.result()[1]
+
+    @property
+    def lum(self) -> np.ndarray:
+        """(H, W) float32 linear luminance (a view of ``prepared.lum``)."""
+        return self.prepared.lum.reshape(self.shape)
 
 
 class KeyframeFrames(FrameSource):
@@ -57,11 +75,18 @@ class KeyframeFrames(FrameSource):
     truth's mask the step end's; a still camera over slow objects, or ground truth off,
     needs fewer or none."""
 
-    def __init__(self, stage: Stage, dvs: DVSEmulator, params: FrameParams) -> None:
+    def __init__(
+        self,
+        stage: Stage,
+        dvs: DVSEmulator,
+        params: FrameParams,
+        geometry_at_keys: bool = False,
+    ) -> None:
         super().__init__(stage, dvs, params)
+        self.geometry_at_keys = geometry_at_keys  # each key's geometry used at its own tick
         self.radii = stage.layer_radii()
         self.keys: list[RenderedKey] = []  # the key at the step's start, then the step's
-        self._camera_frame: np.ndarray | None = None
+        self._latest: RenderedKey | None = None  # the latest key rendered
         self._key_at: dict[int, RenderedKey] = {}  # key t_us -> key (this step)
         self._views: dict[int, View] = {}  # tick t_us -> its view (this step)
         self._interpolated: set[int] = set()  # ticks the DVS interpolates over
@@ -70,17 +95,20 @@ class KeyframeFrames(FrameSource):
     @property
     def camera_frame(self) -> np.ndarray | None:
         """The latest key's colour frame."""
-        return self._camera_frame
+        return None if self._latest is None else self._latest.rgb
 
     def render_key(self, t_us: int, angles: Angles, view: View) -> RenderedKey:
-        """Render the colour of a key of the model posed at ``t_us`` and ``angles``."""
+        """A key of the model posed at ``t_us`` and ``angles``, its colour handed to the
+        draw side (read when first needed)."""
         stage = self.stage
-        stage.pose(t_us, *angles)
-        rgb = stage.render()
-        prepared = self.dvs.prepare(rgb)
-        lum = prepared.lum.reshape(stage.height, stage.width)
-        self._camera_frame = rgb
-        return RenderedKey(t_us, angles, view, prepared, lum)
+        drawn = stage.submit(self._draw_colour, t_us, angles)
+        key = self._latest = RenderedKey(t_us, angles, view, drawn, (stage.height, stage.width))
+        return key
+
+    def _draw_colour(self, t_us: int, angles: Angles) -> tuple[np.ndarray, LogFrame]:
+        """(On the draw side.) A key's colour and its DVS input."""
+        rgb = self.stage.colour_at(t_us, angles)
+        return rgb, self.dvs.prepare(rgb)
 
     def keyframe(self, key: RenderedKey) -> Keyframe:
         """``key`` with its geometry: its layers and depth drawn on first use (the model
@@ -89,11 +117,25 @@ class KeyframeFrames(FrameSource):
             if key.same_as is not None:
                 key.full = replace(self.keyframe(key.same_as), t_us=key.t_us, view=key.view)
             else:
-                stage = self.stage
-                stage.pose(key.t_us, *key.angles)
-                layers, depth = stage.geometry()
-                key.full = make_keyframe(key.t_us, key.lum, key.view, depth, layers)
+                key.full = self.request_geometry(key).result()
         return key.full
+
+    def request_geometry(self, key: RenderedKey) -> Future[Keyframe]:
+        """Hand the drawing of ``key``'s geometry (that of the key it shares it with) to
+        the draw side, once; a frame that needs it reads it with :meth:`keyframe`."""
+        root = key if key.same_as is None else key.same_as
+        if root.geometry is None:
+            if root.full is not None:
+                root.geometry = Future()
+                root.geometry.set_result(root.full)
+            else:
+                root.geometry = self.stage.submit(self._draw_geometry, root)
+        return root.geometry
+
+    def _draw_geometry(self, key: RenderedKey) -> Keyframe:
+        """(On the draw side.) ``key``'s layers and depth, made a :class:`Keyframe`."""
+        layers, depth = self.stage.geometry_at(key.t_us, key.angles)
+        return make_keyframe(key.t_us, key.lum, key.view, depth, layers)
 
     def start_with(self, keys: list[RenderedKey]) -> None:
         """The stream's keys from here on: ``keys`` (none: no key, nothing planned)."""
@@ -125,25 +167,53 @@ class KeyframeFrames(FrameSource):
             )
         if idx is None:
             idx = [i for i, t in enumerate(ticks) if t == ticks[-1] or t % p.keyframe_us == 0]
-        if not idx:  # nothing moves: the start's key is the step's end too (its geometry
-            # that of the key it was rendered as, however many still steps ago)
-            root = ref if ref.same_as is None else ref.same_as
-            self.keys.append(replace(ref, t_us=ticks[-1], view=views[-1], same_as=root, full=None))
-        for i in idx:
-            self.keys.append(self.render_key(ticks[i], angles[i], views[i]))
-        self._key_at = {key.t_us: key for key in self.keys}
+        # The first new key goes to the draw side now; the rest follow in time order, each
+        # with its geometry where that is sure to be needed (below), so that the frames up
+        # to a key are made while the next one is drawn.
+        first = self.render_key(ticks[idx[0]], angles[idx[0]], views[idx[0]]) if idx else None
+        if idx:
+            key_t = [ref.t_us, *(ticks[i] for i in idx)]
+            key_v = [ref.view, *(views[i] for i in idx)]
+        else:  # nothing moves: the start's key is the step's end too
+            key_t, key_v = [ref.t_us, ticks[-1]], [ref.view, views[-1]]
         # The ticks between keys whose content moves by less than half a pixel from both.
-        between = [(t, v) for t, v in zip(ticks, views, strict=True) if t not in self._key_at]
+        at_key = set(key_t)
+        between = [(t, v) for t, v in zip(ticks, views, strict=True) if t not in at_key]
+        later = [bisect.bisect_left(key_t, t) for t, _ in between]  # each one's later key
         self._interpolated = set()
         if between:
-            pairs = [self.pair(t) for t, _ in between]
             tv = [v for _, v in between]
-            refs = [a.view for a, _ in pairs] + [b.view for _, b in pairs]
+            refs = [key_v[j - 1] for j in later] + [key_v[j] for j in later]
             both = view_flow_bounds_px(refs, tv + tv, k, self.radii, shape)
             bounds = np.maximum(both[: len(tv)], both[len(tv) :])
             self._interpolated = {
                 t for (t, _), b in zip(between, bounds, strict=True) if b < SUBPIXEL_PX
             }
+        # The geometry sure to be needed: both keys of every synthesised tick, the step
+        # end's for the ground truth, and with geometry_at_keys (a source compositing the
+        # keys' layers at every frame) every new key's.
+        need = set(range(1, len(key_t))) if self.geometry_at_keys else set()
+        for (t, _), j in zip(between, later, strict=True):
+            if t not in self._interpolated:
+                need |= {j - 1, j}
+        if p.ground_truth and key_t[-1] == ticks[-1]:
+            need.add(len(key_t) - 1)
+        if 0 in need:
+            self.request_geometry(ref)
+        if not idx:  # its geometry that of the key it was rendered as, however many
+            # still steps ago
+            root = ref if ref.same_as is None else ref.same_as
+            self.keys.append(
+                replace(ref, t_us=ticks[-1], view=views[-1], same_as=root, full=None, geometry=None)
+            )
+            if 1 in need:
+                self.request_geometry(self.keys[1])
+        for n, i in enumerate(idx):
+            key = first if n == 0 else self.render_key(ticks[i], angles[i], views[i])
+            self.keys.append(key)
+            if n + 1 in need:
+                self.request_geometry(key)
+        self._key_at = {key.t_us: key for key in self.keys}
 
     def pair(self, t_us: int) -> tuple[RenderedKey, RenderedKey]:
         """The keys just before and at-or-after ``t_us`` (inside the planned step)."""

@@ -25,6 +25,7 @@ from wander_env.frames.keyframes import KeyframeFrames, RenderedKey
 from wander_env.frames.source import FrameParams, FrameSource
 from wander_env.frames.stage import Angles, Stage
 from wander_env.ptu.unit import Trajectory
+from wander_env.renderer import CameraRenderer
 
 __all__ = ["Headlight", "PanoramaFrames", "PanoramaParams"]
 
@@ -112,10 +113,11 @@ class PanoramaFrames(FrameSource):
             )
         super().__init__(stage, dvs, params)
         self.panorama = panorama or PanoramaParams()
-        self.moving = KeyframeFrames(stage, dvs, params)  # the keys of the moving layers
+        # The keys of the moving layers, each composited at every frame near it.
+        self.moving = KeyframeFrames(stage, dvs, params, geometry_at_keys=True)
         self._cube: tuple[np.ndarray, np.ndarray] | None = None
         self._offset = 0.0
-        self._face_renderer = None
+        self._face_renderer: CameraRenderer | None = None  # the cube's, on the draw side
         self._hide = stage.layer_lut != 0
         self._bg: dict[bytes, tuple[np.ndarray, np.ndarray | None]] = {}
         self._with_keys = False
@@ -125,7 +127,7 @@ class PanoramaFrames(FrameSource):
         self._grey: np.ndarray | None = None  # ... as grey sRGB, once asked for
         self._edge_pairs: dict[tuple[int, int], KeyPair] = {}
         self._edge_keys: dict[int, tuple[RenderedKey, Keyframe]] = {}  # id(key) -> grown
-        self._end: tuple[int, Angles, View] | None = None  # the last step's end
+        self._step_end: tuple[int, Angles, View] | None = None  # the last step's end
 
     @classmethod
     def create(cls, stage: Stage, dvs: DVSEmulator, params: FrameParams) -> FrameSource:
@@ -160,12 +162,17 @@ class PanoramaFrames(FrameSource):
         from wander_env.frames.cube import box_filter, render_cube
 
         stage, pp = self.stage, self.panorama
-        stage.pose(t_us, *angles)
         n = round(2 * float(stage.k[0, 0]) * pp.samples)
-        lum, srgb, dist, self._face_renderer = render_cube(
-            stage.model, stage.data, n, self._hide, pp.headlight, self._face_renderer
-        )
-        stage.invalidate()  # the camera was turned to the faces
+
+        def draw() -> tuple[np.ndarray, np.ndarray, np.ndarray, CameraRenderer]:
+            stage.pose(t_us, *angles)
+            faces = render_cube(
+                stage.model, stage.draw_data, n, self._hide, pp.headlight, self._face_renderer
+            )
+            stage.invalidate()  # the camera was turned to the faces
+            return faces
+
+        lum, srgb, dist, self._face_renderer = stage.on_draw_side(draw)
         self._offset = 0.0
         if pp.srgb and pp.prefilter:
             srgb, self._offset = box_filter(srgb, pp.samples)
@@ -214,7 +221,7 @@ class PanoramaFrames(FrameSource):
         self.build(t_us, angles)
         self._edge_pairs, self._edge_keys = {}, {}
         view = self.stage.camera_view(t_us, *angles)
-        self._end = (t_us, angles, view)
+        self._step_end = (t_us, angles, view)
         self._views, self._still = {}, set()
         self._with_keys = self._in_view([view])
         if self._with_keys:
@@ -232,7 +239,7 @@ class PanoramaFrames(FrameSource):
         angles = [trajectory.angles(i) for i in range(len(ticks))]
         views = stage.camera_views(list(ticks), angles)
         self._views = dict(zip(ticks, views, strict=True))
-        t0, a0, v0 = self._end
+        t0, a0, v0 = self._step_end
         self._bg = {k: v for k, v in self._bg.items() if k == v0.rotation.tobytes()}
         visible = self._in_view([v0, *views])
         self._edge_pairs = {}
@@ -250,7 +257,7 @@ class PanoramaFrames(FrameSource):
             self._still = set(ticks) if still else set()
             self._show_background(self.background(views[-1].rotation, depth=False)[0])
         self._with_keys = visible
-        self._end = (ticks[-1], angles[-1], views[-1])
+        self._step_end = (ticks[-1], angles[-1], views[-1])
 
     def interpolated(self, t_us: int) -> bool:
         if self._with_keys:
@@ -308,6 +315,12 @@ class PanoramaFrames(FrameSource):
         grown = make_keyframe(kf.t_us, kf.lum, kf.view, 1.0 / inv, layers)
         self._edge_keys[id(key)] = (key, grown)
         return grown
+
+    def close(self) -> None:
+        super().close()
+        renderer, self._face_renderer = self._face_renderer, None
+        if renderer is not None:
+            self.stage.close_renderer(renderer)
 
     def object_mask(self, t_us: int) -> np.ndarray:
         if self._with_keys:

@@ -419,6 +419,14 @@ class PrimitiveCaster:
         return self.layers_depth(data)[0]
 
     def close(self) -> None:
+        """Free the cube's renderer (on the thread that drew it)."""
         if self._renderer is not None:
             self._renderer.close()
+            self._renderer = None
+
+    def abandon(self) -> None:
+        """Forget the cube's renderer without freeing it (a forked child: it is the
+        parent's)."""
+        if self._renderer is not None:
+            self._renderer.abandon()
             self._renderer = None

@@ -45,6 +45,7 @@ class FrameSource(ABC):
 
     def __init__(self, stage: Stage, dvs: DVSEmulator, params: FrameParams) -> None:
         self.stage, self.dvs, self.params = stage, dvs, params
+        self._end: tuple[int, Angles] | None = None  # the step's (or reset's) end
 
     @classmethod
     def create(cls, stage: Stage, dvs: DVSEmulator, params: FrameParams) -> FrameSource:
@@ -75,9 +76,19 @@ class FrameSource(ABC):
         return False
 
     def finish(self, t_us: int, angles: Angles) -> None:
-        """The step's end: the model posed there (ground truth reads it)."""
-        self.stage.pose(t_us, *angles)
+        """The step's (or reset's) end: the camera side posed there (the ground truth
+        projects through it)."""
+        self._end = (t_us, angles)
+        self.stage.pose_camera(*angles)
 
     def object_mask(self, t_us: int) -> np.ndarray:
-        """Object ids (H, W) int32 at the step's end ``t_us``."""
-        return self.stage.object_mask()
+        """Object ids (H, W) int32 at the step's end ``t_us`` (after :meth:`finish`)."""
+        t_end, angles = self._end
+        if t_end != t_us:
+            raise ValueError(f"object_mask: t_us {t_us} is not the step's end {t_end}")
+        return self.stage.on_draw_side(self.stage.object_mask_at, t_us, angles)
+
+    def close(self) -> None:
+        """The stream's end: free what the source holds beyond the stage (a source that
+        draws with its own renderer frees it on the draw side)."""
+        self._end = None

@@ -7,16 +7,38 @@ at each reset, :meth:`Stage.begin_step` at each step); what it counts
 (:attr:`Stage.renders`, :attr:`Stage.geometry_draws`) and what it holds are read, never
 written, by everyone else.
 
-The renderer (an OpenGL context) is created on first use, in the process that renders;
-in a process forked after that, drawing raises
-:class:`~wander_env.gl_fork.ForkedGLError` (see :mod:`wander_env.gl_fork`).
+Two sides, two ``MjData``:
+
+- the **draw side** (:meth:`Stage.pose`, :meth:`Stage.render`, :meth:`Stage.geometry`,
+  :meth:`Stage.object_mask`, :attr:`Stage.draw_data`): the renderer's GL context and the
+  data it draws, posed at a time (the objects) and camera angles. With
+  ``render_thread=True`` all of it lives on one thread of its own (an EGL context
+  belongs to the thread that made it current): a frame source hands it work with
+  :meth:`Stage.submit` and reads the result when it needs it, drawing the next key while
+  the main thread synthesises frames and runs the DVS. Called from another thread, a
+  draw-side method runs there and waits. Without the thread the same work runs inline,
+  in the same order: the same pixels either way.
+- the **camera side** (:meth:`Stage.camera_views`, :meth:`Stage.pose_camera`,
+  :attr:`Stage.data`): the main thread's data, where only the PTU's joints move (views
+  for the frame sources, the camera for the ground truth's projection).
+
+The renderer (and the thread) are created on first use, in the process that renders; in
+a process forked after that, drawing raises :class:`~wander_env.gl_fork.ForkedGLError`
+(see :mod:`wander_env.gl_fork`); :meth:`Stage.close` joins the thread.
+
+Where every moving object is a primitive, :attr:`Stage.caster`
+(:mod:`wander_env.frames.raycast`) makes the object masks and the keys' layers and depth
+without a GL pass (on the draw side too: it reads the draw data).
 """
 
 from __future__ import annotations
 
 import math
 import os
-from typing import Literal
+import threading
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor, wait
+from typing import Any, Literal, TypeVar
 
 import mujoco
 import numpy as np
@@ -33,24 +55,26 @@ from wander_env.scene_config import SceneConfig
 __all__ = ["Angles", "Stage"]
 
 Angles = tuple[float, float]  # camera (pan, tilt) in degrees
+T = TypeVar("T")
 
 
 class Stage:
     """A scene's model and data, its animator (set at each reset) and the camera's
-    renderer: the world posed at a time and camera angles, and what the camera sees.
-    Where every moving object is a primitive, :attr:`caster`
-    (:mod:`wander_env.frames.raycast`) draws the object masks and the keys' layers and
-    depth without a GL pass."""
+    renderer: the world posed at a time and camera angles, and what the camera sees
+    (see the module docstring for the draw side and the camera side)."""
 
     def __init__(
         self,
         model: mujoco.MjModel,
         scene: SceneConfig,
         params: RenderParams,
+        render_thread: bool = False,
         raycast: RaycastParams | None = None,
     ) -> None:
         self.model, self.scene, self.params = model, scene, params
-        self.data = mujoco.MjData(model)
+        self.render_thread = render_thread
+        self.data = mujoco.MjData(model)  # the camera side's (main thread)
+        self._draw_data = mujoco.MjData(model)  # the draw side's
         self.width, self.height = scene.camera.width, scene.camera.height
         self._pan_adr = int(model.joint(PAN_JOINT).qposadr[0])
         self._tilt_adr = int(model.joint(TILT_JOINT).qposadr[0])
@@ -58,9 +82,12 @@ class Stage:
         self.k = intrinsics(self.width, self.height, float(model.cam_fovy[self._cam_id]))
         self.layer_lut = geom_layer_ids(model)
         self._animator: SceneAnimator | None = None
-        self._renderer: CameraRenderer | None = None  # created where it renders: .renderer
-        self._renderer_pid: int | None = None
-        self._posed: tuple[int, float, float] | None = None  # (t_us, pan, tilt) of the data
+        self._renderer: CameraRenderer | None = None  # created on the draw side
+        self._renderer_pid: int | None = None  # the process that draws (renderer, thread)
+        self._executor: ThreadPoolExecutor | None = None  # the render thread, once started
+        self._draw_ident: int | None = None  # its thread id
+        self._last: Future | None = None  # the latest work handed to the render thread
+        self._posed: tuple[int, float, float] | None = None  # (t_us, pan, tilt) drawn
         self._renders = 0
         self._geometry_draws = 0
         # Ray casting: masks and key geometry without a GL pass where every moving geom is
@@ -76,16 +103,18 @@ class Stage:
     # -- the env's verbs --------------------------------------------------------------------
     def begin_episode(self, animator: SceneAnimator) -> None:
         """A reset: the objects' motion of the new episode; nothing posed, counters zero."""
+        self.drain()
         self._animator = animator
         self._posed = None
         self.begin_step()
 
     def begin_step(self) -> None:
         """A step's (or reset's) start: the draw counters back to zero."""
+        self.drain()
         self._renders = self._geometry_draws = 0
 
     def invalidate(self) -> None:
-        """The data was moved outside :meth:`pose` (the next pose poses it again)."""
+        """The draw data was moved outside :meth:`pose` (the next pose poses it again)."""
         self._posed = None
 
     # -- what it holds (read-only) ------------------------------------------------------------
@@ -96,31 +125,38 @@ class Stage:
 
     @property
     def posed(self) -> tuple[int, float, float] | None:
-        """(t_us, pan, tilt) the data is posed at (None: not posed at one time)."""
+        """(t_us, pan, tilt) the draw data is posed at (None: not posed at one time)."""
         return self._posed
 
     @property
+    def draw_data(self) -> mujoco.MjData:
+        """The data the renderer draws: read or move it only on the draw side (inside
+        work handed to :meth:`submit`)."""
+        return self._draw_data
+
+    @property
     def renders(self) -> int:
-        """Colour frames rendered since the step's (or reset's) start."""
+        """Colour frames rendered since the step's (or reset's) start (once the work
+        handed to the draw side has run)."""
+        self.drain()
         return self._renders
 
     @property
     def geometry_draws(self) -> int:
-        """Layer-and-depth draws since the step's (or reset's) start."""
+        """Layer-and-depth draws since the step's (or reset's) start (as :attr:`renders`)."""
+        self.drain()
         return self._geometry_draws
 
     @property
     def renderer(self) -> CameraRenderer:
-        """The camera's renderer, created on first use in this process."""
-        r = self._renderer
-        if r is None:
-            r = self._renderer = CameraRenderer(
-                self.model, self.width, self.height, params=self.params
-            )
+        """The camera's renderer, created on first use on the draw side (use it there)."""
+        return self.on_draw_side(self._the_renderer)
+
+    def _the_renderer(self) -> CameraRenderer:
+        if self._renderer is None:
+            self._renderer = CameraRenderer(self.model, self.width, self.height, params=self.params)
             self._renderer_pid = os.getpid()
-        elif self._renderer_pid != os.getpid():
-            raise ForkedGLError(fork_error_message(self._renderer_pid, os.getpid()))
-        return r
+        return self._renderer
 
     def layer_radii(self) -> np.ndarray:
         """Bounding radius (m) of each motion layer about its position, 1 % beyond the
@@ -132,47 +168,68 @@ class Stage:
         mount = self.scene.ptu
         return mount.camera_forward_m != 0 or mount.camera_up_m != 0
 
-    # -- posing -------------------------------------------------------------------------------
+    # -- handing work to the draw side ----------------------------------------------------------
+    def _check_process(self) -> None:
+        pid = os.getpid()
+        if self._renderer_pid is not None and self._renderer_pid != pid:
+            raise ForkedGLError(fork_error_message(self._renderer_pid, pid))
+
+    def submit(self, fn: Callable[..., T], *args: Any) -> Future[T]:
+        """Run ``fn(*args)`` on the draw side: on the render thread (in the order handed
+        over), else here and now; its result (or its exception, raised where the result
+        is read) as a future."""
+        self._check_process()
+        if not self.render_thread or threading.get_ident() == self._draw_ident:
+            done: Future[T] = Future()
+            try:
+                done.set_result(fn(*args))
+            except Exception as e:  # raised where the result is read, as on the thread
+                done.set_exception(e)
+            return done
+        if self._executor is None:
+            self._executor = ThreadPoolExecutor(1, thread_name_prefix="wander-render")
+            self._renderer_pid = os.getpid()
+            self._draw_ident = self._executor.submit(threading.get_ident).result()
+        self._last = self._executor.submit(fn, *args)
+        return self._last
+
+    def on_draw_side(self, fn: Callable[..., T], *args: Any) -> T:
+        """``fn(*args)`` run on the draw side, waited for."""
+        return self.submit(fn, *args).result()
+
+    def drain(self) -> None:
+        """Wait until the work handed to the render thread has run (errors stay with
+        their futures)."""
+        if self._last is not None and threading.get_ident() != self._draw_ident:
+            wait([self._last])
+            self._last = None
+
+    # -- the draw side ----------------------------------------------------------------------------
     def pose(self, t_us: int, pan_deg: float, tilt_deg: float) -> None:
-        """The camera at these angles and the objects at ``t_us`` into the model."""
+        """The camera at these angles and the objects at ``t_us`` into the draw data."""
+        self.on_draw_side(self._pose, t_us, pan_deg, tilt_deg)
+
+    def _pose(self, t_us: int, pan_deg: float, tilt_deg: float) -> None:
         if self._posed == (t_us, pan_deg, tilt_deg):
             return
-        self.data.qpos[self._pan_adr] = math.radians(pan_deg)
-        self.data.qpos[self._tilt_adr] = math.radians(tilt_deg)
-        self._animator.apply(self.data, t_us * 1e-6)
-        mujoco.mj_kinematics(self.model, self.data)
-        mujoco.mj_camlight(self.model, self.data)
+        data = self._draw_data
+        data.qpos[self._pan_adr] = math.radians(pan_deg)
+        data.qpos[self._tilt_adr] = math.radians(tilt_deg)
+        self._animator.apply(data, t_us * 1e-6)
+        mujoco.mj_kinematics(self.model, data)
+        mujoco.mj_camlight(self.model, data)
         self._posed = (t_us, pan_deg, tilt_deg)
 
-    def camera_view(self, t_us: int, pan_deg: float, tilt_deg: float) -> View:
-        """The :class:`View` at ``t_us`` with the camera at these angles; only the PTU's
-        joints and the camera are moved (the model is no longer posed at one time)."""
-        return self.camera_views([t_us], [(pan_deg, tilt_deg)])[0]
-
-    def camera_views(self, times_us: list[int], angles: list[Angles]) -> list[View]:
-        """:meth:`camera_view` at each time and angles; the camera is posed again only
-        where the angles change."""
-        views, last = [], None
-        for t, a in zip(times_us, angles, strict=True):
-            if a != last:
-                self.data.qpos[self._pan_adr] = math.radians(a[0])
-                self.data.qpos[self._tilt_adr] = math.radians(a[1])
-                mujoco.mj_kinematics(self.model, self.data)
-                mujoco.mj_camlight(self.model, self.data)
-                rotation = rotation_from_mujoco(self.data.cam_xmat[self._cam_id])
-                centre, last = self.data.cam_xpos[self._cam_id].copy(), a
-            views.append(View(rotation, centre, self._animator.layer_positions(t * 1e-6)))
-        self._posed = None
-        return views
-
-    # -- drawing ------------------------------------------------------------------------------
     def render(self) -> np.ndarray:
-        """RGB uint8 (H, W, 3) of the posed model."""
+        """RGB uint8 (H, W, 3) of the posed draw data."""
+        return self.on_draw_side(self._render)
+
+    def _render(self) -> np.ndarray:
         self._renders += 1
-        return self.renderer.render(self.data)
+        return self._the_renderer().render(self._draw_data)
 
     def casts(self, what: Literal["ground_truth", "key_layers"]) -> bool:
-        """Whether ray casting (:attr:`caster`) draws the object masks (``ground_truth``)
+        """Whether ray casting (:attr:`caster`) makes the object masks (``ground_truth``)
         or the keys' layers and depth (``key_layers``: the camera on its hinge only)."""
         c = self.caster
         if c is None or not getattr(c.params, what):
@@ -180,31 +237,104 @@ class Stage:
         return what == "ground_truth" or c.exact_depth
 
     def _ready_caster(self) -> PrimitiveCaster:
-        """The caster, its static cube dropped at each reset (a new animator)."""
+        """(On the draw side.) The caster, its static cube dropped at each reset."""
         if self._cast_for is not self._animator:
             self.caster.reset()
             self._cast_for = self._animator
         return self.caster
 
     def geometry(self) -> tuple[np.ndarray, np.ndarray]:
-        """(motion layers int32, depth m) of the posed model, from one draw (or ray cast:
-        not counted in :attr:`geometry_draws`)."""
+        """(motion layers int32, depth m) of the posed draw data, from one draw (or ray
+        cast: not counted in :attr:`geometry_draws`)."""
+        return self.on_draw_side(self._geometry)
+
+    def _geometry(self) -> tuple[np.ndarray, np.ndarray]:
         if self.casts("key_layers"):
-            return self._ready_caster().geometry(self.data)
+            return self._ready_caster().geometry(self._draw_data)
         self._geometry_draws += 1
-        self.renderer.update(self.data)
-        return self.renderer.segment_depth_current(self.layer_lut)
+        renderer = self._the_renderer()
+        renderer.update(self._draw_data)
+        return renderer.segment_depth_current(self.layer_lut)
 
     def object_mask(self) -> np.ndarray:
-        """Object ids (H, W) int32 of the posed model (0 = background)."""
+        """Object ids (H, W) int32 of the posed draw data (0 = background)."""
+        return self.on_draw_side(self._object_mask)
+
+    def _object_mask(self) -> np.ndarray:
         if self.casts("ground_truth"):
-            return self._ready_caster().object_mask(self.data)
-        return self.renderer.segment(self.data)
+            return self._ready_caster().object_mask(self._draw_data)
+        return self._the_renderer().segment(self._draw_data)
+
+    def colour_at(self, t_us: int, angles: Angles) -> np.ndarray:
+        """:meth:`pose` then :meth:`render` (work for :meth:`submit`)."""
+        self.pose(t_us, *angles)
+        return self.render()
+
+    def geometry_at(self, t_us: int, angles: Angles) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`pose` then :meth:`geometry` (work for :meth:`submit`)."""
+        self.pose(t_us, *angles)
+        return self.geometry()
+
+    def object_mask_at(self, t_us: int, angles: Angles) -> np.ndarray:
+        """:meth:`pose` then :meth:`object_mask` (work for :meth:`submit`)."""
+        self.pose(t_us, *angles)
+        return self.object_mask()
+
+    # -- the camera side -------------------------------------------------------------------------
+    def pose_camera(self, pan_deg: float, tilt_deg: float) -> None:
+        """The camera side's data with the camera at these angles (the objects as they
+        were: the ground truth projects their positions through this camera)."""
+        self.camera_views([0], [(pan_deg, tilt_deg)])
+
+    def camera_view(self, t_us: int, pan_deg: float, tilt_deg: float) -> View:
+        """The :class:`View` at ``t_us`` with the camera at these angles (the camera
+        side's data moved there)."""
+        return self.camera_views([t_us], [(pan_deg, tilt_deg)])[0]
+
+    def camera_views(self, times_us: list[int], angles: list[Angles]) -> list[View]:
+        """:meth:`camera_view` at each time and angles; the camera is posed again only
+        where the angles change."""
+        views, last = [], None
+        data = self.data
+        for t, a in zip(times_us, angles, strict=True):
+            if a != last:
+                data.qpos[self._pan_adr] = math.radians(a[0])
+                data.qpos[self._tilt_adr] = math.radians(a[1])
+                mujoco.mj_kinematics(self.model, data)
+                mujoco.mj_camlight(self.model, data)
+                rotation = rotation_from_mujoco(data.cam_xmat[self._cam_id])
+                centre, last = data.cam_xpos[self._cam_id].copy(), a
+            views.append(View(rotation, centre, self._animator.layer_positions(t * 1e-6)))
+        return views
+
+    def close_renderer(self, renderer: CameraRenderer) -> None:
+        """Free another renderer made on the draw side (forget it in a forked child)."""
+        if self._renderer_pid is not None and self._renderer_pid != os.getpid():
+            renderer.abandon()
+        elif self._executor is not None:
+            self._executor.submit(renderer.close).result()
+        else:
+            renderer.close()
 
     def close(self) -> None:
-        # Freeing is safe in a forked child too (only creating and drawing hang there).
-        if self.caster is not None:
-            self.caster.close()
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
+        """Free the renderer on the draw side and join the render thread (idempotent).
+        In a process forked after drawing, the GL state is the parent's: forgotten, not
+        freed."""
+        executor, self._executor, self._last = self._executor, None, None
+        renderer, self._renderer = self._renderer, None
+        if self._renderer_pid is not None and self._renderer_pid != os.getpid():
+            if renderer is not None:
+                renderer.abandon()
+            if self.caster is not None:
+                self.caster.abandon()
+            return
+        for free in (renderer, self.caster):
+            if free is None:
+                continue
+            if executor is not None:
+                executor.submit(free.close).result()
+            else:
+                free.close()
+        if executor is not None:
+            executor.shutdown(wait=True)
+        self._draw_ident = None

@@ -1,0 +1,146 @@
+"""The render thread (``WanderConfig.render_thread``): the same seed gives the same events,
+ground truth, camera frames and draw counts with and without it in every frame mode, and
+the same actions and decisions in the closed loop; an error on the thread is raised in
+the caller; a process forked after drawing refuses to draw; ``close`` joins the thread."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import wander_env  # noqa: F401  (registers the environments)
+from wander_env.gl_fork import ForkedGLError
+
+ACTIONS = [np.array([0.5, -0.3], np.float32)] + [
+    np.array([0.01 * ((k * 7) % 5 - 2), 0.01 * ((k * 3) % 5 - 2)], np.float32) for k in range(9)
+]
+
+
+def _render_threads() -> list[threading.Thread]:
+    return [t for t in threading.enumerate() if t.name.startswith("wander-render")]
+
+
+def _trace(frames: str, render_thread: bool) -> list[tuple]:
+    env = gym.make("wander/Wander-v0", scene="office", frames=frames, render_thread=render_thread)
+    u = env.unwrapped
+    try:
+        _, info = env.reset(seed=2)
+        out = [(info["object_mask"].tobytes(), u.renders_in_step, u.camera_frame.tobytes())]
+        for a in ACTIONS:
+            obs, _, _, _, info = env.step(a)
+            out.append(
+                (
+                    info["events"].events.tobytes(),
+                    obs["events"].tobytes(),
+                    info["object_mask"].tobytes(),
+                    repr(info["objects"]),
+                    info["frames"],
+                    info["extra_frames"],
+                    u.renders_in_step,
+                    u.stage.geometry_draws,
+                    u.camera_frame.tobytes(),
+                )
+            )
+        assert (len(_render_threads()) > 0) == render_thread
+        return out
+    finally:
+        env.close()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("frames", ["keyframes", "exact", "panorama"])
+def test_the_render_thread_changes_nothing_but_where_the_drawing_runs(frames: str) -> None:
+    """A saccade then a fixational walk, 10 steps: every step's events, counts, mask,
+    objects, frame counts, draw counts and camera frame identical, byte for byte."""
+    off, on = _trace(frames, False), _trace(frames, True)
+    assert sum(len(s[0]) for s in off[1:]) > 0  # events were made
+    assert on == off
+    assert _render_threads() == []  # close() joined it
+
+
+@pytest.mark.slow
+def test_the_closed_loop_takes_the_same_actions_with_the_render_thread() -> None:
+    """The attention agent on office, 40 steps: the same actions and decisions."""
+    from agents.attention import AgentParams, AttentionAgent
+
+    def loop(render_thread: bool) -> tuple[list, list]:
+        env = gym.make("wander/Wander-v0", scene="office", render_thread=render_thread)
+        agent = AttentionAgent(AgentParams.for_env(env), seed=3)
+        actions, decisions = [], []
+        try:
+            obs, info = env.reset(seed=3)
+            for k in range(40):
+                a = agent.act(obs, info)
+                actions.append(a.tobytes())
+                if agent.decided:
+                    decisions.append((k, agent.target, agent.fixations[-1].peak))
+                obs, _, _, _, info = env.step(a)
+        finally:
+            agent.close()
+            env.close()
+        return actions, decisions
+
+    assert loop(True) == loop(False)
+
+
+def test_an_error_on_the_render_thread_is_raised_in_the_step() -> None:
+    env = gym.make("wander/Wander-v0", scene="office", render_thread=True)
+    u = env.unwrapped
+    try:
+        env.reset(seed=0)
+        where = []
+
+        def broken(data: object) -> np.ndarray:
+            where.append(threading.current_thread().name)
+            raise RuntimeError("the driver fell over")
+
+        u.stage.renderer.render = broken  # the office's objects move: a key a step
+        with pytest.raises(RuntimeError, match=r"^the driver fell over$"):
+            env.step(np.zeros(2, np.float32))
+        assert where and all(name.startswith("wander-render") for name in where)
+    finally:
+        env.close()
+    assert _render_threads() == []
+
+
+def test_close_joins_the_render_thread_and_a_closed_env_opens_it_again() -> None:
+    env = gym.make("wander/Wander-v0", scene="office", render_thread=True)
+    assert _render_threads() == []  # constructing starts nothing
+    env.reset(seed=0)
+    assert len(_render_threads()) == 1
+    env.close()
+    assert _render_threads() == []
+    env.close()  # idempotent
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs fork")
+def test_a_process_forked_after_drawing_on_the_thread_refuses_to_draw() -> None:
+    """The parent drew on its render thread; a forked child (which has no such thread)
+    raises ForkedGLError at its next step instead of waiting on a thread that is not
+    there, and closes without touching the parent's GL state."""
+    env = gym.make("wander/Wander-v0", scene="office", render_thread=True)
+    env.reset(seed=0)
+    try:
+        pid = os.fork()
+        if pid == 0:  # the child: report by exit status, never return into pytest
+            code = 3
+            try:
+                signal.alarm(30)  # a hang fails the test instead of blocking it
+                try:
+                    env.step(np.zeros(2, np.float32))
+                    code = 1
+                except ForkedGLError:
+                    code = 0
+                env.close()
+            finally:
+                os._exit(code)
+        _, status = os.waitpid(pid, 0)
+        assert os.WIFEXITED(status) and os.WEXITSTATUS(status) == 0, status
+        env.step(np.zeros(2, np.float32))  # the parent draws on
+    finally:
+        env.close()
