@@ -121,6 +121,14 @@ def run_agent(
     window: WindowOpt = 0.124,
     fixational: FixationalOpt = True,
     video: VideoOpt = True,
+    video_fps: Annotated[
+        int,
+        typer.Option(
+            min=1,
+            max=1000,
+            help="run.mp4's frames per simulated second (a frame is composed only when due).",
+        ),
+    ] = 30,
     config: Annotated[
         Path | None,
         typer.Option(
