@@ -4,6 +4,8 @@ the loop's error path closes every recorder with the error; recorders compose.""
 
 from __future__ import annotations
 
+import json
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -135,3 +137,16 @@ def test_video_frames_follow_the_chosen_rate():
     assert [video_frames(k, 0.01, 30) for k in range(1, 8)] == [1, 1, 1, 2, 2, 2, 3]
     assert video_frames(100, 0.01, 100) == 100
     assert video_frames(3, 0.01, 250) == 8  # more frames than steps: a step's is repeated
+
+
+def test_a_runs_metrics_json_gets_the_readout_totals(tmp_path):
+    env = _Counters(gym.make("wander/Wander-v0", scene="shelf", ground_truth=False))
+    agent = AttentionAgent(AgentParams.for_env(env), seed=0)
+    try:
+        run_closed_loop(env, agent, 0.1, tmp_path, {}, video=False, seed=0)
+    finally:
+        agent.close()
+        env.close()
+    m = json.loads((tmp_path / "metrics.json").read_text())
+    assert m["steps"] == 10
+    assert m["readout"] == {"dropped": sum(range(1, 11)), "filtered": 20}

@@ -36,6 +36,7 @@ from experiments.runs.recorders import (
     GroundTruthRecorder,
     RerunRecorder,
     VideoRecorder,
+    WriteParams,
 )
 from experiments.runs.signals import DeferredSignals
 from wander_env.camera import focal_length_px
@@ -115,19 +116,26 @@ def _record(
     h, w = base.height, base.width
     rec = run_record("wander record", asdict(config), config.seed)
     rec["env"] = {"control_period_s": dt, "dvs": base.dvs_params.to_dict()}
+    writing = WriteParams()
+    writer, batch = writing.writer(), writing.batch_steps(dt)
     opened: list[Recorder] = []
     try:
-        opened.append(EventsRecorder(out_dir / "events.h5", (w, h, 2), rec))
-        opened.append(GroundTruthRecorder(out_dir / "ground_truth.h5", env))
-        opened.append(RerunRecorder(out_dir, env, "wander record", agent=False))  # run.rrd
+        events = EventsRecorder(
+            out_dir / "events.h5", (w, h, 2), rec, writer, batch, writing.batch_events
+        )
+        opened.append(events)
+        opened.append(GroundTruthRecorder(out_dir / "ground_truth.h5", env, writer, batch))
+        opened.append(RerunRecorder(out_dir, env, "wander record", False, writer, batch))
         if config.video:  # a frame a step
-            opened.append(VideoRecorder(out_dir / "video.mp4", round(1 / dt), dt, _camera_view))
+            mp4 = out_dir / "video.mp4"
+            opened.append(VideoRecorder(mp4, round(1 / dt), dt, _camera_view, writer=writer))
     except BaseException as exc:
-        for r in opened:
+        for r in [*opened, *([writer] if writer else [])]:
             r.close(exc)
         raise
     folder = _RecordFolder(out_dir, rec, steps, config.format, base, dt, opened)
-    run_episode(env, policy, steps, [*opened, folder], signals, seed=config.seed, progress=progress)
+    recorders = [*opened, *([writer] if writer else []), folder]
+    run_episode(env, policy, steps, recorders, signals, seed=config.seed, progress=progress)
     return folder.written_summary
 
 

@@ -63,6 +63,7 @@ from experiments.runs.recorders import (
     ReadoutRecorder,
     RerunRecorder,
     VideoRecorder,
+    WriteParams,
 )
 from experiments.runs.signals import DeferredSignals, SignalExit
 from wander_env.camera import degrees_to_pixels, focal_length_px, pixel_to_world_angles
@@ -185,12 +186,15 @@ def run_closed_loop(
     halt: Callable[[], None] | None = None,
     recorders: Sequence[Recorder] = (),
     video_fps: int = VIDEO_FPS,
+    writing: WriteParams | None = None,
 ) -> RunResult:
     """Run ``agent`` on ``env`` for ``seconds`` and write the run folder (module doc):
     :func:`~experiments.runs.episode.run_episode` with the run's recorders (events,
     video at ``video_fps`` frames per simulated second, Rerun log, detection, readout
     counters, the folder) and ``recorders`` (a study's or the rig's own: what their
-    ``metrics()`` return is added to ``metrics.json``).
+    ``metrics()`` return is added to ``metrics.json``). The files are written as
+    ``writing`` says (:class:`~experiments.runs.recorders.WriteParams`; ``None``: its
+    defaults, on a writer thread, events and Rerun rows every 100 ms of simulated time).
 
     ``halt`` (the rig: halt the PTU; it must not raise) is called as soon as the loop ends
     on an error or a signal, before the video is closed and the folder written.
@@ -203,14 +207,22 @@ def run_closed_loop(
         p = agent.params
         record = record | {"agent": asdict(p)}
         title = str(record.get("command", "wander run"))
-        events = EventsRecorder(out_dir / "events.h5", (p.width_px, p.height_px, 2), record)
-        opened: list[Recorder] = [events]
+        writing = writing or WriteParams()
+        writer, batch = writing.writer(), writing.batch_steps(dt)
+        opened: list[Recorder] = []
         try:
-            opened.append(RerunRecorder(out_dir, env, title))  # run.rrd
+            size = (p.width_px, p.height_px, 2)
+            opened.append(
+                EventsRecorder(
+                    out_dir / "events.h5", size, record, writer, batch, writing.batch_events
+                )
+            )
+            opened.append(RerunRecorder(out_dir, env, title, True, writer, batch))  # run.rrd
             if video:
-                opened.append(VideoRecorder(out_dir / "run.mp4", video_fps, dt, _frame_for))
+                mp4 = out_dir / "run.mp4"
+                opened.append(VideoRecorder(mp4, video_fps, dt, _capture, _compose, writer))
         except BaseException as exc:
-            for r in opened:
+            for r in [*opened, *([writer] if writer else [])]:
                 r.close(exc)
             raise
         events, rerun, *video_recorder = opened
@@ -218,11 +230,13 @@ def run_closed_loop(
         parts = [*video_recorder, ReadoutRecorder(), *recorders]  # their metrics() added
         run = AgentMetrics(agent, dt, detection)
         folder = AgentRunFolder(out_dir, record, n_steps, env, run, rerun, parts)
+        # The writer closes after the recorders that write through it, before the run's
+        # wall time ends and the folder is written.
         run_episode(
             env,
             agent,
             n_steps,
-            [events, rerun, detection, *parts, run, folder],
+            [events, rerun, detection, *parts, *([writer] if writer else []), run, folder],
             signals,
             seed=seed,
             progress=progress,
@@ -236,12 +250,25 @@ def run_closed_loop(
     return folder.result  # unless the pending signal, raised on leaving the block
 
 
-def _frame_for(env: Any, agent: AttentionAgent, obs: dict, info: dict) -> np.ndarray:
+def _capture(env: Any, agent: AttentionAgent, obs: dict, info: dict) -> tuple:
+    """What a video frame shows, copied out of the env and the agent (:func:`_compose`)."""
     camera = getattr(env.unwrapped, "camera_frame", None)
     t = info.get("t", math.nan)
     target = "none" if agent.target is None else f"({agent.target[0]}, {agent.target[1]})"
     caption = f"t = {t:5.2f} s   {agent.phase.value}   P = {target}"
-    return video_frame(obs["events"], agent.oms_map, agent.saliency, camera, agent.target, caption)
+    saliency = None if agent.saliency is None else np.array(agent.saliency)
+    return (
+        np.array(obs["events"]),
+        np.array(agent.oms_map),
+        saliency,
+        None if camera is None else np.array(camera),
+        agent.target,
+        caption,
+    )
+
+
+def _compose(captured: tuple) -> np.ndarray:
+    return video_frame(*captured)
 
 
 def _saccade_metrics(agent: AttentionAgent, clipped: list[bool]) -> dict[str, Any]:

@@ -18,20 +18,25 @@ or a command adds its own (the scanpath experiment's
 from __future__ import annotations
 
 import math
+import queue
+import threading
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
+import pydantic
 
 from experiments.metrics import detection_hit
 from experiments.runs.episode import Recorder
 from experiments.runs.folder import RunFolder
 from experiments.runs.signals import SignalExit
-from experiments.runs.viewer import open_run_log
+from experiments.runs.viewer import StepRow, open_run_log
+from wander_env.config import check_annotated
 from wander_env.entities import object_body_name
-from wander_env.events.stream import EventStreamWriter, H5Appender, OutputError, VideoSink
+from wander_env.events.stream import EventStreamWriter, H5Appender, VideoSink
 
 __all__ = [
     "DetectionRecorder",
@@ -41,18 +46,140 @@ __all__ = [
     "ReadoutRecorder",
     "RerunRecorder",
     "VideoRecorder",
+    "WriteParams",
+    "Writer",
     "objects_hit",
     "video_frames",
 ]
 
 
-class EventsRecorder(Recorder):
+@dataclass(frozen=True)
+class WriteParams:
+    """How a run's files are written: on a writer thread (``threaded``, at most
+    ``queue_jobs`` writes waiting: the loop waits when it is that far ahead) or in the
+    loop; the events and the Rerun rows in batches of ``batch_s`` simulated seconds (0:
+    every step) or ``batch_events`` events, whichever comes first. The files are the
+    same either way (tested)."""
+
+    threaded: bool = True
+    batch_s: Annotated[float, pydantic.Field(ge=0)] = 0.1
+    batch_events: Annotated[int, pydantic.Field(ge=1)] = 1 << 16
+    queue_jobs: Annotated[int, pydantic.Field(ge=1)] = 32
+
+    def __post_init__(self) -> None:
+        check_annotated(self)
+
+    def batch_steps(self, step_s: float) -> int:
+        """Steps in a batch of ``batch_s`` for steps of ``step_s`` (at least 1)."""
+        return max(1, round(self.batch_s / step_s))
+
+    def writer(self) -> Writer | None:
+        """A new :class:`Writer` (``None`` unless ``threaded``)."""
+        return Writer(self.queue_jobs) if self.threaded else None
+
+
+class Writer(Recorder):
+    """A run's file writes on one thread, in the order they came (a bounded queue of
+    ``jobs``: :meth:`submit` waits while it is full). A write that fails is raised in the
+    loop at the next :meth:`submit` (the same error, so the same one line); the writes
+    after it still run, so that every file is closed. :meth:`close` (after the recorders
+    that write through it) waits for every write, then hands back the loop's error, or a
+    write's when the loop had none."""
+
+    def __init__(self, jobs: int = 32) -> None:
+        self._queue: queue.Queue[Callable[[], None] | None] = queue.Queue(jobs)
+        self._error: BaseException | None = None
+        self._raised = False
+        self._thread = threading.Thread(target=self._work, name="wander-writer", daemon=True)
+        self._thread.start()
+
+    def submit(self, job: Callable[[], None], check: bool = True) -> None:
+        """Queue ``job``; with ``check``, first raise a write's error not raised yet."""
+        if check and self._error is not None and not self._raised:
+            self._raised = True
+            raise self._error
+        self._queue.put(job)
+
+    def _work(self) -> None:
+        while (job := self._queue.get()) is not None:
+            try:
+                job()
+            except BaseException as err:  # handed to the loop (submit, close)
+                if self._error is None:
+                    self._error = err
+
+    def close(self, error: BaseException | None) -> BaseException | None:
+        if self._thread.is_alive():
+            self._queue.put(None)
+            self._thread.join()
+        if error is None and not self._raised:
+            self._raised = True
+            return self._error
+        return error
+
+
+class _FileRecorder(Recorder):
+    """A recorder whose writes run through ``writer`` (:class:`Writer`; ``None``: at
+    once, in the loop), a batch of ``batch_steps`` rows (or ``batch_events`` events)
+    at a time: :meth:`write` a batch, :meth:`finish` closes the file."""
+
+    def __init__(self, writer: Writer | None, batch_steps: int = 1, batch_events: int = 0) -> None:
+        self.writer = writer
+        self.batch_steps, self.batch_events = batch_steps, batch_events
+        self._rows: list[Any] = []
+        self._events = 0
+
+    def write(self, rows: list[Any]) -> None:
+        raise NotImplementedError
+
+    def finish(self) -> None:
+        raise NotImplementedError
+
+    def _add(self, row: Any, events: int = 0) -> None:
+        self._rows.append(row)
+        self._events += events
+        if len(self._rows) >= self.batch_steps or (
+            self.batch_events and self._events >= self.batch_events
+        ):
+            self._flush()
+
+    def _flush(self, check: bool = True) -> None:
+        rows, self._rows, self._events = self._rows, [], 0
+        if rows:
+            self._do(lambda: self.write(rows), check)
+
+    def _do(self, job: Callable[[], None], check: bool = True) -> None:
+        if self.writer is None:
+            job()
+        else:
+            self.writer.submit(job, check)
+
+    def close(self, error: BaseException | None) -> BaseException | None:
+        failed: BaseException | None = None
+        for job in (self._flush, lambda check: self._do(self.finish, check)):
+            try:
+                job(False)
+            except Exception as err:  # written in the loop: a failed write or close
+                failed = failed or err
+        return error or failed
+
+
+class EventsRecorder(_FileRecorder):
     """``path`` (``events.h5``): every event of the run, written as it goes
     (:class:`~wander_env.events.stream.EventStreamWriter`: memory does not grow with the
     run's length); ``events``: how many. :meth:`close` stores ``record`` with the run's
     ``summary`` (steps, events) in the file's metadata."""
 
-    def __init__(self, path: Path, sensor_size: tuple[int, int, int], record: dict) -> None:
+    def __init__(
+        self,
+        path: Path,
+        sensor_size: tuple[int, int, int],
+        record: dict,
+        writer: Writer | None = None,
+        batch_steps: int = 1,
+        batch_events: int = 0,
+    ) -> None:
+        super().__init__(writer, batch_steps, batch_events)
         self.stream = EventStreamWriter(path, sensor_size, record)
         self.record = record
         self.events = 0
@@ -60,27 +187,29 @@ class EventsRecorder(Recorder):
 
     def on_step(self, env: Any, policy: Any, obs: Any, info: dict) -> None:
         step_events = info["events"].events
-        self.stream.append(step_events)
         self.events += len(step_events)
         self.steps += 1
+        self._add(np.array(step_events) if self.writer else step_events, len(step_events))
 
-    def close(self, error: BaseException | None) -> BaseException | None:
+    def write(self, rows: list[np.ndarray]) -> None:
+        self.stream.append(rows[0] if len(rows) == 1 else np.concatenate(rows))
+
+    def finish(self) -> None:
         summary = {"steps": self.steps, "events": self.events}
-        try:
-            self.stream.close(self.record | {"summary": summary})
-        except OutputError as err:
-            return error or err
-        return error
+        self.stream.close(self.record | {"summary": summary})
 
     def metrics(self) -> dict[str, Any]:
         return {"events": self.events}
 
 
-class GroundTruthRecorder(Recorder):
+class GroundTruthRecorder(_FileRecorder):
     """``path`` (``ground_truth.h5``): per step the time, gaze, PTU positions, object-id
     mask, each moving object's pixel centre, mask size and visibility."""
 
-    def __init__(self, path: Path, env: Any) -> None:
+    def __init__(
+        self, path: Path, env: Any, writer: Writer | None = None, batch_steps: int = 1
+    ) -> None:
+        super().__init__(writer, batch_steps)
         base = env.unwrapped
         self.n_obj = n_obj = len(base.scene.moving_objects)
         h, w = base.height, base.width
@@ -103,21 +232,23 @@ class GroundTruthRecorder(Recorder):
         pixels = np.zeros(self.n_obj, np.int32)
         for j, o in enumerate(info["objects"]):
             centre[j], pixels[j] = o["centre_px"], o["mask_pixels"]
-        self.truth.append(
-            t=info["t"],
-            gaze_deg=obs["gaze"],
-            ptu_positions=info["ptu_positions"],
-            object_mask=info["object_mask"],
-            object_centre_px=centre,
-            object_mask_pixels=pixels,
+        self._add(
+            {
+                "t": info["t"],
+                "gaze_deg": np.array(obs["gaze"]),
+                "ptu_positions": np.array(info["ptu_positions"]),
+                "object_mask": np.array(info["object_mask"]),
+                "object_centre_px": centre,
+                "object_mask_pixels": pixels,
+            }
         )
 
-    def close(self, error: BaseException | None) -> BaseException | None:
-        try:
-            self.truth.close()
-        except OutputError as err:
-            return error or err
-        return error
+    def write(self, rows: list[dict[str, Any]]) -> None:
+        for row in rows:
+            self.truth.append(**row)
+
+    def finish(self) -> None:
+        self.truth.close()
 
 
 def video_frames(steps: int, step_s: float, fps: float) -> int:
@@ -130,22 +261,27 @@ def video_frames(steps: int, step_s: float, fps: float) -> int:
     return math.ceil(round(steps * step_s * fps, 6))
 
 
-class VideoRecorder(Recorder):
-    """``path``: an MP4 at ``fps`` frames per simulated second, ``frame(env, policy, obs,
-    info)`` composed only when a frame is due (:func:`video_frames`; at more frames a
-    second than steps, a step's frame is repeated). ``complete`` after :meth:`close`:
-    whether the file is a whole MP4."""
+class VideoRecorder(_FileRecorder):
+    """``path``: an MP4 at ``fps`` frames per simulated second (its metadata says
+    ``fps``), a frame taken only when one is due (:func:`video_frames`; at more frames a
+    second than steps, a step's frame is repeated): ``capture(env, policy, obs, info)``
+    copies what it shows in the loop, ``compose(captured)`` makes the RGB image (on the
+    writer's thread; ``None``: the capture is the image). ``complete`` after
+    :meth:`close`: whether the file is a whole MP4."""
 
     def __init__(
         self,
         path: Path,
         fps: int,
         step_s: float,
-        frame: Callable[[Any, Any, Any, dict], np.ndarray],
+        capture: Callable[[Any, Any, Any, dict], Any],
+        compose: Callable[[Any], np.ndarray] | None = None,
+        writer: Writer | None = None,
     ) -> None:
+        super().__init__(writer)
         self.sink = VideoSink(path, fps=fps)
         self.fps, self.step_s = fps, step_s
-        self.frame = frame
+        self.capture, self.compose = capture, compose
         self.steps = self.frames = 0
         self.complete: bool | None = None
 
@@ -153,12 +289,28 @@ class VideoRecorder(Recorder):
         self.steps += 1
         due = video_frames(self.steps, self.step_s, self.fps) - self.frames
         if due > 0:
-            image = self.frame(env, policy, obs, info)
-            for _ in range(due):
-                self.sink.append(image)
             self.frames += due
+            self._add((self.capture(env, policy, obs, info), due))
+
+    def write(self, rows: list[tuple[Any, int]]) -> None:
+        for captured, repeat in rows:
+            image = captured if self.compose is None else self.compose(captured)
+            for _ in range(repeat):
+                self.sink.append(image)
+
+    def finish(self) -> None:
+        error = self.sink.finish(None)
+        self.complete = self.sink.complete
+        if error is not None:
+            raise error
 
     def close(self, error: BaseException | None) -> BaseException | None:
+        if self.writer is not None:
+            return super().close(error)
+        try:  # in the loop: ffmpeg's close hands back the run's error or its own
+            self._flush(False)
+        except Exception as err:
+            error = error or err
         error = self.sink.finish(error)
         self.complete = self.sink.complete
         return error
@@ -167,24 +319,34 @@ class VideoRecorder(Recorder):
         return {} if self.complete is None else {"video_complete": self.complete}
 
 
-class RerunRecorder(Recorder):
+class RerunRecorder(_FileRecorder):
     """``out_dir/run.rrd`` (:func:`~experiments.runs.viewer.open_run_log`), with the
     agent's maps, decisions and movements when ``agent`` (the policy is an
-    :class:`~agents.attention.AttentionAgent`); ``sightings`` after :meth:`close`: the
-    ground truth the run saw."""
+    :class:`~agents.attention.AttentionAgent`); ``sightings``: the ground truth the run
+    saw."""
 
-    def __init__(self, out_dir: Path, env: Any, title: str, agent: bool = True) -> None:
+    def __init__(
+        self,
+        out_dir: Path,
+        env: Any,
+        title: str,
+        agent: bool = True,
+        writer: Writer | None = None,
+        batch_steps: int = 1,
+    ) -> None:
+        super().__init__(writer, batch_steps)
         self.log = open_run_log(out_dir, env, title)
         self.agent = agent
-        self.sightings: list[tuple] = []
+        self.sightings = self.log.sightings
 
     def on_step(self, env: Any, policy: Any, obs: Any, info: dict) -> None:
-        self.log.step(obs, info, policy if self.agent else None)
+        self._add(self.log.row(obs, info, policy if self.agent else None))
 
-    def close(self, error: BaseException | None) -> BaseException | None:
+    def write(self, rows: list[StepRow]) -> None:
+        self.log.write(rows)
+
+    def finish(self) -> None:
         self.log.close()
-        self.sightings = self.log.sightings
-        return error
 
 
 class DetectionRecorder(Recorder):
