@@ -33,8 +33,6 @@ EXCEPTIONS: dict[tuple[str, str], str] = {
     ("experiments/paper/event_suppression.py", "record"): "resets with options (the start "
     "gaze), replaces the animator's trajectories before the first step, and drives the "
     "gaze by the shake's clock, not a policy reading obs",
-    ("experiments/paper/oms_characterisation.py", "run_trial"): "a still camera per "
-    "stimulus file inside a loop over stimuli, the sOMS stepped in the same loop",
     ("experiments/paper/saccade_speed.py", "_main_sequence"): "forced saccades, each "
     "stepped until it ends (a stop condition per target, not an episode's length)",
     ("experiments/paper/sac_accuracy.py", "run_trial"): "one forced saccade stepped "

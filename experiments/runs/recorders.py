@@ -155,12 +155,17 @@ class _FileRecorder(Recorder):
             self.writer.submit(job, check)
 
     def close(self, error: BaseException | None) -> BaseException | None:
+        """Write the last batch and close the file (through the writer: queued, its
+        errors the writer's); the loop's error, or a failed write's or close's."""
         failed: BaseException | None = None
-        for job in (self._flush, lambda check: self._do(self.finish, check)):
-            try:
-                job(False)
-            except Exception as err:  # written in the loop: a failed write or close
-                failed = failed or err
+        try:
+            self._flush(check=False)
+        except Exception as err:  # written in the loop: a failed write
+            failed = err
+        try:
+            self._do(self.finish, check=False)
+        except Exception as err:  # closed in the loop: a failed close
+            failed = failed or err
         return error or failed
 
 
