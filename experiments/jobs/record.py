@@ -37,6 +37,7 @@ from experiments.runs.recorders import (
     RerunRecorder,
     VideoRecorder,
     WriteParams,
+    open_recorders,
 )
 from experiments.runs.signals import DeferredSignals
 from wander_env.camera import focal_length_px
@@ -118,21 +119,17 @@ def _record(
     rec["env"] = {"control_period_s": dt, "dvs": base.dvs_params.to_dict()}
     writing = WriteParams()
     writer, batch = writing.writer(), writing.batch_steps(dt)
-    opened: list[Recorder] = []
-    try:
-        events = EventsRecorder(
+    makers: list[Callable[[], Recorder]] = [
+        lambda: EventsRecorder(
             out_dir / "events.h5", (w, h, 2), rec, writer, batch, writing.batch_events
-        )
-        opened.append(events)
-        opened.append(GroundTruthRecorder(out_dir / "ground_truth.h5", env, writer, batch))
-        opened.append(RerunRecorder(out_dir, env, "wander record", False, writer, batch))
-        if config.video:  # a frame a step
-            mp4 = out_dir / "video.mp4"
-            opened.append(VideoRecorder(mp4, round(1 / dt), dt, _camera_view, writer=writer))
-    except BaseException as exc:
-        for r in [*opened, *([writer] if writer else [])]:
-            r.close(exc)
-        raise
+        ),
+        lambda: GroundTruthRecorder(out_dir / "ground_truth.h5", env, writer, batch),
+        lambda: RerunRecorder(out_dir, env, "wander record", False, writer, batch),  # run.rrd
+    ]
+    if config.video:  # a frame a step
+        mp4 = out_dir / "video.mp4"
+        makers.append(lambda: VideoRecorder(mp4, round(1 / dt), dt, _camera_view, writer=writer))
+    opened = open_recorders(makers, writer)
     folder = _RecordFolder(out_dir, rec, steps, config.format, base, dt, opened)
     recorders = [*opened, *([writer] if writer else []), folder]
     run_episode(env, policy, steps, recorders, signals, seed=config.seed, progress=progress)

@@ -64,6 +64,7 @@ from experiments.runs.recorders import (
     RerunRecorder,
     VideoRecorder,
     WriteParams,
+    open_recorders,
 )
 from experiments.runs.signals import DeferredSignals, SignalExit
 from wander_env.camera import degrees_to_pixels, focal_length_px, pixel_to_world_angles
@@ -209,23 +210,17 @@ def run_closed_loop(
         title = str(record.get("command", "wander run"))
         writing = writing or WriteParams()
         writer, batch = writing.writer(), writing.batch_steps(dt)
-        opened: list[Recorder] = []
-        try:
-            size = (p.width_px, p.height_px, 2)
-            opened.append(
-                EventsRecorder(
-                    out_dir / "events.h5", size, record, writer, batch, writing.batch_events
-                )
-            )
-            opened.append(RerunRecorder(out_dir, env, title, True, writer, batch))  # run.rrd
-            if video:
-                mp4 = out_dir / "run.mp4"
-                opened.append(VideoRecorder(mp4, video_fps, dt, _capture, _compose, writer))
-        except BaseException as exc:
-            for r in [*opened, *([writer] if writer else [])]:
-                r.close(exc)
-            raise
-        events, rerun, *video_recorder = opened
+        size = (p.width_px, p.height_px, 2)
+        makers: list[Callable[[], Recorder]] = [
+            lambda: EventsRecorder(
+                out_dir / "events.h5", size, record, writer, batch, writing.batch_events
+            ),
+            lambda: RerunRecorder(out_dir, env, title, True, writer, batch),  # run.rrd
+        ]
+        if video:
+            mp4 = out_dir / "run.mp4"
+            makers.append(lambda: VideoRecorder(mp4, video_fps, dt, _capture, _compose, writer))
+        events, rerun, *video_recorder = open_recorders(makers, writer)
         detection = DetectionRecorder()
         parts = [*video_recorder, ReadoutRecorder(), *recorders]  # their metrics() added
         run = AgentMetrics(agent, dt, detection)

@@ -49,6 +49,7 @@ __all__ = [
     "WriteParams",
     "Writer",
     "objects_hit",
+    "open_recorders",
     "video_frames",
 ]
 
@@ -116,6 +117,22 @@ class Writer(Recorder):
             self._raised = True
             return self._error
         return error
+
+
+def open_recorders(
+    makers: Sequence[Callable[[], Recorder]], writer: Writer | None = None
+) -> list[Recorder]:
+    """The recorders ``makers`` make (opening their files), in order. When one fails,
+    those already made and ``writer`` are closed with its error, which is raised."""
+    made: list[Recorder] = []
+    try:
+        for make in makers:
+            made.append(make())
+    except BaseException as exc:
+        for r in [*made, *([writer] if writer is not None else [])]:
+            r.close(exc)
+        raise
+    return made
 
 
 class _FileRecorder(Recorder):
