@@ -39,19 +39,18 @@ Examples:
     ...     def act(self, obs, info):
     ...         return 0
     >>> counter = Counter()
-    >>> run_episode(Env(), Still(), 10, (counter,)).steps, counter.steps
+    >>> run_episode(Env(), Still(), 10, (counter,)), counter.steps
     (3, 3)
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from typing import Any, Protocol
 
 from experiments.runs.signals import DeferredSignals
 
-__all__ = ["Episode", "Policy", "Recorder", "run_episode"]
+__all__ = ["Policy", "Recorder", "run_episode"]
 
 
 class Policy(Protocol):
@@ -83,17 +82,6 @@ class Recorder:
         return {}
 
 
-@dataclass
-class Episode:
-    """What :func:`run_episode` ran: ``steps`` taken of the ``asked``, and the last
-    ``obs`` and ``info`` (the reset's when no step was taken)."""
-
-    steps: int
-    asked: int
-    obs: Any
-    info: dict[str, Any]
-
-
 def run_episode(
     env: Any,
     policy: Policy,
@@ -104,19 +92,18 @@ def run_episode(
     seed: int | None = None,
     progress: Callable[[int, int], None] | None = None,
     halt: Callable[[], None] | None = None,
-) -> Episode:
+) -> int:
     """Reset ``env`` with ``seed`` and step it ``steps`` times (fewer when it terminates or
     truncates) under ``policy``, calling ``recorders``' hooks (module doc).
 
     ``signals``: the caller's deferred-signal block, checked between steps; ``progress``:
     called with (steps done, ``steps``) after each step; ``halt``: called at once when the
-    loop ends on an error or a signal (it must not raise). Raises the loop's error (or
-    one a recorder's close handed back) after every recorder was closed.
+    loop ends on an error or a signal (it must not raise). Returns the steps taken;
+    raises the loop's error (or one a recorder's close handed back) after every
+    recorder was closed.
     """
     error: BaseException | None = None
     done = 0
-    obs: Any = None
-    info: dict[str, Any] = {}
     try:
         obs, info = env.reset(seed=seed)
         reset = getattr(policy, "reset", None)
@@ -152,4 +139,4 @@ def run_episode(
                 error.add_note(f"closing the {type(r).__name__} also failed: {exc!r}")
     if error is not None:
         raise error
-    return Episode(done, steps, obs, info)
+    return done
