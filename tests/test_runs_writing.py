@@ -17,7 +17,8 @@ from typer.testing import CliRunner
 import wander_env  # noqa: F401  (registers the environments)
 from agents.attention import AgentParams, AttentionAgent
 from experiments.cli.main import app
-from experiments.jobs.run_agent import run_closed_loop
+from experiments.cli.run import MAX_VIDEO_FPS
+from experiments.jobs.run_agent import RunConfig, run_closed_loop
 from experiments.runs.recorders import WriteParams, Writer, video_frames
 from experiments.runs.viewer import read_recording
 from wander_env.events.io import read_events
@@ -80,7 +81,12 @@ def test_wander_run_writes_the_video_at_the_chosen_rate(tmp_path):
 def test_a_bad_video_rate_is_one_line_before_anything_runs(tmp_path):
     result = CliRunner().invoke(app, ["run", "--video-fps", "0", "--out", str(tmp_path / "r")])
     assert result.exit_code == 2 and "'--video-fps'" in result.output
+    assert "must be 1 to 1000 frames a second, got 0" in result.output
     assert not (tmp_path / "r").exists()
+    # the config's bound is the flag's
+    assert RunConfig(video_fps=MAX_VIDEO_FPS).video_fps == MAX_VIDEO_FPS == 1000
+    with pytest.raises(ValueError, match=r"^video_fps: .*1000, got 1001$"):
+        RunConfig(video_fps=MAX_VIDEO_FPS + 1)
 
 
 def test_a_write_that_fails_on_the_thread_is_the_runs_error_and_the_folder_is_finished(
