@@ -9,7 +9,7 @@ move the camera with.
 
 Examples:
     >>> policy = GazePolicy("still", seed=0, dt_s=0.002, saccade_interval_s=0.5)
-    >>> policy.act({"moving": False}).tolist()
+    >>> policy.act({}, {"moving": False}).tolist()
     [0.0, 0.0]
 """
 
@@ -28,9 +28,9 @@ POLICIES: tuple[str, ...] = typing.get_args(Policy)
 
 
 class GazePolicy:
-    """The scripted policies of :data:`POLICIES`, seeded: ``act(info)`` returns the next
-    action (relative gaze offset in env action units) given the env's ``info`` (its
-    ``moving`` flag)."""
+    """The scripted policies of :data:`POLICIES`, seeded: ``act(obs, info)`` returns the
+    next action (relative gaze offset in env action units) given the env's ``info`` (its
+    ``moving`` flag; the observation plays no part)."""
 
     def __init__(self, name: str, seed: int, dt_s: float, saccade_interval_s: float) -> None:
         self.name, self.dt_s, self.interval = name, dt_s, saccade_interval_s
@@ -40,7 +40,7 @@ class GazePolicy:
         self.t_fix = 0.0
         self.t = 0.0
 
-    def act(self, info: dict[str, Any]) -> np.ndarray:
+    def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
         action = np.zeros(2, np.float32)
         if self.name == "saccades" and self.t > 0 and self.t % self.interval < self.dt_s / 2:
             action = self.rng.uniform(-0.6, 0.6, 2).astype(np.float32)

@@ -40,14 +40,14 @@ def test_sweep_policy_targets_stay_within_the_amplitude():
     pol = SweepPolicy(20.0, 5.0, np.random.default_rng(0))
     total = np.zeros(2)
     for _ in range(50):
-        a = pol.act({"moving": False})
+        a = pol.act({}, {"moving": False})
         pan, tilt = action_to_gaze_degrees(a)
         total += (pan, tilt)
         assert np.all(np.abs(total) <= 5.0 + 1e-6)
         assert np.allclose(total, pol.target, atol=1e-4)  # float32 actions
-    assert not pol.act({"moving": True}).any()  # waits while the PTU moves
+    assert not pol.act({}, {"moving": True}).any()  # waits while the PTU moves
     still = SweepPolicy(0.0, 5.0, np.random.default_rng(0))
-    assert not still.act({"moving": False}).any()
+    assert not still.act({}, {"moving": False}).any()
 
 
 def test_grid_is_scenes_times_speeds():

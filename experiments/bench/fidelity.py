@@ -296,7 +296,7 @@ def run_row(
         )
         for k in range(run.steps):
             if motion == "walk":
-                action = policy.act(infos["reference"])
+                action = policy.act(None, infos["reference"])
             elif motion == "saccade" and k == 0:
                 cam = ref.scene.camera
                 action = gaze_degrees_to_action(

@@ -349,6 +349,7 @@ FLAG_KEYS: dict[str, str] = {
     "alpha": "alpha",
     "soms_norm": "soms_norm",
     "video": "video",
+    "video_fps": "video_fps",
     "policy": "policy",
     "format": "format",
 }

@@ -46,6 +46,10 @@ from experiments.cli.options import (
 
 __all__ = ["demo", "record", "rerun", "run_agent", "view"]
 
+#: The most frames a simulated second ``--video-fps`` takes (a step's frame repeated;
+#: ``RunConfig.video_fps``'s bound, kept equal by tests/test_runs_writing.py).
+MAX_VIDEO_FPS = 1000
+
 
 @long_command("wander demo")
 def demo(
@@ -110,6 +114,12 @@ def record(
     console.print(f"{summary['events']:,} events over {summary['steps']} steps -> {out}")
 
 
+def _check_video_fps(value: int) -> int:
+    if not 1 <= value <= MAX_VIDEO_FPS:
+        raise typer.BadParameter(f"must be 1 to {MAX_VIDEO_FPS} frames a second, got {value}")
+    return value
+
+
 @long_command("wander run")
 @with_options(AGENT_OPTIONS, FRAME_OPTIONS)
 def run_agent(
@@ -122,6 +132,13 @@ def run_agent(
     window: WindowOpt = 0.124,
     fixational: FixationalOpt = True,
     video: VideoOpt = True,
+    video_fps: Annotated[
+        int,
+        typer.Option(
+            callback=_check_video_fps,
+            help="run.mp4's frames per simulated second (a frame is composed only when due).",
+        ),
+    ] = 30,
     config: Annotated[
         Path | None,
         typer.Option(

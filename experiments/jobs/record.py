@@ -27,16 +27,24 @@ import pydantic
 import wander_env  # noqa: F401  (registers the environments)
 from agents.scripted import GazePolicy, Policy
 from experiments.framework import MAX_SEED
+from experiments.runs.episode import Recorder, run_episode
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
-from experiments.runs.signals import DeferredSignals, SignalExit
-from experiments.runs.viewer import open_run_log
+from experiments.runs.recorders import (
+    EventsRecorder,
+    FolderRecorder,
+    GroundTruthRecorder,
+    RerunRecorder,
+    VideoRecorder,
+    WriteParams,
+    open_recorders,
+)
+from experiments.runs.signals import DeferredSignals
 from wander_env.camera import focal_length_px
 from wander_env.config import check_annotated
 from wander_env.env_config import WanderConfig
 from wander_env.events.formats import write_evimo2_sequence
 from wander_env.events.io import read_events, write_events
-from wander_env.events.stream import EventStreamWriter, H5Appender, VideoSink
 
 # --format: the events file (events.h5 / .aedat4 / .raw) beside ground_truth.h5, or the
 # EVIMO2v2 layout (events + per-step masks) that `wander benchmark evimo` scores.
@@ -105,81 +113,61 @@ def _record(
     base = env.unwrapped
     dt = base.config.control_period_s
     policy = GazePolicy(config.policy, config.seed + 1, dt, config.saccade_interval_s)
-    obs, info = env.reset(seed=config.seed)
     steps = round(config.seconds / dt)
-    n_obj = len(base.scene.moving_objects)
     h, w = base.height, base.width
     rec = run_record("wander record", asdict(config), config.seed)
     rec["env"] = {"control_period_s": dt, "dvs": base.dvs_params.to_dict()}
-    fields = {
-        "t": (np.float64, ()),
-        "gaze_deg": (np.float32, (2,)),
-        "ptu_positions": (np.int32, (2,)),
-        "object_mask": (np.uint8, (h, w)),
-        "object_centre_px": (np.float32, (n_obj, 2)),
-        "object_mask_pixels": (np.int32, (n_obj,)),
-    }
-    attrs = {
-        "object_names": [o.name for o in base.scene.moving_objects],
-        "mask_ids": "0 = background, k = moving object k (1-based)",
-    }
-    video_path = out_dir / "video.mp4"
-    done, error = 0, None
-    with (
-        EventStreamWriter(out_dir / "events.h5", (w, h, 2), rec) as events,
-        H5Appender(out_dir / "ground_truth.h5", fields, attrs, chunk_rows=100) as truth,
-    ):
-        writer = VideoSink(video_path, fps=round(1 / dt)) if config.video else None
-        rrlog = open_run_log(out_dir, env, "wander record")  # run.rrd
-        try:
-            for k in range(steps):
-                signals.check()  # a signal that came during the last step stops here
-                obs, _, _, _, info = env.step(policy.act(info))
-                rrlog.step(obs, info)
-                events.append(info["events"].events)
-                centre = np.full((n_obj, 2), np.nan, np.float32)
-                pixels = np.zeros(n_obj, np.int32)
-                for j, o in enumerate(info["objects"]):
-                    centre[j], pixels[j] = o["centre_px"], o["mask_pixels"]
-                truth.append(
-                    t=info["t"],
-                    gaze_deg=obs["gaze"],
-                    ptu_positions=info["ptu_positions"],
-                    object_mask=info["object_mask"],
-                    object_centre_px=centre,
-                    object_mask_pixels=pixels,
-                )
-                if writer is not None:
-                    writer.append(env.render())
-                done = k + 1
-                if progress is not None:
-                    progress(k + 1, steps)
-        except BaseException as exc:
-            error = exc
-        finally:
-            rrlog.close()
-            if writer is not None:
-                error = writer.finish(error)
-        n_events = events.events_written
-        summary: dict[str, Any] = {"events": n_events, "steps": done}
-        if writer is not None and writer.complete is not None:
-            summary["video_complete"] = writer.complete
-        events.close({**rec, "summary": summary})
-        truth.close()
-    if error is None and config.format != "h5":
-        _convert(out_dir, config.format, base, dt)
-    folder = RunFolder(out_dir)
-    if isinstance(error, KeyboardInterrupt):  # a signal, Ctrl-C
-        folder.mark_incomplete(f"{str(error) or 'interrupted'} after {done} of {steps} steps")
-    summary["files"] = sorted({p.name for p in out_dir.iterdir()} | {"run.json"})
-    if error is not None:
-        message = f"{type(error).__name__}: {error}"
-        stopped_by = {"signal": error.name} if isinstance(error, SignalExit) else {}
-        folder.write_metrics({**summary, "error": message, **stopped_by})
-        folder.write_run(rec | {"summary": summary, "error": message})
-        raise error
-    folder.write_run(rec | {"summary": summary})
-    return summary
+    writing = WriteParams()
+    writer, batch = writing.writer(), writing.batch_steps(dt)
+    makers: list[Callable[[], Recorder]] = [
+        lambda: EventsRecorder(
+            out_dir / "events.h5", (w, h, 2), rec, writer, batch, writing.batch_events
+        ),
+        lambda: GroundTruthRecorder(out_dir / "ground_truth.h5", env, writer, batch),
+        lambda: RerunRecorder(out_dir, env, "wander record", False, writer, batch),  # run.rrd
+    ]
+    if config.video:  # a frame a step
+        mp4 = out_dir / "video.mp4"
+        makers.append(lambda: VideoRecorder(mp4, round(1 / dt), dt, _camera_view, writer=writer))
+    opened = open_recorders(makers, writer)
+    folder = _RecordFolder(out_dir, rec, steps, config.format, base, dt, opened)
+    recorders = [*opened, *([writer] if writer else []), folder]
+    run_episode(env, policy, steps, recorders, signals, seed=config.seed, progress=progress)
+    return folder.written_summary
+
+
+def _camera_view(env: Any, policy: Any, obs: Any, info: dict) -> np.ndarray:
+    return env.render()
+
+
+class _RecordFolder(FolderRecorder):
+    """The recording's folder: ``run.json`` with the summary (events, steps, whether the
+    video is complete, the files); ``metrics.json`` only when it stopped on an error; the
+    events converted to ``fmt`` after a whole recording."""
+
+    def __init__(
+        self,
+        out_dir: Path,
+        record: dict[str, Any],
+        asked: int,
+        fmt: str,
+        base: Any,
+        dt: float,
+        parts: list[Recorder],
+    ) -> None:
+        super().__init__(out_dir, record, asked, parts, metrics_on_success=False)
+        self.fmt, self.base, self.dt = fmt, base, dt
+        self.written_summary: dict[str, Any] = {}
+
+    def write_files(self, metrics: dict[str, Any], error: BaseException | None) -> None:
+        if error is None and self.fmt != "h5":
+            _convert(self.folder.path, self.fmt, self.base, self.dt)
+
+    def summary(self, metrics: dict[str, Any]) -> dict[str, Any]:
+        out = {k: metrics[k] for k in ("events", "steps", "video_complete") if k in metrics}
+        names = {p.name for p in self.folder.path.iterdir()} | {"run.json"}
+        self.written_summary = out | {"files": sorted(names)}
+        return self.written_summary
 
 
 def _convert(out_dir: Path, fmt: str, base: Any, dt: float) -> None:

@@ -45,7 +45,14 @@ import pydantic
 from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent
 from agents.fixation import FIXATION_WINDOW_S
 from experiments.framework import MAX_SEED
-from experiments.jobs.run_agent import OneEpisodeRun, RunConfig, RunResult, run_for_config
+from experiments.jobs.run_agent import (
+    VIDEO_FPS,
+    OneEpisodeRun,
+    RunConfig,
+    RunResult,
+    run_for_config,
+)
+from experiments.runs.episode import Recorder
 from experiments.runs.folder import METRICS_JSON, RunFolder
 from experiments.runs.provenance import run_record
 from hardware.ptu_driver import PTUError, PTUPortError, PTUTimeout
@@ -53,7 +60,7 @@ from hardware.rig_env import RigConfig
 from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.strict_json import to_strict_json
 
-__all__ = ["RigRunConfig", "RigRunError", "fixed_view_note", "run_rig"]
+__all__ = ["RigCounters", "RigRunConfig", "RigRunError", "fixed_view_note", "run_rig"]
 
 
 @dataclass(frozen=True)
@@ -63,8 +70,8 @@ class RigRunConfig(OneEpisodeRun):
     camera ``"speck"``, ``"speck:<serial>"`` or ``"replay:<event file>"``, the replay's
     pacing, ``episode_seconds`` as the run's length (a replay that ends earlier ends the
     run), ``hfov_deg`` as the lens's field of view, the device parameter blocks);
-    ``seed``, ``window_s``, ``fixational``, ``streamlined``, ``alpha``, ``video``: as
-    ``wander run``.
+    ``seed``, ``window_s``, ``fixational``, ``streamlined``, ``alpha``, ``video``,
+    ``video_fps``: as ``wander run``.
 
     >>> RigRunConfig(RigConfig(ptu_port="emulate", camera="replay:walk.npz")).seconds
     10.0
@@ -77,6 +84,7 @@ class RigRunConfig(OneEpisodeRun):
     streamlined: bool = False
     alpha: Annotated[float, pydantic.Field(ge=0, le=1)] = AGENT_SOMS_ALPHA
     video: bool = True
+    video_fps: Annotated[int, pydantic.Field(ge=1, le=1000)] = VIDEO_FPS
 
     def agent_params(self, env: Any) -> AgentParams:
         """The agent of ``wander run`` with these switches, matched to the rig's sensor and
@@ -106,35 +114,34 @@ class RigRunError(RuntimeError):
         self.folder = folder
 
 
-class _RigCounters(gym.Wrapper):
-    """Sees every step's ``info`` and keeps the rig's counters for ``metrics.json``."""
+class RigCounters(Recorder):
+    """Sees every step's ``info`` and keeps the rig's counters; ``metrics()``:
+    ``{"rig": ...}`` (module doc; valid also after a fault)."""
 
     def __init__(self, env: gym.Env) -> None:
-        super().__init__(env)
+        self.base = env.unwrapped
         self.latencies: list[float] = []
         self.lag_max_s = 0.0
         self._sent = 0
 
-    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
-        obs, info = self.env.reset(**kwargs)
+    def on_reset(self, env: Any, policy: Any, obs: Any, info: dict[str, Any]) -> None:
         self.latencies, self.lag_max_s = [], 0.0
-        self._sent = self.env.unwrapped.stats["commands_sent"]
-        return obs, info
+        self._sent = self.base.stats["commands_sent"]
 
-    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
-        out = self.env.step(action)
-        info = out[4]
-        sent = self.env.unwrapped.stats["commands_sent"]
+    def on_step(self, env: Any, policy: Any, obs: Any, info: dict[str, Any]) -> None:
+        sent = self.base.stats["commands_sent"]
         latency = float(info.get("command_latency_s", math.nan))
         if sent != self._sent and math.isfinite(latency):
             self.latencies.append(latency)
         self._sent = sent
         self.lag_max_s = max(self.lag_max_s, float(info.get("lag_s", 0.0)))
-        return out
+
+    def metrics(self) -> dict[str, Any]:
+        return {"rig": self.summary()}
 
     def summary(self) -> dict[str, Any]:
         """The counters (valid also after a fault)."""
-        base = self.env.unwrapped
+        base = self.base
         stats = base.stats
         camera = base.camera
         lat = np.asarray(self.latencies, dtype=np.float64)
@@ -239,15 +246,6 @@ def _camera_failed(base: Any) -> bool:
     return bool(stats.get("reader_error"))
 
 
-def _add_metrics(out_dir: Path, rig: dict[str, Any]) -> dict[str, Any]:
-    """Add ``rig`` to the run folder's ``metrics.json``; returns the updated metrics."""
-    folder = RunFolder(out_dir)
-    metrics = folder.read_json(METRICS_JSON)
-    metrics["rig"] = rig
-    folder.write_metrics(metrics)
-    return to_strict_json(metrics)  # as written: a missing figure is None (null)
-
-
 def run_rig(
     out_dir: Path, config: RigRunConfig, progress: Callable[[int, int], None] | None = None
 ) -> RunResult:
@@ -265,7 +263,7 @@ def run_rig(
         raise _open_failure(err, config) from err
     agent: AttentionAgent | None = None
     try:
-        counters = _RigCounters(env)
+        counters = RigCounters(env)
         base = env.unwrapped
         agent = AttentionAgent(config.agent_params(env), seed=config.seed)
         record = run_record("wander rig", asdict(config), config.seed)
@@ -276,18 +274,25 @@ def run_rig(
             # folder is written; a failure outside the loop halts it here (after the
             # loop's halt this sends a second H, harmless).
             result = run_for_config(
-                counters, agent, config, out_dir, record, progress, halt=base.halt_after_failure
+                env,
+                agent,
+                config,
+                out_dir,
+                record,
+                progress,
+                halt=base.halt_after_failure,
+                recorders=(counters,),
             )
         except BaseException as err:
             base.halt_after_failure()
-            metrics = _add_metrics(out_dir, counters.summary())
+            metrics = RunFolder(out_dir).read_json(METRICS_JSON)
             is_device = _device(err, config) is not None or (
                 isinstance(err, (RuntimeError, OSError)) and _camera_failed(base)
             )
             if isinstance(err, Exception) and is_device:
                 raise _run_failure(err, config, out_dir, metrics.get("steps", 0)) from err
             raise
-        result.metrics = _add_metrics(out_dir, counters.summary())
+        result.metrics = to_strict_json(result.metrics)  # as written: a missing figure is None
         return result
     finally:
         if agent is not None:

@@ -18,7 +18,8 @@ writes the run folder:
   gaze, a replayed recording, ``record["fixed_view"]``: saliency and ``P`` in the
   sensor's frame, and the note saying so);
 - ``run.mp4``: events | OMS | saliency | camera, with the fovea (green) and ``P``
-  (magenta 8×8 box) marked;
+  (magenta 8×8 box) marked, at ``video_fps`` frames per simulated second
+  (:data:`VIDEO_FPS` by default; a frame is composed only when one is due);
 - ``events.h5``: every event of the run, written as the run goes
   (:class:`~wander_env.events.stream.EventStreamWriter`: memory does not grow with the
   run's length, and a killed run leaves the file readable up to its last flushed chunk).
@@ -52,15 +53,19 @@ from agents.proto_object import ProtoObjectParams
 from experiments import scanpath_stats
 from experiments.framework import MAX_SEED
 from experiments.jobs.scanpath_figure import plot_scanpath
+from experiments.runs.episode import Recorder, run_episode
 from experiments.runs.folder import RunFolder
-from experiments.runs.observers import (
-    DetectionObserver,
-    EventsObserver,
-    RerunObserver,
-    RunObserver,
-    VideoObserver,
-)
 from experiments.runs.provenance import run_record
+from experiments.runs.recorders import (
+    DetectionRecorder,
+    EventsRecorder,
+    FolderRecorder,
+    ReadoutRecorder,
+    RerunRecorder,
+    VideoRecorder,
+    WriteParams,
+    open_recorders,
+)
 from experiments.runs.signals import DeferredSignals, SignalExit
 from wander_env.camera import degrees_to_pixels, focal_length_px, pixel_to_world_angles
 from wander_env.config import check_annotated
@@ -69,14 +74,22 @@ from wander_env.events.stream import EventStreamWriter
 from wander_env.viz import event_image, labelled_frame, saliency_rgb
 
 __all__ = [
+    "VIDEO_FPS",
+    "AgentMetrics",
+    "AgentRunFolder",
     "OneEpisodeRun",
     "RunConfig",
     "RunResult",
+    "closed_loop_metrics",
     "run",
     "run_closed_loop",
     "run_for_config",
     "video_frame",
 ]
+
+
+#: ``run.mp4``'s frames per simulated second by default (a frame a step is 100).
+VIDEO_FPS = 30
 
 
 class OneEpisodeRun:
@@ -105,6 +118,7 @@ class RunConfig(OneEpisodeRun):
     env: WanderConfig = field(default_factory=WanderConfig)
     seed: Annotated[int, pydantic.Field(ge=0, le=MAX_SEED)] = 0
     video: bool = True
+    video_fps: Annotated[int, pydantic.Field(ge=1, le=1000)] = VIDEO_FPS
     window_s: Annotated[float, pydantic.Field(gt=0)] = FIXATION_WINDOW_S
     fixational: bool = True
     streamlined: bool = False
@@ -165,22 +179,6 @@ def video_frame(
 # The loop
 
 
-@dataclass
-class _Log:
-    """Everything gathered step by step (kept to write the folder even after a fault)."""
-
-    events: int = 0
-    gaze: list[tuple[float, float, float]] = field(default_factory=list)
-    maps: list[np.ndarray] = field(default_factory=list)  # saliency per decision
-    hits: list[bool | None] = field(default_factory=list)  # per decision
-    hit_objects: list[str] = field(default_factory=list)  # per decision: the objects hit
-    clipped: list[bool] = field(default_factory=list)  # per saccade
-    steps: int = 0
-    asked: int = 0  # the steps the run was to take
-    sightings: list[tuple] = field(default_factory=list)  # ground truth (runs.viewer)
-    video_complete: bool | None = None  # run.mp4 a whole MP4 (None: no video written)
-
-
 def run_closed_loop(
     env: Any,
     agent: AttentionAgent,
@@ -191,125 +189,85 @@ def run_closed_loop(
     progress: Callable[[int, int], None] | None = None,
     seed: int | None = None,
     halt: Callable[[], None] | None = None,
-    observers: Sequence[RunObserver] = (),
+    recorders: Sequence[Recorder] = (),
+    video_fps: int = VIDEO_FPS,
+    writing: WriteParams | None = None,
 ) -> RunResult:
-    """Run ``agent`` on ``env`` for ``seconds`` and write the run folder (module doc).
+    """Run ``agent`` on ``env`` for ``seconds`` and write the run folder (module doc):
+    :func:`~experiments.runs.episode.run_episode` with the run's recorders (events,
+    video at ``video_fps`` frames per simulated second, Rerun log, detection, readout
+    counters, the folder) and ``recorders`` (a study's or the rig's own: what their
+    ``metrics()`` return is added to ``metrics.json``). The files are written as
+    ``writing`` says (:class:`~experiments.runs.recorders.WriteParams`; ``None``: its
+    defaults, on a writer thread, events and Rerun rows every 100 ms of simulated time).
 
     ``halt`` (the rig: halt the PTU; it must not raise) is called as soon as the loop ends
     on an error or a signal, before the video is closed and the folder written.
-    ``observers`` (:mod:`experiments.runs.observers`) watch the run besides its own
-    (the Rerun log, the video, detection scoring).
     """
+    out_dir = Path(out_dir)
     with DeferredSignals() as signals:  # a signal sets a flag; the loop takes it up
-        result = _run(
+        RunFolder(out_dir).create()
+        dt = _control_period(env, agent)
+        n_steps = max(1, round(seconds / dt))
+        p = agent.params
+        record = record | {"agent": asdict(p)}
+        title = str(record.get("command", "wander run"))
+        writing = writing or WriteParams()
+        writer, batch = writing.writer(), writing.batch_steps(dt)
+        size = (p.width_px, p.height_px, 2)
+        makers: list[Callable[[], Recorder]] = [
+            lambda: EventsRecorder(
+                out_dir / "events.h5", size, record, writer, batch, writing.batch_events
+            ),
+            lambda: RerunRecorder(out_dir, env, title, True, writer, batch),  # run.rrd
+        ]
+        if video:
+            mp4 = out_dir / "run.mp4"
+            makers.append(lambda: VideoRecorder(mp4, video_fps, dt, _capture, _compose, writer))
+        events, rerun, *video_recorder = open_recorders(makers, writer)
+        detection = DetectionRecorder()
+        parts = [*video_recorder, ReadoutRecorder(), *recorders]  # their metrics() added
+        run = AgentMetrics(agent, dt, detection)
+        folder = AgentRunFolder(out_dir, record, n_steps, env, run, rerun, parts)
+        # The writer closes after the recorders that write through it, before the run's
+        # wall time ends and the folder is written.
+        run_episode(
             env,
             agent,
-            seconds,
-            Path(out_dir),
-            record,
-            video,
-            progress,
-            seed,
-            halt,
+            n_steps,
+            [events, rerun, detection, *parts, *([writer] if writer else []), run, folder],
             signals,
-            observers,
+            seed=seed,
+            progress=progress,
+            halt=halt,
         )
         if signals.pending:  # it came while the folder was written: the folder is finished
-            RunFolder(out_dir).record_late_signal(
+            folder.folder.record_late_signal(
                 signals.signum,
-                f"the run folder was written, after the run's {result.metrics['steps']} steps",
+                f"the run folder was written, after the run's {folder.steps} steps",
             )
-    return result  # unless the pending signal, raised on leaving the block
+    return folder.result  # unless the pending signal, raised on leaving the block
 
 
-def _run(
-    env: Any,
-    agent: AttentionAgent,
-    seconds: float,
-    out_dir: Path,
-    record: dict[str, Any],
-    video: bool,
-    progress: Callable[[int, int], None] | None,
-    seed: int | None,
-    halt: Callable[[], None] | None,
-    signals: DeferredSignals,
-    observers: Sequence[RunObserver],
-) -> RunResult:
-    """The loop and the folder of :func:`run_closed_loop`, inside its ``signals`` block."""
-    RunFolder(out_dir).create()
-    base = env.unwrapped
-    dt = float(getattr(getattr(base, "config", None), "control_period_s", agent.params.step_s))
-    n_steps = max(1, round(seconds / dt))
-    log = _Log(asked=n_steps)
-    p = agent.params
-    events = EventsObserver(out_dir / "events.h5", (p.width_px, p.height_px, 2), record)
-    watchers: list[RunObserver] = []
-    try:
-        if video:
-            watchers.append(VideoObserver(out_dir / "run.mp4", round(1 / dt), _frame_for))
-        rerun = RerunObserver(out_dir, env, str(record.get("command", "wander run")))  # run.rrd
-    except BaseException:
-        events.finish()
-        raise
-    detection = DetectionObserver()
-    watchers = [rerun, *watchers, detection, *observers]
-    error: BaseException | None = None
-    t_wall = time.perf_counter()
-    try:
-        obs, info = env.reset(seed=seed)
-        agent.reset()
-        for w in watchers:
-            w.on_reset(env, agent, obs, info)
-        for k in range(n_steps):
-            signals.check()  # a signal that came during the last step stops the run here
-            action = agent.act(obs, info)
-            for w in watchers:
-                w.on_act(env, agent, obs, info)
-            obs, _, terminated, truncated, info = env.step(action)
-            events.on_step(env, agent, obs, info)  # first: a step counts once on disk
-            log.events = events.events
-            log.gaze.append((float(info.get("t", (k + 1) * dt)), *map(float, obs["gaze"])))
-            log.steps = k + 1
-            for w in watchers:
-                w.on_step(env, agent, obs, info)
-            if progress is not None:
-                progress(k + 1, n_steps)
-            if terminated or truncated:
-                break
-    except BaseException as exc:
-        error = exc
-        if halt is not None:
-            halt()
-    finally:
-        for w in watchers:
-            error = w.close(error)
-        log.sightings = rerun.sightings
-        log.video_complete = next(
-            (w.complete for w in watchers if isinstance(w, VideoObserver)), None
-        )
-        log.maps, log.hits = detection.maps, detection.hits
-        log.hit_objects, log.clipped = detection.hit_objects, detection.clipped
-    wall = time.perf_counter() - t_wall
-    try:
-        result = _write_folder(out_dir, env, agent, log, events, record, dt, wall, error)
-    except Exception as write_error:
-        if error is None:
-            raise
-        error.add_note(f"writing the run folder {out_dir} also failed: {write_error!r}")
-        raise error from write_error
-    finally:
-        events.finish()  # already closed by _write_folder unless that failed
-    if error is not None:
-        raise error
-    return result
-
-
-def _frame_for(agent: AttentionAgent, obs: dict, base: Any, info: dict) -> np.ndarray:
-    camera = getattr(base, "camera_frame", None)
+def _capture(env: Any, agent: AttentionAgent, obs: dict, info: dict) -> tuple:
+    """What a video frame shows, copied out of the env and the agent (:func:`_compose`)."""
+    camera = getattr(env.unwrapped, "camera_frame", None)
     t = info.get("t", math.nan)
     target = "none" if agent.target is None else f"({agent.target[0]}, {agent.target[1]})"
     caption = f"t = {t:5.2f} s   {agent.phase.value}   P = {target}"
-    return video_frame(obs["events"], agent.oms_map, agent.saliency, camera, agent.target, caption)
+    saliency = None if agent.saliency is None else np.array(agent.saliency)
+    return (
+        np.array(obs["events"]),
+        np.array(agent.oms_map),
+        saliency,
+        None if camera is None else np.array(camera),
+        agent.target,
+        caption,
+    )
+
+
+def _compose(captured: tuple) -> np.ndarray:
+    return video_frame(*captured)
 
 
 def _saccade_metrics(agent: AttentionAgent, clipped: list[bool]) -> dict[str, Any]:
@@ -369,14 +327,140 @@ def _mean(values: list[float]) -> float:
     return float(np.mean(values)) if values else math.nan
 
 
+class AgentMetrics(Recorder):
+    """In memory, the figures of an agent's run (``metrics.json``'s, module doc):
+    :meth:`figures` after the loop, from the agent, ``detection`` (a
+    :class:`~experiments.runs.recorders.DetectionRecorder` in the same run) and what this
+    recorder counted: steps, events, the gaze trace ``(t, pan, tilt)`` per step and the
+    wall time from its creation (just before the loop) to its close (close it after the
+    recorders whose closing belongs to the run: the video's, the files')."""
+
+    def __init__(self, agent: AttentionAgent, dt: float, detection: DetectionRecorder) -> None:
+        self.agent, self.dt, self.detection = agent, dt, detection
+        self.steps = self.events = 0
+        self.gaze: list[tuple[float, float, float]] = []
+        self._t0 = time.perf_counter()
+        self.wall_s: float | None = None
+
+    def on_step(self, env: Any, agent: Any, obs: dict, info: dict) -> None:
+        self.steps += 1
+        self.events += len(info["events"].events)
+        self.gaze.append((float(info.get("t", self.steps * self.dt)), *map(float, obs["gaze"])))
+
+    def close(self, error: BaseException | None) -> BaseException | None:
+        self.wall_s = time.perf_counter() - self._t0
+        return error
+
+    def table(self) -> np.ndarray:
+        """The fixation table (:mod:`experiments.scanpath_stats`) of the agent's windows."""
+        return scanpath_stats.normalise_fixations(
+            [[*fx.gaze_deg, fx.t_start, fx.t_end - fx.t_start] for fx in self.agent.fixations]
+        )
+
+    def figures(self) -> dict[str, Any]:
+        agent, hits = self.agent, self.detection.hits
+        wall = self.wall_s if self.wall_s is not None else time.perf_counter() - self._t0
+        table = self.table()
+        scored = [h for h in hits if h is not None]
+        sim_s = self.steps * self.dt
+        return {
+            "steps": self.steps,
+            "simulated_s": sim_s,
+            "wall_s": wall,
+            "real_time_factor": sim_s / wall if wall > 0 else math.nan,
+            "decisions": len(agent.fixations),
+            "decisions_with_target": sum(fx.target_px is not None for fx in agent.fixations),
+            "decisions_scored": len(scored),
+            "detection_accuracy": float(np.mean(scored)) if scored else math.nan,
+            "events": self.events,
+            "events_into_agent": agent.events_in,
+            "events_kept_by_soms": agent.events_oms,
+            "soms_suppression": agent.suppression,
+            **_saccade_metrics(agent, self.detection.clipped),
+            "scanpath": scanpath_stats.summary(table) if len(table) else {},
+        }
+
+
+class AgentRunFolder(FolderRecorder):
+    """The folder of an agent's run (module doc): ``metrics.json`` from ``run``
+    (:class:`AgentMetrics`) and the ``parts``, ``fixations.csv``, ``scanpath.png`` (the
+    objects' paths from ``rerun``'s sightings), ``run.json``; ``result`` after
+    :meth:`close`."""
+
+    def __init__(
+        self,
+        out_dir: Path,
+        record: dict[str, Any],
+        asked: int,
+        env: Any,
+        run: AgentMetrics,
+        rerun: RerunRecorder,
+        parts: Sequence[Recorder],
+    ) -> None:
+        super().__init__(out_dir, record, asked, parts)
+        self.env, self.run, self.rerun = env, run, rerun
+        self.result: RunResult | None = None
+
+    def figures(self, error: BaseException | None) -> dict[str, Any]:
+        return self.run.figures()
+
+    def write_files(self, metrics: dict[str, Any], error: BaseException | None) -> None:
+        out_dir = self.folder.path
+        agent, detection = self.run.agent, self.run.detection
+        p = agent.params
+        f = focal_length_px(p.width_px, p.hfov_deg)
+        centre = ((p.width_px - 1) / 2.0, (p.height_px - 1) / 2.0)
+        targets_deg = [
+            pixel_to_world_angles(fx.target_px, fx.gaze_deg, f, centre) if fx.target_px else None
+            for fx in agent.fixations
+        ]
+        if agent.fixations:
+            scanpath_stats.write_fixations(
+                out_dir / "fixations.csv",
+                self.run.table(),
+                _fixation_columns(agent, detection, targets_deg),
+            )
+        if agent.fixations and detection.maps:
+            n = min(len(detection.maps), len(agent.fixations))
+            moves = f"{len(agent.fixations)} fixations, {len(agent.saccades)} saccades"
+            plot_scanpath(
+                out_dir / "scanpath.png",
+                detection.maps[:n],
+                [
+                    {
+                        "gaze_deg": fx.gaze_deg,
+                        "duration_s": fx.t_end - fx.t_start,
+                        "target_deg": tg,
+                        "target_px": fx.target_px,
+                    }
+                    for fx, tg in zip(agent.fixations[:n], targets_deg, strict=False)
+                ],
+                f,
+                gaze_trace=np.asarray(self.run.gaze),
+                title=f"scanpath ({moves})",
+                object_paths=_object_paths(self.rerun.sightings, f, centre),
+                limits_deg=_ptu_limits(self.env),
+                fixed_view=self.record.get("fixed_view"),  # a replayed recording (wander rig)
+            )
+
+    def close(self, error: BaseException | None) -> BaseException | None:
+        error = super().close(error)
+        if error is None and self.written is not None:
+            files = sorted(x.name for x in self.folder.path.iterdir())
+            self.result = RunResult(metrics=dict(self.written), files=files)
+        return error
+
+
 def _fixation_columns(
-    agent: AttentionAgent, log: _Log, targets_deg: list[tuple[float, float] | None]
+    agent: AttentionAgent,
+    detection: DetectionRecorder,
+    targets_deg: list[tuple[float, float] | None],
 ) -> dict[str, list[object]]:
     """``fixations.csv``'s columns after the fixation table's four (module doc of
     :mod:`experiments.scanpath_stats`); ``None`` where a window has no ``P`` or no score."""
     fx, n = agent.fixations, len(agent.fixations)
-    hits = [log.hits[k] if k < len(log.hits) else None for k in range(n)]
-    objects = [log.hit_objects[k] if k < len(log.hit_objects) else "" for k in range(n)]
+    hits = [detection.hits[k] if k < len(detection.hits) else None for k in range(n)]
+    objects = [detection.hit_objects[k] if k < len(detection.hit_objects) else "" for k in range(n)]
     return {
         "target_x_px": [f.target_px[0] if f.target_px else None for f in fx],
         "target_y_px": [f.target_px[1] if f.target_px else None for f in fx],
@@ -389,87 +473,35 @@ def _fixation_columns(
     }
 
 
-def _write_folder(
-    out_dir: Path,
+def closed_loop_metrics(
     env: Any,
     agent: AttentionAgent,
-    log: _Log,
-    events: EventsObserver,
-    record: dict[str, Any],
-    dt: float,
-    wall: float,
-    error: BaseException | None,
-) -> RunResult:
-    folder = RunFolder(out_dir)
-    p = agent.params
-    f = focal_length_px(p.width_px, p.hfov_deg)
-    centre = ((p.width_px - 1) / 2.0, (p.height_px - 1) / 2.0)
-    targets_deg = [
-        pixel_to_world_angles(fx.target_px, fx.gaze_deg, f, centre) if fx.target_px else None
-        for fx in agent.fixations
-    ]
-    table = scanpath_stats.normalise_fixations(
-        [[*fx.gaze_deg, fx.t_start, fx.t_end - fx.t_start] for fx in agent.fixations]
-    )
-    if agent.fixations:
-        scanpath_stats.write_fixations(
-            out_dir / "fixations.csv", table, _fixation_columns(agent, log, targets_deg)
+    seconds: float,
+    seed: int | None = None,
+    recorders: Sequence[Recorder] = (),
+) -> dict[str, Any]:
+    """An experiment's trial: ``agent`` on ``env`` for ``seconds`` with ``recorders`` and
+    no file written; returns the figures ``metrics.json`` would hold
+    (:class:`AgentMetrics`)."""
+    dt = _control_period(env, agent)
+    detection = DetectionRecorder()
+    run = AgentMetrics(agent, dt, detection)
+    with DeferredSignals() as signals:
+        run_episode(
+            env,
+            agent,
+            max(1, round(seconds / dt)),
+            [detection, *recorders, run],
+            signals,
+            seed=seed,
         )
-    scored = [h for h in log.hits if h is not None]
-    sim_s = log.steps * dt
-    metrics: dict[str, Any] = {
-        "steps": log.steps,
-        "simulated_s": sim_s,
-        "wall_s": wall,
-        "real_time_factor": sim_s / wall if wall > 0 else math.nan,
-        "decisions": len(agent.fixations),
-        "decisions_with_target": sum(fx.target_px is not None for fx in agent.fixations),
-        "decisions_scored": len(scored),
-        "detection_accuracy": float(np.mean(scored)) if scored else math.nan,
-        "events": log.events,
-        "events_into_agent": agent.events_in,
-        "events_kept_by_soms": agent.events_oms,
-        "soms_suppression": agent.suppression,
-        **_saccade_metrics(agent, log.clipped),
-        "scanpath": scanpath_stats.summary(table) if len(table) else {},
-    }
-    if log.video_complete is not None:
-        metrics["video_complete"] = log.video_complete
-    if error is not None:
-        metrics["error"] = f"{type(error).__name__}: {error}"
-        if isinstance(error, SignalExit):
-            metrics["signal"] = error.name
-    if isinstance(error, KeyboardInterrupt):  # a signal, Ctrl-C
-        folder.mark_incomplete(
-            f"{str(error) or 'interrupted'} after {log.steps} of {log.asked} steps"
-        )
-    folder.write_metrics(metrics)
-    if agent.fixations and log.maps:
-        n = min(len(log.maps), len(agent.fixations))
-        plot_scanpath(
-            out_dir / "scanpath.png",
-            log.maps[:n],
-            [
-                {
-                    "gaze_deg": fx.gaze_deg,
-                    "duration_s": fx.t_end - fx.t_start,
-                    "target_deg": tg,
-                    "target_px": fx.target_px,
-                }
-                for fx, tg in zip(agent.fixations[:n], targets_deg, strict=False)
-            ],
-            f,
-            gaze_trace=np.asarray(log.gaze),
-            title=f"scanpath ({len(agent.fixations)} fixations, {len(agent.saccades)} saccades)",
-            object_paths=_object_paths(log.sightings, f, centre),
-            limits_deg=_ptu_limits(env),
-            fixed_view=record.get("fixed_view"),  # a replayed recording (wander rig)
-        )
-    rec = record | {"agent": asdict(p), "summary": {k: metrics[k] for k in ("steps", "events")}}
-    events.finish(rec)
-    folder.write_run(rec)
-    files = sorted(x.name for x in out_dir.iterdir())
-    return RunResult(metrics=metrics, files=files, error=metrics.get("error"))
+    return run.figures()
+
+
+def _control_period(env: Any, agent: AttentionAgent) -> float:
+    """The env's step: its config's ``control_period_s`` (the agent's step without one)."""
+    config = getattr(env.unwrapped, "config", None)
+    return float(getattr(config, "control_period_s", agent.params.step_s))
 
 
 def run_for_config(
@@ -480,9 +512,11 @@ def run_for_config(
     record: dict[str, Any],
     progress: Callable[[int, int], None] | None = None,
     halt: Callable[[], None] | None = None,
+    recorders: Sequence[Recorder] = (),
 ) -> RunResult:
-    """:func:`run_closed_loop` for a run config's ``seconds``, ``video`` and ``seed``
-    (``wander run``'s :class:`RunConfig` and ``wander rig``'s config)."""
+    """:func:`run_closed_loop` for a run config's ``seconds``, ``video``, ``video_fps``
+    and ``seed`` (``wander run``'s :class:`RunConfig` and ``wander rig``'s config);
+    ``recorders``: the caller's own."""
     return run_closed_loop(
         env,
         agent,
@@ -493,6 +527,8 @@ def run_for_config(
         progress=progress,
         seed=config.seed,
         halt=halt,
+        recorders=recorders,
+        video_fps=config.video_fps,
     )
 
 

@@ -34,6 +34,7 @@ from experiments.benchmark.protocol import ProtocolConfig, WindowRow, evaluate_s
 from experiments.benchmark.summary import paper_reference
 from experiments.framework import Comparison, Experiment, Repeats, Row, TrialSeconds, TrialSpec
 from experiments.paper.env_block import check_env_block, trial_env
+from experiments.runs.episode import Recorder, run_episode
 from experiments.stats import mean_std
 from wander_env.actions import gaze_degrees_to_action
 from wander_env.env_config import SceneName, WanderConfig
@@ -132,13 +133,34 @@ class SweepPolicy:
         self.speed, self.amplitude, self.rng = speed_deg_s, amplitude_deg, rng
         self.target = np.zeros(2)  # relative to the start, degrees (pan, tilt)
 
-    def act(self, info: dict[str, Any]) -> np.ndarray:
+    def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
         if self.speed <= 0 or info["moving"]:
             return np.zeros(2, np.float32)
         new = self.rng.uniform(-self.amplitude, self.amplitude, 2)
         d_pan, d_tilt = new - self.target
         self.target = new
         return np.clip(gaze_degrees_to_action(d_pan, d_tilt), -1, 1).astype(np.float32)
+
+
+class _Sequence(Recorder):
+    """The events and one object-mask window per step of ``step_us``, and the gaze (the
+    reset's first)."""
+
+    def __init__(self, step_us: int) -> None:
+        self.step_us = step_us
+        self.chunks: list[np.ndarray] = []
+        self.windows: list[MaskWindow] = []
+        self.gaze: list[np.ndarray] = []
+
+    def on_reset(self, env: Any, policy: Any, obs: Any, info: dict) -> None:
+        self.gaze = [np.asarray(obs["gaze"], np.float64)]
+
+    def on_step(self, env: Any, policy: Any, obs: Any, info: dict) -> None:
+        k = len(self.chunks)
+        self.chunks.append(info["events"].events)
+        window = MaskWindow(k * self.step_us, (k + 1) * self.step_us, info["object_mask"])
+        self.windows.append(window)
+        self.gaze.append(np.asarray(obs["gaze"], np.float64))
 
 
 # ----------------------------------------------------------------------------------------
@@ -158,21 +180,16 @@ def record_sequence(
         episode_seconds=cfg.duration_s + 1.0,
         ptu=ptu_for_speed(speed),
     )
+    policy = SweepPolicy(speed, cfg.sweep_amplitude_deg, np.random.default_rng(seed + 1))
+    sequence = _Sequence(round(cfg.step_s * 1e6))
     try:
-        _, info = env.reset(seed=seed)
+        run_episode(env, policy, n, (sequence,), seed=seed)
         base = env.unwrapped
-        policy = SweepPolicy(speed, cfg.sweep_amplitude_deg, np.random.default_rng(seed + 1))
-        chunks, windows = [], []
-        gaze = np.zeros((n + 1, 2))
-        step_us = round(cfg.step_s * 1e6)
-        for k in range(n):
-            obs, _, _, _, info = env.step(policy.act(info))
-            chunks.append(info["events"].events)
-            windows.append(MaskWindow(k * step_us, (k + 1) * step_us, info["object_mask"]))
-            gaze[k + 1] = obs["gaze"]
         sensor = (base.width, base.height, 2)
     finally:
         env.close()
+    gaze = np.asarray(sequence.gaze)
+    chunks, windows = sequence.chunks, sequence.windows
     speed_meas = float(np.mean(np.linalg.norm(np.diff(gaze, axis=0), axis=1)) / cfg.step_s)
     seq = SequenceData(
         "wander", scene, f"{scene}-v{speed:g}-s{seed}", sensor, concatenate(chunks), windows

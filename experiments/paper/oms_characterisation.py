@@ -52,6 +52,7 @@ from experiments.framework import (
 )
 from experiments.metrics import iou, precision
 from experiments.paper.env_block import check_env_block, trial_env
+from experiments.runs.episode import Recorder, run_episode
 from wander_env.env_config import WanderConfig
 from wander_env.scene_config import GRATING_MODES, assets_dir
 from wander_env.viz import save_figure
@@ -262,6 +263,46 @@ def grid(cfg: OMSCharacterisationConfig) -> list[dict[str, Any]]:
 # The trial
 
 
+class _StillCamera:
+    """The policy of a still camera: the PTU is never moved."""
+
+    def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
+        return np.zeros(2, np.float32)
+
+
+class _Firing(Recorder):
+    """The sOMS ``soms`` stepped on each of ``n`` steps' events: its spikes per step and
+    pixel, the events in and kept (all, on the object), each step's precision and IoU
+    against the object mask; ``counts``, ``oms``, ``mask``: the last step's events,
+    sOMS output and object mask."""
+
+    def __init__(self, soms: SOMS, n: int) -> None:
+        self.soms, self.n = soms, n
+        self.k = self.ev_in = self.ev_out = self.obj_in = self.obj_out = 0
+        self.precs: list[float] = []
+        self.ious: list[float] = []
+        self.spikes = np.zeros((0, 0), np.int8)
+        self.counts = self.oms = self.mask = np.zeros((0, 0), bool)
+
+    def on_reset(self, env: Any, policy: Any, obs: Any, info: dict[str, Any]) -> None:
+        h, w = env.unwrapped.height, env.unwrapped.width
+        self.spikes = np.zeros((self.n, h * w), np.int8)
+
+    def on_step(self, env: Any, policy: Any, obs: Any, info: dict[str, Any]) -> None:
+        self.counts = counts = obs["events"]
+        self.oms = oms = self.soms.step(counts).oms.numpy() > 0
+        self.mask = mask = info["object_mask"] > 0
+        kept = counts * oms
+        self.ev_in += int(counts.sum())
+        self.ev_out += int(kept.sum())
+        self.obj_in += int(counts[:, mask].sum())
+        self.obj_out += int(kept[:, mask].sum())
+        self.spikes[self.k] = oms.sum(axis=0).ravel()
+        self.k += 1
+        self.precs.append(precision(oms.any(axis=0), mask))
+        self.ious.append(iou(oms.any(axis=0), mask))
+
+
 def run_trial(cfg: OMSCharacterisationConfig, spec: TrialSpec) -> dict[str, Any]:
     """Render the stimulus, emulate the DVS, run the sOMS; firing statistics."""
     p = spec.params
@@ -283,28 +324,14 @@ def run_trial(cfg: OMSCharacterisationConfig, spec: TrialSpec) -> dict[str, Any]
             control_period_s=cfg.step_s,
             episode_seconds=cfg.duration_s + 1.0,
         )
+        firing = _Firing(soms, n)
         try:
-            env.reset(seed=spec.seed)
-            h, w = env.unwrapped.height, env.unwrapped.width
-            spikes = np.zeros((n, h * w), np.int8)
-            ev_in = ev_out = obj_in = obj_out = 0
-            precs, ious = [], []
-            zero = np.zeros(2, np.float32)
-            for k in range(n):
-                obs, _, _, _, info = env.step(zero)
-                counts = obs["events"]
-                oms = soms.step(counts).oms.numpy() > 0
-                mask = info["object_mask"] > 0
-                kept = counts * oms
-                ev_in += int(counts.sum())
-                ev_out += int(kept.sum())
-                obj_in += int(counts[:, mask].sum())
-                obj_out += int(kept[:, mask].sum())
-                spikes[k] = oms.sum(axis=0).ravel()
-                precs.append(precision(oms.any(axis=0), mask))
-                ious.append(iou(oms.any(axis=0), mask))
+            run_episode(env, _StillCamera(), n, (firing,), seed=spec.seed)
         finally:
             env.close()
+    spikes, counts, oms, mask = firing.spikes, firing.counts, firing.oms, firing.mask
+    ev_in, ev_out, obj_in, obj_out = firing.ev_in, firing.ev_out, firing.obj_in, firing.obj_out
+    precs, ious = firing.precs, firing.ious
     total = spikes.sum(axis=0, dtype=np.int64)
     flat_mask = mask.ravel()
     mfr_mean, mfr_std = mfr_stats(total, cfg.duration_s)

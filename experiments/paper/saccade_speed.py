@@ -11,7 +11,7 @@ acceleration (positions/s, /s²; 0.025714° each), the fixational step amplitude
 Each trial:
 
 - runs the agent closed-loop in the ``office`` scene for ``duration_s``
-  (:func:`experiments.jobs.run_agent.run_closed_loop`) and measures the **time to foveate**
+  (:func:`experiments.jobs.run_agent.closed_loop_metrics`) and measures the **time to foveate**
   (decision to settled gaze: the saccades' mean duration), the **foveation error**
   (reached minus ideal gaze for ``P``, px at the fovea), the **detection accuracy** (the
   8×8 box around ``P`` touches a moving object) and the **events per second**;
@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -48,7 +47,7 @@ from experiments.framework import (
     TrialSpec,
     load_artifacts,
 )
-from experiments.jobs.run_agent import run_closed_loop
+from experiments.jobs.run_agent import closed_loop_metrics
 from experiments.paper import main_sequence
 from experiments.paper.env_block import check_env_block, trial_env
 from experiments.paper.speed_study import AXIS_LABELS, plot_surfaces
@@ -292,15 +291,12 @@ def _closed_loop(cfg: SaccadeSpeedConfig, p: dict[str, Any], seed: int) -> dict[
         seed=seed,
     )
     try:
-        with tempfile.TemporaryDirectory() as tmp:
-            record = {"experiment": "saccade_speed", "params": p, "seed": seed}
-            run = run_closed_loop(env, agent, cfg.duration_s, Path(tmp), record, False, seed=seed)
-            link = env.unwrapped.ptu.link
-            latencies = list(link.latencies_s) if link is not None else []
+        m = closed_loop_metrics(env, agent, cfg.duration_s, seed)
+        link = env.unwrapped.ptu.link
+        latencies = list(link.latencies_s) if link is not None else []
     finally:
         agent.close()
         env.close()
-    m = run.metrics
     durations = [s.t_end - s.t_start for s in agent.saccades]
     return {
         # Command latency on the PTU's serial link (0 on the ideal unit).

@@ -10,7 +10,7 @@ shelf, the eyes making fixational movements throughout, in two conditions:
 and showed (figure only) that the fixational condition detects objects while the
 saccade condition makes "random saccadic jumps to non-informative locations".
 
-Here the closed loop (:func:`experiments.jobs.run_agent.run_closed_loop`) runs the agent for
+Here the closed loop (:func:`experiments.jobs.run_agent.closed_loop_metrics`) runs the agent for
 ``duration_s`` in the ``shelf`` (static) and ``office`` (two moving objects) scenes, in
 both conditions. As in the paper's recordings the fixational random walk goes on in both
 conditions (``saccades_fixational``; set it false for a saccade condition without any
@@ -50,7 +50,6 @@ from __future__ import annotations
 
 import json
 import math
-import tempfile
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -74,14 +73,14 @@ from experiments.framework import (
     TrialSpec,
     load_artifacts,
 )
-from experiments.jobs.run_agent import run_closed_loop
+from experiments.jobs.run_agent import closed_loop_metrics
 from experiments.jobs.scanpath_figure import (
     limits_box,
     saliency_mosaic,
     show_mosaic,
 )
 from experiments.paper.env_block import check_env_block, trial_env
-from experiments.runs.observers import RunObserver
+from experiments.runs.episode import Recorder
 from experiments.stats import ci_text, mean_std
 from wander_env.camera import SPECK_HFOV_DEG, cast_pixel, focal_length_px, pixel_to_world_angles
 from wander_env.entities import object_body_name
@@ -92,7 +91,7 @@ from wander_env.viz import save_figure
 __all__ = [
     "EXPERIMENT",
     "ScanpathConfig",
-    "ScanpathObserver",
+    "ScanpathRecorder",
     "agent_params",
     "merge_windows",
     "object_names",
@@ -207,8 +206,8 @@ def object_names(scene: SceneConfig) -> dict[str, str]:
     return names
 
 
-class ScanpathObserver(RunObserver):
-    """Watches the agent of a run (:mod:`experiments.runs.observers`): per decision the
+class ScanpathRecorder(Recorder):
+    """Watches the agent of a run (:mod:`experiments.runs.recorders`): per decision the
     saliency map, the gaze and which scene object the box around ``P`` sees (ray casts
     in ``env``'s pose when the agent decided; objects named as in the scene file,
     :func:`object_names`)."""
@@ -271,24 +270,12 @@ def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
     scene, condition = str(spec.params["scene"]), str(spec.params["condition"])
     env = trial_env(cfg.env, scene=scene, episode_seconds=cfg.duration_s + 1.0)
     agent = AttentionAgent(agent_params(cfg, condition, env), seed=spec.seed)
-    watch = ScanpathObserver(env, cfg.box)
-    record = {"experiment": "scanpath", "params": dict(spec.params), "seed": spec.seed}
+    watch = ScanpathRecorder(env, cfg.box)
     try:
-        with tempfile.TemporaryDirectory() as tmp:
-            run = run_closed_loop(
-                env,
-                agent,
-                cfg.duration_s,
-                Path(tmp),
-                record,
-                video=False,
-                seed=spec.seed,
-                observers=(watch,),
-            )
+        m = closed_loop_metrics(env, agent, cfg.duration_s, spec.seed, recorders=(watch,))
     finally:
         agent.close()
         env.close()
-    m = run.metrics
     p = agent.params
     f = focal_length_px(p.width_px, p.hfov_deg)
     centre = ((p.width_px - 1) / 2.0, (p.height_px - 1) / 2.0)

@@ -23,8 +23,10 @@ red ON, blue OFF as in :mod:`wander_env.viz`), so the viewer shows its own key.
 
 :class:`StepLogger` knows where things are in an env step (``obs``, ``info``, the env's
 camera frame) and in the :class:`~agents.attention.AttentionAgent` (OMS window map,
-saliency, P, fixations, saccades): the run-folder writers of ``wander run``, ``record`` and
-``rig`` call :func:`open_run_log` once and :meth:`StepLogger.step` after each env step.
+saliency, P, fixations, saccades): the Rerun recorder of ``wander run``, ``record`` and
+``rig`` (:class:`experiments.runs.recorders.RerunRecorder`) calls :func:`open_run_log` once,
+:meth:`StepLogger.row` after each env step and :meth:`StepLogger.write` with the rows (in
+batches, on the run's writer thread).
 
 Examples:
     >>> import numpy as np
@@ -41,6 +43,7 @@ import shutil
 import subprocess
 import sys
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -53,6 +56,7 @@ __all__ = [
     "TIMELINE",
     "RunLog",
     "StepLogger",
+    "StepRow",
     "command_text",
     "open_command",
     "open_run_log",
@@ -205,8 +209,32 @@ class RunLog:
         self.rec.disconnect()
 
 
+@dataclass
+class StepRow:
+    """What one step logs (:meth:`StepLogger.row`), copied out of the env and the agent so
+    that it can be written later, on another thread (:meth:`StepLogger.write`)."""
+
+    t: float
+    camera: np.ndarray | None
+    events: np.ndarray | None
+    oms: np.ndarray | None
+    gaze_deg: np.ndarray | None
+    ptu_target_deg: np.ndarray | None
+    object_mask: np.ndarray | None
+    #: The agent's decision at this step: (saliency, P); ``None``: none.
+    decision: tuple[np.ndarray, tuple[int, int] | None] | None = None
+    #: One line per fixation and saccade that ended at this step.
+    notes: list[str] = field(default_factory=list)
+
+
+def _copy(a: Any) -> np.ndarray | None:
+    return None if a is None else np.array(a)
+
+
 class StepLogger:
-    """Logs each step of a run (and, with an agent, its decisions and movements)."""
+    """Logs each step of a run (and, with an agent, its decisions and movements):
+    :meth:`row` takes what a step shows (in the loop), :meth:`write` logs rows (then or
+    later, on a writer thread); :meth:`step` does both."""
 
     def __init__(self, log: RunLog, env: Any) -> None:
         self.log = log
@@ -217,43 +245,63 @@ class StepLogger:
         #: centre y), the object's pixel centre where it is in front of the camera.
         self.sightings: list[tuple[str, float, float, float, float, float]] = []
 
-    def step(self, obs: dict, info: dict, agent: Any = None) -> None:
-        """Log the step just taken (``obs``, ``info`` from ``env.step``) and what the
-        agent decided in it."""
+    def row(self, obs: dict, info: dict, agent: Any = None) -> StepRow:
+        """What the step just taken (``obs``, ``info`` from ``env.step``) and the agent's
+        decision in it log; notes the step's sightings."""
         t = float(info.get("t", 0.0))
-        self.log.step(
-            t,
-            camera=getattr(self.base, "camera_frame", None),
-            events=obs.get("events"),
-            oms=None if agent is None else agent.oms_map,
-            gaze_deg=obs.get("gaze"),
-            ptu_target_deg=info.get("ptu_target_deg"),
-            object_mask=info.get("object_mask"),
-        )
         gaze = obs.get("gaze")
+        row = StepRow(
+            t,
+            camera=_copy(getattr(self.base, "camera_frame", None)),
+            events=_copy(obs.get("events")),
+            oms=None if agent is None else _copy(agent.oms_map),
+            gaze_deg=_copy(gaze),
+            ptu_target_deg=_copy(info.get("ptu_target_deg")),
+            object_mask=_copy(info.get("object_mask")),
+        )
         for o in info.get("objects", ()) if gaze is not None else ():
             cx, cy = o["centre_px"]
             if math.isfinite(cx) and math.isfinite(cy):
                 self.sightings.append((o["name"], t, float(gaze[0]), float(gaze[1]), cx, cy))
         if agent is None:
-            return
+            return row
         if agent.decided and agent.saliency is not None:
-            self.log.decision(t, agent.saliency, agent.target)
+            row.decision = (np.array(agent.saliency), agent.target)
         for fx in agent.fixations[self._fixations :]:
             where = "nothing salient" if fx.target_px is None else f"P = {tuple(fx.target_px)}"
-            self.log.annotate(
-                t,
+            row.notes.append(
                 f"fixation {fx.index}: {fx.t_start:.3f}–{fx.t_end:.3f} s at pan "
-                f"{fx.gaze_deg[0]:.2f}°, tilt {fx.gaze_deg[1]:.2f}°; {where}",
+                f"{fx.gaze_deg[0]:.2f}°, tilt {fx.gaze_deg[1]:.2f}°; {where}"
             )
         for sc in agent.saccades[self._saccades :]:
-            self.log.annotate(
-                t,
+            row.notes.append(
                 f"saccade {sc.index}: {sc.t_start:.3f}–{sc.t_end:.3f} s to P = "
                 f"{tuple(sc.target_px)}, reached pan {sc.to_gaze_deg[0]:.2f}°, tilt "
-                f"{sc.to_gaze_deg[1]:.2f}°",
+                f"{sc.to_gaze_deg[1]:.2f}°"
             )
         self._fixations, self._saccades = len(agent.fixations), len(agent.saccades)
+        return row
+
+    def write(self, rows: Sequence[StepRow]) -> None:
+        """Log ``rows`` in order."""
+        for r in rows:
+            self.log.step(
+                r.t,
+                camera=r.camera,
+                events=r.events,
+                oms=r.oms,
+                gaze_deg=r.gaze_deg,
+                ptu_target_deg=r.ptu_target_deg,
+                object_mask=r.object_mask,
+            )
+            if r.decision is not None:
+                self.log.decision(r.t, *r.decision)
+            for text in r.notes:
+                self.log.annotate(r.t, text)
+
+    def step(self, obs: dict, info: dict, agent: Any = None) -> None:
+        """Log the step just taken and what the agent decided in it."""
+        self.write([self.row(obs, info, agent)])
 
     def close(self) -> None:
         self.log.close()

@@ -1,0 +1,99 @@
+"""One step loop over an env in ``experiments/``: :func:`experiments.runs.episode.run_episode`.
+
+Read from the source with ``ast``: a ``for`` or ``while`` whose body calls ``.step(`` on
+an env (the receiver's source names an ``env``: ``env.step``, ``self.env.step``,
+``lp["env"].step``) is a step loop. Every one outside ``run_episode`` must be listed in
+:data:`EXCEPTIONS` with the reason it is not an episode under a policy with recorders;
+a listed one that is gone fails too, so the list stays true.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: (file, enclosing function) -> why its loop is not run_episode's.
+EXCEPTIONS: dict[tuple[str, str], str] = {
+    ("experiments/bench/agent.py", "bench_agent"): "a speed benchmark: times agent.act and "
+    "env.step apart, each step; a recorder's hook would sit inside the timing",
+    ("experiments/bench/agent.py", "loop_modes"): "a speed benchmark: several env + agent "
+    "loops stepped in turns, one step each per round, to time them side by side",
+    ("experiments/bench/env.py", "bench_env"): "a speed benchmark: several envs stepped in "
+    "a rotated order, one step each, each env.step timed alone",
+    ("experiments/bench/env.py", "step_breakdown"): "a speed benchmark: times the bare "
+    "env.step of a still camera with the stage's parts instrumented",
+    ("experiments/bench/fidelity.py", "run_row"): "steps the modes' envs and the reference "
+    "in lockstep on the reference's actions: several envs, one policy",
+    ("experiments/bench/floor.py", "render_floor"): "warm-up steps before timing GL calls; "
+    "no episode is run",
+    ("experiments/bench/panorama.py", "step_ms"): "a speed benchmark: frame-source variants "
+    "stepped in turns, each env.step timed alone",
+    ("experiments/paper/event_suppression.py", "record"): "resets with options (the start "
+    "gaze), replaces the animator's trajectories before the first step, and drives the "
+    "gaze by the shake's clock, not a policy reading obs",
+    ("experiments/paper/saccade_speed.py", "_main_sequence"): "forced saccades, each "
+    "stepped until it ends (a stop condition per target, not an episode's length)",
+    ("experiments/paper/sac_accuracy.py", "run_trial"): "one forced saccade stepped "
+    "until it ends (a stop condition, not an episode's length)",
+}
+THE_LOOP = ("experiments/runs/episode.py", "run_episode")
+
+
+def _is_env_step(node: ast.AST) -> bool:
+    if not (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)):
+        return False
+    return node.func.attr == "step" and "env" in ast.unparse(node.func.value).lower()
+
+
+def step_loops() -> set[tuple[str, str]]:
+    """(file, enclosing function) of every loop over ``env.step`` in ``experiments/``."""
+    found: set[tuple[str, str]] = set()
+    for path in sorted((ROOT / "experiments").rglob("*.py")):
+        tree = ast.parse(path.read_text(), str(path))
+        rel = path.relative_to(ROOT).as_posix()
+        for fn in ast.walk(tree):
+            if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            for loop in ast.walk(fn):
+                if isinstance(loop, (ast.For, ast.While)) and any(
+                    _is_env_step(n) for stmt in loop.body for n in ast.walk(stmt)
+                ):
+                    found.add((rel, fn.name))
+    return found
+
+
+def test_one_step_loop_over_an_env_in_experiments() -> None:
+    loops = step_loops()
+    assert THE_LOOP in loops
+    assert loops - {THE_LOOP} - set(EXCEPTIONS) == set(), "step the env with run_episode"
+    assert set(EXCEPTIONS) - loops == set(), "an exception whose loop is gone"
+    assert all(len(why) > 20 for why in EXCEPTIONS.values())
+
+
+def test_the_finder_sees_env_loops_and_not_other_steps() -> None:
+    source = """
+def a(env):
+    for _ in range(3):
+        obs, _, _, _, info = env.step(0)
+def b(self):
+    while True:
+        self.env.step(0)
+def c(dvs, lp):
+    for f in range(3):
+        dvs.step(f)
+    lp["env"].step(0)
+"""
+    tree = ast.parse(source)
+    hits = [
+        fn.name
+        for fn in tree.body
+        if isinstance(fn, ast.FunctionDef)
+        and any(
+            isinstance(loop, (ast.For, ast.While))
+            and any(_is_env_step(n) for s in loop.body for n in ast.walk(s))
+            for loop in ast.walk(fn)
+        )
+    ]
+    assert hits == ["a", "b"]
