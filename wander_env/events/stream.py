@@ -30,10 +30,8 @@ Examples:
 
 from __future__ import annotations
 
-import errno
 import json
 import os
-import shutil
 import struct
 import time
 from collections.abc import Mapping
@@ -44,41 +42,9 @@ import numpy as np
 
 from wander_env.closing import Closing
 from wander_env.events import EVENT_DTYPE, SensorSize, validate_events
-from wander_env.events.io import FORMAT_TAG
+from wander_env.events.io import FORMAT_TAG, OutputError, check_space, divert_h5
 
 _FIELDS = ("x", "y", "t", "p")
-#: Free bytes kept beyond a write's own size (HDF5 metadata, attributes, the run folder).
-SPACE_MARGIN = 1 << 20
-
-
-class OutputError(OSError):
-    """A result file could not be written (disk full, folder not writable): names it."""
-
-    def __init__(self, path: str | os.PathLike, cause: BaseException | str) -> None:
-        code = getattr(cause, "errno", None) if not isinstance(cause, str) else None
-        text = cause if isinstance(cause, str) else (getattr(cause, "strerror", None) or str(cause))
-        super().__init__(code or errno.EIO, text, str(path))
-
-    def __str__(self) -> str:
-        return f"cannot write {self.filename}: {self.strerror}"
-
-
-def check_space(path: str | os.PathLike, need_bytes: int) -> None:
-    """Raise :class:`OutputError` (ENOSPC) unless ``need_bytes`` + a margin are free."""
-    folder = Path(path).parent
-    try:
-        free = shutil.disk_usage(folder).free
-    except OSError as err:
-        raise OutputError(path, err) from err
-    if free < need_bytes + SPACE_MARGIN:
-        raise OutputError(
-            path,
-            OSError(
-                errno.ENOSPC,
-                f"No space left on device ({free:,} bytes free; {need_bytes:,} needed plus "
-                f"a reserve of {SPACE_MARGIN:,})",
-            ),
-        )
 
 
 class _StreamFile(Closing):
@@ -91,7 +57,9 @@ class _StreamFile(Closing):
         self._closed = True
         check_space(self.path, 0)
         try:
-            self._file = h5py.File(self.path, "w")
+            # No chunk cache: a write that fails (a full disk) fails in the write call,
+            # not later in a dealloc.
+            self._file = h5py.File(self.path, "w", rdcc_nbytes=0)
         except OSError as err:
             raise OutputError(self.path, err) from err
         self._closed = False
@@ -193,7 +161,8 @@ class H5Appender(_StreamFile):
             self.rows += n
             self._file.attrs["rows"] = self.rows
             self._file.flush()
-        except OSError as err:
+        except (OSError, RuntimeError) as err:
+            divert_h5(self._file)  # closing it later cannot segfault on the full disk
             raise OutputError(self.path, err) from err
 
     def close(self, attrs: Mapping[str, Any] | None = None) -> None:
@@ -307,7 +276,8 @@ class EventStreamWriter(_StreamFile):
             self._file.attrs["events_flushed"] = b
             self._file.attrs["t_flushed_us"] = int(chunk["t"][-1])
             self._file.flush()
-        except OSError as err:
+        except (OSError, RuntimeError) as err:
+            divert_h5(self._file)  # closing it later cannot segfault on the full disk
             raise OutputError(self.path, err) from err
         self.flushed = b
         self._index_chunk(chunk["t"], a)
