@@ -41,26 +41,55 @@ EXCEPTIONS: dict[tuple[str, str], str] = {
 THE_LOOP = ("experiments/runs/episode.py", "run_episode")
 
 
-def _is_env_step(node: ast.AST) -> bool:
-    if not (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)):
+def _names_env_step(node: ast.AST) -> bool:
+    """Whether ``node`` is an ``env.step`` attribute (the receiver's source names an env)."""
+    return (
+        isinstance(node, ast.Attribute)
+        and node.attr == "step"
+        and "env" in ast.unparse(node.value).lower()
+    )
+
+
+def _step_aliases(fn: ast.AST) -> set[str]:
+    """Names a function binds to something made of ``env.step`` (``step = timed(env.step,
+    ...)``): calling them steps the env too."""
+    return {
+        target.id
+        for node in ast.walk(fn)
+        if isinstance(node, ast.Assign) and any(_names_env_step(n) for n in ast.walk(node.value))
+        for t in node.targets
+        for target in ast.walk(t)
+        if isinstance(target, ast.Name)
+    }
+
+
+def _is_env_step(node: ast.AST, aliases: set[str] = frozenset()) -> bool:
+    if not isinstance(node, ast.Call):
         return False
-    return node.func.attr == "step" and "env" in ast.unparse(node.func.value).lower()
+    return _names_env_step(node.func) or (
+        isinstance(node.func, ast.Name) and node.func.id in aliases
+    )
+
+
+def _loops_in(fn: ast.AST) -> bool:
+    aliases = _step_aliases(fn)
+    return any(
+        isinstance(loop, (ast.For, ast.While))
+        and any(_is_env_step(n, aliases) for stmt in loop.body for n in ast.walk(stmt))
+        for loop in ast.walk(fn)
+    )
 
 
 def step_loops() -> set[tuple[str, str]]:
-    """(file, enclosing function) of every loop over ``env.step`` in ``experiments/``."""
+    """(file, enclosing function) of every loop over ``env.step`` (or a name bound to it)
+    in ``experiments/``."""
     found: set[tuple[str, str]] = set()
     for path in sorted((ROOT / "experiments").rglob("*.py")):
         tree = ast.parse(path.read_text(), str(path))
         rel = path.relative_to(ROOT).as_posix()
         for fn in ast.walk(tree):
-            if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
-                continue
-            for loop in ast.walk(fn):
-                if isinstance(loop, (ast.For, ast.While)) and any(
-                    _is_env_step(n) for stmt in loop.body for n in ast.walk(stmt)
-                ):
-                    found.add((rel, fn.name))
+            if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)) and _loops_in(fn):
+                found.add((rel, fn.name))
     return found
 
 
@@ -84,16 +113,15 @@ def c(dvs, lp):
     for f in range(3):
         dvs.step(f)
     lp["env"].step(0)
+def d(env, timed):
+    env_step = timed(env.step)
+    for _ in range(3):
+        env_step(0)
+def e(dvs, timed):
+    step = timed(dvs.step)
+    for _ in range(3):
+        step(0)
 """
     tree = ast.parse(source)
-    hits = [
-        fn.name
-        for fn in tree.body
-        if isinstance(fn, ast.FunctionDef)
-        and any(
-            isinstance(loop, (ast.For, ast.While))
-            and any(_is_env_step(n) for s in loop.body for n in ast.walk(s))
-            for loop in ast.walk(fn)
-        )
-    ]
-    assert hits == ["a", "b"]
+    hits = [fn.name for fn in tree.body if isinstance(fn, ast.FunctionDef) and _loops_in(fn)]
+    assert hits == ["a", "b", "d"]
