@@ -85,9 +85,11 @@ from experiments.framework import (
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
 from experiments.runs.trials import TrialStore
+from wander_env.config_messages import SHOWN_CHARS
 
 __all__ = [
     "BACKENDS",
+    "BackendFailed",
     "SweepConfig",
     "SweepEntry",
     "SweepResult",
@@ -300,6 +302,12 @@ class TrialCrashed(RuntimeError):
     crash); the message is one line."""
 
 
+class BackendFailed(RuntimeError):
+    """The Ray instance failed under the sweep (its raylet died: the raylet or its
+    dashboard agent killed, by hand or by the out-of-memory killer; a node lost); the
+    message is one line. The finished trials are kept: a rerun resumes."""
+
+
 def _attempt(runner: Runner, spec: TrialSpec, marks: str) -> tuple[Row, float]:
     """In a worker: run the trial with ``marks/<pid>`` naming it while it runs (a worker
     that dies leaves it behind, so the sweep knows whose trial died)."""
@@ -423,6 +431,19 @@ def _repo_root() -> str:
     return str(Path(__file__).resolve().parents[1])
 
 
+def _ray_failure(err: BaseException, unfinished: int) -> str:
+    """One line for a failure of Ray itself (:class:`BackendFailed`)."""
+    first = str(err).strip().splitlines()[0] if str(err).strip() else ""
+    why = f"{type(err).__name__}: {first}" if first else type(err).__name__
+    if len(why) > SHOWN_CHARS:
+        why = why[: SHOWN_CHARS - 3] + "..."
+    return (
+        f"the Ray instance failed mid-sweep ({why}; a raylet dies when it or its "
+        f"dashboard agent is killed, by hand or by the out-of-memory killer); {unfinished} "
+        "trial(s) not finished, the finished ones are kept: rerun to resume"
+    )
+
+
 def ray_executor(
     specs: Sequence[TrialSpec],
     address: str | None = None,
@@ -460,7 +481,13 @@ def ray_executor(
                 )
             for ref in done:
                 spec = pending.pop(ref)
-                row, secs = ray.get(ref, timeout=timeout_s)
+                try:
+                    row, secs = ray.get(ref, timeout=timeout_s)
+                except ray.exceptions.RayTaskError:  # the trial's own error
+                    raise
+                except ray.exceptions.RayError as err:  # Ray itself failed
+                    pending[ref] = spec
+                    raise BackendFailed(_ray_failure(err, len(pending))) from err
                 yield spec, row, secs
     finally:
         for ref in list(pending):

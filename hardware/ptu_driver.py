@@ -44,6 +44,7 @@ import serial
 
 from wander_env.closing import Closing
 from wander_env.config import check_fields
+from wander_env.config_messages import SHOWN_CHARS, shown
 
 try:  # the serial layer's own errors: termios.error (EIO of an unplugged adapter) is no OSError
     import termios
@@ -62,6 +63,9 @@ _NUMBER = re.compile(r"(?<![\w^.])[-+]?\d+(?:\.\d+)?(?![\w.])")
 # Asynchronous limit hits ("!P", "!T"; a reset prints "!T!T!P!P*"). Errors are "! <msg>".
 _LIMIT_HITS = re.compile(r"^(?:![PT])+")
 _AXES = ("pan", "tilt")
+# The longest reply line kept: the FLIR replies are tens of bytes; a unit (or a wrong baud
+# rate) that floods bytes with no line end fails with :class:`PTUFlood` past this many.
+MAX_LINE_BYTES = 4096
 
 
 class PTUError(RuntimeError):
@@ -79,6 +83,11 @@ class PTUTimeout(PTUError):
 
 class PTUPortError(PTUError):
     """The serial port could not be opened (missing, busy, no permission) or is closed."""
+
+
+class PTUFlood(PTUError):
+    """More than :data:`MAX_LINE_BYTES` bytes arrived with no line end (wrong baud rate,
+    a unit babbling); the message quotes the last characters only."""
 
 
 @dataclass(frozen=True)
@@ -126,6 +135,20 @@ def reply_number(text: str, command: str | None = None) -> float:
     return float(m.group())
 
 
+def _tail(value: str | list[str]) -> str:
+    """``value``'s end (of each line of a list), quoted in at most :data:`SHOWN_CHARS`
+    characters.
+
+    >>> _tail("x" * 5000 + "end") == repr("x" * 195 + "end")
+    True
+    >>> _tail(["a", "b"])
+    "['a', 'b']"
+    """
+    if isinstance(value, str):
+        return shown(value[2 - SHOWN_CHARS :])
+    return shown([v[2 - SHOWN_CHARS :] for v in value])
+
+
 class PTUProtocol:
     """Command/reply exchange over an open pyserial port; knows nothing of the unit's state.
 
@@ -157,15 +180,17 @@ class PTUProtocol:
         self.port.flush()
 
     def read_reply(self, command: str, timeout_s: float) -> str:
-        """Read until ``command``'s reply; its text on ``*``, :class:`PTUError` on ``!``."""
+        """Read until ``command``'s reply; its text on ``*``, :class:`PTUError` on ``!``,
+        :class:`PTUTimeout` after ``timeout_s``, :class:`PTUFlood` once more than
+        :data:`MAX_LINE_BYTES` bytes arrive with no line end."""
         deadline = time.monotonic() + timeout_s
         skipped: list[str] = []
         while True:
-            line = self._pop_line()
+            line = self._pop_line(command)
             if line is not None:
                 reply = parse_reply(line, command)
                 if reply is None:
-                    logging.getLogger(__name__).debug("PTU: skipped %r", line)
+                    logging.getLogger(__name__).debug("PTU: skipped %s", shown(line))
                     if line.strip():
                         skipped.append(line)
                     continue
@@ -175,9 +200,10 @@ class PTUProtocol:
                 return reply.text
             if time.monotonic() >= deadline:
                 pending = self._rx.decode("ascii", errors="replace")
-                noise = f"; lines that are no reply: {skipped[-3:]!r}" if skipped else ""
+                noise = f"; lines that are no reply: {_tail(skipped[-3:])}" if skipped else ""
                 raise PTUTimeout(
-                    f"no reply from the PTU within {timeout_s:.3g} s (received {pending!r}{noise})",
+                    f"no reply from the PTU within {timeout_s:.3g} s "
+                    f"(received {_tail(pending)}{noise})",
                     command,
                 )
             self._rx += self.port.read(max(1, self.port.in_waiting))
@@ -207,13 +233,25 @@ class PTUProtocol:
                 got += chunk
                 last = time.monotonic()
 
-    def _pop_line(self) -> str | None:
-        for i, byte in enumerate(self._rx):
-            if byte in (0x0A, 0x0D):  # LF or CR: either ends a line (D46 ends with CR alone)
-                line = self._rx[:i].decode("ascii", errors="replace")
-                del self._rx[: i + 1]
-                return line
-        return None
+    def _pop_line(self, command: str | None = None) -> str | None:
+        """The first whole line of the input (its end taken off), ``None`` if none has
+        come yet; :class:`PTUFlood` (and the input dropped) when the line would be longer
+        than :data:`MAX_LINE_BYTES`."""
+        ends = [i for i in (self._rx.find(b"\n"), self._rx.find(b"\r")) if i >= 0]
+        end = min(ends) if ends else None  # LF or CR: either ends a line (D46: CR alone)
+        if end is None and len(self._rx) <= MAX_LINE_BYTES:
+            return None
+        if end is None or end > MAX_LINE_BYTES:
+            flood = self._rx[: MAX_LINE_BYTES + 1].decode("ascii", errors="replace")
+            self._rx.clear()
+            raise PTUFlood(
+                f"the PTU sent more than {MAX_LINE_BYTES} bytes without a line end "
+                f"(wrong baud rate?), ending {_tail(flood)}",
+                command,
+            )
+        line = self._rx[:end].decode("ascii", errors="replace")
+        del self._rx[: end + 1]
+        return line
 
 
 @dataclass(frozen=True)

@@ -82,6 +82,7 @@ from hardware.replay import ReplaySource
 from hardware.speck import SpeckParams, SpeckSource
 from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.config import FieldsMapping, check_fields
+from wander_env.config_messages import shown
 from wander_env.env_base import CameraEnv, StepInfo
 from wander_env.events import empty_events
 from wander_env.events.packet import EventPacket
@@ -437,7 +438,7 @@ class RigEnv(CameraEnv):
             "discarded_at_reset": self._discarded_at_reset,
             "dropped_at_reset": self._dropped_at_reset,
             "ptu_halt": link.halt_result if link is not None else None,
-            "ptu_error": repr(link.error) if link is not None and link.error else None,
+            "ptu_error": shown(link.error) if link is not None and link.error else None,
             "camera": self.camera.stats if self.camera is not None else None,
         }
 

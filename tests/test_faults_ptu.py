@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
 import pytest
 from test_cli_rig import (  # noqa: F401  (fixtures: app, square)
     QUICK,
@@ -16,8 +17,17 @@ from test_cli_rig import (  # noqa: F401  (fixtures: app, square)
     read_folder,
     square,
 )
+from test_rig_env import make_rig, recording  # noqa: F401  (fixture: recording)
 
-from hardware.ptu_driver import FlirPTU, FlirPTUParams, PTUPortError, PTUTimeout
+from hardware.ptu_driver import (
+    MAX_LINE_BYTES,
+    FlirPTU,
+    FlirPTUParams,
+    PTUFlood,
+    PTUPortError,
+    PTUProtocol,
+    PTUTimeout,
+)
 from hardware.ptu_emulator import PTUEmulator
 
 DRIVER = FlirPTUParams(timeout_s=0.5, halt_timeout_s=0.2, banner_quiet_s=0.02)
@@ -64,6 +74,81 @@ def test_garbage_reply_is_a_timeout_that_shows_it(emu):
         with pytest.raises(PTUTimeout, match=r"lines that are no reply: \['#\$%&noise'\]"):
             _ = ptu.pan_deg
         assert ptu.pan_deg == 0.0  # the exchange is back in step
+
+
+FLOOD = "x" * 488_000 + "<end of the flood>"  # 488 KB with no line end, as a unit sent
+
+
+class FakePort:
+    """A serial port whose input is what the test puts in (``loop://`` blocks past 4 KB)."""
+
+    def __init__(self) -> None:
+        self.input = bytearray()
+
+    @property
+    def in_waiting(self) -> int:
+        return len(self.input)
+
+    def read(self, n: int) -> bytes:
+        got = bytes(self.input[:n])
+        del self.input[:n]
+        return got
+
+    def write(self, data: bytes) -> None:  # what the host sends is not echoed
+        pass
+
+    def flush(self) -> None:
+        pass
+
+    def reset_input_buffer(self) -> None:
+        self.input.clear()
+
+
+@pytest.mark.parametrize("tail", ["", "\r\n* 5\r\n"])
+def test_a_flood_with_no_line_end_is_one_short_line_and_the_input_is_dropped(tail):
+    port = FakePort()
+    proto = PTUProtocol(port)
+    port.input += (FLOOD + tail).encode("ascii")  # the line end, if any, comes too late
+    with pytest.raises(PTUFlood) as info:
+        proto.read_reply("PP", timeout_s=5.0)
+    text = str(info.value)
+    assert "\n" not in text and len(text) <= 320
+    assert text.startswith(f"the PTU sent more than {MAX_LINE_BYTES} bytes without a line end")
+    assert text.endswith("(command 'PP')")
+    # the quote is the flood's last characters, 200 at most, quotes included
+    quoted = text[text.index("ending ") + len("ending ") : text.index(" (command")]
+    assert len(quoted) == 200 and quoted.startswith("'x") and quoted.endswith("'")
+    assert info.value.command == "PP"
+    port.input += b"* 7\r\n"  # the flood (and what came with it) was dropped: back in step
+    assert proto.read_reply("PP", timeout_s=5.0) == "7"
+
+
+def test_a_line_of_exactly_the_cap_is_read():
+    port = FakePort()
+    proto = PTUProtocol(port)
+    port.input += b"* " + b"9" * (MAX_LINE_BYTES - 2) + b"\n"
+    assert proto.read_reply("PP", timeout_s=5.0) == "9" * (MAX_LINE_BYTES - 2)
+
+
+def test_a_flood_mid_run_is_a_short_error_and_a_short_ptu_error_in_the_stats(
+    recording,  # noqa: F811
+    emu,
+):
+    camera, _ = recording
+    env = make_rig(emu.port, camera, ptu_poll_s=10.0)  # no poll ("PP") before the move
+    try:
+        env.reset()
+        emu.inject_garbage("x" * (MAX_LINE_BYTES + 1000))  # then the unit's line end
+        with pytest.raises(PTUFlood) as info:  # from the step, or once the PTU thread sees it
+            env.step(np.float32((0.2, 0.0)))
+            env.settle()
+        text = str(info.value)
+        assert "\n" not in text and len(text) < 600
+        assert f"the PTU sent more than {MAX_LINE_BYTES} bytes without a line end" in text
+        stored = env.stats["ptu_error"]
+        assert stored.startswith("PTUFlood(") and len(stored) == 200  # cut to 200 characters
+    finally:
+        env.close()
 
 
 @pytest.mark.slow

@@ -214,3 +214,27 @@ def test_a_signal_while_setting_up_still_leaves_a_folder(tmp_path, monkeypatch):
     rec = read_events(out / "events.h5")
     assert len(rec.events) == 0 and rec.sensor_size == (128, 128, 2)
     assert rec.metadata["summary"] == {"steps": 0, "events": 0}
+
+
+TWICE = 8  # runs, each sent two SIGTERMs back to back
+
+
+@pytest.mark.slow
+def test_two_sigterms_back_to_back_record_the_first_and_mark_the_folder_every_time(tmp_path):
+    """The second signal of a pair lands while the first is being taken up (in a render's
+    ctypes call, in the folder's writing): it never turns into another error."""
+    for k in range(TWICE):
+        out = tmp_path / f"run-{k}"
+        proc = start(["run", "--seconds", "20", "--no-video"], out)
+        after_start(proc, out, 0.1 * k)  # at different points of a step
+        os.kill(proc.pid, signal.SIGTERM)
+        os.kill(proc.pid, signal.SIGTERM)
+        _, err = proc.communicate(timeout=240)
+        assert proc.returncode == 143, (k, err)
+        m = strict_json(out / "metrics.json")
+        assert m["signal"] == "SIGTERM", (k, m["error"])
+        assert m["error"] == "SignalExit: stopped by SIGTERM (signal 15)", k
+        steps = m["steps"]
+        assert (out / "INCOMPLETE").read_text() == (
+            f"stopped by SIGTERM (signal 15) after {steps} of 2000 steps\n"
+        ), k

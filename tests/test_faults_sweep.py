@@ -184,3 +184,64 @@ def test_a_trial_whose_worker_dies_twice_ends_the_sweep_with_one_line(tmp_path, 
     again = CountingRunner()
     res = run_sweep(sweep, out, backend="serial", runner=again)
     assert (res.ran, res.skipped) == (11, 1) and first not in again.calls
+
+
+def _kill_own_dashboard_agent(deadline_s: float) -> list[int]:
+    """SIGKILL the Ray dashboard agent started by this process (none other's), once a
+    trial's worker runs; the agents killed."""
+    import psutil
+
+    me = psutil.Process()
+    deadline = time.monotonic() + deadline_s
+    while time.monotonic() < deadline:
+        procs = me.children(recursive=True)
+        running = [p for p in procs if _cmdline(p)[:1] == ["ray::_timed"]]
+        agents = [p for p in procs if any("dashboard/agent.py" in a for a in _cmdline(p))]
+        agents = [p for p in agents if "python" in (_cmdline(p)[:1] or [""])[0]]
+        if running and agents:
+            for p in agents:
+                p.kill()
+            return [p.pid for p in agents]
+        time.sleep(0.2)
+    return []
+
+
+def _cmdline(proc) -> list[str]:
+    import psutil
+
+    try:
+        return proc.cmdline()
+    except psutil.Error:
+        return []
+
+
+@pytest.mark.slow
+def test_ray_dashboard_agent_killed_mid_sweep_is_one_line():
+    """Killing the node's dashboard agent (Ray starts one even without the dashboard)
+    takes its raylet down: the sweep ends with one line, not Ray's traceback."""
+    import threading
+
+    ray = pytest.importorskip("ray")
+    from experiments.sweep import BackendFailed, ray_executor
+
+    if ray.is_initialized():
+        pytest.skip("a Ray instance of another test is running here")
+    killed: list[int] = []
+    killer = threading.Thread(target=lambda: killed.extend(_kill_own_dashboard_agent(240.0)))
+    killer.start()
+    finished = []
+    try:
+        with pytest.raises(BackendFailed) as info:
+            for spec, _, _ in ray_executor([20.0] * 3, workers=2, runner=time.sleep):
+                finished.append(spec)
+    finally:
+        killer.join()
+    left = 3 - len(finished)  # the trials that ran to the end before the raylet went
+    assert len(killed) == 1
+    text = str(info.value)
+    assert "\n" not in text and len(text) < 600
+    assert text.startswith("the Ray instance failed mid-sweep (LocalRayletDiedError")
+    assert text.endswith(
+        f"{left} trial(s) not finished, the finished ones are kept: rerun to resume"
+    )
+    assert not ray.is_initialized()  # shut down on the way out

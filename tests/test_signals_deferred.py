@@ -62,10 +62,10 @@ def exit_code_of(command: Callable[[], None]) -> int:
     return info.value.exit_code
 
 
-def self_signalling_abs() -> Any:
+def self_signalling_abs(then: Callable[[], Any] | None = None) -> Any:
     """libc ``abs`` whose argument conversion (Python code run inside the ctypes call, as
     PyOpenGL's converters are for EGL) sends SIGTERM to this process and runs on until
-    the signal's Python handler has run there."""
+    the signal's Python handler has run there (then calls ``then``, still inside)."""
 
     class SignalsWhileConverting:
         @classmethod
@@ -73,6 +73,8 @@ def self_signalling_abs() -> Any:
             os.kill(os.getpid(), signal.SIGTERM)
             for _ in range(10_000):  # the handler runs at a bytecode boundary in here
                 pass
+            if then is not None:
+                then()
             return ctypes.c_int(value)
 
     fn = ctypes.CDLL(None).abs
@@ -119,15 +121,55 @@ def test_a_signal_after_the_loop_is_raised_when_the_block_has_finished_its_write
 
 def test_a_second_signal_wakes_a_wait_the_first_did_not(capfd):
     with pytest.raises(SignalExit) as info:
-        with handle_signals(), DeferredSignals() as signals:
+        with handle_signals(), DeferredSignals(wake_after_s=0.1) as signals:
             os.kill(os.getpid(), signal.SIGTERM)
             time.sleep(0.05)  # the first does not end a wait
             assert signals.pending
-            sender = threading.Timer(0.05, os.kill, (os.getpid(), signal.SIGINT))
+            sender = threading.Timer(0.1, os.kill, (os.getpid(), signal.SIGINT))
             sender.start()
             time.sleep(300)  # the second does
     assert info.value.name == "SIGTERM"  # the first is what stops the run
     assert capfd.readouterr().err == ""
+
+
+def test_two_signals_back_to_back_inside_a_ctypes_call_stop_between_steps(capfd):
+    def twice() -> None:  # the converter sends a second SIGTERM right after
+        os.kill(os.getpid(), signal.SIGTERM)
+        for _ in range(10_000):
+            pass
+
+    steps = []
+    with pytest.raises(SignalExit) as info:
+        with handle_signals(), DeferredSignals() as signals:
+            for k in range(3):
+                signals.check()
+                steps.append(self_signalling_abs(then=twice)(-k))
+    assert steps == [0] and info.value.name == "SIGTERM"
+    assert signals.raised is info.value
+    said = "SIGTERM: already stopping at the end of this step\n"
+    assert capfd.readouterr().err == said
+
+
+def test_the_episode_loop_reports_the_signal_that_foreign_code_turned_into_another_error():
+    from experiments.runs.episode import run_episode
+
+    class Env:
+        def reset(self, seed=None):
+            return 0, {}
+
+        def step(self, action):
+            os.kill(os.getpid(), signal.SIGTERM)  # the first: deferred
+            self_signalling_abs()(-1)  # the second, raised in a ctypes call: ArgumentError
+            return 0, 0.0, False, False, {}
+
+    class Policy:
+        def act(self, obs, info):
+            return 0
+
+    with pytest.raises(SignalExit) as info:
+        with handle_signals(), DeferredSignals(wake_after_s=0.0) as signals:
+            run_episode(Env(), Policy(), 5, signals=signals)
+    assert info.value.name == "SIGTERM" and signals.raised is info.value
 
 
 def test_a_second_signal_after_the_first_was_taken_up_is_reported_and_ignored(capfd):

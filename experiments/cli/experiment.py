@@ -162,7 +162,7 @@ def sweep(
     ] = 6 * 3600.0,
 ) -> None:
     """Run a grid of (experiment, parameters, seeds); reruns skip finished trials."""
-    from experiments.sweep import TrialCrashed, expand, load_sweep, run_sweep
+    from experiments.sweep import BackendFailed, TrialCrashed, expand, load_sweep, run_sweep
 
     try:
         sw = load_sweep(config)
@@ -189,7 +189,7 @@ def sweep(
         except TimeoutError as e:
             run.record_failure(e)
             raise fail(f"{e} ({folder}: rerun to resume)") from None
-        except TrialCrashed as e:
+        except (TrialCrashed, BackendFailed) as e:
             run.record_failure(e)
             raise fail(f"{e} ({folder})") from None
         except BaseException as e:  # a signal: the folder says so; the workers are ended

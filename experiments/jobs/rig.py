@@ -55,7 +55,7 @@ from experiments.jobs.run_agent import (
 from experiments.runs.episode import Recorder
 from experiments.runs.folder import METRICS_JSON, RunFolder
 from experiments.runs.provenance import run_record
-from hardware.ptu_driver import PTUError, PTUPortError, PTUTimeout
+from hardware.ptu_driver import PTUError, PTUFlood, PTUPortError, PTUTimeout
 from hardware.rig_env import RigConfig
 from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.strict_json import to_strict_json
@@ -218,7 +218,7 @@ def _device(err: BaseException, config: RigRunConfig) -> str | None:
 
 def _open_failure(err: Exception, config: RigRunConfig) -> RigRunError:
     device = _device(err, config) or f"camera {config.env.camera!r}"
-    if isinstance(err, PTUError) and not isinstance(err, (PTUPortError, PTUTimeout)):
+    if isinstance(err, PTUError) and not isinstance(err, (PTUPortError, PTUTimeout, PTUFlood)):
         if err.command is not None:
             why = f"the unit answered '! {err.message}' to {err.command!r}"
         else:

@@ -126,7 +126,9 @@ def run_episode(
             if terminated or truncated:
                 break
     except BaseException as exc:
-        error = exc
+        # the signal raised, also where foreign code turned it into another error
+        stop = signals.raised if signals is not None else None
+        error = stop if stop is not None else exc
         if halt is not None:
             halt()
     for r in recorders:

@@ -18,7 +18,11 @@ another exception (``ctypes.ArgumentError``) or leave the library half-way. Insi
 it deferred (:class:`SignalExit` under :func:`handle_signals`), and the end of the block
 raises one that came after the loop (while the run folder was written), so the folder
 is finished first. The waits in a step are bounded (device timeouts); a second signal
-before the loop took up the first is raised at once, wherever the main thread waits.
+before the loop took up the first is raised at once, wherever the main thread waits, once
+the first has waited ``wake_after_s`` (1 s) for the loop: one sent with it (``kill`` twice,
+a scheduler and a terminal alike) lands in the same step's foreign code, and is only
+reported. A signal that foreign code turned into another error anyway is what
+:attr:`DeferredSignals.raised` records: the episode loop reports that, not the other error.
 
 :func:`experiments.cli.errors.long_command` wraps a command in it; what a signal or a
 failed write leaves in the run folder is :class:`experiments.runs.folder.RunFolder`'s
@@ -53,6 +57,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -155,13 +160,20 @@ class DeferredSignals(Closing):
     was taken up is reported and ignored; a third ends the process at once, as under
     :func:`handle_signals`.
 
+    A second signal within ``wake_after_s`` of the first (two sent back to back) is
+    reported and not raised: the loop takes the first up at the end of the step, and
+    raising it inside the step's foreign code would turn it into another error.
+
     ``signum``: the first signal that came (``None``: none); ``pending``: it came and was
-    not raised yet.
+    not raised yet; ``raised``: the exception raised for it (``None``: not raised yet).
     """
 
-    def __init__(self, signals: tuple[int, ...] = SIGNALS) -> None:
+    def __init__(self, signals: tuple[int, ...] = SIGNALS, wake_after_s: float = 1.0) -> None:
         self.signals = signals
+        self.wake_after_s = wake_after_s
         self.signum: int | None = None
+        self.raised: BaseException | None = None
+        self._first_at = 0.0
         self._count = 0
         self._raised = False
         self._previous: dict[int, Callable[[int, Any], Any]] = {}
@@ -183,16 +195,24 @@ class DeferredSignals(Closing):
         self._count += 1
         if self._count == 1:
             self.signum = signum
-        elif not self._raised:  # the first is still waiting for the loop: raise it now
-            self.check()
-        else:
+            self._first_at = time.monotonic()
+        elif self._raised:
             _repeated(signum, self._count)
+        elif time.monotonic() - self._first_at >= self.wake_after_s:
+            self.check()  # the first waited too long for the loop (a wait): raise it now
+        else:  # sent with the first: the loop takes the first up at the end of this step
+            name = signal.Signals(signum).name
+            os.write(2, f"{name}: already stopping at the end of this step\n".encode())
 
     def check(self) -> None:
         """Raise the signal that came, if it was not raised yet (call between steps)."""
         if self.signum is not None and not self._raised:
             self._raised = True
-            self._previous[self.signum](self.signum, None)
+            try:
+                self._previous[self.signum](self.signum, None)
+            except BaseException as exc:
+                self.raised = exc
+                raise
 
     def close(self) -> None:
         """Leave the block: the handlers put back, then a signal that came and was not
