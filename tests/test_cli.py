@@ -105,8 +105,8 @@ def test_version_prints_the_version_and_the_git_revision():
 def test_run_reads_a_config_file_and_flags_override_it(tmp_path):
     config = tmp_path / "run.yaml"
     config.write_text(
-        "env: {scene: shelf, episode_seconds: 0.3}\nseed: 3\nwindow_s: 0.05\nvideo: false\n"
-        "soms_norm: minmax\n"
+        "env: {scene: shelf, episode_seconds: 0.3}\nseed: 3\nvideo: false\n"
+        "agent: {window_s: 0.05, soms: {norm: minmax}}\n"
     )
     out = tmp_path / "run"
     args = ["run", "--config", str(config), "--seed", "5", "--out", str(out)]
@@ -114,13 +114,10 @@ def test_run_reads_a_config_file_and_flags_override_it(tmp_path):
     assert result.exit_code == 0, result.output
     got = json.loads((out / "run.json").read_text())["config"]
     assert (got["env"]["scene"], got["env"]["episode_seconds"]) == ("shelf", 0.3)
-    assert {k: got[k] for k in ("seed", "window_s", "video", "soms_norm")} == {
-        "seed": 5,  # the flag given on the command line wins
-        "window_s": 0.05,
-        "video": False,
-        "soms_norm": "minmax",
-    }
-    assert got["env"]["dvs"] == "ideal" and got["alpha"] == 0.8  # neither file nor flag: defaults
+    assert (got["seed"], got["video"]) == (5, False)  # the flag given on the command line wins
+    assert (got["agent"]["window_s"], got["agent"]["soms"]["norm"]) == (0.05, "minmax")
+    # neither file nor flag: the config's defaults
+    assert got["env"]["dvs"] == "ideal" and got["agent"]["soms"]["alpha"] == 0.8
     assert not (out / "run.mp4").exists() and "real-time factor" in result.output
 
 
