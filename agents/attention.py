@@ -244,6 +244,14 @@ class AgentParams:
             ),
         )
 
+    def on_env(self, env: Any, **overrides: Any) -> AgentParams:
+        """These parameters with ``env``'s sensor size and step (:meth:`for_env`: a config's
+        ``agent`` block on the env it runs in), then ``overrides`` (a study's condition)."""
+        env_set = ("width_px", "height_px", "step_s")
+        own = {f.name: getattr(self, f.name) for f in fields(self) if f.init}
+        kept = {k: v for k, v in own.items() if k not in env_set}
+        return type(self).for_env(env, **{**kept, **overrides})
+
     @classmethod
     def for_env(cls, env: Any, **overrides: Any) -> AgentParams:
         """Parameters matched to an env: sensor size from its observation space, step

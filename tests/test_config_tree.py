@@ -12,6 +12,7 @@ import dataclasses
 import inspect
 import json
 import typing
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -119,6 +120,53 @@ def test_the_agent_settings_are_one_block_in_every_job_config(cls: type) -> None
     flat = [n for n in names if n.split(".")[-1] in AGENT_SETTINGS]
     assert flat == []
     assert typing.get_type_hints(cls)["agent"] is AgentParams
+
+
+#: The experiments that run the attention agent, and the studies of one of its components
+#: alone (the sOMS, the saliency front end: no agent), whose config holds that component's
+#: block as the thing studied.
+AGENT_EXPERIMENTS = {"sac_accuracy", "saccade_speed", "scanpath"}
+COMPONENT_STUDIES = {
+    "oms_characterisation": ["soms", "soms.alpha"],
+    "event_suppression": ["window_s", "soms", "soms.alpha", "second_soms.alpha"],
+    "detection": ["soms", "soms.alpha", "proto", "proto.polarity_split"],
+    "oms_scorecard": [],
+}
+
+
+@pytest.mark.parametrize("name", EXPERIMENT_NAMES)
+def test_an_experiment_with_an_agent_holds_its_settings_as_one_agent_block(name: str) -> None:
+    """Every experiment config is walked: one with an agent has an ``agent`` block
+    (AgentParams) and no agent setting outside it; a component study holds only its
+    component's block (listed)."""
+    cls = get_experiment(name).config_type
+    flat = [n for n in _field_names(cls) if n.split(".")[-1] in AGENT_SETTINGS]
+    if name in AGENT_EXPERIMENTS:
+        assert typing.get_type_hints(cls)["agent"] is AgentParams and flat == []
+    else:
+        assert "agent" not in typing.get_type_hints(cls) and flat == COMPONENT_STUDIES[name]
+
+
+@pytest.mark.parametrize("name", sorted(AGENT_EXPERIMENTS))
+def test_set_agent_soms_alpha_reaches_every_agent_experiment(name: str) -> None:
+    result = RUNNER.invoke(
+        app,
+        ["experiment", name, "--show-config", "--set", "agent.soms.alpha=0.5"],
+        prog_name="wander",
+    )
+    assert result.exit_code == 0, result.output
+    shown = json.loads(result.output)
+    assert shown["agent"]["soms"]["alpha"] == 0.5
+    assert resolve_config(get_experiment(name), sets=["agent.soms.alpha=0.5"]).agent.soms == (
+        replace(AgentParams().soms, alpha=0.5)
+    )
+    bad = RUNNER.invoke(
+        app, ["experiment", name, "--set", "agent.soms.alpha=x"], prog_name="wander"
+    )
+    assert bad.exit_code == 2
+    assert bad.output.strip() == (
+        "wander experiment: error: --set: agent.soms.alpha: expected float, got 'x'"
+    )
 
 
 def _command(name: str):

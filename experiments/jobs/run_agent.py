@@ -40,7 +40,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -109,10 +109,7 @@ class OneEpisodeRun:
         rig's lens ``hfov_deg`` too (``env.hfov_deg``). run.json's ``agent`` records the
         values used."""
         lens = getattr(self.env, "hfov_deg", None)  # the rig's; the sim's is the agent's
-        fixed = {"width_px", "height_px", "step_s"} | ({"hfov_deg"} if lens else set())
-        own = {f.name: getattr(self.agent, f.name) for f in fields(self.agent) if f.init}
-        kept = {k: v for k, v in own.items() if k not in fixed}
-        return AgentParams.for_env(env, **kept, **({"hfov_deg": lens} if lens else {}))
+        return self.agent.on_env(env, **({"hfov_deg": lens} if lens else {}))
 
 
 @dataclass(frozen=True)
