@@ -19,6 +19,7 @@ import pytest
 from typer.testing import CliRunner
 
 from agents.attention import AgentParams
+from experiments.benchmark.model import ModelConfig
 from experiments.cli.evaluate import EVALUATE_SECONDS
 from experiments.cli.main import app
 from experiments.cli.options import ConfigKey, flag_keys
@@ -95,7 +96,7 @@ def test_no_command_hands_its_locals_on() -> None:
 AGENT_SETTINGS = {
     f.name for f in dataclasses.fields(AgentParams) if f.name not in {"width_px", "height_px"}
 } - {"hfov_deg", "step_s"} | {"alpha", "soms_norm", "streamlined", "polarity_split"}
-JOB_CONFIGS = [RunConfig, RigRunConfig]
+JOB_CONFIGS = [RunConfig, RigRunConfig, ModelConfig]
 
 
 def _field_names(cls: type, skip: str = "agent") -> list[str]:
@@ -167,6 +168,39 @@ def test_set_agent_soms_alpha_reaches_every_agent_experiment(name: str) -> None:
     assert bad.output.strip() == (
         "wander experiment: error: --set: agent.soms.alpha: expected float, got 'x'"
     )
+
+
+@pytest.mark.parametrize(
+    ("args", "line"),
+    [
+        (
+            ["run", "--set", "agent.soms.alpha=x"],
+            "wander run: error: --set: agent.soms.alpha: expected float, got 'x'",
+        ),
+        (
+            ["evaluate", "--set", "agent.soms=bogus"],
+            "wander evaluate: error: --set: agent.soms: soms must be one of ['agent', "
+            "'paper', 'speck'] or a parameter block, got 'bogus'",
+        ),
+        (
+            ["benchmark", "suppression", ".", "--set", "agent.soms.alpha=2"],
+            "wander benchmark suppression: error: --set: agent.soms.alpha: alpha must be in "
+            "[0, 1], got 2.0",
+        ),
+        (
+            ["run", "--set", "soms.alpha=0.5"],
+            "wander run: error: --set: unknown key 'soms' for RunConfig; allowed keys: env "
+            "(WanderConfig), seed (int), video (bool), video_fps (int), agent (AgentParams)",
+        ),
+    ],
+    ids=["run", "evaluate", "benchmark", "flat"],
+)
+def test_a_bad_agent_value_is_one_line_naming_the_key_and_value(
+    args: list[str], line: str, tmp_path: Path
+) -> None:
+    result = RUNNER.invoke(app, [*args, "--out", str(tmp_path / "out")], prog_name="wander")
+    assert (result.exit_code, result.output.strip()) == (2, line)
+    assert not (tmp_path / "out").exists()
 
 
 def _command(name: str):
