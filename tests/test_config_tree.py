@@ -24,6 +24,7 @@ from experiments.cli.evaluate import EVALUATE_SECONDS
 from experiments.cli.main import app
 from experiments.cli.options import ConfigKey, flag_keys
 from experiments.framework import EXPERIMENT_NAMES, get_experiment, resolve_config
+from experiments.jobs.dvs_demo import DemoConfig
 from experiments.jobs.record import RecordConfig
 from experiments.jobs.rig import RigRunConfig
 from experiments.jobs.run_agent import RunConfig
@@ -233,6 +234,7 @@ def _at(config: object, dotted: str) -> object:
             "scene seconds dvs window fixational streamlined alpha soms_norm frames "
             "keyframe_ms quality",
         ),
+        ("demo", DemoConfig(), "seconds preset seed"),
         (
             "rig",
             RigRunConfig(RigConfig(ptu_port="emulate", camera="speck", replay="fast")),

@@ -35,7 +35,9 @@ from experiments.cli.options import (
     RunDirOpt,
     SceneOpt,
     SecondsOpt,
+    SetOpt,
     VideoOpt,
+    check_dvs,
     command_config,
     one_of,
     resolve_out,
@@ -53,22 +55,38 @@ MAX_VIDEO_FPS = 1000
 
 @long_command("wander demo")
 def demo(
+    ctx: typer.Context,
     out: RunDirOpt = None,
-    seconds: Annotated[float, seconds_option("Simulated seconds of the stimulus.")] = 1.0,
-    preset: DvsOpt = "paper",
-    seed: Annotated[int, typer.Option(help="Seed of the stimulus and the emulator's noise.")] = 0,
+    seconds: Annotated[
+        float | None,
+        seconds_option("Simulated seconds of the stimulus (default: the config's, 1)."),
+        ConfigKey("seconds"),
+    ] = None,
+    preset: Annotated[
+        str | None,
+        typer.Option(
+            callback=lambda value: None if value is None else check_dvs(value),
+            help="DVS preset: ideal, paper or speck (default: the config's, paper).",
+        ),
+        ConfigKey("preset"),
+    ] = None,
+    seed: Annotated[
+        int | None,
+        typer.Option(help="Seed of the stimulus and the emulator's noise (default: 0)."),
+        ConfigKey("seed"),
+    ] = None,
     force: ForceOpt = False,
+    set_: SetOpt = None,
 ) -> None:
-    """Drive the DVS emulator with a synthetic moving pattern; write events and a picture."""
+    """Drive the DVS emulator with a synthetic moving pattern; write events and a picture.
+    Unset flags take DemoConfig's values."""
     from experiments.jobs.demo import run_demo
     from experiments.jobs.dvs_demo import DemoConfig
 
-    try:
-        config = DemoConfig(seconds=seconds, preset=preset, seed=seed)
-    except ValueError as err:
-        raise typer.BadParameter(str(err), param_hint="'--seconds'") from None
+    config = command_config(ctx, DemoConfig)
     folder = resolve_out(out, "demo", force)
-    with step_progress("DVS demo", round(seconds * config.frame_rate_hz)) as progress:
+    steps = round(config.seconds * config.frame_rate_hz)
+    with step_progress("DVS demo", steps) as progress:
         summary = run_demo(folder.path, config, progress=progress)
     out = folder.final
     console.print(
