@@ -77,7 +77,7 @@ def test_keyframe_px_is_defined_once_as_a_field() -> None:
                         if isinstance(target, ast.Name) and target.id == "keyframe_px":
                             owners.append(f"{path.relative_to(ROOT)}:{node.name}")
     assert sorted(owners) == [
-        "experiments/bench/env.py:EnvBenchRow",
+        "experiments/perf/env.py:EnvBenchRow",
         "wander_env/env_config.py:WanderConfig",
         "wander_env/frames/source.py:FrameParams",
     ]
