@@ -49,10 +49,12 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass, field, replace
-from typing import Any
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields, replace
+from typing import Annotated, Any
 
 import numpy as np
+import pydantic
 
 from agents.control import AttentionController, ControlParams
 from agents.fixation import FIXATION_WINDOW_S, FixationalMovements, FixationParams
@@ -63,7 +65,7 @@ from agents.speck_front import SpeckFrontParams, SpeckPipeline
 from agents.torch_fork import set_torch_threads
 from wander_env.actions import gaze_degrees_to_action
 from wander_env.camera import SPECK_HFOV_DEG, pixel_to_rotation
-from wander_env.config import check_fields
+from wander_env.config import check_fields, to_plain
 
 __all__ = [
     "AGENT_SOMS",
@@ -113,6 +115,38 @@ def soms_block(name: str) -> SOMSParams | SpeckFrontParams:
     if name not in blocks:
         raise ValueError(f"soms must be one of {sorted(blocks)} or a parameter block, got {name!r}")
     return blocks[name]
+
+
+def _front_end_data(value: Any) -> Any:
+    """A front end named by a string (:func:`soms_block`) as its block's plain data, for
+    pydantic (a config file's or ``--set``'s ``agent.soms: speck``); anything else as it
+    is."""
+    return to_plain(soms_block(value)) if isinstance(value, str) else value
+
+
+def _front_end_tag(value: Any) -> str:
+    """Which block of :class:`AgentParams`'s ``soms`` a value is (pydantic validates it as
+    that block alone, so a bad value is one message): a mapping with a key only
+    :class:`agents.speck_front.SpeckFrontParams` has is one, anything else a
+    :class:`agents.soms.SOMSParams`."""
+    if isinstance(value, SpeckFrontParams):
+        return "SpeckFrontParams"
+    if isinstance(value, Mapping):
+        speck_only = {f.name for f in fields(SpeckFrontParams)} - {
+            f.name for f in fields(SOMSParams)
+        }
+        if speck_only & set(value):
+            return "SpeckFrontParams"
+    return "SOMSParams"
+
+
+#: The type of :class:`AgentParams`'s ``soms``: either block, or a name (as data).
+FrontEnd = Annotated[
+    Annotated[SOMSParams, pydantic.Tag("SOMSParams")]
+    | Annotated[SpeckFrontParams, pydantic.Tag("SpeckFrontParams")],
+    pydantic.Discriminator(_front_end_tag),
+    pydantic.BeforeValidator(_front_end_data),
+]
 
 
 @dataclass(frozen=True)
@@ -169,7 +203,7 @@ class AgentParams:
     width_px: int = 128
     height_px: int = 128
     hfov_deg: float = SPECK_HFOV_DEG
-    soms: SOMSParams | SpeckFrontParams = field(default_factory=lambda: AGENT_SOMS)
+    soms: FrontEnd = field(default_factory=lambda: AGENT_SOMS)
     proto: ProtoObjectParams = field(default_factory=ProtoObjectParams)
     control: ControlParams = field(default_factory=ControlParams)
     fixation: FixationParams = field(default_factory=FixationParams)
@@ -209,6 +243,14 @@ class AgentParams:
                 interval_s=self.window_s / n,
             ),
         )
+
+    def on_env(self, env: Any, **overrides: Any) -> AgentParams:
+        """These parameters with ``env``'s sensor size and step (:meth:`for_env`: a config's
+        ``agent`` block on the env it runs in), then ``overrides`` (a study's condition)."""
+        env_set = ("width_px", "height_px", "step_s")
+        own = {f.name: getattr(self, f.name) for f in fields(self) if f.init}
+        kept = {k: v for k, v in own.items() if k not in env_set}
+        return type(self).for_env(env, **{**kept, **overrides})
 
     @classmethod
     def for_env(cls, env: Any, **overrides: Any) -> AgentParams:

@@ -165,7 +165,7 @@ class ControlParams:
     - ``dt`` 0.001 s nengo step; ``seed`` for encoders, gains, biases, initial voltages.
     - ``stepper`` ``"fused"``: the simulator's steps run as one fused loop over the same
       arithmetic on nengo's own signal arrays (:class:`FusedSteps`, bit for bit nengo's
-      reference simulator, ≈2× faster: ``wander bench agent``); ``"nengo"``:
+      reference simulator, ≈2× faster: ``wander perf agent``); ``"nengo"``:
       ``Simulator.run_steps``.
     """
 

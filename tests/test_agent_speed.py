@@ -155,7 +155,7 @@ def test_fused_steps_only_for_the_sac_network() -> None:
 
 
 def test_compare_impls_times_old_and_new_on_the_same_inputs() -> None:
-    from experiments.bench.agent import compare_impls
+    from experiments.perf.agent import compare_impls
 
     rng = np.random.default_rng(2)
     diffs = [

@@ -1,4 +1,4 @@
-"""``wander bench agent`` and ``wander evaluate``: counts and pooling are exact."""
+"""``wander perf agent`` and ``wander evaluate``: counts and pooling are exact."""
 
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from experiments.bench.agent import bench_agent, latency_row
 from experiments.cli.main import app
 from experiments.framework import read_csv
 from experiments.jobs.evaluate_agent import QualityRow, detection_interval, pooled
+from experiments.perf.agent import bench_agent, latency_row
 from wander_env.strict_json import to_strict_json
 
 

@@ -8,8 +8,8 @@ import re
 import numpy as np
 import pytest
 
-from experiments.bench.dvs import PEERS, bench_dvs, bench_inputs, bench_peers, linear_frames
 from experiments.jobs.synthetic import drifting_texture
+from experiments.perf.dvs import PEERS, bench_dvs, bench_inputs, bench_peers, linear_frames
 from wander_env.dvs import DVSEmulator
 
 LOAD = r"^\d+\.\d\d-\d+\.\d\d$"  # the load average column: start-end

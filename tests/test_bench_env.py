@@ -1,4 +1,4 @@
-"""``wander bench env`` and the benches' clock: what the tables count (never how fast)."""
+"""``wander perf env`` and the benches' clock: what the tables count (never how fast)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import time
 
 import pytest
 
-from experiments.bench.clock import Clock, Timings, timed
-from experiments.bench.env import ENV_COLUMNS, ENV_TIME_COLUMNS, bench_env, step_breakdown
+from experiments.perf.clock import Clock, Timings, timed
+from experiments.perf.env import ENV_COLUMNS, ENV_TIME_COLUMNS, bench_env, step_breakdown
 
 LOAD = re.compile(r"^\d+\.\d\d-\d+\.\d\d$")
 

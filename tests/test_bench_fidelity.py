@@ -1,4 +1,4 @@
-"""``wander bench fidelity``: the measures, the pooling of seeds, the bar, determinism
+"""``wander perf fidelity``: the measures, the pooling of seeds, the bar, determinism
 and the command (tiny runs; the table itself is measured by the command, not here)."""
 
 from __future__ import annotations
@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 from typer.testing import CliRunner
 
-from experiments.bench.fidelity import (
+from experiments.cli.main import app
+from experiments.perf.fidelity import (
     MODES,
     ModeStats,
     Run,
@@ -19,7 +20,6 @@ from experiments.bench.fidelity import (
     row_of,
     run_row,
 )
-from experiments.cli.main import app
 from wander_env.events import EVENT_DTYPE
 
 
@@ -153,7 +153,7 @@ def test_command_prints_both_tables_and_refuses_unknown_motions() -> None:
     res = CliRunner().invoke(
         app,
         [
-            "bench",
+            "perf",
             "fidelity",
             "--scenes",
             "shelf",
@@ -174,9 +174,9 @@ def test_command_prints_both_tables_and_refuses_unknown_motions() -> None:
     assert "Frame modes against the reference (4 samples a pixel at 2000 Hz ticks)" in out
     assert "The bar, default frames against exact" in out
     assert "1 rows in" in out and "load average" in out
-    bad = CliRunner().invoke(app, ["bench", "fidelity", "--motions", "jump"])
+    bad = CliRunner().invoke(app, ["perf", "fidelity", "--motions", "jump"])
     assert bad.exit_code == 2 and "unknown ['jump']" in " ".join(bad.output.split())
 
 
 def test_command_refuses_zero_seconds() -> None:
-    assert CliRunner().invoke(app, ["bench", "fidelity", "--seconds", "0"]).exit_code == 2
+    assert CliRunner().invoke(app, ["perf", "fidelity", "--seconds", "0"]).exit_code == 2

@@ -1,4 +1,4 @@
-"""``wander bench floor``: every part timed, the bounds from the parts, the panorama's
+"""``wander perf floor``: every part timed, the bounds from the parts, the panorama's
 cube map sampled where its rays point (exact expectations)."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from experiments.bench.floor import render_floor
 from experiments.cli.main import app
+from experiments.perf.floor import render_floor
 from wander_env.frames.cube import FACE_ROTATIONS, cube_warp
 
 
@@ -50,7 +50,7 @@ def test_render_floor_times_every_part_and_bounds_each_step() -> None:
 @pytest.mark.slow
 def test_bench_floor_prints_both_tables() -> None:
     result = CliRunner().invoke(
-        app, ["bench", "floor", "--scene", "shelf", "--calls", "1", "--repeats", "1"]
+        app, ["perf", "floor", "--scene", "shelf", "--calls", "1", "--repeats", "1"]
     )
     assert result.exit_code == 0, result.output
     assert "colour key" in result.output and "real-time factor" in result.output

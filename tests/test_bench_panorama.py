@@ -1,4 +1,4 @@
-"""``wander bench panorama``: every frame mode timed on both motions, the background
+"""``wander perf panorama``: every frame mode timed on both motions, the background
 compared with a render for each way of lighting the faces (exact expectations)."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import math
 
 from typer.testing import CliRunner
 
-from experiments.bench.panorama import VARIANTS, headlight_rows, step_rows
 from experiments.cli.main import app
+from experiments.perf.panorama import VARIANTS, headlight_rows, step_rows
 
 
 def test_step_rows_time_every_mode_on_both_motions_against_the_default() -> None:
@@ -25,6 +25,6 @@ def test_headlight_rows_and_the_command() -> None:
     assert [r.headlight for r in rows] == ["camera", "face", "off"]
     camera, face, _ = rows
     assert camera.median < face.median  # the headlight held along the camera's axis
-    result = CliRunner().invoke(app, ["bench", "panorama", "--scene", "shelf", "--steps", "1"])
+    result = CliRunner().invoke(app, ["perf", "panorama", "--scene", "shelf", "--steps", "1"])
     assert result.exit_code == 0, result.output
     assert "panorama, 4x4 bilinear rays" in result.output and "lum panorama" in result.output

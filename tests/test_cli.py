@@ -17,9 +17,17 @@ runner = CliRunner()
 def test_help_lists_the_commands():
     result = runner.invoke(app, ["--help"])
     assert result.exit_code == 0
-    for name in ("demo", "bench"):
+    for name in ("demo", "perf", "benchmark"):
         assert name in result.output
-    assert runner.invoke(app, ["bench", "dvs", "--help"]).exit_code == 0
+    assert "bench " not in result.output  # the former name of perf, hidden
+    assert runner.invoke(app, ["perf", "dvs", "--help"]).exit_code == 0
+
+
+def test_bench_runs_perf_with_a_one_line_notice():
+    result = runner.invoke(app, ["bench", "dvs", "--help"])
+    assert result.exit_code == 0
+    assert result.stderr.splitlines() == ["wander bench is now wander perf"]
+    assert "bench dvs [OPTIONS]" in result.stdout and "--frames" in result.stdout
 
 
 def test_demo_writes_events_picture_and_record(tmp_path):
@@ -61,8 +69,8 @@ def test_demo_rejects_a_bad_preset(tmp_path):
     ]
 
 
-def test_bench_dvs_prints_every_row():
-    result = runner.invoke(app, ["bench", "dvs", "--frames", "20", "--repeats", "1"])
+def test_perf_dvs_prints_every_row():
+    result = runner.invoke(app, ["perf", "dvs", "--frames", "20", "--repeats", "1"])
     assert result.exit_code == 0, result.output
     # 4 scene/noise rows and 3 input paths per sensor
     assert result.output.count("128x128") == 7
@@ -84,9 +92,9 @@ def test_markdown_tables_are_printed_as_tables():
 
 
 @pytest.mark.slow
-def test_bench_dvs_peers_prints_a_row_per_peer_and_sensor():
+def test_perf_dvs_peers_prints_a_row_per_peer_and_sensor():
     # a peer that is not installed still gets its rows ("–" and a note)
-    result = runner.invoke(app, ["bench", "dvs", "--frames", "5", "--repeats", "1", "--peers"])
+    result = runner.invoke(app, ["perf", "dvs", "--frames", "5", "--repeats", "1", "--peers"])
     assert result.exit_code == 0, result.output
     assert result.output.count("ESIM") == 2
     assert result.output.count("EventEmulator") == 2
@@ -105,8 +113,8 @@ def test_version_prints_the_version_and_the_git_revision():
 def test_run_reads_a_config_file_and_flags_override_it(tmp_path):
     config = tmp_path / "run.yaml"
     config.write_text(
-        "env: {scene: shelf, episode_seconds: 0.3}\nseed: 3\nwindow_s: 0.05\nvideo: false\n"
-        "soms_norm: minmax\n"
+        "env: {scene: shelf, episode_seconds: 0.3}\nseed: 3\nvideo: false\n"
+        "agent: {window_s: 0.05, soms: {norm: minmax}}\n"
     )
     out = tmp_path / "run"
     args = ["run", "--config", str(config), "--seed", "5", "--out", str(out)]
@@ -114,13 +122,10 @@ def test_run_reads_a_config_file_and_flags_override_it(tmp_path):
     assert result.exit_code == 0, result.output
     got = json.loads((out / "run.json").read_text())["config"]
     assert (got["env"]["scene"], got["env"]["episode_seconds"]) == ("shelf", 0.3)
-    assert {k: got[k] for k in ("seed", "window_s", "video", "soms_norm")} == {
-        "seed": 5,  # the flag given on the command line wins
-        "window_s": 0.05,
-        "video": False,
-        "soms_norm": "minmax",
-    }
-    assert got["env"]["dvs"] == "ideal" and got["alpha"] == 0.8  # neither file nor flag: defaults
+    assert (got["seed"], got["video"]) == (5, False)  # the flag given on the command line wins
+    assert (got["agent"]["window_s"], got["agent"]["soms"]["norm"]) == (0.05, "minmax")
+    # neither file nor flag: the config's defaults
+    assert got["env"]["dvs"] == "ideal" and got["agent"]["soms"]["alpha"] == 0.8
     assert not (out / "run.mp4").exists() and "real-time factor" in result.output
 
 

@@ -13,6 +13,7 @@ import typer
 from PIL import Image
 from typer.testing import CliRunner
 
+from agents.attention import AgentParams
 from agents.pipeline import SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
@@ -172,7 +173,13 @@ def test_model_bad_input_is_named():
         model.process(np.zeros((2, 4, 4)), 0)
     with pytest.raises(ValueError, match=r"ModelConfig\.dt"):
         ModelConfig(dt=-1.0)
-    assert ModelConfig(streamlined=True).proto_params().polarity_split is False
+    # The paper's pipeline by default; the agent block's front end with the step dt.
+    assert ModelConfig().soms_params() == SOMSParams(dt=0.005)
+    assert ModelConfig().proto_params() == ProtoObjectParams(dt=0.005)
+    streamlined = AgentParams(soms=SOMSParams(), proto=ProtoObjectParams(polarity_split=False))
+    assert ModelConfig(agent=streamlined).proto_params().polarity_split is False
+    with pytest.raises(ValueError, match=r"^agent.soms: the benchmark scores the sOMS pipeline"):
+        ModelConfig(agent=AgentParams(soms="speck"))
     with pytest.raises(ValueError, match=r"SOMSParams\.dt=0\.01, ProtoObjectParams\.dt=0\.02"):
         SaliencyPipeline(SOMSParams(dt=0.01), ProtoObjectParams(dt=0.02))
     with pytest.raises(ValueError, match="saliency must be 'proto' or 'oms_density', got 'oms'"):
@@ -244,6 +251,8 @@ def test_events_limit_streamlined_and_resized_masks(tmp_path):
         "--max-windows",
         "2",
         "--streamlined",
+        "--set",
+        "agent.soms.alpha=0.5",
         "--sensor",
         "96x96",
         "--no-suppression",
@@ -258,7 +267,9 @@ def test_events_limit_streamlined_and_resized_masks(tmp_path):
     assert "limited to the first 2 of 6 windows" in md
     assert "fitted to it" in md
     rec = json.loads((out / "run.json").read_text())
-    assert rec["config"]["streamlined"] is True and "suppression" not in rec
+    agent = rec["config"]["agent"]
+    assert agent["proto"]["polarity_split"] is False and agent["soms"]["alpha"] == 0.5
+    assert "suppression" not in rec
     assert not (out / "suppression.csv").exists()
 
 
@@ -415,7 +426,7 @@ def test_alpha_option_on_real_eed_ball_net(tmp_path):
         )
         assert result.exit_code == 0, result.output
         rec = json.loads((out / "run.json").read_text())
-        assert rec["config"]["alpha"] == (0.8 if alpha is None else 0.5)
+        assert rec["config"]["agent"]["soms"]["alpha"] == (0.8 if alpha is None else 0.5)
         kept[alpha] = rec["suppression"]["eed_ball_net"]["events_out"]
     assert kept["0.5"] > kept[None] > 0
 

@@ -110,8 +110,8 @@ def test_run_with_an_unknown_scene_prints_one_line_and_exits_2():
             "wander rig: Invalid value for '--camera': no such event file: 'no/such.npz'",
         ),
         (
-            ["bench", "env", "--scene", "nosuch"],
-            "wander bench env: Invalid value for "
+            ["perf", "env", "--scene", "nosuch"],
+            "wander perf env: Invalid value for "
             f"'--scene': unknown scene 'nosuch'; allowed: {SCENES}",
         ),
         (

@@ -170,6 +170,9 @@ def test_emulated_ptu_and_replay_end_to_end(app, square, tmp_path, monkeypatch):
         str(out),
         "--seed",
         "3",
+        "--streamlined",
+        "--set",
+        "agent.soms.alpha=0.6",
     )
     assert result.exit_code == 0, result.output
     assert {p.name for p in out.iterdir()} == FILES | {"run.mp4"}
@@ -189,7 +192,11 @@ def test_emulated_ptu_and_replay_end_to_end(app, square, tmp_path, monkeypatch):
         "fast",
         0.5,
     )
-    assert (cfg["window_s"], cfg["fixational"], cfg["video"]) == (0.124, True, True)
+    agent = cfg["agent"]
+    assert (agent["window_s"], agent["fixational"], cfg["video"]) == (0.124, True, True)
+    # --set agent.soms.alpha and --streamlined (agent.proto.polarity_split), read back
+    assert agent["soms"]["alpha"] == run["agent"]["soms"]["alpha"] == 0.6
+    assert agent["proto"]["polarity_split"] is run["agent"]["proto"]["polarity_split"] is False
     ptu = run["rig"]["ptu"]
     assert ptu["emulated"] is True and ptu["url"] == emulators[0].port
     assert ptu["resolution_arcsec"] == [RES, RES]

@@ -20,7 +20,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("wander_env", "agents", "hardware", "experiments")
-WINGS = ("cli", "jobs", "bench", "benchmark", "paper", "runs")
+WINGS = ("cli", "jobs", "perf", "benchmark", "paper", "runs")
 
 
 def _module_name(path: Path) -> str:
@@ -100,7 +100,7 @@ def test_the_parser_sees_the_imports_it_must_see():
     # Guards the rules below: a parser that found nothing would pass every one of them.
     assert len(SOURCES) > 90
     main = {t for t, _ in GRAPH["experiments.cli.main"]}
-    groups = ("run", "evaluate", "bench", "benchmark", "experiment", "rig", "errors")
+    groups = ("run", "evaluate", "perf", "benchmark", "experiment", "rig", "errors")
     assert {f"experiments.cli.{g}" for g in groups} <= main
     assert "experiments.jobs.run_agent" in {t for t, _ in GRAPH["experiments.cli.run"]}
     assert "wander_env.camera" in {t for t, _ in GRAPH["agents.attention"]}

@@ -16,19 +16,19 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: (file, enclosing function) -> why its loop is not run_episode's.
 EXCEPTIONS: dict[tuple[str, str], str] = {
-    ("experiments/bench/agent.py", "bench_agent"): "a speed benchmark: times agent.act and "
+    ("experiments/perf/agent.py", "bench_agent"): "a speed benchmark: times agent.act and "
     "env.step apart, each step; a recorder's hook would sit inside the timing",
-    ("experiments/bench/agent.py", "loop_modes"): "a speed benchmark: several env + agent "
+    ("experiments/perf/agent.py", "loop_modes"): "a speed benchmark: several env + agent "
     "loops stepped in turns, one step each per round, to time them side by side",
-    ("experiments/bench/env.py", "bench_env"): "a speed benchmark: several envs stepped in "
+    ("experiments/perf/env.py", "bench_env"): "a speed benchmark: several envs stepped in "
     "a rotated order, one step each, each env.step timed alone",
-    ("experiments/bench/env.py", "step_breakdown"): "a speed benchmark: times the bare "
+    ("experiments/perf/env.py", "step_breakdown"): "a speed benchmark: times the bare "
     "env.step of a still camera with the stage's parts instrumented",
-    ("experiments/bench/fidelity.py", "run_row"): "steps the modes' envs and the reference "
+    ("experiments/perf/fidelity.py", "run_row"): "steps the modes' envs and the reference "
     "in lockstep on the reference's actions: several envs, one policy",
-    ("experiments/bench/floor.py", "render_floor"): "warm-up steps before timing GL calls; "
+    ("experiments/perf/floor.py", "render_floor"): "warm-up steps before timing GL calls; "
     "no episode is run",
-    ("experiments/bench/panorama.py", "step_ms"): "a speed benchmark: frame-source variants "
+    ("experiments/perf/panorama.py", "step_ms"): "a speed benchmark: frame-source variants "
     "stepped in turns, each env.step timed alone",
     ("experiments/paper/event_suppression.py", "record"): "resets with options (the start "
     "gaze), replaces the animator's trajectories before the first step, and drives the "

@@ -153,7 +153,7 @@ def test_still_static_world_matches_a_render_at_the_same_pose() -> None:
     |Δ ln lum| <= 0.02 and mean <= 0.05 (measured 0.005 and 0.033: 64 samples a pixel
     against the render's 4, the difference at edges); with the headlight off on both,
     median 0 (mean 0.033). A headlight turned with each face instead: median 0.19."""
-    from experiments.bench.panorama import background_error
+    from experiments.perf.panorama import background_error
     from wander_env.frames.panorama import PanoramaParams
 
     for headlight, median_max, mean_max in (("camera", 0.02, 0.05), ("off", 0.0, 0.05)):

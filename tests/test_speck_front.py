@@ -177,6 +177,12 @@ def test_wander_run_and_evaluate_pick_the_front_end_by_soms():
     space = {"events": SimpleNamespace(shape=(2, 128, 128))}
     env = SimpleNamespace(observation_space=space)
     env.unwrapped = SimpleNamespace(config=SimpleNamespace(control_period_s=0.01))
-    assert RunConfig(soms="speck").agent_params(env).soms == SpeckFrontParams()
-    host = RunConfig(alpha=0.6).agent_params(env).soms
+    from wander_env.config import parse_sets, validate
+
+    def agent(*sets: str) -> object:
+        return validate(RunConfig, parse_sets(sets, RunConfig), None, "--set").agent_params(env)
+
+    assert agent("agent.soms=speck").soms == SpeckFrontParams()
+    assert agent("agent.soms=speck", "agent.window_s=0.05").window_s == 0.05
+    host = agent("agent.soms.alpha=0.6").soms
     assert (host.alpha, host.norm) == (0.6, "quantile")

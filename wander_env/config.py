@@ -233,10 +233,14 @@ def to_plain(obj: Any) -> Any:
 
 
 def _merge(base: Any, values: Mapping[str, Any]) -> dict[str, Any]:
-    """``base`` (a plain dict) updated by ``values``; nested mappings update nested dicts."""
+    """``base`` (a plain dict) updated by ``values``; nested mappings update nested dicts,
+    except one with a key its dict lacks: another block (of a union field: the Speck front
+    end where the base holds an sOMS), or a mistyped key's, which replaces the dict (the
+    validator then names the key)."""
     out = dict(base) if isinstance(base, Mapping) else {}
     for k, v in values.items():
-        if isinstance(v, Mapping) and isinstance(out.get(k), Mapping):
+        old = out.get(k)
+        if isinstance(v, Mapping) and isinstance(old, Mapping) and set(v) <= set(old):
             out[k] = _merge(out[k], v)
         else:
             out[k] = v
@@ -278,8 +282,9 @@ def _on_defaults(cls: Any, values: Mapping[str, Any]) -> dict[str, Any]:
             default = f.default_factory()
         else:
             default = None
-        if dataclasses.is_dataclass(default) and not isinstance(default, type):
-            out[k] = _merge(to_plain(default), _on_defaults(type(default), v))
+        plain = to_plain(default) if dataclasses.is_dataclass(default) else None
+        if plain is not None and set(v) <= set(plain):  # else another block, as in _merge
+            out[k] = _merge(plain, _on_defaults(type(default), v))
     return out
 
 

@@ -179,7 +179,9 @@ def _walk(cls: Any, loc: Iterable[Any]) -> tuple[str, Any]:
         base = _bare(tp)
         members = _members(base)
         if members and isinstance(part, str):
-            tp = next((m for m in members if part in _tags(m)), None)
+            # the tag: a Literal field's value, or the class's name (a callable
+            # discriminator's Tag, as agents.attention.AgentParams.soms)
+            tp = next((m for m in members if part in _tags(m) or m.__name__ == part), None)
             continue
         if typing.get_origin(base) in (typing.Union, types.UnionType) and isinstance(part, str):
             # pydantic names the member it tried: a class's name, or e.g. "literal['a','b']"

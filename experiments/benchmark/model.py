@@ -2,9 +2,9 @@
 
 Both the real-data benchmarks (``wander benchmark``) and the simulated detection
 experiment (:mod:`experiments.paper.detection`) score the one sOMS → saliency pipeline of
-:mod:`agents.pipeline`; this module only maps the benchmark's flags (``--streamlined``,
-``--alpha``, the dataset's window as the nominal step: :func:`nominal_dt_s`) onto the
-pipeline's parameter blocks.
+:mod:`agents.pipeline`; this module only maps the benchmark's config (the agent's block,
+which ``--streamlined``, ``--alpha`` and ``--set agent.KEY=VALUE`` set; the dataset's
+window as the nominal step: :func:`nominal_dt_s`) onto the pipeline's parameter blocks.
 
 Examples:
     >>> pipe = ModelConfig(dt=0.01).pipeline()
@@ -17,11 +17,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Literal
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from agents.attention import AgentParams
 from agents.pipeline import SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
@@ -48,34 +48,37 @@ def nominal_dt_s(windows: Sequence[MaskWindow]) -> float:
 class ModelConfig:
     """Parameters of the benchmark model (paper defaults otherwise).
 
-    ``dt`` is the nominal step in seconds (the dataset's window); ``streamlined`` runs
-    the proto-object stage on ``V = V+ ∨ V−`` (the paper's streamlined model) instead of
-    splitting the polarities; ``alpha`` is the sOMS threshold; ``soms_conv`` picks
-    the sOMS's direct or separable convolution and ``proto_conv`` the proto-object's
-    direct or FFT one (same results); ``follow_dt`` lets each
-    call's ``dt_s`` set the LIF decay (module docstring).
+    ``dt`` is the nominal step in seconds (the dataset's window); ``follow_dt`` lets each
+    call's ``dt_s`` set the LIF decay (module docstring). ``agent`` is the agent's block
+    (:class:`agents.attention.AgentParams`) whose front end the benchmark scores: its
+    ``soms`` (the paper-literal sOMS by default: α = 0.80, min-max norm, ``conv``
+    direct or separable) and ``proto`` (``polarity_split: false`` is the paper's
+    streamlined model on ``V = V+ ∨ V−``; ``conv`` direct or FFT, same results); both
+    run with the step ``dt``. The agent's other settings (fixation window, saccades) play
+    no part in the benchmark.
     """
 
     dt: float = 0.005
-    streamlined: bool = False
-    alpha: float = 0.80
-    soms_conv: Literal["direct", "separable"] = "direct"
-    proto_conv: Literal["direct", "fft"] = "fft"
     follow_dt: bool = True
+    agent: AgentParams = field(default_factory=lambda: AgentParams(soms=SOMSParams()))
 
     def __post_init__(self) -> None:
         if not (self.dt > 0 and math.isfinite(self.dt)):
             raise ValueError(f"ModelConfig.dt must be a positive number of seconds, got {self.dt}")
+        if not isinstance(self.agent.soms, SOMSParams):
+            raise ValueError(
+                "agent.soms: the benchmark scores the sOMS pipeline; the Speck front end "
+                f"({type(self.agent.soms).__name__}) is not one"
+            )
 
     def soms_params(self) -> SOMSParams:
-        """The :class:`SOMSParams` of this config."""
-        return SOMSParams(dt=self.dt, alpha=self.alpha, conv=self.soms_conv)
+        """The :class:`SOMSParams` of this config (the agent's, with the step ``dt``)."""
+        return replace(self.agent.soms, dt=self.dt)  # type: ignore[type-var]
 
     def proto_params(self) -> ProtoObjectParams:
-        """The :class:`ProtoObjectParams` of this config."""
-        return ProtoObjectParams(
-            dt=self.dt, polarity_split=not self.streamlined, conv=self.proto_conv
-        )
+        """The :class:`ProtoObjectParams` of this config (the agent's, with the step
+        ``dt``)."""
+        return replace(self.agent.proto, dt=self.dt)
 
     def pipeline(self) -> SaliencyPipeline:
         """The :class:`agents.pipeline.SaliencyPipeline` of this config (the paper's

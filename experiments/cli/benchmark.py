@@ -44,7 +44,9 @@ from experiments.cli.options import (
     AgentAlphaOpt,
     ForceOpt,
     RunDirOpt,
+    SetOpt,
     StreamlinedOpt,
+    command_config,
     option,
     resolve_out,
     with_options,
@@ -226,7 +228,11 @@ StdOverOpt = Annotated[
 # dataset commands (evimo, llevos; in the order run.json lists them, threads and
 # progress aside).
 MAX_WINDOWS = option("max_windows", MaxWindowsOpt, None)
-MODEL_OPTIONS = (option("streamlined", StreamlinedOpt, False), option("alpha", AgentAlphaOpt, None))
+MODEL_OPTIONS = (
+    option("streamlined", StreamlinedOpt),
+    option("alpha", AgentAlphaOpt),
+    option("set_", SetOpt),
+)
 RUN_OPTIONS = (
     option("threads", ThreadsOpt, None),
     option("progress", ProgressOpt, True),
@@ -240,15 +246,21 @@ DATASET_OPTIONS = (
 )
 
 
-def _model_config(flags: dict[str, Any]) -> Any:
-    """The benchmark model's :class:`ModelConfig` of the command's ``--streamlined`` and
-    ``--alpha`` (None: the paper's 0.80)."""
+def _model_config(ctx: typer.Context) -> Any:
+    """The benchmark model's :class:`ModelConfig` of the command line: its defaults (the
+    paper's pipeline) <- ``--streamlined``, ``--alpha`` <- ``--set`` (e.g.
+    ``agent.soms.alpha=0.5``), through :func:`experiments.cli.options.command_config`."""
     from experiments.benchmark.model import ModelConfig
 
-    alpha = flags["alpha"]
-    return ModelConfig(
-        streamlined=flags["streamlined"], **({} if alpha is None else {"alpha": alpha})
-    )
+    return command_config(ctx, ModelConfig)
+
+
+def _model_record(model: Any) -> dict[str, Any]:
+    """run.json's record of the model: the agent's block (the step ``dt`` is each
+    sequence's, ``model_dt_s``)."""
+    from wander_env.config import to_plain
+
+    return {"agent": to_plain(model.agent)}
 
 
 def _check_std_over(std_over: str) -> None:
@@ -257,6 +269,7 @@ def _check_std_over(std_over: str) -> None:
 
 
 def _score_dataset(
+    ctx: typer.Context,
     label: str,
     dataset: str,
     load: Callable[[int | None], tuple[Iterable[Any], int]],
@@ -274,10 +287,11 @@ def _score_dataset(
     std_over, max_windows, progress = flags["std_over"], flags["max_windows"], flags["progress"]
     _check_std_over(std_over)
     started = time.monotonic()
+    model = _model_config(ctx)
     _set_threads(flags["threads"])
-    model = _model_config(flags)
     config = {"dataset": dataset, "path": str(flags["path"]), **options}
-    config.update({p.name: flags[p.name] for p in DATASET_OPTIONS}, alpha=model.alpha)
+    config.update({p.name: flags[p.name] for p in DATASET_OPTIONS if p not in MODEL_OPTIONS})
+    config.update(_model_record(model))
     folder = resolve_out(flags["out"], f"benchmark-{dataset}", flags["force"])
     out = folder.path
     sampler = WindowSampler()
@@ -310,6 +324,7 @@ def _score_dataset(
 @app.command("evimo")
 @with_options(DATASET_OPTIONS, RUN_OPTIONS)
 def evimo(
+    ctx: typer.Context,
     path: Annotated[
         Path,
         typer.Argument(
@@ -341,12 +356,13 @@ def evimo(
         return (load_evimo_sequence(s, window_mode, window_us) for s in sources), len(sources)
 
     options = {"subsets": subset, "window_mode": window_mode, "window_us": window_us}
-    _score_dataset("EVIMO", "evimo", load, {"path": path, "out": out, **shared}, options)
+    _score_dataset(ctx, "EVIMO", "evimo", load, {"path": path, "out": out, **shared}, options)
 
 
 @app.command("llevos")
 @with_options(DATASET_OPTIONS, RUN_OPTIONS)
 def llevos(
+    ctx: typer.Context,
     path: Annotated[
         Path,
         typer.Argument(
@@ -377,12 +393,13 @@ def llevos(
         return itertools.islice(load_llevos(path, sequence, cfg), n), n
 
     options = {"sequences": sequence, "time_unit": time_unit, "npy_columns": npy_columns}
-    _score_dataset("LLE-VOS", "llevos", load, {"path": path, "out": out, **shared}, options)
+    _score_dataset(ctx, "LLE-VOS", "llevos", load, {"path": path, "out": out, **shared}, options)
 
 
 @app.command("events")
 @with_options((MAX_WINDOWS, *MODEL_OPTIONS), RUN_OPTIONS)
 def events(
+    ctx: typer.Context,
     file: Annotated[
         Path, typer.Argument(help="Event file: .npz, .h5, .npy (x, y, t µs, p), .aedat4, .aedat.")
     ],
@@ -430,13 +447,13 @@ def events(
     sensor_size = parse_sensor(sensor) if sensor else None
     offset = parse_offset(mask_offset) if mask_offset else None
     seq_name = name or default_name(file)
+    model = _model_config(ctx)
     folder = resolve_out(out, f"benchmark-events-{seq_name}", shared["force"])
     out = folder.path
     _set_threads(shared["threads"])
     try:
         seq = load_generic(file, masks, sensor_size, window_us, name=seq_name, subset="events")
         seq = limit_windows(seq, max_windows)
-        model = _model_config(shared)
         sampler = WindowSampler()
         rows, notes, dts = _run_sequences(
             [seq],
@@ -470,8 +487,7 @@ def events(
         "window_us": window_us,
         "mask_offset_xy": offset,
         "max_windows": max_windows,
-        "streamlined": shared["streamlined"],
-        "alpha": model.alpha,
+        **_model_record(model),
         "suppression": suppression,
         "model_dt_s": dts,
     }
@@ -493,6 +509,7 @@ def events(
 @app.command("suppression")
 @with_options(MODEL_OPTIONS, RUN_OPTIONS)
 def suppression(
+    ctx: typer.Context,
     paths: Annotated[
         list[Path],
         typer.Argument(help="Event files, or folders whose event files are all read."),
@@ -518,6 +535,7 @@ def suppression(
 
     started = time.monotonic()
     sensor_size = parse_sensor(sensor) if sensor else None
+    model = _model_config(ctx)
     folder = resolve_out(out, "benchmark-suppression", shared["force"])
     out = folder.path
     _set_threads(shared["threads"])
@@ -540,7 +558,6 @@ def suppression(
                 ev = time_window(ev, t0, t0 + max_windows * window_us)
                 notes[f.stem].append(f"limited to the first {max_windows} windows")
             recs.append((f.stem, ev, rec.sensor_size))
-        model = _model_config(shared)
         results = _run_suppression(recs, window_us, model, shared["progress"])
     except (ValueError, OSError) as err:
         raise _fail(err) from None
@@ -550,8 +567,7 @@ def suppression(
         "sensor": {n: list(s) for n, _, s in recs},
         "window_us": window_us,
         "max_windows": max_windows,
-        "streamlined": shared["streamlined"],
-        "alpha": model.alpha,
+        **_model_record(model),
     }
     md = write_suppression_outputs(
         out, recs, results, config, notes, elapsed_s=time.monotonic() - started

@@ -14,6 +14,7 @@ from experiments.cli.errors import long_command
 from experiments.cli.options import (
     AGENT_OPTIONS,
     FRAME_OPTIONS,
+    ConfigKey,
     DvsOpt,
     SceneOpt,
     command_config,
@@ -23,7 +24,10 @@ from experiments.cli.options import (
     with_options,
 )
 
-__all__ = ["evaluate"]
+__all__ = ["EVALUATE_SECONDS", "evaluate"]
+
+#: The simulated seconds of each seed's run (the base config's ``env.episode_seconds``).
+EVALUATE_SECONDS = 20.0
 
 
 @long_command("wander evaluate")
@@ -37,18 +41,24 @@ def evaluate(
             "runs/evaluate-DATE-TIME/; an existing non-empty folder needs --force)."
         ),
     ] = None,
-    scene: SceneOpt = "office",
-    seconds: Annotated[float, seconds_option("Simulated seconds per seed.")] = 20.0,
+    scene: SceneOpt = None,
+    seconds: Annotated[
+        float | None,
+        seconds_option(f"Simulated seconds per seed (default: {EVALUATE_SECONDS:g})."),
+        ConfigKey("env.episode_seconds"),
+    ] = None,
     seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
-    dvs: DvsOpt = "ideal",
+    dvs: DvsOpt = None,
     **shared: Any,
 ) -> None:
-    """The agent's quality in simulation: detection accuracy, suppression, foveation error."""
+    """The agent's quality in simulation: detection accuracy, suppression, foveation error.
+    Unset flags take RunConfig's values, but 20 s a seed and no video."""
     from experiments.jobs.evaluate_agent import evaluate as run_eval
     from experiments.jobs.run_agent import RunConfig
 
     seed_list = int_list(seeds, "--seeds", "seed")
-    config = command_config(ctx, RunConfig, base=RunConfig(video=False))
+    own = {"env.episode_seconds": EVALUATE_SECONDS, "video": False}
+    config = command_config(ctx, RunConfig, defaults=own)
     folder = resolve_out(out, "evaluate", shared["force"])
     with progress_bars() as bar:
         steps = round(config.seconds / config.env.control_period_s)

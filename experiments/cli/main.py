@@ -9,7 +9,7 @@ from typing import Annotated
 
 import typer
 
-from experiments.cli import bench, benchmark, evaluate, experiment, rig, run
+from experiments.cli import benchmark, evaluate, experiment, perf, rig, run
 from experiments.cli.errors import OneLineErrors
 
 __all__ = ["app", "main", "version_text"]
@@ -52,7 +52,13 @@ def _options(
     """The options before a command (``wander --version``)."""
 
 
-app.add_typer(bench.app, name="bench")
+def _bench_is_perf() -> None:
+    """``wander bench``, the former name of ``wander perf``: a notice, then the command."""
+    typer.echo("wander bench is now wander perf", err=True)
+
+
+app.add_typer(perf.app, name="perf")
+app.add_typer(perf.app, name="bench", hidden=True, callback=_bench_is_perf)
 app.add_typer(benchmark.app, name="benchmark")
 app.command()(run.demo)
 app.command()(run.record)

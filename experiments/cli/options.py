@@ -4,27 +4,31 @@ of each flag, its help and its check. Flags that several commands take together 
 agent's switches, the frame source) are option groups, added to a command by
 :func:`with_options`.
 
-A job command's flags set its config through one table (:data:`FLAG_KEYS`: ``--frames``
-sets ``env.frames``) and the one validator (:func:`command_config`, which also reads
-``--config`` files and ``--set`` items); other checks run while the command line is
-parsed (a Click callback). Either way a bad value is refused before any work starts,
-with one line naming the option, the allowed values and the value
-(:mod:`experiments.cli.errors`).
+A job command's flag declares the config key it sets beside its option
+(:class:`ConfigKey` in its ``Annotated`` metadata: ``--frames`` sets ``env.frames``,
+``--alpha`` ``agent.soms.alpha``); unset (``None``, its default) it leaves the config's
+value, so the config class holds the one set of defaults. The flags given go through the
+one validator (:func:`command_config`, which also reads ``--config`` files and ``--set``
+items); other checks run while the command line is parsed (a Click callback). Either
+way a bad value is refused before any work starts, with one line naming the option, the
+allowed values and the value (:mod:`experiments.cli.errors`).
 
 Examples:
     >>> check_seconds(2.5), check_dvs("speck"), check_scene("office")
     (2.5, 'speck', 'office')
-    >>> check_seconds(-1.0)
-    Traceback (most recent call last):
-    ...
-    typer._click.exceptions.BadParameter: must be a finite number of seconds in (0, 86400], got -1.0
+    >>> try:
+    ...     check_seconds(-1.0)
+    ... except typer.BadParameter as err:
+    ...     print(err)
+    must be a finite number of seconds in (0, 86400], got -1.0
 """
 
 from __future__ import annotations
 
 import inspect
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
@@ -37,11 +41,11 @@ from wander_env.frames.registry import frame_modes_help
 
 __all__ = [
     "AGENT_OPTIONS",
-    "FLAG_KEYS",
     "FRAME_OPTIONS",
     "MAX_SECONDS",
     "MAX_WORKERS",
     "AgentAlphaOpt",
+    "ConfigKey",
     "DvsOpt",
     "FixationalOpt",
     "ForceOpt",
@@ -65,6 +69,7 @@ __all__ = [
     "check_wait",
     "check_workers",
     "command_config",
+    "flag_keys",
     "flag_name",
     "int_list",
     "one_of",
@@ -187,20 +192,55 @@ def int_list(text: str, flag: str, what: str = "value", minimum: int | None = No
     return values
 
 
+@dataclass(frozen=True)
+class ConfigKey:
+    """The dotted key of a job's config that a flag sets (``--alpha`` sets
+    ``agent.soms.alpha``), and ``convert``, how the flag's value becomes the key's
+    (``--streamlined`` sets ``agent.proto.polarity_split`` to its negation). It rides in
+    the flag's ``Annotated`` metadata beside its ``typer.Option`` (Typer ignores it;
+    :func:`flag_keys` reads it): the flag and its key are declared in one place.
+
+    >>> ConfigKey("agent.proto.polarity_split", negate=True).value(True)
+    False
+    """
+
+    key: str
+    negate: bool = False
+
+    def value(self, flag_value: Any) -> Any:
+        """The key's value for the flag's value."""
+        return not flag_value if self.negate else flag_value
+
+
+def _unset_or(check: Callable[[Any], Any]) -> Callable[[Any], Any]:
+    """``check`` for a flag whose ``None`` means "unset: the config's value"."""
+    return lambda value: None if value is None else check(value)
+
+
 SceneOpt = Annotated[
-    str,
-    typer.Option(callback=check_scene, help="office, gratings, shelf, hand, or a scene YAML file."),
+    str | None,
+    typer.Option(
+        callback=_unset_or(check_scene),
+        help="office, gratings, shelf, hand, or a scene YAML file.",
+    ),
+    ConfigKey("env.scene"),
 ]
-DvsOpt = Annotated[str, typer.Option(callback=check_dvs, help="DVS preset: ideal, paper or speck.")]
+DvsOpt = Annotated[
+    str | None,
+    typer.Option(callback=_unset_or(check_dvs), help="DVS preset: ideal, paper or speck."),
+    ConfigKey("env.dvs"),
+]
 
 
 def seconds_option(help: str) -> Any:
     """The ``--seconds`` option (checked: :func:`check_seconds`) with a command's own help,
-    for ``Annotated[float, seconds_option("...")]``."""
-    return typer.Option(callback=check_seconds, help=help)
+    for ``Annotated[float, seconds_option("..."), ConfigKey(...)]``."""
+    return typer.Option(callback=_unset_or(check_seconds), help=help)
 
 
-SecondsOpt = Annotated[float, seconds_option("Simulated seconds.")]
+SecondsOpt = Annotated[
+    float | None, seconds_option("Simulated seconds."), ConfigKey("env.episode_seconds")
+]
 SeedOpt = Annotated[
     int, typer.Option(callback=check_seed, help="Base seed (repeat r uses seed + r).")
 ]
@@ -220,59 +260,80 @@ ForceOpt = Annotated[
     ),
 ]
 WindowOpt = Annotated[
-    float, typer.Option(callback=check_window, help="Fixation window St_w in seconds.")
+    float | None,
+    typer.Option(
+        callback=_unset_or(check_window),
+        help="Fixation window St_w in seconds (agent.window_s; default: the config's).",
+    ),
+    ConfigKey("agent.window_s"),
 ]
-FixationalOpt = Annotated[bool, typer.Option(help="Fixational eye movements during fixations.")]
+FixationalOpt = Annotated[
+    bool | None,
+    typer.Option(
+        help="Fixational eye movements during fixations (agent.fixational; default: the config's)."
+    ),
+    ConfigKey("agent.fixational"),
+]
 StreamlinedOpt = Annotated[
-    bool,
+    bool | None,
     typer.Option(
         help="Streamlined proto-object model (V = V+ or V-, the paper's) instead of one "
-        "population per polarity."
+        "population per polarity (agent.proto.polarity_split = not streamlined; default: "
+        "the config's).",
     ),
+    ConfigKey("agent.proto.polarity_split", negate=True),
 ]
-VideoOpt = Annotated[bool, typer.Option(help="Write run.mp4.")]
+VideoOpt = Annotated[
+    bool | None, typer.Option(help="Write run.mp4 (default: the config's)."), ConfigKey("video")
+]
 AgentAlphaOpt = Annotated[
     float | None,
     typer.Option(
         min=0.0,
         max=1.0,
-        help="sOMS threshold α of Eq. (1) (default: the paper's table, 0.8).",
+        help="sOMS threshold α of Eq. (1) (agent.soms.alpha; default: the config's, the "
+        "paper's table value).",
     ),
+    ConfigKey("agent.soms.alpha"),
 ]
-
-
 SomsNormOpt = Annotated[
-    str,
+    str | None,
     typer.Option(
         "--soms-norm",
         callback=one_of(("quantile", "minmax")),
-        help="sOMS norm: quantile (the agent's) or minmax (the paper-literal sOMS).",
+        help="sOMS norm: quantile (the agent's) or minmax (the paper-literal sOMS) "
+        "(agent.soms.norm; default: the config's).",
     ),
+    ConfigKey("agent.soms.norm"),
 ]
 
 
 FramesOpt = Annotated[
-    str,
+    str | None,
     typer.Option(help="How the env makes its frames: " + frame_modes_help() + "."),
+    ConfigKey("env.frames"),
 ]
 QualityOpt = Annotated[
-    str,
+    str | None,
     typer.Option(
         help="Rendering quality: fast (4 samples a pixel, as exact rendering) or fine "
         "(16 samples a pixel: closer to the world, about 3x the rendering time).",
     ),
+    ConfigKey("env.quality"),
 ]
 KeyframeMsOpt = Annotated[
     float | None,
     typer.Option(
         help="Key interval (ms) of --frames keyframes where the image motion has no bound."
     ),
+    ConfigKey("env.keyframe_ms"),
 ]
 SetOpt = Annotated[
     list[str] | None,
     typer.Option(
         "--set",
-        help="Set any config key: --set env.keyframe_px=4 (repeatable; applied last).",
+        help="Set any config key: --set env.keyframe_px=4, --set agent.soms.alpha=0.5 "
+        "(repeatable; applied last).",
     ),
 ]
 
@@ -281,9 +342,10 @@ T = TypeVar("T")
 F = TypeVar("F", bound=Callable[..., Any])
 
 
-def option(name: str, annotation: Any, default: Any) -> inspect.Parameter:
+def option(name: str, annotation: Any, default: Any = None) -> inspect.Parameter:
     """One shared flag of an option group: the keyword ``name``, its ``Annotated`` alias
-    and its default (:func:`with_options`)."""
+    and its default (None for a flag with a :class:`ConfigKey`: unset, the config's
+    value) (:func:`with_options`)."""
     kind = inspect.Parameter.KEYWORD_ONLY
     return inspect.Parameter(name, kind, default=default, annotation=annotation)
 
@@ -313,46 +375,40 @@ def with_options(*groups: Sequence[inspect.Parameter]) -> Callable[[F], F]:
 
 
 # The agent's switches (``wander run``, ``wander evaluate``) and the env's frame source
-# with the run folder's --force and --set (``wander record``, ``run``, ``evaluate``). The
-# defaults are the config's (:class:`~wander_env.env_config.WanderConfig`): a test checks.
+# with the run folder's --force and --set (``wander record``, ``run``, ``evaluate``). A
+# flag with a ConfigKey is unset (None) by default: the run gets the config's value.
 AGENT_OPTIONS = (
-    option("streamlined", StreamlinedOpt, False),
-    option("alpha", AgentAlphaOpt, None),
-    option("soms_norm", SomsNormOpt, "quantile"),
+    option("window", WindowOpt),
+    option("fixational", FixationalOpt),
+    option("streamlined", StreamlinedOpt),
+    option("alpha", AgentAlphaOpt),
+    option("soms_norm", SomsNormOpt),
 )
 FRAME_OPTIONS = (
     option("force", ForceOpt, False),
-    option("frames", FramesOpt, "keyframes"),
-    option("keyframe_ms", KeyframeMsOpt, 2.0),
-    option("quality", QualityOpt, "fast"),
-    option("set_", SetOpt, None),
+    option("frames", FramesOpt),
+    option("keyframe_ms", KeyframeMsOpt),
+    option("quality", QualityOpt),
+    option("set_", SetOpt),
 )
 
-#: Each flag of the job commands (by its parameter name) and the dotted config key it
-#: sets: the one path from a flag to a job's config, and from there to the env
-#: (``gymnasium.make(..., **config.env)``). ``--set`` reaches every other key.
-FLAG_KEYS: dict[str, str] = {
-    "scene": "env.scene",
-    "seconds": "env.episode_seconds",
-    "dvs": "env.dvs",
-    "frames": "env.frames",
-    "keyframe_ms": "env.keyframe_ms",
-    "quality": "env.quality",
-    "ptu": "env.ptu_port",
-    "camera": "env.camera",
-    "replay": "env.replay",
-    "hfov_deg": "env.hfov_deg",
-    "seed": "seed",
-    "window": "window_s",
-    "fixational": "fixational",
-    "streamlined": "streamlined",
-    "alpha": "alpha",
-    "soms_norm": "soms_norm",
-    "video": "video",
-    "video_fps": "video_fps",
-    "policy": "policy",
-    "format": "format",
-}
+
+def flag_keys(command: Callable[..., Any]) -> dict[str, ConfigKey]:
+    """Each flag of ``command`` (a Typer command's function, by parameter name) that
+    declares a :class:`ConfigKey`, and that key.
+
+    >>> def command(alpha: AgentAlphaOpt = None, force: ForceOpt = False) -> None: ...
+    >>> flag_keys(command)
+    {'alpha': ConfigKey(key='agent.soms.alpha', negate=False)}
+    """
+    sig = inspect.signature(command, eval_str=True)
+    out = {}
+    for name, param in sig.parameters.items():
+        meta = getattr(param.annotation, "__metadata__", ())
+        keys = [m for m in meta if isinstance(m, ConfigKey)]
+        if keys:
+            out[name] = keys[0]
+    return out
 
 
 def flag_name(param: str) -> str:
@@ -364,56 +420,57 @@ def flag_name(param: str) -> str:
     return "--hfov" if param == "hfov_deg" else "--" + param.replace("_", "-")
 
 
-def _flag_values(ctx: typer.Context, given_only: bool) -> dict[str, Any]:
-    """The dotted keys and values of the command's flags of :data:`FLAG_KEYS` (an
-    optional flag left unset, ``None``, sets nothing); only those typed on the command
-    line with ``given_only``."""
-    from typer._click.core import ParameterSource
-
-    out = {}
-    for name, value in ctx.params.items():
-        key = FLAG_KEYS.get(name)
-        if key is None or value is None:
-            continue
-        if given_only and ctx.get_parameter_source(name) is not ParameterSource.COMMANDLINE:
-            continue
-        out[key] = value
-    return out
+def _flag_values(ctx: typer.Context) -> tuple[dict[str, Any], dict[str, str]]:
+    """The dotted keys and values the command's flags set (a flag left unset, ``None``,
+    sets nothing), and each key's flag (for messages)."""
+    values, flags = {}, {}
+    for name, key in flag_keys(ctx.command.callback).items():  # type: ignore[arg-type]
+        value = ctx.params.get(name)
+        if value is not None:
+            values[key.key] = key.value(value)
+            flags[key.key] = flag_name(name)
+    return values, flags
 
 
-def _flags_error(text: str) -> typer.BadParameter:
+def _flags_error(text: str, flags: dict[str, str]) -> typer.BadParameter:
     """A config error of the flags' layer as a usage error on the flag that set the key."""
-    for name, key in FLAG_KEYS.items():
+    for key, flag in flags.items():
         if text.startswith(f"{key}: "):
-            return typer.BadParameter(text[len(key) + 2 :], param_hint=f"'{flag_name(name)}'")
+            return typer.BadParameter(text[len(key) + 2 :], param_hint=f"'{flag}'")
     return typer.BadParameter(text)
 
 
 def command_config(
     ctx: typer.Context,
     cls: Callable[..., T],
-    base: T | None = None,
+    defaults: Mapping[str, Any] | None = None,
     config_file: Path | None = None,
 ) -> T:
-    """A job's config ``cls`` from its command line, in layers: ``base`` (or the class's
-    defaults) <- every flag of :data:`FLAG_KEYS` <- the ``--config`` file <- the flags typed
-    on the command line <- ``--set`` items. Each layer goes through the one validator
-    (:func:`wander_env.config.validate`), so a bad value is one line naming its flag, file
-    or ``--set`` (exit 2) before anything runs."""
+    """A job's config ``cls`` from its command line, in layers: the class's defaults <-
+    the command's own ``defaults`` (dotted keys: ``{"env.episode_seconds": 20.0}``, for a
+    command whose runs differ from the class's) <- the ``--config`` file <- the flags given
+    (each sets the key of its :class:`ConfigKey`) <- ``--set`` items. Each layer goes
+    through the one validator (:func:`wander_env.config.validate`), so a bad value is one
+    line naming its flag, file or ``--set`` (exit 2) before anything runs."""
     from experiments.cli.errors import fail
     from experiments.framework import load_yaml_mapping
     from wander_env.config import ConfigError, parse_sets, validate
 
-    config: Any = base
-    try:
-        config = validate(cls, _flag_values(ctx, given_only=False), config)  # type: ignore[arg-type]
-    except ConfigError as err:
-        raise _flags_error(str(err)) from None
+    config: Any = None
+    lead = dict(defaults or {})  # validated with the next layer (it may not stand alone)
     try:
         if config_file is not None:
             file_values = load_yaml_mapping(config_file)
-            config = validate(cls, file_values, config, str(config_file))  # type: ignore[arg-type]
-            config = validate(cls, _flag_values(ctx, given_only=True), config)  # type: ignore[arg-type]
+            config = validate(cls, {**lead, **file_values}, None, str(config_file))  # type: ignore[arg-type]
+            lead = {}
+    except ConfigError as err:
+        raise fail(err) from None
+    values, flags = _flag_values(ctx)
+    try:
+        config = validate(cls, {**lead, **values}, config)  # type: ignore[arg-type]
+    except ConfigError as err:
+        raise _flags_error(str(err), flags) from None
+    try:
         sets = ctx.params.get("set_") or []
         if sets:
             config = validate(cls, parse_sets(sets, cls), config, "--set")  # type: ignore[arg-type]

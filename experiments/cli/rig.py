@@ -22,10 +22,12 @@ from experiments.cli.console import console, step_progress
 from experiments.cli.errors import long_command
 from experiments.cli.options import (
     AgentAlphaOpt,
+    ConfigKey,
     FixationalOpt,
     ForceOpt,
     RunDirOpt,
     SetOpt,
+    SomsNormOpt,
     StreamlinedOpt,
     VideoOpt,
     WindowOpt,
@@ -35,7 +37,6 @@ from experiments.cli.options import (
 )
 from experiments.runs.failure import exit_code
 from experiments.runs.signals import SignalExit
-from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.events.checks import EventFileError
 
 
@@ -77,6 +78,10 @@ def dropped_warning(metrics: dict[str, Any]) -> str | None:
     )
 
 
+#: ``wander rig``'s own default (RigConfig's is "realtime"): a replay runs fast.
+RIG_DEFAULTS = {"env.replay": "fast"}
+
+
 @long_command("wander rig")
 def rig(
     ctx: typer.Context,
@@ -86,6 +91,7 @@ def rig(
             help="The PTU's serial port or pyserial URL (/dev/ttyUSB0, socket://host:4000), "
             "or 'emulate' for the protocol emulator."
         ),
+        ConfigKey("env.ptu_port"),
     ],
     camera: Annotated[
         str,
@@ -93,39 +99,54 @@ def rig(
             help="'speck', 'speck:<serial number>', or 'replay:<event file>' "
             "(.npz, .h5, .npy, .aedat4, .aedat)."
         ),
+        ConfigKey("env.camera"),
     ],
     replay: Annotated[
-        str,
+        str | None,
         typer.Option(
             help="Replay pacing: 'fast' (windows advance in stream time, so every step's "
-            "events are fixed by the file) or 'realtime' (paced by the wall clock, like a "
-            "live camera). Ignored for a Speck."
+            "events are fixed by the file; the default) or 'realtime' (paced by the wall "
+            "clock, like a live camera). Ignored for a Speck."
         ),
-    ] = "fast",
-    seconds: Annotated[float, seconds_option("Run length in seconds of camera time.")] = 10.0,
+        ConfigKey("env.replay"),
+    ] = None,
+    seconds: Annotated[
+        float | None,
+        seconds_option("Run length in seconds of camera time (default: the config's, 10)."),
+        ConfigKey("env.episode_seconds"),
+    ] = None,
     hfov_deg: Annotated[
-        float,
+        float | None,
         typer.Option(
             "--hfov",
             help="The lens's horizontal field of view in degrees (default: the Speck's, "
             "2·atan(5.12/3.4) = 112.8°). A recording from another camera (e.g. a DVS128) "
             "needs its own lens's; run.json records the value used.",
         ),
-    ] = SPECK_HFOV_DEG,
-    seed: Annotated[int, typer.Option(help="Seed of the agent (walk, controller).")] = 0,
+        ConfigKey("env.hfov_deg"),
+    ] = None,
+    seed: Annotated[
+        int | None,
+        typer.Option(help="Seed of the agent (walk, controller; default: 0)."),
+        ConfigKey("seed"),
+    ] = None,
     out: RunDirOpt = None,
-    window: WindowOpt = 0.124,
-    fixational: FixationalOpt = True,
-    streamlined: StreamlinedOpt = False,
+    window: WindowOpt = None,
+    fixational: FixationalOpt = None,
+    streamlined: StreamlinedOpt = None,
     alpha: AgentAlphaOpt = None,
-    video: VideoOpt = True,
+    soms_norm: SomsNormOpt = None,
+    video: VideoOpt = None,
     force: ForceOpt = False,
     set_: SetOpt = None,
 ) -> None:
-    """Run the attention agent closed-loop on the rig; write the run folder of `wander run`."""
+    """Run the attention agent closed-loop on the rig; write the run folder of `wander run`.
+    Unset flags take RigRunConfig's values (`--set agent.KEY=VALUE` reaches every agent
+    parameter)."""
     from experiments.jobs.rig import RigRunConfig, RigRunError, run_rig
 
-    config = command_config(ctx, RigRunConfig)
+    config = command_config(ctx, RigRunConfig, defaults=RIG_DEFAULTS)
+    camera = config.env.camera
     replay_file = Path(camera[len("replay:") :]) if camera.startswith("replay:") else None
     if replay_file is not None and not replay_file.is_file():
         raise typer.BadParameter(
@@ -134,7 +155,9 @@ def rig(
     folder = resolve_out(out, "rig", force)
     out = folder.final
     try:
-        with step_progress(f"agent on the rig ({camera})", round(seconds / 0.01)) as progress:
+        with step_progress(
+            f"agent on the rig ({camera})", round(config.seconds / config.env.control_period_s)
+        ) as progress:
             result = run_rig(folder.path, config, progress=progress)
     except RigRunError as err:
         typer.echo(f"wander rig: {err}", err=True)
@@ -160,4 +183,4 @@ def register(app: typer.Typer) -> None:
     app.command("rig")(rig)
 
 
-__all__ = ["dropped_warning", "register", "rig", "summary_line"]
+__all__ = ["RIG_DEFAULTS", "dropped_warning", "register", "rig", "summary_line"]

@@ -9,8 +9,9 @@ Rerun viewer on one. :mod:`experiments.cli.main` registers them.
     env:
       scene: shelf
       episode_seconds: 5.0
-    window_s: 0.05
-    soms_norm: minmax
+    agent:
+      window_s: 0.05
+      soms: {norm: minmax}
 
 A flag given on the command line, then ``--set``, overrides the file's value
 (:func:`experiments.cli.options.command_config`).
@@ -28,14 +29,15 @@ from experiments.cli.errors import long_command
 from experiments.cli.options import (
     AGENT_OPTIONS,
     FRAME_OPTIONS,
+    ConfigKey,
     DvsOpt,
-    FixationalOpt,
     ForceOpt,
     RunDirOpt,
     SceneOpt,
     SecondsOpt,
+    SetOpt,
     VideoOpt,
-    WindowOpt,
+    check_dvs,
     command_config,
     one_of,
     resolve_out,
@@ -53,22 +55,38 @@ MAX_VIDEO_FPS = 1000
 
 @long_command("wander demo")
 def demo(
+    ctx: typer.Context,
     out: RunDirOpt = None,
-    seconds: Annotated[float, seconds_option("Simulated seconds of the stimulus.")] = 1.0,
-    preset: DvsOpt = "paper",
-    seed: Annotated[int, typer.Option(help="Seed of the stimulus and the emulator's noise.")] = 0,
+    seconds: Annotated[
+        float | None,
+        seconds_option("Simulated seconds of the stimulus (default: the config's, 1)."),
+        ConfigKey("seconds"),
+    ] = None,
+    preset: Annotated[
+        str | None,
+        typer.Option(
+            callback=lambda value: None if value is None else check_dvs(value),
+            help="DVS preset: ideal, paper or speck (default: the config's, paper).",
+        ),
+        ConfigKey("preset"),
+    ] = None,
+    seed: Annotated[
+        int | None,
+        typer.Option(help="Seed of the stimulus and the emulator's noise (default: 0)."),
+        ConfigKey("seed"),
+    ] = None,
     force: ForceOpt = False,
+    set_: SetOpt = None,
 ) -> None:
-    """Drive the DVS emulator with a synthetic moving pattern; write events and a picture."""
+    """Drive the DVS emulator with a synthetic moving pattern; write events and a picture.
+    Unset flags take DemoConfig's values."""
     from experiments.jobs.demo import run_demo
     from experiments.jobs.dvs_demo import DemoConfig
 
-    try:
-        config = DemoConfig(seconds=seconds, preset=preset, seed=seed)
-    except ValueError as err:
-        raise typer.BadParameter(str(err), param_hint="'--seconds'") from None
+    config = command_config(ctx, DemoConfig)
     folder = resolve_out(out, "demo", force)
-    with step_progress("DVS demo", round(seconds * config.frame_rate_hz)) as progress:
+    steps = round(config.seconds * config.frame_rate_hz)
+    with step_progress("DVS demo", steps) as progress:
         summary = run_demo(folder.path, config, progress=progress)
     out = folder.final
     console.print(
@@ -77,45 +95,59 @@ def demo(
     )
 
 
+#: ``--seed`` of the job commands (``run``, ``record``): the config's ``seed``.
+JobSeedOpt = Annotated[
+    int | None,
+    typer.Option(help="Seed of the env, the policy or walk, and the controller."),
+    ConfigKey("seed"),
+]
+
+
 @long_command("wander record")
 @with_options(FRAME_OPTIONS)
 def record(
     ctx: typer.Context,
     out: RunDirOpt = None,
-    scene: SceneOpt = "office",
-    seconds: SecondsOpt = 5.0,
+    scene: SceneOpt = None,
+    seconds: SecondsOpt = None,
     policy: Annotated[
-        str,
+        str | None,
         typer.Option(
             callback=one_of(("still", "fixational", "saccades")),
             help="still, fixational or saccades.",
         ),
-    ] = "fixational",
-    dvs: DvsOpt = "ideal",
-    seed: Annotated[int, typer.Option(help="Seed of the env and the policy.")] = 0,
-    video: Annotated[bool, typer.Option(help="Write video.mp4 (camera | events).")] = True,
+        ConfigKey("policy"),
+    ] = None,
+    dvs: DvsOpt = None,
+    seed: JobSeedOpt = None,
+    video: Annotated[
+        bool | None, typer.Option(help="Write video.mp4 (camera | events)."), ConfigKey("video")
+    ] = None,
     format: Annotated[
-        str,
+        str | None,
         typer.Option(
             "--format",
             callback=one_of(("h5", "aedat4", "evt3", "evimo2")),
             help="Events as h5, aedat4 or evt3 (.raw); or evimo2: the EVIMO2v2 layout "
             "(events + per-step masks) that `wander benchmark evimo` scores.",
         ),
-    ] = "h5",
+        ConfigKey("format"),
+    ] = None,
     **shared: Any,
 ) -> None:
-    """Record events, ground truth and a video of the env under a simple gaze policy."""
+    """Record events, ground truth and a video of the env under a simple gaze policy.
+    Unset flags take RecordConfig's values (5 s of the office, fixational, h5, video)."""
     from experiments.jobs.record import RecordConfig
     from experiments.jobs.record import record as run
 
     config = command_config(ctx, RecordConfig)
-    out, summary = run_env_job(run, config, out, shared["force"], "record", f"record {scene}")
+    title = f"record {config.env.scene}"
+    out, summary = run_env_job(run, config, out, shared["force"], "record", title)
     console.print(f"{summary['events']:,} events over {summary['steps']} steps -> {out}")
 
 
-def _check_video_fps(value: int) -> int:
-    if not 1 <= value <= MAX_VIDEO_FPS:
+def _check_video_fps(value: int | None) -> int | None:
+    if value is not None and not 1 <= value <= MAX_VIDEO_FPS:
         raise typer.BadParameter(f"must be 1 to {MAX_VIDEO_FPS} frames a second, got {value}")
     return value
 
@@ -125,33 +157,36 @@ def _check_video_fps(value: int) -> int:
 def run_agent(
     ctx: typer.Context,
     out: RunDirOpt = None,
-    scene: SceneOpt = "office",
-    seconds: SecondsOpt = 10.0,
-    seed: Annotated[int, typer.Option(help="Seed of the env, the walk and the controller.")] = 0,
-    dvs: DvsOpt = "ideal",
-    window: WindowOpt = 0.124,
-    fixational: FixationalOpt = True,
-    video: VideoOpt = True,
+    scene: SceneOpt = None,
+    seconds: SecondsOpt = None,
+    seed: JobSeedOpt = None,
+    dvs: DvsOpt = None,
+    video: VideoOpt = None,
     video_fps: Annotated[
-        int,
+        int | None,
         typer.Option(
             callback=_check_video_fps,
-            help="run.mp4's frames per simulated second (a frame is composed only when due).",
+            help="run.mp4's frames per simulated second (a frame is composed only when "
+            "due; default: the config's, 30).",
         ),
-    ] = 30,
+        ConfigKey("video_fps"),
+    ] = None,
     config: Annotated[
         Path | None,
         typer.Option(
             exists=True,
             dir_okay=False,
             help="A YAML file of the run's settings (RunConfig keys: env (scene, dvs, "
-            "frames, episode_seconds, ...), seed, window_s, ...; the format of `wander "
-            "experiment --config`). Flags given on the command line and --set override it.",
+            "frames, episode_seconds, ...), seed, video, agent (window_s, soms, proto, "
+            "...); the format of `wander experiment --config`). Flags given on the "
+            "command line and --set override it.",
         ),
     ] = None,
     **shared: Any,
 ) -> None:
-    """Run the attention agent closed-loop in a scene; write the run folder."""
+    """Run the attention agent closed-loop in a scene; write the run folder. Unset flags
+    take RunConfig's values (10 s of the office, the paper's agent: `--set agent.KEY=VALUE`
+    reaches every agent parameter)."""
     from experiments.jobs.run_agent import RunConfig
     from experiments.jobs.run_agent import run as run_loop
 

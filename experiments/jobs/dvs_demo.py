@@ -34,13 +34,13 @@ class DemoConfig:
     panel_ms: float = 20.0  # each shows this much time
 
     def __post_init__(self) -> None:
-        if self.seconds <= 0 or self.frame_rate_hz <= 0:
-            raise ValueError(
-                f"seconds and frame_rate_hz must be > 0, got {self.seconds}, {self.frame_rate_hz}"
-            )
+        for name in ("seconds", "frame_rate_hz"):  # "field: what is wrong" (wander_env.config)
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name}: must be > 0, got {getattr(self, name)}")
         if self.panels < 1 or self.panel_ms * self.panels > self.seconds * 1000:
             raise ValueError(
-                f"{self.panels} panels of {self.panel_ms} ms do not fit in {self.seconds} s"
+                f"seconds: {self.panels} panels of {self.panel_ms} ms do not fit in "
+                f"{self.seconds} s"
             )
 
 

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -42,13 +42,11 @@ import gymnasium as gym
 import numpy as np
 import pydantic
 
-from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent
-from agents.fixation import FIXATION_WINDOW_S
+from agents.attention import AgentParams, AttentionAgent
 from experiments.framework import MAX_SEED
 from experiments.jobs.run_agent import (
     VIDEO_FPS,
     OneEpisodeRun,
-    RunConfig,
     RunResult,
     run_for_config,
 )
@@ -70,8 +68,8 @@ class RigRunConfig(OneEpisodeRun):
     camera ``"speck"``, ``"speck:<serial>"`` or ``"replay:<event file>"``, the replay's
     pacing, ``episode_seconds`` as the run's length (a replay that ends earlier ends the
     run), ``hfov_deg`` as the lens's field of view, the device parameter blocks);
-    ``seed``, ``window_s``, ``fixational``, ``streamlined``, ``alpha``, ``video``,
-    ``video_fps``: as ``wander run``.
+    ``seed``, ``video``, ``video_fps`` and the agent's block ``agent``: as ``wander run``
+    (the agent's sensor, step and lens are the rig's).
 
     >>> RigRunConfig(RigConfig(ptu_port="emulate", camera="replay:walk.npz")).seconds
     10.0
@@ -79,24 +77,9 @@ class RigRunConfig(OneEpisodeRun):
 
     env: RigConfig
     seed: Annotated[int, pydantic.Field(ge=0, le=MAX_SEED)] = 0
-    window_s: Annotated[float, pydantic.Field(gt=0)] = FIXATION_WINDOW_S
-    fixational: bool = True
-    streamlined: bool = False
-    alpha: Annotated[float, pydantic.Field(ge=0, le=1)] = AGENT_SOMS_ALPHA
     video: bool = True
     video_fps: Annotated[int, pydantic.Field(ge=1, le=1000)] = VIDEO_FPS
-
-    def agent_params(self, env: Any) -> AgentParams:
-        """The agent of ``wander run`` with these switches, matched to the rig's sensor and
-        lens."""
-        run = RunConfig(
-            seed=self.seed,
-            window_s=self.window_s,
-            fixational=self.fixational,
-            streamlined=self.streamlined,
-            alpha=self.alpha,
-        )
-        return replace(run.agent_params(env), hfov_deg=self.env.hfov_deg)
+    agent: AgentParams = field(default_factory=AgentParams)
 
 
 class RigRunError(RuntimeError):

@@ -40,16 +40,14 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 import numpy as np
 import pydantic
 
-from agents.attention import AGENT_SOMS, AGENT_SOMS_ALPHA, AgentParams, AttentionAgent, soms_block
-from agents.fixation import FIXATION_WINDOW_S
-from agents.proto_object import ProtoObjectParams
+from agents.attention import AgentParams, AttentionAgent
 from experiments import scanpath_stats
 from experiments.framework import MAX_SEED
 from experiments.jobs.scanpath_figure import plot_scanpath
@@ -94,7 +92,8 @@ VIDEO_FPS = 30
 
 class OneEpisodeRun:
     """What the configs of ``wander run`` and ``wander rig`` share: their fields checked
-    against their annotations, and the run one episode of their ``env`` block long."""
+    against their annotations, the run one episode of their ``env`` block long, and the
+    agent of their ``agent`` block matched to the env."""
 
     def __post_init__(self) -> None:
         check_annotated(self)
@@ -104,37 +103,32 @@ class OneEpisodeRun:
         """The run's length: one episode."""
         return self.env.episode_seconds
 
+    def agent_params(self, env: Any) -> AgentParams:
+        """The ``agent`` block with the env's sensor (``width_px``, ``height_px``) and
+        control period (``step_s``) (:meth:`agents.attention.AgentParams.for_env`); the
+        rig's lens ``hfov_deg`` too (``env.hfov_deg``). run.json's ``agent`` records the
+        values used."""
+        lens = getattr(self.env, "hfov_deg", None)  # the rig's; the sim's is the agent's
+        return self.agent.on_env(env, **({"hfov_deg": lens} if lens else {}))
+
 
 @dataclass(frozen=True)
 class RunConfig(OneEpisodeRun):
     """What ``wander run`` runs: the env's block (scene, DVS preset, frames; its
-    ``episode_seconds`` is the run's length), the seed and the agent's main switches
-    (the paper's defaults; ``alpha`` is the sOMS threshold on the agent's quantile norm,
-    :data:`agents.attention.AGENT_SOMS_ALPHA`; ``soms_norm="minmax"`` runs the
-    paper-literal sOMS; ``soms="speck"`` (``--set soms=speck``) runs the front end shaped
-    for Speck's cores instead, :class:`agents.speck_front.SpeckFrontParams`, where
-    ``alpha``, ``soms_norm`` and ``streamlined`` do not apply)."""
+    ``episode_seconds`` is the run's length), the seed, the video, and the agent's block
+    ``agent`` (:class:`agents.attention.AgentParams`, the paper's defaults: ``window_s``,
+    ``fixational``, ``soms`` (``alpha``, the sOMS threshold on the agent's quantile norm,
+    :data:`agents.attention.AGENT_SOMS_ALPHA`; ``norm: minmax`` the paper-literal sOMS;
+    ``soms: speck`` the front end shaped for Speck's cores,
+    :class:`agents.speck_front.SpeckFrontParams`), ``proto`` (``polarity_split: false``:
+    the streamlined model), ...). Its sensor geometry and step are the env's
+    (:meth:`OneEpisodeRun.agent_params`)."""
 
     env: WanderConfig = field(default_factory=WanderConfig)
     seed: Annotated[int, pydantic.Field(ge=0, le=MAX_SEED)] = 0
     video: bool = True
     video_fps: Annotated[int, pydantic.Field(ge=1, le=1000)] = VIDEO_FPS
-    window_s: Annotated[float, pydantic.Field(gt=0)] = FIXATION_WINDOW_S
-    fixational: bool = True
-    streamlined: bool = False
-    alpha: Annotated[float, pydantic.Field(ge=0, le=1)] = AGENT_SOMS_ALPHA
-    soms_norm: Literal["quantile", "minmax"] = "quantile"
-    soms: Literal["agent", "speck"] = "agent"
-
-    def agent_params(self, env: Any) -> AgentParams:
-        host = replace(AGENT_SOMS, alpha=self.alpha, norm=self.soms_norm)
-        return AgentParams.for_env(
-            env,
-            window_s=self.window_s,
-            fixational=self.fixational,
-            soms=soms_block("speck") if self.soms == "speck" else host,
-            proto=replace(ProtoObjectParams(), polarity_split=not self.streamlined),
-        )
+    agent: AgentParams = field(default_factory=AgentParams)
 
 
 @dataclass

@@ -47,7 +47,14 @@ import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
-from experiments.framework import Comparison, Experiment, Repeats, Row, TrialSeconds, TrialSpec
+from experiments.framework import (
+    MAX_TRIAL_S,
+    Comparison,
+    Experiment,
+    Repeats,
+    Row,
+    TrialSpec,
+)
 from experiments.metrics import foveation_error_px
 from experiments.paper.env_block import check_env_block, trial_env
 from experiments.stats import mean_std
@@ -72,7 +79,7 @@ Condition = Literal["ideal", "backlash_offset"]
 
 
 #: The env fields each trial sets (what sets them): the block leaves them at defaults.
-ENV_SET_PER_TRIAL = {"ptu": "conditions", "episode_seconds": "max_saccade_s"}
+ENV_SET_PER_TRIAL = {"ptu": "conditions", "episode_seconds": "agent.max_saccade_s"}
 
 
 @dataclass(frozen=True)
@@ -81,7 +88,8 @@ class SacAccuracyConfig:
     ``backlash_offset`` condition are ours (see the module docstring). ``env`` is the
     env's block: the shelf, 100 Hz frames (events play no part in the measure), no
     sub-frames, no ground truth; each trial sets its PTU and length
-    (:data:`ENV_SET_PER_TRIAL`)."""
+    (:data:`ENV_SET_PER_TRIAL`). ``agent`` is the agent's block (its ``max_saccade_s``
+    ends a saccade that has not settled; each trial turns the fixational walk off)."""
 
     conditions: tuple[Condition, ...] = ("ideal", "backlash_offset")
     repeats: Repeats = 10
@@ -91,25 +99,28 @@ class SacAccuracyConfig:
     tilt_backlash_pos: float = 20.0
     camera_forward_m: float = 0.03
     camera_up_m: float = 0.05
-    max_saccade_s: TrialSeconds = 3.0
     env: WanderConfig = field(
         default_factory=lambda: WanderConfig(
             scene="shelf", render_rate_hz=100.0, max_subframes=1, ground_truth=False
         )
     )
+    agent: AgentParams = field(default_factory=AgentParams)
 
     def __post_init__(self) -> None:
         check_env_block(self.env, ENV_SET_PER_TRIAL)
         if self.repeats < 1:
             raise ValueError(f"repeats must be >= 1, got {self.repeats}")
+        if not self.agent.max_saccade_s + 1.0 <= MAX_TRIAL_S:  # a trial's length
+            raise ValueError(
+                f"agent.max_saccade_s must be <= {MAX_TRIAL_S - 1:g}, got "
+                f"{self.agent.max_saccade_s}"
+            )
         if not self.conditions:
             raise ValueError("conditions must name at least one of 'ideal', 'backlash_offset'")
         for name in ("target_range_x_px", "target_range_y_px"):
             v = getattr(self, name)
             if not 0 <= v < 63.5:
                 raise ValueError(f"{name} must be in [0, 63.5), got {v}")
-        if not self.max_saccade_s > 0:
-            raise ValueError(f"max_saccade_s must be > 0, got {self.max_saccade_s}")
         ptu_for_condition(self, "backlash_offset")  # the PTU parameters validate themselves
 
 
@@ -168,13 +179,13 @@ def run_trial(cfg: SacAccuracyConfig, spec: TrialSpec) -> dict[str, Any]:
     env = trial_env(
         cfg.env,
         ptu=ptu_for_condition(cfg, condition),
-        episode_seconds=cfg.max_saccade_s + 1.0,
+        episode_seconds=cfg.agent.max_saccade_s + 1.0,
     )
     base = env.unwrapped
     w, h = base.width, base.height
     target = draw_target(rng, cfg.target_range_x_px, cfg.target_range_y_px, w, h)
     agent = AttentionAgent(
-        AgentParams.for_env(env, fixational=False, max_saccade_s=cfg.max_saccade_s),
+        cfg.agent.on_env(env, fixational=False),  # a forced saccade: no walk
         seed=spec.seed,
     )
     try:

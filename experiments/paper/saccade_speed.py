@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -111,10 +111,11 @@ class SaccadeSpeedConfig:
     ``env`` is the env's block of the closed-loop trials (the office); each trial sets
     its PTU and length (:data:`ENV_SET_PER_TRIAL`). The main-sequence trials run the same
     block in ``main_sequence_scene`` at 100 Hz frames without sub-frames or ground truth
-    (events play no part in the measure)."""
+    (events play no part in the measure). ``agent`` is the agent's block: its
+    ``window_s`` is the baseline's window; each setting sets the window and the walk's
+    steps (``fixation.n_steps``, ``fixation.max_step_pos``)."""
 
     duration_s: TrialSeconds = 3.0
-    window_s: float = FIXATION_WINDOW_S
     design: Literal["one_at_a_time", "factorial"] = "one_at_a_time"
     ptu_preset: Literal["ideal", "flir"] = "flir"
     windows_s: tuple[float, ...] = (0.05, FIXATION_WINDOW_S, 0.25)
@@ -138,14 +139,17 @@ class SaccadeSpeedConfig:
     main_sequence_scene: SceneName = "shelf"
     repeats: Repeats = 10
     env: WanderConfig = field(default_factory=lambda: WanderConfig(scene="office"))
+    agent: AgentParams = field(default_factory=AgentParams)
 
     def __post_init__(self) -> None:
         check_env_block(self.env, ENV_SET_PER_TRIAL)
         if not self.duration_s > 0:
             raise ValueError(f"duration_s must be > 0, got {self.duration_s}")
-        for w in (self.window_s, *self.windows_s):
+        for w in (self.agent.window_s, *self.windows_s):
             if not w >= 0.01 - 1e-12:
-                raise ValueError(f"window_s / windows_s must be >= the 10 ms env step, got {w}")
+                raise ValueError(
+                    f"agent.window_s / windows_s must be >= the 10 ms env step, got {w}"
+                )
         for name in self.ptu_presets:
             PTUParams.preset(name)  # raises for an unknown preset
         if self.repeats < 1:
@@ -283,13 +287,15 @@ def _closed_loop(cfg: SaccadeSpeedConfig, p: dict[str, Any], seed: int) -> dict[
         trial_env(cfg.env, ptu=_trial_ptu(p), episode_seconds=cfg.duration_s + 1.0),
         float(p["object_speed_scale"]),
     )
-    fixation = FixationParams(
-        n_steps=int(p["fixational_n_steps"]), max_step_pos=int(p["fixational_step_pos"])
+    fixation = replace(
+        cfg.agent.fixation,
+        n_steps=int(p["fixational_n_steps"]),
+        max_step_pos=int(p["fixational_step_pos"]),
     )
-    agent = AttentionAgent(
-        AgentParams.for_env(env, window_s=float(p["window_s"]), fixational=True, fixation=fixation),
-        seed=seed,
+    params = cfg.agent.on_env(
+        env, window_s=float(p["window_s"]), fixational=True, fixation=fixation
     )
+    agent = AttentionAgent(params, seed=seed)
     try:
         m = closed_loop_metrics(env, agent, cfg.duration_s, seed)
         link = env.unwrapped.ptu.link
@@ -325,7 +331,7 @@ def _main_sequence(cfg: SaccadeSpeedConfig, ptu: PTUParams, seed: int) -> dict[s
         episode_seconds=1000.0,
     )
     base = env.unwrapped
-    agent = AttentionAgent(AgentParams.for_env(env, fixational=False), seed=seed)
+    agent = AttentionAgent(cfg.agent.on_env(env, fixational=False), seed=seed)
     amp, vpeak, dur = [], [], []
     try:
         obs, info = env.reset(seed=seed)
@@ -386,7 +392,7 @@ def grid(cfg: SaccadeSpeedConfig) -> list[dict[str, Any]]:
     """``one_at_a_time``: the baseline, then each factor's other values with the rest at
     the baseline; ``factorial``: every combination of :data:`FACTORIAL`'s values. The
     first setting of each PTU (speed, acceleration, link) is marked ``main_sequence``."""
-    base = baseline(cfg.window_s, cfg.ptu_preset)
+    base = baseline(cfg.agent.window_s, cfg.ptu_preset)
     rows: list[dict[str, Any]] = []
     if cfg.design == "factorial":
         cols = [FACTORS[f] for f in FACTORIAL]
@@ -504,7 +510,7 @@ def compare(cfg: SaccadeSpeedConfig, rows: list[Row]) -> list[Comparison]:
         Comparison(
             "latency to the salient point",
             "0.124 s (St_w), then the saccade",
-            f"{cfg.window_s:g} s window + time to foveate "
+            f"{cfg.agent.window_s:g} s window + time to foveate "
             f"{_fmt(mean_std(float(r['time_to_foveate_s']) for r in rows)[0], '.2f')} s "
             "(mean over all trials)",
         )

@@ -121,6 +121,7 @@ class ScanpathConfig:
     radius_deg: RadiusDeg = 5.0
     mosaic_step_deg: GridStepDeg = 0.5
     env: WanderConfig = field(default_factory=WanderConfig)
+    agent: AgentParams = field(default_factory=AgentParams)
     # MultiMatch normalises lengths and positions by a "screen": the camera's field of
     # view (degrees; Speck's 112.8° both ways by default).
     multimatch_screen_deg: tuple[float, float] = (SPECK_HFOV_DEG, SPECK_HFOV_DEG)
@@ -251,13 +252,14 @@ class ScanpathRecorder(Recorder):
 
 
 def agent_params(cfg: ScanpathConfig, condition: str, env: Any) -> AgentParams:
-    """The agent of a condition: the window and whether the fixational walk runs."""
+    """The agent of a condition: the config's ``agent`` block with the condition's window
+    and whether the fixational walk runs."""
     if condition == "saccades":
-        return AgentParams.for_env(
+        return cfg.agent.on_env(
             env, window_s=cfg.saccades_window_s, fixational=cfg.saccades_fixational
         )
     if condition == "fixational":
-        return AgentParams.for_env(env, window_s=cfg.fixational_window_s, fixational=True)
+        return cfg.agent.on_env(env, window_s=cfg.fixational_window_s, fixational=True)
     raise ValueError(f"unknown condition {condition!r}; expected 'saccades' or 'fixational'")
 
 

@@ -16,7 +16,7 @@ suffix      read   write  through
 
 (1) the AEDAT 4.0 reader lives in :mod:`wander_env.events.io`.
 
-Why these libraries: ``wander bench formats`` decodes the same real recordings with
+Why these libraries: ``wander perf formats`` decodes the same real recordings with
 each candidate and compares them event for event (README, "Event files"). On a real
 Prophesee EVT 3.0 recording ``evt3`` reproduces a word-level decode exactly, ``faery``
 differs by up to 11 µs on 0.7 % of the events and ``expelliarmus`` by up to 45 ms on

@@ -87,7 +87,7 @@ class RaycastParams:
     - ``ground_truth`` True: the object mask by ray casting (the events do not change);
     - ``key_layers`` True: a key's layers and depth too, camera on its hinge only (the
       in-between frames are made from them: a rim pixel's layer or a depth may differ
-      from GL's, so events may differ; ``wander bench fidelity`` measured the same
+      from GL's, so events may differ; ``wander perf fidelity`` measured the same
       events and L1 as with GL layers on hand walk, hand saccade and office walk, seed 0);
     - ``cube_samples`` 2: the static cube's faces are ``cube_samples × 2f`` pixels (its
       depth sampled at a quarter of a sensor pixel's width with 2).

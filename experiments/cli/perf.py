@@ -1,7 +1,8 @@
-"""``wander bench ...``: the speed benchmarks, each printing tables (speed is measured
+"""``wander perf ...``: the speed benchmarks, each printing tables (speed is measured
 here, never in tests): ``dvs``, ``env``, ``agent``, ``floor``, ``panorama``, ``fidelity``,
 ``formats``.
-:mod:`experiments.cli.main` adds :data:`app` as ``bench``.
+:mod:`experiments.cli.main` adds :data:`app` as ``perf`` (and as ``bench``, its former name,
+with a notice).
 """
 
 from __future__ import annotations
@@ -16,7 +17,10 @@ from experiments.cli.options import KeyframeMsOpt, SceneOpt, int_list, seconds_o
 
 __all__ = ["app"]
 
-app = typer.Typer(help="Benchmarks that print tables (speed is measured here, not in tests).")
+app = typer.Typer(
+    help="Speed and fidelity tables of the simulator and the agent (speed is measured "
+    "here, not in tests)."
+)
 
 
 @app.command("dvs")
@@ -30,7 +34,7 @@ def bench_dvs(
     ] = False,
 ) -> None:
     """Frames/s and Mev/s of the DVS emulator at 128x128 and 346x260."""
-    from experiments.bench.dvs import (
+    from experiments.perf.dvs import (
         DVS_COLUMNS,
         INPUT_COLUMNS,
         NOISE_PRESET,
@@ -78,14 +82,14 @@ def bench_env(
 ) -> None:
     """Real-time factor of the environment: exact, keyframe and adaptive-keyframe frames
     side by side."""
-    from experiments.bench.env import (
+    from experiments.perf.env import (
         BREAKDOWN_COLUMNS,
         ENV_COLUMNS,
         ENV_COUNT_COLUMNS,
         ENV_TIME_COLUMNS,
         step_breakdown,
     )
-    from experiments.bench.env import bench_env as run
+    from experiments.perf.env import bench_env as run
 
     km = keyframe_ms  # None: the env's
     counts = tuple(int_list(envs, "--envs", "env count", minimum=1))
@@ -137,8 +141,8 @@ def bench_agent(
 ) -> None:
     """Per-step latency of sOMS, proto-object, sAC and the whole agent; closed-loop RTF
     with exact and keyframe frames side by side."""
-    from experiments.bench.agent import LATENCY_COLUMNS, LOOP_COLUMNS, MODES_COLUMNS, loop_modes
-    from experiments.bench.agent import bench_agent as run
+    from experiments.perf.agent import LATENCY_COLUMNS, LOOP_COLUMNS, MODES_COLUMNS, loop_modes
+    from experiments.perf.agent import bench_agent as run
 
     fk = {} if keyframe_ms is None else {"keyframe_ms": keyframe_ms}
     rows, loop = run(seconds=seconds, scene=scene, seed=seed, **fk)
@@ -171,7 +175,7 @@ def bench_floor(
     import os
     import time
 
-    from experiments.bench.floor import BOUND_COLUMNS, FLOOR_COLUMNS, render_floor
+    from experiments.perf.floor import BOUND_COLUMNS, FLOOR_COLUMNS, render_floor
 
     t0 = time.perf_counter()
     rows, bounds = render_floor(scene=scene, calls=calls, repeats=repeats)
@@ -194,7 +198,7 @@ def bench_panorama(
     step, modes stepped in turns), and its background against a render by headlight."""
     import os
 
-    from experiments.bench.panorama import headlight_rows, step_rows
+    from experiments.perf.panorama import headlight_rows, step_rows
 
     load = os.getloadavg()[0]
     rows = step_rows(scene, steps)
@@ -243,14 +247,14 @@ def bench_fidelity(
     import os
     import time
 
-    from experiments.bench.fidelity import (
+    from experiments.perf.fidelity import (
         BAR_COLUMNS,
         MODE_COLUMNS,
         MOTIONS,
         bar_cells,
         mode_cells,
     )
-    from experiments.bench.fidelity import bench_fidelity as run
+    from experiments.perf.fidelity import bench_fidelity as run
 
     names = [m.strip() for m in motions.split(",") if m.strip()]
     bad = [m for m in names if m not in MOTIONS]
@@ -302,14 +306,14 @@ def bench_formats(
     repeats: Annotated[int, typer.Option(min=1, help="Timed decodes per row (median).")] = 3,
 ) -> None:
     """Decode real event files with every installed library: speed and agreement."""
-    from experiments.bench.formats import COLUMNS, default_files
-    from experiments.bench.formats import bench_formats as run
+    from experiments.perf.formats import COLUMNS, default_files
+    from experiments.perf.formats import bench_formats as run
 
     paths = files or default_files(Path(__file__).resolve().parents[3] / "shared" / "realdata")
     try:
         rows, skipped = run(paths, repeats)
     except (ValueError, OSError) as err:
-        console.print(f"wander bench formats: {err}", markup=False)
+        console.print(f"wander perf formats: {err}", markup=False)
         raise typer.Exit(2) from None
     print_table(
         "Event-file decoders (differ: events that disagree with the reference"

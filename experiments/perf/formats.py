@@ -1,4 +1,4 @@
-"""``wander bench formats``: decode real event files with every library that can, side by side.
+"""``wander perf formats``: decode real event files with every library that can, side by side.
 
 For each file and each installed decoder: events decoded, the median time of a few
 full decodes and the rate, and the decoder's agreement with a reference — the
@@ -26,7 +26,7 @@ from wander_env.events.io import read_events
 Decoder = Callable[[Path], np.ndarray]
 
 
-# The columns of `wander bench formats`'s table (row field -> format spec).
+# The columns of `wander perf formats`'s table (row field -> format spec).
 COLUMNS: dict[str, str] = {
     "file": "",
     "decoder": "",

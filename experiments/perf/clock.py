@@ -6,7 +6,7 @@ Wall time on a shared machine moves with its load; the process's CPU time
 A :class:`Clock` accumulates both over the spans it times and keeps the 1-minute load
 average when its first span began and its last ended; :func:`timed` wraps a function so
 that each call is such a span (its wall and CPU seconds kept per call, for percentiles).
-Every speed table of ``wander bench env|agent|floor|dvs`` has, beside its wall-time
+Every speed table of ``wander perf env|agent|floor|dvs`` has, beside its wall-time
 columns, the CPU time of the same spans and a ``load`` column (:data:`LOAD_COLUMN`,
 ``start-end``).
 

@@ -1,4 +1,4 @@
-"""``wander bench agent``: per-step latency of the agent's stages and the closed loop's
+"""``wander perf agent``: per-step latency of the agent's stages and the closed loop's
 real-time factor, measured on the observations of a real closed-loop run.
 
 The agent runs closed-loop in a scene; every call of each stage is timed in place
@@ -7,7 +7,7 @@ the proto-object model once per fixation window (at the decision), the whole
 :meth:`AttentionAgent.act` every step (split into ordinary and decision steps), and the
 env's step. The streamlined proto-object model (no polarity split) is timed afterwards
 on the same OMS maps. Every table has the process's CPU time beside the wall time and
-the load average around its measurement (:mod:`experiments.bench.clock`).
+the load average around its measurement (:mod:`experiments.perf.clock`).
 
 Examples:
     >>> rows, loop = bench_agent(seconds=0.3, scene="shelf")  # doctest: +SKIP
@@ -24,9 +24,9 @@ import numpy as np
 
 from agents.attention import AgentParams, AttentionAgent
 from agents.proto_object import ProtoObjectSaliency
-from experiments.bench.clock import LOAD_COLUMN, Clock, Timings, timed
+from experiments.perf.clock import LOAD_COLUMN, Clock, Timings, timed
 
-# The columns of `wander bench agent`'s tables (row field -> format spec).
+# The columns of `wander perf agent`'s tables (row field -> format spec).
 LATENCY_COLUMNS: dict[str, str] = {
     "stage": "",
     "calls": "d",

@@ -2,11 +2,11 @@
 the renders a step needs allow, and what a per-tick warp of a precomputed panorama would
 cost instead (a measurement for the panorama route of the speed work).
 
-Run it as ``wander bench floor``. Each part is timed in place on the env's own renderer
+Run it as ``wander perf floor``. Each part is timed in place on the env's own renderer
 (the office key, the model posed at a new time and angles before each render, so that
 nothing is reused between renders), each row the median of ``repeats`` runs of
 ``calls`` calls, wall time and the process's CPU time, with the load average around the
-row's runs (:mod:`experiments.bench.clock`). The warps: an equirectangular panorama sampled through
+row's runs (:mod:`experiments.perf.clock`). The warps: an equirectangular panorama sampled through
 OpenCV's ``remap`` (maps given, or computed from the rotation with NumPy), and a cube map
 sampled along each pixel's rotated rays by the kernel the ``panorama`` frame source uses
 (:func:`wander_env.frames.cube.cube_warp`) (one bilinear sample, or
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
-from experiments.bench.clock import LOAD_COLUMN, Clock
+from experiments.perf.clock import LOAD_COLUMN, Clock
 from wander_env.frames.cube import FACE_ROTATIONS, cube_warp
 
 FLOOR_COLUMNS: dict[str, str] = {

@@ -1,4 +1,4 @@
-"""``wander bench fidelity``: every frame mode against the world, on the same seeds.
+"""``wander perf fidelity``: every frame mode against the world, on the same seeds.
 
 The yardstick is a fine **reference**: exact rendering with 64 samples a pixel
 (``supersample=4`` × the scenes' MSAA 4) at 4 kHz render ticks (``render_rate_hz=4000``),
@@ -69,7 +69,7 @@ BAR_GAP_MS = 2.0
 # `fine`'s bar: its L1 no more than this times exact's.
 BAR_FINE_L1_FACTOR = 0.75
 
-# The columns of `wander bench fidelity`'s tables (field -> format spec).
+# The columns of `wander perf fidelity`'s tables (field -> format spec).
 MODE_COLUMNS: dict[str, str] = {
     "scene": "",
     "motion": "",

@@ -1,6 +1,6 @@
 """Benchmark of the simulated environment: real-time factor (simulated s per wall s).
 
-Run it as ``wander bench env``. The camera holds still while the scene's objects
+Run it as ``wander perf env``. The camera holds still while the scene's objects
 move (zero actions), at 1 kHz rendering; one row per DVS preset and number of
 environments (1 in-process; 2 and 4 as ``AsyncVectorEnv`` worker processes), with the
 frame modes (``exact``, ``keyframes`` at a fixed interval, ``adaptive``: the env's
@@ -10,7 +10,7 @@ are shared with the others, which costs it time that the alone column does not p
 The real-time factor of a vector row counts the simulated time of all its envs.
 Beside each wall time, the process's CPU time of the same steps (NaN in a vector row:
 its workers' time is not this process's) and the load average around the row
-(:mod:`experiments.bench.clock`).
+(:mod:`experiments.perf.clock`).
 
 :func:`step_breakdown` splits one env's step into its parts (renders, DVS,
 segmentation, posing the model, the rest) by timing those calls in place.
@@ -25,9 +25,9 @@ import gymnasium as gym
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
-from experiments.bench.clock import LOAD_COLUMN, Clock, Timings, timed
+from experiments.perf.clock import LOAD_COLUMN, Clock, Timings, timed
 
-# The columns of `wander bench env`'s tables (row field -> format spec).
+# The columns of `wander perf env`'s tables (row field -> format spec).
 BREAKDOWN_COLUMNS: dict[str, str] = {
     "dvs": "",
     "frames": "",
@@ -44,7 +44,7 @@ BREAKDOWN_COLUMNS: dict[str, str] = {
     "other_ms": ".2f",
     **LOAD_COLUMN,
 }
-# `wander bench env`'s rows as three tables: real-time factors, times, counts.
+# `wander perf env`'s rows as three tables: real-time factors, times, counts.
 ENV_COLUMNS: dict[str, str] = {
     "dvs": "",
     "envs": "d",

@@ -2,14 +2,14 @@
 8-bit sRGB input path against the linear one; and, with ``--peers``, other emulators on
 the same frames.
 
-Run it as ``wander bench dvs [--peers]``. Frames are made before timing starts; the
+Run it as ``wander perf dvs [--peers]``. Frames are made before timing starts; the
 first call compiles the kernels and is not timed. Each row is the median of ``repeats``
 runs over ``n_frames`` frames at 1 kHz. Rows compared by a ratio are timed in turns,
 frame by frame (frame i through every emulator, then frame i + 1), and a row's time is
 the sum over frames of the median over the repeats: a stall of this shared machine
 falls on one sample of one row, not on its total. Beside each frame rate (wall time),
 the rate by the process's CPU time and the load average around the row's runs
-(:mod:`experiments.bench.clock`).
+(:mod:`experiments.perf.clock`).
 
 Input paths (:func:`bench_inputs`): the moving pattern as uint8 sRGB, as its grey
 channel (uint8) and as float32 linear luminance — the emulator's own luminance of the
@@ -37,8 +37,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from experiments.bench.clock import LOAD_COLUMN, Clock
 from experiments.jobs.synthetic import drifting_texture
+from experiments.perf.clock import LOAD_COLUMN, Clock
 from wander_env.dvs import DVSEmulator, DVSParams
 
 # Drift speeds (px/frame) that give about 1,000 and 4,000 events per frame with `ideal`.
@@ -48,7 +48,7 @@ NOISE_PRESET = "speck"  # every noise term on: mismatch, low-pass, refractory, l
 PEER_THRESHOLD = 0.2  # the contrast threshold every emulator gets in the peer comparison
 
 
-# The columns of `wander bench dvs`'s tables (row field -> format spec).
+# The columns of `wander perf dvs`'s tables (row field -> format spec).
 DVS_COLUMNS: dict[str, str] = {
     "sensor": "",
     "scene": "",

@@ -1,6 +1,6 @@
 """The panorama frame source against the others: ms per step and the headlight's effect.
 
-``wander bench panorama --scene SCENE --steps N`` prints two tables (:func:`step_rows`,
+``wander perf panorama --scene SCENE --steps N`` prints two tables (:func:`step_rows`,
 :func:`headlight_rows`):
 
 - ms per step (median of ``steps`` steps after 3 still ones, seed 0; the variants'

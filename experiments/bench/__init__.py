@@ -1,1 +1,0 @@
-"""Speed benchmarks (``wander bench ...``): env, DVS emulator, agent, fidelity, formats."""

@@ -1,0 +1,1 @@
+"""Speed benchmarks (``wander perf ...``): env, DVS emulator, agent, fidelity, formats."""
