@@ -24,9 +24,10 @@ moves, a sliding screen) or with ``keyframe_px=None``. It makes the frames in be
 from the two neighbouring keys with the scene's geometry (:mod:`wander_env.frames.keyframe_maths`:
 the camera's rotation homography, each moving object's rigid motion from the keys' depth
 and motion layers, reprojection with depth where the camera centre moves), and hands
-the DVS no frame at a tick where nothing moves by half a pixel (it interpolates between
-the frames around it). The keys are rendered at the start of the step from the PTU's own
-trajectory, so nothing waits for a later frame.
+the DVS no frame at a tick where nothing moves by half a pixel, nor where the content
+moves by less than a pixel between the frames handed around it (it interpolates between
+those; ``FrameParams.interpolate_px``). The keys are rendered at the start of the step
+from the PTU's own trajectory, so nothing waits for a later frame.
 ``"exact"`` renders every frame (every tick and sub-frame): the reference.
 ``"panorama"`` warps a cube map of the static world, rendered once per reset, by the
 camera's rotation and renders keys only for the moving objects
@@ -163,7 +164,7 @@ class WanderEnv(CameraEnv):
         frames = extra = 0
         t_prev = self._t_us
         for i, t in enumerate(trajectory.t_us):
-            if self.source.interpolated(t):  # nothing moves by half a pixel
+            if self.source.interpolated(t):  # the DVS interpolates over it
                 continue
             frame = self.source.frame(t, trajectory.angles(i))
             change = self.dvs.log_change(frame)

@@ -410,12 +410,16 @@ class KeyPair:
     """Two consecutive keys and the frames between them: their pixels stacked once for
     the kernel; per frame, only the views' homographies and the layers' motion."""
 
-    def __init__(self, a: Keyframe, b: Keyframe, k: np.ndarray) -> None:
+    def __init__(
+        self, a: Keyframe, b: Keyframe, k: np.ndarray, k_inv: np.ndarray | None = None
+    ) -> None:
+        """``k``: the camera intrinsics; ``k_inv``: their inverse where the caller keeps
+        it (``np.linalg.inv(k)``; else computed here)."""
         if b.t_us <= a.t_us:
             raise ValueError(f"keys must come in time order: {b.t_us} <= {a.t_us}")
         self.a, self.b = a, b
         self.k = np.asarray(k, dtype=np.float64)
-        self._k_inv = np.linalg.inv(self.k)
+        self._k_inv = np.linalg.inv(self.k) if k_inv is None else k_inv
 
     @cached_property
     def _stacked(self) -> tuple[np.ndarray, ...]:

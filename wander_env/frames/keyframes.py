@@ -247,7 +247,9 @@ class KeyframeFrames(FrameSource):
         """The keys' :class:`KeyPair` (with their geometry), made once a step."""
         pair = self._pairs.get(b.t_us)
         if pair is None:
-            pair = self._pairs[b.t_us] = KeyPair(self.keyframe(a), self.keyframe(b), self.stage.k)
+            pair = self._pairs[b.t_us] = KeyPair(
+                self.keyframe(a), self.keyframe(b), self.stage.k, self.stage.k_inv
+            )
         return pair
 
     def interpolated(self, t_us: int) -> bool:

@@ -80,6 +80,7 @@ class Stage:
         self._tilt_adr = int(model.joint(TILT_JOINT).qposadr[0])
         self._cam_id = int(model.camera(CAMERA_NAME).id)
         self.k = intrinsics(self.width, self.height, float(model.cam_fovy[self._cam_id]))
+        self.k_inv = np.linalg.inv(self.k)
         self.layer_lut = geom_layer_ids(model)
         self._animator: SceneAnimator | None = None
         self._renderer: CameraRenderer | None = None  # created on the draw side
