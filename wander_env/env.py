@@ -80,7 +80,7 @@ from wander_env.mjcf import SceneAnimator, build_mjcf
 from wander_env.ptu.params import PTUParams
 from wander_env.ptu.unit import PanTiltUnit
 from wander_env.readout import SpeckReadout
-from wander_env.renderer import RenderParams, project_points
+from wander_env.renderer import RenderParams
 from wander_env.scene_config import SceneConfig, load_scene_config
 from wander_env.viz import event_image, labelled_frame
 
@@ -246,12 +246,11 @@ class WanderEnv(CameraEnv):
 
     def _objects(self, mask: np.ndarray) -> list[dict[str, Any]]:
         positions = self.animator.object_positions(self._t_us * 1e-6)
-        centres = project_points(
-            self.model, self.data, positions, width=self.width, height=self.height
-        )
+        centres = self.stage.project(positions)
+        counts = np.bincount(mask.ravel(), minlength=len(centres) + 1)
         out = []
         for k, (obj, centre) in enumerate(zip(self.scene.moving_objects, centres, strict=True), 1):
-            pixels = int(np.count_nonzero(mask == k))
+            pixels = int(counts[k])
             out.append(
                 {
                     "id": k,

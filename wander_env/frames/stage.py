@@ -43,7 +43,7 @@ from typing import Any, Literal, TypeVar
 import mujoco
 import numpy as np
 
-from wander_env.camera import CAMERA_NAME, intrinsics, rotation_from_mujoco
+from wander_env.camera import CAMERA_NAME, intrinsics, project, rotation_from_mujoco
 from wander_env.entities import PAN_JOINT, TILT_JOINT
 from wander_env.frames.keyframe_maths import View
 from wander_env.frames.raycast import PrimitiveCaster, RaycastParams, unsupported_geoms
@@ -286,6 +286,12 @@ class Stage:
         """The camera side's data with the camera at these angles (the objects as they
         were: the ground truth projects their positions through this camera)."""
         self.camera_views([0], [(pan_deg, tilt_deg)])
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """World points (N, 3) -> pixel coordinates (N, 2) (x right, y down; NaN behind
+        the camera) through the camera side's pose (:meth:`pose_camera`)."""
+        r_wc = rotation_from_mujoco(self.data.cam_xmat[self._cam_id])
+        return project(self.k, r_wc, self.data.cam_xpos[self._cam_id], points)[0]
 
     def camera_view(self, t_us: int, pan_deg: float, tilt_deg: float) -> View:
         """The :class:`View` at ``t_us`` with the camera at these angles (the camera
