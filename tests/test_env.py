@@ -190,3 +190,23 @@ def test_unknown_scene_and_preset_name_the_problem():
         make(dvs="davis")
     with pytest.raises(ValueError, match="control_period_s"):
         make(control_period_s=0.0105)
+
+
+def test_ground_truth_objects_are_the_cameras_projection_and_the_masks_counts():
+    """info["objects"]: each object's centre is project_points through the camera side's
+    pose at the step's end, exactly, and its pixels the mask's count of its id."""
+    from wander_env.renderer import project_points
+
+    env = gym.make("wander/Wander-v0", scene="office")
+    env.reset(seed=1)
+    u = env.unwrapped
+    for k in range(3):
+        _, _, _, _, info = env.step(np.array([0.2 * (k == 0), -0.1], np.float32))
+        positions = u.animator.object_positions(info["t"])
+        centres = project_points(u.model, u.data, positions)
+        assert len(info["objects"]) == len(positions) == 2
+        for obj, centre in zip(info["objects"], centres, strict=True):
+            assert obj["centre_px"] == (float(centre[0]), float(centre[1]))
+            assert obj["mask_pixels"] == int(np.count_nonzero(info["object_mask"] == obj["id"]))
+    assert any(obj["mask_pixels"] > 0 for obj in info["objects"])
+    env.close()

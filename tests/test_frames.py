@@ -4,6 +4,8 @@ where nothing moves, and the sources against each other (exact expectations)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -166,8 +168,10 @@ def test_a_keys_layers_and_depth_are_drawn_only_where_needed():
     pixel a tick, so no frame is synthesised and only the step end's key draws its layers
     and depth, for the ground truth's mask (the mask a segmentation of the posed model
     gives); none with ground truth off, nor with the mask ray cast (the default where the
-    objects are primitives: wander_env.frames.raycast). A walk synthesises frames: both keys'
-    geometry."""
+    objects are primitives: wander_env.frames.raycast). A small pan synthesises frames
+    where every tick is handed to the DVS (interpolate_px=None): both keys' geometry; by
+    default its ticks move under a pixel between the frames around them, none is made and
+    no geometry is drawn."""
     for gt, cast, draws in (
         (True, False, [1, 1, 1]),
         (True, True, [0, 0, 0]),
@@ -190,15 +194,20 @@ def test_a_keys_layers_and_depth_are_drawn_only_where_needed():
             assert counts == draws
         finally:
             env.close()
-    env = gym.make("wander/Wander-v0", scene="office", ground_truth=False)
-    try:
-        env.unwrapped.stage.caster = None  # GL draws the keys' geometry
-        env.reset(seed=0)
-        env.step(np.array([0.05, 0.0], np.float32))
-        u = env.unwrapped
-        assert u.stage.geometry_draws == u.renders_in_step + 1  # the step's keys and its start's
-    finally:
-        env.close()
+    for interpolate_px in (None, 1.0):
+        env = gym.make("wander/Wander-v0", scene="office", ground_truth=False)
+        try:
+            u = env.unwrapped
+            u.stage.caster = None  # GL draws the keys' geometry
+            u.source.params = replace(u.source.params, interpolate_px=interpolate_px)
+            env.reset(seed=0)
+            env.step(np.array([0.05, 0.0], np.float32))
+            if interpolate_px is None:  # the step's keys and its start's
+                assert u.stage.geometry_draws == u.renders_in_step + 1
+            else:
+                assert u.stage.geometry_draws == 0
+        finally:
+            env.close()
 
 
 def test_a_still_scenes_end_keys_share_the_rendered_keys_geometry():

@@ -257,3 +257,133 @@ def test_camera_offset_from_the_hinge_is_reprojected_with_depth():
         assert np.abs(log_i(synth) - log_i(rendered))[inner].mean() <= 0.02
     finally:
         rig.close()
+
+
+@pytest.mark.parametrize("parallax", [False, True])
+def test_layer_boxes_hold_every_candidate(hand, parallax):
+    """The moving layer's target box (the hull of its key box mapped at inverse depths
+    0 and its largest) holds every pixel that can take a candidate from it: the frame
+    made over the boxes equals, bit for bit, the layers' kernel run over the whole image
+    with no boxes; and the boxes cover far fewer pixels than the image."""
+    from wander_env.frames.keyframe_maths import KeyPair, _static_kernel, _synth_kernel
+
+    p0 = np.array([0.25, 0.01, 1.0])
+    shift = np.array([0.01, -0.03, 0.005])
+    a = hand.key(0, 0.0, p0)
+    b = hand.key(2000, 0.4, p0 + shift)
+    pair = KeyPair(a, b, hand.k)
+    whole = np.array([[0, 128, 0, 128]])
+    covered = []
+    for w in (0.25, 0.5, 0.75):
+        view = hand.pose(0.4 * w, p0 + w * shift)
+        if parallax:  # the camera centre moved: every pixel through the layers' kernel
+            view = View(
+                view.rotation, np.add(view.centre, [0.004, -0.002, 0.003]), view.layer_positions
+            )
+        hinv, bvec, moving, boxes = pair.params(view)
+        assert bool(moving[:, 0].any()) == parallax
+        weights = np.array([1.0 - w, w])
+        full = np.empty((128, 128), np.float32)
+        near = int(w > 0.5)
+        if not parallax:
+            _static_kernel(full, weights, near, pair._stacked[0], hinv)
+            near = -1
+        no_boxes = np.broadcast_to(whole, boxes.shape).copy()
+        lum, layers, inv, present, rho0 = pair._stacked
+        _synth_kernel(
+            full,
+            whole,
+            weights,
+            near,
+            lum,
+            layers,
+            inv,
+            present,
+            no_boxes,
+            hinv,
+            bvec,
+            rho0,
+            moving,
+        )
+        assert np.array_equal(pair.frame(view, w), full)
+        regions = pair.regions(boxes)
+        covered.append(sum(int((r[1] - r[0]) * (r[3] - r[2])) for r in regions))
+    object_px = int(((a.layers == 1) | (b.layers == 1)).sum())
+    assert object_px > 300
+    assert all(object_px <= c <= 2 * object_px for c in covered)
+
+
+def test_flow_bounds_are_the_formula_of_the_poses():
+    """view_flow_bounds_px (one compiled pair at a time) against the formula in numpy:
+    1.25 x (the largest move of the image's corners and edge midpoints under the
+    rotation + f (|t_xy| + |t_z| r_max / f) / near of the fastest layer); within 1e-9
+    relative on random poses; exactly 0 between equal poses, inf where the centre moves."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(1)
+    k = intrinsics(128, 96, 80.0)
+    radii = np.array([np.inf, 0.1, 0.3])
+
+    def pose():
+        rot = Rotation.from_euler("xyz", rng.normal(0, 0.02, 3)).as_matrix()
+        return View(rot, np.zeros(3), np.array([[0, 0, 0], *rng.normal([0, 0, 2], 0.1, (2, 3))]))
+
+    def formula(r, v):
+        xs, ys = np.meshgrid([0.0, 63.5, 127.0], [0.0, 47.5, 95.0])
+        px = np.stack([xs.ravel(), ys.ravel()], 1)
+        rays = np.c_[(px[:, 0] - k[0, 2]) / k[0, 0], (px[:, 1] - k[1, 2]) / k[1, 1], np.ones(9)]
+        m = rays @ (v.rotation.T @ r.rotation).T
+        uv = np.c_[k[0, 0] * m[:, 0] / m[:, 2] + k[0, 2], k[1, 1] * m[:, 1] / m[:, 2] + k[1, 2]]
+        rot = 1.25 * np.abs(uv - px).max()
+        near = (
+            np.minimum(
+                r.layer_positions[1:] @ r.rotation[:, 2], v.layer_positions[1:] @ v.rotation[:, 2]
+            )
+            - radii[1:]
+        )
+        t = (v.layer_positions[1:] - r.layer_positions[1:]) @ v.rotation
+        move = k[0, 0] * np.hypot(t[:, 0], t[:, 1]) + np.abs(t[:, 2]) * (np.hypot(128, 96) / 2 + 1)
+        return rot + 1.25 * (move / near).max()
+
+    ref, views = pose(), [pose() for _ in range(50)]
+    got = view_flow_bounds_px(ref, views, k, radii, (96, 128))
+    want = np.array([formula(ref, v) for v in views])
+    assert np.allclose(got, want, rtol=1e-9, atol=0)
+    refs = [pose() for _ in views]
+    got = view_flow_bounds_px(refs, views, k, radii, (96, 128))
+    assert np.allclose(got, [formula(r, v) for r, v in zip(refs, views, strict=True)], rtol=1e-9)
+    moved = View(ref.rotation, np.add(ref.centre, [0, 0, 0.01]), ref.layer_positions)
+    assert view_flow_bounds_px(ref, [ref, moved], k, radii, (96, 128)).tolist() == [0.0, np.inf]
+
+
+def test_tessellation_draws_coarser_primitives_and_leaves_the_model_as_it_was():
+    """RenderParams.tessellation replaces the model's <visual><quality> slices and
+    stacks in the renderer's meshes only: the office's balls and cylinders drawn as
+    hexagons differ from the scenes' 20 x 10 on their rims, the model keeps 20 x 10;
+    a tessellation that is not two ints (>= 3, >= 2) is one error naming the field."""
+    from wander_env.renderer import RenderParams
+
+    model = compile_scene(load_scene_config("office"))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    frames = []
+    for params in (RenderParams(), RenderParams(tessellation=(6, 3))):
+        renderer = CameraRenderer(model, params=params)
+        frames.append(renderer.render(data).astype(int))
+        renderer.close()
+    assert (model.vis.quality.numslices, model.vis.quality.numstacks) == (20, 10)
+    changed = np.abs(frames[0] - frames[1]).max(axis=2) > 0
+    assert 20 <= changed.sum() <= 0.2 * changed.size  # rims, not the whole image
+    for bad in ((2, 3), (6, 1), (6.0, 3), (6,), [6, 3]):
+        with pytest.raises(ValueError, match=r"RenderParams\.tessellation"):
+            RenderParams(tessellation=bad)
+
+
+def test_frame_params_interpolate_px_is_checked():
+    from wander_env.frames.source import FrameParams
+
+    assert FrameParams().interpolate_px == 1.0
+    assert FrameParams(interpolate_px=None).interpolate_px is None
+    for bad in (0.0, -1.0, "1"):
+        with pytest.raises(ValueError, match=r"FrameParams\.interpolate_px"):
+            FrameParams(interpolate_px=bad)

@@ -527,3 +527,22 @@ def test_trajectory_equals_stepping_the_unit_tick_by_tick(params):
         unit.trajectory(0, 0, 1000)
     with pytest.raises(ValueError, match="not inside"):
         tr.at([tr.t0_us])
+
+
+def test_trajectory_at_a_ticks_end_is_the_trajectorys_angles():
+    """At a tick's end (reached from its start) the angles are the trajectory's own,
+    exactly; times inside a tick, and a tick's end after one of them, step a copy of
+    the unit from the tick's start, as stepping it by hand does."""
+    ptu = PanTiltUnit()
+    ptu.set_target(pan_deg=3.0, tilt_deg=-1.0)
+    tr = ptu.trajectory(0, 4000, 1000)
+    assert tr.at([1000, 3000, 4000]) == [tr.angles(0), tr.angles(2), tr.angles(3)]
+    got = tr.at([1500, 2000, 2250])
+    unit = tr.starts[1].copy()
+    unit.step(0.5e-3)
+    mid = (unit.camera_pan_deg, unit.camera_tilt_deg)
+    unit.step(0.5e-3)
+    end = (unit.camera_pan_deg, unit.camera_tilt_deg)
+    unit = tr.starts[2].copy()
+    unit.step(0.25e-3)
+    assert got == [mid, end, (unit.camera_pan_deg, unit.camera_tilt_deg)]

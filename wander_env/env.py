@@ -24,9 +24,10 @@ moves, a sliding screen) or with ``keyframe_px=None``. It makes the frames in be
 from the two neighbouring keys with the scene's geometry (:mod:`wander_env.frames.keyframe_maths`:
 the camera's rotation homography, each moving object's rigid motion from the keys' depth
 and motion layers, reprojection with depth where the camera centre moves), and hands
-the DVS no frame at a tick where nothing moves by half a pixel (it interpolates between
-the frames around it). The keys are rendered at the start of the step from the PTU's own
-trajectory, so nothing waits for a later frame.
+the DVS no frame at a tick where nothing moves by half a pixel, nor where the content
+moves by less than a pixel between the frames handed around it (it interpolates between
+those; ``FrameParams.interpolate_px``). The keys are rendered at the start of the step
+from the PTU's own trajectory, so nothing waits for a later frame.
 ``"exact"`` renders every frame (every tick and sub-frame): the reference.
 ``"panorama"`` warps a cube map of the static world, rendered once per reset, by the
 camera's rotation and renders keys only for the moving objects
@@ -79,7 +80,7 @@ from wander_env.mjcf import SceneAnimator, build_mjcf
 from wander_env.ptu.params import PTUParams
 from wander_env.ptu.unit import PanTiltUnit
 from wander_env.readout import SpeckReadout
-from wander_env.renderer import RenderParams, project_points
+from wander_env.renderer import RenderParams
 from wander_env.scene_config import SceneConfig, load_scene_config
 from wander_env.viz import event_image, labelled_frame
 
@@ -163,7 +164,7 @@ class WanderEnv(CameraEnv):
         frames = extra = 0
         t_prev = self._t_us
         for i, t in enumerate(trajectory.t_us):
-            if self.source.interpolated(t):  # nothing moves by half a pixel
+            if self.source.interpolated(t):  # the DVS interpolates over it
                 continue
             frame = self.source.frame(t, trajectory.angles(i))
             change = self.dvs.log_change(frame)
@@ -245,12 +246,11 @@ class WanderEnv(CameraEnv):
 
     def _objects(self, mask: np.ndarray) -> list[dict[str, Any]]:
         positions = self.animator.object_positions(self._t_us * 1e-6)
-        centres = project_points(
-            self.model, self.data, positions, width=self.width, height=self.height
-        )
+        centres = self.stage.project(positions)
+        counts = np.bincount(mask.ravel(), minlength=len(centres) + 1)
         out = []
         for k, (obj, centre) in enumerate(zip(self.scene.moving_objects, centres, strict=True), 1):
-            pixels = int(np.count_nonzero(mask == k))
+            pixels = int(counts[k])
             out.append(
                 {
                     "id": k,

@@ -13,8 +13,9 @@ compiled (numba) kernels (:func:`synthesize` for a single frame):
 - per key, each target pixel is looked up per layer by reprojection: the static world
   (layer 0) by the camera's rotation homography ``K R K⁻¹`` (when the camera centre
   moves — a camera offset from the tilt hinge makes parallax — with the key's depth);
-  a moving layer only inside its box (its key pixels' box mapped by the rotation and
-  padded by its largest displacement), by its rigid motion with the key's depth (a
+  a moving layer only inside its box (the hull of its key pixels' box mapped by the
+  rotation alone and by its rigid motion at its nearest and farthest depth: no pixel
+  outside it can take a candidate from the layer), by its rigid motion with the key's depth (a
   fixed-point iteration on the source depth, :func:`wander_env.camera.source_pixels`).
   A candidate counts only if its source pixel belongs to that layer, and per key the
   nearest candidate wins (depth test);
@@ -70,17 +71,19 @@ __all__ = [
     "View",
     "adaptive_key_ticks",
     "blend",
+    "flow_bound_px",
     "grow_layers",
     "layers_in_view",
     "layers_over",
+    "left_to_dvs",
     "make_keyframe",
     "synthesize",
     "view_flow_bounds_px",
 ]
 
-# A moving layer's pixels are searched in the bounding box of its key pixels, mapped to
-# the target view and padded by its largest displacement plus this many pixels.
-_PAD_PX = 3
+# A moving layer's target box is the bound of its mapped key box widened by this many
+# pixels (against rounding in the kernels' arithmetic).
+_MARGIN_PX = 1
 # Below this flow bound (px) from both keys, each pixel's nearest source is itself and
 # the frame is the keys' time-weighted blend.
 SUBPIXEL_PX = 0.45
@@ -207,10 +210,19 @@ def _key_params(
     boxes,
 ):
     """For all layers of a key (rotation, centre, layer positions, boxes, largest inverse
-    depths) toward a view (rotation, centre, layer positions): fill the target-to-source
-    homography ``hinv`` (3, 3), each layer's ``b = H⁻¹ K t`` (L, 3) (see
+    depths) toward a view (rotation, centre, layer positions): fill the
+    target-to-source homography ``hinv`` (3, 3), each layer's ``b = H⁻¹ K t`` (L, 3) (see
     :func:`~wander_env.camera.source_pixels`), whether it moves relative to the camera
-    (L,) and the target box (L, 4) it can reach (layer 0: the whole image)."""
+    (L,) and the target box (L, 4) it can reach (layer 0: the whole image).
+
+    A layer's box: a source pixel ``p`` at inverse depth ``ρ`` lands at
+    ``K R K⁻¹ p̃ + ρ K t`` (homogeneous), a projective map of (x, y, ρ); the kernels take
+    a layer's candidate only from a source inside its key box (± half a pixel) at an
+    inverse depth in [0, its largest], so the target lies in the hull of that box's 8
+    corners mapped (a convex set's image, all corners in front of the camera; else the
+    whole image), widened by :data:`_MARGIN_PX`. At ρ = 0 the corners are those of the
+    rotation alone: where the static world's candidates change (the layer covers them
+    in the key)."""
     r_rel = rot.T @ key_rot  # target-from-key camera rotation
     t_rel = rot.T @ (key_centre - centre)
     back = k @ r_rel.T
@@ -220,19 +232,28 @@ def _key_params(
         t_l = t_rel + rot.T @ (layers[ll] - key_layers[ll])
         bvec[ll] = back @ t_l
         moving[ll] = bvec[ll, 0] != 0 or bvec[ll, 1] != 0 or bvec[ll, 2] != 0
-        # |Δq| <= f·ρ·(|t_xy| + |t_z|·r/f) at image radius r (<= 1.5 f here): <= 4 f ρ |t|
-        pad = _PAD_PX + 4.0 * k[0, 0] * math.sqrt(t_l @ t_l) * rho_max[ll]
+        kt = k @ t_l
         u0, u1, v0, v1 = np.inf, -np.inf, np.inf, -np.inf
-        for x in (key_boxes[ll, 2], key_boxes[ll, 3]):
-            for y in (key_boxes[ll, 0], key_boxes[ll, 1]):
-                z = hom[2, 0] * x + hom[2, 1] * y + hom[2, 2]
-                u = (hom[0, 0] * x + hom[0, 1] * y + hom[0, 2]) / z
-                v = (hom[1, 0] * x + hom[1, 1] * y + hom[1, 2]) / z
-                u0, u1, v0, v1 = min(u0, u), max(u1, u), min(v0, v), max(v1, v)
-        boxes[ll, 0] = min(max(math.floor(v0 - pad), 0), h)
-        boxes[ll, 1] = min(max(math.ceil(v1 + pad) + 1, 0), h)
-        boxes[ll, 2] = min(max(math.floor(u0 - pad), 0), w)
-        boxes[ll, 3] = min(max(math.ceil(u1 + pad) + 1, 0), w)
+        whole = False
+        for x in (key_boxes[ll, 2] - 0.5, key_boxes[ll, 3] - 0.5):
+            for y in (key_boxes[ll, 0] - 0.5, key_boxes[ll, 1] - 0.5):
+                hx = hom[0, 0] * x + hom[0, 1] * y + hom[0, 2]
+                hy = hom[1, 0] * x + hom[1, 1] * y + hom[1, 2]
+                hz = hom[2, 0] * x + hom[2, 1] * y + hom[2, 2]
+                for rho in (0.0, rho_max[ll]):
+                    z = hz + rho * kt[2]
+                    if not z > 0.0:
+                        whole = True
+                        continue
+                    u = (hx + rho * kt[0]) / z
+                    v = (hy + rho * kt[1]) / z
+                    u0, u1, v0, v1 = min(u0, u), max(u1, u), min(v0, v), max(v1, v)
+        if whole or not (np.isfinite(u0) and np.isfinite(u1)):
+            u0, u1, v0, v1 = 0.0, w, 0.0, h
+        boxes[ll, 0] = min(max(math.floor(v0) - _MARGIN_PX, 0), h)
+        boxes[ll, 1] = min(max(math.floor(v1) + 1 + _MARGIN_PX, 0), h)
+        boxes[ll, 2] = min(max(math.floor(u0) - _MARGIN_PX, 0), w)
+        boxes[ll, 3] = min(max(math.floor(u1) + 1 + _MARGIN_PX, 0), w)
     boxes[0, 0], boxes[0, 1], boxes[0, 2], boxes[0, 3] = 0, h, 0, w
 
 
@@ -358,16 +379,47 @@ def _static_kernel(out, weights, near, lum, hinv):
                 out[y, x] = lum[near, _nearest(py, h), _nearest(px, w)]
 
 
+@numba.njit(cache=True, nogil=True)
+def _regions(present, boxes):
+    """See :meth:`KeyPair.regions` (``present`` (2, L), ``boxes`` (2, L, 4))."""
+    out = np.empty((2 * present.shape[1], 4), np.int64)
+    n = 0
+    for ll in range(1, present.shape[1]):
+        y0, y1, x0, x1 = 1 << 30, -1, 1 << 30, -1
+        area = keys = 0
+        for kk in range(2):
+            if present[kk, ll]:
+                b = boxes[kk, ll]
+                y0, y1, x0, x1 = min(y0, b[0]), max(y1, b[1]), min(x0, b[2]), max(x1, b[3])
+                area += max(b[1] - b[0], 0) * max(b[3] - b[2], 0)
+                keys += 1
+        if keys == 0:
+            continue
+        if keys == 2 and area < (y1 - y0) * (x1 - x0):
+            out[n] = boxes[0, ll]
+            out[n + 1] = boxes[1, ll]
+            n += 2
+        else:
+            out[n, 0], out[n, 1], out[n, 2], out[n, 3] = y0, y1, x0, x1
+            n += 1
+    out = out[:n]
+    return out[(out[:, 1] > out[:, 0]) & (out[:, 3] > out[:, 2])]
+
+
 class KeyPair:
     """Two consecutive keys and the frames between them: their pixels stacked once for
     the kernel; per frame, only the views' homographies and the layers' motion."""
 
-    def __init__(self, a: Keyframe, b: Keyframe, k: np.ndarray) -> None:
+    def __init__(
+        self, a: Keyframe, b: Keyframe, k: np.ndarray, k_inv: np.ndarray | None = None
+    ) -> None:
+        """``k``: the camera intrinsics; ``k_inv``: their inverse where the caller keeps
+        it (``np.linalg.inv(k)``; else computed here)."""
         if b.t_us <= a.t_us:
             raise ValueError(f"keys must come in time order: {b.t_us} <= {a.t_us}")
         self.a, self.b = a, b
         self.k = np.asarray(k, dtype=np.float64)
-        self._k_inv = np.linalg.inv(self.k)
+        self._k_inv = np.linalg.inv(self.k) if k_inv is None else k_inv
 
     @cached_property
     def _stacked(self) -> tuple[np.ndarray, ...]:
@@ -418,15 +470,10 @@ class KeyPair:
         return hinv, bvec, moving, boxes
 
     def regions(self, boxes: np.ndarray) -> np.ndarray:
-        """The moving layers' target regions (R, 4): each layer's box, the union of its
-        boxes (``boxes`` from :meth:`params`) from the keys that have it; empty ones left out."""
-        h, wd = self.a.lum.shape
-        present = self._stacked[3]
-        pres = present[:, 1:, None]
-        lo = np.where(pres, boxes[:, 1:], [h, 0, wd, 0]).min(axis=0)
-        hi = np.where(pres, boxes[:, 1:], [0, 0, 0, 0]).max(axis=0)
-        regions = np.stack([lo[:, 0], hi[:, 1], lo[:, 2], hi[:, 3]], axis=1)
-        return regions[(regions[:, 1] > regions[:, 0]) & (regions[:, 3] > regions[:, 2])]
+        """The moving layers' target regions (R, 4): per layer, the union of its boxes
+        (``boxes`` from :meth:`params`) from the keys that have it, or both boxes where
+        they cover fewer pixels than their union; empty ones left out."""
+        return _regions(self._stacked[3], boxes)
 
     def frame(self, view: View, w: float) -> np.ndarray:
         """The frame (H, W) float32 linear luminance of ``view`` at time fraction ``w``.
@@ -595,44 +642,76 @@ def view_flow_bounds_px(
     n = len(views)
     if n == 0:
         return np.zeros(0)
-    h, w = shape
-    rot = np.array([v.rotation for v in views])  # (n, 3, 3) world-from-camera
-    centres = np.array([v.centre for v in views])
-    layers = np.array([v.layer_positions for v in views])  # (n, L, 3)
-    if isinstance(ref, View):
-        r_rot, r_centre, r_layers = ref.rotation, ref.centre, ref.layer_positions
-    else:
-        if len(ref) != n:
-            raise ValueError(f"{len(ref)} reference views for {n} views")
-        r_rot = np.array([v.rotation for v in ref])
-        r_centre = np.array([v.centre for v in ref])
-        r_layers = np.array([v.layer_positions for v in ref])
-    out = np.where((centres != r_centre).any(axis=1), np.inf, 0.0)
-    fx, fy, cx, cy = float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2])
-    if (rot != r_rot).any():
-        # Rotation part: target-from-ref rotation R_i^T R_ref applied to the rays of the
-        # corners and edge midpoints (the homography K R K^-1).
-        xs, ys = np.meshgrid([0.0, (w - 1) / 2, w - 1], [0.0, (h - 1) / 2, h - 1])
-        px = np.stack([xs.ravel(), ys.ravel()], axis=1)  # (9, 2)
-        rays = np.stack([(px[:, 0] - cx) / fx, (px[:, 1] - cy) / fy, np.ones(9)], axis=1)
-        rel = np.swapaxes(rot, 1, 2) @ r_rot  # (n, 3, 3)
-        m = rays @ np.swapaxes(rel, 1, 2)  # (n, 9, 3) rays in each target camera
-        uv = np.stack([fx * m[..., 0] / m[..., 2] + cx, fy * m[..., 1] / m[..., 2] + cy], -1)
-        out += 1.25 * np.abs(uv - px).max(axis=(1, 2))
-    shift = layers - r_layers  # (n, L, 3) world
-    moved = (shift != 0).any(axis=2)  # (n, L)
-    if moved.any():
-        r_max = float(np.hypot(w, h)) / 2 + 1.0
-        rel_pos = r_layers - np.asarray(r_centre)[..., None, :]  # (L, 3) or (n, L, 3)
-        z = np.einsum("...lj,...j->...l", rel_pos, np.asarray(r_rot)[..., :, 2])  # depth
-        z_to = np.einsum("nlj,nj->nl", layers - centres[:, None, :], rot[:, :, 2])
-        near = np.minimum(z, z_to) - np.asarray(radii, float)[: layers.shape[1]]
-        t_l = np.einsum("nji,nlj->nli", rot, shift)  # in each target camera's axes
-        move = fx * np.hypot(t_l[..., 0], t_l[..., 1]) + np.abs(t_l[..., 2]) * r_max
-        with np.errstate(divide="ignore", invalid="ignore"):
-            extra = np.where(moved, np.where(near > 0.01, move / near, np.inf), 0.0)
-        out += 1.25 * extra.max(axis=1)
+    refs = [ref] * n if isinstance(ref, View) else list(ref)
+    if len(refs) != n:
+        raise ValueError(f"{len(refs)} reference views for {n} views")
+    out = np.empty(n)
+    k = np.asarray(k, dtype=np.float64)
+    radii = np.asarray(radii, dtype=np.float64)
+    for i, (r, v) in enumerate(zip(refs, views, strict=True)):
+        out[i] = flow_bound_px(r, v, k, radii, shape)
     return out
+
+
+def flow_bound_px(
+    ref: View, view: View, k: np.ndarray, radii: np.ndarray, shape: tuple[int, int]
+) -> float:
+    """:func:`view_flow_bounds_px` of one pair of views (``k`` and ``radii`` float64)."""
+    return _flow_bound(
+        k,
+        radii,
+        shape[0],
+        shape[1],
+        ref.rotation,
+        ref.centre,
+        ref.layer_positions,
+        view.rotation,
+        view.centre,
+        view.layer_positions,
+    )
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _flow_bound(k, radii, h, w, r_rot, r_centre, r_layers, rot, centre, layers):
+    """See :func:`view_flow_bounds_px` (one pair of views)."""
+    for j in range(3):
+        if centre[j] != r_centre[j]:
+            return np.inf
+    fx, fy, cx, cy = k[0, 0], k[1, 1], k[0, 2], k[1, 2]
+    out = 0.0
+    if (rot != r_rot).any():
+        rel = rot.T @ r_rot  # target-from-ref rotation
+        worst = 0.0
+        for x in (0.0, (w - 1) / 2, w - 1.0):
+            for y in (0.0, (h - 1) / 2, h - 1.0):
+                rx, ry = (x - cx) / fx, (y - cy) / fy
+                m0 = rel[0, 0] * rx + rel[0, 1] * ry + rel[0, 2]
+                m1 = rel[1, 0] * rx + rel[1, 1] * ry + rel[1, 2]
+                m2 = rel[2, 0] * rx + rel[2, 1] * ry + rel[2, 2]
+                worst = max(worst, abs(fx * m0 / m2 + cx - x), abs(fy * m1 / m2 + cy - y))
+        out += 1.25 * worst
+    r_max = math.hypot(w, h) / 2 + 1.0
+    extra = 0.0
+    for ll in range(len(layers)):
+        s0 = layers[ll, 0] - r_layers[ll, 0]
+        s1 = layers[ll, 1] - r_layers[ll, 1]
+        s2 = layers[ll, 2] - r_layers[ll, 2]
+        if s0 == 0 and s1 == 0 and s2 == 0:
+            continue
+        z = 0.0
+        z_to = 0.0
+        for j in range(3):
+            z += (r_layers[ll, j] - r_centre[j]) * r_rot[j, 2]
+            z_to += (layers[ll, j] - centre[j]) * rot[j, 2]
+        near = min(z, z_to) - radii[ll]
+        # the shift in the target camera's axes
+        t0 = rot[0, 0] * s0 + rot[1, 0] * s1 + rot[2, 0] * s2
+        t1 = rot[0, 1] * s0 + rot[1, 1] * s1 + rot[2, 1] * s2
+        t2 = rot[0, 2] * s0 + rot[1, 2] * s1 + rot[2, 2] * s2
+        if not near > 0.01:
+            return np.inf
+        extra = max(extra, (fx * math.hypot(t0, t1) + abs(t2) * r_max) / near)
+    return out + 1.25 * extra
 
 
 def adaptive_key_ticks(
@@ -698,3 +777,46 @@ def adaptive_key_ticks(
         spread.append(j)
         prev = j
     return spread
+
+
+def left_to_dvs(
+    start: View,
+    views: Sequence[View],
+    fixed: Sequence[bool],
+    k: np.ndarray,
+    radii: np.ndarray,
+    shape: tuple[int, int],
+    bound_px: float,
+) -> list[int]:
+    """Indices of ``views`` (the frames a step would hand the DVS, in time order, after
+    the frame of ``start``) whose frames the DVS may go without, interpolating between
+    the frames on either side: in time order, each one not ``fixed`` where no pixel's
+    content moves more than ``bound_px`` (:func:`flow_bound_px`) from the last frame
+    kept to the next one. The last view is always kept.
+
+    >>> from wander_env.camera import intrinsics
+    >>> k = intrinsics(128, 128, 90.0)
+    >>> v = [View(np.eye(3), np.zeros(3), np.array([[0, 0, 0], [0.004 * i, 0, 2.0]]))
+    ...      for i in range(8)]
+    >>> radii = np.array([np.inf, 0.1])
+    >>> round(flow_bound_px(v[0], v[1], k, radii, (128, 128)), 3)  # px a view
+    0.168
+    >>> left_to_dvs(v[0], v[1:], [False] * 7, k, radii, (128, 128), 0.6)
+    [0, 1, 3, 4]
+    >>> left_to_dvs(v[0], v[1:], [False, True] + [False] * 5, k, radii, (128, 128), 0.6)
+    [0, 2, 3, 5]
+    """
+    if not bound_px > 0:
+        raise ValueError(f"bound_px must be > 0, got {bound_px!r}")
+    if len(fixed) != len(views):
+        raise ValueError(f"{len(fixed)} fixed flags for {len(views)} views")
+    k = np.asarray(k, dtype=np.float64)
+    radii = np.asarray(radii, dtype=np.float64)
+    skipped: list[int] = []
+    prev = start
+    for i in range(len(views) - 1):
+        if not fixed[i] and flow_bound_px(prev, views[i + 1], k, radii, shape) < bound_px:
+            skipped.append(i)
+        else:
+            prev = views[i]
+    return skipped

@@ -17,6 +17,7 @@ from wander_env.frames.keyframe_maths import (
     View,
     adaptive_key_ticks,
     blend,
+    left_to_dvs,
     make_keyframe,
     view_flow_bounds_px,
 )
@@ -89,7 +90,8 @@ class KeyframeFrames(FrameSource):
         self._latest: RenderedKey | None = None  # the latest key rendered
         self._key_at: dict[int, RenderedKey] = {}  # key t_us -> key (this step)
         self._views: dict[int, View] = {}  # tick t_us -> its view (this step)
-        self._interpolated: set[int] = set()  # ticks the DVS interpolates over
+        self._interpolated: set[int] = set()  # ticks the keys' blend (subpixel from both)
+        self._skipped: set[int] = set()  # more ticks the DVS interpolates over
         self._pairs: dict[int, KeyPair] = {}  # later key's t_us -> the pair ending there
 
     @property
@@ -140,7 +142,7 @@ class KeyframeFrames(FrameSource):
     def start_with(self, keys: list[RenderedKey]) -> None:
         """The stream's keys from here on: ``keys`` (none: no key, nothing planned)."""
         self.keys, self._key_at = keys, {key.t_us: key for key in keys}
-        self._views, self._pairs, self._interpolated = {}, {}, set()
+        self._views, self._pairs, self._interpolated, self._skipped = {}, {}, set(), set()
 
     def key_at(self, t_us: int) -> RenderedKey | None:
         """The key of this step rendered at ``t_us`` (None: none there)."""
@@ -189,12 +191,15 @@ class KeyframeFrames(FrameSource):
             self._interpolated = {
                 t for (t, _), b in zip(between, bounds, strict=True) if b < SUBPIXEL_PX
             }
+        self._skipped = set()
+        if p.interpolate_px is not None:
+            self._skipped = self._left_to_dvs(ref.view, ticks, views, at_key)
         # The geometry sure to be needed: both keys of every synthesised tick, the step
         # end's for the ground truth, and with geometry_at_keys (a source compositing the
         # keys' layers at every frame) every new key's.
         need = set(range(1, len(key_t))) if self.geometry_at_keys else set()
         for (t, _), j in zip(between, later, strict=True):
-            if t not in self._interpolated:
+            if not self.interpolated(t):
                 need |= {j - 1, j}
         if p.ground_truth and key_t[-1] == ticks[-1]:
             need.add(len(key_t) - 1)
@@ -215,6 +220,24 @@ class KeyframeFrames(FrameSource):
                 self.request_geometry(key)
         self._key_at = {key.t_us: key for key in self.keys}
 
+    def _left_to_dvs(
+        self, start: View, ticks: tuple[int, ...], views: list[View], at_key: set[int]
+    ) -> set[int]:
+        """The ticks (not already the keys' blend) whose frames the DVS goes without
+        (:func:`~wander_env.frames.keyframe_maths.left_to_dvs`; the keys stay)."""
+        stage = self.stage
+        handed = [i for i, t in enumerate(ticks) if t not in self._interpolated]
+        skip = left_to_dvs(
+            start,
+            [views[i] for i in handed],
+            [ticks[i] in at_key for i in handed],
+            stage.k,
+            self.radii,
+            (stage.height, stage.width),
+            self.params.interpolate_px,
+        )
+        return {ticks[handed[j]] for j in skip}
+
     def pair(self, t_us: int) -> tuple[RenderedKey, RenderedKey]:
         """The keys just before and at-or-after ``t_us`` (inside the planned step)."""
         i = bisect.bisect_left([key.t_us for key in self.keys], t_us)
@@ -224,11 +247,13 @@ class KeyframeFrames(FrameSource):
         """The keys' :class:`KeyPair` (with their geometry), made once a step."""
         pair = self._pairs.get(b.t_us)
         if pair is None:
-            pair = self._pairs[b.t_us] = KeyPair(self.keyframe(a), self.keyframe(b), self.stage.k)
+            pair = self._pairs[b.t_us] = KeyPair(
+                self.keyframe(a), self.keyframe(b), self.stage.k, self.stage.k_inv
+            )
         return pair
 
     def interpolated(self, t_us: int) -> bool:
-        return t_us in self._interpolated
+        return t_us in self._interpolated or t_us in self._skipped
 
     def frame(self, t_us: int, angles: Angles) -> LogFrame:
         """A key's own input at its tick; the keys' blend where nothing moves by half a

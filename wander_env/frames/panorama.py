@@ -290,7 +290,9 @@ class PanoramaFrames(FrameSource):
         if pair is None:
             kb = self._edge_key(b)
             ka = replace(kb, t_us=kb.t_us - 1) if a is b else self._edge_key(a)
-            pair = self._edge_pairs[(a.t_us, b.t_us)] = KeyPair(ka, kb, self.stage.k)
+            pair = self._edge_pairs[(a.t_us, b.t_us)] = KeyPair(
+                ka, kb, self.stage.k, self.stage.k_inv
+            )
         hinv, bvec, moving, boxes = pair.params(view)
         regions = pair.regions(boxes)
         if not len(regions):

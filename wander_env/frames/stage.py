@@ -43,7 +43,7 @@ from typing import Any, Literal, TypeVar
 import mujoco
 import numpy as np
 
-from wander_env.camera import CAMERA_NAME, intrinsics, rotation_from_mujoco
+from wander_env.camera import CAMERA_NAME, intrinsics, project, rotation_from_mujoco
 from wander_env.entities import PAN_JOINT, TILT_JOINT
 from wander_env.frames.keyframe_maths import View
 from wander_env.frames.raycast import PrimitiveCaster, RaycastParams, unsupported_geoms
@@ -80,6 +80,7 @@ class Stage:
         self._tilt_adr = int(model.joint(TILT_JOINT).qposadr[0])
         self._cam_id = int(model.camera(CAMERA_NAME).id)
         self.k = intrinsics(self.width, self.height, float(model.cam_fovy[self._cam_id]))
+        self.k_inv = np.linalg.inv(self.k)
         self.layer_lut = geom_layer_ids(model)
         self._animator: SceneAnimator | None = None
         self._renderer: CameraRenderer | None = None  # created on the draw side
@@ -285,6 +286,12 @@ class Stage:
         """The camera side's data with the camera at these angles (the objects as they
         were: the ground truth projects their positions through this camera)."""
         self.camera_views([0], [(pan_deg, tilt_deg)])
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """World points (N, 3) -> pixel coordinates (N, 2) (x right, y down; NaN behind
+        the camera) through the camera side's pose (:meth:`pose_camera`)."""
+        r_wc = rotation_from_mujoco(self.data.cam_xmat[self._cam_id])
+        return project(self.k, r_wc, self.data.cam_xpos[self._cam_id], points)[0]
 
     def camera_view(self, t_us: int, pan_deg: float, tilt_deg: float) -> View:
         """The :class:`View` at ``t_us`` with the camera at these angles (the camera

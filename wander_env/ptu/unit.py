@@ -58,16 +58,23 @@ class Trajectory:
     def at(self, times_us: list[int]) -> list[tuple[float, float]]:
         """Camera (pan, tilt) at increasing ``times_us`` inside the span (adaptive
         sub-frames): per tick, a copy of the unit at its start stepped from one time to
-        the next (the unit that made the trajectory is not touched)."""
+        the next (the unit that made the trajectory is not touched); a tick's end
+        reached in one step from its start is the trajectory's own angles there (the
+        same step)."""
         out = []
-        tick, unit, t_prev = -1, self.starts[0], self.t0_us
+        tick, unit, t_prev = -1, None, self.t0_us
         for t in times_us:
             i = bisect.bisect_left(self.t_us, t)
             if not (i < len(self.t_us) and (self.t_us[i - 1] if i else self.t0_us) < t):
                 raise ValueError(f"t={t} µs is not inside ({self.t0_us}, {self.t_us[-1]}]")
             if i != tick:
-                tick, unit = i, self.starts[i].copy()
+                tick, unit = i, None
                 t_prev = self.t_us[i - 1] if i else self.t0_us
+            if unit is None and t == self.t_us[i]:  # the tick's end, as the trajectory has it
+                out.append(self.angles(i))
+                continue
+            if unit is None:
+                unit = self.starts[i].copy()
             unit.step((t - t_prev) * 1e-6)
             t_prev = t
             out.append((unit.camera_pan_deg, unit.camera_tilt_deg))
