@@ -356,29 +356,6 @@ def test_flow_bounds_are_the_formula_of_the_poses():
     assert view_flow_bounds_px(ref, [ref, moved], k, radii, (96, 128)).tolist() == [0.0, np.inf]
 
 
-def test_tessellation_draws_coarser_primitives_and_leaves_the_model_as_it_was():
-    """RenderParams.tessellation replaces the model's <visual><quality> slices and
-    stacks in the renderer's meshes only: the office's balls and cylinders drawn as
-    hexagons differ from the scenes' 20 x 10 on their rims, the model keeps 20 x 10;
-    a tessellation that is not two ints (>= 3, >= 2) is one error naming the field."""
-    from wander_env.renderer import RenderParams
-
-    model = compile_scene(load_scene_config("office"))
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    frames = []
-    for params in (RenderParams(), RenderParams(tessellation=(6, 3))):
-        renderer = CameraRenderer(model, params=params)
-        frames.append(renderer.render(data).astype(int))
-        renderer.close()
-    assert (model.vis.quality.numslices, model.vis.quality.numstacks) == (20, 10)
-    changed = np.abs(frames[0] - frames[1]).max(axis=2) > 0
-    assert 20 <= changed.sum() <= 0.2 * changed.size  # rims, not the whole image
-    for bad in ((2, 3), (6, 1), (6.0, 3), (6,), [6, 3]):
-        with pytest.raises(ValueError, match=r"RenderParams\.tessellation"):
-            RenderParams(tessellation=bad)
-
-
 def test_frame_params_interpolate_px_is_checked():
     from wander_env.frames.source import FrameParams
 

@@ -70,27 +70,11 @@ class RenderParams:
     # Mesa's llvmpipe caps MSAA at 4 samples (16 renders the same pixels as 4), so this
     # is how the exact mode's finer-antialiased reference is made on a CPU.
     supersample: int = 1
-    # (slices, stacks) of the spheres', capsules' and cylinders' meshes in place of the
-    # model's <visual><quality numslices numstacks> (the scenes: 20 x 10); None: the
-    # model's. Fewer triangles a key (12 x 8 draws a key in about 0.71 x the time).
-    tessellation: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         s = self.supersample
         if isinstance(s, bool) or not isinstance(s, int) or s < 1:
             raise ValueError(f"RenderParams.supersample must be an int >= 1, got {s!r}")
-        t = self.tessellation
-        if t is not None and not (
-            isinstance(t, tuple)
-            and len(t) == 2
-            and all(isinstance(n, int) and not isinstance(n, bool) for n in t)
-            and t[0] >= 3
-            and t[1] >= 2
-        ):
-            raise ValueError(
-                "RenderParams.tessellation must be (slices >= 3, stacks >= 2) ints or None, "
-                f"got {t!r}"
-            )
 
 
 class CameraRenderer(Closing):
@@ -186,17 +170,14 @@ class CameraRenderer(Closing):
         self._lut = np.concatenate([[0], geom_object_ids(model)]).astype(np.int32)
 
     def _context(self, samples: int) -> mujoco.MjrContext:
-        """A MuJoCo render context (textures, offscreen framebuffer, the primitives'
-        meshes: ``params.tessellation``'s where given) with ``samples``."""
+        """A MuJoCo render context (textures, offscreen framebuffer) with ``samples``."""
         q = self.model.vis.quality
-        saved = q.offsamples, q.numslices, q.numstacks
+        saved = q.offsamples
         q.offsamples = samples
-        if self.params.tessellation is not None:
-            q.numslices, q.numstacks = self.params.tessellation
         try:
             con = mujoco.MjrContext(self.model, mujoco.mjtFontScale.mjFONTSCALE_150)
         finally:
-            q.offsamples, q.numslices, q.numstacks = saved
+            q.offsamples = saved
         return con
 
     # -- rendering ------------------------------------------------------------------------
