@@ -147,17 +147,12 @@ def test_keyframe_max_ms_is_checked():
         WanderConfig(keyframe_max_ms=0.0)
 
 
-def test_quality_fine_renders_2x2_supersamples_without_msaa():
+def test_quality_fine_renders_16_samples_a_pixel():
     from wander_env.env_config import WanderConfig
-    from wander_env.renderer import RenderParams
 
-    assert WanderConfig().quality == "fast"
-    assert WanderConfig().render_params == RenderParams(supersample=1, msaa=None)
-    assert WanderConfig(supersample=2).render_params == RenderParams(supersample=2, msaa=None)
-    assert WanderConfig(quality="fine").render_params == RenderParams(supersample=2, msaa=0)
+    assert WanderConfig().quality == "fast" and WanderConfig().render_supersample == 1
     env = gym.make("wander/Wander-v0", quality="fine").unwrapped
-    assert env.stage.params == RenderParams(supersample=2, msaa=0)
-    assert env.scene.camera.antialias_samples == 4  # the scene's MSAA, unused by fine
+    assert env.stage.params.supersample == 2 and env.scene.camera.antialias_samples == 4
     env.close()
     with pytest.raises(ValueError, match=r"^quality: expected one of .fast., .fine., got .best.$"):
         WanderConfig(quality="best")

@@ -22,7 +22,7 @@ import wander_env  # noqa: F401  (registers the environments)
 from wander_env.camera import CAMERA_NAME
 from wander_env.dvs import DVSEmulator, DVSParams, LogFrame
 from wander_env.mjcf import SceneAnimator, compile_scene, geom_object_ids
-from wander_env.renderer import CameraRenderer, RenderParams
+from wander_env.renderer import CameraRenderer
 from wander_env.scene_config import load_scene_config
 
 
@@ -75,33 +75,6 @@ def test_frames_and_masks_equal_mujoco_renderer(scene, samples):
         assert np.array_equal(cam.render(data), rgb)  # a render after a mask: unchanged
     assert mask.any() and len(np.unique(rgb)) > 10  # the views show objects and texture
     cam.close()
-
-
-def test_msaa_override_with_supersample_is_a_2x2_grid_of_single_samples():
-    """``RenderParams(supersample=2, msaa=0)`` (quality fine): each pixel the rounded mean
-    of a 2 × 2 block of a single-sample render at twice the resolution; the mask each
-    block's sample (1, 1); ``msaa=None`` keeps the model's MSAA (4)."""
-    model, data = next(_poses("office"))
-    assert model.vis.quality.offsamples == 4
-    model.vis.global_.offwidth = model.vis.global_.offheight = 256
-    fine = CameraRenderer(model, params=RenderParams(supersample=2, msaa=0))
-    big = CameraRenderer(model, 256, 256, params=RenderParams(msaa=0))
-    msaa4 = CameraRenderer(model, params=RenderParams(msaa=4))
-    plain = CameraRenderer(model)  # msaa None: the model's 4
-    try:
-        rgb, mask = fine.render_with_mask(data)
-        big_rgb, big_mask = big.render_with_mask(data)
-        blocks = big_rgb.reshape(128, 2, 128, 2, 3).astype(np.float32).mean(axis=(1, 3))
-        assert np.array_equal(rgb, np.rint(blocks).astype(np.uint8))
-        assert np.array_equal(mask, big_mask[1::2, 1::2])
-        assert mask.any()
-        assert np.array_equal(msaa4.render(data), plain.render(data))
-        assert not np.array_equal(msaa4.render(data), rgb)
-    finally:
-        for cam in (fine, big, msaa4, plain):
-            cam.close()
-    with pytest.raises(ValueError, match=r"^RenderParams.msaa must be None or an int >= 0"):
-        RenderParams(msaa=-1)
 
 
 def test_render_returns_a_fresh_top_down_array():

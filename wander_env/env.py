@@ -79,7 +79,7 @@ from wander_env.mjcf import SceneAnimator, build_mjcf
 from wander_env.ptu.params import PTUParams
 from wander_env.ptu.unit import PanTiltUnit
 from wander_env.readout import SpeckReadout
-from wander_env.renderer import project_points
+from wander_env.renderer import RenderParams, project_points
 from wander_env.scene_config import SceneConfig, load_scene_config
 from wander_env.viz import event_image, labelled_frame
 
@@ -100,7 +100,7 @@ class WanderEnv(CameraEnv):
         self.stage = Stage(
             build_mjcf(scene).compile(),
             scene,
-            c.render_params,
+            RenderParams(supersample=c.render_supersample),
             render_thread=c.render_thread,
         )
         self.model, self.data = self.stage.model, self.stage.data

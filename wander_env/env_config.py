@@ -34,7 +34,6 @@ from wander_env.field_doc import field_doc
 from wander_env.frames.registry import MODE_NAMES, frame_modes_help
 from wander_env.ptu.params import PTUParams
 from wander_env.readout import ReadoutParams
-from wander_env.renderer import RenderParams
 from wander_env.scene_config import SceneConfig, available_scenes, load_scene_config
 
 __all__ = [
@@ -92,8 +91,7 @@ ReadoutPreset = Annotated[str, pydantic.AfterValidator(_readout_preset)]
 PtuPreset = Annotated[str, pydantic.AfterValidator(_ptu_preset)]
 #: How the env makes its frames: one name per mode of ``wander_env.frames.registry``.
 FrameMode = Literal[MODE_NAMES]
-#: Rendering quality: ``fast`` (the scene's antialiasing), ``fine`` (2 × 2 supersampling,
-#: no MSAA: :attr:`WanderConfig.render_params`).
+#: Rendering quality: ``fast`` (the scene's antialiasing), ``fine`` (16 samples a pixel).
 Quality = Literal["fast", "fine"]
 FRAME_MODES: tuple[str, ...] = typing.get_args(FrameMode)
 QUALITIES: tuple[str, ...] = typing.get_args(Quality)
@@ -261,13 +259,6 @@ class WanderConfig(FieldsMapping):
         return round(self.keyframe_ms * 1e3)
 
     @property
-    def render_params(self) -> RenderParams:
-        """The renderer's options: ``supersample`` with the scene's MSAA, or with
-        ``quality="fine"`` 2 × 2 supersampling without MSAA (4 samples a pixel on a grid).
-
-        >>> WanderConfig(quality="fine").render_params == RenderParams(supersample=2, msaa=0)
-        True
-        """
-        if self.quality == "fine":
-            return RenderParams(supersample=2, msaa=0)
-        return RenderParams(supersample=self.supersample)
+    def render_supersample(self) -> int:
+        """The renderer's supersampling: ``supersample``, or 2 with ``quality="fine"``."""
+        return 2 if self.quality == "fine" else self.supersample

@@ -70,17 +70,11 @@ class RenderParams:
     # Mesa's llvmpipe caps MSAA at 4 samples (16 renders the same pixels as 4), so this
     # is how the exact mode's finer-antialiased reference is made on a CPU.
     supersample: int = 1
-    # MSAA samples of the colour draws (0: none); None: the model's (the scene camera's
-    # antialias_samples). With supersample 2, 0 gives 4 samples a pixel on a 2 x 2 grid.
-    msaa: int | None = None
 
     def __post_init__(self) -> None:
         s = self.supersample
         if isinstance(s, bool) or not isinstance(s, int) or s < 1:
             raise ValueError(f"RenderParams.supersample must be an int >= 1, got {s!r}")
-        m = self.msaa
-        if m is not None and (isinstance(m, bool) or not isinstance(m, int) or m < 0):
-            raise ValueError(f"RenderParams.msaa must be None or an int >= 0, got {m!r}")
 
 
 class CameraRenderer(Closing):
@@ -134,9 +128,8 @@ class CameraRenderer(Closing):
         try:
             self._gl = mujoco.GLContext(width * ss, height * ss)
             self._gl.make_current()
-            msaa = model.vis.quality.offsamples if self.params.msaa is None else self.params.msaa
-            self._con = self._context(msaa)
-            self._seg_con = self._context(0) if msaa > 0 else self._con
+            self._con = self._context(model.vis.quality.offsamples)
+            self._seg_con = self._context(0) if model.vis.quality.offsamples > 0 else self._con
         except mujoco.FatalError as e:
             self.close()
             backend = os.environ.get("MUJOCO_GL", "")
