@@ -13,9 +13,9 @@ import subprocess
 import sys
 import textwrap
 from dataclasses import replace
-from pathlib import Path
 
 import pytest
+from locations import ROOT, SUPPORT
 from test_sweep import TOY_SWEEP, CountingRunner
 from typer.testing import CliRunner
 
@@ -26,7 +26,6 @@ from experiments.runs.signals import SignalExit
 from experiments.sweep import run_sweep, sweep_from_dict
 from wander_env.scene_config import available_scenes
 
-ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()
 SCENES = ", ".join(available_scenes())
 CONFIG = ["experiment", "event_suppression", "--config", "c.yaml"]
@@ -335,7 +334,7 @@ GIB = 1 << 30
 )
 def test_the_billion_laughs_is_one_line_within_1_gb(args, limit, line, tmp_path):
     (tmp_path / "bomb.yaml").write_text(billion_laughs())
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(ROOT / "tests")])}
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(SUPPORT)])}
     proc = subprocess.run(
         [sys.executable, "-c", LIMITED, str(limit), *args],
         capture_output=True,

@@ -5,13 +5,12 @@ example, which runs."""
 from __future__ import annotations
 
 import re
-from pathlib import Path
 
 import pytest
 import yaml
+from locations import ROOT
 from test_tutorial import python_blocks
 
-ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 
 

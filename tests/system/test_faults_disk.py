@@ -15,12 +15,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from locations import ROOT
 
 from wander_env.events import make_events
 from wander_env.events.io import read_events
 from wander_env.events.stream import EventStreamWriter, OutputError
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def _mount(path: Path, options: str) -> None:

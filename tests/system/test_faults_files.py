@@ -17,10 +17,10 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from locations import REALDATA
 
 from wander_env.events.io import EventFileError, read_events
 
-REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
 REAL = REALDATA / "dvs128_people" / "alex_walking_for_10secs_txyp.npy"
 needs_realdata = pytest.mark.skipif(not REAL.is_file(), reason="../shared/realdata absent")
 pytestmark = needs_realdata

@@ -18,14 +18,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from locations import ROOT
 
 from experiments.runs.folder import RunFolder
 from experiments.runs.signals import SignalExit, handle_signals
 from wander_env.env_config import WanderConfig
 from wander_env.events import make_events
 from wander_env.events.io import EventRecording, read_events, write_events
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def strict_json(path: Path) -> dict:

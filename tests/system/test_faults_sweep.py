@@ -12,14 +12,12 @@ import time
 from pathlib import Path
 
 import pytest
+from locations import ROOT, SUPPORT
 from test_sweep import TOY_SWEEP, CountingRunner
 
 from experiments.framework import TrialSpec
 from experiments.runs.trials import MAX_TRIAL_FILE_BYTES
 from experiments.sweep import TrialCrashed, expand, local_executor, run_sweep, sweep_from_dict
-
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent
 
 
 @pytest.mark.parametrize(
@@ -121,7 +119,7 @@ SCRIPT = textwrap.dedent(
 def test_a_stopped_or_killed_sweep_leaves_no_worker(tmp_path, sig):
     pids_dir = tmp_path / "pids"
     pids_dir.mkdir()
-    code = SCRIPT.format(here=str(HERE), sweep=TOY_SWEEP, out=str(tmp_path / "sweep"))
+    code = SCRIPT.format(here=str(SUPPORT), sweep=TOY_SWEEP, out=str(tmp_path / "sweep"))
     env = {**os.environ, "PYTHONPATH": str(ROOT), "SWEEP_PIDS": str(pids_dir)}
     proc = subprocess.Popen([sys.executable, "-c", code], env=env, stderr=subprocess.PIPE)
     pids = wait_for_pids(pids_dir, 2)

@@ -16,9 +16,9 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from locations import ROOT
 from test_faults_disk import _mount, _umount
 
-ROOT = Path(__file__).resolve().parents[1]
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "MUJOCO_GL": "egl"}
 
 

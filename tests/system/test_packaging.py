@@ -14,10 +14,10 @@ import zipfile
 from pathlib import Path
 
 import pytest
+from locations import ROOT
 
 tomllib = pytest.importorskip("tomllib")  # the standard library's from Python 3.11
 
-ROOT = Path(__file__).resolve().parents[1]
 PACKAGE_ROOTS = ("wander_env", "agents", "hardware", "experiments")
 SKIP_DIRS = {"__pycache__", ".pytest_cache"}
 

@@ -26,6 +26,7 @@ import imageio_ffmpeg
 import numpy as np
 import pytest
 import typer
+from locations import ROOT
 from typer.testing import CliRunner
 
 from experiments.cli.errors import long_command
@@ -38,7 +39,6 @@ from wander_env.env_config import WanderConfig
 from wander_env.events.io import read_events
 from wander_env.events.stream import OutputError, VideoSink, mp4_complete
 
-ROOT = Path(__file__).resolve().parents[1]
 STOPPED = "SignalExit: stopped by SIGTERM (signal 15)"
 
 

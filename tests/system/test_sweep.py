@@ -135,8 +135,7 @@ def test_local_processes_give_the_same_table_as_this_process(tmp_path):
 
 
 @pytest.mark.slow  # ~10 s on an idle machine, 20-40 s when the 2 cores are shared
-def test_ray_backend_with_a_local_instance_gives_the_same_table(tmp_path):
-    pytest.importorskip("ray")
+def test_ray_backend_with_a_local_instance_gives_the_same_table(tmp_path, ray_instance):
     sweep = sweep_from_dict(TINY_SWEEP)
     run_sweep(sweep, tmp_path / "serial", backend="serial")
     res = run_sweep(sweep, tmp_path / "ray", backend="ray", workers=2)

@@ -5,15 +5,13 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 import torch
+from locations import ROOT
 
 from agents import torch_fork
 from agents.torch_fork import set_torch_threads
-
-ROOT = Path(__file__).resolve().parents[1]
 
 # The parent runs a 2-thread convolution, then forks; the child convolves again. Without
 # agents.torch_fork the child waits forever in GOMP_parallel (measured: py-spy).

@@ -4,11 +4,11 @@ folder — the page's own asserts are the test."""
 from __future__ import annotations
 
 import re
-from pathlib import Path
 
 import pytest
+from locations import ROOT
 
-TUTORIAL = Path(__file__).resolve().parents[1] / "docs" / "tutorial.md"
+TUTORIAL = ROOT / "docs" / "tutorial.md"
 
 
 def python_blocks(text: str) -> list[str]:

@@ -17,13 +17,12 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
+from locations import ROOT, SUPPORT
 from vector_drive import NUM_ENVS, STEPS, WAIT_S, drive_and_close, make_env
 
 import wander_env  # noqa: F401  (registers the environments)
 from wander_env import gl_fork
 from wander_env.gl_fork import ForkedGLError, claim_gl
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def child_env() -> dict[str, str]:
@@ -66,7 +65,7 @@ def test_default_start_method_in_a_fresh_process_gives_the_same_events(sync_run)
     # the default start method, in a process that has rendered nothing.
     env = child_env()
     proc = subprocess.run(
-        [sys.executable, str(ROOT / "tests" / "vector_drive.py")],
+        [sys.executable, str(SUPPORT / "vector_drive.py")],
         cwd=ROOT,
         env=env,
         capture_output=True,

@@ -10,9 +10,8 @@ a listed one that is gone fails too, so the list stays true.
 from __future__ import annotations
 
 import ast
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from locations import ROOT
 
 #: (file, enclosing function) -> why its loop is not run_episode's.
 EXCEPTIONS: dict[tuple[str, str], str] = {

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import typer
+from locations import REALDATA
 from PIL import Image
 from typer.testing import CliRunner
 
@@ -21,7 +22,6 @@ from experiments.benchmark.model import ModelConfig, nominal_dt_s
 from experiments.cli.benchmark import app, default_name, parse_offset, parse_sensor
 from wander_env.events import EVENT_DTYPE, time_window
 
-REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
 EED = REALDATA / "eed_ball_net"
 needs_realdata = pytest.mark.skipif(not EED.is_dir(), reason="../shared/realdata absent")
 

@@ -12,6 +12,7 @@ import json
 from pathlib import Path
 
 import pytest
+from locations import ROOT
 from typer.testing import CliRunner
 
 from experiments.cli.main import app
@@ -22,7 +23,6 @@ from experiments.jobs.rig import RigRunConfig
 from experiments.jobs.run_agent import RunConfig
 from wander_env.env_config import WanderConfig
 
-ROOT = Path(__file__).resolve().parents[1]
 RUNNER = CliRunner()
 
 #: The env's settings that once were copied flat into the job and experiment configs.

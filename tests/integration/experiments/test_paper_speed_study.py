@@ -125,8 +125,7 @@ TINY = {
 
 
 @pytest.mark.slow  # five ~10 s trials plus worker and Ray start-up; 8 min at load 28 on 2 cores
-def test_factorial_sweep_resumes_and_local_and_ray_agree(tmp_path) -> None:
-    pytest.importorskip("ray")
+def test_factorial_sweep_resumes_and_local_and_ray_agree(tmp_path, ray_instance) -> None:
     sweep = sweep_from_dict(TINY)
     local = tmp_path / "local"
     res = run_sweep(sweep, local, backend="local", workers=2)

@@ -7,9 +7,9 @@ whose path names one of them, directly or through a variable of the same functio
 from __future__ import annotations
 
 import ast
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from locations import ROOT
+
 PACKAGES = ("wander_env", "agents", "hardware", "experiments")
 RECORDS = {"run.json", "metrics.json", "INCOMPLETE", "RUN_JSON", "METRICS_JSON"}
 WRITES = {"write_text", "write_bytes", "touch", "dump", "write_json", "open", "replace"}

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import serial
 from fake_samna import FakeSamna, FakeSpeck, install
+from locations import REALDATA, ROOT
 
 import hardware.rig_env as rig_env
 import wander_env  # noqa: F401  (registers the environments)
@@ -26,7 +27,6 @@ from wander_env.events import EVENT_DTYPE, make_events
 from wander_env.events.io import EventRecording, write_events
 from wander_env.ptu.params import PTUParams
 
-REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
 WALK = REALDATA / "dvs128_people" / "alex_walking_for_10secs_txyp.npy"
 # Generous reply timeouts: a loaded CI machine can starve the emulator thread for a while.
 DRIVER = FlirPTUParams(timeout_s=2.0, await_timeout_s=10.0, halt_timeout_s=0.5, banner_quiet_s=0.02)
@@ -438,7 +438,7 @@ def test_importing_the_rig_env_does_not_import_samna():
     import subprocess
 
     code = "import sys, hardware.rig_env; assert 'samna' not in sys.modules"
-    subprocess.run([sys.executable, "-c", code], cwd=Path(__file__).parents[1], check=True)
+    subprocess.run([sys.executable, "-c", code], cwd=ROOT, check=True)
 
 
 def test_doctests():

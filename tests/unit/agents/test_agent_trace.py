@@ -6,14 +6,14 @@ gives the actions, decisions and saliency peaks recorded before the step was mad
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
+from locations import DATA
 
 from agents.attention import AgentParams, AttentionAgent
 
 H = W = 128
-TRACE = Path(__file__).parent / "data" / "agent_trace.json"
+TRACE = DATA / "agent_trace.json"
 
 
 def synthetic_counts(k: int, rng: np.random.Generator) -> np.ndarray:

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from locations import REALDATA
 from PIL import Image
 
 from experiments.benchmark.datasets import (
@@ -36,7 +37,6 @@ from experiments.benchmark.datasets.llevos import LLEVOSConfig
 from experiments.benchmark.datasets.masks import parse_mask_name, read_mask_png
 from wander_env.events import EVENT_DTYPE
 
-REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
 needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason="../shared/realdata absent")
 
 

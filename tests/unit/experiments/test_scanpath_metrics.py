@@ -7,13 +7,14 @@ import json
 import math
 from pathlib import Path
 
+import locations
 import numpy as np
 import pytest
 
 from experiments import scanpath_stats
 from experiments.paper import scanpath, scanpath_analysis
 
-DATA = Path(__file__).parent / "data" / "multimatch"
+DATA = locations.DATA / "multimatch"
 # multimatch-gaze's test_compare2matlab: the MATLAB toolbox's results on these two files
 MATLAB_NO_GROUPING = [0.99082, 0.69902, 0.98927, 0.94767, 0.65563]
 MATLAB_GROUPING = [0.95076, 0.95638, 0.94082, 0.94491, 0.78261]

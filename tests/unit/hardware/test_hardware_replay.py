@@ -3,17 +3,16 @@
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
+from locations import REALDATA
 
 from hardware.event_source import EventSource
 from hardware.replay import ReplayParams, ReplaySource
 from wander_env.events import concatenate, make_events
 from wander_env.events.io import EventRecording, read_events, write_events
 
-REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
 needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason="../shared/realdata absent")
 
 REAL_FILES = [

@@ -6,19 +6,17 @@ import itertools
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 from fake_samna import FakeSamna, FakeSpeck, install
+from locations import REALDATA, ROOT
 
 import hardware.speck as speck_mod
 from hardware.event_source import EventSource
 from hardware.speck import SamnaUnavailableError, SpeckParams, SpeckSource, import_samna
 from wander_env.events import EVENT_DTYPE, validate_events
 
-ROOT = Path(__file__).resolve().parents[1]
-REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
 WALK = REALDATA / "dvs128_people" / "alex_walking_for_10secs_txyp.npy"
 DURATION_US = 300_000
 T_FIRST_US = 1_000  # the first recorded event comes 1 ms after the stop-watch reset

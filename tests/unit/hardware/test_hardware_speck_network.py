@@ -7,12 +7,12 @@ from __future__ import annotations
 import ast
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 from fake_samna import FakeSamna, FakeSpeck, forget_dynapcnn, install, spike
+from locations import ROOT
 
 from agents.attention import AgentParams, AttentionAgent
 from agents.speck_front import SpeckFront, SpeckFrontParams, build_front
@@ -20,8 +20,6 @@ from agents.speck_limits import SpeckLimitError
 from hardware.speck import SamnaUnavailableError
 from hardware.speck_network import ChipPipeline, deploy, spike_counts
 from wander_env.events import EVENT_DTYPE
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture

@@ -9,11 +9,11 @@ are decoded by faery/evt3 through ``read_events``).
 from __future__ import annotations
 
 import struct
-from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
+from locations import REALDATA
 
 from wander_env.events import EVENT_DTYPE, make_events, time_window
 from wander_env.events.formats import (
@@ -25,7 +25,6 @@ from wander_env.events.formats import (
 )
 from wander_env.events.io import EventFileError, EventRecording, read_events, write_events
 
-REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
 needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason="../shared/realdata absent")
 
 

@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
+from locations import REALDATA
 
 from wander_env.events import make_events
 from wander_env.events.io import EventFileError, EventRecording, read_events, write_events
 
-REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
 needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason="../shared/realdata absent")
 
 

@@ -10,13 +10,13 @@ import copy
 import dataclasses
 import json
 import math
-from pathlib import Path
 
 import cv2
 import mujoco
 import numpy as np
 import pytest
 import yaml
+from locations import DATA
 
 from wander_env.camera import CAMERA_NAME, SPECK_HFOV_DEG, focal_length_px
 from wander_env.entities import PAN_JOINT, TILT_JOINT
@@ -307,7 +307,7 @@ def test_invalid_file_names_the_file(tmp_path):
 def test_shipped_scenes_load_to_the_snapshot():
     """Each shipped scene loads to the same SceneConfig as the snapshot taken in
     tests/data/scene_snapshots.json (repr: every class and exact float)."""
-    with open(Path(__file__).parent / "data" / "scene_snapshots.json", encoding="utf-8") as f:
+    with open(DATA / "scene_snapshots.json", encoding="utf-8") as f:
         snapshot = json.load(f)
     assert sorted(snapshot) == list(available_scenes())
     for name, want in snapshot.items():

@@ -6,14 +6,13 @@ import dataclasses
 import importlib.util
 import re
 import typing
-from pathlib import Path
 
 import pydantic
+from locations import ROOT
 from scene_files import write_arm, write_cube_obj, write_cube_stl
 
 from wander_env.scene_config import SceneConfig, load_scene_config
 
-ROOT = Path(__file__).resolve().parents[1]
 GENERATOR = ROOT / "docs" / "gen_scene_reference.py"
 
 

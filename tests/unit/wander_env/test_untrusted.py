@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from locations import ROOT
 from scene_files import write_arm
 
 from wander_env.untrusted import (
@@ -32,7 +33,6 @@ from wander_env.untrusted import (
     read_npz,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
 GIB = 1 << 30
 
 # The CLI under an address-space limit, printing its own resident peak (VmHWM) at exit.
