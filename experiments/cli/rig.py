@@ -98,8 +98,9 @@ def rig(
         str,
         typer.Option(
             help="Replay pacing: 'fast' (windows advance in stream time, so every step's "
-            "events are fixed by the file) or 'realtime' (paced by the wall clock, like a "
-            "live camera). Ignored for a Speck."
+            "events are fixed by the file), 'stepped' (as 'fast', and the PTU's commands "
+            "and polls run in stream time too: a step returns with its exchanges done) or "
+            "'realtime' (paced by the wall clock, like a live camera). Ignored for a Speck."
         ),
     ] = "fast",
     seconds: Annotated[float, seconds_option("Run length in seconds of camera time.")] = 10.0,

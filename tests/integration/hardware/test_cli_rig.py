@@ -8,8 +8,6 @@ import json
 import math
 import re
 import sys
-import threading
-import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -26,7 +24,7 @@ from agents.attention import AttentionAgent
 from agents.control import normalised_error
 from experiments.cli.rig import dropped_warning, register, summary_line
 from experiments.jobs.rig import RigRunConfig, RigRunError, run_rig
-from hardware.ptu_driver import PTUTimeout
+from hardware.ptu_driver import FlirPTU, PTUTimeout
 from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from hardware.rig_env import RigConfig
 from hardware.speck import SpeckParams
@@ -38,7 +36,8 @@ from wander_env.ptu.params import PTUParams
 
 RES = PTUParams().pan_resolution_arcsec  # 92.5714″ on both axes of the emulated unit
 T_OFFSET = 5_000_000  # the synthetic file's first timestamp (µs); the replay rebases it to 0
-# A unit quick enough that a saccade has settled well inside a short real-time run.
+# A unit quick enough that a saccade has settled well inside a short run (the emulated unit
+# moves on the wall clock; the stepped replay's steps take at least its serial exchanges).
 QUICK = PTUEmulatorParams(
     ptu=PTUParams(
         pan_speed=100_000.0,
@@ -129,18 +128,21 @@ def moves(emu: PTUEmulator) -> list[tuple[str, int]]:
     return [(m[1], int(m[2])) for c in emu.commands if (m := MOVE.fullmatch(c))]
 
 
-def on_first_move(emu: PTUEmulator, action: Callable[[], None]) -> threading.Thread:
-    """Run ``action`` once the emulator has received its first move (the run has started)."""
+def on_first_move(monkeypatch, emu: PTUEmulator, action: Callable[[], None]) -> None:
+    """Run ``action`` right after the host's first move to ``emu`` has been answered, in
+    the host's thread: the exchange after it (with a stepped replay, the poll that follows
+    the command) meets the fault, however loaded the machine is."""
+    move_to = FlirPTU.move_to
+    fired: list[bool] = []
 
-    def watch() -> None:
-        deadline = time.monotonic() + 30.0
-        while not moves(emu) and time.monotonic() < deadline:
-            time.sleep(0.002)
-        action()
+    def moved_then_act(self: FlirPTU, *args, **kwargs):
+        out = move_to(self, *args, **kwargs)
+        if self.url == emu.port and not fired:
+            fired.append(True)
+            action()
+        return out
 
-    thread = threading.Thread(target=watch, daemon=True)
-    thread.start()
-    return thread
+    monkeypatch.setattr(FlirPTU, "move_to", moved_then_act)
 
 
 # -- end to end ------------------------------------------------------------------------------
@@ -253,8 +255,24 @@ def test_hfov_option_reaches_the_env_the_agent_and_run_json(app, square, tmp_pat
     assert bad.exit_code == 2 and "'--hfov'" in bad.output and "must be < 180" in bad.output
 
 
+def test_a_real_time_replay_records_the_files_windows(app, square, emu, tmp_path):
+    """Paced by the wall clock: how many windows fit depends on the host, what each holds
+    does not (the file's events from the episode's start)."""
+    camera, expected = square
+    out = tmp_path / "run"
+    args = ("--ptu", emu.port, "--camera", camera, "--replay", "realtime", "--seconds", "0.05")
+    result = invoke(app, *args, "--no-video", "--out", str(out))
+    assert result.exit_code == 0, result.output
+    metrics, run, _ = read_folder(out)
+    assert 1 <= metrics["steps"] <= 5
+    assert run["config"]["env"]["replay"] == "realtime"
+    assert_events_of_steps(out, expected, metrics)
+
+
 def test_a_saccade_moves_the_ptu_to_the_chosen_point(app, square, emu, tmp_path):
-    """No fixational movements: every move is the saccade's; the unit ends on P's angle."""
+    """No fixational movements: every move is the saccade's; the unit ends on P's angle.
+    The stepped replay: the link's exchanges are in the recording's time, so the run is the
+    same on a busy host."""
     camera, expected = square
     out = tmp_path / "run"
     result = invoke(
@@ -264,7 +282,7 @@ def test_a_saccade_moves_the_ptu_to_the_chosen_point(app, square, emu, tmp_path)
         "--camera",
         camera,
         "--replay",
-        "realtime",
+        "stepped",
         "--seconds",
         "0.35",
         "--no-fixational",
@@ -277,7 +295,7 @@ def test_a_saccade_moves_the_ptu_to_the_chosen_point(app, square, emu, tmp_path)
     metrics, run, rows = read_folder(out)
     assert metrics["steps"] == 35
     assert_events_of_steps(out, expected, metrics)
-    assert run["config"]["env"]["replay"] == "realtime" and run["rig"]["ptu"]["emulated"] is False
+    assert run["config"]["env"]["replay"] == "stepped" and run["rig"]["ptu"]["emulated"] is False
     # One decision (at 0.13 s), one completed saccade; the next window has not ended.
     assert (metrics["decisions"], metrics["saccades"], len(rows)) == (1, 1, 1)
     target = (int(rows[0]["target_x_px"]), int(rows[0]["target_y_px"]))
@@ -406,10 +424,10 @@ def test_open_failure_through_run_rig_keeps_the_cause(square, tmp_path):
 # -- faults mid-run ----------------------------------------------------------------------------
 
 
-def test_ptu_going_silent_mid_run(app, square, emu, tmp_path):
+def test_ptu_going_silent_mid_run(app, square, emu, tmp_path, monkeypatch):
     """Timeout -> halt attempt -> one clear line; the folder holds what was recorded."""
     camera, expected = square
-    watcher = on_first_move(emu, emu.stop_answering)
+    on_first_move(monkeypatch, emu, emu.stop_answering)
     out = tmp_path / "run"
     result = invoke(
         app,
@@ -418,17 +436,16 @@ def test_ptu_going_silent_mid_run(app, square, emu, tmp_path):
         "--camera",
         camera,
         "--replay",
-        "realtime",
+        "stepped",
         "--seconds",
         "3",
         "--no-video",
         "--out",
         str(out),
     )
-    watcher.join()
     metrics, run, _ = read_folder(out)
     steps = metrics["steps"]
-    assert 1 <= steps < 300
+    assert steps == 0  # step 1 sends a fixational move; the poll after it meets the silence
     line = assert_one_line_failure(
         result,
         f"wander rig: PTU '{emu.port}' stopped answering mid-run",
@@ -444,10 +461,10 @@ def test_ptu_going_silent_mid_run(app, square, emu, tmp_path):
     assert emu.commands[-1] == "H"  # the halt attempts were sent
 
 
-def test_error_reply_mid_run(app, square, emu, tmp_path):
+def test_error_reply_mid_run(app, square, emu, tmp_path, monkeypatch):
     """The unit answers ``!`` to the first position poll after the first saccade command."""
     camera, expected = square
-    watcher = on_first_move(emu, lambda: emu.inject_error("Illegal argument", command="PP"))
+    on_first_move(monkeypatch, emu, lambda: emu.inject_error("Illegal argument", command="PP"))
     out = tmp_path / "run"
     result = invoke(
         app,
@@ -456,7 +473,7 @@ def test_error_reply_mid_run(app, square, emu, tmp_path):
         "--camera",
         camera,
         "--replay",
-        "realtime",
+        "stepped",
         "--seconds",
         "1",
         "--no-fixational",
@@ -464,10 +481,9 @@ def test_error_reply_mid_run(app, square, emu, tmp_path):
         "--out",
         str(out),
     )
-    watcher.join()
     metrics, _, _ = read_folder(out)
     steps = metrics["steps"]
-    assert 12 <= steps < 100  # the 13th step (window 0.124 s) sends the first move
+    assert steps == 12  # the 13th step (window 0.12 s) sends the first move, then polls
     assert metrics["decisions"] == 1
     assert_one_line_failure(
         result,
@@ -481,16 +497,15 @@ def test_error_reply_mid_run(app, square, emu, tmp_path):
     assert_events_of_steps(out, expected, metrics)
 
 
-def test_mid_run_fault_through_run_rig_keeps_the_cause(square, emu, tmp_path):
+def test_mid_run_fault_through_run_rig_keeps_the_cause(square, emu, tmp_path, monkeypatch):
     camera, _ = square
-    watcher = on_first_move(emu, emu.stop_answering)
+    on_first_move(monkeypatch, emu, emu.stop_answering)
     config = RigRunConfig(
-        RigConfig(ptu_port=emu.port, camera=camera, replay="realtime", episode_seconds=3.0),
+        RigConfig(ptu_port=emu.port, camera=camera, replay="stepped", episode_seconds=3.0),
         video=False,
     )
     with pytest.raises(RigRunError) as info:
         run_rig(tmp_path / "r", config)
-    watcher.join()
     err = info.value
     assert (err.device, err.stage, err.folder) == (f"PTU '{emu.port}'", "run", tmp_path / "r")
     assert isinstance(err.__cause__, PTUTimeout)

@@ -73,6 +73,7 @@ def test_rig_mid_run_fault_is_one_line_exit_1_with_the_halt_recorded(
     square,  # noqa: F811
     emu,
     tmp_path,
+    monkeypatch,
     fault,
 ):
     camera, expected = square
@@ -81,7 +82,7 @@ def test_rig_mid_run_fault_is_one_line_exit_1_with_the_halt_recorded(
         "garbage": lambda: emu.inject_garbage("#$%&noise", count=1000),
         "silence": emu.stop_answering,
     }[fault]
-    watcher = on_first_move(emu, action)
+    on_first_move(monkeypatch, emu, action)
     out = tmp_path / "run"
     result = invoke(
         app,
@@ -90,7 +91,7 @@ def test_rig_mid_run_fault_is_one_line_exit_1_with_the_halt_recorded(
         "--camera",
         camera,
         "--replay",
-        "realtime",
+        "stepped",
         "--seconds",
         "2",
         "--no-fixational",
@@ -98,7 +99,6 @@ def test_rig_mid_run_fault_is_one_line_exit_1_with_the_halt_recorded(
         "--out",
         str(out),
     )
-    watcher.join()
     metrics, _, _ = read_folder(out)
     steps = metrics["steps"]
     line = assert_one_line_failure(
@@ -106,7 +106,8 @@ def test_rig_mid_run_fault_is_one_line_exit_1_with_the_halt_recorded(
         f"wander rig: PTU '{emu.port}'",
         f"The run folder '{out}' holds what was recorded ({steps} steps completed).",
     )
-    assert steps < 200 and metrics["error"].startswith("PTU")
+    # the 13th step (window 0.12 s) sends the first move; the poll after it meets the fault
+    assert steps == 12 and metrics["error"].startswith("PTU")
     halt = metrics["rig"]["ptu_halt"]
     if fault == "hang_up":
         assert "Input/output error" in line

@@ -250,6 +250,35 @@ def test_actions_move_the_ptu_by_the_expected_positions(recording, emu):
         env.close()
 
 
+def test_a_stepped_replay_runs_the_link_in_stream_time(recording, emu):
+    """replay="stepped": each 10 ms window's exchanges are on the wire when the step
+    returns, the same however slowly the host runs: one poll per window, and a step that
+    moves sends its command and polls right after it at the window's start."""
+    camera, events = recording
+    env = make_rig(emu.port, camera, replay="stepped", ptu_poll_s=0.01)
+    try:
+        env.reset()
+        emu.clear_commands()
+        for k in range(2):
+            _, _, _, _, info = env.step(np.zeros(2, np.float32))
+            assert emu.commands == ["PP", "TP"] * (k + 1)  # the window's poll, before return
+            want = events[(events["t"] >= k * 10_000) & (events["t"] < (k + 1) * 10_000)]
+            np.testing.assert_array_equal(info["events"].events["t"], want["t"])  # since reset
+        a = (0.25, -0.1)
+        d = expected_offset_pos(a)
+        _, _, _, _, info = env.step(np.float32(a))
+        assert emu.commands[4:] == [f"PP{d[0]}", f"TP{d[1]}", "PP", "TP", "PP", "TP"]
+        assert info["ptu_target_positions"] == d and info["t"] == pytest.approx(0.03)
+        env.settle()  # polls until the unit rests there (it moves on the wall clock)
+        assert emu.positions == d
+        _, _, _, _, info = env.step(np.zeros(2, np.float32))
+        assert (info["ptu_positions"], info["moving"]) == (d, False)
+        assert env.stats["commands_sent"] == 1 and env.stats["commands_replaced"] == 0
+        assert env._link._thread.is_alive() is False  # no PTU thread in this mode
+    finally:
+        env.close()
+
+
 @pytest.mark.parametrize(
     "action", [(math.nan, 0.0), (0.0, math.inf), (1.5, 0.0), (0.0, -1.01), (0.1, 0.1, 0.1)]
 )
