@@ -58,6 +58,7 @@ def test_pooled_quality() -> None:
     assert all(math.isnan(v) for v in detection_interval(0, 0))
 
 
+@pytest.mark.slow
 def test_evaluate_cli_two_seeds(tmp_path: Path) -> None:
     res = CliRunner().invoke(
         app,

@@ -4,6 +4,7 @@ and the command (tiny runs; the table itself is measured by the command, not her
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from typer.testing import CliRunner
 
 from experiments.bench.fidelity import (
@@ -136,6 +137,7 @@ def test_row_pools_seeds_against_the_reference() -> None:
     assert bar_cells(row).matched == "– ≥ –" and bar_cells(row).verdict == "pass"
 
 
+@pytest.mark.slow
 def test_same_seed_identical_events_in_every_mode() -> None:
     """Two runs of one seed (a saccade, lighter reference) give the same events and
     renders in every env."""

@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import math
 
+import pytest
 from typer.testing import CliRunner
 
 from experiments.bench.panorama import VARIANTS, headlight_rows, step_rows
 from experiments.cli.main import app
 
 
+@pytest.mark.slow
 def test_step_rows_time_every_mode_on_both_motions_against_the_default() -> None:
     rows = step_rows("shelf", 1)
     assert [(r.motion, r.frames) for r in rows] == [
@@ -20,6 +22,7 @@ def test_step_rows_time_every_mode_on_both_motions_against_the_default() -> None
     assert all(r.ms_per_step > 0 and math.isfinite(r.reset_ms) for r in rows)
 
 
+@pytest.mark.slow
 def test_headlight_rows_and_the_command() -> None:
     rows = headlight_rows("shelf")
     assert [r.headlight for r in rows] == ["camera", "face", "off"]

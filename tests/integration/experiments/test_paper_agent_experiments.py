@@ -69,6 +69,7 @@ def test_ideal_ptu_foveates_within_two_pixels():
     assert row["dy_px"] == pytest.approx(row["angle_error_y_px"], abs=0.01)
 
 
+@pytest.mark.slow
 def test_tilt_backlash_shifts_the_target_vertically_by_half_the_play():
     """Tilt play of 60 positions (1.54°), none in pan, no hinge offset: the same commands
     as with the ideal PTU, but the camera trails the tilt motor by 30 positions (0.77°,
@@ -88,6 +89,7 @@ def test_tilt_backlash_shifts_the_target_vertically_by_half_the_play():
     assert real["abs_dy_px"] > real["abs_dx_px"]
 
 
+@pytest.mark.slow
 def test_same_seed_gives_the_same_table_bytes(tmp_path):
     exp = sac_accuracy.EXPERIMENT
     cfg = resolve_config(exp, sets=["repeats=1", "conditions=[backlash_offset]"])
@@ -117,6 +119,7 @@ def test_merge_windows_joins_the_windows_between_saccades():
         scanpath.merge_windows(w[:3], [True, True])
 
 
+@pytest.mark.slow
 def test_scanpath_trial_exports_one_row_per_fixation(tmp_path):
     sets = ["scenes=[shelf]", "conditions=[fixational]", "duration_s=1.2", "repeats=1"]
     cfg = resolve_config(scanpath.EXPERIMENT, sets=sets)
@@ -233,6 +236,7 @@ def test_scaled_trajectory_runs_faster():
     assert saccade_speed.ScaledTrajectory(Line(), 2.0).position(0.3)[0] == pytest.approx(0.6)
 
 
+@pytest.mark.slow
 def test_main_sequence_durations_grow_with_amplitude():
     sets = [
         "duration_s=0.3",
@@ -296,6 +300,7 @@ def folders(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     return run, exp
 
 
+@pytest.mark.slow
 def test_run_and_experiment_share_names_signs_and_units(folders: tuple[Path, Path]) -> None:
     run, exp = folders
     scene = load_scene_config("office")

@@ -84,6 +84,7 @@ def test_pipeline_points_at_the_dense_moving_blob_with_and_without_proto_objects
         assert maps.oms.dtype == bool
 
 
+@pytest.mark.slow
 def test_short_trial_scores_windows_after_the_warmup():
     sets = [
         "scenes=[office]",

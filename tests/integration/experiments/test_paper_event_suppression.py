@@ -269,6 +269,7 @@ def test_hand_scene_has_one_hand_sized_moving_object():
     assert hand.name == "hand" and hand.size == (0.02, 0.09, 0.19)
 
 
+@pytest.mark.slow
 def test_short_trial_rows_per_phase(tmp_path):
     """Phases of 40 ms after a 20 ms lead-in: four rows, one per phase."""
     sets = [

@@ -70,6 +70,7 @@ def test_config_refuses_a_bad_mode_group_or_kernel():
         OMSCharacterisationConfig(kernels=((1.0, 4.0, 0),))
 
 
+@pytest.mark.slow
 def test_the_papers_findings_at_alpha_one_half():
     """0.3 s of each mode and one background-faster case (alpha 0.5: at the paper's 0.8
     the relative threshold keeps almost nothing, see the README)."""

@@ -222,6 +222,7 @@ def test_a_damaged_sweep_file_is_named(tmp_path) -> None:
     assert not (tmp_path / "R.md").exists()
 
 
+@pytest.mark.slow
 def test_report_figures_go_beside_the_report_not_the_cwd(tmp_path, monkeypatch) -> None:
     _scanpath_folder(tmp_path / "results")
     cwd = tmp_path / "cwd"

@@ -76,6 +76,7 @@ def test_lif_step_is_the_sinabs_forward_bit_for_bit(threshold: float) -> None:
         assert got.max() > 1.0  # several spikes a step somewhere
 
 
+@pytest.mark.slow
 def test_soms_quantile_outputs_equal_the_fft_pooling_and_np_quantile() -> None:
     """The agent's sOMS against the implementation it replaced (FFT pooling, np.quantile)
     on 40 seeded event maps: identical OMS maps, score within float32 rounding."""

@@ -172,6 +172,7 @@ def test_saccade_to_rejects_pixels_off_the_sensor(agent: AttentionAgent) -> None
         agent.saccade_to((128, 5))
 
 
+@pytest.mark.slow
 def test_saccade_brings_a_world_point_to_the_fovea_within_2px() -> None:
     """In the simulator: a saccade to the pixel of a shelf object brings that object's
     centre to within 2 px of the fovea once the PTU has settled."""

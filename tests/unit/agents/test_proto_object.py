@@ -236,6 +236,7 @@ def test_border_currents_equal_the_full_two_channel_convolutions(split, border):
         assert float((g.double() - r).abs().max()) <= 1e-5 * scale
 
 
+@pytest.mark.slow
 def test_saliency_matches_the_direct_path_on_seeded_maps():
     # Whole model, FFT against conv2d, 6 steps on seeded maps at three densities. Spike
     # counts are floor(membrane): with membranes of 10^4-10^5 float rounding moves some

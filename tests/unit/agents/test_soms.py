@@ -187,6 +187,7 @@ def test_any_size_no_events_and_bad_input():
         soms.step(np.zeros((3, 8, 8), np.float32))
 
 
+@pytest.mark.slow
 def test_imports_without_samna():
     """sinabs must not pull in samna (the PyPI stub fails offline at import)."""
     code = "import sys, agents.soms, agents.proto_object; assert 'samna' not in sys.modules"

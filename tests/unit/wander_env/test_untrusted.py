@@ -420,6 +420,7 @@ def test_a_zip_bombed_scanpath_artifact_is_one_line_within_1_gb(tmp_path):
     assert 0 < peak < GIB
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["/dev/zero", "fifo"])
 def test_a_trial_file_that_is_not_a_file_is_set_aside_on_resume(tmp_path, kind):
     from test_sweep import TOY_SWEEP, CountingRunner
