@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 from locations import REALDATA
@@ -88,36 +86,57 @@ def test_t0_skips_earlier_events():
     assert np.array_equal(got["t"], rec.events["t"][skipped:] - t0)
 
 
-def test_realtime_read_takes_about_the_window():
-    rec = small_recording()
-    with ReplaySource(rec, realtime=True) as src:
-        t = time.monotonic()
+class FakeWallClock:
+    """A wall clock that moves only when slept on (or by hand); records the sleeps."""
+
+    def __init__(self) -> None:
+        self.t = 0.0
+        self.sleeps: list[float] = []
+
+    def __call__(self) -> float:
+        return self.t
+
+    def sleep(self, seconds: float) -> None:
+        self.sleeps.append(seconds)
+        self.t += seconds
+
+
+def paced(rec: EventRecording, clock: FakeWallClock, **kw) -> ReplaySource:
+    return ReplaySource(rec, realtime=True, clock=clock, sleep=clock.sleep, **kw)
+
+
+def test_realtime_read_sleeps_until_the_window_has_passed():
+    clock = FakeWallClock()
+    with paced(small_recording(), clock) as src:
+        src.read(duration_us=125_000)  # 0.125 s: exact in binary, as the sums below
+        clock.t += 0.0625  # the caller works 62.5 ms
+        src.read(duration_us=125_000)
+        clock.t += 0.5  # then falls behind: the next read returns at once
+        src.read(duration_us=125_000)
+        assert src.stats["max_lateness_s"] == 0.5 - 0.125
+    assert clock.sleeps == [0.125, 0.0625]
+    clock = FakeWallClock()
+    with paced(small_recording(), clock, speed=4.0) as src:
         src.read(duration_us=200_000)
-        elapsed = time.monotonic() - t
-    assert 0.15 < elapsed < 5.0  # at least the window; generous above (a loaded machine)
-    with ReplaySource(rec, realtime=True, speed=4.0) as src:
-        t = time.monotonic()
-        src.read(duration_us=200_000)
-        elapsed = time.monotonic() - t
-    assert 0.03 < elapsed < 5.0
+    assert clock.sleeps == [0.05]
 
 
 def test_realtime_without_window_returns_events_up_to_now():
+    clock = FakeWallClock()
     rec = small_recording()
-    t_before = time.monotonic()
-    with ReplaySource(rec, realtime=True) as src:
-        time.sleep(0.05)
+    with paced(rec, clock) as src:
+        clock.t += 0.0625
         got = src.read()
-        t_after = time.monotonic()
-        assert 40_000 <= src.cursor_us <= (t_after - t_before) * 1e6  # the clock it saw
-        assert np.all(got["t"] < src.cursor_us)
+        assert src.cursor_us == 62_500 and clock.sleeps == []  # the clock it saw
+        t = rec.events["t"] - rec.events["t"][0]
+        np.testing.assert_array_equal(got["t"], t[t < 62_500])
 
 
 def test_fast_mode_does_not_sleep():
-    with ReplaySource(small_recording()) as src:
-        t = time.monotonic()
+    clock = FakeWallClock()
+    with ReplaySource(small_recording(), clock=clock, sleep=clock.sleep) as src:
         src.read(duration_us=10_000_000)
-        assert time.monotonic() - t < 5.0  # a paced read of 10 s would take 10 s
+    assert clock.sleeps == []  # a paced read of 10 s would sleep 10 s
 
 
 def test_loop_wraps_with_increasing_timestamps():
