@@ -6,7 +6,9 @@
 replay starts at 0 µs (the original offset is kept in ``metadata["t_offset_us"]``)
 and hands out consecutive windows through the :class:`~hardware.event_source.EventSource`
 interface. In real-time mode a ``read`` returns when the wall clock has reached the
-end of its window (``speed`` > 1 plays faster); otherwise it returns at once. At the
+end of its window (``speed`` > 1 plays faster; the wall clock and the sleep are
+injectable, ``clock``/``sleep``, so that a test can check the pacing without waiting);
+otherwise it returns at once. At the
 end of the file reads return empty arrays and ``finished`` is true, unless
 ``loop`` is set: then the recording repeats, each lap shifted by the recording's
 length so that timestamps keep increasing.
@@ -32,6 +34,7 @@ from __future__ import annotations
 import math
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -76,8 +79,13 @@ class ReplaySource(EventSourceBase):
         speed: float = 1.0,
         loop: bool = False,
         t0_us: int | None = None,
+        *,
+        clock: Callable[[], float] = time.monotonic,
+        sleep: Callable[[float], None] = time.sleep,
     ) -> None:
         self.params = ReplayParams(realtime=realtime, speed=speed, loop=loop, t0_us=t0_us)
+        self._clock = clock  # the wall clock of real-time mode (s), and its sleep
+        self._sleep = sleep
         if isinstance(source, EventRecording):
             recording, origin = source, "EventRecording"
         else:
@@ -146,7 +154,7 @@ class ReplaySource(EventSourceBase):
         """Source time that the wall clock has reached (real-time mode), else the cursor."""
         if not self.params.realtime or not self._started:
             return self._cursor_us
-        return int((time.monotonic() - self._t_start_wall) * 1e6 * self.params.speed)
+        return int((self._clock() - self._t_start_wall) * 1e6 * self.params.speed)
 
     def start(self) -> None:
         """Set the replay clock to 0 (the wall clock starts here in real-time mode)."""
@@ -154,7 +162,7 @@ class ReplaySource(EventSourceBase):
             raise RuntimeError("ReplaySource is closed; create a new one")
         if not self._started:
             self._started = True
-            self._t_start_wall = time.monotonic()
+            self._t_start_wall = self._clock()
 
     def read(self, duration_us: int | None = None, *, until_t_us: int | None = None) -> np.ndarray:
         """Events with ``cursor <= t < end``; see :mod:`hardware.event_source`.
@@ -187,9 +195,9 @@ class ReplaySource(EventSourceBase):
 
     def _sleep_until(self, end_us: int) -> None:
         target = self._t_start_wall + end_us / (1e6 * self.params.speed)
-        remaining = target - time.monotonic()
+        remaining = target - self._clock()
         if remaining > 0:
-            time.sleep(remaining)
+            self._sleep(remaining)
         else:
             self._max_lateness_s = max(self._max_lateness_s, -remaining)
 

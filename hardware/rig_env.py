@@ -30,7 +30,11 @@ nothing is lost). The same thread polls the position (``PP``/``TP``) every
 ``ptu_poll_s``. With ``camera="speck"`` or a real-time replay a step returns when
 the camera's clock has passed the window's end; with ``replay="fast"`` at once,
 the windows advancing in stream time, so the events of every step are fixed by
-the file (the PTU side stays real-time, hence ``nondeterministic=True``).
+the file (the PTU side stays real-time, hence ``nondeterministic=True``). With
+``replay="stepped"`` the link runs in stream time too, without its thread: a step
+sends its command and answers the polls due by the window's end before it returns
+(one poll per ``ptu_poll_s`` of the recording), so what the agent sees depends on the
+file and the unit's motion, not on how fast the host runs the steps.
 
 Faults: a PTU that stops answering, answers ``!`` or garbage, or loses its port
 mid-run (any error of the serial layer, ``termios.error`` included) makes the PTU
@@ -90,7 +94,7 @@ from wander_env.ptu.link import LinkSchedule
 from wander_env.ptu.units import degrees_to_positions, positions_to_degrees, round_position
 from wander_env.viz import event_image, labelled_frame
 
-_REPLAY_MODES = ("realtime", "fast")
+_REPLAY_MODES = ("realtime", "fast", "stepped")
 
 
 @dataclass(frozen=True)
@@ -102,8 +106,9 @@ class RigConfig(FieldsMapping):
     with ``emulator`` parameters, its unit's ``emulator.ptu``: ``ptu`` is a
     :class:`~wander_env.ptu.params.PTUParams` block in every config); ``camera``:
     ``"speck"`` (``"speck:<serial>"`` for one board) or ``"replay:<event file>"``;
-    ``replay``: ``"realtime"`` (paced by the wall clock) or ``"fast"`` (windows advance
-    in stream time); ``replay_loop`` repeats the file.
+    ``replay``: ``"realtime"`` (paced by the wall clock), ``"fast"`` (windows advance
+    in stream time) or ``"stepped"`` (windows and the PTU link's polls in stream time:
+    see the module docstring); ``replay_loop`` repeats the file.
     ``control_period_s``: the step window; ``episode_seconds``: truncation;
     ``start_gaze_deg``: where :meth:`RigEnv.reset` points the PTU (``None``: leave it);
     ``hfov_deg``: the lens's horizontal field of view (not queryable; Speck's by
@@ -351,6 +356,8 @@ class RigEnv(CameraEnv):
         self.ptu: FlirPTU | None = None
         self.camera: EventSource | None = None
         self._link: PTULinkThread | None = None
+        self._stepped = False
+        self._link_offset_s = 0.0
         self._closed = False
         try:
             self._open()
@@ -383,15 +390,46 @@ class RigEnv(CameraEnv):
             self.emulator = PTUEmulator(c.emulator)
             url = self.emulator.port
         self.ptu = FlirPTU(url, c.driver)
-        self._link = PTULinkThread(self.ptu, c.ptu_poll_s)
-        self._link.start()
         kind, arg = c.camera_kind()
+        self._stepped = kind == "replay" and c.replay == "stepped"
+        clock = self._link_clock if self._stepped else time.monotonic
+        self._link = PTULinkThread(self.ptu, c.ptu_poll_s, clock)
+        if not self._stepped:
+            self._link.start()
         if kind == "speck":
             params = replace(c.speck, serial_number=arg) if arg else c.speck
             self.camera = SpeckSource(params)
         else:
             self.camera = ReplaySource(arg, realtime=c.replay == "realtime", loop=c.replay_loop)
         self.camera.start()
+
+    def _link_clock(self) -> float:
+        """The stepped replay's link time: the camera's clock, plus the time the link
+        has run alone while :meth:`settle` waited."""
+        cursor_us = self.camera.cursor_us if self.camera is not None else 0
+        return self._link_offset_s + cursor_us / 1e6
+
+    def _serve_link(self) -> None:
+        """The stepped replay's link: run every exchange due by now (a queued command,
+        the poll right after it, the polls of ``ptu_poll_s``) in this thread."""
+        while self._link.serve():
+            pass
+
+    def _settle_stepped(self, limit_s: float) -> bool:
+        """:meth:`settle` of the stepped replay: poll until the unit rests on the target,
+        False after ``limit_s`` (wall clock). The camera's clock stands still; the link's
+        runs on to each next poll, one ``ptu_poll_s`` of wall clock apart (the unit moves
+        in real time)."""
+        link = self._link
+        deadline = time.monotonic() + limit_s
+        while True:
+            self._serve_link()
+            if link.error is not None or not link.snapshot(self._target)["moving"]:
+                return True
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(self.config.ptu_poll_s)
+            self._link_offset_s += max(0.0, link.schedule.due_s() - self._link_clock())
 
     def close(self) -> None:
         """Halt the PTU and close its port, close the camera and the emulator; idempotent.
@@ -451,7 +489,10 @@ class RigEnv(CameraEnv):
         self._check_open()
         limit = self.config.driver.await_timeout_s if timeout_s is None else timeout_s
         try:
-            ok = self._link.wait(self._target, limit)
+            if self._stepped:
+                ok = self._settle_stepped(limit)
+            else:
+                ok = self._link.wait(self._target, limit)
         except BaseException:  # KeyboardInterrupt while waiting: stop the unit too
             self.halt_after_failure()
             raise
@@ -525,7 +566,11 @@ class RigEnv(CameraEnv):
         """Collect the step window's events (the new target is with the PTU thread)."""
         cam = self.camera
         try:
+            if self._stepped:
+                self._serve_link()  # the command, at the window's start
             events = cam.read(duration_us=self.config.control_period_us)
+            if self._stepped:
+                self._serve_link()  # the polls due by the window's end
         except BaseException:
             self.halt_after_failure()
             raise

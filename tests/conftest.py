@@ -1,9 +1,61 @@
-"""Test session setup: headless EGL rendering before any module imports MuJoCo.
+"""Test session setup, for every tier (``unit/``, ``integration/``, ``system/``).
 
-MuJoCo picks its OpenGL backend when ``mujoco`` is first imported; a test module that
-imports ``mujoco`` before ``wander_env`` would otherwise get GLFW, which needs a display.
+Headless EGL rendering before any module imports MuJoCo: MuJoCo picks its OpenGL backend
+when ``mujoco`` is first imported; a test module that imports ``mujoco`` before
+``wander_env`` would otherwise get GLFW, which needs a display.
+
+``tests/support/`` goes on ``sys.path``: the helpers (``fake_samna``, ``scene_files``,
+``sweep_workers``, ``vector_drive``, ``locations``) are imported by name from any tier.
+So does every folder of test modules: tests import fixtures and builders from other test
+modules by name (``from test_sweep import TOY_SWEEP``) wherever they sit; pytest imports a
+test module under its file name, so file names are unique across the tiers.
+
+The tiers: the default run (``pytest``, ``testpaths`` in ``pyproject.toml``) is
+``unit/`` and ``integration/`` without the ``slow`` tests; ``pytest tests -m ""`` runs
+every tier and every test (``.ci/run``). Each test gets its tier's marker (``unit``,
+``integration``, ``system``) from its folder, so ``-m system`` selects a tier too.
 """
 
+from __future__ import annotations
+
 import os
+import sys
+from pathlib import Path
+
+import pytest
 
 os.environ.setdefault("MUJOCO_GL", "egl")
+
+TESTS = Path(__file__).resolve().parent
+SUPPORT = TESTS / "support"
+for folder in [SUPPORT, *sorted({p.parent for p in TESTS.glob("*/**/test_*.py")})]:
+    if str(folder) not in sys.path:
+        sys.path.insert(0, str(folder))
+
+TIERS = ("unit", "integration", "system")
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Mark each test with the tier of its folder."""
+    for item in items:
+        parts = item.path.resolve().relative_to(TESTS).parts
+        if parts and parts[0] in TIERS:
+            item.add_marker(parts[0])
+
+
+@pytest.fixture(scope="session")
+def ray_instance():
+    """One local Ray instance for the whole session (2 CPUs, the repository on the
+    workers' ``PYTHONPATH``), shut down at its end; the sweep's Ray backend reuses an
+    initialised Ray instead of starting its own."""
+    ray = pytest.importorskip("ray")
+    root = str(TESTS.parent)
+    path = os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)
+    ray.init(
+        num_cpus=2,
+        include_dashboard=False,
+        log_to_driver=False,
+        runtime_env={"env_vars": {"PYTHONPATH": path}},
+    )
+    yield ray
+    ray.shutdown()

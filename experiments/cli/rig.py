@@ -105,8 +105,10 @@ def rig(
         str | None,
         typer.Option(
             help="Replay pacing: 'fast' (windows advance in stream time, so every step's "
-            "events are fixed by the file; the default) or 'realtime' (paced by the wall "
-            "clock, like a live camera). Ignored for a Speck."
+            "events are fixed by the file; the default), 'stepped' (as 'fast', and the PTU's "
+            "commands and polls run in stream time too: a step returns with its exchanges "
+            "done) or "
+            "'realtime' (paced by the wall clock, like a live camera). Ignored for a Speck."
         ),
         ConfigKey("env.replay"),
     ] = None,

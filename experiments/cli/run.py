@@ -49,7 +49,8 @@ from experiments.cli.options import (
 __all__ = ["demo", "record", "rerun", "run_agent", "view"]
 
 #: The most frames a simulated second ``--video-fps`` takes (a step's frame repeated;
-#: ``RunConfig.video_fps``'s bound, kept equal by tests/test_runs_writing.py).
+#: ``RunConfig.video_fps``'s bound, kept equal by
+#: tests/integration/experiments/test_runs_writing.py).
 MAX_VIDEO_FPS = 1000
 
 
