@@ -284,7 +284,8 @@ def _on_defaults(cls: Any, values: Mapping[str, Any]) -> dict[str, Any]:
             default = None
         plain = to_plain(default) if dataclasses.is_dataclass(default) else None
         if plain is not None and set(v) <= set(plain):  # else another block, as in _merge
-            out[k] = _merge(plain, _on_defaults(type(default), v))
+            # The default's own nested values (not its class's) under the keys v names.
+            out[k] = _merge(plain, v)
     return out
 
 

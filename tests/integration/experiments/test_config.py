@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import pytest
 
@@ -114,3 +114,15 @@ def test_check_fields_names_class_field_bound_and_value():
             P(**kwargs)
         assert str(e.value) == text
     assert P(a=0.5, n=3).n == 3
+
+
+def test_a_nested_block_is_laid_over_the_fields_default_not_its_class_defaults():
+    """``agent.soms.alpha`` over the benchmark's config changes alpha alone: the block under
+    it stays the field's default (the paper-literal sOMS: min-max norm, direct filters),
+    not ``AgentParams``' own default sOMS (the agent's quantile norm)."""
+    from experiments.benchmark.model import ModelConfig
+    from wander_env.config import validate
+
+    got = validate(ModelConfig, {"agent": {"soms": {"alpha": 0.5}}}).agent.soms
+    assert (got.alpha, got.norm, got.conv) == (0.5, "minmax", "direct")
+    assert got == replace(ModelConfig().agent.soms, alpha=0.5)
