@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -53,6 +53,7 @@ import pydantic
 
 from agents.attention import AgentParams, AttentionAgent
 from agents.speck_front import SpeckFrontParams
+from agents.speck_limits import SpeckLimitError
 from experiments.framework import MAX_SEED
 from experiments.jobs.run_agent import (
     VIDEO_FPS,
@@ -65,6 +66,7 @@ from experiments.runs.folder import METRICS_JSON, RunFolder
 from experiments.runs.provenance import run_record
 from hardware.ptu_driver import PTUError, PTUFlood, PTUPortError, PTUTimeout
 from hardware.rig_env import RigConfig
+from hardware.speck import SPECK_DVS_SIZE
 from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.strict_json import to_strict_json
 
@@ -229,6 +231,19 @@ def front_end(config: RigRunConfig) -> str | None:
     return "chip" if config.env.camera_kind()[0] == "speck" else "simulated"
 
 
+def chip_front(config: RigRunConfig) -> SpeckFrontParams:
+    """The front end deployed on the chip: the agent's block made consistent with the
+    rig's step (its leak per step) on the chip's pixel array, as the agent will resolve it
+    once the camera is open (:func:`run_rig` checks that it does)."""
+    agent = replace(
+        config.agent,
+        step_s=config.env.control_period_s,
+        width_px=SPECK_DVS_SIZE[0],
+        height_px=SPECK_DVS_SIZE[1],
+    )
+    return agent.resolved().soms
+
+
 def _device(err: BaseException, config: RigRunConfig) -> str | None:
     """Which device ``err`` comes from (``None``: not a device failure)."""
     if isinstance(err, (PTUError, TimeoutError)):
@@ -284,7 +299,7 @@ def run_rig(
         from hardware.speck_network import deploy
 
         try:  # before the device is opened: a network that does not fit is refused here
-            deployment = deploy(config.agent.soms)
+            deployment = deploy(chip_front(config))
         except SamnaUnavailableError as err:
             raise _open_failure(err, config) from err
     try:
@@ -300,6 +315,13 @@ def run_rig(
             from hardware.speck_network import ChipPipeline
 
             # SpeckSource applied the one configuration (cores and DVS monitor)
+            sensor = config.agent_params(env).resolved().soms
+            if sensor != deployment.params:
+                raise SpeckLimitError(
+                    f"the front end was built for the chip's {SPECK_DVS_SIZE[0]}x"
+                    f"{SPECK_DVS_SIZE[1]} pixel array, but the camera gives "
+                    f"{sensor.width_px}x{sensor.height_px} (env.speck.readout's region)"
+                )
             pipeline = ChipPipeline(base.camera.device, deployment, configured=True)
             pipeline.start()
         counters = RigCounters(env, front, pipeline)

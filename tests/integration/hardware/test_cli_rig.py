@@ -22,6 +22,7 @@ import experiments.jobs.rig as rig_module
 import hardware.rig_env as rig_env
 from agents.attention import AgentParams, AttentionAgent
 from agents.control import normalised_error
+from agents.speck_limits import SpeckLimitError
 from experiments.cli.rig import dropped_warning, register, summary_line
 from experiments.jobs.rig import RigRunConfig, RigRunError, run_rig
 from hardware.ptu_driver import FlirPTU, PTUTimeout
@@ -34,6 +35,7 @@ from wander_env.camera import SPECK_HFOV_DEG, focal_length_px
 from wander_env.events import EVENT_DTYPE, make_events
 from wander_env.events.io import EventRecording, read_events, write_events
 from wander_env.ptu.params import PTUParams
+from wander_env.readout import DvsLayerParams, ReadoutParams
 
 RES = PTUParams().pan_resolution_arcsec  # 92.5714″ on both axes of the emulated unit
 T_OFFSET = 5_000_000  # the synthetic file's first timestamp (µs); the replay rebases it to 0
@@ -626,6 +628,7 @@ def test_the_front_end_runs_on_the_speck_and_the_camera_still_records(monkeypatc
     def spy(self, counts):
         dog, group = spikes(self, counts)
         read.append((float(dog.sum()), float(group.sum())))
+        assert self.params.dt == 0.02  # deployed for the rig's step (the leak per step)
         return dog, group
 
     monkeypatch.setattr(rig_env.RigEnv, "reset", stream_after_reset)
@@ -633,7 +636,7 @@ def test_the_front_end_runs_on_the_speck_and_the_camera_still_records(monkeypatc
     forget_dynapcnn(monkeypatch)
     fake = install(monkeypatch, FakeSamna([("Speck2fModuleDevKit", "sf", speck)]))
     config = RigRunConfig(
-        RigConfig(ptu_port="emulate", camera="speck", episode_seconds=0.3),
+        RigConfig(ptu_port="emulate", camera="speck", episode_seconds=0.3, control_period_s=0.02),
         video=False,
         agent=AgentParams(soms="speck"),
     )
@@ -667,6 +670,25 @@ def test_a_front_end_that_does_not_fit_is_refused_before_the_device_is_opened(
         "wander rig: agent.soms: layer 1 (conv 31x31): kernel 31 px > Speck's 16 px limit"
     )
     assert fake.handles == [] and not (tmp_path / "r").exists()
+
+
+def test_a_readout_region_the_deployed_network_does_not_take_is_refused(monkeypatch, tmp_path):
+    forget_dynapcnn(monkeypatch)
+    speck = FakeSpeck(np.zeros(0, EVENT_DTYPE))
+    fake = install(monkeypatch, FakeSamna([("Speck2fModuleDevKit", "sf", speck)]))
+    readout = ReadoutParams(dvs_layer=DvsLayerParams(cut=(63, 63)))
+    config = RigRunConfig(
+        RigConfig(ptu_port="emulate", camera="speck", speck=SpeckParams(readout=readout)),
+        agent=AgentParams(soms="speck"),
+    )
+    with pytest.raises(SpeckLimitError) as info:
+        run_rig(tmp_path / "r", config)
+    assert str(info.value) == (
+        "the front end was built for the chip's 128x128 pixel array, but the camera gives "
+        "64x64 (env.speck.readout's region)"
+    )
+    [handle] = fake.handles
+    assert handle.closed and not (tmp_path / "r").exists()
 
 
 def test_a_replayed_camera_runs_the_front_end_in_simulation(square, tmp_path):
