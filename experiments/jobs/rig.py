@@ -74,6 +74,7 @@ __all__ = [
     "RigCounters",
     "RigRunConfig",
     "RigRunError",
+    "chip_front",
     "fixed_view_note",
     "front_end",
     "run_rig",
@@ -314,14 +315,14 @@ def run_rig(
         if deployment is not None:
             from hardware.speck_network import ChipPipeline
 
-            # SpeckSource applied the one configuration (cores and DVS monitor)
-            sensor = config.agent_params(env).resolved().soms
-            if sensor != deployment.params:
+            resolved = config.agent_params(env).resolved().soms  # on the camera's sensor
+            if resolved != deployment.params:
                 raise SpeckLimitError(
                     f"the front end was built for the chip's {SPECK_DVS_SIZE[0]}x"
                     f"{SPECK_DVS_SIZE[1]} pixel array, but the camera gives "
-                    f"{sensor.width_px}x{sensor.height_px} (env.speck.readout's region)"
+                    f"{resolved.width_px}x{resolved.height_px} (env.speck.readout's region)"
                 )
+            # SpeckSource applied the one configuration (cores and DVS monitor)
             pipeline = ChipPipeline(base.camera.device, deployment, configured=True)
             pipeline.start()
         counters = RigCounters(env, front, pipeline)
