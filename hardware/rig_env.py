@@ -346,10 +346,21 @@ class PTULinkThread:
 
 
 class RigEnv(CameraEnv):
-    """See the module docstring. Build with ``gymnasium.make("wander/Rig-v0", ...)``."""
+    """See the module docstring. Build with ``gymnasium.make("wander/Rig-v0", ...)``;
+    ``speck_config``: a prepared samna configuration for the Speck (the attention front
+    end's cores, :func:`hardware.speck_network.deploy`; camera ``"speck"`` only), which
+    the :class:`~hardware.speck.SpeckSource` applies with the DVS layer's monitor on."""
 
-    def __init__(self, render_mode: str | None = None, **config: Any) -> None:
+    def __init__(
+        self, render_mode: str | None = None, speck_config: Any = None, **config: Any
+    ) -> None:
         self.config = RigConfig(**config)
+        if speck_config is not None and self.config.camera_kind()[0] != "speck":
+            raise ValueError(
+                f"speck_config (a prepared Speck configuration) needs camera 'speck', "
+                f"got {self.config.camera!r}"
+            )
+        self._speck_config = speck_config
         c = self.config
         self.init_render(render_mode, c.control_period_s)
         self.emulator: PTUEmulator | None = None
@@ -398,7 +409,7 @@ class RigEnv(CameraEnv):
             self._link.start()
         if kind == "speck":
             params = replace(c.speck, serial_number=arg) if arg else c.speck
-            self.camera = SpeckSource(params)
+            self.camera = SpeckSource(params, config=self._speck_config)
         else:
             self.camera = ReplaySource(arg, realtime=c.replay == "realtime", loop=c.replay_loop)
         self.camera.start()

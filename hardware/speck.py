@@ -2,7 +2,9 @@
 
 :class:`SpeckSource` opens the first unopened Speck whose samna
 ``device_type_name`` starts with one of the requested prefixes, configures the chip
-to stream only the raw events of its 128×128 pixel array, and reads them in a
+to stream only the raw events of its 128×128 pixel array (or applies a prepared
+configuration, the attention front end's cores, with the DVS layer's monitor switched
+on in it: :func:`monitor_dvs`), and reads them in a
 background thread into a bounded queue. ``read`` hands out consecutive windows in
 the shared event format (``t`` in µs since the device's stop watch was reset in
 ``start``, ``p`` 1 = ON) through the :class:`~hardware.event_source.EventSource`
@@ -262,31 +264,39 @@ def write_readout_config(config: Any, readout: ReadoutParams) -> None:
     f.threshold = filt.threshold
 
 
-def _configure_processed_dvs_only(config: Any) -> None:
-    """Stream the DVS layer's pre-processed events (``Spike``, layer 13) and nothing else."""
-    _configure_raw_dvs_only(config)
-    config.dvs_layer.raw_monitor_enable = False
-    config.dvs_layer.monitor_enable = True
-
-
 #: samna's layer number of the DVS layer's monitored events (sinabs play_with_speck_dvs).
 DVS_LAYER_ID = 13
 
 
-def _configure_raw_dvs_only(config: Any) -> None:
-    """Stream the raw pixel-array events and nothing else from the chip."""
+def monitor_dvs(config: Any, readout: ReadoutParams | None) -> None:
+    """Switch on the DVS layer's stream a :class:`SpeckSource` reads, leaving the cores as
+    they are: the raw pixel-array events (``DvsEvent``), or with a ``readout`` its samna
+    fields written and the pre-processed events (``Spike``, layer 13) instead."""
     dvs = config.dvs_layer
-    dvs.raw_monitor_enable = True  # DvsEvent straight from the pixel array, no pre-processing
-    dvs.monitor_enable = False  # no pre-processed copies (Spike, layer 13)
+    if readout is not None:
+        write_readout_config(config, readout)
+    dvs.raw_monitor_enable = readout is None  # DvsEvent straight from the pixel array
+    dvs.monitor_enable = readout is not None  # pre-processed copies (Spike, layer 13)
     dvs.pass_sensor_events = True  # keep the pixel array on (datasheet §3.2.3.8)
+
+
+def _silence_cores(config: Any) -> None:
+    """Feed no DYNAP-CNN core and monitor none: the network stays silent."""
+    dvs = config.dvs_layer
     for i in range(len(dvs.destinations)):
-        dvs.destinations[i].enable = False  # feed no DYNAP-CNN core: the network stays silent
+        dvs.destinations[i].enable = False
     for i in range(len(config.cnn_layers)):
-        config.cnn_layers[i].monitor_enable = False  # and no core output is monitored
+        config.cnn_layers[i].monitor_enable = False
 
 
 class SpeckSource(EventSourceBase):
     """Raw DVS events from a Speck dev kit as an :class:`EventSource`.
+
+    ``config``: a prepared samna ``SpeckConfiguration`` to apply instead of a fresh one
+    (the attention front end's, :func:`hardware.speck_network.deploy`): its cores are
+    kept as they are and the DVS layer's monitor is switched on in it
+    (:func:`monitor_dvs`), so one configuration runs the network and streams the
+    camera's events. Without it the cores are silenced.
 
     Queue policy: the reader thread never waits for the consumer; when more than
     ``queue_events`` events are buffered the *oldest* are discarded (a live camera
@@ -296,9 +306,12 @@ class SpeckSource(EventSourceBase):
     counted by type name in ``stats["other_events"]``.
     """
 
-    def __init__(self, params: SpeckParams | None = None, **overrides: Any) -> None:
+    def __init__(
+        self, params: SpeckParams | None = None, config: Any = None, **overrides: Any
+    ) -> None:
         base = params if params is not None else SpeckParams()
         self.params = replace(base, **overrides) if overrides else base
+        self.prepared_config = config
         super().__init__((*self.params.sensor_size_fallback, 2))
         self.device_type_name: str | None = None
         self._samna: ModuleType | None = None
@@ -359,6 +372,13 @@ class SpeckSource(EventSourceBase):
                 "close_errors": list(self._close_errors),
                 "cursor_us": self._cursor_us,
             }
+
+    @property
+    def device(self) -> Any:
+        """samna's handle of the open device (``None`` before :meth:`start` and after
+        :meth:`close`): the front end's :class:`~hardware.speck_network.ChipPipeline`
+        reads the cores' spikes through it."""
+        return self._device
 
     def now_us(self) -> int:
         """Device time estimated from the host clock (µs since the stop watch reset)."""
@@ -479,16 +499,22 @@ class SpeckSource(EventSourceBase):
         self._dvs_event_type = chip.event.DvsEvent
         sink_type = getattr(samna, f"BasicSinkNode_{family}_event_output_event")
 
-        config = chip.configuration.SpeckConfiguration()
+        config = self.prepared_config
+        if config is None:
+            config = chip.configuration.SpeckConfiguration()
+            _silence_cores(config)
+        elif not isinstance(config, chip.configuration.SpeckConfiguration):
+            raise RuntimeError(
+                f"the prepared configuration is a {type(config).__module__}."
+                f"{type(config).__name__}, not samna.{family}'s SpeckConfiguration for "
+                f"{info.device_type_name!r}"
+            )
         self._sensor_size, self._sensor_size_from = _sensor_size_from(
             config, self.params.sensor_size_fallback
         )
         readout = self.params.readout
-        if readout is None:
-            _configure_raw_dvs_only(config)
-        else:
-            write_readout_config(config, readout)
-            _configure_processed_dvs_only(config)
+        monitor_dvs(config, readout)
+        if readout is not None:
             w, h = SpeckReadout(*self._sensor_size[:2], readout).output_size
             self._sensor_size, self._sensor_size_from = (w, h, 2), "readout dvs_layer region"
             self._dvs_event_type = chip.event.Spike

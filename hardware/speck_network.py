@@ -127,21 +127,27 @@ def spike_counts(events: Iterable[Any], core: int, shape: tuple[int, int, int]) 
 
 class ChipPipeline(FrontEndPipeline):
     """The front end running on an open Speck (``handle`` from ``samna.device.open_device``):
-    :meth:`start` applies the configuration and connects a sink to the device's output;
-    each step drains the sink (the ``event_counts`` argument, the host's copy of the
-    events, is only shape-checked: the chip sees its own pixels). ``spikes_read``
-    counts the events taken from the sink."""
+    :meth:`start` applies the configuration (unless ``configured``: the device already
+    holds it, as on the rig, where :class:`hardware.speck.SpeckSource` applied it with
+    the DVS layer's monitor switched on; applying it again would drop that) and connects
+    a sink to the device's output; each step drains the sink (the ``event_counts``
+    argument, the host's copy of the events, is only shape-checked: the chip sees its own
+    pixels). ``spikes_read`` counts the monitored cores' spikes taken from the sink (it
+    also gets the camera's events and other cores' spikes, which are skipped)."""
 
-    def __init__(self, handle: Any, deployment: Deployment) -> None:
+    def __init__(self, handle: Any, deployment: Deployment, configured: bool = False) -> None:
         super().__init__(deployment.params)
         self.handle = handle
         self.deployment = deployment
+        self.configured = configured
         self._sink: Any = None
         self.spikes_read = 0
 
     def start(self) -> None:
         samna = import_samna()
-        self.handle.get_model().apply_configuration(self.deployment.config)
+        if not self.configured:
+            self.handle.get_model().apply_configuration(self.deployment.config)
+            self.configured = True
         self._sink = samna.graph.sink_from(self.handle.get_model_source_node())
 
     def spikes(self, event_counts: np.ndarray | torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
@@ -152,7 +158,7 @@ class ChipPipeline(FrontEndPipeline):
         if shape != (2, p.height_px, p.width_px):
             raise ValueError(f"event counts must be (2, {p.height_px}, {p.width_px}), got {shape}")
         events = self._sink.get_events()
-        self.spikes_read += len(events)
         dog = spike_counts(events, self.deployment.oms_core, (2, *p.grid))
         group = spike_counts(events, self.deployment.saliency_core, (1, *p.grid))
+        self.spikes_read += int(dog.sum() + group.sum())
         return dog, group

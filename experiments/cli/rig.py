@@ -145,6 +145,7 @@ def rig(
     """Run the attention agent closed-loop on the rig; write the run folder of `wander run`.
     Unset flags take RigRunConfig's values (`--set agent.KEY=VALUE` reaches every agent
     parameter)."""
+    from agents.speck_limits import SpeckLimitError
     from experiments.jobs.rig import RigRunConfig, RigRunError, run_rig
 
     config = command_config(ctx, RigRunConfig, defaults=RIG_DEFAULTS)
@@ -161,6 +162,9 @@ def rig(
             f"agent on the rig ({camera})", round(config.seconds / config.env.control_period_s)
         ) as progress:
             result = run_rig(folder.path, config, progress=progress)
+    except SpeckLimitError as err:  # the front end does not fit the chip: nothing was opened
+        typer.echo(f"wander rig: agent.soms: {err}", err=True)
+        raise typer.Exit(2) from err
     except RigRunError as err:
         typer.echo(f"wander rig: {err}", err=True)
         bad_file = isinstance(err.__cause__, EventFileError)  # a replay file refused: input

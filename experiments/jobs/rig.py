@@ -11,6 +11,14 @@ same :class:`~agents.attention.AttentionAgent` as ``wander run`` through
   lens's field of view the run assumed (``hfov_deg``, ``hfov_from``: the ``--hfov``
   given or the Speck's lens by default — a recording from another camera, e.g. a
   DVS128, is scored with the field of view given here);
+- with the Speck front end as the agent's sOMS (``agent.soms: speck``), ``rig.front_end``
+  in ``run.json``: ``"chip"`` with a live Speck (:func:`run_rig` checks and builds the
+  network's configuration with :func:`hardware.speck_network.deploy` before the device
+  is opened, so a network that does not fit is refused with one line and nothing is
+  touched; the camera applies that one configuration with its DVS monitor on, and the
+  agent reads the monitored cores' spikes through
+  :class:`~hardware.speck_network.ChipPipeline` on the same device), ``"simulated"``
+  with a replayed recording (the same quantised model on the host);
 - with a replayed recording, ``fixed_view`` in ``run.json``: the recorded camera did not
   turn with the PTU, so ``scanpath.png`` draws saliency and ``P`` in the sensor's frame
   (not on the pan-tilt sphere) and says so;
@@ -19,7 +27,8 @@ same :class:`~agents.attention.AttentionAgent` as ``wander run`` through
   step boundaries), commands sent and replaced, polls, the largest lag behind the
   camera's clock, the episode's start in the camera's clock (``t0_us``: ``events.h5``
   times are relative to it), the halt result and the PTU error if any, and the camera's
-  counters.
+  counters; ``front_end`` (as in ``run.json``) and ``front_end_spikes``, the spikes read
+  from the chip's monitored cores (``None`` unless the front end runs on the chip).
 
 A device that fails raises :class:`RigRunError` naming the device and saying what went
 wrong; when the run had started the run folder is written first with what was recorded
@@ -34,7 +43,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -43,6 +52,8 @@ import numpy as np
 import pydantic
 
 from agents.attention import AgentParams, AttentionAgent
+from agents.speck_front import SpeckFrontParams
+from agents.speck_limits import SpeckLimitError
 from experiments.framework import MAX_SEED
 from experiments.jobs.run_agent import (
     VIDEO_FPS,
@@ -55,10 +66,19 @@ from experiments.runs.folder import METRICS_JSON, RunFolder
 from experiments.runs.provenance import run_record
 from hardware.ptu_driver import PTUError, PTUFlood, PTUPortError, PTUTimeout
 from hardware.rig_env import RigConfig
+from hardware.speck import SPECK_DVS_SIZE
 from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.strict_json import to_strict_json
 
-__all__ = ["RigCounters", "RigRunConfig", "RigRunError", "fixed_view_note", "run_rig"]
+__all__ = [
+    "RigCounters",
+    "RigRunConfig",
+    "RigRunError",
+    "chip_front",
+    "fixed_view_note",
+    "front_end",
+    "run_rig",
+]
 
 
 @dataclass(frozen=True)
@@ -101,8 +121,10 @@ class RigCounters(Recorder):
     """Sees every step's ``info`` and keeps the rig's counters; ``metrics()``:
     ``{"rig": ...}`` (module doc; valid also after a fault)."""
 
-    def __init__(self, env: gym.Env) -> None:
+    def __init__(self, env: gym.Env, front_end: str | None = None, chip: Any = None) -> None:
         self.base = env.unwrapped
+        self.front_end = front_end
+        self.chip = chip  # the ChipPipeline of a front end on the chip, or None
         self.latencies: list[float] = []
         self.lag_max_s = 0.0
         self._sent = 0
@@ -142,6 +164,8 @@ class RigCounters(Recorder):
             "ptu_halt": stats["ptu_halt"],
             "ptu_error": stats["ptu_error"],
             "camera": stats["camera"],
+            "front_end": self.front_end,
+            "front_end_spikes": None if self.chip is None else self.chip.spikes_read,
         }
 
 
@@ -192,6 +216,35 @@ def fixed_view_note(rig: dict[str, Any]) -> str | None:
     )
 
 
+def front_end(config: RigRunConfig) -> str | None:
+    """Where the agent's Speck front end (``agent.soms`` a
+    :class:`~agents.speck_front.SpeckFrontParams`) runs: ``"chip"`` on a live Speck (the
+    configuration of :func:`hardware.speck_network.deploy`), ``"simulated"`` with a
+    replayed camera (the same quantised sinabs model on the host); ``None`` for another
+    sOMS. ``run.json`` says so as ``rig.front_end``.
+
+    >>> env = RigConfig(ptu_port="emulate", camera="replay:walk.npz")
+    >>> front_end(RigRunConfig(env, agent=AgentParams(soms="speck")))
+    'simulated'
+    """
+    if not isinstance(config.agent.soms, SpeckFrontParams):
+        return None
+    return "chip" if config.env.camera_kind()[0] == "speck" else "simulated"
+
+
+def chip_front(config: RigRunConfig) -> SpeckFrontParams:
+    """The front end deployed on the chip: the agent's block made consistent with the
+    rig's step (its leak per step) on the chip's pixel array, as the agent will resolve it
+    once the camera is open (:func:`run_rig` checks that it does)."""
+    agent = replace(
+        config.agent,
+        step_s=config.env.control_period_s,
+        width_px=SPECK_DVS_SIZE[0],
+        height_px=SPECK_DVS_SIZE[1],
+    )
+    return agent.resolved().soms
+
+
 def _device(err: BaseException, config: RigRunConfig) -> str | None:
     """Which device ``err`` comes from (``None``: not a device failure)."""
     if isinstance(err, (PTUError, TimeoutError)):
@@ -240,17 +293,43 @@ def run_rig(
     import wander_env  # noqa: F401  (registers the environments)
 
     out_dir = Path(out_dir)
+    front = front_end(config)
+    deployment = None
+    if front == "chip":
+        from hardware.speck import SamnaUnavailableError
+        from hardware.speck_network import deploy
+
+        try:  # before the device is opened: a network that does not fit is refused here
+            deployment = deploy(chip_front(config))
+        except SamnaUnavailableError as err:
+            raise _open_failure(err, config) from err
     try:
-        env = gym.make("wander/Rig-v0", **config.env)
+        speck_config = None if deployment is None else deployment.config
+        env = gym.make("wander/Rig-v0", speck_config=speck_config, **config.env)
     except Exception as err:
         raise _open_failure(err, config) from err
     agent: AttentionAgent | None = None
     try:
-        counters = RigCounters(env)
         base = env.unwrapped
-        agent = AttentionAgent(config.agent_params(env), seed=config.seed)
+        pipeline = None
+        if deployment is not None:
+            from hardware.speck_network import ChipPipeline
+
+            resolved = config.agent_params(env).resolved().soms  # on the camera's sensor
+            if resolved != deployment.params:
+                raise SpeckLimitError(
+                    f"the front end was built for the chip's {SPECK_DVS_SIZE[0]}x"
+                    f"{SPECK_DVS_SIZE[1]} pixel array, but the camera gives "
+                    f"{resolved.width_px}x{resolved.height_px} (env.speck.readout's region)"
+                )
+            # SpeckSource applied the one configuration (cores and DVS monitor)
+            pipeline = ChipPipeline(base.camera.device, deployment, configured=True)
+            pipeline.start()
+        counters = RigCounters(env, front, pipeline)
+        agent = AttentionAgent(config.agent_params(env), seed=config.seed, pipeline=pipeline)
         record = run_record("wander rig", asdict(config), config.seed)
         record["rig"] = device_record(base)
+        record["rig"]["front_end"] = front
         record["fixed_view"] = fixed_view_note(record["rig"])
         try:
             # A fault or a signal in the loop halts the PTU at once (halt), before the

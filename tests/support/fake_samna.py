@@ -109,6 +109,14 @@ class DvsLayerConfig(_Strict):
         self.mirror = Vec2Bool()
         self.destinations = [Destination(True, 0), Destination(False, 0)]
 
+    def __setattr__(self, name: str, value: Any) -> None:
+        if isinstance(value, dict):  # speckcores: sinabs writes {"x": .., "y": ..}, samna
+            vec = getattr(self, name)  # converts it to the field's Vec2
+            for key, v in value.items():
+                setattr(vec, key, v)
+            return
+        super().__setattr__(name, value)
+
 
 # -- readout (helper `readout`): the DVS filter block and the slow clock ---------------
 # Field names: Speck Dev Kit Datasheet (Aug 2023) §3.2.2, §3.2.3.5 and §3.2.6.3.2; sinabs
@@ -237,7 +245,9 @@ class FakeSpeck:
     after every that many DVS events emit one ``Spike`` (and every third time also a
     ``ReadoutPinValue``); ``timestamp_offset``: added to the stamps modulo 2**32 (to
     exercise the counter wraparound); ``max_batch``: cap on events per
-    ``get_events_blocking`` answer.
+    ``get_events_blocking`` answer; ``core_spikes``: ``(t, core, feature, x, y)`` sorted
+    by ``t``, the network's ``Spike`` events, streamed while the applied configuration
+    monitors that core (speckcores block).
     """
 
     events: np.ndarray
@@ -245,6 +255,7 @@ class FakeSpeck:
     other_every: int | None = None
     timestamp_offset: int = 0
     max_batch: int | None = None
+    core_spikes: list[tuple[int, int, int, int, int]] = field(default_factory=list)
     emitted_dvs: int = 0
     emitted_other: dict[str, int] = field(default_factory=dict)
 
@@ -365,6 +376,7 @@ class DeviceHandle:
         self._sinks: list[BasicSinkNode] = []
         self._origin = 0.0
         self._next = 0  # index of the next recorded event to emit
+        self._next_spike = 0  # ... and of the next core spike (speckcores block)
         self._lock = threading.Lock()
 
     def get_model(self) -> Model:
@@ -414,6 +426,7 @@ class DeviceHandle:
                     if (i + 1) % (3 * every) == 0:
                         out.append(self._other(ev_mod.ReadoutPinValue, stamp, index=3))
             self._next = max(self._next, stop)
+            out += _core_spikes(self, config, now_us)
             for sink in self._sinks:
                 if sink._graph is not None and sink._graph.running:
                     sink._buffer.extend(out)
@@ -670,6 +683,19 @@ def spike(fake: FakeSamna, fam: str, layer: int, feature: int, x: int, y: int, t
     e = fake.families[fam].event.Spike()
     e.layer, e.feature, e.x, e.y, e.timestamp = layer, feature, x, y, t
     return e
+
+
+def _core_spikes(handle: DeviceHandle, config: Any, now_us: float) -> list[Any]:
+    """The ``Spike`` events of ``handle.speck.core_spikes`` due by ``now_us``, from the
+    cores ``config`` monitors (those of unmonitored cores are not streamed)."""
+    due, out = handle.speck.core_spikes, []
+    while handle._next_spike < len(due) and due[handle._next_spike][0] <= now_us:
+        t, core, feature, x, y = due[handle._next_spike]
+        handle._next_spike += 1
+        if config.cnn_layers[core].monitor_enable:
+            spike_type = handle.module.event.Spike
+            out.append(handle._other(spike_type, t, layer=core, feature=feature, x=x, y=y))
+    return out
 
 
 def forget_dynapcnn(monkeypatch: Any) -> None:

@@ -15,24 +15,27 @@ import numpy as np
 import pytest
 import serial
 import typer
-from fake_samna import FakeSamna, FakeSpeck, install
+from fake_samna import FakeSamna, FakeSpeck, forget_dynapcnn, install
 from typer.testing import CliRunner
 
 import experiments.jobs.rig as rig_module
 import hardware.rig_env as rig_env
-from agents.attention import AttentionAgent
+from agents.attention import AgentParams, AttentionAgent
 from agents.control import normalised_error
+from agents.speck_limits import SpeckLimitError
 from experiments.cli.rig import dropped_warning, register, summary_line
 from experiments.jobs.rig import RigRunConfig, RigRunError, run_rig
 from hardware.ptu_driver import FlirPTU, PTUTimeout
 from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from hardware.rig_env import RigConfig
 from hardware.speck import SpeckParams
+from hardware.speck_network import ChipPipeline
 from wander_env.actions import action_to_gaze_degrees
 from wander_env.camera import SPECK_HFOV_DEG, focal_length_px
 from wander_env.events import EVENT_DTYPE, make_events
 from wander_env.events.io import EventRecording, read_events, write_events
 from wander_env.ptu.params import PTUParams
+from wander_env.readout import DvsLayerParams, ReadoutParams
 
 RES = PTUParams().pan_resolution_arcsec  # 92.5714″ on both axes of the emulated unit
 T_OFFSET = 5_000_000  # the synthetic file's first timestamp (µs); the replay rebases it to 0
@@ -595,6 +598,111 @@ def test_queue_overflow_is_counted_and_reported(monkeypatch, tmp_path):
     )
     assert "(2,500 dropped)" in summary_line(metrics, out)
     assert dropped_warning({"rig": {"dropped_events": 0}}) is None
+
+
+def test_the_front_end_runs_on_the_speck_and_the_camera_still_records(monkeypatch, tmp_path):
+    """soms=speck with a live Speck: one configuration (cores + DVS monitor); the agent
+    reads the monitored cores' spikes (core 1's are not monitored, so not streamed) and
+    the camera's events are recorded as without the front end."""
+    n = 300
+    rng = np.random.default_rng(7)
+    ev = np.empty(n, EVENT_DTYPE)
+    for f, hi in (("x", 128), ("y", 128), ("p", 2)):
+        ev[f] = rng.integers(0, hi, n)
+    ev["t"] = 10**12
+    # (t, core, feature, x, y): 2 DoG (core 0), 1 unmonitored (core 1), 3 grouping (core 2)
+    cores = [(0, 0, 1, 10, 5), (0, 0, 0, 11, 5), (0, 1, 3, 2, 2)] + [(0, 2, 0, 40, 20)] * 3
+    speck = FakeSpeck(ev)
+    reset = rig_env.RigEnv.reset
+
+    def stream_after_reset(self, **kwargs):
+        out = reset(self, **kwargs)
+        t0 = self.camera.cursor_us + 50_000
+        ev["t"] = t0 + np.arange(n) * 100
+        speck.core_spikes[:] = [(t0 + 10 * i, *c[1:]) for i, c in enumerate(cores)]
+        return out
+
+    read: list[tuple[float, float]] = []
+    spikes = ChipPipeline.spikes
+
+    def spy(self, counts):
+        dog, group = spikes(self, counts)
+        read.append((float(dog.sum()), float(group.sum())))
+        assert self.params.dt == 0.02  # deployed for the rig's step (the leak per step)
+        return dog, group
+
+    monkeypatch.setattr(rig_env.RigEnv, "reset", stream_after_reset)
+    monkeypatch.setattr(ChipPipeline, "spikes", spy)
+    forget_dynapcnn(monkeypatch)
+    fake = install(monkeypatch, FakeSamna([("Speck2fModuleDevKit", "sf", speck)]))
+    config = RigRunConfig(
+        RigConfig(ptu_port="emulate", camera="speck", episode_seconds=0.3, control_period_s=0.02),
+        video=False,
+        agent=AgentParams(soms="speck"),
+    )
+    out = tmp_path / "run"
+    run_rig(out, config)
+    metrics, run, _ = read_folder(out)
+    assert run["rig"]["front_end"] == metrics["rig"]["front_end"] == "chip"
+    [handle] = fake.handles
+    [applied] = handle.applied  # once: the camera's, with the network's cores in it
+    assert applied.dvs_layer.raw_monitor_enable is True
+    assert [c.monitor_enable for c in applied.cnn_layers[:3]] == [True, False, True]
+    assert sum(d for d, _ in read) == 2 and sum(g for _, g in read) == 3  # into the agent
+    assert metrics["rig"]["front_end_spikes"] == 5
+    assert speck.emitted_other == {"Spike": 5}  # core 1's spike was not streamed
+    assert metrics["rig"]["camera"]["other_events"] == {"Spike": 5}  # counted, not recorded
+    assert metrics["events"] == n and metrics["rig"]["dropped_events"] == 0
+    rec = read_events(out / "events.h5")
+    np.testing.assert_array_equal(rec.events["t"] + metrics["rig"]["t0_us"], ev["t"])
+
+
+def test_a_front_end_that_does_not_fit_is_refused_before_the_device_is_opened(
+    app, monkeypatch, tmp_path
+):
+    forget_dynapcnn(monkeypatch)
+    speck = FakeSpeck(np.zeros(0, EVENT_DTYPE))
+    fake = install(monkeypatch, FakeSamna([("Speck2fModuleDevKit", "sf", speck)]))
+    args = ("--ptu", "emulate", "--camera", "speck", "--out", str(tmp_path / "r"))
+    result = invoke(app, *args, "--set", "agent.soms.bo_kernel_px=31")  # a Speck front end
+    assert result.exit_code == 2, result.output
+    assert result.stderr.strip() == (
+        "wander rig: agent.soms: layer 1 (conv 31x31): kernel 31 px > Speck's 16 px limit"
+    )
+    assert fake.handles == [] and not (tmp_path / "r").exists()
+
+
+def test_a_readout_region_the_deployed_network_does_not_take_is_refused(monkeypatch, tmp_path):
+    forget_dynapcnn(monkeypatch)
+    speck = FakeSpeck(np.zeros(0, EVENT_DTYPE))
+    fake = install(monkeypatch, FakeSamna([("Speck2fModuleDevKit", "sf", speck)]))
+    readout = ReadoutParams(dvs_layer=DvsLayerParams(cut=(63, 63)))
+    config = RigRunConfig(
+        RigConfig(ptu_port="emulate", camera="speck", speck=SpeckParams(readout=readout)),
+        agent=AgentParams(soms="speck"),
+    )
+    with pytest.raises(SpeckLimitError) as info:
+        run_rig(tmp_path / "r", config)
+    assert str(info.value) == (
+        "the front end was built for the chip's 128x128 pixel array, but the camera gives "
+        "64x64 (env.speck.readout's region)"
+    )
+    [handle] = fake.handles
+    assert handle.closed and not (tmp_path / "r").exists()
+
+
+def test_a_replayed_camera_runs_the_front_end_in_simulation(square, tmp_path):
+    camera, _ = square
+    config = RigRunConfig(
+        RigConfig(ptu_port="emulate", camera=camera, replay="stepped", episode_seconds=0.1),
+        video=False,
+        agent=AgentParams(soms="speck"),
+    )
+    run_rig(tmp_path / "r", config)
+    metrics, run, _ = read_folder(tmp_path / "r")
+    assert run["rig"]["front_end"] == metrics["rig"]["front_end"] == "simulated"
+    assert metrics["rig"]["front_end_spikes"] is None
+    assert "samna" not in sys.modules
 
 
 def test_doctests():

@@ -17,9 +17,10 @@ from locations import ROOT
 from agents.attention import AgentParams, AttentionAgent
 from agents.speck_front import SpeckFront, SpeckFrontParams, build_front
 from agents.speck_limits import SpeckLimitError
-from hardware.speck import SamnaUnavailableError
+from hardware.speck import SamnaUnavailableError, SpeckParams, SpeckSource
 from hardware.speck_network import ChipPipeline, deploy, spike_counts
 from wander_env.events import EVENT_DTYPE
+from wander_env.readout import ReadoutParams
 
 
 @pytest.fixture
@@ -98,7 +99,7 @@ def test_the_rig_reads_the_monitored_cores_into_the_agent(fake):
     sink._buffer += [spike(fake, fam, 2, 0, 40, 20, 102 + i) for i in range(3)]
     oms = chip.oms_step(np.zeros((2, 128, 128), np.float32)).numpy()
     assert oms.sum() == 4 and oms[1, 10:12, 20:22].sum() == 4  # DoG (x 10, y 5), ON
-    assert chip.spikes_read == 5
+    assert chip.spikes_read == 4  # core 7 is not monitored
     sal = chip.saliency_of(oms)
     assert float(sal.sum()) == 12.0 and chip.argmax() == (80, 40)
     # the agent takes the chip's pipeline in place of its own
@@ -109,6 +110,54 @@ def test_the_rig_reads_the_monitored_cores_into_the_agent(fake):
     agent.act(obs, {"moving": False})
     assert agent.decided and agent.target == (60, 100)
     agent.close()
+
+
+def test_the_camera_applies_one_configuration_with_the_cores_and_the_dvs_monitor(fake):
+    dep = deploy()
+    source = SpeckSource(config=dep.config)
+    source.start()
+    try:
+        handle = source.device
+        assert handle.applied == [dep.config]  # once, by the camera
+        dvs = handle.applied[0].dvs_layer
+        assert (dvs.raw_monitor_enable, dvs.monitor_enable, dvs.pass_sensor_events) == (
+            True,
+            False,
+            True,
+        )
+        assert dvs.destinations[0].enable and dvs.destinations[0].layer == 0  # feeds core 0
+        monitored = [c.monitor_enable for c in handle.applied[0].cnn_layers]
+        assert monitored == [True, False, True] + [False] * 6  # DoG and grouping
+        assert source.sensor_size == (128, 128, 2)
+        # the pipeline on the same device does not apply it again (that would be the same
+        # object here, but on a chip a second apply restarts it)
+        chip = ChipPipeline(handle, dep, configured=True)
+        chip.start()
+        assert handle.applied == [dep.config] and len(handle._sinks) == 2
+    finally:
+        source.close()
+    # with a readout: its fields written, and the pre-processed monitor instead of the raw one
+    dep = deploy()
+    readout = ReadoutParams()
+    source = SpeckSource(SpeckParams(readout=readout), config=dep.config)
+    source.start()
+    try:
+        dvs = source.device.applied[0].dvs_layer
+        assert (dvs.raw_monitor_enable, dvs.monitor_enable) == (False, True)
+        assert dvs.destinations[0].enable
+    finally:
+        source.close()
+
+
+def test_a_configuration_for_another_chip_is_refused_before_it_is_applied(monkeypatch):
+    forget_dynapcnn(monkeypatch)
+    speck = FakeSpeck(events=np.zeros(0, EVENT_DTYPE))
+    fake = install(monkeypatch, FakeSamna([("Speck2eDevKit", "e1", speck)]))
+    dep = deploy()  # for speck2fmodule
+    source = SpeckSource(config=dep.config)
+    with pytest.raises(RuntimeError, match=r"not samna\.speck2e's SpeckConfiguration"):
+        source.start()
+    assert fake.handles == []  # the device was not opened
 
 
 def test_spikes_outside_the_grid_are_an_error_not_dropped(fake):
