@@ -18,7 +18,8 @@ interval over seeds (:func:`experiments.stats.mean_ci`), the peak events/s of a 
 and the events still held (arbiter queue and unsent packets) at a step's end: the
 latency the readout adds, in events.
 
-Run: ``python -m experiments.paper.readout_effect --seeds 5 --steps 40`` (docs/readout.md).
+Run: ``python -m experiments.paper.readout_effect --seeds 5 --steps 100 --saccade-step 5``
+(the table in docs/readout.md, "The readout's effect on the agent").
 """
 
 from __future__ import annotations
@@ -173,7 +174,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ``--seeds`` seeds (0, 1, ...) and print the table."""
     ap = argparse.ArgumentParser(prog="python -m experiments.paper.readout_effect")
     ap.add_argument("--seeds", type=int, default=5, help="seeds 0..N-1 (default 5)")
-    ap.add_argument("--steps", type=int, default=40, help="control steps per episode")
+    ap.add_argument("--steps", type=int, default=100, help="control steps per episode")
     ap.add_argument("--saccade-step", type=int, default=5, help="step the saccade starts")
     a = ap.parse_args(argv)
     if a.seeds < 1 or a.steps < 1 or not 0 <= a.saccade_step < a.steps:

@@ -51,7 +51,7 @@ def test_bad_arguments_exit_2_with_one_line(capsys) -> None:
     assert e.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].endswith(
-        "--seeds 0 and --steps 40 must be >= 1 and --saccade-step 5 in [0, steps)"
+        "--seeds 0 and --steps 100 must be >= 1 and --saccade-step 5 in [0, steps)"
     )
 
 
