@@ -1,0 +1,200 @@
+"""The readout's effect on the agent (issue 35, item 5): what Speck's readout
+(:mod:`wander_env.readout`) drops, filters and holds back of the events the agent would
+see, in three scripted cases, for the presets ``ideal`` (the reference: every stage off),
+``speck`` and ``speck_filtered``, several seeds.
+
+The cases (:data:`CASES`), each an episode of the env with ``dvs="speck"``:
+
+- ``hand``: the hand scene (the event-suppression trials' hand waved at 2 Hz), the
+  camera still;
+- ``gratings_saccade``: the gratings scene, a 10° pan saccade at ``saccade_step``;
+- ``office_saccade``: the office scene, a 20° pan saccade at ``saccade_step``.
+
+A saccade is the PTU's target set ``amplitude_deg`` to the left of where it looks
+(:meth:`~wander_env.env_base.CameraEnv.aim`); every other step's action is zero. The
+counters come from ``info["readout"]`` of each step (:func:`run_case`), summed over the
+episode; :func:`table` gives each as a share of the events in, mean with its 95 %
+interval over seeds (:func:`experiments.stats.mean_ci`), the peak events/s of a step
+and the events still held (arbiter queue and unsent packets) at a step's end: the
+latency the readout adds, in events.
+
+Run: ``python -m experiments.paper.readout_effect --seeds 5 --steps 100 --saccade-step 5``
+(the table in docs/readout.md, "The readout's effect on the agent").
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from experiments.stats import ci_text, mean_ci
+
+__all__ = ["CASES", "PRESETS", "Case", "CaseResult", "identity_gap", "run_case", "table"]
+
+#: The presets compared; ``ideal`` is the reference.
+PRESETS: tuple[str, ...] = ("ideal", "speck", "speck_filtered")
+
+#: The counters of ``info["readout"]`` that leave the stream (each its own share).
+LOST: tuple[str, ...] = (
+    "killed",
+    "dropped_queue",
+    "filtered_noise",
+    "filtered_hot",
+    "filtered_flicker",
+    "channel_off",
+    "outside_roi",
+)
+
+
+@dataclass(frozen=True)
+class Case:
+    """A scripted case: a scene and a pan saccade of ``amplitude_deg`` (0: the camera
+    stays still)."""
+
+    name: str
+    scene: str
+    amplitude_deg: float
+
+
+CASES: tuple[Case, ...] = (
+    Case("hand", "hand", 0.0),
+    Case("gratings_saccade", "gratings", 10.0),
+    Case("office_saccade", "office", 20.0),
+)
+
+
+@dataclass(frozen=True)
+class CaseResult:
+    """One episode's readout: the counters summed over its steps (``pending``: at the
+    episode's end), the most events in one step, the most held at a step's end, and the
+    control period (s)."""
+
+    case: str
+    preset: str
+    seed: int
+    totals: dict[str, int]
+    peak_in_step: int
+    peak_pending: int
+    control_period_s: float
+
+    @property
+    def peak_eps(self) -> float:
+        """The peak events/s into the readout over a step."""
+        return self.peak_in_step / self.control_period_s
+
+
+def identity_gap(totals: dict[str, int]) -> int:
+    """``in − (out + lost + pending)`` over an episode that starts empty: 0 when every
+    event is accounted for.
+
+    >>> identity_gap({"in": 10, "out": 6, "dropped_queue": 1, "filtered_noise": 2,
+    ...               "pending": 1, "killed": 0, "filtered_hot": 0, "filtered_flicker": 0,
+    ...               "channel_off": 0, "outside_roi": 0})
+    0
+    """
+    return totals["in"] - totals["out"] - sum(totals[k] for k in LOST) - totals["pending"]
+
+
+def run_case(case: Case, preset: str, seed: int, steps: int, saccade_step: int) -> CaseResult:
+    """One episode of ``case`` with the readout ``preset``: ``steps`` control steps, the
+    saccade (if any) commanded before step ``saccade_step``."""
+    if not 0 <= saccade_step < steps:
+        raise ValueError(f"saccade_step: {saccade_step} must be in [0, steps={steps})")
+    import gymnasium
+
+    import wander_env  # noqa: F401  (registers the env)
+
+    env = gymnasium.make("wander/Wander-v0", scene=case.scene, readout=preset, dvs="speck")
+    try:
+        env.reset(seed=seed)
+        base = env.unwrapped
+        totals: dict[str, int] = {}
+        peak_in = peak_pending = 0
+        zero = np.zeros(2, np.float32)
+        for i in range(steps):
+            if i == saccade_step and case.amplitude_deg:
+                pan, tilt = base.target_deg
+                base.aim(pan + case.amplitude_deg, tilt)
+            _, _, _, _, info = env.step(zero)
+            c = info["readout"]
+            for k, v in c.items():
+                totals[k] = v if k == "pending" else totals.get(k, 0) + v
+            peak_in, peak_pending = max(peak_in, c["in"]), max(peak_pending, c["pending"])
+        period = base.config.control_period_s
+    finally:
+        env.close()
+    return CaseResult(case.name, preset, seed, totals, peak_in, peak_pending, period)
+
+
+def _share(results: Sequence[CaseResult], key: str) -> str:
+    """``key``'s mean count per episode and its share of in, mean [95 % interval]."""
+    count = np.mean([r.totals[key] for r in results])
+    shares = [r.totals[key] / r.totals["in"] if r.totals["in"] else np.nan for r in results]
+    return f"{count:,.0f}: {ci_text(mean_ci(shares), '.2%')}"
+
+
+def table(results: Sequence[CaseResult]) -> str:
+    """The markdown table: per case and preset, mean events in per episode; delivered,
+    dropped by the queue and filtered (noise, hot, flicker), each its mean count per
+    episode and its share of in (mean [95 % interval] over seeds); the peak events/s of
+    a step and the most events held at a step's end (over seeds)."""
+    head = (
+        "| case | preset | in / episode | delivered | dropped (queue) | filtered noise | "
+        "filtered hot | filtered flicker | peak in (ev/s) | held at step end (max) |\n"
+        + "|---" * 10
+        + "|"
+    )
+    lines = [head]
+    groups: dict[tuple[str, str], list[CaseResult]] = {}
+    for r in results:
+        groups.setdefault((r.case, r.preset), []).append(r)
+    for (case, preset), rs in groups.items():
+        cells = [
+            case,
+            preset,
+            f"{np.mean([r.totals['in'] for r in rs]):,.0f}",
+            _share(rs, "out"),
+            _share(rs, "dropped_queue"),
+            _share(rs, "filtered_noise"),
+            _share(rs, "filtered_hot"),
+            _share(rs, "filtered_flicker"),
+            f"{max(r.peak_eps for r in rs):,.0f}",
+            f"{max(r.peak_pending for r in rs):,}",
+        ]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m experiments.paper.readout_effect``: run every case and preset over
+    ``--seeds`` seeds (0, 1, ...) and print the table."""
+    ap = argparse.ArgumentParser(prog="python -m experiments.paper.readout_effect")
+    ap.add_argument("--seeds", type=int, default=5, help="seeds 0..N-1 (default 5)")
+    ap.add_argument("--steps", type=int, default=100, help="control steps per episode")
+    ap.add_argument("--saccade-step", type=int, default=5, help="step the saccade starts")
+    a = ap.parse_args(argv)
+    if a.seeds < 1 or a.steps < 1 or not 0 <= a.saccade_step < a.steps:
+        ap.error(
+            f"--seeds {a.seeds} and --steps {a.steps} must be >= 1 and --saccade-step "
+            f"{a.saccade_step} in [0, steps)"
+        )
+    results = [
+        run_case(case, preset, seed, a.steps, a.saccade_step)
+        for case in CASES
+        for preset in PRESETS
+        for seed in range(a.seeds)
+    ]
+    bad = [(r.case, r.preset, r.seed) for r in results if identity_gap(r.totals)]
+    print(table(results))
+    if bad:
+        print(f"accounting identity broken in {bad}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,60 @@
+"""The readout's effect on the agent (experiments/paper/readout_effect.py), run tiny."""
+
+from __future__ import annotations
+
+import pytest
+
+from experiments.paper.readout_effect import (
+    CASES,
+    LOST,
+    PRESETS,
+    identity_gap,
+    main,
+    run_case,
+    table,
+)
+
+
+@pytest.mark.slow
+def test_every_case_and_preset_accounts_for_every_event() -> None:
+    results = [run_case(case, preset, 0, 4, 1) for case in CASES for preset in PRESETS]
+    assert len(results) == 9
+    for r in results:
+        t = r.totals
+        # in = out + dropped + filtered + killed + channel_off + outside_roi + Δpending
+        assert identity_gap(t) == 0, (r.case, r.preset, t)
+        assert t["in"] == t["out"] + sum(t[k] for k in LOST) + t["pending"]
+        assert t["in"] > 0, (r.case, r.preset)
+        assert r.peak_in_step <= t["in"]
+        assert r.peak_eps == r.peak_in_step / 0.01
+        if r.preset == "ideal":  # the reference: nothing lost, nothing held
+            assert all(t[k] == 0 for k in LOST), t
+            assert t["pending"] == 0 and r.peak_pending == 0
+            assert t["out"] == t["in"]
+    # The readout comes after the DVS: every preset sees the same events in.
+    for case in CASES:
+        ins = {r.totals["in"] for r in results if r.case == case.name}
+        assert len(ins) == 1, (case.name, ins)
+    text = table(results).splitlines()
+    assert len(text) == 2 + 9
+    assert text[2].startswith("| hand | ideal |")
+    # one seed: the shares carry no interval, and say so
+    assert "n too small for an interval" in text[2]
+    n_in = results[0].totals["in"]
+    assert f"| {n_in:,}: 100.00% (n = 1: n too small for an interval) |" in text[2]
+    assert "| 0: 0.00% (n = 1" in text[2]
+
+
+def test_bad_arguments_exit_2_with_one_line(capsys) -> None:
+    with pytest.raises(SystemExit) as e:
+        main(["--seeds", "0"])
+    assert e.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].endswith(
+        "--seeds 0 and --steps 100 must be >= 1 and --saccade-step 5 in [0, steps)"
+    )
+
+
+def test_saccade_step_outside_the_episode_is_refused() -> None:
+    with pytest.raises(ValueError, match=r"saccade_step: 4 must be in \[0, steps=4\)"):
+        run_case(CASES[0], "ideal", 0, 4, 4)
