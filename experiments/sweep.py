@@ -398,10 +398,14 @@ def _pool(
         max_workers=n, mp_context=ctx, initializer=_worker_init, initargs=(os.getpid(),)
     )
     futures: dict[cf.Future, TrialSpec] = {}
+    # The workers' processes, kept here: a pool that breaks may drop its own table before
+    # the dead worker's exit code is read.
+    processes: dict[int, Any] = {}
     try:
         futures = {pool.submit(_attempt, runner, s, str(marks)): s for s in specs}
         pending = set(futures)
         while pending:
+            processes.update(getattr(pool, "_processes", None) or {})
             done, pending = cf.wait(pending, timeout=timeout_s, return_when=cf.FIRST_COMPLETED)
             if not done:
                 raise TimeoutError(
@@ -409,7 +413,9 @@ def _pool(
                     "the workers were ended"
                 )
             broken = [f for f in done if isinstance(f.exception(), BrokenProcessPool)]
-            crashed = _crashed(getattr(pool, "_processes", None) or {}, marks) if broken else []
+            if broken:
+                processes.update(getattr(pool, "_processes", None) or {})
+            crashed = _crashed(processes, marks) if broken else []
             for fut in done:
                 if fut not in broken:  # finished before the pool broke
                     row, secs = fut.result()

@@ -44,18 +44,29 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
 
 
 @pytest.fixture(scope="session")
-def ray_instance():
-    """One local Ray instance for the whole session (2 CPUs, the repository on the
-    workers' ``PYTHONPATH``), shut down at its end; the sweep's Ray backend reuses an
-    initialised Ray instead of starting its own."""
+def _ray_session():
+    """Ray imported once a session; whatever instance is running at the session's end is
+    shut down."""
     ray = pytest.importorskip("ray")
-    root = str(TESTS.parent)
-    path = os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)
-    ray.init(
-        num_cpus=2,
-        include_dashboard=False,
-        log_to_driver=False,
-        runtime_env={"env_vars": {"PYTHONPATH": path}},
-    )
     yield ray
-    ray.shutdown()
+    if ray.is_initialized():
+        ray.shutdown()
+
+
+@pytest.fixture
+def ray_instance(_ray_session):
+    """One local Ray instance shared by the session's tests (2 CPUs, the repository on the
+    workers' ``PYTHONPATH``): started by the first test that asks for it, and again after a
+    test that needs a Ray of its own shut it down; the sweep's Ray backend reuses an
+    initialised Ray instead of starting its own."""
+    ray = _ray_session
+    if not ray.is_initialized():
+        root = str(TESTS.parent)
+        path = os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)
+        ray.init(
+            num_cpus=2,
+            include_dashboard=False,
+            log_to_driver=False,
+            runtime_env={"env_vars": {"PYTHONPATH": path}},
+        )
+    return ray

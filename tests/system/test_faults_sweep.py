@@ -222,8 +222,8 @@ def test_ray_dashboard_agent_killed_mid_sweep_is_one_line():
     ray = pytest.importorskip("ray")
     from experiments.sweep import BackendFailed, ray_executor
 
-    if ray.is_initialized():
-        pytest.skip("a Ray instance of another test is running here")
+    if ray.is_initialized():  # the session's shared instance: this test needs its own
+        ray.shutdown()  # (the next test that asks for ``ray_instance`` starts it again)
     killed: list[int] = []
     killer = threading.Thread(target=lambda: killed.extend(_kill_own_dashboard_agent(240.0)))
     killer.start()
