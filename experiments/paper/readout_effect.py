@@ -5,21 +5,25 @@ see, in three scripted cases, for the presets ``ideal`` (the reference: every st
 
 The cases (:data:`CASES`), each an episode of the env with ``dvs="speck"``:
 
-- ``hand``: the hand scene (the event-suppression trials' hand waved at 2 Hz), the
-  camera still;
+- ``hand``: the hand trials' "both" phase: the hand scene (the event-suppression trials'
+  hand waved at 2 Hz) with the camera's slight shake of those trials
+  (:class:`~experiments.paper.event_suppression.Shake`'s defaults: a 1° circle at
+  18.85°/s about the start gaze);
 - ``gratings_saccade``: the gratings scene, a 10° pan saccade at ``saccade_step``;
 - ``office_saccade``: the office scene, a 20° pan saccade at ``saccade_step``.
 
 A saccade is the PTU's target set ``amplitude_deg`` to the left of where it looks
-(:meth:`~wander_env.env_base.CameraEnv.aim`); every other step's action is zero. The
+(:meth:`~wander_env.env_base.CameraEnv.aim`); the shake aims the PTU at the circle's
+point at each step's start; every other step's action is zero. The
 counters come from ``info["readout"]`` of each step (:func:`run_case`), summed over the
 episode; :func:`table` gives each as a share of the events in, mean with its 95 %
 interval over seeds (:func:`experiments.stats.mean_ci`), the peak events/s of a step
 and the events still held (arbiter queue and unsent packets) at a step's end: the
 latency the readout adds, in events.
 
-Run: ``python -m experiments.paper.readout_effect --seeds 5 --steps 100 --saccade-step 5``
-(the table in docs/readout.md, "The readout's effect on the agent").
+Run: ``python -m experiments.paper.readout_effect --seeds 5 --steps 100 --saccade-step 5
+--figure docs/img/readout_effect.png`` (the table and the picture in docs/readout.md,
+"The readout's effect on the agent").
 """
 
 from __future__ import annotations
@@ -28,12 +32,23 @@ import argparse
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from experiments.paper.event_suppression import Shake
 from experiments.stats import ci_text, mean_ci
 
-__all__ = ["CASES", "PRESETS", "Case", "CaseResult", "identity_gap", "run_case", "table"]
+__all__ = [
+    "CASES",
+    "PRESETS",
+    "Case",
+    "CaseResult",
+    "figure",
+    "identity_gap",
+    "run_case",
+    "table",
+]
 
 #: The presets compared; ``ideal`` is the reference.
 PRESETS: tuple[str, ...] = ("ideal", "speck", "speck_filtered")
@@ -52,16 +67,17 @@ LOST: tuple[str, ...] = (
 
 @dataclass(frozen=True)
 class Case:
-    """A scripted case: a scene and a pan saccade of ``amplitude_deg`` (0: the camera
-    stays still)."""
+    """A scripted case: a scene, a pan saccade of ``amplitude_deg`` (0: none) and the
+    camera's ``shake`` (None: the camera stays still but for the saccade)."""
 
     name: str
     scene: str
     amplitude_deg: float
+    shake: Shake | None = None
 
 
 CASES: tuple[Case, ...] = (
-    Case("hand", "hand", 0.0),
+    Case("hand", "hand", 0.0, Shake()),
     Case("gratings_saccade", "gratings", 10.0),
     Case("office_saccade", "office", 20.0),
 )
@@ -115,7 +131,12 @@ def run_case(case: Case, preset: str, seed: int, steps: int, saccade_step: int) 
         totals: dict[str, int] = {}
         peak_in = peak_pending = 0
         zero = np.zeros(2, np.float32)
+        home = base.target_deg
+        period = base.config.control_period_s
         for i in range(steps):
+            if case.shake is not None:
+                dp, dt = case.shake.angles(i * period, 0.0, 1)
+                base.aim(home[0] + dp, home[1] + dt)
             if i == saccade_step and case.amplitude_deg:
                 pan, tilt = base.target_deg
                 base.aim(pan + case.amplitude_deg, tilt)
@@ -124,7 +145,6 @@ def run_case(case: Case, preset: str, seed: int, steps: int, saccade_step: int) 
             for k, v in c.items():
                 totals[k] = v if k == "pending" else totals.get(k, 0) + v
             peak_in, peak_pending = max(peak_in, c["in"]), max(peak_pending, c["pending"])
-        period = base.config.control_period_s
     finally:
         env.close()
     return CaseResult(case.name, preset, seed, totals, peak_in, peak_pending, period)
@@ -169,6 +189,59 @@ def table(results: Sequence[CaseResult]) -> str:
     return "\n".join(lines)
 
 
+#: The picture's parts of the events in, in the order stacked, with their colours.
+PARTS: tuple[tuple[str, tuple[str, ...], str], ...] = (
+    ("delivered", ("out",), "#4c72b0"),
+    ("dropped (queue)", ("dropped_queue",), "#c44e52"),
+    ("filtered noise", ("filtered_noise",), "#dd8452"),
+    ("filtered hot pixel", ("filtered_hot",), "#8172b3"),
+    ("filtered flicker", ("filtered_flicker",), "#937860"),
+    (
+        "other (killed, channel off, outside ROI)",
+        ("killed", "channel_off", "outside_roi"),
+        "#8c8c8c",
+    ),
+    ("held at the end", ("pending",), "#55a868"),
+)
+
+
+def figure(results: Sequence[CaseResult], path: Path, seeds: int, seconds: float) -> None:
+    """A stacked bar per case and preset: the share of the events in that the readout
+    delivered, dropped, filtered and held at the episode's end (means over seeds)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    groups: dict[tuple[str, str], list[CaseResult]] = {}
+    for r in results:
+        groups.setdefault((r.case, r.preset), []).append(r)
+    labels = [f"{case}\n{preset}" for case, preset in groups]
+    fig, ax = plt.subplots(figsize=(9.0, 4.8), layout="constrained")
+    left = np.zeros(len(groups))
+    for name, keys, colour in PARTS:
+        share = np.array(
+            [
+                100.0 * np.mean([sum(r.totals[k] for k in keys) / r.totals["in"] for r in rs])
+                for rs in groups.values()
+            ]
+        )
+        ax.barh(labels, share, left=left, color=colour, label=name)
+        left += share
+    ax.invert_yaxis()
+    ax.set_xlim(0, 100)
+    ax.set_xlabel("share of the events into the readout (%)")
+    ax.set_title(
+        "Speck's readout: what it delivers, drops and filters\n"
+        f"(assumed 1 Meps arbiter, 1,024-event queue; means over {seeds} seeds, "
+        f"{seconds:g} s episodes)",
+        fontsize=10,
+    )
+    ax.legend(loc="lower left", bbox_to_anchor=(1.01, 0.0), fontsize=8, frameon=False)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m experiments.paper.readout_effect``: run every case and preset over
     ``--seeds`` seeds (0, 1, ...) and print the table."""
@@ -176,6 +249,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, default=5, help="seeds 0..N-1 (default 5)")
     ap.add_argument("--steps", type=int, default=100, help="control steps per episode")
     ap.add_argument("--saccade-step", type=int, default=5, help="step the saccade starts")
+    ap.add_argument("--figure", type=Path, default=None, help="write the picture here (PNG)")
     a = ap.parse_args(argv)
     if a.seeds < 1 or a.steps < 1 or not 0 <= a.saccade_step < a.steps:
         ap.error(
@@ -190,6 +264,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ]
     bad = [(r.case, r.preset, r.seed) for r in results if identity_gap(r.totals)]
     print(table(results))
+    if a.figure is not None:
+        figure(results, a.figure, a.seeds, a.steps * results[0].control_period_s)
     if bad:
         print(f"accounting identity broken in {bad}", file=sys.stderr)
         return 1
