@@ -245,7 +245,7 @@ def test_error_replies_raise_with_the_units_message(emu, ptu):
     with pytest.raises(PTUError, match="Illegal Command Entered"):
         ptu.send("XYZ")
     assert ptu.pan_deg == 0.0  # the exchange stays in step after errors
-    assert 0.0 < ptu.last_latency_s < 0.1
+    assert 0.0 < ptu.last_latency_s < DRIVER.timeout_s  # measured, within the driver's timeout
 
 
 def test_verbose_feedback_and_echo_are_parsed(emu, ptu):
