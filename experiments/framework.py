@@ -541,21 +541,9 @@ def run_experiment(
         folder.write_run(start)  # says which run this folder holds (a rerun resumes it)
         store = TrialStore(out_dir, keep_artifacts=True)
         todo = [s for s in specs if not store.has(s)]
-        done = len(specs) - len(todo)
-        if progress is not None:
-            progress(done, len(specs))
         t0 = time.perf_counter()
         stream = (executor or serial_executor)(todo)
-        try:
-            for spec, row, secs in stream:
-                store.put(spec, row, secs)
-                done += 1
-                if progress is not None:
-                    progress(done, len(specs))
-        finally:
-            close = getattr(stream, "close", None)
-            if close is not None:
-                close()  # ends any workers at once, whatever stopped the loop
+        store.put_all(stream, len(specs) - len(todo), len(specs), progress)
         rows = [store.row(s) for s in specs]
         total = time.perf_counter() - t0
         ran = {s.id for s in todo}

@@ -537,17 +537,7 @@ def run_sweep(
         stream = local_executor(todo, workers, runner, timeout_s)
     else:
         stream = ray_executor(todo, address, workers, runner, timeout_s)
-    done = skipped
-    if progress is not None:
-        progress(done, len(specs))
-    try:
-        for spec, row, secs in stream:
-            store.put(spec, row, secs)
-            done += 1
-            if progress is not None:
-                progress(done, len(specs))
-    finally:
-        stream.close()  # ends the workers at once, whatever stopped the loop
+    store.put_all(stream, skipped, len(specs), progress)
     rows = [store.row(s) for s in specs]
     write_csv(rows, out_dir / "results.csv")
     seconds = time.perf_counter() - t0

@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 import os
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any, Protocol
@@ -98,6 +98,29 @@ class TrialStore:
         rec = {"spec": asdict(spec), "row": plain, "seconds": round(seconds, 3)}
         tmp.write_text(dumps_strict(rec) + "\n")
         os.replace(tmp, path)
+
+    def put_all(
+        self,
+        stream: Iterable[tuple[TrialSpec, Row, float]],
+        done: int,
+        total: int,
+        progress: Callable[[int, int], None] | None = None,
+    ) -> None:
+        """Store each trial of ``stream`` as it finishes (``progress(done, total)`` after
+        each, and once before the first: ``done`` were stored already); the stream is
+        closed however the loop ends (an executor's workers end at once)."""
+        if progress is not None:
+            progress(done, total)
+        try:
+            for spec, row, secs in stream:
+                self.put(spec, row, secs)
+                done += 1
+                if progress is not None:
+                    progress(done, total)
+        finally:
+            close = getattr(stream, "close", None)
+            if close is not None:
+                close()
 
     def has(self, spec: TrialSpec) -> bool:
         """True if ``spec``'s trial file holds its row; a damaged one is set aside (warned)."""
