@@ -16,9 +16,9 @@ then streamed the recording window by window, in time order:
 4. each window with a non-empty mask is scored: true IoU ``|O ∩ M| / |O ∪ M|``,
    precision ``|O ∩ M| / |O|`` (what the paper's public code called "IoU"; undefined
    when the OMS map is empty — noted, left out of the means), SSIM of the OMS map and
-   the mask as float images in [0, 1] (:func:`experiments.metrics.ssim`, Gaussian 11×11,
+   the mask as float images in [0, 1] (:func:`experiments.analysis.metrics.ssim`, Gaussian 11×11,
    σ = 1.5), and the detection hit: the 8×8 box around the saliency argmax ``point_xy``
-   touches the mask (:func:`experiments.metrics.detection_hit`; no point = a miss).
+   touches the mask (:func:`experiments.analysis.metrics.detection_hit`; no point = a miss).
 
 Windows are never dropped silently. Each gets a row; its ``notes`` say why it was not
 scored or what to keep in mind:
@@ -45,9 +45,9 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from experiments.analysis.metrics import detection_hit, iou, precision, ssim
 from experiments.benchmark.datasets.base import SequenceData, check_windows_ordered
 from experiments.benchmark.datasets.masks import fit_mask
-from experiments.metrics import detection_hit, iou, precision, ssim
 from wander_env.events import SensorSize, check_sorted, time_window, to_frame
 
 NOTE_EMPTY_MASK = "empty_mask"

@@ -22,6 +22,7 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from experiments.analysis.stats import mean_std
 from experiments.benchmark.protocol import (
     NOTE_EMPTY_MASK,
     NOTE_MASK_FIT,
@@ -32,7 +33,6 @@ from experiments.benchmark.protocol import (
     ROW_COLUMNS,
     WindowRow,
 )
-from experiments.stats import mean_std
 
 METRICS = ("iou", "precision", "ssim", "accuracy")
 

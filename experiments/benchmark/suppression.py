@@ -16,8 +16,8 @@ from types import MappingProxyType
 
 import numpy as np
 
+from experiments.analysis.stats import mean_std
 from experiments.benchmark.protocol import BenchmarkModel, ProgressEvent, ProgressFn, check_maps
-from experiments.stats import mean_std
 from wander_env.events import SensorSize, check_sorted, time_window, to_frame
 
 # Event suppression, the paper's Table: 10 trials, counts per 2 ms window.

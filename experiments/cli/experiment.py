@@ -24,9 +24,9 @@ from experiments.cli.options import (
     one_of,
     own_folder,
 )
-from experiments.framework import EXPERIMENT_NAMES, ConfigError
 from experiments.runs.folder import RunFolder
-from experiments.sweep import BACKENDS
+from experiments.studies.framework import EXPERIMENT_NAMES, ConfigError
+from experiments.studies.sweep import BACKENDS
 
 __all__ = ["register"]
 
@@ -66,7 +66,7 @@ def experiment(
 ) -> None:
     """Run one experiment: a results table, plots, config, seed and git revision."""
 
-    from experiments.framework import (
+    from experiments.studies.framework import (
         config_to_dict,
         get_experiment,
         make_trials,
@@ -74,7 +74,7 @@ def experiment(
         run_experiment,
         unfinished_folder,
     )
-    from experiments.sweep import TrialCrashed, local_executor
+    from experiments.studies.sweep import TrialCrashed, local_executor
     from wander_env.strict_json import dumps_strict
 
     try:
@@ -162,7 +162,7 @@ def sweep(
     ] = 6 * 3600.0,
 ) -> None:
     """Run a grid of (experiment, parameters, seeds); reruns skip finished trials."""
-    from experiments.sweep import BackendFailed, TrialCrashed, expand, load_sweep, run_sweep
+    from experiments.studies.sweep import BackendFailed, TrialCrashed, expand, load_sweep, run_sweep
 
     try:
         sw = load_sweep(config)
@@ -219,7 +219,7 @@ def report(
 
     A damaged result file is named on one line; nothing is then written.
     """
-    from experiments.report import build_report, report_path
+    from experiments.paper.report import build_report, report_path
 
     if not results.is_dir():
         raise typer.BadParameter(

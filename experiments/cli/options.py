@@ -35,8 +35,8 @@ from typing import Annotated, Any, TypeVar
 import typer
 
 from experiments.cli.console import step_progress
-from experiments.framework import MAX_SEED
 from experiments.runs.folder import CurrentRun, RunFolder
+from experiments.studies.framework import MAX_SEED
 from wander_env.frames.registry import frame_modes_help
 
 __all__ = [
@@ -105,7 +105,7 @@ def check_seconds(value: float) -> float:
 
 
 def check_seed(value: int) -> int:
-    """A seed: an integer in [0, :data:`experiments.framework.MAX_SEED`]."""
+    """A seed: an integer in [0, :data:`experiments.studies.framework.MAX_SEED`]."""
     if not 0 <= value <= MAX_SEED:
         raise typer.BadParameter(f"must be an integer in [0, {MAX_SEED}], got {value}")
     return value
@@ -453,7 +453,7 @@ def command_config(
     through the one validator (:func:`wander_env.config.validate`), so a bad value is one
     line naming its flag, file or ``--set`` (exit 2) before anything runs."""
     from experiments.cli.errors import fail
-    from experiments.framework import load_yaml_mapping
+    from experiments.studies.framework import load_yaml_mapping
     from wander_env.config import ConfigError, parse_sets, validate
 
     config: Any = None

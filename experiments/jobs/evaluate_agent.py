@@ -27,11 +27,11 @@ from typing import Literal
 
 import numpy as np
 
-from experiments.framework import write_csv
+from experiments.analysis.stats import wilson_interval
 from experiments.jobs.run_agent import RunConfig, run
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
-from experiments.stats import wilson_interval
+from experiments.studies.framework import write_csv
 
 
 def detection_interval(hits: int, scored: int, confidence: float = 0.95) -> tuple[float, float]:

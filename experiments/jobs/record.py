@@ -26,7 +26,6 @@ import pydantic
 
 import wander_env  # noqa: F401  (registers the environments)
 from agents.scripted import GazePolicy, Policy
-from experiments.framework import MAX_SEED
 from experiments.runs.episode import Recorder, run_episode
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
@@ -40,6 +39,7 @@ from experiments.runs.recorders import (
     open_recorders,
 )
 from experiments.runs.signals import DeferredSignals
+from experiments.studies.framework import MAX_SEED
 from wander_env.camera import focal_length_px
 from wander_env.config import check_annotated
 from wander_env.env_config import WanderConfig

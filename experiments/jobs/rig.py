@@ -54,7 +54,6 @@ import pydantic
 from agents.attention import AgentParams, AttentionAgent
 from agents.speck_front import SpeckFrontParams
 from agents.speck_limits import SpeckLimitError
-from experiments.framework import MAX_SEED
 from experiments.jobs.run_agent import (
     VIDEO_FPS,
     OneEpisodeRun,
@@ -64,6 +63,7 @@ from experiments.jobs.run_agent import (
 from experiments.runs.episode import Recorder
 from experiments.runs.folder import METRICS_JSON, RunFolder
 from experiments.runs.provenance import run_record
+from experiments.studies.framework import MAX_SEED
 from hardware.ptu_driver import PTUError, PTUFlood, PTUPortError, PTUTimeout
 from hardware.rig_env import RigConfig
 from hardware.speck import SPECK_DVS_SIZE

@@ -10,7 +10,7 @@ writes the run folder:
   window — with ground truth only), sOMS event suppression, foveation error of the
   saccades (reached minus intended gaze, in pixels at the fovea), scanpath statistics,
   wall time and real-time factor;
-- ``fixations.csv``: the fixation table (:mod:`experiments.scanpath_stats`: ``pan_deg``,
+- ``fixations.csv``: the fixation table (:mod:`experiments.analysis.scanpath_stats`: ``pan_deg``,
   ``tilt_deg`` (+ = left, up), ``t_start_s``, ``duration_s``) plus each window's ``P``,
   hit and the moving object hit (named as in the scene file);
 - ``scanpath.png``: cumulative saliency on the pan-tilt sphere with fixations, saccade
@@ -48,8 +48,7 @@ import numpy as np
 import pydantic
 
 from agents.attention import AgentParams, AttentionAgent
-from experiments import scanpath_stats
-from experiments.framework import MAX_SEED
+from experiments.analysis import scanpath_stats
 from experiments.jobs.scanpath_figure import plot_scanpath
 from experiments.runs.episode import Recorder, run_episode
 from experiments.runs.folder import RunFolder
@@ -65,6 +64,7 @@ from experiments.runs.recorders import (
     open_recorders,
 )
 from experiments.runs.signals import DeferredSignals, SignalExit
+from experiments.studies.framework import MAX_SEED
 from wander_env.camera import degrees_to_pixels, focal_length_px, pixel_to_world_angles
 from wander_env.config import check_annotated
 from wander_env.env_config import WanderConfig
@@ -346,7 +346,8 @@ class AgentMetrics(Recorder):
         return error
 
     def table(self) -> np.ndarray:
-        """The fixation table (:mod:`experiments.scanpath_stats`) of the agent's windows."""
+        """The fixation table (:mod:`experiments.analysis.scanpath_stats`) of the agent's
+        windows."""
         return scanpath_stats.normalise_fixations(
             [[*fx.gaze_deg, fx.t_start, fx.t_end - fx.t_start] for fx in self.agent.fixations]
         )
@@ -451,7 +452,8 @@ def _fixation_columns(
     targets_deg: list[tuple[float, float] | None],
 ) -> dict[str, list[object]]:
     """``fixations.csv``'s columns after the fixation table's four (module doc of
-    :mod:`experiments.scanpath_stats`); ``None`` where a window has no ``P`` or no score."""
+    :mod:`experiments.analysis.scanpath_stats`); ``None`` where a window has no ``P`` or no
+    score."""
     fx, n = agent.fixations, len(agent.fixations)
     hits = [detection.hits[k] if k < len(detection.hits) else None for k in range(n)]
     objects = [detection.hit_objects[k] if k < len(detection.hit_objects) else "" for k in range(n)]

@@ -29,13 +29,20 @@ import wander_env  # noqa: F401  (registers the environments)
 from agents.pipeline import SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
+from experiments.analysis.stats import mean_std
 from experiments.benchmark.datasets.base import MaskWindow, SequenceData
 from experiments.benchmark.protocol import ProtocolConfig, WindowRow, evaluate_sequence
 from experiments.benchmark.summary import paper_reference
-from experiments.framework import Comparison, Experiment, Repeats, Row, TrialSeconds, TrialSpec
 from experiments.paper.env_block import check_env_block, trial_env
 from experiments.runs.episode import Recorder, run_episode
-from experiments.stats import mean_std
+from experiments.studies.framework import (
+    Comparison,
+    Experiment,
+    Repeats,
+    Row,
+    TrialSeconds,
+    TrialSpec,
+)
 from wander_env.actions import gaze_degrees_to_action
 from wander_env.env_config import SceneName, WanderConfig
 from wander_env.events import concatenate

@@ -53,11 +53,18 @@ import wander_env  # noqa: F401  (registers the environments)
 from agents.proto_object import saliency_argmax
 from agents.soms import SOMS, SOMSParams
 from agents.speck_front import SpeckFront, SpeckFrontParams
+from experiments.analysis.metrics import detection_hit
+from experiments.analysis.stats import mean_ci, wilson_interval
 from experiments.benchmark.suppression import PAPER_SUPPRESSION
-from experiments.framework import Comparison, Experiment, Repeats, Row, TrialSpec, load_artifacts
-from experiments.metrics import detection_hit
 from experiments.paper.env_block import check_env_block, trial_env
-from experiments.stats import mean_ci, wilson_interval
+from experiments.studies.framework import (
+    Comparison,
+    Experiment,
+    Repeats,
+    Row,
+    TrialSpec,
+    load_artifacts,
+)
 from wander_env.actions import gaze_degrees_to_action
 from wander_env.camera import focal_length_px
 from wander_env.env_config import WanderConfig
@@ -430,7 +437,7 @@ def oms_point(oms: np.ndarray, sigma_px: float) -> tuple[int, int] | None:
 def hand_hit(oms: np.ndarray, hand: np.ndarray, sigma_px: float, box: int = 8) -> bool:
     """The scorer of the hand claim for one sOMS step: the ``box``×``box`` square around
     the OMS map's densest point (:func:`oms_point`) touches the hand's mask
-    (:func:`experiments.metrics.detection_hit`); an empty map is a miss (the hand's events
+    (:func:`experiments.analysis.metrics.detection_hit`); an empty map is a miss (the hand's events
     did not survive).
 
     >>> m = np.zeros((2, 32, 32), bool); m[1, 20:24, 20:24] = True   # kept events

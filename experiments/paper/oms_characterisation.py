@@ -41,7 +41,10 @@ import yaml
 
 import wander_env  # noqa: F401  (registers the environments)
 from agents.soms import SOMS, SOMSParams
-from experiments.framework import (
+from experiments.analysis.metrics import iou, precision
+from experiments.paper.env_block import check_env_block, trial_env
+from experiments.runs.episode import Recorder, run_episode
+from experiments.studies.framework import (
     Comparison,
     Experiment,
     Repeats,
@@ -50,9 +53,6 @@ from experiments.framework import (
     TrialSpec,
     load_artifacts,
 )
-from experiments.metrics import iou, precision
-from experiments.paper.env_block import check_env_block, trial_env
-from experiments.runs.episode import Recorder, run_episode
 from wander_env.env_config import WanderConfig
 from wander_env.scene_config import GRATING_MODES, assets_dir
 from wander_env.viz import save_figure

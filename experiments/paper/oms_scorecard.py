@@ -49,7 +49,6 @@ import numpy as np
 
 from agents.soms import SOMSParams
 from agents.speck_front import SpeckFrontParams
-from experiments.framework import Comparison, Experiment, Repeats, Row, TrialSeconds, TrialSpec
 from experiments.paper.oms_family import (
     OBJECT_KEPT_BAR,
     PRECISION_BAR,
@@ -65,6 +64,14 @@ from experiments.paper.oms_stimuli import (
     TEXTURES,
     family,
     split,
+)
+from experiments.studies.framework import (
+    Comparison,
+    Experiment,
+    Repeats,
+    Row,
+    TrialSeconds,
+    TrialSpec,
 )
 from wander_env.viz import save_figure
 
@@ -269,7 +276,7 @@ _SHARED = (
 def reused_row(cfg: OMSScorecardConfig, part: str, seed: int) -> dict[str, Any] | None:
     """The metrics of ``part`` from the first ``cfg.reuse`` folder holding it (None when
     none does); a folder whose config or seed differs is refused (ValueError)."""
-    from experiments.framework import ID_COLUMNS, read_csv
+    from experiments.studies.framework import ID_COLUMNS, read_csv
 
     for folder in map(Path, cfg.reuse):
         conf = json.loads((folder / "config.json").read_text())

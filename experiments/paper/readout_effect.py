@@ -17,7 +17,7 @@ A saccade is the PTU's target set ``amplitude_deg`` to the left of where it look
 point at each step's start; every other step's action is zero. The
 counters come from ``info["readout"]`` of each step (:func:`run_case`), summed over the
 episode; :func:`table` gives each as a share of the events in, mean with its 95 %
-interval over seeds (:func:`experiments.stats.mean_ci`), the peak events/s of a step
+interval over seeds (:func:`experiments.analysis.stats.mean_ci`), the peak events/s of a step
 and the events still held (arbiter queue and unsent packets) at a step's end: the
 latency the readout adds, in events.
 
@@ -36,8 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
+from experiments.analysis.stats import ci_text, mean_ci
 from experiments.paper.event_suppression import Shake
-from experiments.stats import ci_text, mean_ci
 
 __all__ = [
     "CASES",

@@ -47,7 +47,10 @@ import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
-from experiments.framework import (
+from experiments.analysis.metrics import foveation_error_px
+from experiments.analysis.stats import mean_std
+from experiments.paper.env_block import check_env_block, trial_env
+from experiments.studies.framework import (
     MAX_TRIAL_S,
     Comparison,
     Experiment,
@@ -55,9 +58,6 @@ from experiments.framework import (
     Row,
     TrialSpec,
 )
-from experiments.metrics import foveation_error_px
-from experiments.paper.env_block import check_env_block, trial_env
-from experiments.stats import mean_std
 from wander_env.camera import cast_pixel, degrees_to_pixels
 from wander_env.env_config import WanderConfig
 from wander_env.ptu.params import PTUParams

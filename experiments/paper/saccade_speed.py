@@ -38,7 +38,12 @@ import numpy as np
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
 from agents.fixation import FIXATION_WINDOW_S, FixationParams
-from experiments.framework import (
+from experiments.analysis.stats import ci_text, mean_ci, mean_std, paired_comparison
+from experiments.jobs.run_agent import closed_loop_metrics
+from experiments.paper import main_sequence
+from experiments.paper.env_block import check_env_block, trial_env
+from experiments.paper.speed_study import AXIS_LABELS, plot_surfaces
+from experiments.studies.framework import (
     Comparison,
     Experiment,
     Repeats,
@@ -47,11 +52,6 @@ from experiments.framework import (
     TrialSpec,
     load_artifacts,
 )
-from experiments.jobs.run_agent import closed_loop_metrics
-from experiments.paper import main_sequence
-from experiments.paper.env_block import check_env_block, trial_env
-from experiments.paper.speed_study import AXIS_LABELS, plot_surfaces
-from experiments.stats import ci_text, mean_ci, mean_std, paired_comparison
 from wander_env.camera import SPECK_HFOV_DEG, degrees_to_pixels, pixels_to_degrees
 from wander_env.env_config import PtuPreset, SceneName, WanderConfig
 from wander_env.ptu.axis import move_duration, peak_speed

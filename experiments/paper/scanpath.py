@@ -21,7 +21,7 @@ moves). Per trial:
   two saccades, :func:`merge_windows`), its saccades, and the saliency maps of its
   decisions put together on the pan-tilt sphere
   (:func:`experiments.jobs.scanpath_figure.saliency_mosaic`);
-- statistics (:mod:`experiments.scanpath_stats`): fixation count and duration, saccade
+- statistics (:mod:`experiments.analysis.scanpath_stats`): fixation count and duration, saccade
   amplitude (reached minus start gaze), revisits and coverage (within
   ``radius_deg``), and the **object hit rate**: the fraction of the salient points
   ``P`` that lie on an object of the scene — static or moving, not walls, floor or
@@ -41,7 +41,7 @@ moves). Per trial:
   MultiMatch and AOI-string (Levenshtein) similarity within and between conditions;
 - the fixation table for scanpath-comparison tools (MultiMatch, ScanMatch), written by
   :func:`plot` as ``fixations/<scene>_<condition>_seed<N>.csv`` in the result folder:
-  the columns, units and signs of :mod:`experiments.scanpath_stats` (``pan_deg``,
+  the columns, units and signs of :mod:`experiments.analysis.scanpath_stats` (``pan_deg``,
   ``tilt_deg``: + = left, up; ``t_start_s``, ``duration_s``) and each fixation's
   ``aoi``.
 """
@@ -61,8 +61,17 @@ import numpy as np
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
 from agents.fixation import FIXATION_WINDOW_S
-from experiments import scanpath_stats
-from experiments.framework import (
+from experiments.analysis import scanpath_stats
+from experiments.analysis.stats import ci_text, mean_std
+from experiments.jobs.run_agent import closed_loop_metrics
+from experiments.jobs.scanpath_figure import (
+    limits_box,
+    saliency_mosaic,
+    show_mosaic,
+)
+from experiments.paper.env_block import check_env_block, trial_env
+from experiments.runs.episode import Recorder
+from experiments.studies.framework import (
     Comparison,
     Experiment,
     GridStepDeg,
@@ -73,15 +82,6 @@ from experiments.framework import (
     TrialSpec,
     load_artifacts,
 )
-from experiments.jobs.run_agent import closed_loop_metrics
-from experiments.jobs.scanpath_figure import (
-    limits_box,
-    saliency_mosaic,
-    show_mosaic,
-)
-from experiments.paper.env_block import check_env_block, trial_env
-from experiments.runs.episode import Recorder
-from experiments.stats import ci_text, mean_std
 from wander_env.camera import SPECK_HFOV_DEG, cast_pixel, focal_length_px, pixel_to_world_angles
 from wander_env.entities import object_body_name
 from wander_env.env_config import SceneName, WanderConfig
@@ -443,7 +443,7 @@ def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path)
     """The scanpath figure (a panel per scene and condition: the saliency mosaic, the
     fixations sized by duration, the saccade lines, the salient points green on an
     object, red off), a bar chart of the statistics, and the fixation tables
-    ``results_dir/fixations/*.csv`` (:func:`experiments.scanpath_stats.write_fixations`,
+    ``results_dir/fixations/*.csv`` (:func:`experiments.analysis.scanpath_stats.write_fixations`,
     with each fixation's ``aoi``)."""
     import matplotlib
 

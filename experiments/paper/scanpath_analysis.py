@@ -6,10 +6,10 @@ the scene object under the fovea, ``-`` for none), so everything here works from
 ``results.csv`` alone:
 
 - :func:`cell_summaries`: per scene, condition and metric the mean over repeats with its
-  seeded bootstrap 95 % interval (:func:`experiments.stats.mean_ci`);
+  seeded bootstrap 95 % interval (:func:`experiments.analysis.stats.mean_ci`);
 - :func:`condition_tests`: the two conditions against each other per scene and metric,
   paired by seed (repeat ``r`` runs seed ``seed + r`` in both conditions):
-  :func:`experiments.stats.paired_comparison` (sign-flip permutation test, ``d_z``,
+  :func:`experiments.analysis.stats.paired_comparison` (sign-flip permutation test, ``d_z``,
   matched-pairs rank-biserial);
 - :func:`similarity_table`: MultiMatch (five dimensions) and the normalised Levenshtein
   similarity of the AOI strings over pairs of trials, within each condition (pairs of
@@ -29,12 +29,12 @@ from typing import Any
 
 import numpy as np
 
-from experiments.scanpath_stats import (
+from experiments.analysis.scanpath_stats import (
     MULTIMATCH_DIMENSIONS,
     levenshtein_similarity,
     multimatch,
 )
-from experiments.stats import Comparison2, mean_ci, paired_comparison
+from experiments.analysis.stats import Comparison2, mean_ci, paired_comparison
 
 __all__ = [
     "SIMILARITY_MEASURES",

@@ -34,10 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
-from experiments.framework import Row
+from experiments.analysis.stats import mean_ci
 from experiments.paper.oms_family import Measure, group_of, measure
 from experiments.paper.oms_stimuli import Stimulus
-from experiments.stats import mean_ci
+from experiments.studies.framework import Row
 from wander_env.viz import legend_below, save_figure
 
 __all__ = [

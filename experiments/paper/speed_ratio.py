@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from experiments.framework import Row
-from experiments.stats import mean_ci
+from experiments.analysis.stats import mean_ci
+from experiments.studies.framework import Row
 from wander_env.viz import save_figure
 
 __all__ = ["RATIO", "VARIANTS", "Point", "crossing", "curve", "plot", "table"]

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from experiments.stats import mean_ci
+from experiments.analysis.stats import mean_ci
 from wander_env.viz import save_figure
 
 __all__ = ["PANELS", "Surface", "plot_surfaces", "surface"]

@@ -29,7 +29,7 @@ from typing import Annotated, Any
 import numpy as np
 import pydantic
 
-from experiments.metrics import detection_hit
+from experiments.analysis.metrics import detection_hit
 from experiments.runs.episode import Recorder
 from experiments.runs.folder import RunFolder
 from experiments.runs.signals import SignalExit
@@ -527,7 +527,7 @@ class FolderRecorder(Recorder):
 def objects_hit(target: tuple[int, int], ids: np.ndarray, info: dict) -> str:
     """The moving objects (named as in the scene file, ``+``-joined in id order) whose
     masks in ``ids`` (object ids, 0 = none) the detection box around ``target`` touches
-    (:func:`~experiments.metrics.detection_hit`); "" for none."""
+    (:func:`~experiments.analysis.metrics.detection_hit`); "" for none."""
     names = {o["id"]: str(o["name"]) for o in info.get("objects", ())}
     hit = [int(k) for k in np.unique(ids[ids > 0]) if detection_hit(target, ids == k)]
     return "+".join(names.get(k) or object_body_name(k) for k in hit)

@@ -11,7 +11,7 @@ trial's is named in a warning, set aside (``*.json.corrupt``) and its trial is r
 
 Examples:
     >>> import tempfile
-    >>> from experiments.framework import TrialSpec
+    >>> from experiments.studies.framework import TrialSpec
     >>> tmp = tempfile.TemporaryDirectory()
     >>> store, spec = TrialStore(Path(tmp.name)), TrialSpec("x", {}, {"a": 1}, 0)
     >>> store.has(spec)
@@ -44,7 +44,7 @@ Row = dict[str, Any]
 
 
 class TrialSpec(Protocol):
-    """What the store needs of a trial (:class:`experiments.framework.TrialSpec`, a
+    """What the store needs of a trial (:class:`experiments.studies.framework.TrialSpec`, a
     dataclass)."""
 
     index: int

@@ -20,10 +20,10 @@ from test_sweep import TOY_SWEEP, CountingRunner
 from typer.testing import CliRunner
 
 from experiments.cli.main import app
-from experiments.framework import TrialSpec
 from experiments.runs.folder import RunFolder
 from experiments.runs.signals import SignalExit
-from experiments.sweep import run_sweep, sweep_from_dict
+from experiments.studies.framework import TrialSpec
+from experiments.studies.sweep import run_sweep, sweep_from_dict
 from wander_env.scene_config import available_scenes
 
 runner = CliRunner()

@@ -15,9 +15,15 @@ import pytest
 from locations import ROOT, SUPPORT
 from test_sweep import TOY_SWEEP, CountingRunner
 
-from experiments.framework import TrialSpec
 from experiments.runs.trials import MAX_TRIAL_FILE_BYTES
-from experiments.sweep import TrialCrashed, expand, local_executor, run_sweep, sweep_from_dict
+from experiments.studies.framework import TrialSpec
+from experiments.studies.sweep import (
+    TrialCrashed,
+    expand,
+    local_executor,
+    run_sweep,
+    sweep_from_dict,
+)
 
 
 @pytest.mark.parametrize(
@@ -102,7 +108,7 @@ SCRIPT = textwrap.dedent(
     from pathlib import Path
     sys.path.insert(0, {here!r})
     from sweep_workers import sleepy
-    from experiments.sweep import run_sweep, sweep_from_dict
+    from experiments.studies.sweep import run_sweep, sweep_from_dict
     from experiments.runs.signals import SignalExit, handle_signals
     sweep = sweep_from_dict({sweep!r})
     try:
@@ -220,7 +226,7 @@ def test_ray_dashboard_agent_killed_mid_sweep_is_one_line():
     import threading
 
     ray = pytest.importorskip("ray")
-    from experiments.sweep import BackendFailed, ray_executor
+    from experiments.studies.sweep import BackendFailed, ray_executor
 
     if ray.is_initialized():  # the session's shared instance: this test needs its own
         ray.shutdown()  # (the next test that asks for ``ray_instance`` starts it again)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from experiments.framework import ConfigError, TrialSpec, read_csv
-from experiments.sweep import expand, load_sweep, run_sweep, sweep_from_dict
+from experiments.studies.framework import ConfigError, TrialSpec, read_csv
+from experiments.studies.sweep import expand, load_sweep, run_sweep, sweep_from_dict
 
 # Two real, tiny trials (event_suppression: the hand phase, 10 windows of 2 ms each).
 TINY_SWEEP = {

@@ -11,9 +11,9 @@ import pytest
 from typer.testing import CliRunner
 
 from experiments.cli.main import app
-from experiments.framework import read_csv
 from experiments.jobs.evaluate_agent import QualityRow, detection_interval, pooled
 from experiments.perf.agent import bench_agent, latency_row
+from experiments.studies.framework import read_csv
 from wander_env.strict_json import to_strict_json
 
 

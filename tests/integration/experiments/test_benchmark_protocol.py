@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
+from experiments.analysis.metrics import ssim
 from experiments.benchmark.datasets import MaskWindow, SequenceData
 from experiments.benchmark.protocol import (
     BenchmarkModel,
@@ -16,7 +17,6 @@ from experiments.benchmark.protocol import (
     evaluate_sequence,
     score_window,
 )
-from experiments.metrics import ssim
 from wander_env.events import make_events
 
 W, H = 32, 24

@@ -8,7 +8,7 @@ import pytest
 
 from agents.attention import AgentParams
 from agents.soms import SOMSParams
-from experiments.framework import resolve_config
+from experiments.studies.framework import resolve_config
 from wander_env.config import ConfigError, check_fields, parse_sets, validate
 
 
@@ -78,7 +78,7 @@ def test_bad_nested_value_names_path_type_and_value():
 
 
 def test_yaml_file_error_names_the_file_the_field_and_the_value(tmp_path):
-    from experiments.framework import get_experiment
+    from experiments.studies.framework import get_experiment
 
     path = tmp_path / "det.yaml"
     path.write_text("scenes: [office, 3]\n")

@@ -24,11 +24,11 @@ from experiments.benchmark.model import ModelConfig
 from experiments.cli.evaluate import EVALUATE_SECONDS
 from experiments.cli.main import app
 from experiments.cli.options import ConfigKey, flag_keys
-from experiments.framework import EXPERIMENT_NAMES, get_experiment, resolve_config
 from experiments.jobs.dvs_demo import DemoConfig
 from experiments.jobs.record import RecordConfig
 from experiments.jobs.rig import RigRunConfig
 from experiments.jobs.run_agent import RunConfig
+from experiments.studies.framework import EXPERIMENT_NAMES, get_experiment, resolve_config
 from hardware.rig_env import RigConfig
 from wander_env.env_config import WanderConfig
 

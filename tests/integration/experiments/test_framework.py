@@ -11,9 +11,10 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
-from experiments import framework
 from experiments.cli.experiment import register
-from experiments.framework import (
+from experiments.runs.folder import RunFolder
+from experiments.studies import framework
+from experiments.studies.framework import (
     EXPERIMENT_NAMES,
     Comparison,
     ConfigError,
@@ -38,7 +39,6 @@ from experiments.framework import (
     write_csv,
     write_result_folder,
 )
-from experiments.runs.folder import RunFolder
 
 # A tiny event_suppression run: the hand phase alone, 20 windows of 2 ms (two sOMS steps).
 TINY = ["repeats=2", "phases=[hand]", "hand_s=[0.04, 0.04]", "lead_s=0"]

@@ -12,7 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from agents.attention import AGENT_SOMS_ALPHA
-from experiments import scanpath_stats
+from experiments.analysis import scanpath_stats
 from experiments.cli.main import app
 from experiments.cli.options import AgentAlphaOpt, ConfigKey
 from experiments.jobs.run_agent import RunConfig, run, run_closed_loop, video_frame

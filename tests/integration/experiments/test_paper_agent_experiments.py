@@ -14,10 +14,10 @@ import pytest
 from typer.testing import CliRunner
 
 import wander_env  # noqa: F401
-from experiments import scanpath_stats
+from experiments.analysis import scanpath_stats
 from experiments.cli.main import app
-from experiments.framework import make_trials, resolve_config, run_experiment, run_spec
 from experiments.paper import sac_accuracy, saccade_speed, scanpath
+from experiments.studies.framework import make_trials, resolve_config, run_experiment, run_spec
 from wander_env.camera import cast_pixel
 from wander_env.ptu.params import PTUParams
 from wander_env.renderer import project_points

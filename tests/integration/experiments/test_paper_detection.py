@@ -10,7 +10,6 @@ import pytest
 from agents.pipeline import SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
-from experiments.framework import make_trials, resolve_config, run_spec
 from experiments.paper.detection import (
     EXPERIMENT,
     DetectionConfig,
@@ -19,6 +18,7 @@ from experiments.paper.detection import (
     grid,
     ptu_for_speed,
 )
+from experiments.studies.framework import make_trials, resolve_config, run_spec
 from wander_env.actions import action_to_gaze_degrees
 from wander_env.ptu.params import PTUParams
 

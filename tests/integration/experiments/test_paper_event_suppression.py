@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from agents.soms import SOMSParams
-from experiments.framework import make_trials, resolve_config, run_spec
 from experiments.paper.event_suppression import (
     EXPERIMENT,
     EventSuppressionConfig,
@@ -26,6 +25,7 @@ from experiments.paper.event_suppression import (
     score,
     trial_figures,
 )
+from experiments.studies.framework import make_trials, resolve_config, run_spec
 from wander_env.camera import focal_length_px
 from wander_env.config import ConfigError, parse_sets, validate
 from wander_env.scene_config import assets_dir, load_scene_config

@@ -7,7 +7,6 @@ import math
 import numpy as np
 import pytest
 
-from experiments.framework import make_trials, resolve_config, run_spec
 from experiments.paper.oms_characterisation import (
     EXPERIMENT,
     OMSCharacterisationConfig,
@@ -16,6 +15,7 @@ from experiments.paper.oms_characterisation import (
     isi_stats,
     mfr_stats,
 )
+from experiments.studies.framework import make_trials, resolve_config, run_spec
 
 
 def test_mfr_is_spikes_per_second_over_all_neurons():

@@ -9,7 +9,6 @@ import pytest
 import torch
 
 from agents.soms import SOMSParams
-from experiments.framework import ConfigError, get_experiment, resolve_config, run_experiment
 from experiments.paper.oms_family import family_claims, measure
 from experiments.paper.oms_scorecard import OMSScorecardConfig, variants
 from experiments.paper.oms_stimuli import (
@@ -20,6 +19,12 @@ from experiments.paper.oms_stimuli import (
     prediction,
     render,
     split,
+)
+from experiments.studies.framework import (
+    ConfigError,
+    get_experiment,
+    resolve_config,
+    run_experiment,
 )
 
 

@@ -8,11 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from experiments.framework import read_csv
 from experiments.paper import saccade_speed
 from experiments.paper.main_sequence import fit_linear, fit_saturating, saturating
 from experiments.paper.speed_study import plot_surfaces, surface
-from experiments.sweep import load_sweep, run_sweep, sweep_from_dict
+from experiments.studies.framework import read_csv
+from experiments.studies.sweep import load_sweep, run_sweep, sweep_from_dict
 from wander_env.ptu.params import PTUParams
 
 
@@ -92,7 +92,7 @@ def test_surface_marginal_means_and_figure(tmp_path) -> None:
 
 
 def test_speed_sweep_files_are_valid() -> None:
-    from experiments.framework import configs_dir
+    from experiments.studies.framework import configs_dir
 
     full = load_sweep(configs_dir() / "sweep_speed.yaml")
     quick = load_sweep(configs_dir() / "sweep_speed_quick.yaml")
@@ -153,7 +153,7 @@ def test_one_at_a_time_figure_has_intervals_and_main_sequence_fits(tmp_path, mon
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from experiments.framework import save_artifacts
+    from experiments.studies.framework import save_artifacts
 
     cfg = saccade_speed.SaccadeSpeedConfig(repeats=3)
     grid = saccade_speed.grid(cfg)

@@ -11,9 +11,9 @@ from test_scanpath_metrics import _rows
 from typer.testing import CliRunner
 
 from experiments.cli.main import app
-from experiments.framework import config_to_dict, write_csv
 from experiments.paper import scanpath
-from experiments.report import studies_section
+from experiments.paper.report import studies_section
+from experiments.studies.framework import config_to_dict, write_csv
 
 
 def test_studies_section_shows_the_tested_statements_beside_the_papers(tmp_path) -> None:

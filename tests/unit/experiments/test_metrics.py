@@ -1,4 +1,4 @@
-"""Tests for the ground-truth metrics (experiments.metrics)."""
+"""Tests for the ground-truth metrics (experiments.analysis.metrics)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from numpy.lib.stride_tricks import sliding_window_view
 
-from experiments.metrics import (
+from experiments.analysis.metrics import (
     detection_hit,
     foveation_error_px,
     iou,
@@ -265,6 +265,6 @@ def test_foveation_error():
 def test_docstring_examples_run():
     import doctest
 
-    import experiments.metrics
+    import experiments.analysis.metrics
 
-    assert doctest.testmod(experiments.metrics).failed == 0
+    assert doctest.testmod(experiments.analysis.metrics).failed == 0

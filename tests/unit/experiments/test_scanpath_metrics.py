@@ -11,7 +11,7 @@ import locations
 import numpy as np
 import pytest
 
-from experiments import scanpath_stats
+from experiments.analysis import scanpath_stats
 from experiments.paper import scanpath, scanpath_analysis
 
 DATA = locations.DATA / "multimatch"

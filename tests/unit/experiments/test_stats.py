@@ -1,4 +1,4 @@
-"""experiments.stats: intervals, tests and effect sizes against hand-computed values."""
+"""experiments.analysis.stats: intervals, tests and effect sizes against hand-computed values."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import stats as st
 
-from experiments.stats import (
+from experiments.analysis.stats import (
     bootstrap_ci,
     ci_text,
     cliffs_delta,

@@ -425,7 +425,7 @@ def test_a_zip_bombed_scanpath_artifact_is_one_line_within_1_gb(tmp_path):
 def test_a_trial_file_that_is_not_a_file_is_set_aside_on_resume(tmp_path, kind):
     from test_sweep import TOY_SWEEP, CountingRunner
 
-    from experiments.sweep import run_sweep, sweep_from_dict
+    from experiments.studies.sweep import run_sweep, sweep_from_dict
 
     sweep = sweep_from_dict(TOY_SWEEP)
     runner = CountingRunner()

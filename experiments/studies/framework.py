@@ -199,7 +199,7 @@ def get_experiment(name: str) -> Experiment:
 
 def configs_dir() -> Path:
     """``experiments/paper/configs`` (default configs and example sweeps)."""
-    return Path(__file__).resolve().parent / "paper" / "configs"
+    return Path(__file__).resolve().parents[1] / "paper" / "configs"
 
 
 # ----------------------------------------------------------------------------------------

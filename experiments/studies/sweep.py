@@ -11,7 +11,7 @@ A sweep file (YAML)::
 
 Each grid point is resolved to a full config (defaults <- ``configs/NAME.yaml`` <- ``set``
 <- the point), then expanded to the experiment's trials (:func:`make_trials`). A trial is
-keyed by :func:`experiments.framework.trial_id` — a hash of (experiment, resolved config,
+keyed by :func:`experiments.studies.framework.trial_id` — a hash of (experiment, resolved config,
 parameters, seed) — and, as it finishes, stored as ``trials/<id>.json``
 (:class:`~experiments.runs.trials.TrialStore`, the store ``wander experiment`` resumes
 from too).
@@ -25,7 +25,7 @@ for the grid keys, then the experiment's columns) and ``sweep.json`` (provenance
 real-time factor of the trials run now when they report ``simulated_s``).
 
 Limits, checked before anything runs: seeds in [0, 2**32 - 1], at most
-:data:`experiments.framework.MAX_TRIALS` trials (grid points x seeds x repeats); every
+:data:`experiments.studies.framework.MAX_TRIALS` trials (grid points x seeds x repeats); every
 grid value is validated on its own (naming the file, ``grid.KEY[i]``), their
 combinations when expanded.
 
@@ -66,7 +66,10 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from experiments.framework import (
+from experiments.runs.folder import RunFolder
+from experiments.runs.provenance import run_record
+from experiments.runs.trials import TrialStore
+from experiments.studies.framework import (
     MAX_SEED,
     MAX_TRIALS,
     ConfigError,
@@ -82,9 +85,6 @@ from experiments.framework import (
     serial_executor,
     write_csv,
 )
-from experiments.runs.folder import RunFolder
-from experiments.runs.provenance import run_record
-from experiments.runs.trials import TrialStore
 from wander_env.config_messages import SHOWN_CHARS
 
 __all__ = [
@@ -434,7 +434,7 @@ def _pool(
 
 
 def _repo_root() -> str:
-    return str(Path(__file__).resolve().parents[1])
+    return str(Path(__file__).resolve().parents[2])
 
 
 def _ray_failure(err: BaseException, unfinished: int) -> str:

@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 from urllib.parse import quote
 
-from experiments.framework import (
+from experiments.studies.framework import (
     EXPERIMENT_NAMES,
     config_from_dict,
     get_experiment,
@@ -120,8 +120,8 @@ def read_json(path: Path) -> dict[str, Any]:
 
 
 def read_rows(path: Path) -> list[dict[str, Any]]:
-    """The rows of a ``results.csv`` (:func:`experiments.framework.read_csv`), checked first:
-    UTF-8 text, every row as many cells as the header, and no column that mixes numbers
+    """The rows of a ``results.csv`` (:func:`experiments.studies.framework.read_csv`), checked
+    first: UTF-8 text, every row as many cells as the header, and no column that mixes numbers
     with text (``abc`` where the other rows hold numbers); :class:`ReportInputError`
     otherwise."""
     try:
@@ -356,7 +356,7 @@ def _sweeps(root: Path, report_dir: Path) -> list[str]:
 
 def _studies_table(root: Path, report_dir: Path) -> list[str]:
     """The rows of the studies' table (computed, nothing written)."""
-    from experiments.stats import paired_comparison
+    from experiments.analysis.stats import paired_comparison
 
     rows_out = ["| statement | paper | ours | from |", "|---|---|---|---|"]
     folder = latest_result(root, "scanpath")

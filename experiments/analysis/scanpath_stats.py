@@ -59,7 +59,7 @@ from pathlib import Path
 
 import numpy as np
 
-from experiments.stats import mean_std
+from experiments.analysis.stats import mean_std
 
 FIXATION_COLUMNS = ("pan_deg", "tilt_deg", "t_start_s", "duration_s")
 TIME_DECIMALS = 6  # seconds to the microsecond
