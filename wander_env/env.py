@@ -78,7 +78,7 @@ from wander_env.frames.source import FrameParams
 from wander_env.frames.stage import Stage
 from wander_env.mjcf import SceneAnimator, build_mjcf
 from wander_env.ptu.params import PTUParams
-from wander_env.ptu.unit import PanTiltUnit
+from wander_env.ptu.unit import PanTiltUnit, Trajectory
 from wander_env.readout import SpeckReadout
 from wander_env.renderer import RenderParams
 from wander_env.scene_config import SceneConfig, load_scene_config
@@ -160,6 +160,8 @@ class WanderEnv(CameraEnv):
         trajectory = self.ptu.trajectory(self._t_us, t1, c.tick_us)
         self.stage.begin_step()
         self.source.plan(trajectory)
+        if not self._ends_at(t1):  # the next step's keys drawn on a guess meanwhile
+            self.source.plan_ahead(self._left_alone(t1))
         chunks: list[np.ndarray] = []
         frames = extra = 0
         t_prev = self._t_us
@@ -183,8 +185,19 @@ class WanderEnv(CameraEnv):
             events = self.readout.step(events, t1)
         return events, self._info(events, frames, extra, clipped)
 
+    def _left_alone(self, t_us: int) -> Trajectory:
+        """The next step's trajectory from ``t_us`` if its action is zero (the target
+        kept: a move under way goes on), from a copy of the PTU after this step's."""
+        c = self.config
+        twin = self.ptu.copy()
+        twin.set_target(*twin.clip_target(*twin.target_deg))
+        return twin.trajectory(t_us, t_us + c.ticks_per_step * c.tick_us, c.tick_us)
+
+    def _ends_at(self, t_us: int) -> bool:
+        return t_us * 1e-6 >= self.config.episode_seconds - 1e-9
+
     def truncated(self, info: StepInfo) -> bool:
-        return self._t_us * 1e-6 >= self.config.episode_seconds - 1e-9
+        return self._ends_at(self._t_us)
 
     def check_ready(self) -> None:
         if self.animator is None:

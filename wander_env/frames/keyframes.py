@@ -1,11 +1,20 @@
 """The keyframe source: keys rendered where the image motion needs them, the frames
-between them synthesised from the keys' geometry (:mod:`wander_env.frames.keyframe_maths`)."""
+between them synthesised from the keys' geometry (:mod:`wander_env.frames.keyframe_maths`).
+
+With the render thread, the next step's keys are drawn ahead of time on a guess of its
+trajectory (:meth:`KeyframeFrames.plan_ahead`: the PTU left to itself, as a zero action
+leaves it), while the main thread makes this step's frames and the agent decides; the
+next :meth:`~KeyframeFrames.plan` adopts them where the trajectory is the one guessed
+and drops them where it is not. A key is the same pixels whenever it is drawn, so the
+frames, events and masks are the same with and without the guess. The in-between frames
+the plan knows it needs are synthesised on the draw side too, after the keys they lie
+between (the main thread runs the DVS over one while the next is made)."""
 
 from __future__ import annotations
 
 import bisect
 from concurrent.futures import Future
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -45,6 +54,7 @@ class RenderedKey:
     same_as: RenderedKey | None = None
     full: Keyframe | None = None  # with its geometry, once made
     geometry: Future[Keyframe] | None = None  # its geometry, once asked for
+    pair: tuple[RenderedKey, KeyPair] | None = None  # the pair ending here, once made
 
     @property
     def rgb(self) -> np.ndarray:
@@ -60,6 +70,44 @@ class RenderedKey:
     def lum(self) -> np.ndarray:
         """(H, W) float32 linear luminance (a view of ``prepared.lum``)."""
         return self.prepared.lum.reshape(self.shape)
+
+
+@dataclass
+class StepLayout:
+    """A step's plan before anything is drawn: its ticks, the camera's angles and views
+    there, the ticks drawn as new keys (``idx``), the ticks the keys' blend or the DVS's
+    interpolation stands for, and the keys (0: the step's start) whose geometry is
+    sure to be needed."""
+
+    ticks: tuple[int, ...]
+    angles: list[Angles]
+    views: list[View]
+    idx: list[int]
+    interpolated: set[int] = field(default_factory=set)
+    skipped: set[int] = field(default_factory=set)
+    need: set[int] = field(default_factory=set)
+
+
+@dataclass
+class _Ahead:
+    """The next step's keys drawn on a guessed trajectory, after the key ``ref``."""
+
+    trajectory: Trajectory
+    ref: RenderedKey
+    layout: StepLayout
+    new: list[RenderedKey]
+    made: dict[int, Future[LogFrame]]
+
+
+def _pair_in(keys: list[RenderedKey], t_us: int) -> tuple[RenderedKey, RenderedKey]:
+    """The keys just before and at-or-after ``t_us`` in ``keys`` (in time order)."""
+    i = bisect.bisect_left([key.t_us for key in keys], t_us)
+    return keys[i - 1], keys[i]
+
+
+def _same_motion(a: Trajectory, b: Trajectory) -> bool:
+    """Whether two trajectories pass the same ticks at the same camera angles."""
+    return (a.t0_us, a.t_us, a.pan_deg, a.tilt_deg) == (b.t0_us, b.t_us, b.pan_deg, b.tilt_deg)
 
 
 class KeyframeFrames(FrameSource):
@@ -82,9 +130,13 @@ class KeyframeFrames(FrameSource):
         dvs: DVSEmulator,
         params: FrameParams,
         geometry_at_keys: bool = False,
+        frames_on_draw_side: bool = True,
     ) -> None:
         super().__init__(stage, dvs, params)
         self.geometry_at_keys = geometry_at_keys  # each key's geometry used at its own tick
+        # The planned in-between frames synthesised on the draw side (False: a source that
+        # composites the keys' layers itself and never asks for them).
+        self.frames_on_draw_side = frames_on_draw_side
         self.radii = stage.layer_radii()
         self.keys: list[RenderedKey] = []  # the key at the step's start, then the step's
         self._latest: RenderedKey | None = None  # the latest key rendered
@@ -92,19 +144,26 @@ class KeyframeFrames(FrameSource):
         self._views: dict[int, View] = {}  # tick t_us -> its view (this step)
         self._interpolated: set[int] = set()  # ticks the keys' blend (subpixel from both)
         self._skipped: set[int] = set()  # more ticks the DVS interpolates over
-        self._pairs: dict[int, KeyPair] = {}  # later key's t_us -> the pair ending there
+        self._made: dict[int, Future[LogFrame]] = {}  # tick -> its frame, on the draw side
+        self._ahead: _Ahead | None = None  # the next step's keys, drawn on a guess
+        self._mask_ahead: tuple[int, Future[np.ndarray]] | None = None  # (t_us, mask)
+        # Keys drawn ahead of time: adopted by the step they were for, or dropped.
+        self.keys_ahead_adopted = 0
+        self.keys_ahead_dropped = 0
 
     @property
     def camera_frame(self) -> np.ndarray | None:
         """The latest key's colour frame."""
         return None if self._latest is None else self._latest.rgb
 
-    def render_key(self, t_us: int, angles: Angles, view: View) -> RenderedKey:
+    def render_key(self, t_us: int, angles: Angles, view: View, ahead: bool = False) -> RenderedKey:
         """A key of the model posed at ``t_us`` and ``angles``, its colour handed to the
-        draw side (read when first needed)."""
+        draw side (read when first needed); ``ahead``: for the next step, on a guess."""
         stage = self.stage
-        drawn = stage.submit(self._draw_colour, t_us, angles)
-        key = self._latest = RenderedKey(t_us, angles, view, drawn, (stage.height, stage.width))
+        drawn = stage.submit(self._draw_colour, t_us, angles, ahead=ahead)
+        key = RenderedKey(t_us, angles, view, drawn, (stage.height, stage.width))
+        if not ahead:
+            self._latest = key
         return key
 
     def _draw_colour(self, t_us: int, angles: Angles) -> tuple[np.ndarray, LogFrame]:
@@ -122,7 +181,7 @@ class KeyframeFrames(FrameSource):
                 key.full = self.request_geometry(key).result()
         return key.full
 
-    def request_geometry(self, key: RenderedKey) -> Future[Keyframe]:
+    def request_geometry(self, key: RenderedKey, ahead: bool = False) -> Future[Keyframe]:
         """Hand the drawing of ``key``'s geometry (that of the key it shares it with) to
         the draw side, once; a frame that needs it reads it with :meth:`keyframe`."""
         root = key if key.same_as is None else key.same_as
@@ -131,7 +190,7 @@ class KeyframeFrames(FrameSource):
                 root.geometry = Future()
                 root.geometry.set_result(root.full)
             else:
-                root.geometry = self.stage.submit(self._draw_geometry, root)
+                root.geometry = self.stage.submit(self._draw_geometry, root, ahead=ahead)
         return root.geometry
 
     def _draw_geometry(self, key: RenderedKey) -> Keyframe:
@@ -142,25 +201,74 @@ class KeyframeFrames(FrameSource):
     def start_with(self, keys: list[RenderedKey]) -> None:
         """The stream's keys from here on: ``keys`` (none: no key, nothing planned)."""
         self.keys, self._key_at = keys, {key.t_us: key for key in keys}
-        self._views, self._pairs, self._interpolated, self._skipped = {}, {}, set(), set()
+        self._views, self._made, self._interpolated, self._skipped = {}, {}, set(), set()
 
     def key_at(self, t_us: int) -> RenderedKey | None:
         """The key of this step rendered at ``t_us`` (None: none there)."""
         return self._key_at.get(t_us)
 
     def reset(self, t_us: int, angles: Angles) -> LogFrame:
+        self._drop_ahead()
+        self._mask_ahead, self._made = None, {}
         key = self.render_key(t_us, angles, self.stage.camera_view(t_us, *angles))
         self.start_with([key])
         return key.prepared
 
     def plan(self, trajectory: Trajectory) -> None:
+        ref = self.keys[-1]
+        ahead, self._ahead = self._ahead, None
+        if ahead is not None and ahead.ref is ref and _same_motion(ahead.trajectory, trajectory):
+            self.stage.adopt_ahead()
+            layout, new = ahead.layout, ahead.new
+            self.keys_ahead_adopted += len(new)
+            if new:
+                self._latest = new[-1]
+            self._start(ref, layout, new)
+            self._made = ahead.made
+        else:
+            if ahead is not None:
+                self._drop(ahead)
+            layout = self._key_ticks(ref, trajectory)
+            # The first new key goes to the draw side now, before the rest of the plan.
+            first = self.render_key(*self._key_of(layout, 0)) if layout.idx else None
+            self._frames_plan(ref, layout)
+            new = self._draw_keys(layout, first=first)
+            self._start(ref, layout, new)
+            self._made = self._make_frames(self.keys, layout)
+        self._mask_ahead = None
+        if self.params.ground_truth and self.stage.casts("ground_truth"):
+            end = (layout.ticks[-1], layout.angles[-1])
+            self._mask_ahead = (end[0], self.stage.submit(self.stage.object_mask_at, *end))
+
+    def plan_ahead(self, trajectory: Trajectory) -> None:
+        """Draw the next step's keys on a guess of its ``trajectory`` (with the render
+        thread; see the module docstring)."""
+        if not self.stage.draws_ahead or not self.keys:
+            return
+        self._drop_ahead()
+        ref = self.keys[-1]
+        layout = self._key_ticks(ref, trajectory)
+        self._frames_plan(ref, layout)
+        new = self._draw_keys(layout, ahead=True)
+        made = self._make_frames([ref, *new], layout, ahead=True) if new else {}
+        self._ahead = _Ahead(trajectory, ref, layout, new, made)
+
+    def _drop_ahead(self) -> None:
+        ahead, self._ahead = self._ahead, None
+        if ahead is not None:
+            self._drop(ahead)
+
+    def _drop(self, ahead: _Ahead) -> None:
+        """Drop the keys drawn on a wrong guess (those not yet drawn never are)."""
+        self.stage.drop_ahead()
+        self.keys_ahead_dropped += len(ahead.new)
+
+    def _key_ticks(self, ref: RenderedKey, trajectory: Trajectory) -> StepLayout:
+        """The step's views and its new keys' ticks after the key ``ref``."""
         p, stage = self.params, self.stage
         ticks = trajectory.t_us
         angles = [trajectory.angles(i) for i in range(len(ticks))]
         views = stage.camera_views(list(ticks), angles)
-        self._views = dict(zip(ticks, views, strict=True))
-        ref = self.keys[-1]
-        self.keys, self._pairs = [ref], {}
         shape, k = (stage.height, stage.width), stage.k
         idx = None
         if p.keyframe_px is not None:
@@ -169,10 +277,19 @@ class KeyframeFrames(FrameSource):
             )
         if idx is None:
             idx = [i for i, t in enumerate(ticks) if t == ticks[-1] or t % p.keyframe_us == 0]
-        # The first new key goes to the draw side now; the rest follow in time order, each
-        # with its geometry where that is sure to be needed (below), so that the frames up
-        # to a key are made while the next one is drawn.
-        first = self.render_key(ticks[idx[0]], angles[idx[0]], views[idx[0]]) if idx else None
+        return StepLayout(ticks, angles, views, idx)
+
+    @staticmethod
+    def _key_of(layout: StepLayout, n: int) -> tuple[int, Angles, View]:
+        i = layout.idx[n]
+        return layout.ticks[i], layout.angles[i], layout.views[i]
+
+    def _frames_plan(self, ref: RenderedKey, layout: StepLayout) -> None:
+        """Fill in ``layout``'s ticks left to the keys' blend and to the DVS, and the keys
+        whose geometry is sure to be needed."""
+        p, stage = self.params, self.stage
+        ticks, views, idx = layout.ticks, layout.views, layout.idx
+        shape, k = (stage.height, stage.width), stage.k
         if idx:
             key_t = [ref.t_us, *(ticks[i] for i in idx)]
             key_v = [ref.view, *(views[i] for i in idx)]
@@ -182,51 +299,79 @@ class KeyframeFrames(FrameSource):
         at_key = set(key_t)
         between = [(t, v) for t, v in zip(ticks, views, strict=True) if t not in at_key]
         later = [bisect.bisect_left(key_t, t) for t, _ in between]  # each one's later key
-        self._interpolated = set()
+        layout.interpolated = set()
         if between:
             tv = [v for _, v in between]
             refs = [key_v[j - 1] for j in later] + [key_v[j] for j in later]
             both = view_flow_bounds_px(refs, tv + tv, k, self.radii, shape)
             bounds = np.maximum(both[: len(tv)], both[len(tv) :])
-            self._interpolated = {
+            layout.interpolated = {
                 t for (t, _), b in zip(between, bounds, strict=True) if b < SUBPIXEL_PX
             }
-        self._skipped = set()
+        layout.skipped = set()
         if p.interpolate_px is not None:
-            self._skipped = self._left_to_dvs(ref.view, ticks, views, at_key)
+            layout.skipped = self._left_to_dvs(ref.view, layout, at_key)
         # The geometry sure to be needed: both keys of every synthesised tick, the step
         # end's for the ground truth, and with geometry_at_keys (a source compositing the
         # keys' layers at every frame) every new key's.
         need = set(range(1, len(key_t))) if self.geometry_at_keys else set()
         for (t, _), j in zip(between, later, strict=True):
-            if not self.interpolated(t):
+            if t not in layout.interpolated and t not in layout.skipped:
                 need |= {j - 1, j}
         if p.ground_truth and key_t[-1] == ticks[-1]:
             need.add(len(key_t) - 1)
+        layout.need = need
+
+    def _draw_keys(
+        self, layout: StepLayout, first: RenderedKey | None = None, ahead: bool = False
+    ) -> list[RenderedKey]:
+        """The layout's new keys handed to the draw side in time order (``first`` already
+        there), each with its geometry where that is sure to be needed, so that the frames
+        up to a key are made while the next one is drawn."""
+        new = []
+        for n in range(len(layout.idx)):
+            key = first if n == 0 and first is not None else None
+            if key is None:
+                key = self.render_key(*self._key_of(layout, n), ahead=ahead)
+            new.append(key)
+            if n + 1 in layout.need:
+                self.request_geometry(key, ahead=ahead)
+        return new
+
+    def _start(self, ref: RenderedKey, layout: StepLayout, new: list[RenderedKey]) -> None:
+        """The step's keys from ``ref`` on: ``new`` (drawn), or where nothing moves the
+        start's key standing for the step's end too."""
+        ticks, views, need = layout.ticks, layout.views, layout.need
+        self.keys = [ref]
         if 0 in need:
             self.request_geometry(ref)
-        if not idx:  # its geometry that of the key it was rendered as, however many
+        if not layout.idx:  # its geometry that of the key it was rendered as, however many
             # still steps ago
             root = ref if ref.same_as is None else ref.same_as
             self.keys.append(
-                replace(ref, t_us=ticks[-1], view=views[-1], same_as=root, full=None, geometry=None)
+                replace(
+                    ref,
+                    t_us=ticks[-1],
+                    view=views[-1],
+                    same_as=root,
+                    full=None,
+                    geometry=None,
+                    pair=None,
+                )
             )
             if 1 in need:
                 self.request_geometry(self.keys[1])
-        for n, i in enumerate(idx):
-            key = first if n == 0 else self.render_key(ticks[i], angles[i], views[i])
-            self.keys.append(key)
-            if n + 1 in need:
-                self.request_geometry(key)
+        self.keys.extend(new)
+        self._views = dict(zip(ticks, views, strict=True))
+        self._interpolated, self._skipped = layout.interpolated, layout.skipped
         self._key_at = {key.t_us: key for key in self.keys}
 
-    def _left_to_dvs(
-        self, start: View, ticks: tuple[int, ...], views: list[View], at_key: set[int]
-    ) -> set[int]:
+    def _left_to_dvs(self, start: View, layout: StepLayout, at_key: set[int]) -> set[int]:
         """The ticks (not already the keys' blend) whose frames the DVS goes without
         (:func:`~wander_env.frames.keyframe_maths.left_to_dvs`; the keys stay)."""
         stage = self.stage
-        handed = [i for i, t in enumerate(ticks) if t not in self._interpolated]
+        ticks, views = layout.ticks, layout.views
+        handed = [i for i, t in enumerate(ticks) if t not in layout.interpolated]
         skip = left_to_dvs(
             start,
             [views[i] for i in handed],
@@ -240,17 +385,37 @@ class KeyframeFrames(FrameSource):
 
     def pair(self, t_us: int) -> tuple[RenderedKey, RenderedKey]:
         """The keys just before and at-or-after ``t_us`` (inside the planned step)."""
-        i = bisect.bisect_left([key.t_us for key in self.keys], t_us)
-        return self.keys[i - 1], self.keys[i]
+        return _pair_in(self.keys, t_us)
 
     def _keypair(self, a: RenderedKey, b: RenderedKey) -> KeyPair:
-        """The keys' :class:`KeyPair` (with their geometry), made once a step."""
-        pair = self._pairs.get(b.t_us)
-        if pair is None:
-            pair = self._pairs[b.t_us] = KeyPair(
-                self.keyframe(a), self.keyframe(b), self.stage.k, self.stage.k_inv
+        """The keys' :class:`KeyPair` (with their geometry), made once (kept by ``b``)."""
+        if b.pair is None or b.pair[0] is not a:
+            b.pair = (
+                a,
+                KeyPair(self.keyframe(a), self.keyframe(b), self.stage.k, self.stage.k_inv),
             )
-        return pair
+        return b.pair[1]
+
+    def _make_frames(
+        self, keys: list[RenderedKey], layout: StepLayout, ahead: bool = False
+    ) -> dict[int, Future[LogFrame]]:
+        """Hand the step's in-between frames (the ticks neither a key, the keys' blend nor
+        left to the DVS) to the draw side, after the keys they lie between."""
+        if not self.frames_on_draw_side or len(keys) < 2:
+            return {}
+        at_key = {key.t_us for key in keys}
+        skip = at_key | layout.interpolated | layout.skipped
+        return {
+            t: self.stage.submit(self._made_frame, keys, t, view, ahead=ahead)
+            for t, view in zip(layout.ticks, layout.views, strict=True)
+            if t not in skip
+        }
+
+    def _made_frame(self, keys: list[RenderedKey], t_us: int, view: View) -> LogFrame:
+        """(On the draw side.) The synthesised frame of ``view`` at ``t_us``."""
+        a, b = _pair_in(keys, t_us)
+        w = (t_us - a.t_us) / (b.t_us - a.t_us)
+        return self.dvs.prepare(self.synthesize(self._keypair(a, b), view, w))
 
     def interpolated(self, t_us: int) -> bool:
         return t_us in self._interpolated or t_us in self._skipped
@@ -261,6 +426,9 @@ class KeyframeFrames(FrameSource):
         key = self._key_at.get(t_us)
         if key is not None:
             return key.prepared
+        made = self._made.pop(t_us, None)
+        if made is not None:
+            return made.result()
         a, b = self.pair(t_us)
         w = (t_us - a.t_us) / (b.t_us - a.t_us)
         if t_us in self._interpolated:
@@ -279,8 +447,12 @@ class KeyframeFrames(FrameSource):
         return pair.frame(view, w)
 
     def object_mask(self, t_us: int) -> np.ndarray:
+        if self.stage.casts("ground_truth"):  # ray cast, handed over at the step's start
+            if self._mask_ahead is not None and self._mask_ahead[0] == t_us:
+                return self._mask_ahead[1].result()
+            return super().object_mask(t_us)
         key = self._key_at.get(t_us)
-        if key is None or (key.full is None and self.stage.casts("ground_truth")):
-            return super().object_mask(t_us)  # ray cast (a key's layers made: those)
+        if key is None:
+            return super().object_mask(t_us)
         layers = self.keyframe(key).layers
         return np.where(layers <= self.stage.scene.num_objects, layers, 0).astype(np.int32)

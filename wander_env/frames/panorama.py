@@ -114,7 +114,9 @@ class PanoramaFrames(FrameSource):
         super().__init__(stage, dvs, params)
         self.panorama = panorama or PanoramaParams()
         # The keys of the moving layers, each composited at every frame near it.
-        self.moving = KeyframeFrames(stage, dvs, params, geometry_at_keys=True)
+        self.moving = KeyframeFrames(
+            stage, dvs, params, geometry_at_keys=True, frames_on_draw_side=False
+        )
         self._cube: tuple[np.ndarray, np.ndarray] | None = None
         self._offset = 0.0
         self._face_renderer: CameraRenderer | None = None  # the cube's, on the draw side

@@ -7,6 +7,8 @@ DVS's own input (a :class:`~wander_env.dvs.LogFrame`):
 - :meth:`~FrameSource.reset` at an episode's start: the first frame;
 - :meth:`~FrameSource.plan` at the step's start, with the whole trajectory (a source
   may render its keys there: everything it needs is known, nothing waits for later);
+- :meth:`~FrameSource.plan_ahead` after it, with a guess of the next step's trajectory
+  (a source may start drawing the next step's keys while this step's frames are made);
 - :meth:`~FrameSource.frame` at each render tick and adaptive sub-frame, with that
   time's camera angles;
 - :meth:`~FrameSource.object_mask` at the step's end (ground truth).
@@ -77,6 +79,12 @@ class FrameSource(ABC):
     @abstractmethod
     def plan(self, trajectory: Trajectory) -> None:
         """A step's start: the camera's trajectory through the step."""
+
+    def plan_ahead(self, trajectory: Trajectory) -> None:
+        """After :meth:`plan`: the next step's likely trajectory (the PTU left to itself);
+        a source may start drawing it, and its next :meth:`plan` adopt what it drew where
+        the trajectory turns out the same. The frames must not depend on whether it did."""
+        return None  # this source draws nothing ahead
 
     @abstractmethod
     def frame(self, t_us: int, angles: Angles) -> LogFrame:

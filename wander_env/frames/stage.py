@@ -13,11 +13,14 @@ Two sides, two ``MjData``:
   :meth:`Stage.object_mask`, :attr:`Stage.draw_data`): the renderer's GL context and the
   data it draws, posed at a time (the objects) and camera angles. With
   ``render_thread=True`` all of it lives on one thread of its own (an EGL context
-  belongs to the thread that made it current): a frame source hands it work with
-  :meth:`Stage.submit` and reads the result when it needs it, drawing the next key while
-  the main thread synthesises frames and runs the DVS. Called from another thread, a
-  draw-side method runs there and waits. Without the thread the same work runs inline,
-  in the same order: the same pixels either way.
+  belongs to the thread that made it current; :mod:`wander_env.frames.draw_thread`): a
+  frame source hands it work with :meth:`Stage.submit` and reads the result when it
+  needs it, drawing the next key while the main thread synthesises frames and runs the
+  DVS; work for the next step drawn on a guess (``ahead``) runs only while the step's
+  own waits for nothing, and is adopted (:meth:`Stage.adopt_ahead`) or dropped
+  (:meth:`Stage.drop_ahead`). Called from another thread, a draw-side method runs there
+  and waits. Without the thread the same work runs inline, in the same order (nothing
+  ahead): the same pixels either way.
 - the **camera side** (:meth:`Stage.camera_views`, :meth:`Stage.pose_camera`,
   :attr:`Stage.data`): the main thread's data, where only the PTU's joints move (views
   for the frame sources, the camera for the ground truth's projection).
@@ -37,7 +40,8 @@ import math
 import os
 import threading
 from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor, wait
+from concurrent.futures import Future, wait
+from dataclasses import dataclass
 from typing import Any, Literal, TypeVar
 
 import mujoco
@@ -45,6 +49,7 @@ import numpy as np
 
 from wander_env.camera import CAMERA_NAME, intrinsics, project, rotation_from_mujoco
 from wander_env.entities import PAN_JOINT, TILT_JOINT
+from wander_env.frames.draw_thread import DrawThread
 from wander_env.frames.keyframe_maths import View
 from wander_env.frames.raycast import PrimitiveCaster, RaycastParams, unsupported_geoms
 from wander_env.gl_fork import ForkedGLError, fork_error_message
@@ -52,10 +57,18 @@ from wander_env.mjcf import SceneAnimator, geom_layer_ids, geom_layer_radii
 from wander_env.renderer import CameraRenderer, RenderParams
 from wander_env.scene_config import SceneConfig
 
-__all__ = ["Angles", "Stage"]
+__all__ = ["Angles", "DrawCount", "Stage"]
 
 Angles = tuple[float, float]  # camera (pan, tilt) in degrees
 T = TypeVar("T")
+
+
+@dataclass
+class DrawCount:
+    """What a share of the draw side's work drew (GL passes; ray casts are free)."""
+
+    renders: int = 0  # colour frames
+    geometry_draws: int = 0  # layer-and-depth draws
 
 
 class Stage:
@@ -85,12 +98,16 @@ class Stage:
         self._animator: SceneAnimator | None = None
         self._renderer: CameraRenderer | None = None  # created on the draw side
         self._renderer_pid: int | None = None  # the process that draws (renderer, thread)
-        self._executor: ThreadPoolExecutor | None = None  # the render thread, once started
+        self._thread: DrawThread | None = None  # the render thread, once started
         self._draw_ident: int | None = None  # its thread id
-        self._last: Future | None = None  # the latest work handed to the render thread
+        self._last: Future | None = None  # the latest of the step's work handed to it
         self._posed: tuple[int, float, float] | None = None  # (t_us, pan, tilt) drawn
-        self._renders = 0
-        self._geometry_draws = 0
+        # What the step's work drew (work ahead adopted into the step adds its count),
+        # what the work ahead drew, and the count the draw side's running work adds to.
+        self._step_counts = [DrawCount()]
+        self._ahead_count: DrawCount | None = None
+        self._ahead_last: Future | None = None  # the latest work ahead handed over
+        self._charging = self._step_counts[0]
         # Ray casting: masks and key geometry without a GL pass where every moving geom is
         # a primitive; None: GL draws them.
         rc = raycast or RaycastParams()
@@ -103,16 +120,21 @@ class Stage:
 
     # -- the env's verbs --------------------------------------------------------------------
     def begin_episode(self, animator: SceneAnimator) -> None:
-        """A reset: the objects' motion of the new episode; nothing posed, counters zero."""
+        """A reset: the objects' motion of the new episode; nothing posed, counters zero,
+        the work ahead dropped."""
+        self.drop_ahead()
         self.drain()
+        if self._thread is not None:  # work ahead that had started: done before the reset
+            self._thread.submit(lambda: None).result()
         self._animator = animator
         self._posed = None
         self.begin_step()
 
     def begin_step(self) -> None:
-        """A step's (or reset's) start: the draw counters back to zero."""
+        """A step's (or reset's) start: the draw counters back to zero (work ahead keeps
+        running and counts in the step that adopts it)."""
         self.drain()
-        self._renders = self._geometry_draws = 0
+        self._step_counts = [DrawCount()]
 
     def invalidate(self) -> None:
         """The draw data was moved outside :meth:`pose` (the next pose poses it again)."""
@@ -137,16 +159,16 @@ class Stage:
 
     @property
     def renders(self) -> int:
-        """Colour frames rendered since the step's (or reset's) start (once the work
-        handed to the draw side has run)."""
+        """Colour frames rendered for the step (or reset) since its start, the work ahead
+        it adopted included (once the work handed to the draw side has run)."""
         self.drain()
-        return self._renders
+        return sum(c.renders for c in self._step_counts)
 
     @property
     def geometry_draws(self) -> int:
-        """Layer-and-depth draws since the step's (or reset's) start (as :attr:`renders`)."""
+        """Layer-and-depth draws for the step (or reset) (as :attr:`renders`)."""
         self.drain()
-        return self._geometry_draws
+        return sum(c.geometry_draws for c in self._step_counts)
 
     @property
     def renderer(self) -> CameraRenderer:
@@ -175,24 +197,65 @@ class Stage:
         if self._renderer_pid is not None and self._renderer_pid != pid:
             raise ForkedGLError(fork_error_message(self._renderer_pid, pid))
 
-    def submit(self, fn: Callable[..., T], *args: Any) -> Future[T]:
+    @property
+    def draws_ahead(self) -> bool:
+        """Whether work ahead of time can be handed over (:meth:`submit` with ``ahead``):
+        only with the render thread, where it runs beside the main thread's work."""
+        return self.render_thread
+
+    def submit(self, fn: Callable[..., T], *args: Any, ahead: bool = False) -> Future[T]:
         """Run ``fn(*args)`` on the draw side: on the render thread (in the order handed
         over), else here and now; its result (or its exception, raised where the result
-        is read) as a future."""
+        is read) as a future. With ``ahead`` (the render thread only: :attr:`draws_ahead`)
+        it is work for the next step, drawn on a guess: it runs when the step's work
+        waits for nothing, and is adopted or dropped at the next step's start."""
         self._check_process()
         if not self.render_thread or threading.get_ident() == self._draw_ident:
+            if ahead:
+                raise ValueError("work ahead needs the render thread (Stage.draws_ahead)")
+            if threading.get_ident() != self._draw_ident:
+                self._charging = self._step_counts[0]
             done: Future[T] = Future()
             try:
                 done.set_result(fn(*args))
             except Exception as e:  # raised where the result is read, as on the thread
                 done.set_exception(e)
             return done
-        if self._executor is None:
-            self._executor = ThreadPoolExecutor(1, thread_name_prefix="wander-render")
+        if self._thread is None:
+            self._thread = DrawThread("wander-render")
             self._renderer_pid = os.getpid()
-            self._draw_ident = self._executor.submit(threading.get_ident).result()
-        self._last = self._executor.submit(fn, *args)
+            self._draw_ident = self._thread.ident
+        if ahead:
+            if self._ahead_count is None:
+                self._ahead_count = DrawCount()
+            self._ahead_last = self._thread.submit(
+                self._charged, self._ahead_count, fn, args, ahead=True
+            )
+            return self._ahead_last
+        self._last = self._thread.submit(self._charged, self._step_counts[0], fn, args)
         return self._last
+
+    def _charged(self, count: DrawCount, fn: Callable[..., T], args: tuple[Any, ...]) -> T:
+        """(On the draw side.) ``fn(*args)``, its draws counted in ``count``."""
+        self._charging = count
+        return fn(*args)
+
+    def adopt_ahead(self) -> None:
+        """The work ahead was for this step: it joins the step's work (what has not run
+        yet runs next, in its order) and its draws count in the step."""
+        if self._thread is None or self._ahead_count is None:
+            return
+        self._thread.promote()
+        self._step_counts.append(self._ahead_count)
+        if self._ahead_last is not None and not self._ahead_last.done():
+            self._last = self._ahead_last
+        self._ahead_count = self._ahead_last = None
+
+    def drop_ahead(self) -> None:
+        """The work ahead was not for this step: what has not started never runs."""
+        if self._thread is not None:
+            self._thread.cancel_ahead()
+        self._ahead_count = self._ahead_last = None
 
     def on_draw_side(self, fn: Callable[..., T], *args: Any) -> T:
         """``fn(*args)`` run on the draw side, waited for."""
@@ -226,7 +289,7 @@ class Stage:
         return self.on_draw_side(self._render)
 
     def _render(self) -> np.ndarray:
-        self._renders += 1
+        self._charging.renders += 1
         return self._the_renderer().render(self._draw_data)
 
     def casts(self, what: Literal["ground_truth", "key_layers"]) -> bool:
@@ -252,7 +315,7 @@ class Stage:
     def _geometry(self) -> tuple[np.ndarray, np.ndarray]:
         if self.casts("key_layers"):
             return self._ready_caster().geometry(self._draw_data)
-        self._geometry_draws += 1
+        self._charging.geometry_draws += 1
         renderer = self._the_renderer()
         renderer.update(self._draw_data)
         return renderer.segment_depth_current(self.layer_lut)
@@ -318,8 +381,8 @@ class Stage:
         """Free another renderer made on the draw side (forget it in a forked child)."""
         if self._renderer_pid is not None and self._renderer_pid != os.getpid():
             renderer.abandon()
-        elif self._executor is not None:
-            self._executor.submit(renderer.close).result()
+        elif self._thread is not None:
+            self._thread.submit(renderer.close).result()
         else:
             renderer.close()
 
@@ -327,7 +390,10 @@ class Stage:
         """Free the renderer on the draw side and join the render thread (idempotent).
         In a process forked after drawing, the GL state is the parent's: forgotten, not
         freed."""
-        executor, self._executor, self._last = self._executor, None, None
+        thread, self._thread, self._last = self._thread, None, None
+        self._ahead_count = self._ahead_last = None
+        if thread is not None:
+            thread.cancel_ahead()
         renderer, self._renderer = self._renderer, None
         if self._renderer_pid is not None and self._renderer_pid != os.getpid():
             if renderer is not None:
@@ -338,10 +404,10 @@ class Stage:
         for free in (renderer, self.caster):
             if free is None:
                 continue
-            if executor is not None:
-                executor.submit(free.close).result()
+            if thread is not None:
+                thread.submit(free.close).result()
             else:
                 free.close()
-        if executor is not None:
-            executor.shutdown(wait=True)
+        if thread is not None:
+            thread.close()
         self._draw_ident = None

@@ -63,6 +63,49 @@ def test_the_render_thread_changes_nothing_but_where_the_drawing_runs(frames: st
     assert _render_threads() == []  # close() joined it
 
 
+def _ahead_trace(actions: list[np.ndarray], draw_ahead: bool) -> tuple[list, list, int, int]:
+    """Per step: events, mask and renders; and the keys drawn ahead adopted, dropped."""
+    env = gym.make("wander/Wander-v0", scene="office", episode_seconds=len(actions) * 0.01)
+    u = env.unwrapped
+    if not draw_ahead:
+        u.source.plan_ahead = lambda trajectory: None
+    try:
+        env.reset(seed=4)
+        steps, renders = [], []
+        for a in actions:
+            _, _, _, truncated, info = env.step(a)
+            steps.append((info["events"].events.tobytes(), info["object_mask"].tobytes()))
+            renders.append(u.renders_in_step)
+        assert truncated  # the episode ends with the last action: nothing drawn beyond it
+        return steps, renders, u.source.keys_ahead_adopted, u.source.keys_ahead_dropped
+    finally:
+        env.close()
+
+
+def test_keys_drawn_ahead_on_the_left_alone_guess_are_adopted_and_change_nothing() -> None:
+    """A still gaze (zero actions), 12 steps over office's moving objects: from the second
+    step on, every step's keys were drawn during the step before (none dropped); the
+    events, masks and render counts are those made without drawing ahead."""
+    still = [np.zeros(2, np.float32)] * 12
+    on, off = _ahead_trace(still, True), _ahead_trace(still, False)
+    steps, renders, adopted, dropped = on
+    assert (steps, renders) == off[:2] and off[2:] == (0, 0)
+    assert sum(len(e) for e, _ in steps) > 0 and min(renders) >= 1
+    assert (adopted, dropped) == (sum(renders[1:]), 0)
+
+
+def test_keys_drawn_ahead_on_a_wrong_guess_are_dropped_and_change_nothing() -> None:
+    """A saccade ordered at the third step: the keys drawn for that step on the guess
+    of a still gaze are dropped and it draws its own; the saccade's later steps (the move
+    going on, as guessed) adopt theirs; the steps are those made without drawing ahead."""
+    actions = [np.zeros(2, np.float32)] * 12
+    actions[2] = np.array([0.3, -0.2], np.float32)
+    on, off = _ahead_trace(actions, True), _ahead_trace(actions, False)
+    steps, renders, adopted, dropped = on
+    assert (steps, renders) == off[:2]
+    assert dropped >= 1 and adopted == sum(renders[1:]) - renders[2]
+
+
 @pytest.mark.slow
 def test_the_closed_loop_takes_the_same_actions_with_the_render_thread() -> None:
     """The attention agent on office, 40 steps: the same actions and decisions."""
