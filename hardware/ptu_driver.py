@@ -56,6 +56,7 @@ try:  # the serial layer's own errors: termios.error (EIO of an unplugged adapte
     )
 except ImportError:  # pragma: no cover - not POSIX
     SERIAL_ERRORS = (serial.SerialException, OSError)
+from wander_env.ptu.link import DELIMITERS, PTULinkParams
 from wander_env.ptu.units import degrees_to_positions, positions_to_degrees, round_position
 
 # A standalone number: not glued to a letter, ``^`` or ``.`` (so "sec^2" or "v2.14" don't count).
@@ -162,8 +163,8 @@ class PTUProtocol:
     '22'
     """
 
-    def __init__(self, port: serial.SerialBase, delimiter: str = " ") -> None:
-        if delimiter not in (" ", "\r", "\n"):
+    def __init__(self, port: serial.SerialBase, delimiter: str = PTULinkParams.delimiter) -> None:
+        if delimiter not in DELIMITERS:
             raise ValueError(f"delimiter must be a space, CR or LF, got {delimiter!r}")
         self.port = port
         self.delimiter = delimiter
@@ -268,7 +269,7 @@ class FlirPTUParams:
     past it the command fails with :class:`PTUPortError`, the device-fault path.
     """
 
-    baudrate: int = 9600
+    baudrate: int = PTULinkParams.baudrate
     timeout_s: float = 1.0
     await_timeout_s: float = 60.0
     reset_timeout_s: float = 120.0
@@ -278,7 +279,7 @@ class FlirPTUParams:
     exclusive: bool = True
     home_on_close: bool = False
     read_poll_s: float = 0.01
-    delimiter: str = " "
+    delimiter: str = PTULinkParams.delimiter
     write_timeout_s: float = 1.0
 
     def __post_init__(self) -> None:

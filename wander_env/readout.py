@@ -95,6 +95,7 @@ from wander_env.field_doc import field_doc
 
 __all__ = [
     "COUNTERS",
+    "LOST",
     "DvsFilterParams",
     "DvsLayerParams",
     "ReadoutParams",
@@ -105,10 +106,8 @@ __all__ = [
     "packet_delivery_us",
 ]
 
-#: The counters of :attr:`SpeckReadout.counts` (``info["readout"]``), in order.
-COUNTERS: tuple[str, ...] = (
-    "in",
-    "out",
+#: The counters of events that leave the stream (each its own share of ``in``).
+LOST: tuple[str, ...] = (
     "killed",
     "dropped_queue",
     "filtered_noise",
@@ -116,8 +115,10 @@ COUNTERS: tuple[str, ...] = (
     "filtered_flicker",
     "channel_off",
     "outside_roi",
-    "pending",
 )
+#: The counters of :attr:`SpeckReadout.counts` (``info["readout"]``), in order: every
+#: event ``in`` goes ``out``, is lost (:data:`LOST`) or is still ``pending``.
+COUNTERS: tuple[str, ...] = ("in", "out", *LOST, "pending")
 
 # Filter verdicts of :func:`filter_events`.
 PASS, NOISE, HOT, FLICKER = 0, 1, 2, 3

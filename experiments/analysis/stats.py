@@ -55,6 +55,7 @@ __all__ = [
     "independent_comparison",
     "mean_ci",
     "mean_std",
+    "number_text",
     "paired_comparison",
     "rank_biserial_paired",
     "wilson_interval",
@@ -176,6 +177,17 @@ def ci_text(summary: tuple[float, float, float, int], spec: str) -> str:
     if n < MIN_N or math.isnan(lo) or math.isnan(hi):
         return f"{m:{spec}} (n = {n}: n too small for an interval)"
     return f"{m:{spec}} [{lo:{spec}}, {hi:{spec}}] (n = {n})"
+
+
+def number_text(value: float | None, spec: str) -> str:
+    """``value`` formatted by ``spec``; ``—`` where it is None or NaN.
+
+    >>> number_text(0.25, ".2f"), number_text(math.nan, ".2f"), number_text(None, "g")
+    ('0.25', '—', '—')
+    """
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "—"
+    return format(value, spec)
 
 
 # ----------------------------------------------------------------------------------------

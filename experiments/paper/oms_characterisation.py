@@ -42,6 +42,7 @@ import yaml
 import wander_env  # noqa: F401  (registers the environments)
 from agents.soms import SOMS, SOMSParams
 from experiments.analysis.metrics import iou, precision
+from experiments.analysis.stats import number_text
 from experiments.paper.env_block import check_env_block, trial_env
 from experiments.runs.episode import Recorder, run_episode
 from experiments.studies.framework import (
@@ -380,7 +381,7 @@ def _by(rows: list[Row], group: str) -> list[Row]:
 
 
 def _f(v: Any, fmt: str = ".3g") -> str:
-    return "—" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, fmt)
+    return number_text(v, fmt)
 
 
 def compare(cfg: OMSCharacterisationConfig, rows: list[Row]) -> list[Comparison]:

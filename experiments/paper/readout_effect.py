@@ -38,6 +38,7 @@ import numpy as np
 
 from experiments.analysis.stats import ci_text, mean_ci
 from experiments.paper.event_suppression import Shake
+from wander_env.readout import LOST
 
 __all__ = [
     "CASES",
@@ -52,17 +53,6 @@ __all__ = [
 
 #: The presets compared; ``ideal`` is the reference.
 PRESETS: tuple[str, ...] = ("ideal", "speck", "speck_filtered")
-
-#: The counters of ``info["readout"]`` that leave the stream (each its own share).
-LOST: tuple[str, ...] = (
-    "killed",
-    "dropped_queue",
-    "filtered_noise",
-    "filtered_hot",
-    "filtered_flicker",
-    "channel_off",
-    "outside_roi",
-)
 
 
 @dataclass(frozen=True)

@@ -15,13 +15,10 @@ Each trial:
   (decision to settled gaze: the saccades' mean duration), the **foveation error**
   (reached minus ideal gaze for ``P``, px at the fovea), the **detection accuracy** (the
   8×8 box around ``P`` touches a moving object) and the **events per second**;
-- for the baseline and the PTU settings, measures the **main sequence**: forced saccades
-  (:meth:`agents.attention.AttentionAgent.saccade_to`) of ``main_sequence_amplitudes_deg``
-  along the pan axis, alternating in direction, in the static ``shelf`` scene rendered at
-  100 Hz (events play no part): pan amplitude reached, peak pan speed (the tilt moves
-  only the half pixel between the fovea and a pixel row) and movement duration (command
-  to standstill, to the 10 ms step) — beside the PTU's rest-to-rest trapezoid
-  (:func:`wander_env.ptu.axis.move_duration`, :func:`wander_env.ptu.axis.peak_speed`).
+- for the baseline and the PTU settings, measures the **main sequence**
+  (:func:`experiments.paper.ptu_main_sequence.measure`): forced pan saccades of
+  ``main_sequence_amplitudes_deg`` in the static ``main_sequence_scene``, their amplitude,
+  peak speed and duration and the fits, beside the PTU's rest-to-rest trapezoid.
 """
 
 from __future__ import annotations
@@ -38,9 +35,9 @@ import numpy as np
 import wander_env  # noqa: F401  (registers the environments, picks the GL backend)
 from agents.attention import AgentParams, AttentionAgent
 from agents.fixation import FIXATION_WINDOW_S, FixationParams
-from experiments.analysis.stats import ci_text, mean_ci, mean_std, paired_comparison
+from experiments.analysis.stats import ci_text, mean_ci, mean_std, number_text, paired_comparison
 from experiments.jobs.run_agent import closed_loop_metrics
-from experiments.paper import main_sequence
+from experiments.paper import ptu_main_sequence
 from experiments.paper.env_block import check_env_block, trial_env
 from experiments.paper.speed_study import AXIS_LABELS, plot_surfaces
 from experiments.studies.framework import (
@@ -52,11 +49,9 @@ from experiments.studies.framework import (
     TrialSpec,
     load_artifacts,
 )
-from wander_env.camera import SPECK_HFOV_DEG, degrees_to_pixels, pixels_to_degrees
+from wander_env.camera import SPECK_HFOV_DEG, pixels_to_degrees
 from wander_env.env_config import PtuPreset, SceneName, WanderConfig
-from wander_env.ptu.axis import move_duration, peak_speed
 from wander_env.ptu.params import PTUParams
-from wander_env.ptu.units import degrees_to_positions
 from wander_env.viz import save_figure
 
 __all__ = [
@@ -66,9 +61,7 @@ __all__ = [
     "SaccadeSpeedConfig",
     "ScaledTrajectory",
     "baseline",
-    "main_sequence_targets",
     "ptu_for",
-    "theory_main_sequence",
 ]
 
 # factor name -> (the grid column it sets, the config field holding its values)
@@ -83,11 +76,6 @@ FACTORS = {
 }
 # The numeric factors (one plot column each); ``ptu_link`` is compared by a test.
 NUMERIC_FACTORS = {k: v for k, v in FACTORS.items() if k != "ptu_link"}
-# A main-sequence fit has two parameters: it needs a residual (3 amplitudes; fewer leave
-# its columns empty) and, for its 95 % intervals, two residual degrees of freedom (4: with
-# one, Student's t is 12.7 and a Vmax interval spans e.g. [−38, 120] °/s).
-MIN_FIT_AMPLITUDES = 3
-MIN_INTERVAL_AMPLITUDES = 4
 # The factorial design's factors (object speed and the link stay at the baseline).
 FACTORIAL = ("ptu_speed", "ptu_accel", "fixational_amplitude", "fixational_count", "window")
 PTU_FACTORS = ("baseline", "ptu_speed", "ptu_accel", "ptu_link")
@@ -214,45 +202,6 @@ def _trial_ptu(p: dict[str, Any]) -> PTUParams:
     return ptu_for(float(p["speed_pos_s"]), float(p["accel_pos_s2"]), str(p["ptu_preset"]))
 
 
-def theory_main_sequence(
-    amplitudes_deg: np.ndarray, ptu: PTUParams
-) -> tuple[np.ndarray, np.ndarray]:
-    """(peak speed °/s, duration s) of rest-to-rest pan moves of the PTU's trapezoid.
-
-    >>> v, t = theory_main_sequence(np.array([25.714]), PTUParams())
-    >>> round(float(v[0]), 1), round(float(t[0]), 3)
-    (44.5, 0.732)
-    """
-    r = ptu.pan_resolution_arcsec
-    speeds, durations = [], []
-    for a in np.asarray(amplitudes_deg, float):
-        d = degrees_to_positions(float(a), r)
-        speeds.append(peak_speed(d, ptu.pan_speed, ptu.pan_accel, ptu.pan_base_speed))
-        durations.append(move_duration(d, ptu.pan_speed, ptu.pan_accel, ptu.pan_base_speed))
-    return np.asarray(speeds) * ptu.pan_deg_per_pos, np.asarray(durations)
-
-
-def main_sequence_targets(
-    amplitudes_deg: tuple[float, ...],
-    width: int = 128,
-    height: int = 128,
-    hfov_deg: float = SPECK_HFOV_DEG,
-) -> list[tuple[int, int]]:
-    """Target pixels for pan saccades of the given amplitudes, alternating right and left
-    (rows alternating 63 and 64 so the half-pixel tilt offsets cancel).
-
-    >>> main_sequence_targets((10.0, 10.0))
-    [(71, 63), (56, 64)]
-    """
-    cx = (width - 1) / 2.0
-    out = []
-    for k, a in enumerate(amplitudes_deg):
-        sign = 1.0 if k % 2 == 0 else -1.0
-        x = min(max(round(cx + sign * degrees_to_pixels(a, width, hfov_deg)), 0), width - 1)
-        out.append((int(x), height // 2 - 1 + k % 2))
-    return out
-
-
 class ScaledTrajectory:
     """A trajectory run ``scale`` times faster: ``position(t) = inner.position(scale·t)``."""
 
@@ -320,63 +269,6 @@ def _closed_loop(cfg: SaccadeSpeedConfig, p: dict[str, Any], seed: int) -> dict[
     }
 
 
-def _main_sequence(cfg: SaccadeSpeedConfig, ptu: PTUParams, seed: int) -> dict[str, Any]:
-    env = trial_env(
-        cfg.env,
-        scene=cfg.main_sequence_scene,
-        ptu=ptu,
-        render_rate_hz=100.0,
-        max_subframes=1,
-        ground_truth=False,
-        episode_seconds=1000.0,
-    )
-    base = env.unwrapped
-    agent = AttentionAgent(cfg.agent.on_env(env, fixational=False), seed=seed)
-    amp, vpeak, dur = [], [], []
-    try:
-        obs, info = env.reset(seed=seed)
-        agent.reset()
-        for target in main_sequence_targets(cfg.main_sequence_amplitudes_deg):
-            start = np.asarray(obs["gaze"], float)
-            t0 = float(info["t"])
-            n = len(agent.saccades)
-            agent.saccade_to(target, (float(start[0]), float(start[1])), info)
-            peak, t_stop = 0.0, t0
-            while len(agent.saccades) == n:
-                obs, _, _, _, info = env.step(agent.act(obs, info))
-                peak = max(peak, abs(base.ptu.pan_velocity_deg_s))
-                if info["moving"]:
-                    t_stop = float(info["t"]) + 0.0  # still moving at this step's end
-            amp.append(abs(float(obs["gaze"][0]) - float(start[0])))
-            vpeak.append(peak)
-            # Standstill is reached within the step after the last moving one.
-            dur.append(t_stop + agent.params.step_s - t0)
-    finally:
-        agent.close()
-        env.close()
-    vfit = main_sequence.fit_saturating(amp, vpeak)
-    dfit = main_sequence.fit_linear(amp, dur)
-    return {
-        "ms_amplitudes": vfit.n,
-        "_ms_amplitude_deg": np.asarray(amp),
-        "_ms_peak_velocity_deg_s": np.asarray(vpeak),
-        "_ms_duration_s": np.asarray(dur),
-        "ms_peak_velocity_max_deg_s": max(vpeak) if vpeak else math.nan,
-        "ms_duration_max_s": max(dur) if dur else math.nan,
-        # The main-sequence fits (parameters and 95 % intervals), per PTU setting.
-        **_fit_columns(vfit, "ms_v_"),
-        **_fit_columns(dfit, "ms_d_"),
-    }
-
-
-def _fit_columns(fit: main_sequence.MainSequenceFit, prefix: str) -> dict[str, float]:
-    """A fit's columns; the intervals NaN below :data:`MIN_INTERVAL_AMPLITUDES`."""
-    out = fit.as_dict(prefix)
-    if fit.n < MIN_INTERVAL_AMPLITUDES:
-        out |= {k: math.nan for k in out if k.endswith(("_low", "_high"))}
-    return out
-
-
 def run_trial(cfg: SaccadeSpeedConfig, spec: TrialSpec) -> dict[str, Any]:
     """The closed loop at one setting; at the first repeat of a setting marked
     ``main_sequence`` (one per PTU setting: the PTU is deterministic), its main sequence
@@ -384,7 +276,14 @@ def run_trial(cfg: SaccadeSpeedConfig, spec: TrialSpec) -> dict[str, Any]:
     p = dict(spec.params)
     out = _closed_loop(cfg, p, spec.seed)
     if p["main_sequence"] and spec.repeat == 0:
-        out |= _main_sequence(cfg, _trial_ptu(p), spec.seed)
+        out |= ptu_main_sequence.measure(
+            cfg.env,
+            cfg.main_sequence_scene,
+            cfg.agent,
+            _trial_ptu(p),
+            cfg.main_sequence_amplitudes_deg,
+            spec.seed,
+        )
     return out
 
 
@@ -424,10 +323,6 @@ def _value(row: Row) -> tuple[str, Any]:
     return factor, row[FACTORS[factor][0]]
 
 
-def _fmt(v: float, spec: str) -> str:
-    return "—" if math.isnan(v) else format(v, spec)
-
-
 SETTING_COLUMNS = (
     "speed_pos_s",
     "accel_pos_s2",
@@ -461,38 +356,6 @@ def _label(r: Row) -> str:
     return "baseline (paper's values)" if factor == "baseline" else f"{factor} = {v}"
 
 
-def _too_few(n: int, minimum: int, what: str) -> str:
-    return f"n too small for {what} ({n} amplitudes; {what} needs ≥ {minimum})"
-
-
-def _ms_text(r: Row) -> str:
-    """The main-sequence fits stored in a row, as text ('' when the row has none); below
-    :data:`MIN_FIT_AMPLITUDES` or :data:`MIN_INTERVAL_AMPLITUDES` amplitudes it says so."""
-    n = float(r.get("ms_amplitudes", math.nan))
-    if math.isnan(n):
-        return ""
-    if n < MIN_FIT_AMPLITUDES:
-        return _too_few(int(n), MIN_FIT_AMPLITUDES, "a fit")
-
-    def part(name: str, unit: str, fmt: str) -> str:
-        v, lo, hi = (float(r.get(f"{name}{x}", math.nan)) for x in ("", "_low", "_high"))
-        if math.isnan(v):
-            return "— (not identifiable)"
-        if math.isnan(lo) or math.isnan(hi):
-            return f"{v:{fmt}} {unit}"
-        return f"{v:{fmt}} [{lo:{fmt}}, {hi:{fmt}}] {unit}"
-
-    text = (
-        f"V = Vmax(1 − e^(−A/C)): Vmax {part('ms_v_vmax', '°/s', '.1f')}, "
-        f"C {part('ms_v_c', '°', '.2f')} (R² {_f(r, 'ms_v_r2')}); D = D0 + k·A: "
-        f"D0 {part('ms_d_d0', 's', '.3f')}, k {part('ms_d_k', 's/°', '.4f')} "
-        f"(R² {_f(r, 'ms_d_r2')})"
-    )
-    if n < MIN_INTERVAL_AMPLITUDES:
-        text += f"; {_too_few(int(n), MIN_INTERVAL_AMPLITUDES, 'an interval')}"
-    return text
-
-
 def _pairs(a: list[Row], b: list[Row], key: str) -> tuple[list[float], list[float]]:
     bs = {int(r["seed"]): float(r[key]) for r in b}
     common = [r for r in a if int(r["seed"]) in bs]
@@ -511,7 +374,7 @@ def compare(cfg: SaccadeSpeedConfig, rows: list[Row]) -> list[Comparison]:
             "latency to the salient point",
             "0.124 s (St_w), then the saccade",
             f"{cfg.agent.window_s:g} s window + time to foveate "
-            f"{_fmt(mean_std(float(r['time_to_foveate_s']) for r in rows)[0], '.2f')} s "
+            f"{number_text(mean_std(float(r['time_to_foveate_s']) for r in rows)[0], '.2f')} s "
             "(mean over all trials)",
         )
     ]
@@ -544,7 +407,7 @@ def compare(cfg: SaccadeSpeedConfig, rows: list[Row]) -> list[Comparison]:
                 )
             )
     for g in groups.values():
-        fits = next((_ms_text(r) for r in g if _ms_text(r)), "")
+        fits = next((text for text in map(ptu_main_sequence.fits_text, g) if text), "")
         if fits:
             r0 = g[0]
             name = (
@@ -564,21 +427,6 @@ def compare(cfg: SaccadeSpeedConfig, rows: list[Row]) -> list[Comparison]:
 
 def _ci(rows: list[Row], key: str, fmt: str) -> str:
     return ci_text(mean_ci(float(r[key]) for r in rows), fmt)
-
-
-def _row_fits(r: Row) -> tuple[tuple[float, float] | None, tuple[float, float] | None]:
-    """The (Vmax, C) and (D0, k) fitted parameters stored in a row (None where absent)."""
-
-    def get(*keys: str) -> tuple[float, float] | None:
-        v = tuple(float(r.get(k, math.nan)) for k in keys)
-        return v if all(math.isfinite(x) for x in v) else None  # type: ignore[return-value]
-
-    return get("ms_v_vmax", "ms_v_c"), get("ms_d_d0", "ms_d_k")
-
-
-def _f(r: Row, key: str, fmt: str = ".3f") -> str:
-    """``r[key]`` formatted, "—" where missing or NaN."""
-    return _fmt(float(r.get(key, math.nan)), fmt)
 
 
 def factor_intervals(
@@ -608,59 +456,19 @@ def plot(cfg: SaccadeSpeedConfig, rows: list[Row], results_dir: Path, fig_dir: P
     import matplotlib.pyplot as plt
 
     fig_dir.mkdir(parents=True, exist_ok=True)
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
-    amps = np.linspace(0.5, max(cfg.main_sequence_amplitudes_deg), 100)
-    k = 0
+    series = []
     for r in rows:
         if r["repeat"] != 0:
             continue
         arts = load_artifacts(results_dir, r)
-        if "ms_amplitude_deg" not in arts:
-            continue
-        ptu = _trial_ptu(r)
-        label = (
-            f"{ptu.pan_speed * ptu.pan_deg_per_pos:.0f} °/s, "
-            f"{ptu.pan_accel * ptu.pan_deg_per_pos:.0f} °/s², {r['ptu_preset']}"
-        )
-        v, t = theory_main_sequence(amps, ptu)
-        c = f"C{k}"
-        ms_amp = arts["ms_amplitude_deg"]
-        mk = dict(color=c, marker="osD^v<>p"[k % 8], ls="none", mfc="none" if k == 0 else c)
-        axes[0].plot(ms_amp, arts["ms_peak_velocity_deg_s"], label=label, **mk)
-        axes[0].plot(amps, v, "--", color=c, lw=0.8)
-        axes[1].plot(ms_amp, arts["ms_duration_s"], label=label, **mk)
-        axes[1].plot(amps, t, "--", color=c, lw=0.8)
-        vfit, dfit = _row_fits(r)
-        fit_style = dict(color=c, lw=1.4, alpha=0.6)
-        if vfit is not None:
-            v_label = f"fit: Vmax {vfit[0]:.1f} °/s, C {vfit[1]:.2f}° (R² {_f(r, 'ms_v_r2')})"
-            v_fit = main_sequence.saturating(amps, *vfit)
-            axes[0].plot(amps, v_fit, "-", label=v_label, **fit_style)
-        if dfit is not None:
-            d_label = f"fit: D0 {dfit[0]:.3f} s, k {dfit[1]:.4f} s/° (R² {_f(r, 'ms_d_r2')})"
-            axes[1].plot(amps, main_sequence.linear(amps, *dfit), "-", label=d_label, **fit_style)
-        if len(ms_amp) < MIN_FIT_AMPLITUDES:  # say so in the legends: no line is drawn
-            for ax in axes:
-                ax.plot(
-                    [],
-                    [],
-                    " ",
-                    label=f"no fit: {_too_few(len(ms_amp), MIN_FIT_AMPLITUDES, 'a fit')}",
-                )
-        k += 1
-    axes[0].set(xlabel="saccade amplitude (°)", ylabel="peak pan velocity (°/s)")
-    axes[0].set_title("peak velocity: V = Vmax(1 − e^(−A/C))", fontsize=9)
-    axes[1].set(xlabel="saccade amplitude (°)", ylabel="duration, command to standstill (s)")
-    axes[1].set_title("duration: D = D0 + k·A", fontsize=9)
-    for ax in axes:
-        ax.legend(fontsize=6.5)
-    fig.suptitle(
-        f"Main sequence: forced pan saccades in the static {cfg.main_sequence_scene} scene, "
-        "one series per PTU setting (markers: measured; solid: fit; dashed: the PTU's "
-        "rest-to-rest trapezoid)",
-        fontsize=9,
+        if "ms_amplitude_deg" in arts:
+            series.append((r, _trial_ptu(r), arts))
+    ms_path = ptu_main_sequence.plot(
+        series,
+        max(cfg.main_sequence_amplitudes_deg),
+        cfg.main_sequence_scene,
+        fig_dir / "main_sequence.png",
     )
-    ms_path = save_figure(fig, fig_dir / "main_sequence.png")
     if any(str(r["factor"]) == "factorial" for r in rows):
         return [ms_path, plot_surfaces(rows, fig_dir / "response_surfaces.png")]
 

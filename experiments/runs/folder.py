@@ -80,6 +80,8 @@ METRICS_JSON = "metrics.json"
 INCOMPLETE = "INCOMPLETE"
 #: The most suffixes (``-2`` … ``-N``) tried for a default folder name.
 MAX_SUFFIX = 10_000
+#: The time in a default folder name.
+_STAMP = "%Y%m%d-%H%M%S"
 
 __all__ = ["INCOMPLETE", "METRICS_JSON", "RUN_JSON", "CurrentRun", "RunFolder"]
 
@@ -121,11 +123,7 @@ class RunFolder:
     ) -> RunFolder:
         """A job's or a benchmark's folder, created: ``out`` (:meth:`claim`), or a new
         ``root/COMMAND-YYYYmmdd-HHMMSS[-N]``."""
-        if out is not None:
-            return cls.claim(Path(out), force, current)
-        return cls(
-            _make_unique(root, f"{command}-{time.strftime('%Y%m%d-%H%M%S')}"), current, made=True
-        )
+        return cls._claim_or_make(out, force, current, root, f"{command}-{time.strftime(_STAMP)}")
 
     @classmethod
     def for_experiment(
@@ -139,10 +137,23 @@ class RunFolder:
     ) -> RunFolder:
         """An experiment's folder, created: ``out`` (:meth:`claim`), or a new
         ``root/NAME/YYYYmmdd-HHMMSS-seedN[-N]``."""
+        return cls._claim_or_make(
+            out, force, current, root / name, f"{time.strftime(_STAMP)}-seed{seed}"
+        )
+
+    @classmethod
+    def _claim_or_make(
+        cls,
+        out: str | os.PathLike | None,
+        force: bool,
+        current: CurrentRun | None,
+        parent: Path,
+        name: str,
+    ) -> RunFolder:
+        """``out`` claimed (:meth:`claim`), or, without one, a new ``parent/name[-N]``."""
         if out is not None:
             return cls.claim(Path(out), force, current)
-        stamp = f"{time.strftime('%Y%m%d-%H%M%S')}-seed{seed}"
-        return cls(_make_unique(root / name, stamp), current, made=True)
+        return cls(_make_unique(parent, name), current, made=True)
 
     @classmethod
     def claim(cls, out: Path, force: bool = False, current: CurrentRun | None = None) -> RunFolder:

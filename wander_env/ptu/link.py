@@ -25,6 +25,9 @@ from typing import Protocol
 
 from wander_env.config import check_fields
 
+#: What may end a command on the line: a space (the FLIR default), CR or LF.
+DELIMITERS = (" ", "\r", "\n")
+
 
 @dataclass(frozen=True)
 class PTULinkParams:
@@ -32,7 +35,8 @@ class PTULinkParams:
     feedback, echo off, commands ended by a space; replies ended by CR LF as the
     emulator and the PTU-D48E write them).
 
-    ``baudrate`` 9600 (the FLIR factory setting, ``FlirPTUParams.baudrate``), 8N1 =
+    ``baudrate`` 9600 (the FLIR factory setting; the driver's ``FlirPTUParams`` takes its
+    ``baudrate`` and ``delimiter`` defaults from here), 8N1 =
     ``bits_per_byte`` 10; ``poll_s`` the rig's position polling period
     (``RigConfig.ptu_poll_s``); ``turnaround_s`` the unit's time between a command's
     last byte and its reply (not documented by FLIR: 0).
@@ -51,7 +55,7 @@ class PTULinkParams:
     def __post_init__(self) -> None:
         check_fields(self, ("baudrate", "bits_per_byte"), integer=True, positive=True)
         check_fields(self, ("poll_s", "turnaround_s"), minimum=0)
-        if self.delimiter not in (" ", "\r", "\n"):
+        if self.delimiter not in DELIMITERS:
             raise ValueError(
                 f"PTULinkParams.delimiter must be a space, CR or LF, got {self.delimiter!r}"
             )

@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 import wander_env  # noqa: F401
 from experiments.analysis import scanpath_stats
 from experiments.cli.main import app
-from experiments.paper import sac_accuracy, saccade_speed, scanpath
+from experiments.paper import ptu_main_sequence, sac_accuracy, saccade_speed, scanpath
 from experiments.studies.framework import make_trials, resolve_config, run_experiment, run_spec
 from wander_env.camera import cast_pixel
 from wander_env.ptu.params import PTUParams
@@ -223,7 +223,7 @@ def test_factorial_grid_is_the_product_of_the_five_factors():
 
 def test_theory_main_sequence_saturates_at_the_slew_speed():
     amps = np.array([1.0, 5.0, 20.0, 40.0, 60.0])
-    v, t = saccade_speed.theory_main_sequence(amps, PTUParams())
+    v, t = ptu_main_sequence.theory_main_sequence(amps, PTUParams())
     assert np.all(np.diff(v) >= 0) and np.all(np.diff(t) > 0)
     assert v[-1] == pytest.approx(2000 * PTUParams().pan_deg_per_pos)
 
@@ -257,7 +257,7 @@ def test_main_sequence_durations_grow_with_amplitude():
     amp, vel, dur = row["_ms_amplitude_deg"], row["_ms_peak_velocity_deg_s"], row["_ms_duration_s"]
     assert amp == pytest.approx([2, 10, 30], abs=0.7)
     assert np.all(np.diff(dur) > 0) and np.all(np.diff(vel) > 0)
-    theory_v, theory_t = saccade_speed.theory_main_sequence(amp, PTUParams())
+    theory_v, theory_t = ptu_main_sequence.theory_main_sequence(amp, PTUParams())
     assert vel == pytest.approx(theory_v, abs=1.0)
     assert np.all(dur >= theory_t - 0.01) and np.all(dur <= theory_t + 0.1)
     assert row["events_per_s"] > 0 and row["factor"] == "baseline"
@@ -265,15 +265,17 @@ def test_main_sequence_durations_grow_with_amplitude():
     # freedom: no intervals, and the summary says why
     assert row["ms_amplitudes"] == 3 and math.isfinite(row["ms_v_vmax"])
     assert math.isnan(row["ms_v_vmax_low"]) and math.isnan(row["ms_d_k_high"])
-    text = saccade_speed._ms_text(row)
+    text = ptu_main_sequence.fits_text(row)
     assert text.endswith("; n too small for an interval (3 amplitudes; an interval needs ≥ 4)")
     assert "∞" not in text and "nan" not in text
 
 
 def test_main_sequence_summary_says_when_there_are_too_few_amplitudes():
     two = {"ms_amplitudes": 2, "ms_v_vmax": math.nan, "ms_d_k": math.nan}
-    assert saccade_speed._ms_text(two) == "n too small for a fit (2 amplitudes; a fit needs ≥ 3)"
-    assert saccade_speed._ms_text({"ms_v_vmax": math.nan}) == ""  # no main sequence run
+    assert (
+        ptu_main_sequence.fits_text(two) == "n too small for a fit (2 amplitudes; a fit needs ≥ 3)"
+    )
+    assert ptu_main_sequence.fits_text({"ms_v_vmax": math.nan}) == ""  # no main sequence run
 
 
 # ----------------------------------------------------------------------------------------

@@ -6,13 +6,13 @@ import pytest
 
 from experiments.paper.readout_effect import (
     CASES,
-    LOST,
     PRESETS,
     identity_gap,
     main,
     run_case,
     table,
 )
+from wander_env.readout import LOST
 
 
 @pytest.mark.slow

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from experiments.paper import saccade_speed
+from experiments.paper import ptu_main_sequence, saccade_speed
 from experiments.paper.main_sequence import fit_linear, fit_saturating, saturating
 from experiments.paper.speed_study import plot_surfaces, surface
 from experiments.studies.framework import read_csv
@@ -54,7 +54,7 @@ def test_trapezoid_main_sequence_under_the_standard_forms() -> None:
     speed (1000 pos/s = 25.7 °/s) and its peak grows as sqrt(vb² + a·d) up to the slew
     speed, so the eye's saturating exponential fits it badly, the linear duration well."""
     amps = np.array([1.0, 2, 4, 7, 10, 15, 20, 30, 40])
-    v, d = saccade_speed.theory_main_sequence(amps, PTUParams())
+    v, d = ptu_main_sequence.theory_main_sequence(amps, PTUParams())
     vf, df = fit_saturating(amps, v), fit_linear(amps, d)
     assert v[0] == pytest.approx(26.7, abs=0.1) and v[-1] == pytest.approx(51.43, abs=0.01)
     assert vf.r2 < 0.6 and v[0] < vf.params["vmax"] < v[-1]
@@ -175,7 +175,7 @@ def test_one_at_a_time_figure_has_intervals_and_main_sequence_fits(tmp_path, mon
                 }
             )
     amps = np.array(cfg.main_sequence_amplitudes_deg)
-    v, d = saccade_speed.theory_main_sequence(amps, PTUParams())
+    v, d = ptu_main_sequence.theory_main_sequence(amps, PTUParams())
     vf, df = fit_saturating(amps, v), fit_linear(amps, d)
     rows[0] |= vf.as_dict("ms_v_") | df.as_dict("ms_d_")
     arrays = {"ms_amplitude_deg": amps, "ms_peak_velocity_deg_s": v, "ms_duration_s": d}
@@ -217,6 +217,6 @@ def test_saturating_fit_of_a_constant_peak_leaves_c_undefined() -> None:
     assert fit.n == 9 and fit.rmse == 0.0 and math.isnan(fit.r2)
     row = fit.as_dict("ms_v_") | fit_linear(amps, 0.1 + 0.0374 * amps).as_dict("ms_d_")
     row["ms_amplitudes"] = fit.n
-    text = saccade_speed._ms_text(row)
+    text = ptu_main_sequence.fits_text(row)
     assert text.startswith("V = Vmax(1 − e^(−A/C)): Vmax 25.7 [25.7, 25.7] °/s, ")
     assert "C — (not identifiable) (R² —)" in text and "k 0.0374 [0.0374, 0.0374] s/°" in text

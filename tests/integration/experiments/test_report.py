@@ -46,7 +46,7 @@ def test_studies_section_without_results_says_what_to_run(tmp_path) -> None:
 def test_studies_section_shows_the_flir_main_sequence_and_the_links_cost(tmp_path) -> None:
     import numpy as np
 
-    from experiments.paper import saccade_speed
+    from experiments.paper import ptu_main_sequence, saccade_speed
     from experiments.paper.main_sequence import fit_linear, fit_saturating
     from wander_env.ptu.params import PTUParams
 
@@ -54,7 +54,7 @@ def test_studies_section_shows_the_flir_main_sequence_and_the_links_cost(tmp_pat
     folder = tmp_path / "results" / "saccade_speed" / "x"
     base = saccade_speed.baseline()
     amps = np.array(cfg.main_sequence_amplitudes_deg)
-    v, d = saccade_speed.theory_main_sequence(amps, PTUParams())
+    v, d = ptu_main_sequence.theory_main_sequence(amps, PTUParams())
     fits = fit_saturating(amps, v).as_dict("ms_v_") | fit_linear(amps, d).as_dict("ms_d_")
     fits["ms_amplitudes"] = len(amps)
     rows = []
