@@ -58,6 +58,7 @@ import pydantic
 
 from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.config import MAX_YAML_BYTES, ConfigError, check_annotated, parse_yaml, validate
+from wander_env.config_messages import shown
 from wander_env.field_doc import field_doc
 from wander_env.textures import TextureSpec
 from wander_env.trajectories import TrajectoryParams
@@ -317,11 +318,10 @@ class CameraConfig:
 
 @dataclass(frozen=True)
 class PTUMountConfig:
-    """Where the pan-tilt unit stands and where its camera sits.
-
-    ``position`` is the tilt hinge in the world (the hinge lies on the pan axis); the
-    camera's centre is ``camera_forward_m`` along the optical axis and ``camera_up_m``
-    above it (at tilt 0) from the hinge, as in :class:`wander_env.ptu.params.PTUParams`.
+    """Where the pan-tilt unit stands: its tilt hinge in the world (on the pan axis).
+    Where the camera sits on the hinge is the unit's own, not the scene's: the env's
+    ``ptu`` block (``env.ptu.camera_forward_m``, ``env.ptu.camera_up_m``: see
+    :class:`wander_env.ptu.params.PTUParams`).
     """
 
     position: Annotated[
@@ -331,12 +331,6 @@ class PTUMountConfig:
         0.0,
         1.0,
     )
-    camera_forward_m: Annotated[
-        float, field_doc("Camera centre ahead of the hinge along the optical axis", unit="m")
-    ] = 0.0
-    camera_up_m: Annotated[
-        float, field_doc("Camera centre above the hinge (at tilt 0)", unit="m")
-    ] = 0.0
 
 
 @dataclass(frozen=True)
@@ -911,6 +905,7 @@ def scene_config_from_dict(
     """
     if isinstance(data, Mapping) and "name" not in data:
         data = {"name": default_name, **data}
+    _refuse_hinge_offset(data, where)
     _check_lengths(data, where)
     return validate(SceneConfig, data, where=where)
 
@@ -931,3 +926,30 @@ def _check_lengths(data: Any, where: str | None) -> None:
     for key, (items, limit, reason) in lists.items():
         if isinstance(items, (list, tuple)) and len(items) > limit:
             raise ConfigError(f"{head}{key}: at most {limit} items ({reason}), got {len(items)}")
+
+
+#: The camera's offset from the tilt hinge: a scene's ``ptu`` block held it once; it is
+#: :class:`wander_env.ptu.params.PTUParams`' alone.
+_HINGE_OFFSET_KEYS = ("camera_forward_m", "camera_up_m")
+
+
+def _refuse_hinge_offset(data: Any, where: str | None) -> None:
+    """ConfigError ``where: ptu.KEY: ...`` naming where the hinge offset is given now, when
+    the parsed document gives it in its ``ptu`` block (nested or as a dotted key)."""
+    if not isinstance(data, Mapping):
+        return
+    ptu = data.get("ptu")
+    block = ptu if isinstance(ptu, Mapping) else {}
+    for key in _HINGE_OFFSET_KEYS:
+        if key in block:
+            value = block[key]
+        elif f"ptu.{key}" in data:
+            value = data[f"ptu.{key}"]
+        else:
+            continue
+        head = f"{where}: " if where else ""
+        raise ConfigError(
+            f"{head}ptu.{key}: the camera's offset from the hinge is the PTU's, not the "
+            f"scene's: give it in the env's ptu block (env.ptu.{key}, or --set "
+            f"env.ptu.{key}=...), got {shown(value)}"
+        )

@@ -144,6 +144,14 @@ CASES = [
         {"sc.yaml": "size: [0.2\n"},
         f"wander experiment: error: --set: scenes[1]: sc.yaml: {SYNTAX}",
     ),
+    # the camera's hinge offset is the PTU's (env.ptu), no longer a scene's
+    (
+        ["run", "--scene", "sc.yaml"],
+        {"sc.yaml": "ptu: {position: [0, 0, 1], camera_forward_m: 0.03}\n"},
+        "wander run: Invalid value for '--scene': sc.yaml: ptu.camera_forward_m: the camera's "
+        "offset from the hinge is the PTU's, not the scene's: give it in the env's ptu block "
+        "(env.ptu.camera_forward_m, or --set env.ptu.camera_forward_m=...), got 0.03",
+    ),
     # names, checked when the config is validated
     (
         ["experiment", "scanpath", "--set", "scenes=[offce]"],
