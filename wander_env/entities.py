@@ -23,7 +23,7 @@ when things happen and asks a moving entity's runtime for its state at time t.
   screen, recolours the strips).
 
 Examples:
-    >>> from wander_env.scene_config import load_scene_config
+    >>> from wander_env.scenes import load_scene_config
     >>> cfg = load_scene_config("office")
     >>> ptu = PanTiltCamera(cfg.ptu, cfg.camera)
     >>> doc = MJCFDocument(cfg.name)
@@ -52,11 +52,13 @@ from wander_env.scene_config import (
     CameraConfig,
     GratingConfig,
     LightingConfig,
+    PTUMountConfig,
+    RoomConfig,
+)
+from wander_env.scene_parts import (
     MeshConfig,
     MJCFIncludeConfig,
     MovingObjectConfig,
-    PTUMountConfig,
-    RoomConfig,
     ShelfConfig,
     StaticObjectConfig,
     TableConfig,

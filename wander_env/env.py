@@ -80,7 +80,8 @@ from wander_env.mjcf import SceneAnimator, build_mjcf
 from wander_env.ptu.unit import PanTiltUnit
 from wander_env.readout import SpeckReadout
 from wander_env.renderer import RenderParams
-from wander_env.scene_config import SceneConfig, load_scene_config
+from wander_env.scene_config import SceneConfig
+from wander_env.scenes import load_scene_config
 from wander_env.viz import event_image, labelled_frame
 
 

@@ -53,7 +53,7 @@ The names and the grating geometry (:data:`~wander_env.entities.CAMERA_NAME`,
 ...) live in :mod:`wander_env.entities`, with the parts they name.
 
 Examples:
-    >>> from wander_env.scene_config import load_scene_config
+    >>> from wander_env.scenes import load_scene_config
     >>> arena = Arena(load_scene_config("office"))
     >>> [type(e).__name__ for e in arena.entities][:4], type(arena.entities[-1]).__name__
     (['Lights', 'Room', 'Table', 'Shelf'], 'PanTiltCamera')
@@ -255,7 +255,7 @@ def geom_layer_radii(model: mujoco.MjModel) -> np.ndarray:
     distance plus its bounding-sphere radius: meshes included); ``inf`` for the static
     world and, in a gratings model, for every layer (a sliding screen has no bound).
 
-    >>> from wander_env.scene_config import load_scene_config
+    >>> from wander_env.scenes import load_scene_config
     >>> geom_layer_radii(compile_scene(load_scene_config("office"))).round(4).tolist()
     [inf, 0.2078, 0.28]
     """

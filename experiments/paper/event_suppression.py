@@ -300,7 +300,7 @@ def image_speeds(
     ``camera_forward_m`` ahead of the hinge: the env's ``PTUParams``; pinhole, so the
     same at every pixel) and the shake's ``f · ω``, with ``f`` the focal length.
 
-    >>> from wander_env.scene_config import load_scene_config
+    >>> from wander_env.scenes import load_scene_config
     >>> hand, shake = image_speeds(load_scene_config("hand"), Shake())
     >>> round(hand, 1), round(shake, 2)
     (170.0, 13.98)

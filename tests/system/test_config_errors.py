@@ -24,7 +24,7 @@ from experiments.runs.folder import RunFolder
 from experiments.runs.signals import SignalExit
 from experiments.studies.framework import TrialSpec
 from experiments.studies.sweep import run_sweep, sweep_from_dict
-from wander_env.scene_config import available_scenes
+from wander_env.scenes import available_scenes
 
 runner = CliRunner()
 SCENES = ", ".join(available_scenes())

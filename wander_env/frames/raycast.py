@@ -37,7 +37,7 @@ built for a model without any.
 Examples:
     >>> import mujoco
     >>> from wander_env.mjcf import compile_scene
-    >>> from wander_env.scene_config import load_scene_config
+    >>> from wander_env.scenes import load_scene_config
     >>> model = compile_scene(load_scene_config("office"))
     >>> unsupported_geoms(model)
     []

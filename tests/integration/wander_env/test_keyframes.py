@@ -24,7 +24,7 @@ from wander_env.frames.keyframe_maths import View, make_keyframe, synthesize, vi
 from wander_env.mjcf import compile_scene, geom_layer_ids
 from wander_env.ptu.params import PTUParams
 from wander_env.renderer import CameraRenderer
-from wander_env.scene_config import load_scene_config
+from wander_env.scenes import load_scene_config
 
 BORDER = 8  # px kept out of the comparisons (pixels entering the view)
 

@@ -27,7 +27,7 @@ from wander_env.gl_fork import ForkedGLError
 from wander_env.mjcf import SceneAnimator, build_mjcf
 from wander_env.ptu.params import PTUParams
 from wander_env.renderer import RenderParams
-from wander_env.scene_config import load_scene_config, scene_config_from_dict
+from wander_env.scenes import load_scene_config, scene_config_from_dict
 
 SPHERE, CAPSULE, CYLINDER, BOX = (
     int(getattr(mujoco.mjtGeom, n))

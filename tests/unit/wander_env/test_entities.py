@@ -27,11 +27,8 @@ from wander_env.entities import (
 )
 from wander_env.mjcf import Arena, SceneAnimator, build_mjcf, compile_scene
 from wander_env.ptu.params import PTUParams
-from wander_env.scene_config import (
-    CameraConfig,
-    PTUMountConfig,
-    load_scene_config,
-)
+from wander_env.scene_config import CameraConfig, PTUMountConfig
+from wander_env.scenes import load_scene_config
 from wander_env.textures import TextureSpec
 
 

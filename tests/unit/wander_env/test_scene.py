@@ -24,7 +24,7 @@ from wander_env.entities import PAN_JOINT, TILT_JOINT
 from wander_env.mjcf import SceneAnimator, build_mjcf, compile_scene
 from wander_env.ptu.params import PTUParams
 from wander_env.renderer import CameraRenderer, project_points
-from wander_env.scene_config import (
+from wander_env.scenes import (
     assets_dir,
     available_scenes,
     load_scene_config,
