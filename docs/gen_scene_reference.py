@@ -1,8 +1,9 @@
 """Write docs/scenes.md, the scene file reference, from the scene configs' pydantic schema.
 
 Every block of a scene file is a dataclass of :mod:`wander_env.scene_config` (and of
-:mod:`wander_env.textures`, :mod:`wander_env.trajectories`); every field carries its
-description, unit and, for a required field, an example (:func:`wander_env.field_doc.field_doc`).
+:mod:`wander_env.scene_parts`, :mod:`wander_env.textures`, :mod:`wander_env.trajectories`);
+every field carries its description, unit and, for a required field, an example
+(:func:`wander_env.field_doc.field_doc`).
 This script reads them from ``pydantic.TypeAdapter(SceneConfig).json_schema()``: one
 section per block, in the order a scene file nests them, one table row per field
 (key, type and range, unit, default, example, description). An example is the field's
@@ -34,9 +35,8 @@ from wander_env.scene_config import (
     MAX_PARTS,
     MAX_TEXTURES,
     SceneConfig,
-    assets_dir,
-    available_scenes,
 )
+from wander_env.scenes import assets_dir, available_scenes
 from wander_env.untrusted import LIMITS
 
 PAGE = Path(__file__).resolve().parent / "scenes.md"

@@ -23,7 +23,7 @@ when things happen and asks a moving entity's runtime for its state at time t.
   screen, recolours the strips).
 
 Examples:
-    >>> from wander_env.scene_config import load_scene_config
+    >>> from wander_env.scenes import load_scene_config
     >>> cfg = load_scene_config("office")
     >>> ptu = PanTiltCamera(cfg.ptu, cfg.camera)
     >>> doc = MJCFDocument(cfg.name)
@@ -39,7 +39,7 @@ import math
 import re
 import xml.etree.ElementTree as ET
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
 
@@ -47,15 +47,18 @@ import mujoco
 import numpy as np
 
 from wander_env.camera import CAMERA_NAME, vertical_fov_deg
+from wander_env.ptu.params import PTUParams
 from wander_env.scene_config import (
     CameraConfig,
     GratingConfig,
     LightingConfig,
+    PTUMountConfig,
+    RoomConfig,
+)
+from wander_env.scene_parts import (
     MeshConfig,
     MJCFIncludeConfig,
     MovingObjectConfig,
-    PTUMountConfig,
-    RoomConfig,
     ShelfConfig,
     StaticObjectConfig,
     TableConfig,
@@ -389,12 +392,14 @@ class PanTiltCamera:
 
     Body ``ptu_base`` at ``mount.position`` (the tilt hinge); body ``ptu_pan`` with hinge
     ``pan`` about world z; body ``ptu_tilt`` with hinge ``tilt`` about -y; camera
-    ``event_camera`` ``camera_forward_m`` ahead of and ``camera_up_m`` above the hinge,
-    looking along +x at pan = tilt = 0. Its geoms are in group 3 (not rendered).
+    ``event_camera`` ``params.camera_forward_m`` ahead of and ``params.camera_up_m``
+    above the hinge (the unit's parameters), looking along +x at pan = tilt = 0. Its
+    geoms are in group 3 (not rendered).
     """
 
     mount: PTUMountConfig
     camera: CameraConfig
+    params: PTUParams = field(default_factory=PTUParams)
 
     @property
     def fovy_deg(self) -> float:
@@ -404,9 +409,8 @@ class PanTiltCamera:
 
     def camera_position(self) -> tuple[float, float, float]:
         """The camera's world position (m) at pan = tilt = 0."""
-        p = self.mount
-        x, y, z = p.position
-        return (x + p.camera_forward_m, y, z + p.camera_up_m)
+        x, y, z = self.mount.position
+        return (x + self.params.camera_forward_m, y, z + self.params.camera_up_m)
 
     def attach(self, doc: MJCFDocument) -> None:
         """Write the PTU's bodies, joints, geoms and the camera."""
@@ -426,7 +430,7 @@ class PanTiltCamera:
         tilt = ET.SubElement(pan, "body", name=TILT_BODY)
         ET.SubElement(tilt, "inertial", pos="0 0 0", mass="0.2", diaginertia="1e-4 1e-4 1e-4")
         ET.SubElement(tilt, "joint", name=TILT_JOINT, type="hinge", axis="0 -1 0")
-        cam_pos = (p.camera_forward_m, 0.0, p.camera_up_m)
+        cam_pos = (self.params.camera_forward_m, 0.0, self.params.camera_up_m)
         doc.geom(
             tilt,
             type="box",

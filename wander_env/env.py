@@ -77,11 +77,11 @@ from wander_env.frames.registry import make_source
 from wander_env.frames.source import FrameParams
 from wander_env.frames.stage import Stage
 from wander_env.mjcf import SceneAnimator, build_mjcf
-from wander_env.ptu.params import PTUParams
 from wander_env.ptu.unit import PanTiltUnit, Trajectory
 from wander_env.readout import SpeckReadout
 from wander_env.renderer import RenderParams
-from wander_env.scene_config import SceneConfig, load_scene_config
+from wander_env.scene_config import SceneConfig
+from wander_env.scenes import load_scene_config
 from wander_env.viz import event_image, labelled_frame
 
 
@@ -92,14 +92,14 @@ class WanderEnv(CameraEnv):
         self.config = WanderConfig(**config)
         c = self.config
         self.init_render(render_mode, c.control_period_s)
-        scene = self._scene_with_mount(load_scene_config(c.scene), c.ptu)
+        scene = load_scene_config(c.scene)
         if c.antialias_samples is not None:
             camera = replace(scene.camera, antialias_samples=c.antialias_samples)
             scene = replace(scene, camera=camera)
         self.scene: SceneConfig = scene
         self.hfov_deg = scene.camera.hfov_deg
         self.stage = Stage(
-            build_mjcf(scene).compile(),
+            build_mjcf(scene, c.ptu).compile(),
             scene,
             RenderParams(supersample=c.render_supersample),
             render_thread=c.render_thread,
@@ -121,16 +121,6 @@ class WanderEnv(CameraEnv):
         # Speck's readout after the DVS (wander_env.readout); None: events as the DVS gives them.
         readout = c.readout_params
         self.readout = None if readout is None else SpeckReadout(self.width, self.height, readout)
-
-    @staticmethod
-    def _scene_with_mount(scene: SceneConfig, ptu: PTUParams) -> SceneConfig:
-        """A hinge offset given in the PTU parameters moves the camera in the model too."""
-        if ptu.camera_forward_m == 0 and ptu.camera_up_m == 0:
-            return scene
-        mount = replace(
-            scene.ptu, camera_forward_m=ptu.camera_forward_m, camera_up_m=ptu.camera_up_m
-        )
-        return replace(scene, ptu=mount)
 
     @property
     def animator(self) -> SceneAnimator | None:

@@ -34,7 +34,8 @@ from wander_env.field_doc import field_doc
 from wander_env.frames.registry import MODE_NAMES, frame_modes_help
 from wander_env.ptu.params import PTUParams
 from wander_env.readout import ReadoutParams
-from wander_env.scene_config import SceneConfig, available_scenes, load_scene_config
+from wander_env.scene_config import SceneConfig
+from wander_env.scenes import available_scenes, load_scene_config
 
 __all__ = [
     "FRAME_MODES",

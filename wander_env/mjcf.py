@@ -18,12 +18,13 @@ What the model holds (and which entity writes it):
   ``config.ptu.position`` (the tilt hinge); body ``ptu_pan`` with hinge ``pan`` about
   world z (positive turns left); body ``ptu_tilt`` with hinge ``tilt`` about -y
   (positive raises the optical axis); the camera ``event_camera`` on the tilt body,
-  ``camera_forward_m`` ahead of and ``camera_up_m`` above the hinge, looking along +x at
-  pan = tilt = 0, image x to the right (world -y), image y down. No actuators: the env
-  writes the PTU model's angles (radians) to ``qpos`` and calls ``mj_forward`` (or
-  ``mj_kinematics``) before rendering. Gravity is off and nothing collides, so
-  ``mj_step`` moves nothing by itself. The PTU's own geoms are in group 3, which the
-  camera does not render.
+  ``camera_forward_m`` ahead of and ``camera_up_m`` above the hinge (the unit's
+  :class:`~wander_env.ptu.params.PTUParams`, given to :func:`build_mjcf`; the scene holds
+  only where the unit stands), looking along +x at pan = tilt = 0, image x to the right
+  (world -y), image y down. No actuators: the env writes the PTU model's angles
+  (radians) to ``qpos`` and calls ``mj_forward`` (or ``mj_kinematics``) before rendering.
+  Gravity is off and nothing collides, so ``mj_step`` moves nothing by itself. The
+  PTU's own geoms are in group 3, which the camera does not render.
 - **The camera's field of view**: ``fovy`` is the vertical FOV for the configured
   horizontal FOV and aspect (112.83° both ways for the 128 × 128 Speck).
 - **Moving objects** (:class:`~wander_env.entities.MovingProp`): mocap bodies
@@ -52,7 +53,7 @@ The names and the grating geometry (:data:`~wander_env.entities.CAMERA_NAME`,
 ...) live in :mod:`wander_env.entities`, with the parts they name.
 
 Examples:
-    >>> from wander_env.scene_config import load_scene_config
+    >>> from wander_env.scenes import load_scene_config
     >>> arena = Arena(load_scene_config("office"))
     >>> [type(e).__name__ for e in arena.entities][:4], type(arena.entities[-1]).__name__
     (['Lights', 'Room', 'Table', 'Shelf'], 'PanTiltCamera')
@@ -92,6 +93,7 @@ from wander_env.entities import (
     Table,
     object_index,
 )
+from wander_env.ptu.params import PTUParams
 from wander_env.scene_config import SceneConfig
 from wander_env.trajectories import Trajectory
 from wander_env.untrusted import check_model_size
@@ -148,12 +150,16 @@ class Arena:
 
     ``entities`` are the :class:`~wander_env.entities.Lights`, the room (if any),
     tables, shelves, static props, moving props (``moving_props``, object order), the
-    gratings stimulus (``gratings``, if any) and the pan-tilt camera (``ptu``).
+    gratings stimulus (``gratings``, if any) and the pan-tilt camera (``ptu``: the scene's
+    mount, with the camera where ``ptu_params``, the unit's parameters, put it on the
+    hinge; None: an ideal unit, the camera on the hinge).
     """
 
-    def __init__(self, config: SceneConfig) -> None:
+    def __init__(self, config: SceneConfig, ptu_params: PTUParams | None = None) -> None:
         self.config = config
-        self.ptu = PanTiltCamera(config.ptu, config.camera)
+        self.ptu = PanTiltCamera(
+            config.ptu, config.camera, ptu_params if ptu_params is not None else PTUParams()
+        )
         self.moving_props = tuple(
             MovingProp(k, o) for k, o in enumerate(config.moving_objects, start=1)
         )
@@ -211,14 +217,15 @@ class Arena:
         return MJCFScene(doc.text(), doc.assets, self.config, self.includes)
 
 
-def build_mjcf(config: SceneConfig) -> MJCFScene:
-    """The MJCF XML and assets for ``config`` (deterministic)."""
-    return Arena(config).build()
+def build_mjcf(config: SceneConfig, ptu_params: PTUParams | None = None) -> MJCFScene:
+    """The MJCF XML and assets for ``config`` with the camera where the unit's parameters
+    ``ptu_params`` put it on the hinge (None: on the hinge) (deterministic)."""
+    return Arena(config, ptu_params).build()
 
 
-def compile_scene(config: SceneConfig) -> mujoco.MjModel:
-    """``build_mjcf(config).compile()``."""
-    return build_mjcf(config).compile()
+def compile_scene(config: SceneConfig, ptu_params: PTUParams | None = None) -> mujoco.MjModel:
+    """``build_mjcf(config, ptu_params).compile()``."""
+    return build_mjcf(config, ptu_params).compile()
 
 
 def geom_object_ids(model: mujoco.MjModel) -> np.ndarray:
@@ -248,7 +255,7 @@ def geom_layer_radii(model: mujoco.MjModel) -> np.ndarray:
     distance plus its bounding-sphere radius: meshes included); ``inf`` for the static
     world and, in a gratings model, for every layer (a sliding screen has no bound).
 
-    >>> from wander_env.scene_config import load_scene_config
+    >>> from wander_env.scenes import load_scene_config
     >>> geom_layer_radii(compile_scene(load_scene_config("office"))).round(4).tolist()
     [inf, 0.2078, 0.28]
     """

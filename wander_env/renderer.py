@@ -17,7 +17,7 @@ centres at integers; the sensor centre is ((W-1)/2, (H-1)/2)).
 Examples:
     >>> import mujoco
     >>> from wander_env.mjcf import compile_scene
-    >>> from wander_env.scene_config import load_scene_config
+    >>> from wander_env.scenes import load_scene_config
     >>> model = compile_scene(load_scene_config("shelf"))
     >>> data = mujoco.MjData(model)
     >>> mujoco.mj_forward(model, data)

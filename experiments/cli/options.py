@@ -136,7 +136,7 @@ def check_scene(value: str) -> str:
     """A scene name (``assets/scenes/NAME.yaml``) or a YAML file that loads
     (:func:`wander_env.env_config.check_scene_name`)."""
     from wander_env.env_config import check_scene_name
-    from wander_env.scene_config import available_scenes
+    from wander_env.scenes import available_scenes
 
     try:
         return check_scene_name(value)

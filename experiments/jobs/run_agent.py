@@ -557,7 +557,7 @@ def _stopped_in_setup(
     out_dir: Path, config: RunConfig, record: dict[str, Any], stop: KeyboardInterrupt
 ) -> None:
     """The run folder of a run stopped before its first step: no events, the signal named."""
-    from wander_env.scene_config import load_scene_config
+    from wander_env.scenes import load_scene_config
 
     camera = load_scene_config(config.env.scene).camera
     folder = RunFolder(out_dir)

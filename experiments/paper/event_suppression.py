@@ -292,12 +292,15 @@ class EventSuppressionConfig:
 # The protocol: speeds, the schedule, the clocks (pure)
 
 
-def image_speeds(scene: SceneConfig, shake: Shake) -> tuple[float, float]:
+def image_speeds(
+    scene: SceneConfig, shake: Shake, camera_forward_m: float = 0.0
+) -> tuple[float, float]:
     """(hand, shake) image speeds at the sensor centre, px/s: the hand's ``f · v / d``
-    (its constant speed across the view at depth ``d`` ahead of the camera; pinhole, so
-    the same at every pixel) and the shake's ``f · ω``, with ``f`` the focal length.
+    (its constant speed across the view at depth ``d`` ahead of the camera, which sits
+    ``camera_forward_m`` ahead of the hinge: the env's ``PTUParams``; pinhole, so the
+    same at every pixel) and the shake's ``f · ω``, with ``f`` the focal length.
 
-    >>> from wander_env.scene_config import load_scene_config
+    >>> from wander_env.scenes import load_scene_config
     >>> hand, shake = image_speeds(load_scene_config("hand"), Shake())
     >>> round(hand, 1), round(shake, 2)
     (170.0, 13.98)
@@ -307,7 +310,7 @@ def image_speeds(scene: SceneConfig, shake: Shake) -> tuple[float, float]:
     if not isinstance(tr, LinearBounceParams) or tr.velocity[0] != 0:
         raise ValueError("the hand must move across the view: linear_bounce with velocity x 0")
     f = focal_length_px(scene.camera.width, scene.camera.hfov_deg)
-    depth = tr.start[0] - scene.ptu.position[0] - scene.ptu.camera_forward_m
+    depth = tr.start[0] - scene.ptu.position[0] - camera_forward_m
     hand = f * math.hypot(tr.velocity[1], tr.velocity[2]) / depth
     return hand, f * math.radians(shake.speed_deg_s)
 
@@ -581,7 +584,7 @@ def record(cfg: EventSuppressionConfig, phase: str, seed: int) -> Recording:
     base = env.unwrapped
     scale = 1.0
     if cfg.hand_ratio is not None:
-        hand, shake = image_speeds(base.scene, cfg.shake)
+        hand, shake = image_speeds(base.scene, cfg.shake, base.config.ptu.camera_forward_m)
         scale = cfg.hand_ratio * shake / hand
     cam = base.scene.camera
     try:

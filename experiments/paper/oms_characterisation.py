@@ -55,7 +55,8 @@ from experiments.studies.framework import (
     load_artifacts,
 )
 from wander_env.env_config import WanderConfig
-from wander_env.scene_config import GRATING_MODES, assets_dir
+from wander_env.scene_config import GRATING_MODES
+from wander_env.scenes import assets_dir
 from wander_env.viz import save_figure
 
 __all__ = [

@@ -317,7 +317,7 @@ def ratio_section(root: Path, figures: Path) -> list[str]:
     ratios) and its figure, drawn into ``figures``."""
     from experiments.paper.event_suppression import Shake, image_speeds
     from experiments.paper.speed_ratio import plot, table
-    from wander_env.scene_config import load_scene_config
+    from wander_env.scenes import load_scene_config
 
     lines: list[str] = []
     for d, rows in _ratio_sweeps(root):

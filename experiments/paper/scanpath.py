@@ -193,7 +193,7 @@ def object_names(scene: SceneConfig) -> dict[str, str]:
     file (a moving object's geom is ``object_k``; an object the file leaves unnamed keeps
     its geom's name).
 
-    >>> from wander_env.scene_config import load_scene_config
+    >>> from wander_env.scenes import load_scene_config
     >>> names = object_names(load_scene_config("office"))
     >>> names["object_1"], names["object_2"], names["mug"]
     ('cube', 'beach_ball', 'mug')

@@ -110,7 +110,7 @@ def _names_scene(value: Any) -> bool:
         return True
     if not isinstance(value, str):
         return False
-    from wander_env.scene_config import available_scenes
+    from wander_env.scenes import available_scenes
 
     return value.endswith((".yaml", ".yml")) or value in available_scenes()
 
@@ -128,7 +128,7 @@ def input_record(config: Mapping[str, Any]) -> dict[str, Any]:
     for key, value in _walk(config):
         if key in ("scene", "scenes") and _names_scene(value):
             from wander_env.config import to_plain
-            from wander_env.scene_config import load_scene_config
+            from wander_env.scenes import load_scene_config
 
             label = value if isinstance(value, str) else str(value.get("name", "scene"))
             scenes[label] = to_plain(load_scene_config(value, log=log))

@@ -24,7 +24,7 @@ from experiments.runs.folder import RunFolder
 from experiments.runs.signals import SignalExit
 from experiments.studies.framework import TrialSpec
 from experiments.studies.sweep import run_sweep, sweep_from_dict
-from wander_env.scene_config import available_scenes
+from wander_env.scenes import available_scenes
 
 runner = CliRunner()
 SCENES = ", ".join(available_scenes())
@@ -143,6 +143,14 @@ CASES = [
         ["experiment", "scanpath", "--set", "scenes=[office, sc.yaml]"],
         {"sc.yaml": "size: [0.2\n"},
         f"wander experiment: error: --set: scenes[1]: sc.yaml: {SYNTAX}",
+    ),
+    # the camera's hinge offset is the PTU's (env.ptu), no longer a scene's
+    (
+        ["run", "--scene", "sc.yaml"],
+        {"sc.yaml": "ptu: {position: [0, 0, 1], camera_forward_m: 0.03}\n"},
+        "wander run: Invalid value for '--scene': sc.yaml: ptu.camera_forward_m: the camera's "
+        "offset from the hinge is the PTU's, not the scene's: give it in the env's ptu block "
+        "(env.ptu.camera_forward_m, or --set env.ptu.camera_forward_m=...), got 0.03",
     ),
     # names, checked when the config is validated
     (

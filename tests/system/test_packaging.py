@@ -49,7 +49,7 @@ def test_every_package_is_listed_in_pyproject():
 
 
 def test_scenes_load_from_the_checkout_assets_folder():
-    from wander_env.scene_config import assets_dir, available_scenes
+    from wander_env.scenes import assets_dir, available_scenes
 
     assert assets_dir() == ROOT / "assets"
     assert set(available_scenes()) == {p.stem for p in (ROOT / "assets" / "scenes").glob("*.yaml")}

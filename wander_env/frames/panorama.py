@@ -90,8 +90,8 @@ class PanoramaFrames(FrameSource):
     as the sensor sees it at the reset's pose, and keeps that shading as the camera turns
     (a per-tick render's headlight turns with it).
 
-    Where the camera centre moves (a hinge offset: the scene's ``ptu.camera_forward_m`` or
-    ``camera_up_m`` non-zero), a panorama from one centre is wrong (parallax): there
+    Where the camera centre moves (a hinge offset: the unit's ``PTUParams.camera_forward_m``
+    or ``camera_up_m`` non-zero), a panorama from one centre is wrong (parallax): there
     :meth:`create` gives a :class:`KeyframeFrames` instead, and this class refuses the
     stage.
 

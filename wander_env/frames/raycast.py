@@ -20,7 +20,7 @@ on rim pixels only.
 
 The static world's depth for a camera rotation is the cube's distances sampled along
 each pixel's central ray (:func:`wander_env.frames.cube.cube_inverse_depth`, kept for the
-latest rotations). A hinge offset (the scene's ``ptu.camera_forward_m`` /
+latest rotations). A hinge offset (the unit's ``PTUParams.camera_forward_m`` /
 ``camera_up_m``) puts the camera centre beside the cube's: an object's hit point, found
 from the true camera centre, is then looked up in the cube along the ray from the
 cube's centre (the point reprojected into a view from the hinge with the camera's
@@ -37,7 +37,7 @@ built for a model without any.
 Examples:
     >>> import mujoco
     >>> from wander_env.mjcf import compile_scene
-    >>> from wander_env.scene_config import load_scene_config
+    >>> from wander_env.scenes import load_scene_config
     >>> model = compile_scene(load_scene_config("office"))
     >>> unsupported_geoms(model)
     []
@@ -409,8 +409,8 @@ class PrimitiveCaster:
         only where :attr:`exact_depth` (else ValueError)."""
         if not self.exact_depth:
             raise ValueError(
-                "ray-cast depth needs the camera on its hinge (ptu.camera_forward_m and "
-                "camera_up_m 0): draw this key's geometry with GL"
+                "ray-cast depth needs the camera on its hinge (env.ptu.camera_forward_m "
+                "and camera_up_m 0): draw this key's geometry with GL"
             )
         return self.layers_depth(data)
 

@@ -187,9 +187,10 @@ class Stage:
         return geom_layer_radii(self.model) * 1.01
 
     def camera_centre_moves(self) -> bool:
-        """Whether the camera centre moves as the PTU turns (the scene's hinge offset)."""
-        mount = self.scene.ptu
-        return mount.camera_forward_m != 0 or mount.camera_up_m != 0
+        """Whether the camera centre moves as the PTU turns: the model's camera sits off
+        the tilt hinge (the unit's hinge offset, ``PTUParams.camera_forward_m`` /
+        ``camera_up_m``, that the model was built with)."""
+        return bool(np.any(self.model.cam_pos[self._cam_id] != 0))
 
     # -- handing work to the draw side ----------------------------------------------------------
     def _check_process(self) -> None:

@@ -31,7 +31,8 @@ class PTUParams:
 
     ``*_backlash_pos`` (play between motor and camera, 0 = ideal) and the camera's
     offset from the tilt hinge (``camera_forward_m`` along the optical axis,
-    ``camera_up_m`` perpendicular to it, up at tilt 0) default to an ideal unit.
+    ``camera_up_m`` perpendicular to it, up at tilt 0; its one home: the scene says only
+    where the hinge stands, and the model is built with these) default to an ideal unit.
     ``quantise`` keeps targets and reported angles on whole positions, as the
     stepper does.
     """

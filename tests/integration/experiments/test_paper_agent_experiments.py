@@ -21,7 +21,7 @@ from experiments.studies.framework import make_trials, resolve_config, run_exper
 from wander_env.camera import cast_pixel
 from wander_env.ptu.params import PTUParams
 from wander_env.renderer import project_points
-from wander_env.scene_config import load_scene_config
+from wander_env.scenes import load_scene_config
 
 # ----------------------------------------------------------------------------------------
 # sac_accuracy

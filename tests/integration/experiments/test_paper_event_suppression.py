@@ -28,7 +28,7 @@ from experiments.paper.event_suppression import (
 from experiments.studies.framework import make_trials, resolve_config, run_spec
 from wander_env.camera import focal_length_px
 from wander_env.config import ConfigError, parse_sets, validate
-from wander_env.scene_config import assets_dir, load_scene_config
+from wander_env.scenes import assets_dir, load_scene_config
 
 
 def stated_speeds() -> tuple[float, float]:

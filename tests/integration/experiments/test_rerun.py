@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 from experiments.cli.main import app
 from experiments.runs.provenance import input_record
 from wander_env.config import to_plain
-from wander_env.scene_config import load_scene_config
+from wander_env.scenes import load_scene_config
 
 
 def sha256(path: Path) -> str:

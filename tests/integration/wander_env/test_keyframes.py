@@ -22,8 +22,9 @@ from wander_env.dvs import DVSEmulator, DVSParams
 from wander_env.entities import PAN_JOINT
 from wander_env.frames.keyframe_maths import View, make_keyframe, synthesize, view_flow_bounds_px
 from wander_env.mjcf import compile_scene, geom_layer_ids
+from wander_env.ptu.params import PTUParams
 from wander_env.renderer import CameraRenderer
-from wander_env.scene_config import load_scene_config
+from wander_env.scenes import load_scene_config
 
 BORDER = 8  # px kept out of the comparisons (pixels entering the view)
 
@@ -31,8 +32,8 @@ BORDER = 8  # px kept out of the comparisons (pixels entering the view)
 class Rig:
     """A scene's model, renderer and posing: keys and reference frames on demand."""
 
-    def __init__(self, scene) -> None:
-        self.model = compile_scene(scene)
+    def __init__(self, scene, ptu_params: PTUParams | None = None) -> None:
+        self.model = compile_scene(scene, ptu_params)
         self.data = mujoco.MjData(self.model)
         self.cam = self.model.camera(CAMERA_NAME).id
         self.pan = int(self.model.joint(PAN_JOINT).qposadr[0])
@@ -244,8 +245,8 @@ def test_camera_offset_from_the_hinge_is_reprojected_with_depth():
     scene = load_scene_config("hand")
     tex = scene.room.wall_texture
     r = replace(scene.room, floor_texture=tex, ceiling_texture=tex)
-    mount = replace(scene.ptu, camera_forward_m=0.03, camera_up_m=0.05)
-    rig = Rig(replace(scene, moving_objects=(), tables=(), static_objects=(), room=r, ptu=mount))
+    hinge = PTUParams(camera_forward_m=0.03, camera_up_m=0.05)
+    rig = Rig(replace(scene, moving_objects=(), tables=(), static_objects=(), room=r), hinge)
     try:
         a = rig.key(0, 0.0)
         b = rig.key(2000, 2.0)

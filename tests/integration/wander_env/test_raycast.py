@@ -6,7 +6,6 @@ import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: headless rendering
 
-import dataclasses
 import math
 
 import gymnasium as gym
@@ -26,8 +25,9 @@ from wander_env.frames.raycast import (
 from wander_env.frames.stage import Stage
 from wander_env.gl_fork import ForkedGLError
 from wander_env.mjcf import SceneAnimator, build_mjcf
+from wander_env.ptu.params import PTUParams
 from wander_env.renderer import RenderParams
-from wander_env.scene_config import load_scene_config, scene_config_from_dict
+from wander_env.scenes import load_scene_config, scene_config_from_dict
 
 SPHERE, CAPSULE, CYLINDER, BOX = (
     int(getattr(mujoco.mjtGeom, n))
@@ -98,11 +98,9 @@ def test_near_clip_and_static_occlusion():
     assert not layers.any() and np.allclose(depth, 1.2)
 
 
-def _stage(name: str, **mount) -> Stage:
+def _stage(name: str, **hinge) -> Stage:
     cfg = load_scene_config(name)
-    if mount:
-        cfg = dataclasses.replace(cfg, ptu=dataclasses.replace(cfg.ptu, **mount))
-    stage = Stage(build_mjcf(cfg).compile(), cfg, RenderParams())
+    stage = Stage(build_mjcf(cfg, PTUParams(**hinge)).compile(), cfg, RenderParams())
     stage.begin_episode(SceneAnimator(stage.model, cfg, np.random.default_rng(0)))
     return stage
 

@@ -23,7 +23,7 @@ from wander_env.camera import CAMERA_NAME
 from wander_env.dvs import DVSEmulator, DVSParams, LogFrame
 from wander_env.mjcf import SceneAnimator, compile_scene, geom_object_ids
 from wander_env.renderer import CameraRenderer
-from wander_env.scene_config import load_scene_config
+from wander_env.scenes import load_scene_config
 
 
 def _reference(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:

@@ -23,14 +23,9 @@ import wander_env  # noqa: F401  (registers the envs)
 from wander_env.config import ConfigError
 from wander_env.mjcf import SceneAnimator, build_mjcf, compile_scene, geom_layer_radii
 from wander_env.renderer import CameraRenderer
-from wander_env.scene_config import (
-    MeshConfig,
-    MovingObjectConfig,
-    SceneConfig,
-    StaticObjectConfig,
-    load_scene_config,
-    scene_config_from_dict,
-)
+from wander_env.scene_config import SceneConfig
+from wander_env.scene_parts import MeshConfig, MovingObjectConfig, StaticObjectConfig
+from wander_env.scenes import load_scene_config, scene_config_from_dict
 from wander_env.textures import TextureSpec
 from wander_env.trajectories import LinearBounceParams, ScriptedParams, make_trajectory
 from wander_env.untrusted import LIMITS

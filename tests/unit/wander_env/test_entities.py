@@ -26,11 +26,9 @@ from wander_env.entities import (
     grating_state,
 )
 from wander_env.mjcf import Arena, SceneAnimator, build_mjcf, compile_scene
-from wander_env.scene_config import (
-    CameraConfig,
-    PTUMountConfig,
-    load_scene_config,
-)
+from wander_env.ptu.params import PTUParams
+from wander_env.scene_config import CameraConfig, PTUMountConfig
+from wander_env.scenes import load_scene_config
 from wander_env.textures import TextureSpec
 
 
@@ -42,8 +40,9 @@ def _doc() -> MJCFDocument:
 
 def test_pan_tilt_camera_fragment_has_two_hinges_and_the_camera():
     ptu = PanTiltCamera(
-        PTUMountConfig(position=(0.1, -0.2, 1.1), camera_forward_m=0.03, camera_up_m=0.05),
+        PTUMountConfig(position=(0.1, -0.2, 1.1)),
         CameraConfig(width=200, height=100, hfov_deg=90.0),
+        PTUParams(camera_forward_m=0.03, camera_up_m=0.05),
     )
     doc = _doc()
     ptu.attach(doc)
@@ -66,11 +65,10 @@ def test_pan_tilt_camera_fragment_has_two_hinges_and_the_camera():
 
 def test_pan_tilt_camera_position_is_where_mujoco_puts_the_camera():
     cfg = load_scene_config("office")
-    cfg = dataclasses.replace(
-        cfg, ptu=PTUMountConfig(position=(0.2, 0.1, 1.2), camera_forward_m=0.04, camera_up_m=0.06)
-    )
-    arena = Arena(cfg)
-    model = compile_scene(cfg)
+    cfg = dataclasses.replace(cfg, ptu=PTUMountConfig(position=(0.2, 0.1, 1.2)))
+    hinge = PTUParams(camera_forward_m=0.04, camera_up_m=0.06)
+    arena = Arena(cfg, hinge)
+    model = compile_scene(cfg, hinge)
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     cam = model.camera("event_camera").id

@@ -19,10 +19,12 @@ import yaml
 from locations import DATA
 
 from wander_env.camera import CAMERA_NAME, SPECK_HFOV_DEG, focal_length_px
+from wander_env.config import ConfigError
 from wander_env.entities import PAN_JOINT, TILT_JOINT
 from wander_env.mjcf import SceneAnimator, build_mjcf, compile_scene
+from wander_env.ptu.params import PTUParams
 from wander_env.renderer import CameraRenderer, project_points
-from wander_env.scene_config import (
+from wander_env.scenes import (
     assets_dir,
     available_scenes,
     load_scene_config,
@@ -415,19 +417,75 @@ def test_camera_offset_matches_the_ptu_model():
     from wander_env.ptu.mechanics import camera_position
 
     cfg = load_scene_config("shelf")
-    mount = dataclasses.replace(cfg.ptu, camera_forward_m=0.05, camera_up_m=0.03)
-    model = compile_scene(dataclasses.replace(cfg, ptu=mount))
+    model = compile_scene(cfg, PTUParams(camera_forward_m=0.05, camera_up_m=0.03))
     data = mujoco.MjData(model)
     pan, tilt = 12.0, -7.0
     data.qpos[model.joint(PAN_JOINT).qposadr[0]] = math.radians(pan)
     data.qpos[model.joint(TILT_JOINT).qposadr[0]] = math.radians(tilt)
     mujoco.mj_forward(model, data)
     cam = model.camera(CAMERA_NAME).id
-    expected = np.add(mount.position, camera_position(tilt, 0.05, 0.03, pan))
+    expected = np.add(cfg.ptu.position, camera_position(tilt, 0.05, 0.03, pan))
     assert np.allclose(data.cam_xpos[cam], expected, atol=1e-9)
     forward = -data.cam_xmat[cam].reshape(3, 3)[:, 2]  # the camera looks along its -z
     p, t = math.radians(pan), math.radians(tilt)
     assert np.allclose(forward, [math.cos(t) * math.cos(p), math.cos(t) * math.sin(p), math.sin(t)])
+
+
+@pytest.mark.parametrize(
+    ("ptu", "key", "value"),
+    [
+        ({"position": [0, 0, 1], "camera_forward_m": 0.03}, "camera_forward_m", "0.03"),
+        ({"camera_up_m": 0}, "camera_up_m", "0"),
+    ],
+)
+def test_a_scene_file_giving_the_hinge_offset_is_refused_naming_its_home(tmp_path, ptu, key, value):
+    """The camera's offset from the hinge is the PTU's (PTUParams): a scene file that gives
+    it in its ``ptu`` block, even as 0, is refused in one line naming the file, the field,
+    the value and where it is given now."""
+    path = tmp_path / "sc.yaml"
+    path.write_text(yaml.safe_dump({"ptu": ptu}))
+    want = (
+        f"{path}: ptu.{key}: the camera's offset from the hinge is the PTU's, not the "
+        f"scene's: give it in the env's ptu block (env.ptu.{key}, or --set "
+        f"env.ptu.{key}=...), got {value}"
+    )
+    with pytest.raises(ConfigError) as info:
+        load_scene_config(path)
+    assert str(info.value) == want
+    with pytest.raises(ConfigError) as info:  # a dotted key, in a mapping
+        scene_config_from_dict({f"ptu.{key}": ptu[key]}, where=str(path))
+    assert str(info.value) == want
+
+
+def test_the_env_puts_its_camera_where_its_ptu_params_say():
+    """The hinge offset reaches the compiled model from PTUParams alone (the scene holds
+    only the hinge's position): the model's camera sits (forward, 0, up) from the tilt
+    body, in the world at the hinge plus that offset at pan = tilt = 0, where the unit's
+    own kinematics put it; the frame sources see a moving centre."""
+    import gymnasium as gym
+
+    import wander_env  # noqa: F401  (registers the env)
+
+    hinge = PTUParams(camera_forward_m=0.05, camera_up_m=0.03)
+    env = gym.make("wander/Wander-v0", scene="shelf", ptu=hinge, ground_truth=False)
+    try:
+        u = env.unwrapped
+        assert dataclasses.asdict(u.scene.ptu) == {"position": (0.0, 0.0, 1.0)}
+        cam = u.model.camera(CAMERA_NAME).id
+        assert u.model.cam_pos[cam].tolist() == [0.05, 0.0, 0.03]
+        data = mujoco.MjData(u.model)
+        mujoco.mj_forward(u.model, data)
+        assert np.allclose(data.cam_xpos[cam], [0.05, 0.0, 1.03], atol=1e-12)
+        offset = np.subtract(data.cam_xpos[cam], u.scene.ptu.position)
+        assert np.allclose(offset, u.ptu.camera_position_m, atol=1e-12)
+        assert u.stage.camera_centre_moves()
+    finally:
+        env.close()
+    ideal = gym.make("wander/Wander-v0", scene="shelf", ground_truth=False)
+    try:
+        assert not ideal.unwrapped.stage.camera_centre_moves()
+    finally:
+        ideal.close()
 
 
 def test_grating_config_built_in_code_is_checked_by_its_annotations():

@@ -16,7 +16,7 @@ from scene_files import write_arm
 from wander_env.config import ConfigError
 from wander_env.mjcf import compile_scene, geom_object_ids
 from wander_env.renderer import CameraRenderer
-from wander_env.scene_config import load_scene_config, scene_config_from_dict
+from wander_env.scenes import load_scene_config, scene_config_from_dict
 
 
 def test_an_included_mjcf_file_is_attached_static_at_its_frame(tmp_path):

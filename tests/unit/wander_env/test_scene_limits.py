@@ -14,12 +14,8 @@ import yaml
 
 from wander_env.config import ConfigError
 from wander_env.mjcf import compile_scene
-from wander_env.scene_config import (
-    MAX_CAMERA_PIXELS,
-    CameraConfig,
-    load_scene_config,
-    scene_config_from_dict,
-)
+from wander_env.scene_config import MAX_CAMERA_PIXELS, CameraConfig
+from wander_env.scenes import load_scene_config, scene_config_from_dict
 
 _BOX = {"shape": "box", "size": [0.01, 0.01, 0.01], "position": [1.0, 0.0, 1.0]}
 

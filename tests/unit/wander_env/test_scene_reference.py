@@ -11,7 +11,8 @@ import pydantic
 from locations import ROOT
 from scene_files import write_arm, write_cube_obj, write_cube_stl
 
-from wander_env.scene_config import SceneConfig, load_scene_config
+from wander_env.scene_config import SceneConfig
+from wander_env.scenes import load_scene_config
 
 GENERATOR = ROOT / "docs" / "gen_scene_reference.py"
 

@@ -489,7 +489,7 @@ def test_an_included_files_textures_are_attached_under_its_prefix(tmp_path):
         "</mujoco>"
     )
     from wander_env.mjcf import compile_scene
-    from wander_env.scene_config import scene_config_from_dict
+    from wander_env.scenes import scene_config_from_dict
 
     cfg = scene_config_from_dict({"mjcf_includes": [{"file": str(tmp_path / "box.xml")}]})
     assert [Path(r.path).name for r in cfg.files_read()] == [
