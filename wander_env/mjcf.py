@@ -47,9 +47,11 @@ What the model holds (and which entity writes it):
   as single quads, coarser sphere/cylinder tessellation, multisampling from
   ``config.camera.antialias_samples``.
 
-The names and the grating geometry (:data:`~wander_env.entities.CAMERA_NAME`,
-:func:`~wander_env.entities.object_body_name`, :func:`~wander_env.entities.grating_layout`,
-...) live in :mod:`wander_env.entities`, with the parts they name.
+The names (:data:`~wander_env.entities.PAN_JOINT`,
+:func:`~wander_env.entities.object_body_name`, ...) live in :mod:`wander_env.entities`,
+with the parts they name; the document the parts write into in
+:mod:`wander_env.mjcf_document`, the gratings screen's geometry in
+:mod:`wander_env.grating_geometry`.
 
 Examples:
     >>> from wander_env.scene_config import load_scene_config
@@ -81,7 +83,6 @@ from wander_env.entities import (
     GratingMotion,
     GratingStimulus,
     Lights,
-    MJCFDocument,
     MJCFInclude,
     MovingProp,
     PanTiltCamera,
@@ -92,6 +93,7 @@ from wander_env.entities import (
     Table,
     object_index,
 )
+from wander_env.mjcf_document import MJCFDocument
 from wander_env.scene_config import SceneConfig
 from wander_env.trajectories import Trajectory
 from wander_env.untrusted import check_model_size
