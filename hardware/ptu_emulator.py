@@ -3,9 +3,11 @@
 The emulator speaks the FLIR ASCII protocol on the master side of a pty; its
 :attr:`PTUEmulator.port` is the slave device path, which a real ``serial.Serial(port)``
 (or :func:`serial.serial_for_url`) opens like a USB-serial adapter. A background
-thread reads commands, answers them and moves the axes in real time with the motion
-maths of :mod:`wander_env.ptu` (:func:`~wander_env.ptu.axis.axis_step`: trapezoidal
-profile, base speed, on-the-fly target and speed changes).
+thread reads commands and hands them, in real time, to the unit's firmware
+(:class:`~hardware.ptu_firmware.PTUFirmware`: the command set, the modes and the axes
+moved by the motion maths of :mod:`wander_env.ptu`); this module is the line: the pty,
+the echo and line ends, the baud rate's timing, the power-up banner and the faults a
+test injects.
 
 Protocol, as the FLIR manuals and public drivers describe it (sources in
 ``hardware/PTU_PROTOCOL.md``):
@@ -40,29 +42,17 @@ from __future__ import annotations
 
 import math
 import os
-import re
 import select
 import threading
 import time
 import tty
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from wander_env.ptu.axis import AxisState, axis_step, stopping_distance
+from hardware.ptu_firmware import DEFAULT_FIRMWARE, HALTS, PTUFirmware, command_letters
 from wander_env.ptu.params import PTUParams
-from wander_env.ptu.units import round_position, step_counter
 
-# The FLIR firmware text of a reset's limit hits (tilt twice, pan twice) and its ``*``.
-RESET_REPLY = "!T!T!P!P*"
-# A PTU-D46's ``V`` answer (PTU-D46 User's Manual v2.14.0, §4.5.5), marked as emulated.
-DEFAULT_FIRMWARE = (
-    "Pan-Tilt Controller v2.14.0 (wander emulator), (C)2006 Directed Perception, Inc., "
-    "All Rights Reserved"
-)
 _DELIMITERS = " \r\n"
-_HALTS = ("H", "HP", "HT")
-_TOKEN = re.compile(r"([A-Z@_]+)([-+]?\d+)?(.*)", re.DOTALL)
 
 
 @dataclass(frozen=True)
@@ -137,85 +127,6 @@ class PTUEmulatorParams:
         return f"{self.firmware}{self.eol}Initializing...{self.eol}"
 
 
-@dataclass
-class _Axis:
-    """Runtime state of one emulated axis (positions, pos/s, pos/s²)."""
-
-    name: str  # "Pan" / "Tilt", as in the firmware's verbose text
-    resolution_arcsec: float
-    min_pos: int
-    max_pos: int
-    speed: float
-    accel: float
-    base: float
-    upper: float
-    lower: float
-    state: AxisState = field(default_factory=AxisState)
-    target: float = 0.0
-    pending: float | None = None  # slaved mode: executed by the next ``A``
-
-    @property
-    def reported(self) -> int:
-        """The step counter (``PP``): whole steps taken so far.
-
-        While moving the counter trails the continuous position, so it equals the
-        target only once the axis has arrived.
-        """
-        return step_counter(self.state.position, self.state.velocity)
-
-    @property
-    def moving(self) -> bool:
-        return self.state.velocity != 0.0 or self.state.position != self.target
-
-    def advance(self, dt_s: float) -> None:
-        if dt_s > 0 and self.moving:
-            vmax = self.speed
-            self.state = axis_step(
-                self.state, self.target, dt_s, vmax, self.accel, min(self.base, vmax)
-            )
-
-    def stop_point(self) -> float:
-        """The whole position where the axis can come to rest, braking from now."""
-        p, v = self.state.position, self.state.velocity
-        if v == 0.0:
-            return float(round_position(p))
-        d = stopping_distance(v, self.accel, min(self.base, self.speed))
-        stop = p + math.copysign(d, v)
-        whole = math.ceil(stop - 1e-9) if v > 0 else math.floor(stop + 1e-9)
-        return float(min(max(whole, self.min_pos), self.max_pos))
-
-
-def _axes_from(params: PTUEmulatorParams) -> dict[str, _Axis]:
-    m = params.ptu
-    axes = {}
-    for letter, axis in (("P", "pan"), ("T", "tilt")):
-        axes[letter] = _Axis(
-            name=axis.capitalize(),
-            resolution_arcsec=getattr(m, f"{axis}_resolution_arcsec"),
-            min_pos=getattr(m, f"{axis}_min_pos"),
-            max_pos=getattr(m, f"{axis}_max_pos"),
-            speed=getattr(m, f"{axis}_speed"),
-            accel=getattr(m, f"{axis}_accel"),
-            base=getattr(m, f"{axis}_base_speed"),
-            upper=getattr(m, f"{axis}_upper_speed"),
-            lower=params.lower_speed,
-        )
-    return axes
-
-
-def _fmt(value: float) -> str:
-    """A number as the firmware prints it: integers bare, fractions to 4-6 places."""
-    if float(value).is_integer():
-        return str(int(value))
-    return f"{value:.6f}".rstrip("0").rstrip(".")
-
-
-def _mode_view(flag: str, doc: str) -> property:
-    """A read-only view of the mode flag attribute ``flag`` (a bool), the same flags
-    :func:`_mode_setter` sets and :func:`_mode_query` reports."""
-    return property(lambda emu: getattr(emu, flag), doc=doc)
-
-
 class PTUEmulator:
     """A FLIR PTU on a pseudo-terminal, answering in a background thread.
 
@@ -232,15 +143,17 @@ class PTUEmulator:
         self._lock = threading.RLock()
         self._stop = threading.Event()
         self._closed = False
-        self._axes = _axes_from(self.params)
-        self._echo = self.params.echo
-        self._verbose = self.params.verbose
-        self._slaved = False
-        self._velocity_mode = False
-        self._limits_enabled = True
-        self._t = time.monotonic()
+        p = self.params
+        self._firmware = PTUFirmware(
+            p.ptu,
+            p.lower_speed,
+            p.firmware,
+            p.reset_s,
+            echo=p.echo,
+            verbose=p.verbose,
+            now=time.monotonic(),
+        )
         self._rx = ""
-        self._pending: Callable[[], str | None] | None = None
         self._commands: list[str] = []
         self._n_commands = 0
         self._silent_after = self.params.silent_after
@@ -387,7 +300,7 @@ class PTUEmulator:
         """True until both axes rest on their targets."""
         with self._lock:
             self._advance()
-            return any(a.moving for a in self._axes.values())
+            return self._firmware.moving
 
     @property
     def speeds(self) -> tuple[float, float]:
@@ -399,15 +312,25 @@ class PTUEmulator:
         """(pan, tilt) accelerations (``PA``/``TA``), pos/s²."""
         return self._both_axes("accel")
 
-    echo = _mode_view("_echo", "Echo mode (``EE``/``ED``).")
-    verbose = _mode_view("_verbose", "Feedback mode: True verbose (``FV``), False terse (``FT``).")
-    slaved = _mode_view(
-        "_slaved", "Position execution mode: True slaved (``S``), False immediate (``I``)."
-    )
-    velocity_mode = _mode_view(
-        "_velocity_mode",
-        "Speed control mode: True pure velocity (``CV``), False independent (``CI``).",
-    )
+    @property
+    def echo(self) -> bool:
+        """Echo mode (``EE``/``ED``)."""
+        return self._firmware.echo
+
+    @property
+    def verbose(self) -> bool:
+        """Feedback mode: True verbose (``FV``), False terse (``FT``)."""
+        return self._firmware.verbose
+
+    @property
+    def slaved(self) -> bool:
+        """Position execution mode: True slaved (``S``), False immediate (``I``)."""
+        return self._firmware.slaved
+
+    @property
+    def velocity_mode(self) -> bool:
+        """Speed control mode: True pure velocity (``CV``), False independent (``CI``)."""
+        return self._firmware.velocity_mode
 
     def _both_axes(self, attr: str, *, advance: bool = False) -> tuple[Any, Any]:
         """(pan, tilt) values of the axes' ``attr``, read under the lock (after bringing
@@ -415,7 +338,8 @@ class PTUEmulator:
         with self._lock:
             if advance:
                 self._advance()
-            return getattr(self._axes["P"], attr), getattr(self._axes["T"], attr)
+            axes = self._firmware.axes
+            return getattr(axes["P"], attr), getattr(axes["T"], attr)
 
     # -- the thread -------------------------------------------------------------------
 
@@ -426,7 +350,7 @@ class PTUEmulator:
             self._write(self.params.banner_text)
             self._banner_sent.set()
         while not self._stop.is_set():
-            timeout = self.params.poll_s if self._pending is not None else 0.01
+            timeout = self.params.poll_s if self._firmware.waiting else 0.01
             due = [t for t, _ in self._rx_line[:1] + self._tx_line[:1]]
             if due:
                 timeout = max(0.0, min(timeout, min(due) - time.monotonic()))
@@ -496,24 +420,20 @@ class PTUEmulator:
         self._write(text + self.params.eol)
 
     def _advance(self) -> None:
-        now = time.monotonic()
-        dt, self._t = now - self._t, now
-        for axis in self._axes.values():
-            axis.advance(dt)
+        self._firmware.advance(time.monotonic())
 
     def _service(self) -> None:
         """Answer a finished ``A``/``R``, then execute buffered commands in order."""
         while True:
-            if self._pending is not None:
-                reply = self._pending()
+            if self._firmware.waiting:
+                reply = self._firmware.poll(time.monotonic())
                 if reply is None:
                     token = self._next_token(peek=True)
-                    if token is None or token.upper() not in _HALTS:
+                    if token is None or token.upper() not in HALTS:
                         return
                     self._handle(self._next_token())  # a halt goes through (ends an ``A``)
                     self._advance()
                     continue
-                self._pending = None
                 self._reply(reply)
             token = self._next_token()
             if token is None:
@@ -530,7 +450,7 @@ class PTUEmulator:
         self._rx = rx if peek else rx[end + 1 :]
         return rx[:end]
 
-    # -- commands ---------------------------------------------------------------------
+    # -- a command, through the faults a test injected, to the firmware ---------------
 
     def _handle(self, token: str) -> None:
         cmd = token.upper()
@@ -538,10 +458,9 @@ class PTUEmulator:
         self._n_commands += 1
         if self._silent_after is not None and self._n_commands > self._silent_after:
             return  # a dead unit: neither echo nor reply nor action
-        if self._echo:
+        if self._firmware.echo:
             self._write(token + " ")
-        m = _TOKEN.fullmatch(cmd)
-        name = m.group(1) if m else cmd
+        name = command_letters(cmd)
         if self._garbage:
             self._write(self._garbage.pop(0) + self.params.eol)
             return
@@ -550,286 +469,6 @@ class PTUEmulator:
                 del self._errors[i]
                 self._reply(f"! {message}")
                 return
-        reply = self._execute(cmd)
+        reply = self._firmware.execute(cmd, time.monotonic())
         if reply is not None:
             self._reply(reply)
-
-    def _execute(self, cmd: str) -> str | None:
-        m = _TOKEN.fullmatch(cmd)
-        if m is None:
-            # Message from the PTU-D48E's own documentation of its replies
-            # (Panthyr/panthyr_flir_ptu_d48e, d48e_connections.py).
-            return "! Illegal Command Entered"
-        name, number, rest = m.group(1), m.group(2), m.group(3)
-        arg = int(number) if number is not None else None
-        if name[0] in "PT" and name[1:] in _AXIS_COMMANDS:
-            handler = _AXIS_COMMANDS[name[1:]]
-            if rest:
-                return "! Illegal argument"
-            return handler(self, self._axes[name[0]], arg)
-        handler0 = _UNIT_COMMANDS.get(name)
-        if handler0 is None:
-            return "! Illegal Command Entered"
-        if rest or arg is not None:
-            return "! Illegal argument"
-        return handler0(self, arg)
-
-    def _query(self, value: float, text: str) -> str:
-        return f"* {text}" if self._verbose else f"* {_fmt(value)}"
-
-    # axis commands: handler(self, axis, arg) -> reply
-
-    def _position(self, ax: _Axis, arg: int | None) -> str:
-        if arg is None:
-            return self._query(ax.reported, f"Current {ax.name} position is {ax.reported}")
-        return self._set_target(ax, float(arg))
-
-    def _offset(self, ax: _Axis, arg: int | None) -> str:
-        if arg is None:
-            # PTU-D46 manual §4.3.2: the bare ``PO`` queries the desired position; the
-            # verbose text is Miro's DpPanTilt table ("Target Pan position is ").
-            desired = ax.pending if ax.pending is not None else ax.target
-            return self._query(desired, f"Target {ax.name} position is {_fmt(desired)}")
-        return self._set_target(ax, float(ax.reported + arg))
-
-    def _set_target(self, ax: _Axis, pos: float) -> str:
-        if self._limits_enabled and pos > ax.max_pos:
-            return f"! Maximum allowable {ax.name} position is {ax.max_pos}"
-        if self._limits_enabled and pos < ax.min_pos:
-            return f"! Minimum allowable {ax.name} position is {ax.min_pos}"
-        if self._velocity_mode:
-            self._velocity_mode = False  # a position command returns to position control
-        if self._slaved:
-            ax.pending = pos
-        else:
-            ax.target = pos
-        return "*"
-
-    def _resolution(self, ax: _Axis, arg: int | None) -> str:
-        if arg is not None:
-            return "! Illegal argument"
-        r = ax.resolution_arcsec
-        return self._query(r, f"{_fmt(r)} seconds arc per position")
-
-    def _speed(self, ax: _Axis, arg: int | None) -> str:
-        if arg is None:
-            return self._query(
-                ax.speed, f"Target {ax.name} speed is {_fmt(ax.speed)} positions/sec"
-            )
-        if self._velocity_mode:  # pure velocity: a signed speed drives the axis
-            if arg == 0:
-                ax.target = ax.stop_point()
-                return "*"
-            error = self._check_speed(ax, abs(arg))
-            if error:
-                return error
-            ax.speed = float(abs(arg))
-            ax.target = float(ax.max_pos if arg > 0 else ax.min_pos)
-            return "*"
-        error = self._check_speed(ax, arg)
-        if error:
-            return error
-        ax.speed = float(arg)
-        return "*"
-
-    def _check_speed(self, ax: _Axis, speed: int) -> str | None:
-        # "PS3300 ! Pan speed cannot exceed 2902 positions/sec" (PTU-D46 manual §4.4.6).
-        if speed > ax.upper:
-            return f"! {ax.name} speed cannot exceed {_fmt(ax.upper)} positions/sec"
-        # The lower-bound text mirrors the upper one (an assumption: no source shows it).
-        if speed < max(ax.lower, 1.0):
-            return f"! {ax.name} speed cannot be less than {_fmt(max(ax.lower, 1.0))} positions/sec"
-        return None
-
-    def _delta(self, ax: _Axis, arg: int | None) -> str:
-        # E series: ``PD`` queries the current (signed) speed, ``PD<n>`` offsets the speed.
-        if arg is None:
-            v = round(ax.state.velocity)
-            return self._query(v, f"Current {ax.name} speed is {v} positions/sec")
-        return self._speed(ax, int(ax.speed) + arg)
-
-    # unit commands: handler(self, arg) -> reply
-
-    def _await(self, arg: int | None) -> str | None:
-        if self._slaved:
-            for ax in self._axes.values():
-                if ax.pending is not None:
-                    ax.target, ax.pending = ax.pending, None
-        self._pending = lambda: None if any(a.moving for a in self._axes.values()) else "*"
-        return None
-
-    def _reset(self, arg: int | None) -> None:
-        done = time.monotonic() + self.params.reset_s
-        for ax in self._axes.values():
-            ax.target, ax.pending = ax.stop_point(), None
-
-        def finished() -> str | None:
-            if time.monotonic() < done:
-                return None
-            for ax in self._axes.values():  # recalibrated, back home
-                ax.state, ax.target = AxisState(), 0.0
-            return RESET_REPLY
-
-        self._pending = finished
-
-    def _independent(self, arg: int | None) -> str:
-        if self._velocity_mode:
-            for ax in self._axes.values():
-                ax.target = ax.stop_point()
-        self._velocity_mode = False
-        return "*"
-
-    def _version(self, arg: int | None) -> str:
-        return f"* {self.params.firmware}"
-
-    def _defaults(self, arg: int | None) -> str:
-        return "*"
-
-    def _factory(self, arg: int | None) -> str:
-        fresh = _axes_from(self.params)
-        for letter, ax in self._axes.items():
-            for name in ("speed", "accel", "base", "upper", "lower"):
-                setattr(ax, name, getattr(fresh[letter], name))
-        return "*"
-
-
-def _limit_handler(which: str) -> Callable[[PTUEmulator, _Axis, int | None], str]:
-    """``PN``/``PX``/``TN``/``TX``: the position bounds (queries only)."""
-
-    def handler(emu: PTUEmulator, ax: _Axis, arg: int | None) -> str:
-        if arg is not None:
-            return "! Illegal argument"
-        value = ax.min_pos if which == "Minimum" else ax.max_pos
-        return emu._query(value, f"{which} {ax.name} position is {value}")
-
-    return handler
-
-
-def _setting_handler(
-    attr: str,
-    text: str,
-    valid: Callable[[_Axis, int], bool],
-    then: Callable[[_Axis], None] | None = None,
-) -> Callable[[PTUEmulator, _Axis, int | None], str]:
-    """``PA``/``PB``/``PU``/``PL`` (and ``T…``): the bare command queries the axis setting
-    ``attr`` (verbose ``text``, with ``{name}`` and ``{value}``); with an argument that
-    passes ``valid`` it sets it (``then`` adjusts the others), else ``! Illegal argument``."""
-
-    def handler(emu: PTUEmulator, ax: _Axis, arg: int | None) -> str:
-        value = getattr(ax, attr)
-        if arg is None:
-            return emu._query(value, text.format(name=ax.name, value=_fmt(value)))
-        if not valid(ax, arg):
-            return "! Illegal argument"
-        setattr(ax, attr, float(arg))
-        if then is not None:
-            then(ax)
-        return "*"
-
-    return handler
-
-
-def _under_upper(ax: _Axis) -> None:
-    """A new maximum speed caps the speed and the base speed."""
-    ax.speed = min(ax.speed, ax.upper)
-    ax.base = min(ax.base, ax.upper)
-
-
-def _over_lower(ax: _Axis) -> None:
-    """A new minimum speed raises the speed to it."""
-    ax.speed = max(ax.speed, ax.lower)
-
-
-def _halt_handler(letters: str) -> Callable[[PTUEmulator, int | None], str]:
-    """``H``/``HP``/``HT``: brake to a stop on the nearest reachable whole position."""
-
-    def handler(emu: PTUEmulator, arg: int | None) -> str:
-        emu._advance()
-        for letter in letters:
-            ax = emu._axes[letter]
-            ax.target, ax.pending = ax.stop_point(), None
-        return "*"
-
-    return handler
-
-
-def _mode_setter(flag: str, value: bool) -> Callable[[PTUEmulator, int | None], str]:
-    """A unit command that sets the mode flag attribute ``flag`` (``EE``, ``FT``, ``LD``...)."""
-
-    def handler(emu: PTUEmulator, arg: int | None) -> str:
-        setattr(emu, flag, value)
-        return "*"
-
-    return handler
-
-
-def _mode_query(flag: str, on: str, off: str) -> Callable[[PTUEmulator, int | None], str]:
-    """A unit command that reports the mode flag attribute ``flag`` (``E``, ``F``, ``C``, ``L``)."""
-
-    def handler(emu: PTUEmulator, arg: int | None) -> str:
-        return f"* {on if getattr(emu, flag) else off}"
-
-    return handler
-
-
-_AXIS_COMMANDS: dict[str, Callable[..., str]] = {
-    "P": PTUEmulator._position,
-    "O": PTUEmulator._offset,
-    "R": PTUEmulator._resolution,
-    "N": _limit_handler("Minimum"),
-    "X": _limit_handler("Maximum"),
-    "S": PTUEmulator._speed,
-    "D": PTUEmulator._delta,
-    "A": _setting_handler(
-        "accel", "{name} acceleration is {value} positions/sec^2", lambda ax, a: a > 0
-    ),
-    "B": _setting_handler(
-        "base",
-        "Current {name} base speed is {value} positions/sec",
-        lambda ax, a: 0 <= a <= ax.upper,
-    ),
-    "U": _setting_handler(
-        "upper",
-        "Maximum {name} speed is {value} positions/sec",
-        lambda ax, a: a >= max(ax.lower, 1.0),
-        _under_upper,
-    ),
-    "L": _setting_handler(
-        "lower",
-        "Minimum {name} speed is {value} positions/sec",
-        lambda ax, a: 0 <= a <= ax.upper,
-        _over_lower,
-    ),
-}
-
-_UNIT_COMMANDS: dict[str, Callable[..., str | None]] = {
-    "A": PTUEmulator._await,
-    "H": _halt_handler("PT"),
-    "HP": _halt_handler("P"),
-    "HT": _halt_handler("T"),
-    "I": _mode_setter("_slaved", False),
-    "S": _mode_setter("_slaved", True),
-    "R": PTUEmulator._reset,
-    "E": _mode_query("_echo", "Echoing ON", "Echoing OFF"),
-    "EE": _mode_setter("_echo", True),
-    "ED": _mode_setter("_echo", False),
-    "F": _mode_query("_verbose", "ASCII verbose mode", "ASCII terse mode"),
-    "FT": _mode_setter("_verbose", False),
-    "FV": _mode_setter("_verbose", True),
-    "C": _mode_query(
-        "_velocity_mode", "Pure velocity speed control mode", "Independent speed control mode"
-    ),
-    "CI": PTUEmulator._independent,
-    "CV": _mode_setter("_velocity_mode", True),
-    "L": _mode_query(
-        "_limits_enabled",
-        "Limit bounds are ENABLED (soft limits enabled)",
-        "Limit bounds are DISABLED (hard limits only: use care)",
-    ),
-    "LE": _mode_setter("_limits_enabled", True),
-    "LD": _mode_setter("_limits_enabled", False),
-    "V": PTUEmulator._version,
-    "DS": PTUEmulator._defaults,
-    "DR": PTUEmulator._defaults,
-    "DF": PTUEmulator._factory,
-}

@@ -4,16 +4,16 @@
 ``device_type_name`` starts with one of the requested prefixes, configures the chip
 to stream only the raw events of its 128×128 pixel array (or applies a prepared
 configuration, the attention front end's cores, with the DVS layer's monitor switched
-on in it: :func:`monitor_dvs`), and reads them in a
+on in it: :func:`~hardware.speck_config.monitor_dvs`), and reads them in a
 background thread into a bounded queue. ``read`` hands out consecutive windows in
 the shared event format (``t`` in µs since the device's stop watch was reset in
 ``start``, ``p`` 1 = ON) through the :class:`~hardware.event_source.EventSource`
 interface.
 
-samna is imported lazily, here only, and never at module import: the ``samna``
-wheel on PyPI is a placeholder that pip-installs the real library from SynSense's
-GitLab index *at import time* and fails offline. :func:`import_samna` recognises
-that placeholder without running it and says what to install.
+samna is imported lazily, in ``start``, through :func:`hardware.samna_import.import_samna`
+(never at module import: the PyPI ``samna`` wheel is a placeholder that installs the real
+library at import time). What the source writes to the chip's configuration (the DVS
+monitor, a readout's fields, silent cores) is in :mod:`hardware.speck_config`.
 
 The samna calls used, and where they are documented (public sources):
 
@@ -47,123 +47,39 @@ The samna calls used, and where they are documented (public sources):
 * ``handle.get_stop_watch().set_enable_value(True)`` and ``.reset()`` — the paper's
   public Speck script; sinabs ``io.py`` uses ``.start()`` / ``.stop()`` / ``.reset()``
   on the same object. Without it events carry no usable timestamps.
-
-With a readout (``SpeckParams.readout``, a :class:`~wander_env.readout.ReadoutParams`,
-the block the simulated camera takes as ``env.readout``), :func:`write_readout_config`
-writes its samna fields to the configuration and the source reads the chip's
-pre-processed stream instead of the raw one: ``dvs_layer.pooling`` / ``.origin`` /
-``.cut`` / ``.mirror`` / ``.mirror_diagonal`` / ``.merge`` / ``.on_channel`` /
-``.off_channel`` and ``dvs_filter.enable`` / ``.filter_size`` /
-``.hot_pixel_filter_enable`` / ``.low_pass_mode_enable`` / ``.threshold`` — the Speck Dev
-Kit Datasheet (Aug 2023) §3.2.3 and sinabs ``play_with_speck_dvs.ipynb``; the slow clock
-timing the filter, ``handle.get_io_module().set_slow_clock(True)`` and
-``.set_slow_clk_rate(hz)`` — datasheet §3.2.6.3.2; the pre-processed events,
-``dvs_layer.monitor_enable`` → ``Spike`` with ``layer == 13`` (x, y, ``feature`` = the
-channel: 1 ON, 0 OFF or merged) — sinabs ``play_with_speck_dvs.ipynb``. The monitor does
-not show the DVS layer's pooling (sinabs ``DynapcnnNetwork`` warns so), so a readout
-with pooling is refused here; the kill bits have no public samna field, so a readout
-with ``kill_pixels`` is refused too. The arbiter, queue and host packets are the chip's
-own (nothing to write).
 """
 
 from __future__ import annotations
 
 import atexit
-import importlib
-import importlib.util
-import re
-import sys
 import threading
 import time
 import warnings
 from collections import Counter, deque
 from dataclasses import dataclass, replace
-from pathlib import Path
 from types import ModuleType
 from typing import Any
 
 import numpy as np
 
 from hardware.event_source import EventSourceBase
-from wander_env.events import EVENT_DTYPE, SensorSize, empty_events
+from hardware.samna_import import import_samna
+from hardware.speck_config import (
+    DVS_LAYER_ID,
+    check_readout_for_chip,
+    chip_family,
+    monitor_dvs,
+    sensor_size_from,
+    silence_cores,
+)
+from wander_env.events import EVENT_DTYPE, empty_events
 from wander_env.readout import ReadoutParams, SpeckReadout
 
 #: Resolution of the Speck DVS (sinabs ``play_with_speck_dvs.ipynb``, datasheet §2.2);
 #: used only when the configuration does not give the DVS region.
 SPECK_DVS_SIZE = (128, 128)
 
-_STUB_MARKERS = ("PYPI_SAMNA", "install_real_samna")
-_REAL_SAMNA_HINT = (
-    "install the real samna from SynSense (needs network access): "
-    "`pip install --force-reinstall samna==<version> "
-    "--index-url https://gitlab.com/api/v4/projects/27423070/packages/pypi/simple` "
-    "(or run `python -c 'import samna'` once while online); "
-    "see https://synsense-sys-int.gitlab.io/samna/install.html"
-)
 _TS_WRAP = 1 << 32  # Speck timestamps are 32-bit µs counters (wrap after ~71.6 min)
-
-
-class SamnaUnavailableError(RuntimeError):
-    """The real samna library cannot be used: missing, the PyPI placeholder, or broken."""
-
-
-def _is_stub_source(path: str | None) -> bool:
-    if not path or not path.endswith(".py"):
-        return False
-    try:
-        text = Path(path).read_text(errors="replace")[:65536]
-    except OSError:
-        return False
-    return all(marker in text for marker in _STUB_MARKERS)
-
-
-def import_samna() -> ModuleType:
-    """Import the real samna, or raise :class:`SamnaUnavailableError` saying why.
-
-    The PyPI placeholder is recognised from its source *before* it runs (it would
-    start ``pip install`` at import time); a module already in ``sys.modules`` is
-    used as is unless it is that placeholder.
-    """
-    if "samna" in sys.modules:
-        module = sys.modules["samna"]
-        if module is None:
-            raise SamnaUnavailableError(
-                f"samna is not installed (import blocked); {_REAL_SAMNA_HINT}"
-            )
-    else:
-        try:
-            spec = importlib.util.find_spec("samna")
-        except (ImportError, ValueError) as err:
-            raise SamnaUnavailableError(
-                f"samna cannot be located ({err}); {_REAL_SAMNA_HINT}"
-            ) from err
-        if spec is None:
-            raise SamnaUnavailableError(
-                f"samna is not installed; the Speck source needs it. {_REAL_SAMNA_HINT}"
-            )
-        if _is_stub_source(spec.origin):
-            raise SamnaUnavailableError(
-                f"the installed samna ({spec.origin}) is SynSense's PyPI placeholder, which "
-                "pip-installs the real library at import time (fails offline); it was not "
-                f"imported. {_REAL_SAMNA_HINT}"
-            )
-        try:
-            module = importlib.import_module("samna")
-        except ImportError as err:
-            raise SamnaUnavailableError(
-                f"samna is installed but failed to import ({err!r}); {_REAL_SAMNA_HINT}"
-            ) from err
-        except Exception as err:  # the placeholder's pip subprocess, network errors, ...
-            raise SamnaUnavailableError(
-                f"importing samna failed ({err!r}); this is what the PyPI placeholder does when "
-                f"it cannot download the real library. {_REAL_SAMNA_HINT}"
-            ) from err
-    if getattr(module, "PYPI_SAMNA", False) or not hasattr(module, "device"):
-        raise SamnaUnavailableError(
-            f"the imported samna ({getattr(module, '__file__', module)!r}) is the PyPI "
-            f"placeholder or incomplete (no samna.device); {_REAL_SAMNA_HINT}"
-        )
-    return module
 
 
 @dataclass(frozen=True)
@@ -208,85 +124,6 @@ class SpeckParams:
             raise ValueError("latency_margin_us and join_timeout_s must be >= 0")
         if self.readout is not None:
             check_readout_for_chip(self.readout)
-
-
-def _chip_family(device_type_name: str) -> str:
-    """``"Speck2fModuleDevKit"`` → ``"speck2f"`` (the samna submodule name)."""
-    match = re.match(r"speck2[a-z]", device_type_name.lower())
-    if match is None:
-        raise RuntimeError(f"cannot tell the Speck chip family from {device_type_name!r}")
-    return match.group(0)
-
-
-def _sensor_size_from(config: Any, fallback: tuple[int, int]) -> tuple[SensorSize, str]:
-    """Sensor size from a fresh configuration's DVS region (inclusive ``origin``/``cut``)."""
-    dvs = config.dvs_layer
-    w = int(dvs.cut.x) - int(dvs.origin.x) + 1
-    h = int(dvs.cut.y) - int(dvs.origin.y) + 1
-    if 0 < w <= 4096 and 0 < h <= 4096:
-        return (w, h, 2), "configuration dvs_layer.origin/cut"
-    return (int(fallback[0]), int(fallback[1]), 2), "fallback (configuration gave no region)"
-
-
-def check_readout_for_chip(readout: ReadoutParams) -> None:
-    """ValueError (one line) when the chip cannot do what ``readout`` asks and the host
-    see it (see the module docstring)."""
-    if readout.dvs_layer.pooling != (1, 1):
-        raise ValueError(
-            f"readout.dvs_layer.pooling: {readout.dvs_layer.pooling} is not shown by the "
-            "chip's DVS monitor (sinabs warns so), which the rig reads; use (1, 1) here"
-        )
-    if readout.kill_pixels:
-        raise ValueError(
-            "readout.kill_pixels: the kill bits have no public samna field to write; leave "
-            "it empty on the rig"
-        )
-
-
-def write_readout_config(config: Any, readout: ReadoutParams) -> None:
-    """Write ``readout``'s samna fields (``dvs_layer.*``, ``dvs_filter.*``) to a samna
-    ``SpeckConfiguration``; ``cut`` None leaves the configuration's own."""
-    layer, filt = readout.dvs_layer, readout.dvs_filter
-    dvs = config.dvs_layer
-    dvs.pooling.x, dvs.pooling.y = layer.pooling
-    dvs.origin.x, dvs.origin.y = layer.origin
-    if layer.cut is not None:
-        dvs.cut.x, dvs.cut.y = layer.cut
-    dvs.mirror.x, dvs.mirror.y = layer.mirror
-    dvs.mirror_diagonal = layer.mirror_diagonal
-    dvs.merge = layer.merge
-    dvs.on_channel, dvs.off_channel = layer.on_channel, layer.off_channel
-    f = config.dvs_filter
-    f.enable = filt.enable
-    f.filter_size.x, f.filter_size.y = filt.filter_size
-    f.hot_pixel_filter_enable = filt.hot_pixel_filter_enable
-    f.low_pass_mode_enable = filt.low_pass_mode_enable
-    f.threshold = filt.threshold
-
-
-#: samna's layer number of the DVS layer's monitored events (sinabs play_with_speck_dvs).
-DVS_LAYER_ID = 13
-
-
-def monitor_dvs(config: Any, readout: ReadoutParams | None) -> None:
-    """Switch on the DVS layer's stream a :class:`SpeckSource` reads, leaving the cores as
-    they are: the raw pixel-array events (``DvsEvent``), or with a ``readout`` its samna
-    fields written and the pre-processed events (``Spike``, layer 13) instead."""
-    dvs = config.dvs_layer
-    if readout is not None:
-        write_readout_config(config, readout)
-    dvs.raw_monitor_enable = readout is None  # DvsEvent straight from the pixel array
-    dvs.monitor_enable = readout is not None  # pre-processed copies (Spike, layer 13)
-    dvs.pass_sensor_events = True  # keep the pixel array on (datasheet §3.2.3.8)
-
-
-def _silence_cores(config: Any) -> None:
-    """Feed no DYNAP-CNN core and monitor none: the network stays silent."""
-    dvs = config.dvs_layer
-    for i in range(len(dvs.destinations)):
-        dvs.destinations[i].enable = False
-    for i in range(len(config.cnn_layers)):
-        config.cnn_layers[i].monitor_enable = False
 
 
 class SpeckSource(EventSourceBase):
@@ -492,7 +329,7 @@ class SpeckSource(EventSourceBase):
 
     def _open(self, samna: ModuleType) -> None:
         info = self._select_device(samna)
-        family = _chip_family(info.device_type_name)
+        family = chip_family(info.device_type_name)
         chip = getattr(samna, family, None)
         if chip is None:
             raise RuntimeError(f"this samna has no samna.{family} for {info.device_type_name!r}")
@@ -502,14 +339,14 @@ class SpeckSource(EventSourceBase):
         config = self.prepared_config
         if config is None:
             config = chip.configuration.SpeckConfiguration()
-            _silence_cores(config)
+            silence_cores(config)
         elif not isinstance(config, chip.configuration.SpeckConfiguration):
             raise RuntimeError(
                 f"the prepared configuration is a {type(config).__module__}."
                 f"{type(config).__name__}, not samna.{family}'s SpeckConfiguration for "
                 f"{info.device_type_name!r}"
             )
-        self._sensor_size, self._sensor_size_from = _sensor_size_from(
+        self._sensor_size, self._sensor_size_from = sensor_size_from(
             config, self.params.sensor_size_fallback
         )
         readout = self.params.readout

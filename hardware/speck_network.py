@@ -16,7 +16,7 @@ the agent through the same interface as the simulated front end
 map, the grouping spikes summed over the window as the saliency, both on the sensor
 grid (each 64×64 output covers 2×2 pixels); the argmax stays on the host.
 
-samna is imported here only, lazily (:func:`hardware.speck.import_samna`): the
+samna is imported here only, lazily (:func:`hardware.samna_import.import_samna`): the
 ``sinabs.backend.dynapcnn`` package imports samna at module level, so it is imported
 inside :func:`deploy` after samna was found.
 """
@@ -34,7 +34,7 @@ import torch
 
 from agents.speck_front import FrontEndPipeline, SpeckFrontParams, build_front
 from agents.speck_limits import NetworkReport, SpeckLimitError, check_network
-from hardware.speck import import_samna
+from hardware.samna_import import import_samna
 
 __all__ = ["ChipPipeline", "Deployment", "deploy", "spike_counts"]
 
@@ -77,7 +77,7 @@ def _sinabs_memory_check(report: NetworkReport) -> None:
 def deploy(params: SpeckFrontParams | None = None, device: str = "speck2fmodule") -> Deployment:
     """The samna configuration of the front end for ``device`` (module docstring);
     :class:`SpeckLimitError` before samna is touched when the network does not fit,
-    :class:`hardware.speck.SamnaUnavailableError` when samna cannot be imported."""
+    :class:`hardware.samna_import.SamnaUnavailableError` when samna cannot be imported."""
     p = params if params is not None else SpeckFrontParams()
     model = build_front(p)
     shape = (2, p.height_px, p.width_px)

@@ -3,8 +3,10 @@
 The split follows dm_control composer (an entity builds its own MJCF; an arena composes
 entities; the task owns timing) in wander's own terms, without dm_control: an entity
 is a small frozen dataclass over its part of the :class:`~wander_env.scene_config.SceneConfig`
-whose :meth:`attach` writes its fragment into the one :class:`MJCFDocument` (the shared
-XML root, ``<asset>`` section, in-memory PNG assets and material/texture/geom helpers).
+whose :meth:`attach` writes its fragment into the one
+:class:`~wander_env.mjcf_document.MJCFDocument` (:mod:`wander_env.mjcf_document`: the
+shared XML root, ``<asset>`` section, in-memory PNG assets and material/texture/geom
+helpers).
 :class:`wander_env.mjcf.Arena` composes them in scene order; the env (the task) decides
 when things happen and asks a moving entity's runtime for its state at time t.
 
@@ -13,14 +15,15 @@ when things happen and asks a moving entity's runtime for its state at time t.
   at pan = tilt = 0 and its MuJoCo ``fovy``.
 - :class:`Lights`, :class:`Room`, :class:`Table`, :class:`Shelf`, :class:`StaticProp`:
   static fragments (a prop's mesh goes in as an in-memory ``<mesh>`` asset, centred on
-  its bounding box: :meth:`MJCFDocument.shape_geom`).
+  its bounding box: :meth:`~wander_env.mjcf_document.MJCFDocument.shape_geom`).
 - :class:`MJCFInclude`: an MJCF file's worldbody bodies, attached to the compiled
   scene's ``MjSpec`` (not to the XML) as static parts.
 - :class:`MovingProp`: mocap body ``object_k``; :meth:`MovingProp.motion` gives its
   runtime (:class:`PropMotion`: its trajectory and mocap id; writes its position at t).
 - :class:`GratingStimulus`: the self-luminous screen and the patch strips;
   :meth:`GratingStimulus.motion` gives its runtime (:class:`GratingMotion`: slides the
-  screen, recolours the strips).
+  screen, recolours the strips); the screen's geometry and state at t are pure maths in
+  :mod:`wander_env.grating_geometry`.
 
 Examples:
     >>> from wander_env.scenes import load_scene_config
@@ -38,15 +41,15 @@ from __future__ import annotations
 import math
 import re
 import xml.etree.ElementTree as ET
-from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Protocol
 
 import mujoco
 import numpy as np
 
 from wander_env.camera import CAMERA_NAME, vertical_fov_deg
+from wander_env.grating_geometry import GratingLayout, grating_layout, grating_state
+from wander_env.mjcf_document import MJCFDocument, fmt
 from wander_env.ptu.params import PTUParams
 from wander_env.scene_config import (
     CameraConfig,
@@ -56,7 +59,6 @@ from wander_env.scene_config import (
     RoomConfig,
 )
 from wander_env.scene_parts import (
-    MeshConfig,
     MJCFIncludeConfig,
     MovingObjectConfig,
     ShelfConfig,
@@ -64,13 +66,7 @@ from wander_env.scene_parts import (
     TableConfig,
     include_name,
 )
-from wander_env.textures import (
-    TextureSpec,
-    add_png_asset,
-    grating,
-    grating_profile,
-    make_texture,
-)
+from wander_env.textures import grating
 from wander_env.trajectories import (
     LinearBounceParams,
     RandomWalkParams,
@@ -90,11 +86,9 @@ __all__ = [
     "TILT_BODY",
     "TILT_JOINT",
     "Entity",
-    "GratingLayout",
     "GratingMotion",
     "GratingStimulus",
     "Lights",
-    "MJCFDocument",
     "MJCFInclude",
     "MovingProp",
     "PanTiltCamera",
@@ -103,9 +97,6 @@ __all__ = [
     "Shelf",
     "StaticProp",
     "Table",
-    "fmt",
-    "grating_layout",
-    "grating_state",
     "object_body_name",
     "object_index",
 ]
@@ -126,7 +117,7 @@ _GRATING_TEXELS = 64  # texels per background period
 
 
 # ----------------------------------------------------------------------------------------
-# Names and small maths
+# Names, and a trajectory's start
 
 
 def object_body_name(k: int) -> str:
@@ -142,37 +133,6 @@ def object_index(body_name: str) -> int:
     return int(m.group(1)) if m else 0
 
 
-def fmt(values: float | Iterable[float]) -> str:
-    """MJCF text for a number or a vector (6 significant digits).
-
-    >>> fmt(0.5), fmt((1, 2.0, 1 / 3))
-    ('0.5', '1 2 0.333333')
-    """
-    if isinstance(values, (int, float)):
-        values = (values,)
-    return " ".join(f"{float(v):.6g}" for v in values)
-
-
-def _half_size(shape: str, size: Sequence[float]) -> tuple[float, ...]:
-    """Full extents (config) -> MuJoCo size: box half-extents, sphere radius, cylinder r, h/2."""
-    if shape == "box":
-        return tuple(s / 2.0 for s in size)
-    if shape == "sphere":
-        return (size[0] / 2.0,)
-    return (size[0] / 2.0, size[1] / 2.0)
-
-
-def _texture_face(shape: str, size: Sequence[float]) -> tuple[float, float]:
-    """The face size (m) a texture's ``tile_m`` is measured against, per shape (a mesh:
-    its bounding box's extents, as a box)."""
-    if shape in ("box", "mesh"):
-        s = sorted(size, reverse=True)
-        return (s[0], s[1])
-    if shape == "sphere":
-        return (math.pi * size[0], math.pi * size[0] / 2.0)
-    return (math.pi * size[0], size[1])
-
-
 def _initial_position(params: object) -> tuple[float, float, float]:
     """A trajectory's position at t = 0 without randomness (random walks: start or centre)."""
     if isinstance(params, RandomWalkParams):
@@ -184,195 +144,6 @@ def _initial_position(params: object) -> tuple[float, float, float]:
         return params.start
     p = make_trajectory(params).position(0.0)  # type: ignore[arg-type]
     return (float(p[0]), float(p[1]), float(p[2]))
-
-
-# ----------------------------------------------------------------------------------------
-# Grating geometry (pure)
-
-
-@dataclass(frozen=True)
-class GratingLayout:
-    """Metric layout of the gratings screen for a :class:`GratingConfig` and camera."""
-
-    center: tuple[float, float, float]
-    background_period_m: float
-    background_periods: int  # even: the plane's centre is at phase 0
-    screen_half_height_m: float
-    object_period_m: float
-    object_side_m: float
-    strip_offsets_m: tuple[float, ...]  # strip centres, image-right from the centre
-
-    @property
-    def screen_half_width_m(self) -> float:
-        """Half the background plane's width (m)."""
-        return self.background_periods * self.background_period_m / 2.0
-
-
-def grating_layout(
-    g: GratingConfig, camera_position: Sequence[float], hfov_deg: float, vfov_deg: float
-) -> GratingLayout:
-    """Place the screen ``distance_m`` ahead of the camera (at pan = tilt = 0)."""
-    d = g.distance_m
-    mpd = g.metres_per_deg
-    p_b = 1.0 / g.background_cycles_per_deg * mpd
-    p_o = 1.0 / g.object_cycles_per_deg * mpd
-    half_w = d * math.tan(math.radians(min(hfov_deg / 2.0 + g.margin_deg, 85.0)))
-    half_h = d * math.tan(math.radians(min(vfov_deg / 2.0 + g.margin_deg, 85.0)))
-    periods = 2 * math.ceil((half_w + p_b) / p_b)
-    side = g.object_size_deg * mpd
-    n = g.object_strips
-    offsets = tuple(-side / 2.0 + (i + 0.5) * side / n for i in range(n))
-    cx, cy, cz = camera_position
-    return GratingLayout(
-        center=(cx + d, cy, cz),
-        background_period_m=p_b,
-        background_periods=periods,
-        screen_half_height_m=half_h,
-        object_period_m=p_o,
-        object_side_m=side,
-        strip_offsets_m=offsets,
-    )
-
-
-def grating_state(g: GratingConfig, layout: GratingLayout, t: float) -> tuple[float, np.ndarray]:
-    """(background slide in m, image-right; strip intensities in [0, 1]) at time t.
-
-    The background shows phase (x - v_b t) / P_b at image-right offset x; the strips
-    show (x - v_o t) / P_o, or the background's phase in ``eye-only`` mode.
-    """
-    v_b, v_o = (v * g.metres_per_deg for v in g.effective_speeds_deg_s())
-    p_b, p_o = layout.background_period_m, layout.object_period_m
-    slide = math.fmod(v_b * t, p_b)
-    x = np.asarray(layout.strip_offsets_m)
-    if g.mode == "eye-only":
-        phase = (x - slide) / p_b
-    else:
-        phase = (x - math.fmod(v_o * t, p_o)) / p_o
-    return slide, grating_profile(phase, g.profile, g.contrast, g.mean)
-
-
-# ----------------------------------------------------------------------------------------
-# The document entities attach into
-
-
-class MJCFDocument:
-    """One MJCF document under construction: the ``<mujoco>`` root, its ``<asset>``
-    section with the in-memory assets, and the helpers every entity attaches through
-    (materials are numbered ``mat_1``, ``mat_2``, ... in the order they are made)."""
-
-    def __init__(self, model_name: str) -> None:
-        self.root = ET.Element("mujoco")
-        self.root.set("model", model_name)
-        self.asset = ET.SubElement(self.root, "asset")
-        self.assets: dict[str, bytes] = {}
-        self._world: ET.Element | None = None
-        self._n_materials = 0
-        self._n_meshes = 0
-
-    def open_world(self) -> ET.Element:
-        """Append the ``<worldbody>`` (after the header sections) and return it."""
-        if self._world is not None:
-            raise RuntimeError("the worldbody is already open")
-        self._world = ET.SubElement(self.root, "worldbody")
-        return self._world
-
-    @property
-    def world(self) -> ET.Element:
-        """The ``<worldbody>`` (see :meth:`open_world`)."""
-        if self._world is None:
-            raise RuntimeError("open_world() first: the header sections come before it")
-        return self._world
-
-    def element(self, parent: ET.Element, tag: str, **attrs: object) -> ET.Element:
-        """A child element; numbers and vectors are formatted with :func:`fmt`."""
-        return ET.SubElement(
-            parent, tag, **{k: v if isinstance(v, str) else fmt(v) for k, v in attrs.items()}
-        )
-
-    def geom(self, parent: ET.Element, **attrs: object) -> ET.Element:
-        """A geom with formatted attributes."""
-        return self.element(parent, "geom", **attrs)
-
-    def png_texture(self, name: str, image: np.ndarray, ttype: str = "2d") -> None:
-        """An in-memory PNG asset and the ``<texture>`` that names it."""
-        file = add_png_asset(self.assets, name, image)
-        ET.SubElement(self.asset, "texture", name=name, type=ttype, file=file)
-
-    def mesh(self, mesh: MeshConfig) -> tuple[str, np.ndarray, np.ndarray]:
-        """A ``<mesh>`` asset of ``mesh`` (its file's bytes in memory, ``mesh_N.EXT``):
-        (its name, the (min, max) corners (m) of its scaled bounding box in its frame)."""
-        self._n_meshes += 1
-        name = f"mesh_{self._n_meshes}"
-        path = Path(mesh.file)
-        file = f"{name}{path.suffix.lower()}"
-        self.assets[file] = mesh.data
-        lo, hi = mesh.bounds()
-        # "shell" inertia: MuJoCo then also takes open and flat meshes (nothing here has mass)
-        self.element(
-            self.asset, "mesh", name=name, file=file, scale=mesh.scale_xyz, inertia="shell"
-        )
-        return name, lo, hi
-
-    def shape_geom(
-        self,
-        parent: ET.Element,
-        shape: str,
-        size: Sequence[float],
-        mesh: MeshConfig | None,
-        rgba: Sequence[float],
-        texture: TextureSpec | None,
-        **attrs: object,
-    ) -> ET.Element:
-        """A prop's geom and its material: a box, sphere or cylinder of full extents
-        ``size``, or ``mesh`` with its bounding box's centre at the geom's ``pos``
-        (default the parent's origin), turned by ``euler`` (rad, when given)."""
-        if mesh is None:
-            mat = self.material(rgba, texture, _texture_face(shape, size), cube=shape != "box")
-            return self.geom(
-                parent, type=shape, size=_half_size(shape, size), material=mat, **attrs
-            )
-        name, lo, hi = self.mesh(mesh)
-        mat = self.material(rgba, texture, _texture_face("mesh", hi - lo), cube=True)
-        centre = (lo + hi) / 2.0
-        quat = np.array([1.0, 0.0, 0.0, 0.0])
-        if "euler" in attrs:
-            mujoco.mju_euler2Quat(quat, np.asarray(attrs["euler"], float), "xyz")
-        rot = np.zeros(9)
-        mujoco.mju_quat2Mat(rot, quat)
-        pos = np.asarray(attrs.pop("pos", (0.0, 0.0, 0.0)), float) - rot.reshape(3, 3) @ centre
-        return self.geom(parent, type="mesh", mesh=name, pos=pos, material=mat, **attrs)
-
-    def material(
-        self,
-        rgba: Sequence[float],
-        texture: TextureSpec | None = None,
-        face: tuple[float, float] = (1.0, 1.0),
-        cube: bool = False,
-        emission: float = 0.0,
-    ) -> str:
-        """A new matte material (optionally textured); returns its name."""
-        self._n_materials += 1
-        name = f"mat_{self._n_materials}"
-        attrs = {
-            "name": name,
-            "rgba": fmt(rgba),
-            "specular": "0.05",
-            "shininess": "0.1",
-            "reflectance": "0",
-            "emission": fmt(emission),
-        }
-        if texture is not None:
-            tex = f"tex_{self._n_materials}"
-            self.png_texture(tex, make_texture(texture), "cube" if cube else "2d")
-            attrs["texture"] = tex
-            attrs["texrepeat"] = fmt(texture.texrepeat(face))
-        ET.SubElement(self.asset, "material", **attrs)
-        return name
-
-    def text(self) -> str:
-        """The document as indented XML text."""
-        ET.indent(self.root)
-        return ET.tostring(self.root, encoding="unicode")
 
 
 class Entity(Protocol):

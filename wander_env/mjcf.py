@@ -48,9 +48,11 @@ What the model holds (and which entity writes it):
   as single quads, coarser sphere/cylinder tessellation, multisampling from
   ``config.camera.antialias_samples``.
 
-The names and the grating geometry (:data:`~wander_env.entities.CAMERA_NAME`,
-:func:`~wander_env.entities.object_body_name`, :func:`~wander_env.entities.grating_layout`,
-...) live in :mod:`wander_env.entities`, with the parts they name.
+The names (:data:`~wander_env.entities.PAN_JOINT`,
+:func:`~wander_env.entities.object_body_name`, ...) live in :mod:`wander_env.entities`,
+with the parts they name; the document the parts write into in
+:mod:`wander_env.mjcf_document`, the gratings screen's geometry in
+:mod:`wander_env.grating_geometry`.
 
 Examples:
     >>> from wander_env.scenes import load_scene_config
@@ -82,7 +84,6 @@ from wander_env.entities import (
     GratingMotion,
     GratingStimulus,
     Lights,
-    MJCFDocument,
     MJCFInclude,
     MovingProp,
     PanTiltCamera,
@@ -93,6 +94,7 @@ from wander_env.entities import (
     Table,
     object_index,
 )
+from wander_env.mjcf_document import MJCFDocument
 from wander_env.ptu.params import PTUParams
 from wander_env.scene_config import SceneConfig
 from wander_env.trajectories import Trajectory

@@ -60,7 +60,7 @@ Names: the fields of ``dvs_layer`` and ``dvs_filter`` are samna's
 ``on_channel``, ``off_channel``, ``enable``, ``filter_size``, ``hot_pixel_filter_enable``,
 ``low_pass_mode_enable``, ``threshold``; pairs are samna's ``.x``/``.y`` as ``(x, y)``),
 so one YAML block configures the simulated readout and the chip (``wander rig`` writes
-them, :func:`hardware.speck.write_readout_config`). The rest are ours: ``kill_pixels``
+them, :func:`hardware.speck_config.write_readout_config`). The rest are ours: ``kill_pixels``
 (the per-pixel kill bits; no public samna name), ``slow_clk_rate_hz`` (samna sets it on
 the dev kit's IO module, ``set_slow_clk_rate``), ``throughput_eps``, ``queue_depth``,
 ``batch_interval_us`` and ``latency_us`` (not configurable on the chip).

@@ -3,7 +3,7 @@
 Writes, as the run goes, ``events.h5`` (all events, config and seed in its metadata;
 ``--format aedat4`` / ``evt3`` convert it to ``events.aedat4`` / ``events.raw`` at the
 end, ``evimo2`` to the EVIMO2v2 ``dataset_*`` files of
-:func:`wander_env.events.formats.write_evimo2_sequence`),
+:func:`wander_env.events.evimo2.write_evimo2_sequence`),
 ``ground_truth.h5`` (per step: time, gaze, PTU positions, object-id mask, each
 moving object's pixel centre, mask size and visibility), ``video.mp4`` (camera |
 events, with the fovea marked) and ``run.json``.
@@ -43,7 +43,7 @@ from experiments.studies.framework import MAX_SEED
 from wander_env.camera import focal_length_px
 from wander_env.config import check_annotated
 from wander_env.env_config import WanderConfig
-from wander_env.events.formats import write_evimo2_sequence
+from wander_env.events.evimo2 import write_evimo2_sequence
 from wander_env.events.io import read_events, write_events
 
 # --format: the events file (events.h5 / .aedat4 / .raw) beside ground_truth.h5, or the

@@ -296,7 +296,7 @@ def run_rig(
     front = front_end(config)
     deployment = None
     if front == "chip":
-        from hardware.speck import SamnaUnavailableError
+        from hardware.samna_import import SamnaUnavailableError
         from hardware.speck_network import deploy
 
         try:  # before the device is opened: a network that does not fit is refused here

@@ -35,6 +35,11 @@ bootstrap intervals over trials) beside the paper's table.
 ``hand_ratio`` (for the speed-ratio curve, :mod:`experiments.paper.speed_ratio`) rescales
 the hand's speed so that its image speed is that many times the shake's
 (:func:`image_speeds`); ``phases`` picks which phases become rows.
+
+The protocol's pure pieces (the phases, :class:`Shake`, the clocks) are in
+:mod:`experiments.paper.event_suppression_protocol`; the scorer of a row and of a trial
+(:func:`score`, :func:`hand_hit`, :func:`trial_figures`) in
+:mod:`experiments.paper.event_suppression_scoring`.
 """
 
 from __future__ import annotations
@@ -43,20 +48,33 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Literal, Protocol
+from typing import Any, Literal
 
 import numpy as np
-import torch
-from scipy.ndimage import binary_dilation, gaussian_filter
 
 import wander_env  # noqa: F401  (registers the environments)
-from agents.proto_object import saliency_argmax
-from agents.soms import SOMS, SOMSParams
-from agents.speck_front import SpeckFront, SpeckFrontParams
-from experiments.analysis.metrics import detection_hit
+from agents.soms import SOMSParams
+from agents.speck_front import SpeckFrontParams
 from experiments.analysis.stats import mean_ci, wilson_interval
 from experiments.benchmark.suppression import PAPER_SUPPRESSION
 from experiments.paper.env_block import check_env_block, trial_env
+from experiments.paper.event_suppression_protocol import (
+    HAND_PHASES,
+    PHASES,
+    SHAKE_PHASES,
+    ClockedTrajectory,
+    PhaseClock,
+    Segment,
+    Shake,
+    recording,
+    shake_start,
+)
+from experiments.paper.event_suppression_scoring import (
+    map_model,
+    pooled_mean_std,
+    score,
+    trial_figures,
+)
 from experiments.studies.framework import (
     Comparison,
     Experiment,
@@ -74,34 +92,15 @@ from wander_env.viz import save_figure
 
 __all__ = [
     "EXPERIMENT",
-    "HAND_PHASES",
-    "PHASES",
-    "SHAKE_PHASES",
-    "ClockedTrajectory",
     "EventSuppressionConfig",
-    "PhaseClock",
     "Recording",
-    "Segment",
-    "Shake",
-    "hand_hit",
     "image_speeds",
-    "map_model",
     "phase_row",
-    "pooled_mean_std",
     "record",
-    "recording",
     "schedule",
-    "score",
     "soms_preset",
-    "swept",
-    "trial_figures",
 ]
 
-#: The phases of a trial (the paper's "shaking ... moving a hand ... pauses").
-PHASES: tuple[str, ...] = ("shake", "hand", "both", "pause")
-#: Phases in which the camera shakes / the hand waves.
-SHAKE_PHASES: frozenset[str] = frozenset({"shake", "both"})
-HAND_PHASES: frozenset[str] = frozenset({"hand", "both"})
 
 #: The named sOMS blocks of ``soms=...``: the paper's table, the agent's default, or the
 #: front end on Speck's cores.
@@ -130,52 +129,6 @@ def soms_preset(name: str, dt: float = 0.02) -> FrontBlock:
     if name == "speck":
         return SpeckFrontParams(dt=dt)
     raise ValueError(f"soms must be a parameter block or 'table', 'agent' or 'speck', got {name!r}")
-
-
-def map_model(block: FrontBlock, height: int, width: int) -> MapModel:
-    """What :func:`score` steps for ``block``: the sOMS, or the Speck front end built for
-    an ``height`` × ``width`` sensor."""
-    if isinstance(block, SpeckFrontParams):
-        return SpeckFront(replace(block, height_px=height, width_px=width))
-    return SOMS(block)
-
-
-@dataclass(frozen=True)
-class Shake:
-    """The camera's slight shake: the gaze circles ``amplitude_deg`` (radius) about its
-    home at ``speed_deg_s`` (so ``speed_deg_s / (2π · amplitude_deg)`` turns a second).
-
-    >>> s = Shake(amplitude_deg=1.0, speed_deg_s=2 * math.pi * 3.0)
-    >>> round(s.hz, 6), [round(a, 6) for a in s.angles(0.0, 0.0, 1)]
-    (3.0, [0.0, 0.0])
-    >>> [round(a, 6) for a in s.angles(1 / 12, 0.0, 1)]   # a quarter turn
-    [-1.0, 1.0]
-    """
-
-    amplitude_deg: float = 1.0
-    speed_deg_s: float = 18.85
-
-    def __post_init__(self) -> None:
-        for name in ("amplitude_deg", "speed_deg_s"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"shake.{name} must be > 0, got {v!r}")
-
-    @property
-    def hz(self) -> float:
-        """Turns per second."""
-        return self.speed_deg_s / (2.0 * math.pi * self.amplitude_deg)
-
-    def angles(self, clock_s: float, start_rad: float, sense: int) -> tuple[float, float]:
-        """(pan, tilt) in degrees at ``clock_s`` of shaking: on the circle through home
-        (0, 0) whose point at clock 0 is home, started at angle ``start_rad``, turning
-        counter-clockwise (``sense`` 1) or clockwise (−1)."""
-        a = self.amplitude_deg
-        theta = start_rad + sense * 2.0 * math.pi * self.hz * clock_s
-        return (
-            a * (math.cos(theta) - math.cos(start_rad)),
-            a * (math.sin(theta) - math.sin(start_rad)),
-        )
 
 
 #: The env fields each trial sets (what sets them): the block leaves them at defaults.
@@ -289,7 +242,7 @@ class EventSuppressionConfig:
 
 
 # ----------------------------------------------------------------------------------------
-# The protocol: speeds, the schedule, the clocks (pure)
+# The speeds and the schedule (pure)
 
 
 def image_speeds(
@@ -315,14 +268,6 @@ def image_speeds(
     return hand, f * math.radians(shake.speed_deg_s)
 
 
-@dataclass(frozen=True)
-class Segment:
-    """One phase of a trial and its length (s)."""
-
-    phase: str
-    length_s: float
-
-
 def schedule(cfg: EventSuppressionConfig, seed: int) -> tuple[Segment, ...]:
     """The trial's phases: :data:`PHASES` in an order drawn from ``seed``, each of a length
     drawn uniformly from its range and rounded to whole sOMS steps (at least one).
@@ -339,221 +284,6 @@ def schedule(cfg: EventSuppressionConfig, seed: int) -> tuple[Segment, ...]:
         n = max(1, round(rng.uniform(lo, hi) / step))
         out.append(Segment(PHASES[i], round(n * step, 9)))
     return tuple(out)
-
-
-def shake_start(seed: int) -> tuple[float, int]:
-    """The shake's start angle (rad) and sense (±1) of a trial, drawn from ``seed``."""
-    rng = np.random.default_rng([seed, 26])
-    return float(rng.uniform(0.0, 2.0 * math.pi)), int(rng.choice((-1, 1)))
-
-
-class PhaseClock:
-    """A clock that runs only in some phases: ``clock(t)`` for a recording made of
-    ``segments`` (from env time 0), starting at ``start_s``.
-
-    >>> c = PhaseClock((Segment("pause", 0.1), Segment("hand", 0.5)), {"hand"}, 2.0)
-    >>> c(0.05), c(0.3), c(0.9)   # the last phase runs on past its end
-    (2.0, 2.2, 2.8)
-    """
-
-    def __init__(
-        self, segments: Sequence[Segment], running: frozenset[str] | set[str], start_s: float
-    ) -> None:
-        self.segments, self.running, self.start_s = tuple(segments), frozenset(running), start_s
-
-    def __call__(self, t: float) -> float:
-        c, t0 = self.start_s, 0.0
-        for i, seg in enumerate(self.segments):
-            last = i == len(self.segments) - 1
-            span = t - t0 if last else min(max(t - t0, 0.0), seg.length_s)
-            if seg.phase in self.running:
-                c += max(span, 0.0)
-            t0 += seg.length_s
-            if t < t0:
-                break
-        return c
-
-
-def recording(
-    sched: Sequence[Segment], phase: str, lead_s: float
-) -> tuple[tuple[Segment, ...], float, float]:
-    """What the row of ``phase`` records: the last ``lead_s`` of the phase before it (a
-    pause before the first) then ``phase``; and the shake's and the hand's clocks at the
-    recording's start (their running time in the trial before it).
-
-    >>> sched = (Segment("hand", 0.5), Segment("shake", 0.4), Segment("both", 0.6))
-    >>> recording(sched, "both", 0.1)
-    ((Segment(phase='shake', length_s=0.1), Segment(phase='both', length_s=0.6)), 0.3, 0.5)
-    """
-    i = [s.phase for s in sched].index(phase)
-    prev = sched[i - 1].phase if i > 0 else "pause"
-    before = sched[:i]
-    segs = (Segment(prev, lead_s), sched[i])
-    shake0 = sum(s.length_s for s in before if s.phase in SHAKE_PHASES)
-    hand0 = sum(s.length_s for s in before if s.phase in HAND_PHASES)
-    if prev in SHAKE_PHASES:
-        shake0 -= lead_s
-    if prev in HAND_PHASES:
-        hand0 -= lead_s
-    return segs, round(shake0, 9), round(hand0, 9)
-
-
-class ClockedTrajectory:
-    """A trajectory run on a :class:`PhaseClock`, ``scale`` times as fast."""
-
-    def __init__(self, inner: Any, clock: PhaseClock, scale: float = 1.0) -> None:
-        self.inner, self.clock, self.scale = inner, clock, scale
-
-    def position(self, t: float) -> np.ndarray:
-        return self.inner.position(self.scale * self.clock(t))
-
-
-def pooled_mean_std(means: np.ndarray, stds: np.ndarray, sizes: np.ndarray) -> tuple[float, float]:
-    """Mean and (population) std of the union of groups from their sizes, means and
-    population stds.
-
-    >>> pooled_mean_std(np.array([1.0, 3.0]), np.array([0.0, 0.0]), np.array([1, 3]))
-    (2.5, 0.8660254037844386)
-    """
-    m, s, n = (np.asarray(a, float) for a in (means, stds, sizes))
-    mean = float(np.sum(n * m) / n.sum())
-    var = float(np.sum(n * (s**2 + m**2)) / n.sum()) - mean**2
-    return mean, math.sqrt(max(var, 0.0))
-
-
-# ----------------------------------------------------------------------------------------
-# Scoring (pure)
-
-
-def oms_point(oms: np.ndarray, sigma_px: float) -> tuple[int, int] | None:
-    """The OMS map's densest point ``(x, y)``: the argmax of its both-polarity sum
-    smoothed by a Gaussian of ``sigma_px`` (zero outside the sensor); None when empty.
-
-    >>> m = np.zeros((2, 16, 16), bool); m[1, 4:7, 9:12] = True; m[0, 14, 1] = True
-    >>> oms_point(m, 2.0)
-    (10, 5)
-    """
-    dens = gaussian_filter(np.asarray(oms, np.float32).sum(axis=0), sigma_px, mode="constant")
-    return saliency_argmax(torch.from_numpy(dens))
-
-
-def hand_hit(oms: np.ndarray, hand: np.ndarray, sigma_px: float, box: int = 8) -> bool:
-    """The scorer of the hand claim for one sOMS step: the ``box``×``box`` square around
-    the OMS map's densest point (:func:`oms_point`) touches the hand's mask
-    (:func:`experiments.analysis.metrics.detection_hit`); an empty map is a miss (the hand's events
-    did not survive).
-
-    >>> m = np.zeros((2, 32, 32), bool); m[1, 20:24, 20:24] = True   # kept events
-    >>> oms_point(m, 2.0)                         # box: x and y in [17, 24]
-    (21, 21)
-    >>> hand = np.zeros((32, 32), bool); hand[24:29, 24:29] = True
-    >>> hand_hit(m, hand, 2.0), hand_hit(m, np.roll(hand, 1, axis=1), 2.0)
-    (True, False)
-    >>> hand_hit(np.zeros((2, 32, 32), bool), hand, 2.0)   # nothing kept: a miss
-    False
-    """
-    point = oms_point(oms, sigma_px)
-    return point is not None and detection_hit(point, hand, box)
-
-
-def swept(masks: np.ndarray, margin_px: int = 0) -> np.ndarray:
-    """Per window, the pixels the hand covered during it: its mask at the window's end
-    or at the one before's (the first window: its own), grown by ``margin_px`` (a
-    square neighbourhood).
-
-    >>> m = np.zeros((3, 1, 5), bool); m[0, 0, 0] = m[1, 0, 1] = m[2, 0, 2] = True
-    >>> swept(m)[:, 0].astype(int).tolist()
-    [[1, 0, 0, 0, 0], [1, 1, 0, 0, 0], [0, 1, 1, 0, 0]]
-    >>> swept(m, 1)[2, 0].astype(int).tolist()
-    [1, 1, 1, 1, 0]
-    """
-    out = masks.copy()
-    out[1:] |= masks[:-1]
-    if margin_px:
-        grow = np.ones((1, 3, 3), bool)
-        out = binary_dilation(out, grow, iterations=margin_px)
-    return out
-
-
-class MapModel(Protocol):
-    """What :func:`score` steps: :class:`agents.soms.SOMS` (``step(counts).oms``)."""
-
-    def step(self, event_map: np.ndarray) -> Any: ...
-
-
-def score(
-    counts: np.ndarray,
-    masks: np.ndarray,
-    model: MapModel,
-    per_step: int,
-    lead_steps: int,
-    hand_moves: bool,
-    sigma_px: float,
-    margin_px: int = 0,
-) -> dict[str, Any]:
-    """One row's figures from its windows: ``counts`` (n, 2, H, W) events per window,
-    ``masks`` (n, H, W) the hand's pixels at each window's end; the sOMS ``model`` steps
-    on each ``per_step`` windows' sum, the first ``lead_steps`` steps only warm it up.
-    A window's hand events are those on the pixels the hand covered during it (its mask
-    at the window's start or end) and ``margin_px`` around (:func:`swept`).
-    ``hand_moves``: score the hand hit (steps with the hand in view) on the masks
-    themselves."""
-    n = counts.shape[0]
-    if n % per_step:
-        raise ValueError(f"{n} windows are not whole sOMS steps of {per_step}")
-    region = swept(masks, margin_px)
-    ins, outs = [], []
-    obj_in = obj_out = bg_in = bg_out = hits = steps = 0
-    for k in range(n // per_step):
-        win = slice(k * per_step, (k + 1) * per_step)
-        c = counts[win].astype(np.float32)
-        oms = np.asarray(model.step(c.sum(axis=0)).oms) > 0
-        if k < lead_steps:
-            continue
-        kept = c * oms
-        mask = region[win]
-        ins.extend(c.sum(axis=(1, 2, 3)).tolist())
-        outs.extend(kept.sum(axis=(1, 2, 3)).tolist())
-        hand_c = c * mask[:, None]
-        hand_k = kept * mask[:, None]
-        obj_in += int(hand_c.sum())
-        obj_out += int(hand_k.sum())
-        bg_in += int(c.sum() - hand_c.sum())
-        bg_out += int(kept.sum() - hand_k.sum())
-        hand = masks[win].any(axis=0)  # the hit: the box touches the hand itself
-        if hand_moves and hand.any():
-            steps += 1
-            hits += hand_hit(oms, hand, sigma_px)
-    i, o = np.asarray(ins, np.int64), np.asarray(outs, np.int64)
-    total_in, total_out = int(i.sum()), int(o.sum())
-    lo, hi = wilson_interval(hits, steps)
-
-    def pct(a: int, b: int) -> float:
-        return 100.0 * a / b if b else math.nan
-
-    return {
-        "windows": len(i),
-        "events_in_mean": float(i.mean()),
-        "events_in_std": float(i.std()),
-        "events_out_mean": float(o.mean()),
-        "events_out_std": float(o.std()),
-        "events_in": total_in,
-        "events_out": total_out,
-        "suppressed_pct": 100.0 - pct(total_out, total_in),
-        "object_events_in": obj_in,
-        "object_events_out": obj_out,
-        "object_kept_pct": pct(obj_out, obj_in),
-        "background_events_in": bg_in,
-        "background_events_out": bg_out,
-        "background_kept_pct": pct(bg_out, bg_in),
-        "hit_steps": steps,
-        "hand_hits": hits,
-        "hand_hit_pct": pct(hits, steps),
-        "hand_hit_ci_low": 100.0 * lo,
-        "hand_hit_ci_high": 100.0 * hi,
-        "_events_in": i,
-        "_events_out": o,
-    }
 
 
 # ----------------------------------------------------------------------------------------
@@ -661,45 +391,10 @@ def grid(cfg: EventSuppressionConfig) -> list[dict[str, Any]]:
 
 
 # ----------------------------------------------------------------------------------------
-# Summary and plot
+# The table and the figure
 
 #: The bars of issue 25 for the agent's sOMS on the default scene.
 HIT_BAR, SUPPRESSED_BAR, SHAKE_BAR, HAND_KEPT_BAR = 90.0, 75.0, 90.0, 50.0
-
-
-def trial_figures(rows: Sequence[Row]) -> dict[int, dict[str, float]]:
-    """Per trial (seed), from its phase rows: ``suppressed`` (% over the trial), ``hit``
-    (% of the scored steps of the hand-moving phases), ``hand_kept`` and
-    ``background_kept`` (% over the hand-moving phases), ``shake_suppressed`` (%).
-
-    >>> rows = [
-    ...     {"seed": 0, "phase": "shake", "events_in": 100, "events_out": 5, "hit_steps": 0,
-    ...      "hand_hits": 0, "object_events_in": 0, "object_events_out": 0,
-    ...      "background_events_in": 100, "background_events_out": 5},
-    ...     {"seed": 0, "phase": "hand", "events_in": 100, "events_out": 55, "hit_steps": 10,
-    ...      "hand_hits": 9, "object_events_in": 80, "object_events_out": 50,
-    ...      "background_events_in": 20, "background_events_out": 5}]
-    >>> list(trial_figures(rows)[0].values())  # suppressed, hit, hand, background, shake
-    [70.0, 90.0, 62.5, 25.0, 95.0]
-    """
-    out: dict[int, dict[str, float]] = {}
-    for seed in dict.fromkeys(int(r["seed"]) for r in rows):
-        mine = [r for r in rows if int(r["seed"]) == seed]
-        moving = [r for r in mine if r["phase"] in HAND_PHASES]
-        shake = [r for r in mine if r["phase"] == "shake"]
-
-        def pct(part: Sequence[Row], num: str, den: str) -> float:
-            d = sum(int(r[den]) for r in part)
-            return 100.0 * sum(int(r[num]) for r in part) / d if d else math.nan
-
-        out[seed] = {
-            "suppressed": 100.0 - pct(mine, "events_out", "events_in"),
-            "hit": pct(moving, "hand_hits", "hit_steps"),
-            "hand_kept": pct(moving, "object_events_out", "object_events_in"),
-            "background_kept": pct(moving, "background_events_out", "background_events_in"),
-            "shake_suppressed": 100.0 - pct(shake, "events_out", "events_in"),
-        }
-    return out
 
 
 def _ci(values: Sequence[float], unit: str = " %") -> str:

@@ -215,14 +215,13 @@ def _hand_row(cfg: OMSScorecardConfig, seed: int) -> dict[str, Any]:
     """The hand protocol (:mod:`experiments.paper.event_suppression`, its default config):
     every phase of every trial recorded once, scored by both variants."""
     from experiments.paper.event_suppression import (
-        HAND_PHASES,
-        PHASES,
         EventSuppressionConfig,
         phase_row,
         record,
         soms_preset,
-        trial_figures,
     )
+    from experiments.paper.event_suppression_protocol import HAND_PHASES, PHASES
+    from experiments.paper.event_suppression_scoring import trial_figures
 
     hc = EventSuppressionConfig(repeats=cfg.hand_repeats)
     rows: dict[str, list[dict[str, Any]]] = {cfg.compare: [], "agent": []}

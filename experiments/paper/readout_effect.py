@@ -7,7 +7,7 @@ The cases (:data:`CASES`), each an episode of the env with ``dvs="speck"``:
 
 - ``hand``: the hand trials' "both" phase: the hand scene (the event-suppression trials'
   hand waved at 2 Hz) with the camera's slight shake of those trials
-  (:class:`~experiments.paper.event_suppression.Shake`'s defaults: a 1° circle at
+  (:class:`~experiments.paper.event_suppression_protocol.Shake`'s defaults: a 1° circle at
   18.85°/s about the start gaze);
 - ``gratings_saccade``: the gratings scene, a 10° pan saccade at ``saccade_step``;
 - ``office_saccade``: the office scene, a 20° pan saccade at ``saccade_step``.
@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from experiments.analysis.stats import ci_text, mean_ci
-from experiments.paper.event_suppression import Shake
+from experiments.paper.event_suppression_protocol import Shake
 from wander_env.readout import LOST
 
 __all__ = [

@@ -315,7 +315,8 @@ def _ratio_sweeps(root: Path) -> list[tuple[Path, list[dict[str, Any]]]]:
 def ratio_section(root: Path, figures: Path) -> list[str]:
     """Each speed-ratio sweep's table (hit, suppression, background kept; the crossing
     ratios) and its figure, drawn into ``figures``."""
-    from experiments.paper.event_suppression import Shake, image_speeds
+    from experiments.paper.event_suppression import image_speeds
+    from experiments.paper.event_suppression_protocol import Shake
     from experiments.paper.speed_ratio import plot, table
     from wander_env.scenes import load_scene_config
 

@@ -30,10 +30,11 @@ moves). Per trial:
   whose ``box``×``box`` square (the paper's detection box) sees an object; in scenes with
   moving objects the run's detection accuracy (the box touches a moving object's mask)
   too;
-- the areas of interest: per decision the scene object under the fovea (ray cast), per
-  fixation its most frequent one (``aois_json``; ``-`` = none), their stationary and
-  transition entropy; objects are named as in the scene file (static and moving alike,
-  e.g. ``mug``, ``cube``, ``beach_ball``); the fixation table itself rides in the row
+- the areas of interest: per decision the scene object under the fovea (ray cast by
+  :class:`~experiments.paper.scanpath_recorder.ScanpathRecorder`), per fixation its most
+  frequent one (``aois_json``; ``-`` = none), their stationary and transition entropy;
+  objects are named as in the scene file (static and moving alike, e.g. ``mug``,
+  ``cube``, ``beach_ball``); the fixation table itself rides in the row
   (``scanpath_json``);
 - over the repeats (``repeats`` = 10 seeds, paired across conditions):
   :mod:`experiments.paper.scanpath_analysis` — bootstrap 95 % intervals per cell, the
@@ -50,7 +51,6 @@ from __future__ import annotations
 
 import json
 import math
-from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -70,7 +70,7 @@ from experiments.jobs.scanpath_figure import (
     show_mosaic,
 )
 from experiments.paper.env_block import check_env_block, trial_env
-from experiments.runs.episode import Recorder
+from experiments.paper.scanpath_recorder import ScanpathRecorder
 from experiments.studies.framework import (
     Comparison,
     Experiment,
@@ -82,19 +82,15 @@ from experiments.studies.framework import (
     TrialSpec,
     load_artifacts,
 )
-from wander_env.camera import SPECK_HFOV_DEG, cast_pixel, focal_length_px, pixel_to_world_angles
-from wander_env.entities import object_body_name
+from wander_env.camera import SPECK_HFOV_DEG, focal_length_px, pixel_to_world_angles
 from wander_env.env_config import SceneName, WanderConfig
-from wander_env.scene_config import SceneConfig
 from wander_env.viz import save_figure
 
 __all__ = [
     "EXPERIMENT",
     "ScanpathConfig",
-    "ScanpathRecorder",
     "agent_params",
     "merge_windows",
-    "object_names",
 ]
 
 Condition = Literal["saccades", "fixational"]
@@ -185,70 +181,7 @@ def _export_name(row: Row) -> str:
 
 
 # ----------------------------------------------------------------------------------------
-# The agent, watched
-
-
-def object_names(scene: SceneConfig) -> dict[str, str]:
-    """The scene's objects by their geom's name in the model -> their name in the scene
-    file (a moving object's geom is ``object_k``; an object the file leaves unnamed keeps
-    its geom's name).
-
-    >>> from wander_env.scenes import load_scene_config
-    >>> names = object_names(load_scene_config("office"))
-    >>> names["object_1"], names["object_2"], names["mug"]
-    ('cube', 'beach_ball', 'mug')
-    """
-    names: dict[str, str] = {}
-    for i, o in enumerate(scene.static_objects):
-        geom = o.name or f"static_{i}"
-        names[geom] = geom
-    for k, o in enumerate(scene.moving_objects, 1):
-        names[object_body_name(k)] = o.name or object_body_name(k)
-    return names
-
-
-class ScanpathRecorder(Recorder):
-    """Watches the agent of a run (:mod:`experiments.runs.recorders`): per decision the
-    saliency map, the gaze and which scene object the box around ``P`` sees (ray casts
-    in ``env``'s pose when the agent decided; objects named as in the scene file,
-    :func:`object_names`)."""
-
-    def __init__(self, env: Any, box: int = 8) -> None:
-        self._env, self._box = env.unwrapped, box
-        self._objects = object_names(self._env.scene)
-        self.maps: list[np.ndarray] = []
-        self.map_gazes: list[tuple[float, float]] = []
-        # Per decision with a P: (object under P, object most of the box sees); "" = none.
-        self.labels: list[tuple[str, str]] = []
-        # Per decision: the object under the fovea (the fixation's area of interest).
-        self.fovea_labels: list[str] = []
-
-    def on_reset(self, env: Any, agent: AttentionAgent, obs: dict, info: dict) -> None:
-        self.maps, self.map_gazes, self.labels, self.fovea_labels = [], [], [], []
-
-    def on_act(self, env: Any, agent: AttentionAgent, obs: dict, info: dict) -> None:
-        if agent.decided:
-            gaze = tuple(float(g) for g in np.asarray(obs["gaze"]).reshape(2))
-            self.maps.append(np.asarray(agent.saliency, np.float32).copy())
-            self.map_gazes.append(gaze)
-            p = agent.params
-            self.fovea_labels.append(self._object(p, (p.width_px // 2, p.height_px // 2)))
-            if agent.target is not None:
-                self.labels.append(self._objects_at(p, agent.target))
-
-    def _object(self, p: AgentParams, xy: tuple[int, int]) -> str:
-        geom = cast_pixel(self._env.model, self._env.data, xy, p.width_px, p.height_px)[2]
-        return self._objects.get(geom, "")
-
-    def _objects_at(self, p: AgentParams, xy: tuple[int, int]) -> tuple[str, str]:
-        """(the object under ``xy``, the object most of the box's pixels see)."""
-        half = self._box // 2
-        seen: Counter[str] = Counter()
-        for y in range(max(xy[1] - half, 0), min(xy[1] - half + self._box, p.height_px)):
-            for x in range(max(xy[0] - half, 0), min(xy[0] - half + self._box, p.width_px)):
-                seen[self._object(p, (x, y))] += 1
-        seen.pop("", None)
-        return self._object(p, xy), seen.most_common(1)[0][0] if seen else ""
+# The agent of a condition
 
 
 def agent_params(cfg: ScanpathConfig, condition: str, env: Any) -> AgentParams:

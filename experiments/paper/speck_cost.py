@@ -7,7 +7,7 @@ Three sources, each from the command that measures it (docs/speck.md lists them)
 - **hand trials** (:func:`hand_costs`): the ``results.csv`` of ``wander experiment
   event_suppression --set soms=speck --set second_soms=agent`` (both scored on the same
   recorded windows; the agent's in the ``second:`` columns); per trial the figures of
-  :func:`experiments.paper.event_suppression.trial_figures`, the interval a bootstrap
+  :func:`experiments.paper.event_suppression_scoring.trial_figures`, the interval a bootstrap
   over trials;
 - **the sOMS family** (:func:`family_costs`): the stimulus family of
   :mod:`experiments.paper.oms_stimuli` measured here per stimulus (the scorecard,
@@ -80,7 +80,7 @@ _HAND = (
 def hand_costs(rows: Sequence[Row]) -> list[Cost]:
     """The hand trials' figures from an ``event_suppression`` run with ``soms=speck`` and
     ``second_soms=agent`` (module docstring)."""
-    from experiments.paper.event_suppression import trial_figures
+    from experiments.paper.event_suppression_scoring import trial_figures
 
     if not rows or not any(k.startswith("second:") for k in rows[0]):
         raise ValueError("the rows have no second: columns (run with second_soms=agent)")

@@ -367,7 +367,7 @@ def compare_impls(record: dict[str, list], seed: int = 0) -> list[ImplTimes]:
     passes of each Gaussian's factor), the sOMS quantile norm's pooling + 90th
     percentile (FFT pair + ``np.quantile`` against the separable Gaussian + one
     ``np.partition``) and the sAC's 10 nengo steps per env step (``Simulator.run_steps``
-    against :class:`agents.control.FusedSteps`)."""
+    against :class:`agents.control_fused.FusedSteps`)."""
     import torch
 
     from agents.control import AttentionController

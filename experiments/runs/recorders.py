@@ -11,7 +11,7 @@ The files of a run folder: the events (:class:`EventsRecorder`), the ground trut
 ``run.json``, the ``INCOMPLETE`` marker; closed last). In memory: detection scoring
 (:class:`DetectionRecorder`), the env's readout counters (:class:`ReadoutRecorder`); a study
 or a command adds its own (the scanpath experiment's
-:class:`experiments.paper.scanpath.ScanpathRecorder`, the rig's
+:class:`experiments.paper.scanpath_recorder.ScanpathRecorder`, the rig's
 :class:`experiments.jobs.rig.RigCounters`).
 """
 

@@ -10,6 +10,8 @@ This package is the event library on its own: the array helpers here, and
 - :mod:`wander_env.events.packet`: one step's events as a value (``info["events"]``);
 - :mod:`wander_env.events.io`: ``read_events`` / ``write_events``, by suffix;
 - :mod:`wander_env.events.formats`: the field's formats (EVT2/3, DAT, AEDAT4, ES);
+- :mod:`wander_env.events.hdf5_index`: DSEC's ``ms_to_idx`` index, a window read through it;
+- :mod:`wander_env.events.evimo2`: the EVIMO2v2 sequence layout (events and masks);
 - :mod:`wander_env.events.checks`: limits and checks for untrusted files;
 - :mod:`wander_env.events.stream`: ``events.h5`` written as events are made.
 

@@ -32,8 +32,9 @@ failure, a Rust panic inside ``faery`` included, becomes that one error. What a 
 (wander's JSON metadata, in EVT3 and AEDAT4) is said here and in the README, not lost
 silently: write an ``.h5`` beside it to keep it.
 
-HDF5 files carry the DSEC ``ms_to_idx`` index (:func:`ms_to_idx`), which
-:func:`read_h5_window` uses to read one time window without loading the file.
+wander's own ``.h5`` files and their DSEC ``ms_to_idx`` index are
+:mod:`wander_env.events.io`'s and :mod:`wander_env.events.hdf5_index`'s; the EVIMO2
+dataset layout is written by :mod:`wander_env.events.evimo2`.
 
 Examples:
     >>> import tempfile, pathlib
@@ -48,7 +49,6 @@ Examples:
 
 from __future__ import annotations
 
-import os
 import re
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -57,7 +57,7 @@ from typing import Any
 
 import numpy as np
 
-from wander_env.events import SensorSize, time_window
+from wander_env.events import SensorSize
 from wander_env.events.checks import (
     EventFileError,
     EventRecording,
@@ -82,8 +82,6 @@ ES_HEADER = b"Event Stream"
 EVT3_MAX_COORD = 2048  # 11-bit addresses (EVT 2 too)
 DAT_MAX_COORD = 1 << 14  # 14-bit addresses
 EVT3_CLOCK_US = 1 << 24  # TIME_HIGH + TIME_LOW: 24 bits of µs before the first wrap
-# HDF5 index: t_offset stays 0 (DSEC-compatible) unless the clock starts later than this.
-MS_TO_IDX_ZERO_OFFSET_LIMIT_US = 60_000_000
 
 
 @contextmanager
@@ -465,176 +463,3 @@ WRITERS: dict[str, Callable[[Path, EventRecording], None]] = {
     ".aedat4": write_aedat4,
     ".raw": write_evt3,
 }
-
-
-# ----------------------------------------------------------------------------------------
-# HDF5: the DSEC ``ms_to_idx`` index
-
-
-def ms_to_idx(t: np.ndarray, t_offset_us: int = 0) -> np.ndarray:
-    """DSEC's index: entry ``i`` is the first event with ``t >= t_offset_us + 1000 i``.
-
-    One entry per millisecond up to the last event's.
-
-    >>> ms_to_idx(np.array([0, 10, 999, 1000, 3500])).tolist()
-    [0, 3, 4, 4]
-    """
-    t = np.asarray(t, dtype=np.int64)
-    if t.size == 0:
-        return np.zeros(0, np.uint64)
-    n_ms = (int(t[-1]) - int(t_offset_us)) // 1000 + 1
-    starts = int(t_offset_us) + 1000 * np.arange(max(n_ms, 0), dtype=np.int64)
-    return np.searchsorted(t, starts, side="left").astype(np.uint64)
-
-
-def index_offset_us(t: np.ndarray) -> int:
-    """``t_offset`` of the index: 0 (as DSEC) unless the clock starts after a minute.
-
-    >>> index_offset_us(np.array([5, 9])), index_offset_us(np.array([1_605_537_493_718_345]))
-    (0, 1605537493718000)
-    """
-    if len(t) == 0 or 0 <= int(t[0]) < MS_TO_IDX_ZERO_OFFSET_LIMIT_US:
-        return 0
-    return int(t[0]) // 1000 * 1000
-
-
-def write_ms_to_idx(h5file: Any, events: np.ndarray) -> None:
-    """Add ``ms_to_idx`` and ``t_offset`` (µs) to an open ``h5py.File`` of events.
-
-    ``events/t`` stays absolute: the index counts milliseconds from ``t_offset``, which
-    is 0 — DSEC's own convention — for every recording whose clock starts within a
-    minute of 0 (all simulated ones).
-    """
-    offset = index_offset_us(events["t"])
-    h5file.create_dataset("ms_to_idx", data=ms_to_idx(events["t"], offset))
-    h5file.create_dataset("t_offset", data=np.int64(offset))
-
-
-def read_h5_window(path: str | os.PathLike, t_start_us: int, t_end_us: int) -> np.ndarray:
-    """The events with ``t_start_us <= t < t_end_us`` of a wander ``.h5``, via ``ms_to_idx``.
-
-    Reads only the rows the index points at (plus at most a millisecond either side),
-    not the whole file. Raises :class:`EventFileError` when the index is missing,
-    damaged or disagrees with the timestamps.
-    """
-    import h5py
-
-    from wander_env.events import EVENT_DTYPE
-
-    path = Path(path)
-    try:
-        with h5py.File(path, "r") as f:
-            if "ms_to_idx" not in f or "events" not in f or "t" not in f["events"]:
-                raise EventFileError(path, "no 'ms_to_idx' index (write it with wander >= 0.1)")
-            g = f["events"]
-            n = int(g["t"].shape[0])
-            index = np.asarray(f["ms_to_idx"][()])
-            offset = int(f["t_offset"][()]) if "t_offset" in f else 0
-            if index.ndim != 1 or index.dtype.kind not in "ui":
-                raise EventFileError(
-                    path, f"ms_to_idx has dtype {index.dtype}, shape {index.shape}"
-                )
-            if index.size and (np.any(np.diff(index.astype(np.int64)) < 0) or index[-1] > n):
-                raise EventFileError(path, "ms_to_idx decreases or points past the events")
-            t_last = int(g["t"][n - 1]) if n else offset
-            if n and index.size != (t_last - offset) // 1000 + 1:
-                raise EventFileError(
-                    path,
-                    f"ms_to_idx has {index.size} entries; events up to t={t_last} µs need "
-                    f"{(t_last - offset) // 1000 + 1}",
-                )
-
-            t_col = g["t"]
-
-            def row(ms: int) -> int:
-                """``index[ms]``, checked against the timestamps on either side of it."""
-                if ms < 0:
-                    return 0
-                if ms >= index.size:
-                    return n
-                i, edge = int(index[ms]), offset + 1000 * ms
-                if (i > 0 and int(t_col[i - 1]) >= edge) or (i < n and int(t_col[i]) < edge):
-                    raise EventFileError(
-                        path, f"ms_to_idx[{ms}]={i} disagrees with events/t around t={edge} µs"
-                    )
-                return i
-
-            lo = row((int(t_start_us) - offset) // 1000)
-            hi = row(-(-(int(t_end_us) - offset) // 1000))
-            cols = {k: g[k][lo:hi] for k in ("x", "y", "t", "p")}
-    except EventFileError:
-        raise
-    except (OSError, KeyError, ValueError) as err:
-        raise EventFileError(path, f"not a readable HDF5 event file ({err})") from None
-    ev = np.empty(max(hi - lo, 0), dtype=EVENT_DTYPE)
-    for k, v in cols.items():
-        ev[k] = v
-    return time_window(ev, int(t_start_us), int(t_end_us))
-
-
-# ----------------------------------------------------------------------------------------
-# EVIMO2v2: events + per-frame object masks, as the EVIMO2 release lays them out
-
-EVIMO2_MASK_SCALE = 1000  # EVIMO stores object id × 1000 per pixel
-
-
-def write_evimo2_sequence(
-    folder: str | os.PathLike,
-    recording: EventRecording,
-    mask_times_s: np.ndarray,
-    masks: np.ndarray,
-    focal_px: float,
-    discretization_s: float = 0.01,
-) -> Path:
-    """Write ``folder`` as one EVIMO2v2 NPZ sequence (what ``wander benchmark evimo`` reads).
-
-    Files: ``dataset_events_t.npy`` (float64 s), ``dataset_events_xy.npy`` (uint16
-    ``(N, 2)``), ``dataset_events_p.npy`` (uint8), ``dataset_mask.npz``
-    (``mask_<10-digit frame index>``: object id × 1000, uint16) and ``dataset_info.npz``
-    (``meta`` — a pickled dict, as in the release: ``frames[i]`` with ``id``, ``ts``,
-    ``gt_frame``; ``meta`` with the pinhole intrinsics and ``res_x``/``res_y`` — and
-    ``K``, ``D``, ``index``, ``discretization``). ``masks`` is ``(F, H, W)`` with object
-    ids 1..K (0 = background) at ``mask_times_s``.
-
-    NB ``wander record`` gives one mask per step, at the step's end; the emulator's events
-    of a step lie in ``(t_prev, t]``, so under EVIMO's half-open windows ``[ts − w, ts)``
-    an event exactly at a mask time counts in the next window, as it would in the release.
-    """
-    folder = Path(folder)
-    ev = recording.events
-    w, h = int(recording.sensor_size[0]), int(recording.sensor_size[1])
-    masks = np.asarray(masks)
-    times = np.asarray(mask_times_s, dtype=np.float64)
-    if masks.ndim != 3 or masks.shape[1:] != (h, w) or len(times) != masks.shape[0]:
-        raise ValueError(
-            f"masks must be (F, {h}, {w}) with one time each; got {masks.shape} and "
-            f"{len(times)} times"
-        )
-    if masks.size and int(masks.max()) * EVIMO2_MASK_SCALE > np.iinfo(np.uint16).max:
-        raise ValueError(f"object id {int(masks.max())} does not fit EVIMO's uint16 id × 1000")
-    folder.mkdir(parents=True, exist_ok=True)
-    np.save(folder / "dataset_events_t.npy", ev["t"].astype(np.float64) * 1e-6)
-    np.save(folder / "dataset_events_xy.npy", np.stack([ev["x"], ev["y"]], 1).astype(np.uint16))
-    np.save(folder / "dataset_events_p.npy", ev["p"].astype(np.uint8))
-    np.savez_compressed(
-        folder / "dataset_mask.npz",
-        **{
-            f"mask_{i:010d}": (m.astype(np.uint16) * EVIMO2_MASK_SCALE) for i, m in enumerate(masks)
-        },
-    )
-    cx, cy = (w - 1) / 2, (h - 1) / 2
-    frames = [{"id": i, "ts": float(t), "gt_frame": f"mask_{i:010d}"} for i, t in enumerate(times)]
-    intrinsics = {"fx": focal_px, "fy": focal_px, "cx": cx, "cy": cy, "res_x": w, "res_y": h}
-    intrinsics |= {"k1": 0.0, "k2": 0.0, "k3": 0.0, "k4": 0.0, "p1": 0.0, "p2": 0.0}
-    meta = {"frames": frames, "meta": intrinsics, "full_trajectory": []}
-    t_end = float(ev["t"][-1]) * 1e-6 if len(ev) else 0.0
-    edges = np.arange(0.0, t_end + discretization_s, discretization_s)
-    np.savez(
-        folder / "dataset_info.npz",
-        meta=np.array(meta, dtype=object),
-        K=np.array([[focal_px, 0.0, cx], [0.0, focal_px, cy], [0.0, 0.0, 1.0]]),
-        D=np.zeros(4),
-        index=np.searchsorted(ev["t"], np.rint(edges * 1e6).astype(np.int64)).astype(np.uint32),
-        discretization=np.float64(discretization_s),
-    )
-    return folder

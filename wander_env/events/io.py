@@ -376,7 +376,7 @@ def write_events(path: str | os.PathLike, recording: EventRecording) -> None:
     (HDF5's core driver: h5py never writes to the disk, so a full disk cannot leave it
     to fail in a dealloc, which segfaults) and written once the free space is checked.
     """
-    from wander_env.events import formats  # AEDAT4/EVT3 writers, the HDF5 ms_to_idx index
+    from wander_env.events import formats  # the AEDAT4/EVT3 writers
 
     path = Path(path)
     validate_events(recording.events, recording.sensor_size, where=str(path))
@@ -442,7 +442,7 @@ def _h5_image(recording: EventRecording) -> bytes:
     """The bytes of the ``.h5`` file of ``recording``, built in memory."""
     import h5py
 
-    from wander_env.events import formats
+    from wander_env.events.hdf5_index import write_ms_to_idx
 
     name = f"wander-events-{uuid.uuid4().hex}.h5"  # the core driver's name, never a file
     with h5py.File(name, "w", driver="core", backing_store=False) as f:
@@ -465,7 +465,7 @@ def _h5_image(recording: EventRecording) -> bytes:
         f.attrs["sensor_size"] = np.asarray(recording.sensor_size, dtype=np.int64)
         f.attrs["metadata"] = dumps_strict(recording.metadata)
         f.attrs["format"] = FORMAT_TAG
-        formats.write_ms_to_idx(f, recording.events)
+        write_ms_to_idx(f, recording.events)
         f.flush()
         return f.id.get_file_image()
 

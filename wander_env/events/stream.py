@@ -205,7 +205,7 @@ class EventStreamWriter(_StreamFile):
         self._buffer: list[np.ndarray] = []
         self._buffered = 0
         self._last_flush = time.monotonic()
-        # DSEC's ms_to_idx, built chunk by chunk (equal to formats.ms_to_idx of all t)
+        # DSEC's ms_to_idx, built chunk by chunk (equal to hdf5_index.ms_to_idx of all t)
         self._ms_offset: int | None = None
         self._ms_idx: list[np.ndarray] = []
         self._ms_next = 0
@@ -284,7 +284,7 @@ class EventStreamWriter(_StreamFile):
 
     def _index_chunk(self, t: np.ndarray, start: int) -> None:
         """Extend ``ms_to_idx`` by the millisecond boundaries up to this chunk's last event."""
-        from wander_env.events.formats import index_offset_us
+        from wander_env.events.hdf5_index import index_offset_us
 
         if self._ms_offset is None:
             self._ms_offset = index_offset_us(t)

@@ -13,18 +13,13 @@ from agents.soms import SOMSParams
 from experiments.paper.event_suppression import (
     EXPERIMENT,
     EventSuppressionConfig,
-    PhaseClock,
-    Segment,
-    Shake,
     compare,
     image_speeds,
-    pooled_mean_std,
     record,
-    recording,
     schedule,
-    score,
-    trial_figures,
 )
+from experiments.paper.event_suppression_protocol import PhaseClock, Segment, Shake, recording
+from experiments.paper.event_suppression_scoring import pooled_mean_std, score, trial_figures
 from experiments.studies.framework import make_trials, resolve_config, run_spec
 from wander_env.camera import focal_length_px
 from wander_env.config import ConfigError, parse_sets, validate

@@ -21,7 +21,8 @@ import wander_env  # noqa: F401  (registers the environments)
 from hardware.ptu_driver import FlirPTU, FlirPTUParams, PTUError, PTUPortError, PTUTimeout
 from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from hardware.rig_env import RigConfig, RigEnv
-from hardware.speck import SamnaUnavailableError, SpeckParams
+from hardware.samna_import import SamnaUnavailableError
+from hardware.speck import SpeckParams
 from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.events import EVENT_DTYPE, make_events
 from wander_env.events.io import EventRecording, write_events

@@ -56,7 +56,7 @@ def test_a_finished_stream_equals_the_events_and_takes_the_final_metadata(tmp_pa
 
 def test_a_finished_stream_has_the_dsec_index_of_its_events(tmp_path):
     """ms_to_idx built chunk by chunk equals the index of the whole recording, and seeks."""
-    from wander_env.events.formats import ms_to_idx, read_h5_window
+    from wander_env.events.hdf5_index import ms_to_idx, read_h5_window
 
     path = tmp_path / "events.h5"
     rng = np.random.default_rng(4)

@@ -230,11 +230,11 @@ class _Unit:
 
 def test_the_sim_link_and_the_rig_link_put_the_same_bytes_on_the_wire() -> None:
     """One command sequence through :class:`CommandLink` (simulated time) and through the
-    rig's :class:`~hardware.rig_env.PTULinkThread` against the emulator on a pty (its clock
+    rig's :class:`~hardware.ptu_link_thread.PTULinkThread` against the emulator on a pty (its clock
     injected and moved by the bytes on the line): the same bytes sent, in the same order
     (queue-replace, pan before tilt, changed axes only, polls every ``poll_s``)."""
     from hardware.ptu_driver import FlirPTU
-    from hardware.rig_env import PTULinkThread
+    from hardware.ptu_link_thread import PTULinkThread
     from wander_env.ptu.units import positions_to_degrees
 
     start = (200, 150)  # every position on the way is 3 digits: the replies' lengths agree

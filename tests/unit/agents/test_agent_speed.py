@@ -12,7 +12,8 @@ import torch
 import torch.nn.functional as F
 
 from agents.attention import AGENT_SOMS
-from agents.control import AttentionController, ControlParams, FusedSteps
+from agents.control import AttentionController, ControlParams
+from agents.control_fused import FusedSteps
 from agents.kernels import FFTConv2d, SeparableConv2d, gaussian_kernel, gaussian_kernel_1d
 from agents.soms import SOMS, _quantile_linear, lif_layer, lif_step, peak_scale
 

@@ -144,7 +144,8 @@ def test_front_end_rejects_the_wrong_input_shape():
 
 
 def test_the_experiments_score_the_speck_front_end_by_name():
-    from experiments.paper.event_suppression import EventSuppressionConfig, map_model
+    from experiments.paper.event_suppression import EventSuppressionConfig
+    from experiments.paper.event_suppression_scoring import map_model
     from experiments.paper.oms_family import measure
     from experiments.paper.oms_stimuli import Stimulus
 

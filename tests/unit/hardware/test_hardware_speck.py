@@ -12,9 +12,10 @@ import pytest
 from fake_samna import FakeSamna, FakeSpeck, install
 from locations import REALDATA, ROOT
 
-import hardware.speck as speck_mod
+import hardware.samna_import as samna_import_mod
 from hardware.event_source import EventSource
-from hardware.speck import SamnaUnavailableError, SpeckParams, SpeckSource, import_samna
+from hardware.samna_import import SamnaUnavailableError, import_samna
+from hardware.speck import SpeckParams, SpeckSource
 from wander_env.events import EVENT_DTYPE, validate_events
 
 WALK = REALDATA / "dvs128_people" / "alex_walking_for_10secs_txyp.npy"
@@ -99,7 +100,7 @@ def test_samna_missing_gives_clear_error(monkeypatch):
 
 def test_samna_not_found_on_path(monkeypatch):
     monkeypatch.delitem(sys.modules, "samna", raising=False)
-    monkeypatch.setattr(speck_mod.importlib.util, "find_spec", lambda name: None)
+    monkeypatch.setattr(samna_import_mod.importlib.util, "find_spec", lambda name: None)
     with pytest.raises(SamnaUnavailableError, match="not installed"):
         import_samna()
 
@@ -108,7 +109,7 @@ def _guard_import(monkeypatch):
     def refuse(name, *args, **kwargs):
         raise AssertionError(f"import_module({name!r}) must not run for the placeholder")
 
-    monkeypatch.setattr(speck_mod.importlib, "import_module", refuse)
+    monkeypatch.setattr(samna_import_mod.importlib, "import_module", refuse)
 
 
 def test_pypi_placeholder_is_recognised_without_running_it(monkeypatch, tmp_path):
@@ -132,7 +133,7 @@ def test_the_venvs_samna_placeholder_is_refused(monkeypatch):
 
     monkeypatch.delitem(sys.modules, "samna", raising=False)
     spec = importlib.util.find_spec("samna")
-    if spec is None or not speck_mod._is_stub_source(spec.origin):
+    if spec is None or not samna_import_mod._is_stub_source(spec.origin):
         pytest.skip("this environment has no PyPI samna placeholder")
     _guard_import(monkeypatch)
     with pytest.raises(SamnaUnavailableError, match="placeholder"):

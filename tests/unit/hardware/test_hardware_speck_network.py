@@ -17,7 +17,8 @@ from locations import ROOT
 from agents.attention import AgentParams, AttentionAgent
 from agents.speck_front import SpeckFront, SpeckFrontParams, build_front
 from agents.speck_limits import SpeckLimitError
-from hardware.speck import SamnaUnavailableError, SpeckParams, SpeckSource
+from hardware.samna_import import SamnaUnavailableError
+from hardware.speck import SpeckParams, SpeckSource
 from hardware.speck_network import ChipPipeline, deploy, spike_counts
 from wander_env.events import EVENT_DTYPE
 from wander_env.readout import ReadoutParams

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from fake_samna import FakeSamna, FakeSpeck, install
 
-from hardware.speck import SpeckParams, SpeckSource, write_readout_config
+from hardware.speck import SpeckParams, SpeckSource
+from hardware.speck_config import write_readout_config
 from wander_env.config import validate
 from wander_env.events import EVENT_DTYPE
 from wander_env.readout import DvsFilterParams, DvsLayerParams, ReadoutParams

@@ -18,14 +18,13 @@ from wander_env.entities import (
     GRATING_BACKGROUND_BODY,
     GRATING_STRIP_PREFIX,
     GratingStimulus,
-    MJCFDocument,
     MovingProp,
     PanTiltCamera,
     Table,
-    fmt,
-    grating_state,
 )
+from wander_env.grating_geometry import grating_state
 from wander_env.mjcf import Arena, SceneAnimator, build_mjcf, compile_scene
+from wander_env.mjcf_document import MJCFDocument, fmt
 from wander_env.ptu.params import PTUParams
 from wander_env.scene_config import CameraConfig, PTUMountConfig
 from wander_env.scenes import load_scene_config

@@ -1,4 +1,5 @@
-"""Event formats of the field (wander_env.events.formats).
+"""Event formats of the field (wander_env.events.formats) and the HDF5 index
+(wander_env.events.hdf5_index).
 
 Every writer's output is read back by a second, independent reader: AEDAT4 written by
 faery is decoded by the ``aedat`` package, EVT3 written by faery by the ``evt3`` package
@@ -16,13 +17,8 @@ import pytest
 from locations import REALDATA
 
 from wander_env.events import EVENT_DTYPE, make_events, time_window
-from wander_env.events.formats import (
-    es_expected_bytes,
-    index_offset_us,
-    ms_to_idx,
-    read_es,
-    read_h5_window,
-)
+from wander_env.events.formats import es_expected_bytes, read_es
+from wander_env.events.hdf5_index import index_offset_us, ms_to_idx, read_h5_window
 from wander_env.events.io import EventFileError, EventRecording, read_events, write_events
 
 needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason="../shared/realdata absent")
