@@ -16,6 +16,7 @@ EGL context belongs to the thread that made it current).
 from __future__ import annotations
 
 import threading
+import weakref
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import Future
@@ -27,17 +28,66 @@ T = TypeVar("T")
 _Work = tuple[Future, Callable[..., Any], tuple[Any, ...]]
 
 
+class _Queues:
+    """What the thread and its owner share: the two queues, their lock and whether the
+    thread is to end (the thread holds this, never the :class:`DrawThread`, so an owner
+    dropped without :meth:`DrawThread.close` still ends it)."""
+
+    def __init__(self) -> None:
+        self.now: deque[_Work] = deque()
+        self.ahead: deque[_Work] = deque()
+        self.wake = threading.Condition()
+        self.closing = False
+
+    def end(self) -> None:
+        """Cancel the work ahead; the thread ends once the step's work left has run."""
+        with self.wake:
+            for future, _, _ in self.ahead:
+                future.cancel()
+            self.ahead.clear()
+            self.closing = True
+            self.wake.notify()
+
+
+def _serve(queues: _Queues) -> None:
+    """The thread's loop: the step's work first, then the work ahead, until it ends."""
+    while (work := _next(queues)) is not None:
+        _run(work)
+        del work  # hold nothing of the work while waiting for the next
+
+
+def _next(queues: _Queues) -> _Work | None:
+    """The next piece of work, waited for (None: the thread is to end)."""
+    with queues.wake:
+        while not (queues.now or queues.ahead or queues.closing):
+            queues.wake.wait()
+        if queues.now:
+            return queues.now.popleft()
+        if queues.ahead:
+            return queues.ahead.popleft()
+        return None  # closing, nothing left
+
+
+def _run(work: _Work) -> None:
+    future, fn, args = work
+    if not future.set_running_or_notify_cancel():
+        return
+    try:
+        future.set_result(fn(*args))
+    except BaseException as e:  # raised where the result is read
+        future.set_exception(e)
+
+
 class DrawThread:
     """One thread, the step's queue first, the work ahead when the step's is empty (see
-    the module docstring). ``name`` names the thread."""
+    the module docstring). ``name`` names the thread. Dropped without :meth:`close`, it
+    still ends its thread (as a ``ThreadPoolExecutor`` does)."""
 
     def __init__(self, name: str) -> None:
-        self._now: deque[_Work] = deque()
-        self._ahead: deque[_Work] = deque()
-        self._wake = threading.Condition()
-        self._closing = False
-        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        self._q = _Queues()
+        self._thread = threading.Thread(target=_serve, args=(self._q,), name=name, daemon=True)
         self._thread.start()
+        weakref.finalize(self, self._q.end)
 
     @property
     def ident(self) -> int | None:
@@ -47,49 +97,31 @@ class DrawThread:
     def submit(self, fn: Callable[..., T], *args: Any, ahead: bool = False) -> Future[T]:
         """Queue ``fn(*args)``: the step's work, or with ``ahead`` work ahead of time."""
         work: _Work = (Future(), fn, args)
-        with self._wake:
-            if self._closing:
+        q = self._q
+        with q.wake:
+            if q.closing:
                 raise RuntimeError("the render thread is closed")
-            (self._ahead if ahead else self._now).append(work)
-            self._wake.notify()
+            (q.ahead if ahead else q.now).append(work)
+            q.wake.notify()
         return work[0]
 
     def promote(self) -> None:
         """The work ahead that has not started joins the step's queue (in its order)."""
-        with self._wake:
-            self._now.extend(self._ahead)
-            self._ahead.clear()
+        q = self._q
+        with q.wake:
+            q.now.extend(q.ahead)
+            q.ahead.clear()
 
     def cancel_ahead(self) -> None:
         """The work ahead that has not started is cancelled (never runs)."""
-        with self._wake:
-            for future, _, _ in self._ahead:
+        q = self._q
+        with q.wake:
+            for future, _, _ in q.ahead:
                 future.cancel()
-            self._ahead.clear()
+            q.ahead.clear()
 
     def close(self) -> None:
         """Cancel the work ahead, run the step's work left, end the thread (idempotent)."""
-        self.cancel_ahead()
-        with self._wake:
-            self._closing = True
-            self._wake.notify()
+        self._q.end()
         if self._thread.ident != threading.get_ident():
             self._thread.join()
-
-    def _run(self) -> None:
-        while True:
-            with self._wake:
-                while not (self._now or self._ahead or self._closing):
-                    self._wake.wait()
-                if self._now:
-                    future, fn, args = self._now.popleft()
-                elif self._ahead:
-                    future, fn, args = self._ahead.popleft()
-                else:  # closing, nothing left
-                    return
-            if not future.set_running_or_notify_cancel():
-                continue
-            try:
-                future.set_result(fn(*args))
-            except BaseException as e:  # raised where the result is read
-                future.set_exception(e)

@@ -76,3 +76,16 @@ def test_close_runs_the_steps_work_left_cancels_the_work_ahead_and_ends_the_thre
     assert not any(t.name == "test-draw" for t in threading.enumerate())
     with pytest.raises(RuntimeError, match="closed"):
         thread.submit(ran.append, "late")
+
+
+def test_a_thread_dropped_without_close_ends() -> None:
+    """Its owner gone (an env never closed), the thread ends once its work has run."""
+    import gc
+
+    thread = DrawThread("test-dropped")
+    assert thread.submit(int, "3").result(timeout=60) == 3
+    worker = next(t for t in threading.enumerate() if t.name == "test-dropped")
+    del thread
+    gc.collect()
+    worker.join(timeout=60)
+    assert not worker.is_alive()
