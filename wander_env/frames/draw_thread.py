@@ -16,10 +16,9 @@ EGL context belongs to the thread that made it current).
 from __future__ import annotations
 
 import threading
-import weakref
 from collections import deque
 from collections.abc import Callable
-from concurrent.futures import Future
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any, TypeVar
 
 __all__ = ["DrawThread"]
@@ -29,46 +28,38 @@ _Work = tuple[Future, Callable[..., Any], tuple[Any, ...]]
 
 
 class _Queues:
-    """What the thread and its owner share: the two queues, their lock and whether the
-    thread is to end (the thread holds this, never the :class:`DrawThread`, so an owner
-    dropped without :meth:`DrawThread.close` still ends it)."""
+    """The two queues and their lock, shared by the owner and the thread's pumps (which
+    never hold the :class:`DrawThread`: an owner dropped without closing still lets the
+    executor's thread end)."""
 
     def __init__(self) -> None:
         self.now: deque[_Work] = deque()
         self.ahead: deque[_Work] = deque()
-        self.wake = threading.Condition()
-        self.closing = False
+        self.lock = threading.Lock()
+        self.closed = False
 
-    def end(self) -> None:
-        """Cancel the work ahead; the thread ends once the step's work left has run."""
-        with self.wake:
+    def next(self) -> _Work | None:
+        """The next piece of work: the step's first (None: nothing left)."""
+        with self.lock:
+            if self.now:
+                return self.now.popleft()
+            if self.ahead:
+                return self.ahead.popleft()
+            return None
+
+    def cancel_ahead(self) -> None:
+        with self.lock:
             for future, _, _ in self.ahead:
                 future.cancel()
             self.ahead.clear()
-            self.closing = True
-            self.wake.notify()
 
 
-def _serve(queues: _Queues) -> None:
-    """The thread's loop: the step's work first, then the work ahead, until it ends."""
-    while (work := _next(queues)) is not None:
-        _run(work)
-        del work  # hold nothing of the work while waiting for the next
-
-
-def _next(queues: _Queues) -> _Work | None:
-    """The next piece of work, waited for (None: the thread is to end)."""
-    with queues.wake:
-        while not (queues.now or queues.ahead or queues.closing):
-            queues.wake.wait()
-        if queues.now:
-            return queues.now.popleft()
-        if queues.ahead:
-            return queues.ahead.popleft()
-        return None  # closing, nothing left
-
-
-def _run(work: _Work) -> None:
+def _pump(queues: _Queues) -> None:
+    """(On the thread.) Run one piece of work, chosen now: one pump is queued on the
+    executor per piece handed over, so every piece runs (or was cancelled)."""
+    work = queues.next()
+    if work is None:
+        return
     future, fn, args = work
     if not future.set_running_or_notify_cancel():
         return
@@ -79,49 +70,41 @@ def _run(work: _Work) -> None:
 
 
 class DrawThread:
-    """One thread, the step's queue first, the work ahead when the step's is empty (see
-    the module docstring). ``name`` names the thread. Dropped without :meth:`close`, it
-    still ends its thread (as a ``ThreadPoolExecutor`` does)."""
+    """One thread (a one-worker ``ThreadPoolExecutor``: joined at the interpreter's exit,
+    ended when dropped), the step's queue first, the work ahead when the step's is empty
+    (see the module docstring). ``name`` prefixes the thread's name."""
 
     def __init__(self, name: str) -> None:
         self._q = _Queues()
-        self._thread = threading.Thread(target=_serve, args=(self._q,), name=name, daemon=True)
-        self._thread.start()
-        weakref.finalize(self, self._q.end)
-
-    @property
-    def ident(self) -> int | None:
-        """The thread's id."""
-        return self._thread.ident
+        self._executor = ThreadPoolExecutor(1, thread_name_prefix=name)
+        self.ident: int = self._executor.submit(threading.get_ident).result()
 
     def submit(self, fn: Callable[..., T], *args: Any, ahead: bool = False) -> Future[T]:
         """Queue ``fn(*args)``: the step's work, or with ``ahead`` work ahead of time."""
         work: _Work = (Future(), fn, args)
         q = self._q
-        with q.wake:
-            if q.closing:
+        with q.lock:
+            if q.closed:
                 raise RuntimeError("the render thread is closed")
             (q.ahead if ahead else q.now).append(work)
-            q.wake.notify()
+        self._executor.submit(_pump, q)
         return work[0]
 
     def promote(self) -> None:
         """The work ahead that has not started joins the step's queue (in its order)."""
         q = self._q
-        with q.wake:
+        with q.lock:
             q.now.extend(q.ahead)
             q.ahead.clear()
 
     def cancel_ahead(self) -> None:
         """The work ahead that has not started is cancelled (never runs)."""
-        q = self._q
-        with q.wake:
-            for future, _, _ in q.ahead:
-                future.cancel()
-            q.ahead.clear()
+        self._q.cancel_ahead()
 
     def close(self) -> None:
         """Cancel the work ahead, run the step's work left, end the thread (idempotent)."""
-        self._q.end()
-        if self._thread.ident != threading.get_ident():
-            self._thread.join()
+        q = self._q
+        q.cancel_ahead()
+        with q.lock:
+            q.closed = True
+        self._executor.shutdown(wait=threading.get_ident() != self.ident)

@@ -447,11 +447,13 @@ class KeyframeFrames(FrameSource):
         return pair.frame(view, w)
 
     def object_mask(self, t_us: int) -> np.ndarray:
+        key = self._key_at.get(t_us)
         if self.stage.casts("ground_truth"):  # ray cast, handed over at the step's start
             if self._mask_ahead is not None and self._mask_ahead[0] == t_us:
                 return self._mask_ahead[1].result()
+            if key is not None:  # (a source whose stream ends elsewhere: the key's pose)
+                return self.stage.on_draw_side(self.stage.object_mask_at, key.t_us, key.angles)
             return super().object_mask(t_us)
-        key = self._key_at.get(t_us)
         if key is None:
             return super().object_mask(t_us)
         layers = self.keyframe(key).layers

@@ -187,3 +187,21 @@ def test_a_process_forked_after_drawing_on_the_thread_refuses_to_draw() -> None:
         env.step(np.zeros(2, np.float32))  # the parent draws on
     finally:
         env.close()
+
+
+@pytest.mark.slow
+def test_a_process_that_never_closes_its_env_exits_cleanly() -> None:
+    """The render thread with work ahead queued, the env never closed: the interpreter
+    joins the thread at its exit (no crash in GL at teardown), three times in three."""
+    import subprocess
+    import sys
+
+    script = (
+        "import numpy as np, gymnasium as gym, wander_env\n"
+        "env = gym.make('wander/Wander-v0', scene='office')\n"
+        "env.reset(seed=0)\n"
+        "for _ in range(5): env.step(np.zeros(2, np.float32))\n"
+    )
+    for _ in range(3):
+        done = subprocess.run([sys.executable, "-c", script], capture_output=True, timeout=300)
+        assert done.returncode == 0, done.stderr.decode()[-500:]

@@ -73,7 +73,7 @@ def test_close_runs_the_steps_work_left_cancels_the_work_ahead_and_ends_the_thre
     closer.join(timeout=60)
     assert not closer.is_alive()
     assert ran == ["now"] and now.done() and ahead.cancelled()
-    assert not any(t.name == "test-draw" for t in threading.enumerate())
+    assert not any(t.name.startswith("test-draw") for t in threading.enumerate())
     with pytest.raises(RuntimeError, match="closed"):
         thread.submit(ran.append, "late")
 
@@ -84,7 +84,7 @@ def test_a_thread_dropped_without_close_ends() -> None:
 
     thread = DrawThread("test-dropped")
     assert thread.submit(int, "3").result(timeout=60) == 3
-    worker = next(t for t in threading.enumerate() if t.name == "test-dropped")
+    worker = next(t for t in threading.enumerate() if t.name.startswith("test-dropped"))
     del thread
     gc.collect()
     worker.join(timeout=60)
