@@ -59,7 +59,7 @@ def evaluate(
     seed_list = int_list(seeds, "--seeds", "seed")
     own = {"env.episode_seconds": EVALUATE_SECONDS, "video": False}
     config = command_config(ctx, RunConfig, defaults=own)
-    folder = resolve_out(out, "evaluate", shared["force"])
+    folder = resolve_out(ctx, out, "evaluate", shared["force"])
     with progress_bars() as bar:
         steps = round(config.seconds / config.env.control_period_s)
         task = bar.add_task("evaluate", total=steps * len(seed_list))

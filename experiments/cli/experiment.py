@@ -37,6 +37,7 @@ def _command_line() -> str:
 
 @long_command("wander experiment")
 def experiment(
+    ctx: typer.Context,
     name: Annotated[str, typer.Argument(help=f"One of: {', '.join(EXPERIMENT_NAMES)}.")],
     set_: Annotated[
         list[str] | None,
@@ -83,14 +84,16 @@ def experiment(
         n = len(make_trials(exp, cfg, seed))
         resume = None if show_config or force else unfinished_folder(name, cfg, seed, out)
     except ConfigError as e:
-        raise fail(str(e)) from None
+        raise fail(e, ctx) from None
     if show_config:
         console.print_json(dumps_strict(config_to_dict(cfg)))
         return
     if resume is not None:  # the same command stopped there: its finished trials are kept
-        run = RunFolder(resume, current_run())
+        run = RunFolder(resume, current_run(ctx))
     else:
-        run = own_folder(lambda now: RunFolder.for_experiment(name, seed, out, force, current=now))
+        run = own_folder(
+            ctx, lambda now: RunFolder.for_experiment(name, seed, out, force, current=now)
+        )
     folder = run.path
 
     streams: list = []
@@ -112,10 +115,10 @@ def experiment(
                 progress=lambda i, total: bar.update(task, completed=i, total=total),
             )
         except ConfigError as e:  # another run holds the folder: not this run's to mark
-            raise fail(str(e)) from None
+            raise fail(e, ctx) from None
         except TrialCrashed as e:
             run.record_failure(e)
-            raise fail(f"{e} ({folder})") from None
+            raise fail(f"{e} ({folder})", ctx) from None
         except BaseException as e:  # any error, also one no signal or write: the folder says so
             run.record_failure(e)
             raise
@@ -137,6 +140,7 @@ def _print_rtf(rtf: float | None) -> None:
 
 @long_command("wander sweep")
 def sweep(
+    ctx: typer.Context,
     config: Annotated[Path, typer.Argument(help="Sweep file (see experiments/paper/configs/).")],
     backend: Annotated[
         str, typer.Option(callback=one_of(BACKENDS), help="serial, local or ray.")
@@ -168,8 +172,8 @@ def sweep(
         sw = load_sweep(config)
         n = len(expand(sw))
     except ConfigError as e:
-        raise fail(str(e)) from None
-    run = RunFolder(out or Path("results") / "sweeps" / sw.name, current_run())
+        raise fail(e, ctx) from None
+    run = RunFolder(out or Path("results") / "sweeps" / sw.name, current_run(ctx))
     folder = run.path
     with progress_bars() as bar:
         task = bar.add_task(f"sweep {sw.name}", total=n)
@@ -185,13 +189,13 @@ def sweep(
                 timeout_s=timeout,
             )
         except ConfigError as e:
-            raise fail(str(e)) from None
+            raise fail(e, ctx) from None
         except TimeoutError as e:
             run.record_failure(e)
-            raise fail(f"{e} ({folder}: rerun to resume)") from None
+            raise fail(f"{e} ({folder}: rerun to resume)", ctx) from None
         except (TrialCrashed, BackendFailed) as e:
             run.record_failure(e)
-            raise fail(f"{e} ({folder})") from None
+            raise fail(f"{e} ({folder})", ctx) from None
         except BaseException as e:  # a signal: the folder says so; the workers are ended
             run.record_failure(e)
             raise
@@ -203,6 +207,7 @@ def sweep(
 
 
 def report(
+    ctx: typer.Context,
     results: Annotated[Path, typer.Option(help="Folder of result folders.")] = Path("results"),
     out: Annotated[
         str,
@@ -236,7 +241,7 @@ def report(
     try:
         path = build_report(results, out)
     except ValueError as err:  # ReportInputError, ConfigError: a damaged result file
-        raise fail(err, "wander report") from None
+        raise fail(err, ctx) from None
     except OSError as err:  # --out under a file, in /proc, a name too long
         raise typer.BadParameter(folder_problem(err), param_hint="'--out'") from None
     console.print(f"-> {path}")
