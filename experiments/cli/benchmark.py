@@ -26,7 +26,6 @@ from typing import Annotated, Any
 
 import typer
 
-from experiments.benchmark.figure import WindowSampler
 from experiments.benchmark.runner import (
     event_files,
     limit_windows,
@@ -277,6 +276,7 @@ def _score_dataset(
     and :data:`RUN_OPTIONS`); ``options`` its own, for
     ``run.json``; ``load(max_sequences)`` finds the sequences and counts them.
     """
+    from experiments.benchmark.figure import WindowSampler
     from experiments.benchmark.protocol import ProtocolConfig
 
     std_over, max_windows, progress = flags["std_over"], flags["max_windows"], flags["progress"]
@@ -434,6 +434,7 @@ def events(
 ) -> None:
     """Any event file + a mask folder: hit rate, IoU, precision, SSIM, sOMS suppression."""
     from experiments.benchmark.datasets.generic import load_generic
+    from experiments.benchmark.figure import WindowSampler
     from experiments.benchmark.protocol import ProtocolConfig
     from wander_env.events import time_window
 

@@ -25,8 +25,7 @@ from experiments.cli.options import (
     own_folder,
 )
 from experiments.runs.folder import RunFolder
-from experiments.studies.framework import EXPERIMENT_NAMES, ConfigError
-from experiments.studies.sweep import BACKENDS
+from experiments.studies.registry import EXPERIMENT_NAMES
 
 __all__ = ["register"]
 
@@ -68,6 +67,7 @@ def experiment(
     """Run one experiment: a results table, plots, config, seed and git revision."""
 
     from experiments.studies.framework import (
+        ConfigError,
         config_to_dict,
         get_experiment,
         make_trials,
@@ -138,12 +138,19 @@ def _print_rtf(rtf: float | None) -> None:
         console.print(f"real-time factor: {rtf:.3g} (simulated seconds per wall second)")
 
 
+def _check_backend(value: str) -> str:
+    """One of the sweep backends (:data:`experiments.studies.sweep.BACKENDS`)."""
+    from experiments.studies.sweep import BACKENDS
+
+    return one_of(BACKENDS)(value)
+
+
 @long_command("wander sweep")
 def sweep(
     ctx: typer.Context,
     config: Annotated[Path, typer.Argument(help="Sweep file (see experiments/paper/configs/).")],
     backend: Annotated[
-        str, typer.Option(callback=one_of(BACKENDS), help="serial, local or ray.")
+        str, typer.Option(callback=_check_backend, help="serial, local or ray.")
     ] = "local",
     workers: Annotated[
         int | None,
@@ -166,6 +173,7 @@ def sweep(
     ] = 6 * 3600.0,
 ) -> None:
     """Run a grid of (experiment, parameters, seeds); reruns skip finished trials."""
+    from experiments.studies.framework import ConfigError
     from experiments.studies.sweep import BackendFailed, TrialCrashed, expand, load_sweep, run_sweep
 
     try:

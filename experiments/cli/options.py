@@ -36,7 +36,6 @@ import typer
 
 from experiments.cli.console import step_progress
 from experiments.runs.folder import CurrentRun, RunFolder
-from experiments.studies.framework import MAX_SEED
 from wander_env.frames.registry import frame_modes_help
 
 __all__ = [
@@ -106,6 +105,8 @@ def check_seconds(value: float) -> float:
 
 def check_seed(value: int) -> int:
     """A seed: an integer in [0, :data:`experiments.studies.framework.MAX_SEED`]."""
+    from experiments.studies.framework import MAX_SEED
+
     if not 0 <= value <= MAX_SEED:
         raise typer.BadParameter(f"must be an integer in [0, {MAX_SEED}], got {value}")
     return value

@@ -9,8 +9,8 @@ paper's numbers beside ours). Its default config file is ``experiments/paper/con
 example maps): they are kept out of the table and saved as ``artifacts/<trial_id>.npz``
 in the result folder, where ``plot(config, rows, results_dir, fig_dir)`` can load them
 (:func:`load_artifacts`).
-To add an experiment: write the module, add its name to :data:`EXPERIMENT_NAMES`, add
-the YAML.
+To add an experiment: write the module, add its name to
+:data:`experiments.studies.registry.EXPERIMENT_NAMES`, add the YAML.
 
 Trials: every parameter dict of the grid is run ``config.repeats`` times (1 when the
 config has no ``repeats``); repeat ``r`` has seed ``seed + r``. A trial's identity is a
@@ -57,6 +57,7 @@ import pydantic
 from experiments.runs.folder import RUN_JSON, RunFolder
 from experiments.runs.provenance import run_record
 from experiments.runs.trials import TrialStore, save_artifacts, split_artifacts
+from experiments.studies.registry import EXPERIMENT_NAMES
 from wander_env.config import ConfigError, coerce, load_yaml, parse_sets, validate
 from wander_env.env_config import DvsPreset, FrameMode, PtuPreset, SceneName
 
@@ -99,17 +100,6 @@ __all__ = [
     "write_csv",
     "write_result_folder",
 ]
-
-# The registry: experiment names, each the module experiments/paper/<name>.py with EXPERIMENT.
-EXPERIMENT_NAMES: tuple[str, ...] = (
-    "oms_characterisation",
-    "event_suppression",
-    "detection",
-    "sac_accuracy",
-    "scanpath",
-    "saccade_speed",
-    "oms_scorecard",
-)
 
 Scalar = int | float | str | bool
 Row = dict[str, Scalar]
