@@ -18,8 +18,10 @@ from experiments.cli.errors import current_run, fail, long_command
 from experiments.cli.options import (
     ForceOpt,
     SeedOpt,
+    SetOpt,
     check_wait,
     check_workers,
+    command_config,
     folder_problem,
     one_of,
     own_folder,
@@ -38,10 +40,7 @@ def _command_line() -> str:
 def experiment(
     ctx: typer.Context,
     name: Annotated[str, typer.Argument(help=f"One of: {', '.join(EXPERIMENT_NAMES)}.")],
-    set_: Annotated[
-        list[str] | None,
-        typer.Option("--set", help="Override a config key: --set key=value (repeatable)."),
-    ] = None,
+    set_: SetOpt = None,
     config: Annotated[
         Path | None,
         typer.Option(help="Config file (default: experiments/paper/configs/NAME.yaml)."),
@@ -64,14 +63,15 @@ def experiment(
         bool, typer.Option("--show-config", help="Print the resolved config and stop.")
     ] = False,
 ) -> None:
-    """Run one experiment: a results table, plots, config, seed and git revision."""
+    """Run one experiment: a results table, plots, config, seed and git revision. Its
+    config: the experiment's defaults <- the config file <- --set items."""
 
     from experiments.studies.framework import (
         ConfigError,
         config_to_dict,
+        default_config_file,
         get_experiment,
         make_trials,
-        resolve_config,
         run_experiment,
         unfinished_folder,
     )
@@ -80,7 +80,10 @@ def experiment(
 
     try:
         exp = get_experiment(name)
-        cfg = resolve_config(exp, config, set_ or [])
+    except ConfigError as e:
+        raise fail(e, ctx) from None
+    cfg = command_config(ctx, exp.config_type, config_file=config or default_config_file(exp))
+    try:
         n = len(make_trials(exp, cfg, seed))
         resume = None if show_config or force else unfinished_folder(name, cfg, seed, out)
     except ConfigError as e:

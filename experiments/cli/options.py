@@ -44,6 +44,7 @@ __all__ = [
     "MAX_SECONDS",
     "MAX_WORKERS",
     "AgentAlphaOpt",
+    "ConfigFileOpt",
     "ConfigKey",
     "DvsOpt",
     "FixationalOpt",
@@ -328,6 +329,16 @@ KeyframeMsOpt = Annotated[
         help="Key interval (ms) of --frames keyframes where the image motion has no bound."
     ),
     ConfigKey("env.keyframe_ms"),
+]
+ConfigFileOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--config",
+        exists=True,
+        dir_okay=False,
+        help="A YAML file of the command's config keys (its env and agent blocks, seed, "
+        "...). Flags given on the command line and --set override it.",
+    ),
 ]
 SetOpt = Annotated[
     list[str] | None,

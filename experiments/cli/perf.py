@@ -13,7 +13,16 @@ from typing import Annotated
 import typer
 
 from experiments.cli.console import console, print_table
-from experiments.cli.options import KeyframeMsOpt, SceneOpt, int_list, seconds_option
+from experiments.cli.options import (
+    ConfigFileOpt,
+    ConfigKey,
+    KeyframeMsOpt,
+    SceneOpt,
+    SetOpt,
+    command_config,
+    int_list,
+    seconds_option,
+)
 
 __all__ = ["app"]
 
@@ -134,18 +143,36 @@ def bench_env(
 
 @app.command("agent")
 def bench_agent(
-    scene: SceneOpt = "office",
-    seconds: Annotated[float, seconds_option("Simulated seconds of closed loop.")] = 5.0,
-    seed: Annotated[int, typer.Option(help="Seed of the env and the agent.")] = 0,
+    ctx: typer.Context,
+    scene: SceneOpt = None,
+    seconds: Annotated[
+        float | None,
+        seconds_option("Simulated seconds of closed loop (default: the config's, 5)."),
+        ConfigKey("env.episode_seconds"),
+    ] = None,
+    seed: Annotated[
+        int | None,
+        typer.Option(help="Seed of the env and the agent (default: the config's, 0)."),
+        ConfigKey("seed"),
+    ] = None,
     keyframe_ms: KeyframeMsOpt = None,
+    config: ConfigFileOpt = None,
+    set_: SetOpt = None,
 ) -> None:
     """Per-step latency of sOMS, proto-object, sAC and the whole agent; closed-loop RTF
-    with exact and keyframe frames side by side."""
-    from experiments.perf.agent import LATENCY_COLUMNS, LOOP_COLUMNS, MODES_COLUMNS, loop_modes
+    with exact and keyframe frames side by side. Unset flags take AgentBenchConfig's
+    values (`--set agent.KEY=VALUE` reaches every agent parameter)."""
+    from experiments.perf.agent import (
+        LATENCY_COLUMNS,
+        LOOP_COLUMNS,
+        MODES_COLUMNS,
+        AgentBenchConfig,
+        loop_modes,
+    )
     from experiments.perf.agent import bench_agent as run
 
-    fk = {} if keyframe_ms is None else {"keyframe_ms": keyframe_ms}
-    rows, loop = run(seconds=seconds, scene=scene, seed=seed, **fk)
+    bench = command_config(ctx, AgentBenchConfig, config_file=config)
+    rows, loop = run(bench)
     print_table("Agent latency at 128x128 (ms per call)", rows, LATENCY_COLUMNS)
     print_table(
         "Closed loop (env + agent, the env's default frames; real-time factor = simulated s "
@@ -153,7 +180,7 @@ def bench_agent(
         [loop],
         LOOP_COLUMNS,
     )
-    both = loop_modes(seconds=seconds, scene=scene, seed=seed, keyframe_ms=fk.get("keyframe_ms"))
+    both = loop_modes(bench)
     print_table(
         "Closed loop, exact vs keyframe frames stepped alternately (speedup = keyframes RTF / "
         "exact RTF)",

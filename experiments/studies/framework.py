@@ -82,6 +82,7 @@ __all__ = [
     "coerce",
     "config_from_dict",
     "config_to_dict",
+    "default_config_file",
     "configs_dir",
     "get_experiment",
     "hold_folder",
@@ -220,18 +221,24 @@ def load_yaml_mapping(path: Path, what: str = "config file") -> dict[str, Any]:
     return data
 
 
+def default_config_file(experiment: Experiment) -> Path | None:
+    """The experiment's config file, ``configs/NAME.yaml``, when there is one."""
+    path = configs_dir() / f"{experiment.name}.yaml"
+    return path if path.is_file() else None
+
+
 def resolve_config(
     experiment: Experiment,
     config_file: Path | None = None,
     sets: Sequence[str] = (),
     use_default_file: bool = True,
 ) -> Any:
-    """Defaults <- config file (``configs/NAME.yaml`` unless given) <- ``--set`` items."""
+    """Defaults <- config file (:func:`default_config_file` unless given) <- ``--set``
+    items (the layers of ``wander experiment``, without its command line)."""
     cls = experiment.config_type
     path = config_file
     if path is None and use_default_file:
-        default = configs_dir() / f"{experiment.name}.yaml"
-        path = default if default.is_file() else None
+        path = default_config_file(experiment)
     cfg = cls()
     if path is not None:
         cfg = config_from_dict(cls, load_yaml_mapping(path), cfg, where=str(path))
