@@ -1,8 +1,9 @@
 """Every command builds its config through the one layered path
 (:func:`experiments.cli.options.command_config`): the config class's defaults <- the
 ``--config`` file <- the flags given (each sets its :class:`ConfigKey`) <- ``--set``
-items; ``wander experiment`` (its default file, ``configs/NAME.yaml``) and ``wander perf
-agent`` included. ``--set agent.soms.alpha=0.5`` reaches the agent, and run.json says so."""
+items; ``wander experiment`` (its default file, ``configs/NAME.yaml``), ``wander perf
+agent`` and ``wander perf env`` included. ``--set agent.soms.alpha=0.5`` reaches the
+agent, and run.json says so."""
 
 from __future__ import annotations
 
@@ -18,7 +19,9 @@ from experiments.cli import perf
 from experiments.cli.main import app
 from experiments.cli.options import ConfigKey, flag_keys
 from experiments.perf import agent as perf_agent
+from experiments.perf import env as perf_env
 from experiments.perf.agent import AgentBenchConfig
+from experiments.perf.env import EnvBenchConfig
 
 RUNNER = CliRunner()
 
@@ -99,3 +102,39 @@ def test_set_agent_soms_alpha_is_read_back_from_an_experiments_run_json(tmp_path
     record = json.loads((out / "run.json").read_text())
     assert record["config"]["agent"]["soms"]["alpha"] == 0.5
     assert record["config"]["repeats"] == 1
+
+
+def test_perf_env_layers_its_env_block_and_refuses_the_keys_its_rows_set(monkeypatch):
+    assert flag_keys(perf.bench_env) == {
+        "scene": ConfigKey("env.scene"),
+        "seconds": ConfigKey("seconds"),
+        "ground_truth": ConfigKey("env.ground_truth"),
+        "antialias": ConfigKey("env.antialias_samples"),
+        "keyframe_ms": ConfigKey("env.keyframe_ms"),
+        "keyframe_px": ConfigKey("env.keyframe_px"),
+    }
+    seen: list[tuple[EnvBenchConfig, tuple[int, ...]]] = []
+
+    def bench(config: EnvBenchConfig, env_counts: tuple[int, ...]) -> None:
+        seen.append((config, env_counts))
+        raise typer.Exit(0)
+
+    monkeypatch.setattr(perf_env, "bench_env", bench)
+    args = ["perf", "env", "--no-breakdown", "--envs", "1", "--scene", "shelf"]
+    sets = ["--no-ground-truth", "--set", "env.render_rate_hz=2000", "--set", "seconds=0.5"]
+    result = RUNNER.invoke(app, [*args, *sets], prog_name="wander")
+    assert result.exit_code == 0, result.output
+    ((config, counts),) = seen
+    assert counts == (1,) and config.seconds == 0.5
+    assert (config.env.scene, config.env.ground_truth, config.env.render_rate_hz) == (
+        "shelf",
+        False,
+        2000.0,
+    )
+    assert config.env.keyframe_px == EnvBenchConfig().env.keyframe_px == 2.0
+    bad = RUNNER.invoke(app, ["perf", "env", "--set", "env.frames=exact"], prog_name="wander")
+    assert (bad.exit_code, bad.output.strip()) == (
+        2,
+        "wander perf env: error: env.frames='exact': each row sets dvs, frames itself",
+    )
+    assert len(seen) == 1
