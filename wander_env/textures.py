@@ -23,7 +23,6 @@ import math
 from dataclasses import dataclass
 from typing import Annotated, Literal
 
-import cv2
 import numpy as np
 
 from wander_env.field_doc import field_doc
@@ -273,6 +272,8 @@ def make_texture(spec: TextureSpec) -> np.ndarray:
 
 def encode_png(image: np.ndarray) -> bytes:
     """uint8 RGB (H, W, 3) or grey (H, W) -> PNG bytes (in memory)."""
+    import cv2  # here: OpenCV's import starts thread pools a scene's config does not need
+
     img = np.ascontiguousarray(image)
     if img.dtype != np.uint8:
         raise ValueError(f"expected a uint8 image, got {img.dtype}")

@@ -26,7 +26,6 @@ from typing import Annotated, Any
 
 import typer
 
-from experiments.benchmark.figure import WindowSampler
 from experiments.benchmark.runner import (
     event_files,
     limit_windows,
@@ -108,11 +107,6 @@ def default_name(path: Path) -> str:
 
 # ----------------------------------------------------------------------------------------
 # Running (with progress bars; the runner is experiments.benchmark.runner)
-
-
-def _fail(err: BaseException) -> typer.Exit:
-    """One line on stderr (``wander benchmark NAME: error: ...``) and exit code 2."""
-    return fail(err, "wander benchmark")
 
 
 def _set_threads(threads: int | None) -> None:
@@ -282,6 +276,7 @@ def _score_dataset(
     and :data:`RUN_OPTIONS`); ``options`` its own, for
     ``run.json``; ``load(max_sequences)`` finds the sequences and counts them.
     """
+    from experiments.benchmark.figure import WindowSampler
     from experiments.benchmark.protocol import ProtocolConfig
 
     std_over, max_windows, progress = flags["std_over"], flags["max_windows"], flags["progress"]
@@ -292,7 +287,7 @@ def _score_dataset(
     config = {"dataset": dataset, "path": str(flags["path"]), **options}
     config.update({p.name: flags[p.name] for p in DATASET_OPTIONS if p not in MODEL_OPTIONS})
     config.update(_model_record(model))
-    folder = resolve_out(flags["out"], f"benchmark-{dataset}", flags["force"])
+    folder = resolve_out(ctx, flags["out"], f"benchmark-{dataset}", flags["force"])
     out = folder.path
     sampler = WindowSampler()
     try:
@@ -301,7 +296,7 @@ def _score_dataset(
             seqs, n, label, model, ProtocolConfig(), max_windows, progress, sampler
         )
     except (ValueError, OSError) as err:
-        raise _fail(err) from None
+        raise fail(err, ctx) from None
     md = write_benchmark_outputs(
         out,
         rows,
@@ -439,6 +434,7 @@ def events(
 ) -> None:
     """Any event file + a mask folder: hit rate, IoU, precision, SSIM, sOMS suppression."""
     from experiments.benchmark.datasets.generic import load_generic
+    from experiments.benchmark.figure import WindowSampler
     from experiments.benchmark.protocol import ProtocolConfig
     from wander_env.events import time_window
 
@@ -448,7 +444,7 @@ def events(
     offset = parse_offset(mask_offset) if mask_offset else None
     seq_name = name or default_name(file)
     model = _model_config(ctx)
-    folder = resolve_out(out, f"benchmark-events-{seq_name}", shared["force"])
+    folder = resolve_out(ctx, out, f"benchmark-events-{seq_name}", shared["force"])
     out = folder.path
     _set_threads(shared["threads"])
     try:
@@ -477,7 +473,7 @@ def events(
             extra_md = suppression_markdown([seq.name], [res])
             extra_rec = {"suppression": suppression_record([seq.name], [res])}
     except (ValueError, OSError) as err:
-        raise _fail(err) from None
+        raise fail(err, ctx) from None
     config = {
         "dataset": "generic",
         "events": str(file),
@@ -536,7 +532,7 @@ def suppression(
     started = time.monotonic()
     sensor_size = parse_sensor(sensor) if sensor else None
     model = _model_config(ctx)
-    folder = resolve_out(out, "benchmark-suppression", shared["force"])
+    folder = resolve_out(ctx, out, "benchmark-suppression", shared["force"])
     out = folder.path
     _set_threads(shared["threads"])
     notes: dict[str, list[str]] = {}
@@ -560,7 +556,7 @@ def suppression(
             recs.append((f.stem, ev, rec.sensor_size))
         results = _run_suppression(recs, window_us, model, shared["progress"])
     except (ValueError, OSError) as err:
-        raise _fail(err) from None
+        raise fail(err, ctx) from None
     config = {
         "paths": [str(p) for p in paths],
         "files": [str(f) for f in files],

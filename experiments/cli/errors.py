@@ -11,12 +11,12 @@ the error comes before any work (or progress bar) starts.
 from __future__ import annotations
 
 import functools
+import inspect
 import sys
 from collections.abc import Callable
 from typing import Any, TypeVar
 
 import typer
-from typer import _click as click
 from typer.core import TyperGroup
 
 from experiments.runs.failure import describe, write_failure
@@ -29,7 +29,7 @@ __all__ = ["OneLineErrors", "current_run", "fail", "long_command", "one_line"]
 CURRENT_RUN = "wander.current_run"
 
 
-def one_line(err: click.exceptions.ClickException) -> str:
+def one_line(err: typer.TyperException) -> str:
     """``<command path>: <message>`` on a single line."""
     ctx = getattr(err, "ctx", None)
     where = ctx.command_path if ctx is not None else "wander"
@@ -37,14 +37,12 @@ def one_line(err: click.exceptions.ClickException) -> str:
     return f"{where}: {text}"
 
 
-def fail(message: object, default: str = "wander") -> typer.Exit:
+def fail(message: object, where: typer.Context | str = "wander") -> typer.Exit:
     """One line on stderr (``<command path>: error: <message>``, the message's white space
-    folded) and the exit (code 2) for the command to raise; ``default`` names the command
-    outside a Click context."""
-    from typer._click.globals import get_current_context
-
-    ctx = get_current_context(silent=True)
-    where = ctx.command_path if ctx is not None else default
+    folded) and the exit (code 2) for the command to raise; ``where`` is the command's
+    context (its path names the command) or the command's name."""
+    if not isinstance(where, str):  # the context Typer passes (a base of typer.Context's)
+        where = where.command_path
     typer.echo(f"{where}: error: {' '.join(str(message).split())}", err=True)
     return typer.Exit(code=2)
 
@@ -52,13 +50,10 @@ def fail(message: object, default: str = "wander") -> typer.Exit:
 _F = TypeVar("_F", bound=Callable[..., Any])
 
 
-def current_run() -> CurrentRun | None:
-    """The :class:`CurrentRun` of the long command running now (``None`` outside one):
-    a run folder named with it registers itself there."""
-    from typer._click.globals import get_current_context
-
-    ctx = get_current_context(silent=True)
-    return ctx.meta.get(CURRENT_RUN) if ctx is not None else None
+def current_run(ctx: typer.Context) -> CurrentRun | None:
+    """The :class:`CurrentRun` of the long command of context ``ctx`` (``None`` for a
+    command that is none): a run folder named with it registers itself there."""
+    return ctx.meta.get(CURRENT_RUN)
 
 
 def long_command(name: str) -> Callable[[_F], _F]:
@@ -67,17 +62,21 @@ def long_command(name: str) -> Callable[[_F], _F]:
     run folder the command named (:func:`current_run`, whether ``--out`` gave it or not:
     :meth:`~experiments.runs.folder.RunFolder.record_failure`). A signal that came ends the
     command with its code even when foreign code turned it into another error or dropped it.
+    The command's :class:`typer.Context` parameter (Typer passes it) holds the
+    :class:`CurrentRun`; a command without one (called directly) names no folder there.
     """
 
     def deco(fn: _F) -> _F:
+        sig = inspect.signature(fn, eval_str=True)
+        contexts = [k for k, p in sig.parameters.items() if p.annotation is typer.Context]
+
         @functools.wraps(fn)
         def wrapper(*args: Any, **kwargs: Any) -> Any:
-            from typer._click.globals import get_current_context
-
             current = CurrentRun()
-            ctx = get_current_context(silent=True)
-            if ctx is not None:
-                ctx.meta[CURRENT_RUN] = current
+            given = sig.bind_partial(*args, **kwargs).arguments
+            for key in contexts:
+                if given.get(key) is not None:
+                    given[key].meta[CURRENT_RUN] = current
             received = Received()
             try:
                 with handle_signals() as received:
@@ -122,11 +121,11 @@ class OneLineErrors(TyperGroup):
             return super().main(*args, standalone_mode=False, **kwargs)
         try:
             rv = super().main(*args, standalone_mode=False, **kwargs)
-        except click.exceptions.NoArgsIsHelpError as err:
-            err.show()
-            sys.exit(err.exit_code)
-        except click.exceptions.ClickException as err:
-            typer.echo(one_line(err), err=True)
+        except typer.TyperException as err:  # Typer's Click errors derive from it
+            if type(err).__name__ == "NoArgsIsHelpError":  # the help (no public class: told
+                err.show()  # by its name, as Typer's own rich_utils does)
+            else:
+                typer.echo(one_line(err), err=True)
             sys.exit(err.exit_code)
         except typer.Abort:
             typer.echo("Aborted!", err=True)

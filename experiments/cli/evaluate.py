@@ -24,10 +24,7 @@ from experiments.cli.options import (
     with_options,
 )
 
-__all__ = ["EVALUATE_SECONDS", "evaluate"]
-
-#: The simulated seconds of each seed's run (the base config's ``env.episode_seconds``).
-EVALUATE_SECONDS = 20.0
+__all__ = ["evaluate"]
 
 
 @long_command("wander evaluate")
@@ -44,7 +41,7 @@ def evaluate(
     scene: SceneOpt = None,
     seconds: Annotated[
         float | None,
-        seconds_option(f"Simulated seconds per seed (default: {EVALUATE_SECONDS:g})."),
+        seconds_option("Simulated seconds per seed (default: the config's, 20)."),
         ConfigKey("env.episode_seconds"),
     ] = None,
     seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
@@ -52,14 +49,13 @@ def evaluate(
     **shared: Any,
 ) -> None:
     """The agent's quality in simulation: detection accuracy, suppression, foveation error.
-    Unset flags take RunConfig's values, but 20 s a seed and no video."""
+    Unset flags take EvaluateConfig's values (RunConfig's, but 20 s a seed and no video)."""
+    from experiments.jobs.evaluate_agent import EvaluateConfig
     from experiments.jobs.evaluate_agent import evaluate as run_eval
-    from experiments.jobs.run_agent import RunConfig
 
     seed_list = int_list(seeds, "--seeds", "seed")
-    own = {"env.episode_seconds": EVALUATE_SECONDS, "video": False}
-    config = command_config(ctx, RunConfig, defaults=own)
-    folder = resolve_out(out, "evaluate", shared["force"])
+    config = command_config(ctx, EvaluateConfig)
+    folder = resolve_out(ctx, out, "evaluate", shared["force"])
     with progress_bars() as bar:
         steps = round(config.seconds / config.env.control_period_s)
         task = bar.add_task("evaluate", total=steps * len(seed_list))

@@ -18,15 +18,16 @@ from experiments.cli.errors import current_run, fail, long_command
 from experiments.cli.options import (
     ForceOpt,
     SeedOpt,
+    SetOpt,
     check_wait,
     check_workers,
+    command_config,
     folder_problem,
     one_of,
     own_folder,
 )
 from experiments.runs.folder import RunFolder
-from experiments.studies.framework import EXPERIMENT_NAMES, ConfigError
-from experiments.studies.sweep import BACKENDS
+from experiments.studies.registry import EXPERIMENT_NAMES
 
 __all__ = ["register"]
 
@@ -37,11 +38,9 @@ def _command_line() -> str:
 
 @long_command("wander experiment")
 def experiment(
+    ctx: typer.Context,
     name: Annotated[str, typer.Argument(help=f"One of: {', '.join(EXPERIMENT_NAMES)}.")],
-    set_: Annotated[
-        list[str] | None,
-        typer.Option("--set", help="Override a config key: --set key=value (repeatable)."),
-    ] = None,
+    set_: SetOpt = None,
     config: Annotated[
         Path | None,
         typer.Option(help="Config file (default: experiments/paper/configs/NAME.yaml)."),
@@ -64,13 +63,15 @@ def experiment(
         bool, typer.Option("--show-config", help="Print the resolved config and stop.")
     ] = False,
 ) -> None:
-    """Run one experiment: a results table, plots, config, seed and git revision."""
+    """Run one experiment: a results table, plots, config, seed and git revision. Its
+    config: the experiment's defaults <- the config file <- --set items."""
 
     from experiments.studies.framework import (
+        ConfigError,
         config_to_dict,
+        default_config_file,
         get_experiment,
         make_trials,
-        resolve_config,
         run_experiment,
         unfinished_folder,
     )
@@ -79,18 +80,23 @@ def experiment(
 
     try:
         exp = get_experiment(name)
-        cfg = resolve_config(exp, config, set_ or [])
+    except ConfigError as e:
+        raise fail(e, ctx) from None
+    cfg = command_config(ctx, exp.config_type, config_file=config or default_config_file(exp))
+    try:
         n = len(make_trials(exp, cfg, seed))
         resume = None if show_config or force else unfinished_folder(name, cfg, seed, out)
     except ConfigError as e:
-        raise fail(str(e)) from None
+        raise fail(e, ctx) from None
     if show_config:
         console.print_json(dumps_strict(config_to_dict(cfg)))
         return
     if resume is not None:  # the same command stopped there: its finished trials are kept
-        run = RunFolder(resume, current_run())
+        run = RunFolder(resume, current_run(ctx))
     else:
-        run = own_folder(lambda now: RunFolder.for_experiment(name, seed, out, force, current=now))
+        run = own_folder(
+            ctx, lambda now: RunFolder.for_experiment(name, seed, out, force, current=now)
+        )
     folder = run.path
 
     streams: list = []
@@ -112,10 +118,10 @@ def experiment(
                 progress=lambda i, total: bar.update(task, completed=i, total=total),
             )
         except ConfigError as e:  # another run holds the folder: not this run's to mark
-            raise fail(str(e)) from None
+            raise fail(e, ctx) from None
         except TrialCrashed as e:
             run.record_failure(e)
-            raise fail(f"{e} ({folder})") from None
+            raise fail(f"{e} ({folder})", ctx) from None
         except BaseException as e:  # any error, also one no signal or write: the folder says so
             run.record_failure(e)
             raise
@@ -135,11 +141,19 @@ def _print_rtf(rtf: float | None) -> None:
         console.print(f"real-time factor: {rtf:.3g} (simulated seconds per wall second)")
 
 
+def _check_backend(value: str) -> str:
+    """One of the sweep backends (:data:`experiments.studies.sweep.BACKENDS`)."""
+    from experiments.studies.sweep import BACKENDS
+
+    return one_of(BACKENDS)(value)
+
+
 @long_command("wander sweep")
 def sweep(
+    ctx: typer.Context,
     config: Annotated[Path, typer.Argument(help="Sweep file (see experiments/paper/configs/).")],
     backend: Annotated[
-        str, typer.Option(callback=one_of(BACKENDS), help="serial, local or ray.")
+        str, typer.Option(callback=_check_backend, help="serial, local or ray.")
     ] = "local",
     workers: Annotated[
         int | None,
@@ -162,14 +176,15 @@ def sweep(
     ] = 6 * 3600.0,
 ) -> None:
     """Run a grid of (experiment, parameters, seeds); reruns skip finished trials."""
+    from experiments.studies.framework import ConfigError
     from experiments.studies.sweep import BackendFailed, TrialCrashed, expand, load_sweep, run_sweep
 
     try:
         sw = load_sweep(config)
         n = len(expand(sw))
     except ConfigError as e:
-        raise fail(str(e)) from None
-    run = RunFolder(out or Path("results") / "sweeps" / sw.name, current_run())
+        raise fail(e, ctx) from None
+    run = RunFolder(out or Path("results") / "sweeps" / sw.name, current_run(ctx))
     folder = run.path
     with progress_bars() as bar:
         task = bar.add_task(f"sweep {sw.name}", total=n)
@@ -185,13 +200,13 @@ def sweep(
                 timeout_s=timeout,
             )
         except ConfigError as e:
-            raise fail(str(e)) from None
+            raise fail(e, ctx) from None
         except TimeoutError as e:
             run.record_failure(e)
-            raise fail(f"{e} ({folder}: rerun to resume)") from None
+            raise fail(f"{e} ({folder}: rerun to resume)", ctx) from None
         except (TrialCrashed, BackendFailed) as e:
             run.record_failure(e)
-            raise fail(f"{e} ({folder})") from None
+            raise fail(f"{e} ({folder})", ctx) from None
         except BaseException as e:  # a signal: the folder says so; the workers are ended
             run.record_failure(e)
             raise
@@ -203,6 +218,7 @@ def sweep(
 
 
 def report(
+    ctx: typer.Context,
     results: Annotated[Path, typer.Option(help="Folder of result folders.")] = Path("results"),
     out: Annotated[
         str,
@@ -236,7 +252,7 @@ def report(
     try:
         path = build_report(results, out)
     except ValueError as err:  # ReportInputError, ConfigError: a damaged result file
-        raise fail(err, "wander report") from None
+        raise fail(err, ctx) from None
     except OSError as err:  # --out under a file, in /proc, a name too long
         raise typer.BadParameter(folder_problem(err), param_hint="'--out'") from None
     console.print(f"-> {path}")

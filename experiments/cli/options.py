@@ -36,7 +36,6 @@ import typer
 
 from experiments.cli.console import step_progress
 from experiments.runs.folder import CurrentRun, RunFolder
-from experiments.studies.framework import MAX_SEED
 from wander_env.frames.registry import frame_modes_help
 
 __all__ = [
@@ -45,6 +44,7 @@ __all__ = [
     "MAX_SECONDS",
     "MAX_WORKERS",
     "AgentAlphaOpt",
+    "ConfigFileOpt",
     "ConfigKey",
     "DvsOpt",
     "FixationalOpt",
@@ -106,6 +106,8 @@ def check_seconds(value: float) -> float:
 
 def check_seed(value: int) -> int:
     """A seed: an integer in [0, :data:`experiments.studies.framework.MAX_SEED`]."""
+    from experiments.studies.framework import MAX_SEED
+
     if not 0 <= value <= MAX_SEED:
         raise typer.BadParameter(f"must be an integer in [0, {MAX_SEED}], got {value}")
     return value
@@ -328,6 +330,16 @@ KeyframeMsOpt = Annotated[
     ),
     ConfigKey("env.keyframe_ms"),
 ]
+ConfigFileOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--config",
+        exists=True,
+        dir_okay=False,
+        help="A YAML file of the command's config keys (its env and agent blocks, seed, "
+        "...). Flags given on the command line and --set override it.",
+    ),
+]
 SetOpt = Annotated[
     list[str] | None,
     typer.Option(
@@ -464,7 +476,7 @@ def command_config(
             config = validate(cls, {**lead, **file_values}, None, str(config_file))  # type: ignore[arg-type]
             lead = {}
     except ConfigError as err:
-        raise fail(err) from None
+        raise fail(err, ctx) from None
     values, flags = _flag_values(ctx)
     try:
         config = validate(cls, {**lead, **values}, config)  # type: ignore[arg-type]
@@ -475,29 +487,25 @@ def command_config(
         if sets:
             config = validate(cls, parse_sets(sets, cls), config, "--set")  # type: ignore[arg-type]
     except ConfigError as err:
-        raise fail(err) from None
+        raise fail(err, ctx) from None
     return config
 
 
-def own_folder(make: Callable[[CurrentRun | None], RunFolder]) -> RunFolder:
+def own_folder(ctx: typer.Context, make: Callable[[CurrentRun | None], RunFolder]) -> RunFolder:
     """The run folder ``make(current)`` names and creates
-    (:class:`experiments.runs.folder.RunFolder`; ``current``: the command's
-    :class:`~experiments.runs.folder.CurrentRun`, where it registers), with its
+    (:class:`experiments.runs.folder.RunFolder`; ``current``: the :class:`CurrentRun` of
+    the command of ``ctx``, where it registers), with its
     :meth:`~experiments.runs.folder.RunFolder.finish` called when the command ends, however
     it ends; or a one-line usage error on ``--out`` when the folder is refused (it holds an
     earlier run, it is a file) or cannot be created (under a file, in ``/proc``, a name too
     long), before anything runs."""
-    from typer._click.globals import get_current_context
-
     from experiments.cli.errors import current_run
 
     try:
-        folder = make(current_run())
+        folder = make(current_run(ctx))
     except OSError as err:
         raise typer.BadParameter(folder_problem(err), param_hint="'--out'") from None
-    ctx = get_current_context(silent=True)
-    if ctx is not None:
-        ctx.call_on_close(folder.finish)
+    ctx.call_on_close(folder.finish)
     return folder
 
 
@@ -513,19 +521,25 @@ def folder_problem(err: OSError) -> str:
     return f"cannot create {str(err.filename)!r}: {err.strerror}"
 
 
-def resolve_out(out: Path | None, command: str, force: bool) -> RunFolder:
+def resolve_out(ctx: typer.Context, out: Path | None, command: str, force: bool) -> RunFolder:
     """The command's run folder (:meth:`experiments.runs.folder.RunFolder.new` through
     :func:`own_folder`): a job writes into its ``path``, the command names its ``final``."""
-    return own_folder(lambda current: RunFolder.new(command, out, force, current=current))
+    return own_folder(ctx, lambda current: RunFolder.new(command, out, force, current=current))
 
 
 def run_env_job(
-    job: Callable[..., T], config: Any, out: Path | None, force: bool, command: str, title: str
+    ctx: typer.Context,
+    job: Callable[..., T],
+    config: Any,
+    out: Path | None,
+    force: bool,
+    command: str,
+    title: str,
 ) -> tuple[Path, T]:
     """Run ``job(folder, config, progress=...)`` in a new run folder of ``out`` and
     ``force`` (:func:`resolve_out`) under one progress bar of the config's env steps;
     returns the folder's final path and the job's result."""
-    folder = resolve_out(out, command, force)
+    folder = resolve_out(ctx, out, command, force)
     steps = round(config.env.episode_seconds / config.env.control_period_s)
     with step_progress(title, steps) as progress:
         return folder.final, job(folder.path, config, progress=progress)

@@ -7,13 +7,23 @@ with a notice).
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from experiments.cli.console import console, print_table
-from experiments.cli.options import KeyframeMsOpt, SceneOpt, int_list, seconds_option
+from experiments.cli.options import (
+    ConfigFileOpt,
+    ConfigKey,
+    KeyframeMsOpt,
+    SceneOpt,
+    SetOpt,
+    command_config,
+    int_list,
+    seconds_option,
+)
 
 __all__ = ["app"]
 
@@ -67,48 +77,77 @@ def bench_dvs(
 
 @app.command("env")
 def bench_env(
-    scene: SceneOpt = "office",
-    seconds: Annotated[float, seconds_option("Simulated seconds per row.")] = 2.0,
-    ground_truth: Annotated[bool, typer.Option(help="Render segmentation masks too.")] = True,
+    ctx: typer.Context,
+    scene: SceneOpt = None,
+    seconds: Annotated[
+        float | None,
+        seconds_option("Simulated seconds per row (default: the config's, 2)."),
+        ConfigKey("seconds"),
+    ] = None,
+    ground_truth: Annotated[
+        bool | None,
+        typer.Option(help="Render segmentation masks too (default: the config's, yes)."),
+        ConfigKey("env.ground_truth"),
+    ] = None,
     antialias: Annotated[
-        int | None, typer.Option(min=0, help="MSAA samples (overrides the scene's; 0 = off).")
+        int | None,
+        typer.Option(min=0, help="MSAA samples (overrides the scene's; 0 = off)."),
+        ConfigKey("env.antialias_samples"),
     ] = None,
     breakdown: Annotated[bool, typer.Option(help="Also time the parts of one env's step.")] = True,
     keyframe_ms: KeyframeMsOpt = None,
     envs: Annotated[str, typer.Option(help="Comma-separated env counts.")] = "1,2,4",
     keyframe_px: Annotated[
-        float, typer.Option(min=0.01, help="Motion bound (px) of the adaptive keys' column.")
-    ] = 2.0,
+        float | None,
+        typer.Option(
+            min=0.01,
+            help="Motion bound (px) of the adaptive keys' column (default: the config's, 2).",
+        ),
+        ConfigKey("env.keyframe_px"),
+    ] = None,
+    config: ConfigFileOpt = None,
+    set_: SetOpt = None,
 ) -> None:
     """Real-time factor of the environment: exact, keyframe and adaptive-keyframe frames
-    side by side."""
+    side by side. Unset flags take EnvBenchConfig's values; each row sets the env's dvs
+    (ideal, speck) and frames itself."""
+    from experiments.cli.errors import fail
     from experiments.perf.env import (
         BREAKDOWN_COLUMNS,
         ENV_COLUMNS,
         ENV_COUNT_COLUMNS,
         ENV_TIME_COLUMNS,
+        ROW_KEYS,
+        EnvBenchConfig,
         step_breakdown,
     )
     from experiments.perf.env import bench_env as run
 
-    km = keyframe_ms  # None: the env's
     counts = tuple(int_list(envs, "--envs", "env count", minimum=1))
-    # Every row's scene, length, antialiasing and keyframe interval.
-    common = {"scene": scene, "seconds": seconds, "antialias_samples": antialias, "keyframe_ms": km}
+    bench = command_config(ctx, EnvBenchConfig, config_file=config)
+    default = EnvBenchConfig().env
+    given = [k for k in ROW_KEYS if getattr(bench.env, k) != getattr(default, k)]
+    if given:
+        set_here = ", ".join(f"env.{k}={getattr(bench.env, k)!r}" for k in given)
+        raise fail(f"{set_here}: each row sets {', '.join(ROW_KEYS)} itself", ctx)
+    base, scene = bench.env, bench.env.scene
     if breakdown:
         parts = [
-            step_breakdown(dvs=d, frames=f, keyframe_px=px, **common)
+            step_breakdown(
+                replace(base, dvs=d, frames=f, keyframe_px=px), bench.seconds, bench.seed
+            )
             for d in ("ideal", "speck")
-            for f, px in (("exact", None), ("keyframes", None), ("keyframes", keyframe_px))
+            for f, px in (("exact", None), ("keyframes", None), ("keyframes", base.keyframe_px))
         ]
         print_table(
             f"One env's step, scene '{scene}' (ms per step unless named)",
             parts,
             BREAKDOWN_COLUMNS,
         )
-    rows = run(ground_truth=ground_truth, env_counts=counts, keyframe_px=keyframe_px, **common)
+    rows = run(bench, env_counts=counts)
+    bound = "no bound" if base.keyframe_px is None else f"{base.keyframe_px:g} px"
     modes = (
-        f"exact, keyframe and adaptive-keyframe frames ({keyframe_px:g} px) stepped in turn, "
+        f"exact, keyframe and adaptive-keyframe frames ({bound}) stepped in turn, "
         "then the adaptive env (the default keys) stepped alone through the same steps"
     )
     print_table(
@@ -134,18 +173,36 @@ def bench_env(
 
 @app.command("agent")
 def bench_agent(
-    scene: SceneOpt = "office",
-    seconds: Annotated[float, seconds_option("Simulated seconds of closed loop.")] = 5.0,
-    seed: Annotated[int, typer.Option(help="Seed of the env and the agent.")] = 0,
+    ctx: typer.Context,
+    scene: SceneOpt = None,
+    seconds: Annotated[
+        float | None,
+        seconds_option("Simulated seconds of closed loop (default: the config's, 5)."),
+        ConfigKey("env.episode_seconds"),
+    ] = None,
+    seed: Annotated[
+        int | None,
+        typer.Option(help="Seed of the env and the agent (default: the config's, 0)."),
+        ConfigKey("seed"),
+    ] = None,
     keyframe_ms: KeyframeMsOpt = None,
+    config: ConfigFileOpt = None,
+    set_: SetOpt = None,
 ) -> None:
     """Per-step latency of sOMS, proto-object, sAC and the whole agent; closed-loop RTF
-    with exact and keyframe frames side by side."""
-    from experiments.perf.agent import LATENCY_COLUMNS, LOOP_COLUMNS, MODES_COLUMNS, loop_modes
+    with exact and keyframe frames side by side. Unset flags take AgentBenchConfig's
+    values (`--set agent.KEY=VALUE` reaches every agent parameter)."""
+    from experiments.perf.agent import (
+        LATENCY_COLUMNS,
+        LOOP_COLUMNS,
+        MODES_COLUMNS,
+        AgentBenchConfig,
+        loop_modes,
+    )
     from experiments.perf.agent import bench_agent as run
 
-    fk = {} if keyframe_ms is None else {"keyframe_ms": keyframe_ms}
-    rows, loop = run(seconds=seconds, scene=scene, seed=seed, **fk)
+    bench = command_config(ctx, AgentBenchConfig, config_file=config)
+    rows, loop = run(bench)
     print_table("Agent latency at 128x128 (ms per call)", rows, LATENCY_COLUMNS)
     print_table(
         "Closed loop (env + agent, the env's default frames; real-time factor = simulated s "
@@ -153,7 +210,7 @@ def bench_agent(
         [loop],
         LOOP_COLUMNS,
     )
-    both = loop_modes(seconds=seconds, scene=scene, seed=seed, keyframe_ms=fk.get("keyframe_ms"))
+    both = loop_modes(bench)
     print_table(
         "Closed loop, exact vs keyframe frames stepped alternately (speedup = keyframes RTF / "
         "exact RTF)",

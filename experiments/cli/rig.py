@@ -155,7 +155,7 @@ def rig(
         raise typer.BadParameter(
             f"no such event file: {str(replay_file)!r}", param_hint="'--camera'"
         )
-    folder = resolve_out(out, "rig", force)
+    folder = resolve_out(ctx, out, "rig", force)
     out = folder.final
     try:
         with step_progress(

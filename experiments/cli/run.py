@@ -85,7 +85,7 @@ def demo(
     from experiments.jobs.dvs_demo import DemoConfig
 
     config = command_config(ctx, DemoConfig)
-    folder = resolve_out(out, "demo", force)
+    folder = resolve_out(ctx, out, "demo", force)
     steps = round(config.seconds * config.frame_rate_hz)
     with step_progress("DVS demo", steps) as progress:
         summary = run_demo(folder.path, config, progress=progress)
@@ -143,7 +143,7 @@ def record(
 
     config = command_config(ctx, RecordConfig)
     title = f"record {config.env.scene}"
-    out, summary = run_env_job(run, config, out, shared["force"], "record", title)
+    out, summary = run_env_job(ctx, run, config, out, shared["force"], "record", title)
     console.print(f"{summary['events']:,} events over {summary['steps']} steps -> {out}")
 
 
@@ -193,7 +193,7 @@ def run_agent(
 
     config = command_config(ctx, RunConfig, config_file=config)
     title = f"agent in {config.env.scene}"
-    out, result = run_env_job(run_loop, config, out, shared["force"], "run", title)
+    out, result = run_env_job(ctx, run_loop, config, out, shared["force"], "run", title)
     m = result.metrics
     detection = (
         f"detection accuracy {m['detection_accuracy']:.0%} ({m['decisions_scored']} scored)"
@@ -208,6 +208,7 @@ def run_agent(
 
 @long_command("wander rerun")
 def rerun(
+    ctx: typer.Context,
     run_dir: Annotated[Path, typer.Argument(help="A folder that `wander run` wrote.")],
     out: RunDirOpt = None,
     force: ForceOpt = False,
@@ -222,9 +223,9 @@ def rerun(
     try:
         config = rerun_config(run_dir / "run.json", RunConfig, "wander run")
     except ValueError as err:
-        raise fail(err) from None
+        raise fail(err, ctx) from None
     title = f"agent in {config.env.scene.name}, again"
-    out, result = run_env_job(run_loop, config, out, force, "run", title)
+    out, result = run_env_job(ctx, run_loop, config, out, force, "run", title)
     m = result.metrics
     console.print(f"{m['decisions']} decisions, {m['saccades']} saccades -> {out}")
 

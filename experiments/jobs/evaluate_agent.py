@@ -32,6 +32,29 @@ from experiments.jobs.run_agent import RunConfig, run
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
 from experiments.studies.framework import write_csv
+from wander_env.env_config import WanderConfig
+
+#: The simulated seconds of each seed's run (:class:`EvaluateConfig`'s
+#: ``env.episode_seconds``).
+EVALUATE_SECONDS = 20.0
+
+
+def _evaluate_env() -> WanderConfig:
+    return WanderConfig(episode_seconds=EVALUATE_SECONDS)
+
+
+@dataclass(frozen=True)
+class EvaluateConfig(RunConfig):
+    """What ``wander evaluate`` runs for each seed: a :class:`RunConfig` (its ``seed``
+    replaced by each seed's), but :data:`EVALUATE_SECONDS` a seed and no video.
+
+    >>> config = EvaluateConfig()
+    >>> config.seconds, config.video, config.agent == RunConfig().agent
+    (20.0, False, True)
+    """
+
+    env: WanderConfig = field(default_factory=_evaluate_env)
+    video: bool = False
 
 
 def detection_interval(hits: int, scored: int, confidence: float = 0.95) -> tuple[float, float]:

@@ -9,8 +9,16 @@ env's step. The streamlined proto-object model (no polarity split) is timed afte
 on the same OMS maps. Every table has the process's CPU time beside the wall time and
 the load average around its measurement (:mod:`experiments.perf.clock`).
 
+What runs is an :class:`AgentBenchConfig` (the env's block, the agent's block and the
+seed), which ``wander perf agent`` builds through the command line's one layered path
+(:func:`experiments.cli.options.command_config`: ``--set agent.soms.alpha=0.5`` too).
+
 Examples:
-    >>> rows, loop = bench_agent(seconds=0.3, scene="shelf")  # doctest: +SKIP
+    >>> from wander_env.config import validate
+    >>> config = validate(AgentBenchConfig, {"env.scene": "shelf", "env.episode_seconds": 0.3})
+    >>> config.env.episode_seconds, config.env.ground_truth, config.agent == AgentParams()
+    (0.3, False, True)
+    >>> rows, loop = bench_agent(config)  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -24,7 +32,9 @@ import numpy as np
 
 from agents.attention import AgentParams, AttentionAgent
 from agents.proto_object import ProtoObjectSaliency
+from experiments.jobs.run_agent import OneEpisodeRun
 from experiments.perf.clock import LOAD_COLUMN, Clock, Timings, timed
+from wander_env.env_config import WanderConfig
 
 # The columns of `wander perf agent`'s tables (row field -> format spec).
 LATENCY_COLUMNS: dict[str, str] = {
@@ -113,17 +123,27 @@ def latency_row(
     )
 
 
-def bench_agent(
-    seconds: float = 5.0,
-    scene: str = "office",
-    seed: int = 0,
-    dvs: str = "ideal",
-    **env_kwargs: Any,
-) -> tuple[list[LatencyRow], LoopRow]:
-    """Run the agent closed-loop for ``seconds`` and time every stage (module doc);
-    ``env_kwargs`` (e.g. ``frames``) go to the env. Afterwards the parts the speed work
-    replaced are timed old against new on the run's own inputs (:func:`compare_impls`)."""
-    env, agent = _agent_in_env(scene, dvs, seconds, seed, **env_kwargs)
+def _bench_env() -> WanderConfig:
+    return WanderConfig(ground_truth=False, episode_seconds=5.0)
+
+
+@dataclass(frozen=True)
+class AgentBenchConfig(OneEpisodeRun):
+    """What ``wander perf agent`` times: the env's block (no ground truth: the agent's
+    inputs alone; its ``episode_seconds`` the closed loop's length, 5 s), the seed of the
+    env and the agent, and the agent's block (:class:`agents.attention.AgentParams`)."""
+
+    env: WanderConfig = field(default_factory=_bench_env)
+    seed: int = 0
+    agent: AgentParams = field(default_factory=AgentParams)
+
+
+def bench_agent(config: AgentBenchConfig) -> tuple[list[LatencyRow], LoopRow]:
+    """Run the agent of ``config`` closed-loop for its ``seconds`` and time every stage
+    (module doc). Afterwards the parts the speed work replaced are timed old against new
+    on the run's own inputs (:func:`compare_impls`)."""
+    seconds, seed, scene = config.seconds, config.seed, _scene_name(config.env)
+    env, agent = _agent_in_env(config, config.env)
     acc = Timings()
     record: dict[str, list] = {}
     _record_inputs(agent, record)
@@ -215,23 +235,17 @@ class ModesRow:
     load: str = "–"
 
 
-def loop_modes(
-    seconds: float = 5.0,
-    scene: str = "office",
-    seed: int = 0,
-    dvs: str = "ideal",
-    keyframe_ms: float | None = None,
-) -> ModesRow:
-    """Two closed loops (env + agent), ``frames="exact"`` and ``"keyframes"``, stepped
-    alternately (one step of each in turn, each timed), so that machine noise hits both."""
-    from wander_env.env_config import WanderConfig
-
-    km = WanderConfig.keyframe_ms if keyframe_ms is None else keyframe_ms
-    modes = {"exact": {"frames": "exact"}, "keyframes": {"frames": "keyframes", "keyframe_ms": km}}
+def loop_modes(config: AgentBenchConfig) -> ModesRow:
+    """Two closed loops (env + agent) of ``config``, its env with ``frames="exact"`` and
+    ``"keyframes"``, stepped alternately (one step of each in turn, each timed), so that
+    machine noise hits both."""
+    seconds, seed, scene = config.seconds, config.seed, _scene_name(config.env)
+    km = config.env.keyframe_ms
+    modes = {"exact": "exact", "keyframes": "keyframes"}
     loops = {}
     try:
-        for mode, kw in modes.items():
-            env, agent = _agent_in_env(scene, dvs, seconds, seed, **kw)
+        for mode, frames in modes.items():
+            env, agent = _agent_in_env(config, replace(config.env, frames=frames))
             obs, info = env.reset(seed=seed)
             loops[mode] = {
                 "env": env,
@@ -285,23 +299,19 @@ def loop_modes(
     )
 
 
-def _agent_in_env(
-    scene: str, dvs: str, seconds: float, seed: int, **env_kwargs: Any
-) -> tuple[Any, AttentionAgent]:
-    """The env (no ground truth) and the default agent that the benches time."""
+def _scene_name(env: WanderConfig) -> str:
+    """The scene's name for the tables (a scene config's file name)."""
+    return env.scene if isinstance(env.scene, str) else env.scene.name
+
+
+def _agent_in_env(config: AgentBenchConfig, env_config: WanderConfig) -> tuple[Any, AttentionAgent]:
+    """The env of ``env_config`` and the agent of ``config`` that the benches time."""
     import gymnasium as gym
 
     import wander_env  # noqa: F401  (registers the environments)
 
-    env = gym.make(
-        "wander/Wander-v0",
-        scene=scene,
-        dvs=dvs,
-        ground_truth=False,
-        episode_seconds=seconds,
-        **env_kwargs,
-    )
-    return env, AttentionAgent(AgentParams.for_env(env), seed=seed)
+    env = gym.make("wander/Wander-v0", **env_config)
+    return env, AttentionAgent(config.agent_params(env), seed=config.seed)
 
 
 @dataclass(frozen=True)

@@ -14,18 +14,28 @@ its workers' time is not this process's) and the load average around the row
 
 :func:`step_breakdown` splits one env's step into its parts (renders, DVS,
 segmentation, posing the model, the rest) by timing those calls in place.
+
+What runs is an :class:`EnvBenchConfig`: the env's block every row starts from (each row
+sets its DVS preset and frame mode on it), the simulated seconds of a row and the seed;
+``wander perf env`` builds it through the command line's one layered path
+(:func:`experiments.cli.options.command_config`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field, replace
+from typing import Annotated, Any
 
 import gymnasium as gym
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
 from experiments.perf.clock import LOAD_COLUMN, Clock, Timings, timed
+from wander_env.env_config import WanderConfig
+from wander_env.field_doc import field_doc
+
+#: The env keys each row of ``wander perf env`` sets itself (not the config's to set).
+ROW_KEYS = ("dvs", "frames")
 
 # The columns of `wander perf env`'s tables (row field -> format spec).
 BREAKDOWN_COLUMNS: dict[str, str] = {
@@ -121,56 +131,59 @@ class EnvBenchRow:
     load: str = "–"  # 1-minute load average at the row's start and end
 
 
-def _make(
-    scene: str,
-    dvs: str,
-    ground_truth: bool,
-    antialias_samples: int | None = None,
-    **env: Any,
-):
-    kw = dict(env) if antialias_samples is None else {**env, "antialias_samples": antialias_samples}
-    return lambda: gym.make(
-        "wander/Wander-v0", scene=scene, dvs=dvs, ground_truth=ground_truth, **kw
-    )
+@dataclass(frozen=True)
+class EnvBenchConfig:
+    """What ``wander perf env`` measures: the env's block every row starts from (its
+    scene, ground truth, antialiasing, ``keyframe_ms`` and the adaptive column's
+    ``keyframe_px``; each row sets :data:`ROW_KEYS` itself), the simulated seconds each
+    row steps, and the seed."""
+
+    env: WanderConfig = field(default_factory=WanderConfig)
+    seconds: Annotated[
+        float, field_doc("Simulated seconds each row steps", unit="s", gt=0, le=86400)
+    ] = 2.0
+    seed: int = 0
+
+
+def _make(env: WanderConfig):
+    return lambda: gym.make("wander/Wander-v0", **env)
+
+
+def _scene_name(env: WanderConfig) -> str:
+    """The scene's name for the tables (a scene config's own name)."""
+    return env.scene if isinstance(env.scene, str) else env.scene.name
 
 
 def bench_env(
-    scene: str = "office",
-    seconds: float = 2.0,
+    config: EnvBenchConfig,
     presets: tuple[str, ...] = ("ideal", "speck"),
     env_counts: tuple[int, ...] = (1, 2, 4),
-    ground_truth: bool = True,
-    seed: int = 0,
-    antialias_samples: int | None = None,
-    keyframe_ms: float | None = None,
-    keyframe_px: float = 2.0,
 ) -> list[EnvBenchRow]:
-    """One row per preset and env count; ``antialias_samples`` overrides the scene's.
+    """One row per preset and env count, each env the config's with the row's preset.
 
-    The frame modes (exact, keyframes every ``keyframe_ms``, adaptive keys bounded by
-    ``keyframe_px``) run in one process at once, stepped in turn (one step of each, the
-    order rotated every step), so that a noisy machine slows all alike; each step is
+    The frame modes (exact, keyframes every ``env.keyframe_ms``, adaptive keys bounded by
+    ``env.keyframe_px``) run in one process at once, stepped in turn (one step of each,
+    the order rotated every step), so that a noisy machine slows all alike; each step is
     timed (wall and CPU). Then the adaptive env is reset and stepped alone through the
     same steps.
     """
-    from wander_env.env_config import WanderConfig
-
-    km = WanderConfig.keyframe_ms if keyframe_ms is None else keyframe_ms
+    base, seconds, seed = config.env, config.seconds, config.seed
+    km, keyframe_px, ground_truth = base.keyframe_ms, base.keyframe_px, base.ground_truth
     modes = {
         "exact": {"frames": "exact"},
-        "keyframes": {"frames": "keyframes", "keyframe_ms": km, "keyframe_px": None},
-        "adaptive": {"frames": "keyframes", "keyframe_ms": km, "keyframe_px": keyframe_px},
+        "keyframes": {"frames": "keyframes", "keyframe_px": None},
+        "adaptive": {"frames": "keyframes"},
     }
     rows = []
     for dvs in presets:
         for n in env_counts:
             envs = {}
             for mode, kw in modes.items():
-                make = _make(scene, dvs, ground_truth, antialias_samples, **kw)
+                make = _make(replace(base, dvs=dvs, **kw))
                 envs[mode] = (
                     make() if n == 1 else gym.vector.AsyncVectorEnv([make] * n, context="spawn")
                 )
-            period = 0.01
+            period = base.control_period_s
             steps = round(seconds / period)
             action = np.zeros((n, 2) if n > 1 else 2, np.float32)
             clocks = {m: Clock() for m in modes}
@@ -211,7 +224,7 @@ def bench_env(
 
             rows.append(
                 EnvBenchRow(
-                    scene=scene,
+                    scene=_scene_name(base),
                     dvs=dvs,
                     envs=n,
                     ground_truth=ground_truth,
@@ -275,22 +288,12 @@ class StepBreakdown:
     load: str  # 1-minute load average at the start and end of the timed steps
 
 
-def step_breakdown(
-    scene: str = "office",
-    dvs: str = "ideal",
-    seconds: float = 2.0,
-    antialias_samples: int | None = None,
-    seed: int = 0,
-    frames: str = "exact",
-    keyframe_ms: float | None = None,
-    keyframe_px: float | None = None,
-) -> StepBreakdown:
-    """Time the parts of :meth:`WanderEnv.step` in one env (zero actions, as bench_env);
-    ``keyframe_px`` gives adaptive keys (its row's ``frames`` reads ``adaptive``)."""
-    kw: dict[str, Any] = {"frames": frames, "keyframe_px": keyframe_px}
-    if keyframe_ms is not None:
-        kw["keyframe_ms"] = keyframe_ms
-    env = _make(scene, dvs, True, antialias_samples, **kw)()
+def step_breakdown(env_config: WanderConfig, seconds: float, seed: int = 0) -> StepBreakdown:
+    """Time the parts of :meth:`WanderEnv.step` in one env of ``env_config`` (zero
+    actions, as bench_env) for ``seconds``; keyframes with a ``keyframe_px`` are adaptive
+    keys (its row's ``frames`` reads ``adaptive``)."""
+    frames, keyframe_px = env_config.frames, env_config.keyframe_px
+    env = _make(env_config)()
     u = env.unwrapped
     keys = ("render", "dvs", "segment", "pose", "synth")
     acc = Timings()
@@ -323,8 +326,8 @@ def step_breakdown(
     synth = ms["synth"]
     parts = ms["render"] + synth + ms["dvs"] + ms["segment"] + ms["pose"]
     return StepBreakdown(
-        scene=scene,
-        dvs=dvs,
+        scene=_scene_name(env_config),
+        dvs=env_config.dvs,
         frames="adaptive" if frames == "keyframes" and keyframe_px is not None else frames,
         antialias_samples=u.scene.camera.antialias_samples,
         ms_per_step=1e3 * wall / steps,

@@ -9,8 +9,8 @@ paper's numbers beside ours). Its default config file is ``experiments/paper/con
 example maps): they are kept out of the table and saved as ``artifacts/<trial_id>.npz``
 in the result folder, where ``plot(config, rows, results_dir, fig_dir)`` can load them
 (:func:`load_artifacts`).
-To add an experiment: write the module, add its name to :data:`EXPERIMENT_NAMES`, add
-the YAML.
+To add an experiment: write the module, add its name to
+:data:`experiments.studies.registry.EXPERIMENT_NAMES`, add the YAML.
 
 Trials: every parameter dict of the grid is run ``config.repeats`` times (1 when the
 config has no ``repeats``); repeat ``r`` has seed ``seed + r``. A trial's identity is a
@@ -57,6 +57,7 @@ import pydantic
 from experiments.runs.folder import RUN_JSON, RunFolder
 from experiments.runs.provenance import run_record
 from experiments.runs.trials import TrialStore, save_artifacts, split_artifacts
+from experiments.studies.registry import EXPERIMENT_NAMES
 from wander_env.config import ConfigError, coerce, load_yaml, parse_sets, validate
 from wander_env.env_config import DvsPreset, FrameMode, PtuPreset, SceneName
 
@@ -82,6 +83,7 @@ __all__ = [
     "config_from_dict",
     "config_to_dict",
     "configs_dir",
+    "default_config_file",
     "get_experiment",
     "hold_folder",
     "is_unfinished_run",
@@ -99,17 +101,6 @@ __all__ = [
     "write_csv",
     "write_result_folder",
 ]
-
-# The registry: experiment names, each the module experiments/paper/<name>.py with EXPERIMENT.
-EXPERIMENT_NAMES: tuple[str, ...] = (
-    "oms_characterisation",
-    "event_suppression",
-    "detection",
-    "sac_accuracy",
-    "scanpath",
-    "saccade_speed",
-    "oms_scorecard",
-)
 
 Scalar = int | float | str | bool
 Row = dict[str, Scalar]
@@ -230,18 +221,24 @@ def load_yaml_mapping(path: Path, what: str = "config file") -> dict[str, Any]:
     return data
 
 
+def default_config_file(experiment: Experiment) -> Path | None:
+    """The experiment's config file, ``configs/NAME.yaml``, when there is one."""
+    path = configs_dir() / f"{experiment.name}.yaml"
+    return path if path.is_file() else None
+
+
 def resolve_config(
     experiment: Experiment,
     config_file: Path | None = None,
     sets: Sequence[str] = (),
     use_default_file: bool = True,
 ) -> Any:
-    """Defaults <- config file (``configs/NAME.yaml`` unless given) <- ``--set`` items."""
+    """Defaults <- config file (:func:`default_config_file` unless given) <- ``--set``
+    items (the layers of ``wander experiment``, without its command line)."""
     cls = experiment.config_type
     path = config_file
     if path is None and use_default_file:
-        default = configs_dir() / f"{experiment.name}.yaml"
-        path = default if default.is_file() else None
+        path = default_config_file(experiment)
     cfg = cls()
     if path is not None:
         cfg = config_from_dict(cls, load_yaml_mapping(path), cfg, where=str(path))

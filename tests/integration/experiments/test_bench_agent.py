@@ -12,8 +12,9 @@ from typer.testing import CliRunner
 
 from experiments.cli.main import app
 from experiments.jobs.evaluate_agent import QualityRow, detection_interval, pooled
-from experiments.perf.agent import bench_agent, latency_row
+from experiments.perf.agent import AgentBenchConfig, bench_agent, latency_row
 from experiments.studies.framework import read_csv
+from wander_env.config import validate
 from wander_env.strict_json import to_strict_json
 
 
@@ -28,7 +29,8 @@ def test_latency_row_percentiles() -> None:
 
 
 def test_bench_agent_times_every_stage_call() -> None:
-    rows, loop = bench_agent(seconds=0.3, scene="shelf")
+    config = validate(AgentBenchConfig, {"env.scene": "shelf", "env.episode_seconds": 0.3})
+    rows, loop = bench_agent(config)
     by = {r.stage: r for r in rows}
     assert by["sOMS (every step)"].calls == 30
     assert by["sAC nengo (every step)"].calls == 30

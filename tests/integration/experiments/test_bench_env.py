@@ -9,7 +9,14 @@ import time
 import pytest
 
 from experiments.perf.clock import Clock, Timings, timed
-from experiments.perf.env import ENV_COLUMNS, ENV_TIME_COLUMNS, bench_env, step_breakdown
+from experiments.perf.env import (
+    ENV_COLUMNS,
+    ENV_TIME_COLUMNS,
+    EnvBenchConfig,
+    bench_env,
+    step_breakdown,
+)
+from wander_env.env_config import WanderConfig
 
 LOAD = re.compile(r"^\d+\.\d\d-\d+\.\d\d$")
 
@@ -54,7 +61,8 @@ def test_bench_env_steps_the_default_alone_as_well_as_in_turns() -> None:
     """One row (office, ideal, one env, 3 steps): the adaptive (default) env stepped
     alone after the turns makes the same events as in turns (same seed and steps); every
     wall-time column has its CPU column, and the row its load average."""
-    (row,) = bench_env(scene="office", seconds=0.03, presets=("ideal",), env_counts=(1,))
+    config = EnvBenchConfig(env=WanderConfig(scene="office"), seconds=0.03)
+    (row,) = bench_env(config, presets=("ideal",), env_counts=(1,))
     assert row.envs == 1 and row.adaptive_alone_events_diff_pct == 0.0
     for mode in ("exact", "keyframes", "adaptive", "adaptive_alone"):
         assert getattr(row, f"{mode}_ms_per_step") > 0
@@ -65,6 +73,6 @@ def test_bench_env_steps_the_default_alone_as_well_as_in_turns() -> None:
 
 
 def test_step_breakdown_reports_cpu_and_load() -> None:
-    part = step_breakdown(scene="shelf", seconds=0.02, frames="keyframes", keyframe_px=2.0)
+    part = step_breakdown(WanderConfig(scene="shelf", keyframe_px=2.0), seconds=0.02)
     assert part.frames == "adaptive" and part.ms_per_step > 0
     assert part.cpu_ms_per_step >= 0 and LOAD.match(part.load)

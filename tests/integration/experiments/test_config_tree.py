@@ -21,10 +21,10 @@ from typer.testing import CliRunner
 
 from agents.attention import AgentParams
 from experiments.benchmark.model import ModelConfig
-from experiments.cli.evaluate import EVALUATE_SECONDS
 from experiments.cli.main import app
 from experiments.cli.options import ConfigKey, flag_keys
 from experiments.jobs.dvs_demo import DemoConfig
+from experiments.jobs.evaluate_agent import EvaluateConfig
 from experiments.jobs.record import RecordConfig
 from experiments.jobs.rig import RigRunConfig
 from experiments.jobs.run_agent import RunConfig
@@ -230,7 +230,7 @@ def _at(config: object, dotted: str) -> object:
         ),
         (
             "evaluate",
-            RunConfig(env=WanderConfig(episode_seconds=EVALUATE_SECONDS), video=False),
+            EvaluateConfig(),
             "scene seconds dvs window fixational streamlined alpha soms_norm frames "
             "keyframe_ms quality",
         ),

@@ -111,8 +111,8 @@ def test_long_command_turns_a_write_failure_into_one_line_and_marks_the_folder(t
 
     @app.command()
     @long_command("wander demo")
-    def demo(out: str | None = None) -> None:
-        run = RunFolder.new("demo", out, root=tmp_path / "runs", current=current_run())
+    def demo(ctx: typer.Context, out: str | None = None) -> None:
+        run = RunFolder.new("demo", out, root=tmp_path / "runs", current=current_run(ctx))
         run.create()
         cause = OSError(errno.ENOSPC, "No space left on device")
         raise OutputError(run.path / "events.h5", cause)
