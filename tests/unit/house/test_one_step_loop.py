@@ -36,9 +36,6 @@ EXCEPTIONS: dict[tuple[str, str], str] = {
     "stepped until it ends (a stop condition per target, not an episode's length)",
     ("experiments/paper/sac_accuracy.py", "run_trial"): "one forced saccade stepped "
     "until it ends (a stop condition, not an episode's length)",
-    ("experiments/paper/readout_effect.py", "run_case"): "a measurement of the readout "
-    "stage, no agent: the PTU aimed straight at the shake's circle or a saccade's target "
-    "each step, and each step's readout counters read with their per-step peaks",
 }
 THE_LOOP = ("experiments/runs/episode.py", "run_episode")
 
