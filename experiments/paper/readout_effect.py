@@ -41,8 +41,6 @@ import numpy as np
 
 from experiments.analysis.stats import ci_text, mean_ci
 from experiments.paper.event_suppression import Shake
-from experiments.runs.episode import run_episode
-from experiments.runs.recorders import ReadoutRecorder
 from wander_env.readout import LOST
 
 __all__ = [
@@ -148,6 +146,8 @@ def run_case(case: Case, preset: str, seed: int, steps: int, saccade_step: int) 
     import gymnasium
 
     import wander_env  # noqa: F401  (registers the env)
+    from experiments.runs.episode import run_episode
+    from experiments.runs.recorders import ReadoutRecorder
 
     env = gymnasium.make("wander/Wander-v0", scene=case.scene, readout=preset, dvs="speck")
     readout = ReadoutRecorder(levels=("pending",))
