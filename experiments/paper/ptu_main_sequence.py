@@ -2,10 +2,11 @@
 
 :func:`measure` forces saccades (:meth:`agents.attention.AttentionAgent.saccade_to`) of
 the given amplitudes along the pan axis, alternating in direction
-(:func:`main_sequence_targets`), in a static scene rendered at 100 Hz (events play no
-part), and measures each one's pan amplitude reached, peak pan speed (the tilt moves
-only the half pixel between the fovea and a pixel row) and duration (command to
-standstill, to the 10 ms step); it fits the main sequence's two forms
+(:func:`main_sequence_targets`; :class:`~experiments.paper.forced_saccades.ForcedSaccades`
+in the one episode loop), in a static scene rendered at 100 Hz (events play no part),
+and measures (:class:`MainSequenceRecorder`) each one's pan amplitude reached, peak pan
+speed (the tilt moves only the half pixel between the fovea and a pixel row) and
+duration (command to standstill, to the 10 ms step); it fits the main sequence's two forms
 (:mod:`experiments.paper.main_sequence`) to them and returns the columns of a trial's
 row (:func:`fit_columns`). :func:`theory_main_sequence` is the PTU's rest-to-rest
 trapezoid (:func:`wander_env.ptu.axis.move_duration`,
@@ -26,6 +27,8 @@ from agents.attention import AgentParams, AttentionAgent
 from experiments.analysis.stats import number_text
 from experiments.paper import main_sequence
 from experiments.paper.env_block import trial_env
+from experiments.paper.forced_saccades import ForcedSaccades, run_forced
+from experiments.runs.episode import Recorder
 from experiments.studies.framework import Row
 from wander_env.camera import SPECK_HFOV_DEG, degrees_to_pixels
 from wander_env.env_config import WanderConfig
@@ -37,6 +40,7 @@ from wander_env.viz import save_figure
 __all__ = [
     "MIN_FIT_AMPLITUDES",
     "MIN_INTERVAL_AMPLITUDES",
+    "MainSequenceRecorder",
     "fit_columns",
     "fits_text",
     "main_sequence_targets",
@@ -91,6 +95,38 @@ def main_sequence_targets(
     return out
 
 
+class MainSequenceRecorder(Recorder):
+    """Measures each forced saccade of an episode under
+    :class:`~experiments.paper.forced_saccades.ForcedSaccades`: the pan amplitude
+    reached (``amplitude_deg``, from the gaze it started at to the gaze after the step it
+    ended in), the peak pan speed over its steps (``peak_velocity_deg_s``, the PTU's at
+    each step's end) and its duration, command to standstill (``duration_s``: standstill
+    is reached within the step after the last one that ended moving; ``step_s`` is the
+    step)."""
+
+    def __init__(self, step_s: float) -> None:
+        self.step_s = step_s
+        self.amplitude_deg: list[float] = []
+        self.peak_velocity_deg_s: list[float] = []
+        self.duration_s: list[float] = []
+        self._start = self._t0 = self._t_stop = self._peak = 0.0  # of the one in flight
+
+    def on_act(self, env: Any, policy: Any, obs: Any, info: dict[str, Any]) -> None:
+        if policy.started:
+            self._start = float(np.asarray(obs["gaze"], float)[0])
+            self._t0 = self._t_stop = float(info["t"])
+            self._peak = 0.0
+
+    def on_step(self, env: Any, policy: Any, obs: Any, info: dict[str, Any]) -> None:
+        self._peak = max(self._peak, abs(env.unwrapped.ptu.pan_velocity_deg_s))
+        if info["moving"]:
+            self._t_stop = float(info["t"])  # still moving at this step's end
+        if policy.ended:
+            self.amplitude_deg.append(abs(float(obs["gaze"][0]) - self._start))
+            self.peak_velocity_deg_s.append(self._peak)
+            self.duration_s.append(self._t_stop + self.step_s - self._t0)
+
+
 def measure(
     env_block: WanderConfig,
     scene: str,
@@ -111,30 +147,16 @@ def measure(
         ground_truth=False,
         episode_seconds=1000.0,
     )
-    base = env.unwrapped
     agent = AttentionAgent(agent_params.on_env(env, fixational=False), seed=seed)
-    amp, vpeak, dur = [], [], []
+    series = MainSequenceRecorder(agent.params.step_s)
     try:
-        obs, info = env.reset(seed=seed)
-        agent.reset()
-        for target in main_sequence_targets(amplitudes_deg):
-            start = np.asarray(obs["gaze"], float)
-            t0 = float(info["t"])
-            n = len(agent.saccades)
-            agent.saccade_to(target, (float(start[0]), float(start[1])), info)
-            peak, t_stop = 0.0, t0
-            while len(agent.saccades) == n:
-                obs, _, _, _, info = env.step(agent.act(obs, info))
-                peak = max(peak, abs(base.ptu.pan_velocity_deg_s))
-                if info["moving"]:
-                    t_stop = float(info["t"]) + 0.0  # still moving at this step's end
-            amp.append(abs(float(obs["gaze"][0]) - float(start[0])))
-            vpeak.append(peak)
-            # Standstill is reached within the step after the last moving one.
-            dur.append(t_stop + agent.params.step_s - t0)
+        run_forced(
+            env, ForcedSaccades(agent, main_sequence_targets(amplitudes_deg)), [series], seed
+        )
     finally:
         agent.close()
         env.close()
+    amp, vpeak, dur = series.amplitude_deg, series.peak_velocity_deg_s, series.duration_s
     vfit = main_sequence.fit_saturating(amp, vpeak)
     dfit = main_sequence.fit_linear(amp, dur)
     return {

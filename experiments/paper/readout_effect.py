@@ -14,12 +14,14 @@ The cases (:data:`CASES`), each an episode of the env with ``dvs="speck"``:
 
 A saccade is the PTU's target set ``amplitude_deg`` to the left of where it looks
 (:meth:`~wander_env.env_base.CameraEnv.aim`); the shake aims the PTU at the circle's
-point at each step's start; every other step's action is zero. The
-counters come from ``info["readout"]`` of each step (:func:`run_case`), summed over the
-episode; :func:`table` gives each as a share of the events in, mean with its 95 %
-interval over seeds (:func:`experiments.analysis.stats.mean_ci`), the peak events/s of a step
-and the events still held (arbiter queue and unsent packets) at a step's end: the
-latency the readout adds, in events.
+point at each step's start; every other step's action is zero (:class:`CaseAim`, the
+policy of :func:`experiments.runs.episode.run_episode`). The counters come from
+``info["readout"]`` of each step, summed over the episode in memory
+(:class:`~experiments.runs.recorders.ReadoutRecorder`); :func:`table` gives each as a
+share of the events in, mean with its 95 % interval over seeds
+(:func:`experiments.analysis.stats.mean_ci`), the peak events/s of a step and the events
+still held (arbiter queue and unsent packets) at a step's end: the latency the readout
+adds, in events.
 
 Run: ``python -m experiments.paper.readout_effect --seeds 5 --steps 100 --saccade-step 5
 --figure docs/img/readout_effect.png`` (the table and the picture in docs/readout.md,
@@ -33,6 +35,7 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -44,6 +47,7 @@ __all__ = [
     "CASES",
     "PRESETS",
     "Case",
+    "CaseAim",
     "CaseResult",
     "figure",
     "identity_gap",
@@ -105,39 +109,55 @@ def identity_gap(totals: dict[str, int]) -> int:
     return totals["in"] - totals["out"] - sum(totals[k] for k in LOST) - totals["pending"]
 
 
+class CaseAim:
+    """The policy of a case: no agent; before each step it aims the PTU (on ``env``)
+    straight at the shake's circle point (if the case shakes) and, before step
+    ``saccade_step``, ``amplitude_deg`` to the left of its target (if the case has a
+    saccade); every action is zero."""
+
+    def __init__(self, env: Any, case: Case, saccade_step: int) -> None:
+        self.base = env.unwrapped
+        self.case, self.saccade_step = case, saccade_step
+        self.period = self.base.config.control_period_s
+        self.zero = np.zeros(2, np.float32)
+
+    def reset(self) -> None:
+        self.home = self.base.target_deg
+        self.i = 0
+
+    def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
+        i, case, base = self.i, self.case, self.base
+        if case.shake is not None:
+            dp, dt = case.shake.angles(i * self.period, 0.0, 1)
+            base.aim(self.home[0] + dp, self.home[1] + dt)
+        if i == self.saccade_step and case.amplitude_deg:
+            pan, tilt = base.target_deg
+            base.aim(pan + case.amplitude_deg, tilt)
+        self.i += 1
+        return self.zero
+
+
 def run_case(case: Case, preset: str, seed: int, steps: int, saccade_step: int) -> CaseResult:
     """One episode of ``case`` with the readout ``preset``: ``steps`` control steps, the
-    saccade (if any) commanded before step ``saccade_step``."""
+    saccade (if any) commanded before step ``saccade_step``; the counters kept in memory
+    (:class:`~experiments.runs.recorders.ReadoutRecorder`, ``pending`` at the end)."""
     if not 0 <= saccade_step < steps:
         raise ValueError(f"saccade_step: {saccade_step} must be in [0, steps={steps})")
     import gymnasium
 
     import wander_env  # noqa: F401  (registers the env)
+    from experiments.runs.episode import run_episode
+    from experiments.runs.recorders import ReadoutRecorder
 
     env = gymnasium.make("wander/Wander-v0", scene=case.scene, readout=preset, dvs="speck")
+    readout = ReadoutRecorder(levels=("pending",))
     try:
-        env.reset(seed=seed)
-        base = env.unwrapped
-        totals: dict[str, int] = {}
-        peak_in = peak_pending = 0
-        zero = np.zeros(2, np.float32)
-        home = base.target_deg
-        period = base.config.control_period_s
-        for i in range(steps):
-            if case.shake is not None:
-                dp, dt = case.shake.angles(i * period, 0.0, 1)
-                base.aim(home[0] + dp, home[1] + dt)
-            if i == saccade_step and case.amplitude_deg:
-                pan, tilt = base.target_deg
-                base.aim(pan + case.amplitude_deg, tilt)
-            _, _, _, _, info = env.step(zero)
-            c = info["readout"]
-            for k, v in c.items():
-                totals[k] = v if k == "pending" else totals.get(k, 0) + v
-            peak_in, peak_pending = max(peak_in, c["in"]), max(peak_pending, c["pending"])
+        policy = CaseAim(env, case, saccade_step)
+        run_episode(env, policy, steps, (readout,), seed=seed)
     finally:
         env.close()
-    return CaseResult(case.name, preset, seed, totals, peak_in, peak_pending, period)
+    totals, peaks = readout.totals or {}, readout.peaks
+    return CaseResult(case.name, preset, seed, totals, peaks["in"], peaks["pending"], policy.period)
 
 
 def _share(results: Sequence[CaseResult], key: str) -> str:

@@ -50,6 +50,8 @@ from agents.attention import AgentParams, AttentionAgent
 from experiments.analysis.metrics import foveation_error_px
 from experiments.analysis.stats import mean_std
 from experiments.paper.env_block import check_env_block, trial_env
+from experiments.paper.forced_saccades import ForcedSaccades, run_forced
+from experiments.runs.episode import Recorder
 from experiments.studies.framework import (
     MAX_TRIAL_S,
     Comparison,
@@ -67,6 +69,7 @@ from wander_env.viz import save_figure
 __all__ = [
     "EXPERIMENT",
     "PAPER_DISPLACEMENT_PX",
+    "Landing",
     "SacAccuracyConfig",
     "draw_target",
     "ptu_for_condition",
@@ -171,9 +174,32 @@ def draw_target(
 # The trial
 
 
+class Landing(Recorder):
+    """The target's world point, cast at the reset through ``target`` (a pixel;
+    :func:`~wander_env.camera.cast_pixel`: ``point``, ``depth``, ``surface``), whether a
+    step's target was clipped to the PTU's range (``clipped``) and the time of the last
+    step (``t``)."""
+
+    def __init__(self, target: tuple[int, int]) -> None:
+        self.target = target
+        self.clipped = False
+        self.t = 0.0
+
+    def on_reset(self, env: Any, policy: Any, obs: Any, info: dict[str, Any]) -> None:
+        base = env.unwrapped
+        self.point, self.depth, self.surface = cast_pixel(
+            base.model, base.data, self.target, base.width, base.height
+        )
+
+    def on_step(self, env: Any, policy: Any, obs: Any, info: dict[str, Any]) -> None:
+        self.clipped |= bool(info["target_clipped"])
+        self.t = float(info["t"])
+
+
 def run_trial(cfg: SacAccuracyConfig, spec: TrialSpec) -> dict[str, Any]:
-    """One forced saccade to a random pixel; the target's world point is projected back
-    after the saccade to measure its displacement from the fovea."""
+    """One forced saccade to a random pixel (:func:`~experiments.paper.forced_saccades.run_forced`);
+    the target's world point (:class:`Landing`) is projected back after the saccade to
+    measure its displacement from the fovea."""
     condition = str(spec.params["condition"])
     rng = np.random.default_rng(spec.seed)
     env = trial_env(
@@ -188,18 +214,11 @@ def run_trial(cfg: SacAccuracyConfig, spec: TrialSpec) -> dict[str, Any]:
         cfg.agent.on_env(env, fixational=False),  # a forced saccade: no walk
         seed=spec.seed,
     )
+    landing = Landing(target)
     try:
-        obs, info = env.reset(seed=spec.seed)
-        agent.reset()
-        point, depth, surface = cast_pixel(base.model, base.data, target, w, h)
-        agent.saccade_to(target, tuple(float(g) for g in obs["gaze"]), info)
-        clipped = False
-        while not agent.saccades:
-            obs, _, _, _, info = env.step(agent.act(obs, info))
-            clipped |= bool(info["target_clipped"])
+        run_forced(env, ForcedSaccades(agent, [target]), [landing], spec.seed)
         sac = agent.saccades[0]
-        simulated_s = float(info["t"])
-        reached = project_points(base.model, base.data, point[None], width=w, height=h)[0]
+        reached = project_points(base.model, base.data, landing.point[None], width=w, height=h)[0]
     finally:
         agent.close()
         env.close()
@@ -207,11 +226,11 @@ def run_trial(cfg: SacAccuracyConfig, spec: TrialSpec) -> dict[str, Any]:
     hfov = agent.params.hfov_deg
     err = sac.error_deg
     return {
-        "simulated_s": simulated_s,
+        "simulated_s": landing.t,
         "target_x_px": target[0],
         "target_y_px": target[1],
-        "target_surface": surface,
-        "target_depth_m": depth,
+        "target_surface": landing.surface,
+        "target_depth_m": landing.depth,
         "amplitude_deg": math.hypot(*sac.ideal_deg),
         "saccade_duration_s": sac.t_end - sac.t_start,
         "dx_px": dx,
@@ -223,7 +242,7 @@ def run_trial(cfg: SacAccuracyConfig, spec: TrialSpec) -> dict[str, Any]:
         # parallax in it): the point moves opposite to the gaze's overshoot.
         "angle_error_x_px": float(degrees_to_pixels(err[0], w, hfov)),
         "angle_error_y_px": float(degrees_to_pixels(err[1], w, hfov)),
-        "clipped": clipped,
+        "clipped": landing.clipped,
     }
 
 

@@ -11,6 +11,8 @@ detection, a study's own statistics, the rig's counters, the run folder:
 - :meth:`Recorder.on_act` after ``policy.act`` (the env still in the pose the policy
   decided in; ``obs``/``info`` the ones it saw);
 - :meth:`Recorder.on_step` after ``env.step`` (``obs``/``info`` the step's);
+- ``until()`` (where given) after the step's recorders: true ends the episode there (a
+  stop condition: a forced saccade that ended);
 - :meth:`Recorder.close` once when the loop ended, with the loop's error (``None``:
   none), returning the error to raise (a recorder whose file failed to close hands back
   its own when the run had none).
@@ -41,6 +43,9 @@ Examples:
     >>> counter = Counter()
     >>> run_episode(Env(), Still(), 10, (counter,)), counter.steps
     (3, 3)
+    >>> early = Counter()  # a stop condition ends it sooner
+    >>> run_episode(Env(), Still(), 10, (early,), until=lambda: early.steps == 2)
+    2
 """
 
 from __future__ import annotations
@@ -90,11 +95,15 @@ def run_episode(
     signals: DeferredSignals | None = None,
     *,
     seed: int | None = None,
+    options: dict[str, Any] | None = None,
+    until: Callable[[], bool] | None = None,
     progress: Callable[[int, int], None] | None = None,
     halt: Callable[[], None] | None = None,
 ) -> int:
-    """Reset ``env`` with ``seed`` and step it ``steps`` times (fewer when it terminates or
-    truncates) under ``policy``, calling ``recorders``' hooks (module doc).
+    """Reset ``env`` with ``seed`` (and the reset ``options``, e.g. a start gaze, where
+    given) and step it ``steps`` times (fewer when it terminates or truncates, or when
+    ``until``, asked after each step's recorders, says the episode is over) under
+    ``policy``, calling ``recorders``' hooks (module doc).
 
     ``signals``: the caller's deferred-signal block, checked between steps; ``progress``:
     called with (steps done, ``steps``) after each step; ``halt``: called at once when the
@@ -105,7 +114,10 @@ def run_episode(
     error: BaseException | None = None
     done = 0
     try:
-        obs, info = env.reset(seed=seed)
+        if options is None:
+            obs, info = env.reset(seed=seed)
+        else:
+            obs, info = env.reset(seed=seed, options=options)
         reset = getattr(policy, "reset", None)
         if reset is not None:
             reset()
@@ -123,7 +135,7 @@ def run_episode(
                 r.on_step(env, policy, obs, info)
             if progress is not None:
                 progress(done, steps)
-            if terminated or truncated:
+            if terminated or truncated or (until is not None and until()):
                 break
     except BaseException as exc:
         # the signal raised, also where foreign code turned it into another error

@@ -427,20 +427,27 @@ class DetectionRecorder(Recorder):
 
 class ReadoutRecorder(Recorder):
     """Sums the integer counters of the env's ``info["readout"]`` (a dict; e.g. the events
-    a sensor's readout dropped or filtered) over the run; ``metrics()``:
-    ``{"readout": totals}``, nothing when no step had a readout."""
+    a sensor's readout dropped or filtered) over the run, in memory; the counters named in
+    ``levels`` (what is held at a step's end, e.g. ``("pending",)``) are kept as their
+    last step's value instead. ``peaks``: each counter's most in one step.
+    ``metrics()``: ``{"readout": totals}``, nothing when no step had a readout."""
 
-    def __init__(self) -> None:
+    def __init__(self, levels: Sequence[str] = ()) -> None:
+        self.levels = frozenset(levels)
         self.totals: dict[str, int] | None = None
+        self.peaks: dict[str, int] = {}
 
     def on_step(self, env: Any, policy: Any, obs: Any, info: dict) -> None:
         counters = info.get("readout")
         if not isinstance(counters, dict):
             return
         totals = self.totals if self.totals is not None else {}
+        peaks = self.peaks
         for name, value in counters.items():
             if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
-                totals[name] = totals.get(name, 0) + int(value)
+                v = int(value)
+                totals[name] = v if name in self.levels else totals.get(name, 0) + v
+                peaks[name] = max(peaks.get(name, v), v)
         self.totals = totals
 
     def metrics(self) -> dict[str, Any]:

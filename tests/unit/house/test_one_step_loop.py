@@ -32,13 +32,6 @@ EXCEPTIONS: dict[tuple[str, str], str] = {
     ("experiments/paper/event_suppression.py", "record"): "resets with options (the start "
     "gaze), replaces the animator's trajectories before the first step, and drives the "
     "gaze by the shake's clock, not a policy reading obs",
-    ("experiments/paper/ptu_main_sequence.py", "measure"): "forced saccades, each "
-    "stepped until it ends (a stop condition per target, not an episode's length)",
-    ("experiments/paper/sac_accuracy.py", "run_trial"): "one forced saccade stepped "
-    "until it ends (a stop condition, not an episode's length)",
-    ("experiments/paper/readout_effect.py", "run_case"): "a measurement of the readout "
-    "stage, no agent: the PTU aimed straight at the shake's circle or a saccade's target "
-    "each step, and each step's readout counters read with their per-step peaks",
 }
 THE_LOOP = ("experiments/runs/episode.py", "run_episode")
 
