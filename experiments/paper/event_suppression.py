@@ -75,6 +75,7 @@ from experiments.paper.event_suppression_scoring import (
     score,
     trial_figures,
 )
+from experiments.runs.episode import Recorder, run_episode
 from experiments.studies.framework import (
     Comparison,
     Experiment,
@@ -94,6 +95,8 @@ __all__ = [
     "EXPERIMENT",
     "EventSuppressionConfig",
     "Recording",
+    "ShakeScript",
+    "WindowRecorder",
     "image_speeds",
     "phase_row",
     "record",
@@ -301,12 +304,71 @@ class Recording:
     hand_px: np.ndarray
 
 
+class ShakeScript:
+    """The policy of a row, no agent: after the env's reset the hand's trajectories run on
+    the hand's clock (``hand_clock``, their speed times ``scale``); before window ``k``
+    the PTU is steered to the shake's point at the window's end on the shake's clock
+    (``shake_clock``; ``start`` and ``sense`` the trial's)."""
+
+    def __init__(
+        self,
+        env: Any,
+        cfg: EventSuppressionConfig,
+        clocks: tuple[PhaseClock, PhaseClock],
+        scale: float,
+        start: float,
+        sense: int,
+    ) -> None:
+        self.base = env.unwrapped
+        self.cfg, self.scale, self.start, self.sense = cfg, scale, start, sense
+        self.shake_clock, self.hand_clock = clocks
+        self.k = 0
+
+    def reset(self) -> None:
+        anim = self.base.animator
+        anim.trajectories = tuple(
+            ClockedTrajectory(tr, self.hand_clock, self.scale) for tr in anim.trajectories
+        )
+        self.k = 0
+
+    def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
+        cfg, cam = self.cfg, self.base.scene.camera
+        self.k += 1
+        want = cfg.shake.angles(self.shake_clock(self.k * cfg.window_s), self.start, self.sense)
+        pan, tilt = np.subtract(want, self.base.ptu.target_deg)
+        action = gaze_degrees_to_action(pan, tilt, cam.width, cam.height, cam.hfov_deg)
+        return action.astype(np.float32)
+
+
+class WindowRecorder(Recorder):
+    """A row's :class:`Recording`, a window (step) at a time, in memory: the events, the
+    hand's mask, the gaze and the hand's image centre at the window's end."""
+
+    def __init__(self, n: int, height: int, width: int) -> None:
+        self.recording = Recording(
+            np.zeros((n, 2, height, width), np.uint16),
+            np.zeros((n, height, width), bool),
+            np.zeros((n, 2)),
+            np.zeros((n, 2)),
+        )
+        self.k = 0
+
+    def on_step(self, env: Any, policy: Any, obs: Any, info: dict[str, Any]) -> None:
+        rec, k = self.recording, self.k
+        rec.counts[k] = obs["events"]
+        rec.masks[k] = info["object_mask"] > 0
+        rec.gaze[k] = obs["gaze"]
+        rec.hand_px[k] = info["objects"][0]["centre_px"]
+        self.k += 1
+
+
 def record(cfg: EventSuppressionConfig, phase: str, seed: int) -> Recording:
-    """Record the row of ``phase`` of the trial of ``seed`` (module docstring)."""
+    """Record the row of ``phase`` of the trial of ``seed`` (module docstring): the env
+    reset at the shake's start gaze and stepped a window at a time under
+    :class:`ShakeScript`, watched by :class:`WindowRecorder`."""
     sched = schedule(cfg, seed)
     segs, shake0, hand0 = recording(sched, phase, cfg.lead_s)
-    shake_clock = PhaseClock(segs, SHAKE_PHASES, shake0)
-    hand_clock = PhaseClock(segs, HAND_PHASES, hand0)
+    clocks = PhaseClock(segs, SHAKE_PHASES, shake0), PhaseClock(segs, HAND_PHASES, hand0)
     start, sense = shake_start(seed)
     duration = sum(s.length_s for s in segs)
     n = round(duration / cfg.window_s)
@@ -316,30 +378,14 @@ def record(cfg: EventSuppressionConfig, phase: str, seed: int) -> Recording:
     if cfg.hand_ratio is not None:
         hand, shake = image_speeds(base.scene, cfg.shake, base.config.ptu.camera_forward_m)
         scale = cfg.hand_ratio * shake / hand
-    cam = base.scene.camera
+    windows = WindowRecorder(n, base.height, base.width)
     try:
         gaze0 = cfg.shake.angles(shake0, start, sense)
-        _, info = env.reset(seed=seed, options={"gaze_deg": gaze0})
-        anim = base.animator
-        anim.trajectories = tuple(
-            ClockedTrajectory(tr, hand_clock, scale) for tr in anim.trajectories
-        )
-        counts = np.zeros((n, 2, base.height, base.width), np.uint16)
-        masks = np.zeros((n, base.height, base.width), bool)
-        gaze = np.zeros((n, 2))
-        hand_px = np.zeros((n, 2))
-        for k in range(n):
-            want = cfg.shake.angles(shake_clock((k + 1) * cfg.window_s), start, sense)
-            pan, tilt = np.subtract(want, base.ptu.target_deg)
-            action = gaze_degrees_to_action(pan, tilt, cam.width, cam.height, cam.hfov_deg)
-            obs, _, _, _, info = env.step(action.astype(np.float32))
-            counts[k] = obs["events"]
-            masks[k] = info["object_mask"] > 0
-            gaze[k] = obs["gaze"]
-            hand_px[k] = info["objects"][0]["centre_px"]
+        policy = ShakeScript(env, cfg, clocks, scale, start, sense)
+        run_episode(env, policy, n, (windows,), seed=seed, options={"gaze_deg": gaze0})
     finally:
         env.close()
-    return Recording(counts, masks, gaze, hand_px)
+    return windows.recording
 
 
 def phase_row(

@@ -29,9 +29,6 @@ EXCEPTIONS: dict[tuple[str, str], str] = {
     "no episode is run",
     ("experiments/perf/panorama.py", "step_ms"): "a speed benchmark: frame-source variants "
     "stepped in turns, each env.step timed alone",
-    ("experiments/paper/event_suppression.py", "record"): "resets with options (the start "
-    "gaze), replaces the animator's trajectories before the first step, and drives the "
-    "gaze by the shake's clock, not a policy reading obs",
 }
 THE_LOOP = ("experiments/runs/episode.py", "run_episode")
 
