@@ -97,7 +97,7 @@ from wander_env.entities import (
 from wander_env.mjcf_document import MJCFDocument
 from wander_env.ptu.params import PTUParams
 from wander_env.scene_config import SceneConfig
-from wander_env.trajectories import Trajectory
+from wander_env.trajectories import Trajectory, positions_at
 from wander_env.untrusted import check_model_size
 
 __all__ = [
@@ -348,6 +348,17 @@ class SceneAnimator:
         if self._gratings is None:
             return np.concatenate([np.zeros((1, 3)), self.object_positions(t)])
         return self._gratings.stimulus.layer_positions(t)
+
+    def layer_positions_at(self, times_s: np.ndarray) -> np.ndarray:
+        """(T, layers, 3) :meth:`layer_positions` at each of ``times_s`` (the same numbers;
+        the objects' closed forms evaluated for all times at once where they allow it)."""
+        times_s = np.asarray(times_s, float)
+        if self._gratings is not None:
+            return np.stack([self._gratings.stimulus.layer_positions(t) for t in times_s])
+        out = np.zeros((len(times_s), len(self.motions) + 1, 3))
+        for k, m in enumerate(self.motions, 1):
+            out[:, k] = positions_at(m.trajectory, times_s)
+        return out
 
     def apply(self, data: mujoco.MjData, t: float) -> None:
         """Set mocap positions (and grating colours) for time t (s)."""

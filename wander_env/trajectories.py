@@ -340,6 +340,12 @@ class LinearBounce:
         """Position at time t (s)."""
         return bounce_position(*self._args, t)
 
+    def positions(self, times_s: np.ndarray) -> np.ndarray:
+        """(T, 3) positions at each of ``times_s`` in one evaluation (the same numbers as
+        :meth:`position` at each time: element-wise IEEE arithmetic)."""
+        start, velocity, lo, hi = self._args
+        return fold(start + velocity * np.asarray(times_s, float)[:, None], lo, hi)
+
 
 class Circular:
     """Evaluator of :class:`CircularParams` (closed form)."""
@@ -449,6 +455,19 @@ class Scripted:
             return scripted_position(self.params.position, t)
         except ValueError as e:
             raise ValueError(f"scripted trajectory at t = {t} s: {e}") from None
+
+
+def positions_at(trajectory: Trajectory, times_s: np.ndarray) -> np.ndarray:
+    """(T, 3) positions of ``trajectory`` at each of ``times_s``: in one evaluation where
+    it has one (a linear bounce), else :meth:`~Trajectory.position` per time.
+
+    >>> lb = LinearBounce(LinearBounceParams([0, 0, 0], [1, 0, 0], [0, 0, 0], [1, 0, 0]))
+    >>> positions_at(lb, np.array([0.25, 1.5]))[:, 0].tolist()
+    [0.25, 0.5]
+    """
+    if isinstance(trajectory, LinearBounce):
+        return trajectory.positions(times_s)
+    return np.stack([np.asarray(trajectory.position(float(t)), float) for t in times_s])
 
 
 def make_trajectory(params: TrajectoryParams, rng: np.random.Generator | None = None) -> Trajectory:

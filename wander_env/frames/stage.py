@@ -367,7 +367,8 @@ class Stage:
         where the angles change."""
         views, last = [], None
         data = self.data
-        for t, a in zip(times_us, angles, strict=True):
+        layers = self._animator.layer_positions_at(np.asarray(times_us, np.int64) * 1e-6)
+        for a, at_t in zip(angles, layers, strict=True):
             if a != last:
                 data.qpos[self._pan_adr] = math.radians(a[0])
                 data.qpos[self._tilt_adr] = math.radians(a[1])
@@ -375,7 +376,7 @@ class Stage:
                 mujoco.mj_camlight(self.model, data)
                 rotation = rotation_from_mujoco(data.cam_xmat[self._cam_id])
                 centre, last = data.cam_xpos[self._cam_id].copy(), a
-            views.append(View(rotation, centre, self._animator.layer_positions(t * 1e-6)))
+            views.append(View(rotation, centre, at_t))
         return views
 
     def close_renderer(self, renderer: CameraRenderer) -> None:

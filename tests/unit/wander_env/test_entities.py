@@ -210,3 +210,19 @@ def test_animator_replacing_trajectories_forgets_cached_positions():
     assert animator.motions[1].mocap_id == 1
     with pytest.raises(ValueError, match="trajectories: need 2, got 1"):
         animator.trajectories = (Frozen(),)
+
+
+@pytest.mark.parametrize(("scene", "layers"), [("office", 3), ("hand", 2), ("gratings", 3)])
+def test_layer_positions_at_many_times_are_those_at_each_time_bit_for_bit(
+    scene: str, layers: int
+) -> None:
+    """The camera views' one evaluation over a step's ticks (linear bounces at once,
+    the other trajectories per time) gives layer_positions(t)'s numbers exactly."""
+    cfg = load_scene_config(scene)
+    animator = SceneAnimator(build_mjcf(cfg).compile(), cfg, np.random.default_rng(3))
+    times = np.arange(1, 41, dtype=np.int64) * 1000 * 1e-6 + 7.25
+    many = animator.layer_positions_at(times)
+    each = np.stack([animator.layer_positions(float(t)) for t in times])
+    assert many.shape == each.shape == (40, layers, 3)
+    assert many.tobytes() == each.tobytes()
+    assert len(np.unique(many[:, -1], axis=0)) == 40  # the last layer moves at every tick
