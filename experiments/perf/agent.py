@@ -54,6 +54,7 @@ LOOP_COLUMNS: dict[str, str] = {
     "env_ms_per_step": ".1f",
     "agent_ms_per_step": ".2f",
     "realtime_factor": ".2f",
+    "keys_ahead_adopted": "",
     **LOAD_COLUMN,
 }
 MODES_COLUMNS: dict[str, str] = {
@@ -100,6 +101,7 @@ class LoopRow:
     agent_ms_per_step: float
     realtime_factor: float
     cpu_s: float = float("nan")  # this process's CPU time over the loop
+    keys_ahead_adopted: str = "–"  # keys drawn ahead adopted, of those drawn ahead
     load: str = "–"
 
 
@@ -124,14 +126,14 @@ def latency_row(
 
 
 def _bench_env() -> WanderConfig:
-    return WanderConfig(ground_truth=False, episode_seconds=5.0)
+    return WanderConfig(episode_seconds=5.0)
 
 
 @dataclass(frozen=True)
 class AgentBenchConfig(OneEpisodeRun):
-    """What ``wander perf agent`` times: the env's block (no ground truth: the agent's
-    inputs alone; its ``episode_seconds`` the closed loop's length, 5 s), the seed of the
-    env and the agent, and the agent's block (:class:`agents.attention.AgentParams`)."""
+    """What ``wander perf agent`` times: the env's block (ground truth on, as a run has
+    it; its ``episode_seconds`` the closed loop's length, 5 s), the seed of the env and
+    the agent, and the agent's block (:class:`agents.attention.AgentParams`)."""
 
     env: WanderConfig = field(default_factory=_bench_env)
     seed: int = 0
@@ -174,6 +176,9 @@ def bench_agent(config: AgentBenchConfig) -> tuple[list[LatencyRow], LoopRow]:
     stream = timed(streamlined.step, acc, "stream")
     for m in oms_maps:
         stream(m)
+    source = env.unwrapped.source
+    drawn_ahead = source.keys_ahead_adopted + source.keys_ahead_dropped
+    ahead = f"{source.keys_ahead_adopted} of {drawn_ahead}" if drawn_ahead else "–"
     agent.close()
     env.close()
     load = clock.load
@@ -209,6 +214,7 @@ def bench_agent(config: AgentBenchConfig) -> tuple[list[LatencyRow], LoopRow]:
         agent_ms_per_step=1e3 * float(np.mean(acc.wall["act"])),
         realtime_factor=n * agent.params.step_s / clock.wall_s,
         cpu_s=clock.cpu_s,
+        keys_ahead_adopted=ahead,
         load=load,
     )
     return rows, loop

@@ -147,9 +147,7 @@ class KeyframeFrames(FrameSource):
         self._made: dict[int, Future[LogFrame]] = {}  # tick -> its frame, on the draw side
         self._ahead: _Ahead | None = None  # the next step's keys, drawn on a guess
         self._mask_ahead: tuple[int, Future[np.ndarray]] | None = None  # (t_us, mask)
-        # Keys drawn ahead of time: adopted by the step they were for, or dropped.
-        self.keys_ahead_adopted = 0
-        self.keys_ahead_dropped = 0
+        self.keys_ahead_adopted = self.keys_ahead_dropped = 0  # (FrameSource's counts)
 
     @property
     def camera_frame(self) -> np.ndarray | None:

@@ -57,6 +57,11 @@ class FrameSource(ABC):
     """The camera frames of a stream (see the module docstring); ``dvs`` is the
     emulator the frames are for (a frame is its :meth:`~DVSEmulator.prepare` d input)."""
 
+    #: Keys drawn ahead of time (:meth:`plan_ahead`) that the next step adopted, and that
+    #: it dropped (its trajectory not the one guessed); 0 for a source drawing none ahead.
+    keys_ahead_adopted: int = 0
+    keys_ahead_dropped: int = 0
+
     def __init__(self, stage: Stage, dvs: DVSEmulator, params: FrameParams) -> None:
         self.stage, self.dvs, self.params = stage, dvs, params
         self._end: tuple[int, Angles] | None = None  # the step's (or reset's) end

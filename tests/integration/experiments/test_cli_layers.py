@@ -55,7 +55,7 @@ def test_perf_agent_flags_declare_their_keys_and_default_to_the_configs_values()
 
 def test_perf_agent_without_flags_runs_the_config_classes_defaults(monkeypatch):
     assert _perf_agent_config(monkeypatch, []) == AgentBenchConfig()
-    assert (AgentBenchConfig().seconds, AgentBenchConfig().env.ground_truth) == (5.0, False)
+    assert (AgentBenchConfig().seconds, AgentBenchConfig().env.ground_truth) == (5.0, True)
 
 
 def test_perf_agent_layers_file_flags_and_set_in_order(monkeypatch, tmp_path: Path):
