@@ -246,8 +246,14 @@ class KeyframeFrames(FrameSource):
         self._drop_ahead()
         ref = self.keys[-1]
         layout = self._key_ticks(ref, trajectory)
+        # The keys' colours first (the draw side starts at once), then the rest of the plan.
+        new = [
+            self.render_key(*self._key_of(layout, n), ahead=True) for n in range(len(layout.idx))
+        ]
         self._frames_plan(ref, layout)
-        new = self._draw_keys(layout, ahead=True)
+        for n, key in enumerate(new, 1):
+            if n in layout.need:
+                self.request_geometry(key, ahead=True)
         made = self._make_frames([ref, *new], layout, ahead=True) if new else {}
         self._ahead = _Ahead(trajectory, ref, layout, new, made)
 
