@@ -11,6 +11,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import serial
+from fake_clock import FakeClock
 
 import wander_env  # noqa: F401  (registers the environments)
 from hardware.ptu_driver import FlirPTUParams
@@ -113,14 +114,15 @@ def test_presets_round_trip_through_asdict_and_pickle() -> None:
 
 def test_emulator_paces_its_replies_at_the_baud_rate() -> None:
     params = PTUEmulatorParams(banner="", echo=False, verbose=False, baudrate=9600)
-    with PTUEmulator(params) as emu, serial.Serial(emu.port, timeout=1) as port:
+    with PTUEmulator(params) as emu, serial.Serial(emu.port, timeout=10) as port:
         t0 = time.monotonic()
         port.write(b"PP ")
         line = port.readline()
         dt = time.monotonic() - t0
     assert line == b"* 0\r\n"
-    # 3 bytes in, 5 out: 8.3 ms on the line (generous upper bound: a loaded machine)
-    assert 8 * BYTE - 1e-4 <= dt < 8 * BYTE + 0.05
+    # 3 bytes in, 5 out: 8.3 ms on the line before the reply can be read (a lower bound the
+    # pacing guarantees; how much later a loaded host delivers it is not the emulator's).
+    assert dt >= 8 * BYTE - 1e-4
 
 
 @pytest.mark.slow
@@ -179,22 +181,12 @@ def test_simulated_latency_matches_the_rig_env_on_the_emulator_at_9600_baud(tmp_
     assert sim_med == pytest.approx(rig_med, rel=0.2)
 
 
-class _Clock:
-    """A clock the test moves (the rig link's time)."""
-
-    def __init__(self) -> None:
-        self.t = 0.0
-
-    def __call__(self) -> float:
-        return self.t
-
-
 class _Line:
     """The rig's serial port as a 9600-baud line: every byte written or read advances the
     clock by its time on the line (so the rig's exchanges last what the sim's do); keeps
     the bytes written."""
 
-    def __init__(self, port: serial.SerialBase, clock: _Clock, byte_s: float) -> None:
+    def __init__(self, port: serial.SerialBase, clock: FakeClock, byte_s: float) -> None:
         self.port, self.clock, self.byte_s = port, clock, byte_s
         self.sent = bytearray()
 
@@ -264,7 +256,7 @@ def test_the_sim_link_and_the_rig_link_put_the_same_bytes_on_the_wire() -> None:
     with PTUEmulator(quiet) as emu, FlirPTU(emu.port, FlirPTUParams(banner_quiet_s=0.02)) as ptu:
         res = ptu.resolution_arcsec
         ptu.goto(*(positions_to_degrees(p, r) for p, r in zip(start, res, strict=True)))
-        clock = _Clock()
+        clock = FakeClock()
         rig = PTULinkThread(ptu, params.poll_s, clock)  # not started: the test serves it
         line = _Line(ptu._proto.port, clock, params.byte_s)
         ptu._proto.port = line
