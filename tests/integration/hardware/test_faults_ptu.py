@@ -264,10 +264,10 @@ def test_speck_unplugged_mid_run_is_one_line_exit_1_with_the_halt_recorded(
     assert fake.handles[-1].closed
 
 
-def test_stuck_link_write_times_out_into_the_port_fault_path(emu):
+def test_stuck_link_write_times_out_into_the_port_fault_path(emu, caplog):
     """A wedged line (nothing drains the pty): the write is bounded by write_timeout_s
     and fails as a PTUPortError naming the command; close's halt is bounded too."""
-    import time
+    import logging
 
     params = FlirPTUParams(
         timeout_s=0.5, halt_timeout_s=0.2, banner_quiet_s=0.02, write_timeout_s=0.3
@@ -276,10 +276,14 @@ def test_stuck_link_write_times_out_into_the_port_fault_path(emu):
     assert ptu._port.write_timeout == 0.3
     assert ptu.pan_deg == 0.0
     emu.stall()
-    t0 = time.monotonic()
     with pytest.raises(PTUPortError, match=r"writing 'PP' timed out after 0\.3 s") as info:
         _ = ptu.pan_deg
     assert info.value.command == "PP"
-    ptu.close()  # its halt's write times out too: logged, the port closed
+    with caplog.at_level(logging.WARNING, logger="hardware.ptu_driver"):
+        ptu.close()  # its halt's write times out too: logged, the port closed
     assert not ptu.is_open
-    assert time.monotonic() - t0 < 30.0  # bounded (generous: a loaded machine)
+    assert any(
+        "halt on close failed" in r.getMessage()
+        and "writing 'H' timed out after 0.3 s" in r.getMessage()
+        for r in caplog.records
+    ), caplog.text
