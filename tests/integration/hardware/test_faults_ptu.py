@@ -3,18 +3,18 @@ garbage, a closed pty), at the driver and through ``wander rig``."""
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
-from test_cli_rig import (  # noqa: F401  (fixtures: app, square)
+from test_cli_rig import (  # noqa: F401  (fixtures: app, patient_driver, square)
     QUICK,
     app,
     assert_events_of_steps,
     assert_one_line_failure,
     invoke,
     on_first_move,
+    patient_driver,
     read_folder,
+    run_stepped,
     square,
 )
 from test_rig_env import make_rig, recording  # noqa: F401  (fixture: recording)
@@ -37,22 +37,6 @@ DRIVER = FlirPTUParams(timeout_s=0.5, halt_timeout_s=0.2, banner_quiet_s=0.02)
 def emu():
     with PTUEmulator(QUICK) as e:
         yield e
-
-
-@pytest.fixture
-def patient_driver(monkeypatch):
-    """`wander rig` with PTU reply timeouts a loaded machine cannot starve (5 s, not 1 s),
-    for tests whose fault is not the PTU's."""
-    from experiments.jobs.rig import RigRunConfig
-
-    checked = RigRunConfig.__post_init__
-    patient = FlirPTUParams(timeout_s=5.0, halt_timeout_s=2.0, banner_quiet_s=0.02)
-
-    def with_patient_driver(self):
-        checked(self)
-        object.__setattr__(self, "env", replace(self.env, driver=patient))
-
-    monkeypatch.setattr(RigRunConfig, "__post_init__", with_patient_driver)
 
 
 def test_closed_pty_is_a_port_error_and_close_does_not_raise(emu):
@@ -169,21 +153,7 @@ def test_rig_mid_run_fault_is_one_line_exit_1_with_the_halt_recorded(
     }[fault]
     on_first_move(monkeypatch, emu, action)
     out = tmp_path / "run"
-    result = invoke(
-        app,
-        "--ptu",
-        emu.port,
-        "--camera",
-        camera,
-        "--replay",
-        "stepped",
-        "--seconds",
-        "2",
-        "--no-fixational",
-        "--no-video",
-        "--out",
-        str(out),
-    )
+    result = run_stepped(app, emu, camera, out, "2", "--no-fixational")
     metrics, _, _ = read_folder(out)
     steps = metrics["steps"]
     line = assert_one_line_failure(
@@ -208,7 +178,7 @@ def test_speck_unplugged_mid_run_is_one_line_exit_1_with_the_halt_recorded(
     app,  # noqa: F811
     tmp_path,
     monkeypatch,
-    patient_driver,
+    patient_driver,  # noqa: F811
 ):
     import numpy as np
     from fake_samna import FakeSamna, FakeSpeck, install
