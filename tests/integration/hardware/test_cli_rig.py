@@ -103,6 +103,13 @@ def invoke(app: typer.Typer, *args: str):
     return CliRunner().invoke(app, ["rig", *args])
 
 
+def run_emulated(app: typer.Typer, camera: str, out: Path, seconds: str, *extra: str):
+    """``wander rig`` on an emulated PTU (``--ptu emulate``) with ``camera`` for
+    ``seconds``, into ``out``; ``extra``: more options."""
+    args = ("--ptu", "emulate", "--camera", camera, "--seconds", seconds)
+    return invoke(app, *args, *extra, "--out", str(out))
+
+
 def run_stepped(
     app: typer.Typer, emu: PTUEmulator, camera: str, out: Path, seconds: str, *extra: str
 ):
@@ -189,22 +196,8 @@ def test_emulated_ptu_and_replay_end_to_end(app, square, tmp_path, monkeypatch, 
 
     monkeypatch.setattr(rig_env, "PTUEmulator", Recorded)
     out = tmp_path / "run"
-    result = invoke(
-        app,
-        "--ptu",
-        "emulate",
-        "--camera",
-        camera,
-        "--seconds",
-        "0.5",
-        "--out",
-        str(out),
-        "--seed",
-        "3",
-        "--streamlined",
-        "--set",
-        "agent.soms.alpha=0.6",
-    )
+    extra = ("--seed", "3", "--streamlined", "--set", "agent.soms.alpha=0.6")
+    result = run_emulated(app, camera, out, "0.5", *extra)
     assert result.exit_code == 0, result.output
     assert {p.name for p in out.iterdir()} == FILES | {"run.mp4"}
     metrics, run, rows = read_folder(out)
@@ -268,20 +261,7 @@ def test_emulated_ptu_and_replay_end_to_end(app, square, tmp_path, monkeypatch, 
 def test_hfov_option_reaches_the_env_the_agent_and_run_json(app, square, tmp_path, patient_driver):
     camera, _ = square
     out = tmp_path / "run"
-    result = invoke(
-        app,
-        "--ptu",
-        "emulate",
-        "--camera",
-        camera,
-        "--seconds",
-        "0.2",
-        "--hfov",
-        "64",
-        "--no-video",
-        "--out",
-        str(out),
-    )
+    result = run_emulated(app, camera, out, "0.2", "--hfov", "64", "--no-video")
     assert result.exit_code == 0, result.output
     _, run, _ = read_folder(out)
     assert (

@@ -10,10 +10,10 @@ from test_cli_rig import (  # noqa: F401  (fixtures: app, patient_driver, square
     app,
     assert_events_of_steps,
     assert_one_line_failure,
-    invoke,
     on_first_move,
     patient_driver,
     read_folder,
+    run_emulated,
     run_stepped,
     square,
 )
@@ -209,18 +209,7 @@ def test_speck_unplugged_mid_run_is_one_line_exit_1_with_the_halt_recorded(
 
     monkeypatch.setattr(AttentionAgent, "act", unplug_at_step_6)
     out = tmp_path / "run"
-    result = invoke(
-        app,
-        "--ptu",
-        "emulate",
-        "--camera",
-        "speck",
-        "--seconds",
-        "2",
-        "--no-video",
-        "--out",
-        str(out),
-    )
+    result = run_emulated(app, "speck", out, "2", "--no-video")
     metrics, _, _ = read_folder(out)
     assert_one_line_failure(
         result,
