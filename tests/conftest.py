@@ -5,7 +5,8 @@ when ``mujoco`` is first imported; a test module that imports ``mujoco`` before
 ``wander_env`` would otherwise get GLFW, which needs a display.
 
 ``tests/support/`` goes on ``sys.path``: the helpers (``fake_samna``, ``scene_files``,
-``sweep_workers``, ``vector_drive``, ``locations``) are imported by name from any tier.
+``sweep_workers``, ``vector_drive``, ``locations``, ``fake_clock``, ``polling``,
+``limited``) are imported by name from any tier.
 So does every folder of test modules: tests import fixtures and builders from other test
 modules by name (``from test_sweep import TOY_SWEEP``) wherever they sit; pytest imports a
 test module under its file name, so file names are unique across the tiers.

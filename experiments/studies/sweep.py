@@ -31,7 +31,9 @@ combinations when expanded.
 
 Backends: ``serial`` (this process), ``local`` (worker processes, spawn context), ``ray``
 (one task per trial; ``ray.init(address=...)`` joins a cluster — wander must be
-importable on its nodes — or, without an address, starts a local Ray instance).
+importable on its nodes — or, without an address, starts a local Ray instance). Ray's own
+messages on the driver go to the sweep folder's ``ray.log``, so a failure of Ray itself
+shows as the sweep's one line (:class:`BackendFailed`), not Ray's block of raylet logs.
 
 Nothing is left behind: local workers run in their own process groups (a Ctrl-C at the
 terminal reaches only the sweep, which then ends them) and are ended — SIGTERM, then
@@ -49,6 +51,7 @@ warning, set aside and its trial run again (:mod:`experiments.runs.trials`).
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import itertools
 import json
 import math
@@ -85,6 +88,7 @@ from experiments.studies.framework import (
     serial_executor,
     write_csv,
 )
+from experiments.studies.ray_log import ray_output_to
 from wander_env.config_messages import SHOWN_CHARS
 
 __all__ = [
@@ -103,6 +107,8 @@ __all__ = [
 ]
 
 BACKENDS = ("serial", "local", "ray")
+# Ray's own messages on the driver (its logger, a dead raylet's log tail), in the sweep folder.
+RAY_LOG = "ray.log"
 Runner = Callable[[TrialSpec], Row]
 
 
@@ -456,16 +462,33 @@ def ray_executor(
     workers: int | None = None,
     runner: Runner = run_spec,
     timeout_s: float = WAIT_TIMEOUT_S,
+    log: Path | None = None,
 ) -> Iterator[tuple[TrialSpec, Row, float]]:
     """One Ray task per trial. ``address`` (e.g. ``"auto"`` or ``"ray://host:10001"``)
     joins a running cluster; None starts a local instance with ``workers`` CPUs (and the
     repository on the workers' ``PYTHONPATH``). A Ray already initialised is reused.
-    Waits are bounded by ``timeout_s``; unfinished tasks are cancelled on any exit."""
+    Waits are bounded by ``timeout_s``; unfinished tasks are cancelled on any exit.
+    Ray's own messages on the driver go to ``log`` (:func:`ray_output_to`), not the
+    terminal, when it is given."""
+    import ray  # noqa: F401  (first: importing Ray configures its logger)
+
+    with ray_output_to(log) if log is not None else contextlib.nullcontext():
+        yield from _ray_tasks(specs, address, workers, runner, timeout_s)
+
+
+def _ray_tasks(
+    specs: Sequence[TrialSpec],
+    address: str | None,
+    workers: int | None,
+    runner: Runner,
+    timeout_s: float,
+) -> Iterator[tuple[TrialSpec, Row, float]]:
     import ray
 
     own = not ray.is_initialized()
     pending: dict[Any, TrialSpec] = {}
     if own:
+        # (ray.init keeps the ``ray`` logger's handlers, setting their format and level)
         opts: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
         if address:
             ray.init(address=address, **opts)
@@ -536,7 +559,7 @@ def run_sweep(
     elif backend == "local":
         stream = local_executor(todo, workers, runner, timeout_s)
     else:
-        stream = ray_executor(todo, address, workers, runner, timeout_s)
+        stream = ray_executor(todo, address, workers, runner, timeout_s, out_dir / RAY_LOG)
     store.put_all(stream, skipped, len(specs), progress)
     rows = [store.row(s) for s in specs]
     write_csv(rows, out_dir / "results.csv")

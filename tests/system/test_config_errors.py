@@ -11,11 +11,11 @@ import os
 import signal
 import subprocess
 import sys
-import textwrap
 from dataclasses import replace
 
 import pytest
-from locations import ROOT, SUPPORT
+from limited import GIB, run_limited
+from locations import ROOT
 from test_sweep import TOY_SWEEP, CountingRunner
 from typer.testing import CliRunner
 
@@ -301,26 +301,6 @@ def test_each_bad_file_or_value_is_one_line_exit_2_and_nothing_written(
     assert sorted(tmp_path.iterdir()) == before  # refused before anything was written
 
 
-LIMITED = textwrap.dedent(
-    """
-    import resource, sys
-    limit = int(sys.argv[1])
-    resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
-    sys.argv = ["wander", *sys.argv[2:]]
-    from experiments.cli.main import main
-    try:
-        main()
-    finally:
-        # This process's own resident peak (VmHWM): ru_maxrss would also count the pytest
-        # process it was forked from, which Linux carries across exec.
-        with open("/proc/self/status") as f:
-            peak_kib = next(int(w.split()[1]) for w in f if w.startswith("VmHWM:"))
-        print(f"peak {peak_kib}", file=sys.stdout, flush=True)
-    """
-)
-GIB = 1 << 30
-
-
 @pytest.mark.parametrize(
     ("args", "limit", "line"),
     [
@@ -342,18 +322,9 @@ GIB = 1 << 30
 )
 def test_the_billion_laughs_is_one_line_within_1_gb(args, limit, line, tmp_path):
     (tmp_path / "bomb.yaml").write_text(billion_laughs())
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(SUPPORT)])}
-    proc = subprocess.run(
-        [sys.executable, "-c", LIMITED, str(limit), *args],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        cwd=tmp_path,
-        env=env,
-    )
-    assert (proc.returncode, proc.stderr.splitlines()) == (2, [line])
-    (peak,) = [int(w.split()[1]) for w in proc.stdout.splitlines() if w.startswith("peak ")]
-    assert peak * 1024 < GIB
+    rc, err, peak = run_limited(args, tmp_path, limit, timeout_s=600)
+    assert (rc, err) == (2, [line])
+    assert 0 < peak < GIB
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bomb.yaml"]
 
 

@@ -371,20 +371,17 @@ def test_suppression_on_a_folder(tmp_path):
 # Real data
 
 
+def invoke_eed_first_windows(out: Path, *extra: str) -> object:
+    """``benchmark events`` on EED's ball-and-net recording, its first 3 windows, to ``out``."""
+    events, masks = EED / "events_txyp.npy", EED / "ref_masks_tt_adapt"
+    args = ("--masks", masks, "--max-windows", "3", "--out", out, "--no-progress")
+    return invoke("events", events, *args, *extra)
+
+
 @needs_realdata
 def test_events_on_real_eed_ball_net_first_windows(tmp_path):
     out = tmp_path / "eed"
-    result = invoke(
-        "events",
-        EED / "events_txyp.npy",
-        "--masks",
-        EED / "ref_masks_tt_adapt",
-        "--max-windows",
-        "3",
-        "--out",
-        out,
-        "--no-progress",
-    )
+    result = invoke_eed_first_windows(out)
     assert result.exit_code == 0, result.output
     rows = read_csv(out / "results.csv")
     assert [(int(r["t_start_us"]), int(r["t_end_us"])) for r in rows] == [
@@ -412,18 +409,7 @@ def test_alpha_option_on_real_eed_ball_net(tmp_path):
     for alpha in (None, "0.5"):
         out = tmp_path / f"eed-{alpha}"
         extra = () if alpha is None else ("--alpha", alpha)
-        result = invoke(
-            "events",
-            EED / "events_txyp.npy",
-            "--masks",
-            EED / "ref_masks_tt_adapt",
-            "--max-windows",
-            "3",
-            "--out",
-            out,
-            "--no-progress",
-            *extra,
-        )
+        result = invoke_eed_first_windows(out, *extra)
         assert result.exit_code == 0, result.output
         rec = json.loads((out / "run.json").read_text())
         assert rec["config"]["agent"]["soms"]["alpha"] == (0.8 if alpha is None else 0.5)

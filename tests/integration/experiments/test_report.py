@@ -17,17 +17,7 @@ from experiments.studies.framework import config_to_dict, write_csv
 
 
 def test_studies_section_shows_the_tested_statements_beside_the_papers(tmp_path) -> None:
-    cfg = scanpath.ScanpathConfig(scenes=("shelf",))
-    folder = tmp_path / "results" / "scanpath" / "x"
-    rows = []
-    for i, r in enumerate(_rows()):
-        extra = {k: 1.0 for _, k, _ in scanpath._metrics(cfg) if k != "object_hit_rate"}
-        rows.append({"trial": i, "trial_id": f"t{i}", "repeat": r["seed"], **r, **extra})
-    write_csv(rows, folder / "results.csv")
-    (folder / "config.json").write_text(
-        json.dumps({"experiment": "scanpath", **config_to_dict(cfg)})
-    )
-    (folder / "run.json").write_text(json.dumps({"created": "2026-01-01T00:00:00"}))
+    _scanpath_folder(tmp_path / "results")
     lines = studies_section(tmp_path / "results", tmp_path)
     text = "\n".join(lines)
     assert lines[0] == "## Scanpath and speed studies: the statements tested"

@@ -9,6 +9,7 @@ import math
 import re
 import sys
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +26,7 @@ from agents.control import normalised_error
 from agents.speck_limits import SpeckLimitError
 from experiments.cli.rig import dropped_warning, register, summary_line
 from experiments.jobs.rig import RigRunConfig, RigRunError, run_rig
-from hardware.ptu_driver import FlirPTU, PTUTimeout
+from hardware.ptu_driver import FlirPTU, FlirPTUParams, PTUTimeout
 from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from hardware.rig_env import RigConfig
 from hardware.speck import SpeckParams
@@ -102,6 +103,22 @@ def invoke(app: typer.Typer, *args: str):
     return CliRunner().invoke(app, ["rig", *args])
 
 
+def run_emulated(app: typer.Typer, camera: str, out: Path, seconds: str, *extra: str):
+    """``wander rig`` on an emulated PTU (``--ptu emulate``) with ``camera`` for
+    ``seconds``, into ``out``; ``extra``: more options."""
+    args = ("--ptu", "emulate", "--camera", camera, "--seconds", seconds)
+    return invoke(app, *args, *extra, "--out", str(out))
+
+
+def run_stepped(
+    app: typer.Typer, emu: PTUEmulator, camera: str, out: Path, seconds: str, *extra: str
+):
+    """``wander rig`` on the emulator with the stepped replay of ``camera`` for ``seconds``,
+    no video, into ``out``; ``extra``: more options."""
+    args = ("--ptu", emu.port, "--camera", camera, "--replay", "stepped", "--seconds", seconds)
+    return invoke(app, *args, *extra, "--no-video", "--out", str(out))
+
+
 def read_folder(out: Path) -> tuple[dict, dict, list[dict]]:
     metrics = json.loads((out / "metrics.json").read_text())
     run = json.loads((out / "run.json").read_text())
@@ -151,7 +168,23 @@ def on_first_move(monkeypatch, emu: PTUEmulator, action: Callable[[], None]) -> 
 # -- end to end ------------------------------------------------------------------------------
 
 
-def test_emulated_ptu_and_replay_end_to_end(app, square, tmp_path, monkeypatch):
+@pytest.fixture
+def patient_driver(monkeypatch):
+    """`wander rig` with PTU reply timeouts a loaded machine cannot starve (5 s, not 1 s),
+    for tests whose fault (if any) is not the PTU's."""
+    from experiments.jobs.rig import RigRunConfig
+
+    checked = RigRunConfig.__post_init__
+    patient = FlirPTUParams(timeout_s=5.0, halt_timeout_s=2.0, banner_quiet_s=0.02)
+
+    def with_patient_driver(self):
+        checked(self)
+        object.__setattr__(self, "env", replace(self.env, driver=patient))
+
+    monkeypatch.setattr(RigRunConfig, "__post_init__", with_patient_driver)
+
+
+def test_emulated_ptu_and_replay_end_to_end(app, square, tmp_path, monkeypatch, patient_driver):
     """The issue's dry run: ``wander rig --ptu emulate --camera replay:<file>``."""
     camera, expected = square
     emulators: list[PTUEmulator] = []
@@ -163,22 +196,8 @@ def test_emulated_ptu_and_replay_end_to_end(app, square, tmp_path, monkeypatch):
 
     monkeypatch.setattr(rig_env, "PTUEmulator", Recorded)
     out = tmp_path / "run"
-    result = invoke(
-        app,
-        "--ptu",
-        "emulate",
-        "--camera",
-        camera,
-        "--seconds",
-        "0.5",
-        "--out",
-        str(out),
-        "--seed",
-        "3",
-        "--streamlined",
-        "--set",
-        "agent.soms.alpha=0.6",
-    )
+    extra = ("--seed", "3", "--streamlined", "--set", "agent.soms.alpha=0.6")
+    result = run_emulated(app, camera, out, "0.5", *extra)
     assert result.exit_code == 0, result.output
     assert {p.name for p in out.iterdir()} == FILES | {"run.mp4"}
     metrics, run, rows = read_folder(out)
@@ -230,7 +249,8 @@ def test_emulated_ptu_and_replay_end_to_end(app, square, tmp_path, monkeypatch):
     assert rig["dropped_events"] == 0 and rig["ptu_error"] is None
     assert rig["camera"]["delivered"] == 25_000
     assert rig["ptu_commands_sent"] >= 1 and rig["command_latencies_seen"] >= 1
-    assert 0 < rig["command_latency_mean_s"] <= rig["command_latency_max_s"] < 1.0
+    # measured on the host's clock: how long is the host's business, their order is not
+    assert 0 < rig["command_latency_mean_s"] <= rig["command_latency_max_s"]
     assert metrics["decisions"] >= 1 and rows[0]["target_x_px"] != ""
     (emulator,) = emulators
     assert len(moves(emulator)) >= 1 and emulator.positions != (0, 0)
@@ -238,23 +258,10 @@ def test_emulated_ptu_and_replay_end_to_end(app, square, tmp_path, monkeypatch):
     assert summary_line(metrics, out) in result.output.replace("\n", "")
 
 
-def test_hfov_option_reaches_the_env_the_agent_and_run_json(app, square, tmp_path):
+def test_hfov_option_reaches_the_env_the_agent_and_run_json(app, square, tmp_path, patient_driver):
     camera, _ = square
     out = tmp_path / "run"
-    result = invoke(
-        app,
-        "--ptu",
-        "emulate",
-        "--camera",
-        camera,
-        "--seconds",
-        "0.2",
-        "--hfov",
-        "64",
-        "--no-video",
-        "--out",
-        str(out),
-    )
+    result = run_emulated(app, camera, out, "0.2", "--hfov", "64", "--no-video")
     assert result.exit_code == 0, result.output
     _, run, _ = read_folder(out)
     assert (
@@ -265,7 +272,7 @@ def test_hfov_option_reaches_the_env_the_agent_and_run_json(app, square, tmp_pat
     assert bad.exit_code == 2 and "'--hfov'" in bad.output and "must be < 180" in bad.output
 
 
-def test_a_real_time_replay_records_the_files_windows(app, square, emu, tmp_path):
+def test_a_real_time_replay_records_the_files_windows(app, square, emu, tmp_path, patient_driver):
     """Paced by the wall clock: how many windows fit depends on the host, what each holds
     does not (the file's events from the episode's start)."""
     camera, expected = square
@@ -279,27 +286,13 @@ def test_a_real_time_replay_records_the_files_windows(app, square, emu, tmp_path
     assert_events_of_steps(out, expected, metrics)
 
 
-def test_a_saccade_moves_the_ptu_to_the_chosen_point(app, square, emu, tmp_path):
+def test_a_saccade_moves_the_ptu_to_the_chosen_point(app, square, emu, tmp_path, patient_driver):
     """No fixational movements: every move is the saccade's; the unit ends on P's angle.
     The stepped replay: the link's exchanges are in the recording's time, so the run is the
     same on a busy host."""
     camera, expected = square
     out = tmp_path / "run"
-    result = invoke(
-        app,
-        "--ptu",
-        emu.port,
-        "--camera",
-        camera,
-        "--replay",
-        "stepped",
-        "--seconds",
-        "0.35",
-        "--no-fixational",
-        "--no-video",
-        "--out",
-        str(out),
-    )
+    result = run_stepped(app, emu, camera, out, "0.35", "--no-fixational")
     assert result.exit_code == 0, result.output
     assert {p.name for p in out.iterdir()} == FILES
     metrics, run, rows = read_folder(out)
@@ -439,20 +432,7 @@ def test_ptu_going_silent_mid_run(app, square, emu, tmp_path, monkeypatch):
     camera, expected = square
     on_first_move(monkeypatch, emu, emu.stop_answering)
     out = tmp_path / "run"
-    result = invoke(
-        app,
-        "--ptu",
-        emu.port,
-        "--camera",
-        camera,
-        "--replay",
-        "stepped",
-        "--seconds",
-        "3",
-        "--no-video",
-        "--out",
-        str(out),
-    )
+    result = run_stepped(app, emu, camera, out, "3")
     metrics, run, _ = read_folder(out)
     steps = metrics["steps"]
     assert steps == 0  # step 1 sends a fixational move; the poll after it meets the silence
@@ -476,21 +456,7 @@ def test_error_reply_mid_run(app, square, emu, tmp_path, monkeypatch):
     camera, expected = square
     on_first_move(monkeypatch, emu, lambda: emu.inject_error("Illegal argument", command="PP"))
     out = tmp_path / "run"
-    result = invoke(
-        app,
-        "--ptu",
-        emu.port,
-        "--camera",
-        camera,
-        "--replay",
-        "stepped",
-        "--seconds",
-        "1",
-        "--no-fixational",
-        "--no-video",
-        "--out",
-        str(out),
-    )
+    result = run_stepped(app, emu, camera, out, "1", "--no-fixational")
     metrics, _, _ = read_folder(out)
     steps = metrics["steps"]
     assert steps == 12  # the 13th step (window 0.12 s) sends the first move, then polls
@@ -522,7 +488,9 @@ def test_mid_run_fault_through_run_rig_keeps_the_cause(square, emu, tmp_path, mo
     assert "\n" not in str(err)
 
 
-def test_ctrl_c_mid_run_halts_and_keeps_the_folder(app, square, tmp_path, monkeypatch):
+def test_ctrl_c_mid_run_halts_and_keeps_the_folder(
+    app, square, tmp_path, monkeypatch, patient_driver
+):
     camera, expected = square
     act = AttentionAgent.act
     calls = []
@@ -549,7 +517,7 @@ def test_ctrl_c_mid_run_halts_and_keeps_the_folder(app, square, tmp_path, monkey
 # -- event queue overflow ----------------------------------------------------------------------
 
 
-def test_queue_overflow_is_counted_and_reported(monkeypatch, tmp_path):
+def test_queue_overflow_is_counted_and_reported(monkeypatch, tmp_path, patient_driver):
     """A burst of 3000 events into a 500-event queue: 2500 dropped (the oldest)."""
     n, capacity = 3000, 500
     rng = np.random.default_rng(5)
@@ -571,7 +539,10 @@ def test_queue_overflow_is_counted_and_reported(monkeypatch, tmp_path):
             ptu_port="emulate",
             camera="speck",
             episode_seconds=0.5,
-            speck=SpeckParams(queue_events=capacity),
+            # The burst's window waits up to 2 s (host clock) for it, so a loaded host's
+            # late reader thread still delivers it in its window; the later windows'
+            # deadlines follow 10 ms apart: the margin is paid once.
+            speck=SpeckParams(queue_events=capacity, latency_margin_us=2_000_000),
         ),
         video=False,
     )
@@ -600,7 +571,9 @@ def test_queue_overflow_is_counted_and_reported(monkeypatch, tmp_path):
     assert dropped_warning({"rig": {"dropped_events": 0}}) is None
 
 
-def test_the_front_end_runs_on_the_speck_and_the_camera_still_records(monkeypatch, tmp_path):
+def test_the_front_end_runs_on_the_speck_and_the_camera_still_records(
+    monkeypatch, tmp_path, patient_driver
+):
     """soms=speck with a live Speck: one configuration (cores + DVS monitor); the agent
     reads the monitored cores' spikes (core 1's are not monitored, so not streamed) and
     the camera's events are recorded as without the front end."""
@@ -691,7 +664,7 @@ def test_a_readout_region_the_deployed_network_does_not_take_is_refused(monkeypa
     assert handle.closed and not (tmp_path / "r").exists()
 
 
-def test_a_replayed_camera_runs_the_front_end_in_simulation(square, tmp_path):
+def test_a_replayed_camera_runs_the_front_end_in_simulation(square, tmp_path, patient_driver):
     camera, _ = square
     config = RigRunConfig(
         RigConfig(ptu_port="emulate", camera=camera, replay="stepped", episode_seconds=0.1),

@@ -3,18 +3,18 @@ garbage, a closed pty), at the driver and through ``wander rig``."""
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
-from test_cli_rig import (  # noqa: F401  (fixtures: app, square)
+from test_cli_rig import (  # noqa: F401  (fixtures: app, patient_driver, square)
     QUICK,
     app,
     assert_events_of_steps,
     assert_one_line_failure,
-    invoke,
     on_first_move,
+    patient_driver,
     read_folder,
+    run_emulated,
+    run_stepped,
     square,
 )
 from test_rig_env import make_rig, recording  # noqa: F401  (fixture: recording)
@@ -37,22 +37,6 @@ DRIVER = FlirPTUParams(timeout_s=0.5, halt_timeout_s=0.2, banner_quiet_s=0.02)
 def emu():
     with PTUEmulator(QUICK) as e:
         yield e
-
-
-@pytest.fixture
-def patient_driver(monkeypatch):
-    """`wander rig` with PTU reply timeouts a loaded machine cannot starve (5 s, not 1 s),
-    for tests whose fault is not the PTU's."""
-    from experiments.jobs.rig import RigRunConfig
-
-    checked = RigRunConfig.__post_init__
-    patient = FlirPTUParams(timeout_s=5.0, halt_timeout_s=2.0, banner_quiet_s=0.02)
-
-    def with_patient_driver(self):
-        checked(self)
-        object.__setattr__(self, "env", replace(self.env, driver=patient))
-
-    monkeypatch.setattr(RigRunConfig, "__post_init__", with_patient_driver)
 
 
 def test_closed_pty_is_a_port_error_and_close_does_not_raise(emu):
@@ -169,21 +153,7 @@ def test_rig_mid_run_fault_is_one_line_exit_1_with_the_halt_recorded(
     }[fault]
     on_first_move(monkeypatch, emu, action)
     out = tmp_path / "run"
-    result = invoke(
-        app,
-        "--ptu",
-        emu.port,
-        "--camera",
-        camera,
-        "--replay",
-        "stepped",
-        "--seconds",
-        "2",
-        "--no-fixational",
-        "--no-video",
-        "--out",
-        str(out),
-    )
+    result = run_stepped(app, emu, camera, out, "2", "--no-fixational")
     metrics, _, _ = read_folder(out)
     steps = metrics["steps"]
     line = assert_one_line_failure(
@@ -208,7 +178,7 @@ def test_speck_unplugged_mid_run_is_one_line_exit_1_with_the_halt_recorded(
     app,  # noqa: F811
     tmp_path,
     monkeypatch,
-    patient_driver,
+    patient_driver,  # noqa: F811
 ):
     import numpy as np
     from fake_samna import FakeSamna, FakeSpeck, install
@@ -239,18 +209,7 @@ def test_speck_unplugged_mid_run_is_one_line_exit_1_with_the_halt_recorded(
 
     monkeypatch.setattr(AttentionAgent, "act", unplug_at_step_6)
     out = tmp_path / "run"
-    result = invoke(
-        app,
-        "--ptu",
-        "emulate",
-        "--camera",
-        "speck",
-        "--seconds",
-        "2",
-        "--no-video",
-        "--out",
-        str(out),
-    )
+    result = run_emulated(app, "speck", out, "2", "--no-video")
     metrics, _, _ = read_folder(out)
     assert_one_line_failure(
         result,
@@ -264,10 +223,10 @@ def test_speck_unplugged_mid_run_is_one_line_exit_1_with_the_halt_recorded(
     assert fake.handles[-1].closed
 
 
-def test_stuck_link_write_times_out_into_the_port_fault_path(emu):
+def test_stuck_link_write_times_out_into_the_port_fault_path(emu, caplog):
     """A wedged line (nothing drains the pty): the write is bounded by write_timeout_s
     and fails as a PTUPortError naming the command; close's halt is bounded too."""
-    import time
+    import logging
 
     params = FlirPTUParams(
         timeout_s=0.5, halt_timeout_s=0.2, banner_quiet_s=0.02, write_timeout_s=0.3
@@ -276,10 +235,14 @@ def test_stuck_link_write_times_out_into_the_port_fault_path(emu):
     assert ptu._port.write_timeout == 0.3
     assert ptu.pan_deg == 0.0
     emu.stall()
-    t0 = time.monotonic()
     with pytest.raises(PTUPortError, match=r"writing 'PP' timed out after 0\.3 s") as info:
         _ = ptu.pan_deg
     assert info.value.command == "PP"
-    ptu.close()  # its halt's write times out too: logged, the port closed
+    with caplog.at_level(logging.WARNING, logger="hardware.ptu_driver"):
+        ptu.close()  # its halt's write times out too: logged, the port closed
     assert not ptu.is_open
-    assert time.monotonic() - t0 < 30.0  # bounded (generous: a loaded machine)
+    assert any(
+        "halt on close failed" in r.getMessage()
+        and "writing 'H' timed out after 0.3 s" in r.getMessage()
+        for r in caplog.records
+    ), caplog.text

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from fake_clock import FakeClock
 from locations import REALDATA
 
 from hardware.event_source import EventSource
@@ -86,27 +87,12 @@ def test_t0_skips_earlier_events():
     assert np.array_equal(got["t"], rec.events["t"][skipped:] - t0)
 
 
-class FakeWallClock:
-    """A wall clock that moves only when slept on (or by hand); records the sleeps."""
-
-    def __init__(self) -> None:
-        self.t = 0.0
-        self.sleeps: list[float] = []
-
-    def __call__(self) -> float:
-        return self.t
-
-    def sleep(self, seconds: float) -> None:
-        self.sleeps.append(seconds)
-        self.t += seconds
-
-
-def paced(rec: EventRecording, clock: FakeWallClock, **kw) -> ReplaySource:
+def paced(rec: EventRecording, clock: FakeClock, **kw) -> ReplaySource:
     return ReplaySource(rec, realtime=True, clock=clock, sleep=clock.sleep, **kw)
 
 
 def test_realtime_read_sleeps_until_the_window_has_passed():
-    clock = FakeWallClock()
+    clock = FakeClock()
     with paced(small_recording(), clock) as src:
         src.read(duration_us=125_000)  # 0.125 s: exact in binary, as the sums below
         clock.t += 0.0625  # the caller works 62.5 ms
@@ -115,14 +101,14 @@ def test_realtime_read_sleeps_until_the_window_has_passed():
         src.read(duration_us=125_000)
         assert src.stats["max_lateness_s"] == 0.5 - 0.125
     assert clock.sleeps == [0.125, 0.0625]
-    clock = FakeWallClock()
+    clock = FakeClock()
     with paced(small_recording(), clock, speed=4.0) as src:
         src.read(duration_us=200_000)
     assert clock.sleeps == [0.05]
 
 
 def test_realtime_without_window_returns_events_up_to_now():
-    clock = FakeWallClock()
+    clock = FakeClock()
     rec = small_recording()
     with paced(rec, clock) as src:
         clock.t += 0.0625
@@ -133,7 +119,7 @@ def test_realtime_without_window_returns_events_up_to_now():
 
 
 def test_fast_mode_does_not_sleep():
-    clock = FakeWallClock()
+    clock = FakeClock()
     with ReplaySource(small_recording(), clock=clock, sleep=clock.sleep) as src:
         src.read(duration_us=10_000_000)
     assert clock.sleeps == []  # a paced read of 10 s would sleep 10 s

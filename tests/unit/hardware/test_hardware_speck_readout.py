@@ -9,6 +9,7 @@ import time
 import numpy as np
 import pytest
 from fake_samna import FakeSamna, FakeSpeck, install
+from polling import LIMIT_S
 
 from hardware.speck import SpeckParams, SpeckSource
 from hardware.speck_config import write_readout_config
@@ -80,7 +81,7 @@ def test_the_readouts_samna_fields_are_written_and_the_filter_clocked(fake):
 def test_the_dvs_layers_spikes_are_read_as_events(fake):
     events = _events()
     with SpeckSource(readout=READOUT, latency_margin_us=200_000) as src:
-        t_end, got = time.monotonic() + 20, []
+        t_end, got = time.monotonic() + LIMIT_S, []
         while sum(map(len, got)) < len(events) and time.monotonic() < t_end:
             got.append(src.read(duration_us=20_000))
         stats = src.stats

@@ -8,9 +8,6 @@ import io
 import json
 import os
 import struct
-import subprocess
-import sys
-import textwrap
 import zipfile
 import zlib
 from pathlib import Path
@@ -18,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from limited import GIB, run_limited
 from locations import ROOT
 from scene_files import write_arm
 
@@ -32,41 +30,6 @@ from wander_env.untrusted import (
     read_json,
     read_npz,
 )
-
-GIB = 1 << 30
-
-# The CLI under an address-space limit, printing its own resident peak (VmHWM) at exit.
-LIMITED = textwrap.dedent(
-    """
-    import resource, sys
-    limit = int(sys.argv[1])
-    resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
-    sys.argv = ["wander", *sys.argv[2:]]
-    from experiments.cli.main import main
-    try:
-        main()
-    finally:
-        with open("/proc/self/status") as f:
-            peak_kib = next(int(w.split()[1]) for w in f if w.startswith("VmHWM:"))
-        print(f"peak {peak_kib}", file=sys.stdout, flush=True)
-    """
-)
-
-
-def run_limited(args: list[str], cwd: Path, limit: int = 2 * GIB) -> tuple[int, list[str], int]:
-    """(exit status, stderr lines, resident peak in bytes) of ``wander ARGS`` in ``cwd``;
-    a hang fails the test (the timeout)."""
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "MUJOCO_GL": "egl"}
-    proc = subprocess.run(
-        [sys.executable, "-c", LIMITED, str(limit), *args],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        cwd=cwd,
-        env=env,
-    )
-    peaks = [int(w.split()[1]) for w in proc.stdout.splitlines() if w.startswith("peak ")]
-    return proc.returncode, proc.stderr.splitlines(), peaks[0] * 1024 if peaks else -1
 
 
 def png_bomb(path: Path, side: int = 40_000) -> Path:
