@@ -17,7 +17,7 @@ Examples:
     >>> from wander_env.config import validate
     >>> config = validate(AgentBenchConfig, {"env.scene": "shelf", "env.episode_seconds": 0.3})
     >>> config.env.episode_seconds, config.env.ground_truth, config.agent == AgentParams()
-    (0.3, False, True)
+    (0.3, True, True)
     >>> rows, loop = bench_agent(config)  # doctest: +SKIP
 """
 

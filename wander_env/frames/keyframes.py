@@ -97,6 +97,7 @@ class _Ahead:
     layout: StepLayout
     new: list[RenderedKey]
     made: dict[int, Future[LogFrame]]
+    epoch: int  # the stage's ahead_epoch when handed over
 
 
 def _pair_in(keys: list[RenderedKey], t_us: int) -> tuple[RenderedKey, RenderedKey]:
@@ -215,7 +216,12 @@ class KeyframeFrames(FrameSource):
     def plan(self, trajectory: Trajectory) -> None:
         ref = self.keys[-1]
         ahead, self._ahead = self._ahead, None
-        if ahead is not None and ahead.ref is ref and _same_motion(ahead.trajectory, trajectory):
+        if (
+            ahead is not None
+            and ahead.ref is ref
+            and ahead.epoch == self.stage.ahead_epoch
+            and _same_motion(ahead.trajectory, trajectory)
+        ):
             self.stage.adopt_ahead()
             layout, new = ahead.layout, ahead.new
             self.keys_ahead_adopted += len(new)
@@ -255,7 +261,7 @@ class KeyframeFrames(FrameSource):
             if n in layout.need:
                 self.request_geometry(key, ahead=True)
         made = self._make_frames([ref, *new], layout, ahead=True) if new else {}
-        self._ahead = _Ahead(trajectory, ref, layout, new, made)
+        self._ahead = _Ahead(trajectory, ref, layout, new, made, self.stage.ahead_epoch)
 
     def _drop_ahead(self) -> None:
         ahead, self._ahead = self._ahead, None

@@ -107,6 +107,7 @@ class Stage:
         self._step_counts = [DrawCount()]
         self._ahead_count: DrawCount | None = None
         self._ahead_last: Future | None = None  # the latest work ahead handed over
+        self._ahead_epoch = 0  # counts the drops of work ahead (a guess made before one is void)
         self._charging = self._step_counts[0]
         # Ray casting: masks and key geometry without a GL pass where every moving geom is
         # a primitive; None: GL draws them.
@@ -257,6 +258,23 @@ class Stage:
         if self._thread is not None:
             self._thread.cancel_ahead()
         self._ahead_count = self._ahead_last = None
+        self._ahead_epoch += 1
+
+    @property
+    def ahead_epoch(self) -> int:
+        """How many times work ahead was dropped: a source adopts its work ahead only if
+        none was dropped since it handed it over."""
+        return self._ahead_epoch
+
+    def _from_outside(self) -> bool:
+        """Whether this call comes from outside the render thread (while it runs)."""
+        return self._thread is not None and threading.get_ident() != self._draw_ident
+
+    def _take_over(self) -> None:
+        """A draw-side verb called from outside, one call at a time: work ahead would run
+        between its calls and move the draw data, so it is dropped."""
+        if self._from_outside() and self._ahead_count is not None:
+            self.drop_ahead()
 
     def on_draw_side(self, fn: Callable[..., T], *args: Any) -> T:
         """``fn(*args)`` run on the draw side, waited for."""
@@ -272,6 +290,7 @@ class Stage:
     # -- the draw side ----------------------------------------------------------------------------
     def pose(self, t_us: int, pan_deg: float, tilt_deg: float) -> None:
         """The camera at these angles and the objects at ``t_us`` into the draw data."""
+        self._take_over()
         self.on_draw_side(self._pose, t_us, pan_deg, tilt_deg)
 
     def _pose(self, t_us: int, pan_deg: float, tilt_deg: float) -> None:
@@ -287,6 +306,7 @@ class Stage:
 
     def render(self) -> np.ndarray:
         """RGB uint8 (H, W, 3) of the posed draw data."""
+        self._take_over()
         return self.on_draw_side(self._render)
 
     def _render(self) -> np.ndarray:
@@ -311,6 +331,7 @@ class Stage:
     def geometry(self) -> tuple[np.ndarray, np.ndarray]:
         """(motion layers int32, depth m) of the posed draw data, from one draw (or ray
         cast: not counted in :attr:`geometry_draws`)."""
+        self._take_over()
         return self.on_draw_side(self._geometry)
 
     def _geometry(self) -> tuple[np.ndarray, np.ndarray]:
@@ -323,6 +344,7 @@ class Stage:
 
     def object_mask(self) -> np.ndarray:
         """Object ids (H, W) int32 of the posed draw data (0 = background)."""
+        self._take_over()
         return self.on_draw_side(self._object_mask)
 
     def _object_mask(self) -> np.ndarray:
@@ -331,17 +353,24 @@ class Stage:
         return self._the_renderer().segment(self._draw_data)
 
     def colour_at(self, t_us: int, angles: Angles) -> np.ndarray:
-        """:meth:`pose` then :meth:`render` (work for :meth:`submit`)."""
+        """:meth:`pose` then :meth:`render` (work for :meth:`submit`; from outside the
+        draw side, one piece of work)."""
+        if self._from_outside():
+            return self.on_draw_side(self.colour_at, t_us, angles)
         self.pose(t_us, *angles)
         return self.render()
 
     def geometry_at(self, t_us: int, angles: Angles) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`pose` then :meth:`geometry` (work for :meth:`submit`)."""
+        """:meth:`pose` then :meth:`geometry` (as :meth:`colour_at`)."""
+        if self._from_outside():
+            return self.on_draw_side(self.geometry_at, t_us, angles)
         self.pose(t_us, *angles)
         return self.geometry()
 
     def object_mask_at(self, t_us: int, angles: Angles) -> np.ndarray:
-        """:meth:`pose` then :meth:`object_mask` (work for :meth:`submit`)."""
+        """:meth:`pose` then :meth:`object_mask` (as :meth:`colour_at`)."""
+        if self._from_outside():
+            return self.on_draw_side(self.object_mask_at, t_us, angles)
         self.pose(t_us, *angles)
         return self.object_mask()
 

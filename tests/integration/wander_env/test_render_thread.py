@@ -205,3 +205,29 @@ def test_a_process_that_never_closes_its_env_exits_cleanly() -> None:
     for _ in range(3):
         done = subprocess.run([sys.executable, "-c", script], capture_output=True, timeout=300)
         assert done.returncode == 0, done.stderr.decode()[-500:]
+
+
+def test_a_draw_from_outside_between_steps_draws_what_it_posed_and_drops_the_work_ahead() -> None:
+    """Between two steps (the next step's keys queued ahead), posing and rendering from
+    the main thread one call at a time: the render is the pose's (work ahead would move
+    the draw data between the calls, so it is dropped); a ``*_at`` call is one piece of
+    work and drops nothing; the next step draws its keys afresh, its events unchanged."""
+    still = [np.zeros(2, np.float32)] * 3
+    reference = _ahead_trace(still, False)[0]
+    env = gym.make("wander/Wander-v0", scene="office", episode_seconds=0.03)
+    u = env.unwrapped
+    try:
+        env.reset(seed=4)
+        events = [env.step(still[0])[4]["events"].events.tobytes()]
+        stage, end = u.stage, (u.ptu.camera_pan_deg, u.ptu.camera_tilt_deg)
+        whole = stage.colour_at(u._t_us + 3000, end)  # one piece of work
+        epoch = stage.ahead_epoch
+        stage.pose(u._t_us + 3000, *end)
+        assert stage.ahead_epoch == epoch + 1  # the work ahead dropped
+        assert stage.render().tobytes() == whole.tobytes()
+        for a in still[1:]:
+            events.append(env.step(a)[4]["events"].events.tobytes())
+        assert u.source.keys_ahead_dropped >= 1
+        assert events == [e for e, _ in reference]
+    finally:
+        env.close()
