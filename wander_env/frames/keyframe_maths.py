@@ -571,8 +571,8 @@ class KeyPair:
     def frame(self, view: View, w: float) -> np.ndarray:
         """The frame (H, W) float32 linear luminance of ``view`` at time fraction ``w``.
 
-        Where the camera only rotates, the static world is one nearest-pixel warp of both
-        keys (:func:`_static_kernel`) and the layers' kernel runs over the moving layers'
+        Where the camera only rotates, the static world is one warp of both keys
+        (:func:`_static_kernel`, cubic samples) and the layers' kernel runs over the moving layers'
         boxes alone; where its centre moves (parallax), over the whole image."""
         if not 0.0 <= w <= 1.0:
             raise ValueError(f"time fraction w must be in [0, 1], got {w!r}")
