@@ -335,7 +335,10 @@ def _candidate(kk, x, y, first, lum, layers, inv, present, boxes, hinv, bvec, rh
             best_v = lum[kk, iy, ix]
             if ll == 0 and not mov:  # as the static world's kernel, where it reads no layer
                 sx, sy = _source_pixel(hinv, kk, x, y)  # (px, py), rounded as there
-                if _static_taps(layers, kk, sx, sy):
+                off = abs(sx - math.floor(sx + 0.5)) >= _ON_PIXEL
+                if (off or abs(sy - math.floor(sy + 0.5)) >= _ON_PIXEL) and _static_taps(
+                    layers, kk, sx, sy
+                ):
                     best_v = _cubic_sample(lum, kk, sx, sy)
     return best_v, best_r
 
