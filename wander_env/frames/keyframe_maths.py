@@ -86,6 +86,7 @@ __all__ = [
     "left_to_dvs",
     "make_keyframe",
     "synthesize",
+    "turned",
     "view_flow_bounds_px",
 ]
 
@@ -93,11 +94,11 @@ __all__ = [
 # pixels: against rounding in the kernels' arithmetic, and so that no pixel outside it
 # reads one of the layer's pixels among the 4 × 4 of its cubic sample (reaching 2 px).
 _MARGIN_PX = 2
-# Below this flow bound (px) from both keys a tick is the keys' time-weighted blend (the
-# DVS interpolates over it). 0: none is, while anything moves; the static world's cubic
-# sample moves with any turn of the camera. (0.45, where nearest-pixel sampling left
-# each key as it was, made the frames between keys of a walking camera plain blends.)
-SUBPIXEL_PX = 0.0
+# Below this flow bound (px) from both keys, and where the camera has not turned since
+# either (:func:`turned`), each pixel's source is itself and the frame is the keys'
+# time-weighted blend. (Where it has turned, the static world's cubic sample moves the
+# content by any fraction of a pixel.)
+SUBPIXEL_PX = 0.45
 # Fixed-point iterations on the source depth (moving layers, parallax), at most; they
 # stop at a fixed point (the source depth unchanged), where the rest would change nothing.
 _ITERATIONS = 3
@@ -703,6 +704,12 @@ def grow_layers(
 def blend(a: np.ndarray, b: np.ndarray, w: float) -> np.ndarray:
     """Two keys' luminance blended at the time fraction ``w`` (0: ``a``, 1: ``b``)."""
     return np.float32(1.0 - w) * a + np.float32(w) * b
+
+
+def turned(a: View, b: View) -> bool:
+    """Whether the camera's rotation differs between two views (a frame between keys
+    then differs from their blend however little it turned: see :data:`SUBPIXEL_PX`)."""
+    return not np.array_equal(a.rotation, b.rotation)
 
 
 def synthesize(a: Keyframe, b: Keyframe, view: View, w: float, k: np.ndarray) -> np.ndarray:
