@@ -25,14 +25,22 @@ compiled (numba) kernels (:func:`synthesize` for a single frame):
 
 Per frame, each key's 3 × 3 homography and each layer's translation and box come from a
 small compiled function too; where the camera only rotates, the static world is one
-nearest-pixel warp of both keys (:func:`_static_kernel`) and the layers' kernel runs
-over the moving layers' boxes alone.
+warp of both keys (:func:`_static_kernel`) and the layers' kernel runs over the moving
+layers' boxes alone.
 
-Sampling is nearest-pixel. The renderer's multisampled pixels change as an edge crosses
-their samples; bilinear resampling instead leaks a bright neighbour into a dark pixel
-in proportion to the shift, which from the two keys rises and falls within the interval
-(spurious ON/OFF pairs: a first version with bilinear sampling gave +13 % events in the office
-with a still camera, this one -1.8 %, both with 5 ms keys).
+Sampling. The static world under a rotation is sampled by cubic convolution at the
+source position (:func:`_cubic_sample`, Keys' kernel with ``a = -0.75``): a sub-pixel
+turn of the camera moves the key's content by its fraction of a pixel, as it moves the
+world under a render's samples. Nearest-pixel sampling there left each key as it was
+below half a pixel, so a frame between keys was their time-weighted blend: each pixel's
+path a straight line between the keys' values, and the DVS lost every change between
+keys off that line (texture sliding under the pixel while the camera walks, which the
+64-sample reference sees; docs/fidelity.md, "Walking cameras"). A bilinear sample blurs
+by its fraction, most at half a pixel: a blur that rises and falls between keys (ON/OFF
+pairs that are not in the world). A key the camera has not turned from gives its own
+pixels. The moving layers keep nearest-pixel sampling: a layer's pixel must come from
+that layer (bilinear sampling there gave +13 % events in the office with a still camera,
+nearest -1.8 %, both with 5 ms keys).
 
 :func:`view_flow_bounds_px` bounds how far any pixel's content moves between views from
 the poses alone, and :func:`adaptive_key_ticks` places a step's keys where that bound
@@ -78,14 +86,18 @@ __all__ = [
     "left_to_dvs",
     "make_keyframe",
     "synthesize",
+    "turned",
     "view_flow_bounds_px",
 ]
 
 # A moving layer's target box is the bound of its mapped key box widened by this many
-# pixels (against rounding in the kernels' arithmetic).
-_MARGIN_PX = 1
-# Below this flow bound (px) from both keys, each pixel's nearest source is itself and
-# the frame is the keys' time-weighted blend.
+# pixels: against rounding in the kernels' arithmetic, and so that no pixel outside it
+# reads one of the layer's pixels among the 4 × 4 of its cubic sample (reaching 2 px).
+_MARGIN_PX = 2
+# Below this flow bound (px) from both keys, and where the camera has not turned since
+# either (:func:`turned`), each pixel's source is itself and the frame is the keys'
+# time-weighted blend. (Where it has turned, the static world's cubic sample moves the
+# content by any fraction of a pixel.)
 SUBPIXEL_PX = 0.45
 # Fixed-point iterations on the source depth (moving layers, parallax), at most; they
 # stop at a fixed point (the source depth unchanged), where the rest would change nothing.
@@ -322,7 +334,28 @@ def _candidate(kk, x, y, first, lum, layers, inv, present, boxes, hinv, bvec, rh
         if r_t > best_r:
             best_r = r_t
             best_v = lum[kk, iy, ix]
+            if ll == 0 and not mov:  # as the static world's kernel, where it reads no layer
+                sx, sy = _source_pixel(hinv, kk, x, y)  # (px, py), rounded as there
+                off = abs(sx - math.floor(sx + 0.5)) >= _ON_PIXEL
+                if (off or abs(sy - math.floor(sy + 0.5)) >= _ON_PIXEL) and _static_taps(
+                    layers, kk, sx, sy
+                ):
+                    best_v = _cubic_sample(lum, kk, sx, sy)
     return best_v, best_r
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _static_taps(layers, kk, px, py):
+    """Whether the 4 × 4 pixels :func:`_cubic_sample` reads at (px, py) in key ``kk``
+    are all the static world's (layer 0)."""
+    h, w = layers.shape[1], layers.shape[2]
+    x0, y0 = math.floor(px), math.floor(py)
+    for j in range(-1, 3):
+        yy = min(max(y0 + j, 0), h - 1)
+        for i in range(-1, 3):
+            if layers[kk, yy, min(max(x0 + i, 0), w - 1)] != 0:
+                return False
+    return True
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -357,21 +390,85 @@ def _synth_kernel(
                     out[y, x] = lum[near, _nearest(py, h), _nearest(px, w)]
 
 
+# A source position this close to a pixel centre (px) is that pixel (a camera that has
+# not turned, up to rounding in its homography).
+_ON_PIXEL = 1e-9
+# The cubic convolution kernel's parameter (Keys 1981; -0.5 is Catmull-Rom): -0.75 keeps
+# more of a key's contrast at a sub-pixel shift, as OpenCV's and Pillow's bicubic do.
+_CUBIC_A = -0.75
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _cubic_weights(f: float) -> tuple[float, float, float, float]:
+    """The cubic convolution weights of the pixels at -1, 0, 1 and 2 from a source
+    position ``f`` in [0, 1) past a pixel centre (1, 0, 0, 0 at ``f`` = 0; sum 1)."""
+    a = _CUBIC_A
+    t = 1.0 + f
+    w0 = ((a * t - 5.0 * a) * t + 8.0 * a) * t - 4.0 * a
+    w1 = ((a + 2.0) * f - (a + 3.0)) * f * f + 1.0
+    t = 1.0 - f
+    w2 = ((a + 2.0) * t - (a + 3.0)) * t * t + 1.0
+    return w0, w1, w2, 1.0 - w0 - w1 - w2
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _cubic_sample(lum, kk, px, py):
+    """Key ``kk``'s luminance at the source position (px, py): cubic convolution
+    (:data:`_CUBIC_A`) over its 4 × 4 pixels around it (the border's pixels repeated
+    beyond the image), no less than 0. Within :data:`_ON_PIXEL` of a pixel centre, that
+    pixel's value."""
+    h, w = lum.shape[1], lum.shape[2]
+    ix, iy = math.floor(px + 0.5), math.floor(py + 0.5)
+    if abs(px - ix) < _ON_PIXEL and abs(py - iy) < _ON_PIXEL:
+        return lum[kk, min(max(iy, 0), h - 1), min(max(ix, 0), w - 1)]
+    x0, y0 = math.floor(px), math.floor(py)
+    fx, fy = px - x0, py - y0
+    wx0, wx1, wx2, wx3 = _cubic_weights(fx)
+    wy0, wy1, wy2, wy3 = _cubic_weights(fy)
+    xa, xb = min(max(x0 - 1, 0), w - 1), min(max(x0, 0), w - 1)
+    xc, xd = min(max(x0 + 1, 0), w - 1), min(max(x0 + 2, 0), w - 1)
+    acc = 0.0
+    for j in range(4):
+        yy = min(max(y0 - 1 + j, 0), h - 1)
+        wj = wy0 if j == 0 else wy1 if j == 1 else wy2 if j == 2 else wy3
+        acc += wj * (
+            wx0 * lum[kk, yy, xa]
+            + wx1 * lum[kk, yy, xb]
+            + wx2 * lum[kk, yy, xc]
+            + wx3 * lum[kk, yy, xd]
+        )
+    return max(acc, 0.0)
+
+
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _static_kernel(out, weights, near, lum, hinv):
     """Fill ``out`` (H, W) with both keys (index 0, 1) warped by their target-to-source
-    homographies ``hinv`` (nearest pixel) and blended with ``weights``, each where it
-    sees the pixel; a pixel neither sees takes key ``near``'s nearest edge pixel."""
+    homographies ``hinv`` (:func:`_cubic_sample`; a key whose homography is the identity
+    to 1e-12, a camera that has not turned since it, gives its own pixels) and blended
+    with ``weights``, each where it sees the pixel; a pixel neither sees takes key
+    ``near``'s nearest edge pixel."""
     h, w = out.shape
+    same = np.zeros(2, np.bool_)
+    for kk in range(2):
+        same[kk] = True
+        for i in range(3):
+            for j in range(3):
+                if abs(hinv[kk, i, j] - (1.0 if i == j else 0.0)) > 1e-12:
+                    same[kk] = False
     for y in range(h):
         for x in range(w):
             num = den = 0.0
             for kk in range(2):
-                if weights[kk] > 0.0:  # a key at weight 0 adds nothing
-                    px, py = _source_pixel(hinv, kk, x, y)
-                    if -0.5 <= px < w - 0.5 and -0.5 <= py < h - 0.5:
-                        num += weights[kk] * lum[kk, _nearest(py, h), _nearest(px, w)]
-                        den += weights[kk]
+                if weights[kk] <= 0.0:  # a key at weight 0 adds nothing
+                    continue
+                if same[kk]:
+                    num += weights[kk] * lum[kk, y, x]
+                    den += weights[kk]
+                    continue
+                px, py = _source_pixel(hinv, kk, x, y)
+                if -0.5 <= px < w - 0.5 and -0.5 <= py < h - 0.5:
+                    num += weights[kk] * _cubic_sample(lum, kk, px, py)
+                    den += weights[kk]
             if den > 0.0:
                 out[y, x] = num / den
             else:
@@ -478,8 +575,8 @@ class KeyPair:
     def frame(self, view: View, w: float) -> np.ndarray:
         """The frame (H, W) float32 linear luminance of ``view`` at time fraction ``w``.
 
-        Where the camera only rotates, the static world is one nearest-pixel warp of both
-        keys (:func:`_static_kernel`) and the layers' kernel runs over the moving layers'
+        Where the camera only rotates, the static world is one warp of both keys
+        (:func:`_static_kernel`, cubic samples) and the layers' kernel runs over the moving layers'
         boxes alone; where its centre moves (parallax), over the whole image."""
         if not 0.0 <= w <= 1.0:
             raise ValueError(f"time fraction w must be in [0, 1], got {w!r}")
@@ -607,6 +704,12 @@ def grow_layers(
 def blend(a: np.ndarray, b: np.ndarray, w: float) -> np.ndarray:
     """Two keys' luminance blended at the time fraction ``w`` (0: ``a``, 1: ``b``)."""
     return np.float32(1.0 - w) * a + np.float32(w) * b
+
+
+def turned(a: View, b: View) -> bool:
+    """Whether the camera's rotation differs between two views (a frame between keys
+    then differs from their blend however little it turned: see :data:`SUBPIXEL_PX`)."""
+    return not np.array_equal(a.rotation, b.rotation)
 
 
 def synthesize(a: Keyframe, b: Keyframe, view: View, w: float, k: np.ndarray) -> np.ndarray:

@@ -28,6 +28,7 @@ from wander_env.frames.keyframe_maths import (
     blend,
     left_to_dvs,
     make_keyframe,
+    turned,
     view_flow_bounds_px,
 )
 from wander_env.frames.source import FrameParams, FrameSource
@@ -316,7 +317,9 @@ class KeyframeFrames(FrameSource):
             both = view_flow_bounds_px(refs, tv + tv, k, self.radii, shape)
             bounds = np.maximum(both[: len(tv)], both[len(tv) :])
             layout.interpolated = {
-                t for (t, _), b in zip(between, bounds, strict=True) if b < SUBPIXEL_PX
+                t
+                for (t, v), j, b in zip(between, later, bounds, strict=True)
+                if b < SUBPIXEL_PX and not turned(key_v[j - 1], v) and not turned(key_v[j], v)
             }
         layout.skipped = set()
         if p.interpolate_px is not None:
@@ -448,7 +451,7 @@ class KeyframeFrames(FrameSource):
             view = self.stage.camera_view(t_us, *angles)
             shape, k = (self.stage.height, self.stage.width), self.stage.k
             bound = view_flow_bounds_px([a.view, b.view], [view, view], k, self.radii, shape)
-            if bound.max() < SUBPIXEL_PX:
+            if bound.max() < SUBPIXEL_PX and not (turned(a.view, view) or turned(b.view, view)):
                 return self.dvs.prepare(blend(a.lum, b.lum, w))
         return self.dvs.prepare(self.synthesize(self._keypair(a, b), view, w))
 

@@ -326,6 +326,10 @@ class PanoramaFrames(FrameSource):
         if renderer is not None:
             self.stage.close_renderer(renderer)
 
+    def finish(self, t_us: int, angles: Angles) -> None:
+        super().finish(t_us, angles)
+        self.moving.finish(t_us, angles)  # its keys' ground truth reads its own end
+
     def object_mask(self, t_us: int) -> np.ndarray:
         if self._with_keys:
             return self.moving.object_mask(t_us)
