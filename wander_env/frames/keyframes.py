@@ -178,7 +178,13 @@ class KeyframeFrames(FrameSource):
             if key.same_as is not None:
                 key.full = replace(self.keyframe(key.same_as), t_us=key.t_us, view=key.view)
             else:
-                key.full = self.request_geometry(key).result()
+                pending = self.request_geometry(key)
+                if self.stage.on_draw_thread and not pending.done():
+                    # On the render thread, whose queue holds the drawing behind the work
+                    # running now: made here (the queued one then finds it made).
+                    self._draw_geometry(key)
+                else:
+                    key.full = pending.result()
         return key.full
 
     def request_geometry(self, key: RenderedKey, ahead: bool = False) -> Future[Keyframe]:
@@ -194,9 +200,12 @@ class KeyframeFrames(FrameSource):
         return root.geometry
 
     def _draw_geometry(self, key: RenderedKey) -> Keyframe:
-        """(On the draw side.) ``key``'s layers and depth, made a :class:`Keyframe`."""
-        layers, depth = self.stage.geometry_at(key.t_us, key.angles)
-        return make_keyframe(key.t_us, key.lum, key.view, depth, layers)
+        """(On the draw side.) ``key``'s layers and depth, made a :class:`Keyframe` (once:
+        kept as ``key.full``)."""
+        if key.full is None:
+            layers, depth = self.stage.geometry_at(key.t_us, key.angles)
+            key.full = make_keyframe(key.t_us, key.lum, key.view, depth, layers)
+        return key.full
 
     def start_with(self, keys: list[RenderedKey]) -> None:
         """The stream's keys from here on: ``keys`` (none: no key, nothing planned)."""

@@ -266,6 +266,11 @@ class Stage:
         none was dropped since it handed it over."""
         return self._ahead_epoch
 
+    @property
+    def on_draw_thread(self) -> bool:
+        """Whether this call runs on the render thread (inside work handed to it)."""
+        return self._thread is not None and threading.get_ident() == self._draw_ident
+
     def _from_outside(self) -> bool:
         """Whether this call comes from outside the render thread (while it runs)."""
         return self._thread is not None and threading.get_ident() != self._draw_ident
