@@ -124,20 +124,22 @@ def test_scanpath_trial_exports_one_row_per_fixation(tmp_path):
     sets = ["scenes=[shelf]", "conditions=[fixational]", "duration_s=1.2", "repeats=1"]
     cfg = resolve_config(scanpath.EXPERIMENT, sets=sets)
     (row,), files = run_experiment("scanpath", cfg, 0, tmp_path)
-    # 13-step (130 ms) windows and the saccades between them: three decisions in 1.2 s
-    # with the agent's peak-clipped sOMS (two with the former divisor, whose first
-    # saccade was a 31° one)
-    assert (row["decisions"], row["fixations"], row["saccades"]) == (3, 3, 2)
+    # 13-step (130 ms) windows and the saccades between them: two decisions in 1.2 s, the
+    # saccade between them a 19° one that ends at 0.58 s (three before the frames between
+    # keys sampled the static world by cubic convolution: a walking camera's sub-pixel
+    # motion now reaches the DVS, and the sOMS sees other events under the walk)
+    assert (row["decisions"], row["fixations"], row["saccades"]) == (2, 2, 1)
     # the first window starts at the reset (t = 0, not one step before), then 130 ms each;
     # times to the microsecond
-    assert row["fixation_duration_mean_s"] == 0.126667
-    assert json.loads(row["scanpath_json"])[0][2:] == [0.0, 0.12]
+    assert row["fixation_duration_mean_s"] == 0.125
+    scanpath_rows = json.loads(row["scanpath_json"])
+    assert scanpath_rows[0][2:] == [0.0, 0.12] and scanpath_rows[1][2:] == [0.58, 0.13]
     # the agent's sOMS suppresses much of the still shelf under fixational motion
-    # (eye-only), so two of the three decisions land on an object (the same one)
-    assert row["object_hit_rate"] == pytest.approx(2 / 3) and row["objects_visited"] == 1
+    # (eye-only): one of the two decisions lands on an object
+    assert row["object_hit_rate"] == pytest.approx(1 / 2) and row["objects_visited"] == 1
     # the scanpath and its AOIs travel in the row (for MultiMatch and the user's analysis)
-    assert len(json.loads(row["scanpath_json"])) == 3
-    assert len(json.loads(row["aois_json"])) == 3
+    assert len(scanpath_rows) == 2
+    assert json.loads(row["aois_json"]) == ["box_b", "box_a"]
     with (tmp_path / "fixations" / "shelf_fixational_seed0.csv").open() as fh:
         table = list(csv.DictReader(fh))
     assert list(table[0]) == [*scanpath_stats.FIXATION_COLUMNS, "aoi"]
