@@ -425,6 +425,13 @@ def _cubic_sample(lum, kk, px, py):
     fx, fy = px - x0, py - y0
     wx0, wx1, wx2, wx3 = _cubic_weights(fx)
     wy0, wy1, wy2, wy3 = _cubic_weights(fy)
+    if 1 <= x0 <= w - 3 and 1 <= y0 <= h - 3:  # inside: no pixel repeated at the border
+        xa, ya = x0 - 1, y0 - 1
+        acc = wy0 * _cubic_row(lum, kk, ya, xa, wx0, wx1, wx2, wx3)
+        acc += wy1 * _cubic_row(lum, kk, ya + 1, xa, wx0, wx1, wx2, wx3)
+        acc += wy2 * _cubic_row(lum, kk, ya + 2, xa, wx0, wx1, wx2, wx3)
+        acc += wy3 * _cubic_row(lum, kk, ya + 3, xa, wx0, wx1, wx2, wx3)
+        return max(acc, 0.0)
     xa, xb = min(max(x0 - 1, 0), w - 1), min(max(x0, 0), w - 1)
     xc, xd = min(max(x0 + 1, 0), w - 1), min(max(x0 + 2, 0), w - 1)
     acc = 0.0
@@ -438,6 +445,13 @@ def _cubic_sample(lum, kk, px, py):
             + wx3 * lum[kk, yy, xd]
         )
     return max(acc, 0.0)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _cubic_row(lum, kk, y, x, w0, w1, w2, w3):
+    """One row of :func:`_cubic_sample`'s 4 × 4 (pixels x .. x + 3 of row y)."""
+    row = lum[kk, y]
+    return w0 * row[x] + w1 * row[x + 1] + w2 * row[x + 2] + w3 * row[x + 3]
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
