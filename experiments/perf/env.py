@@ -4,9 +4,12 @@ Run it as ``wander perf env``. The camera holds still while the scene's objects
 move (zero actions), at 1 kHz rendering; one row per DVS preset and number of
 environments (1 in-process; 2 and 4 as ``AsyncVectorEnv`` worker processes), with the
 frame modes (``exact``, ``keyframes`` at a fixed interval, ``adaptive``: the env's
-default keys) stepped in turns and their step-time ratio, then the adaptive env stepped
-alone (the same steps again from its reset): in turns, each env's caches and the CPU's
-are shared with the others, which costs it time that the alone column does not pay.
+default keys) stepped in turns and their step-time ratio, then the exact and the
+adaptive env each stepped alone (the same steps again from its reset): in turns, each
+env's caches and the CPU's are shared with the others, and the default's render thread
+draws its next step's keys ahead (:mod:`wander_env.frames.keyframes`) while the other
+modes step, which in turns hides its work in their times; the alone columns (and their
+speedup, exact alone / adaptive alone) are the figures to read.
 The real-time factor of a vector row counts the simulated time of all its envs.
 Beside each wall time, the process's CPU time of the same steps (NaN in a vector row:
 its workers' time is not this process's) and the load average around the row
@@ -62,8 +65,10 @@ ENV_COLUMNS: dict[str, str] = {
     "keyframes_rtf": ".2f",
     "adaptive_rtf": ".2f",
     "adaptive_alone_rtf": ".2f",
+    "exact_alone_rtf": ".2f",
     "speedup": ".2f",
     "adaptive_speedup": ".2f",
+    "alone_speedup": ".2f",
     **LOAD_COLUMN,
 }
 ENV_TIME_COLUMNS: dict[str, str] = {
@@ -77,6 +82,7 @@ ENV_TIME_COLUMNS: dict[str, str] = {
     "adaptive_cpu_ms_per_step": ".1f",
     "adaptive_alone_ms_per_step": ".1f",
     "adaptive_alone_cpu_ms_per_step": ".1f",
+    "exact_alone_ms_per_step": ".1f",
     **LOAD_COLUMN,
 }
 ENV_COUNT_COLUMNS: dict[str, str] = {
@@ -128,6 +134,10 @@ class EnvBenchRow:
     adaptive_alone_ms_per_step: float = float("nan")
     adaptive_alone_cpu_ms_per_step: float = float("nan")
     adaptive_alone_events_diff_pct: float = float("nan")  # against its events in turns
+    # The exact env stepped alone too; exact alone ms per step / adaptive alone's.
+    exact_alone_rtf: float = float("nan")
+    exact_alone_ms_per_step: float = float("nan")
+    alone_speedup: float = float("nan")
     load: str = "–"  # 1-minute load average at the row's start and end
 
 
@@ -164,8 +174,8 @@ def bench_env(
     The frame modes (exact, keyframes every ``env.keyframe_ms``, adaptive keys bounded by
     ``env.keyframe_px``) run in one process at once, stepped in turn (one step of each,
     the order rotated every step), so that a noisy machine slows all alike; each step is
-    timed (wall and CPU). Then the adaptive env is reset and stepped alone through the
-    same steps.
+    timed (wall and CPU). Then the exact and the adaptive env are each reset and stepped
+    alone through the same steps.
     """
     base, seconds, seed = config.env, config.seconds, config.seed
     km, keyframe_px, ground_truth = base.keyframe_ms, base.keyframe_px, base.ground_truth
@@ -204,14 +214,17 @@ def bench_env(
                         events[mode] += int(obs["events"].sum())
                         frames[mode] += int(np.sum(info["frames"]))
                         renders[mode] += _renders(env)
-                alone, alone_events = Clock(), 0
-                env = envs["adaptive"]
-                env.reset(seed=seed)
-                env.step(action)  # as in turns: the warm-up step first
-                for _ in range(steps):
-                    with alone.span(), row_clock.span():
-                        obs = env.step(action)[0]
-                    alone_events += int(obs["events"].sum())
+                alone = {m: Clock() for m in ("exact", "adaptive")}
+                alone_events = 0
+                for mode, clock in alone.items():
+                    env = envs[mode]
+                    env.reset(seed=seed)
+                    env.step(action)  # as in turns: the warm-up step first
+                    for _ in range(steps):
+                        with clock.span(), row_clock.span():
+                            obs = env.step(action)[0]
+                        if mode == "adaptive":
+                            alone_events += int(obs["events"].sum())
             finally:
                 for env in envs.values():
                     env.close()
@@ -248,12 +261,15 @@ def bench_env(
                     exact_cpu_ms_per_step=cpu["exact"],
                     keyframes_cpu_ms_per_step=cpu["keyframes"],
                     adaptive_cpu_ms_per_step=cpu["adaptive"],
-                    adaptive_alone_rtf=n * steps * period / alone.wall_s,
-                    adaptive_alone_ms_per_step=alone.ms_per(steps)[0],
-                    adaptive_alone_cpu_ms_per_step=alone.ms_per(steps)[1]
+                    adaptive_alone_rtf=n * steps * period / alone["adaptive"].wall_s,
+                    adaptive_alone_ms_per_step=alone["adaptive"].ms_per(steps)[0],
+                    adaptive_alone_cpu_ms_per_step=alone["adaptive"].ms_per(steps)[1]
                     if n == 1
                     else float("nan"),
                     adaptive_alone_events_diff_pct=diff_pct(alone_events, events["adaptive"]),
+                    exact_alone_rtf=n * steps * period / alone["exact"].wall_s,
+                    exact_alone_ms_per_step=alone["exact"].ms_per(steps)[0],
+                    alone_speedup=alone["exact"].wall_s / alone["adaptive"].wall_s,
                     load=row_clock.load,
                 )
             )

@@ -59,7 +59,8 @@ def test_timed_keeps_each_calls_wall_and_cpu_time() -> None:
 @pytest.mark.slow
 def test_bench_env_steps_the_default_alone_as_well_as_in_turns() -> None:
     """One row (office, ideal, one env, 3 steps): the adaptive (default) env stepped
-    alone after the turns makes the same events as in turns (same seed and steps); every
+    alone after the turns makes the same events as in turns (same seed and steps), the
+    exact env is stepped alone too (the speedup of the two alone); every
     wall-time column has its CPU column, and the row its load average."""
     config = EnvBenchConfig(env=WanderConfig(scene="office"), seconds=0.03)
     (row,) = bench_env(config, presets=("ideal",), env_counts=(1,))
@@ -69,6 +70,12 @@ def test_bench_env_steps_the_default_alone_as_well_as_in_turns() -> None:
         assert math.isfinite(getattr(row, f"{mode}_cpu_ms_per_step"))
         assert {f"{mode}_cpu_ms_per_step", f"{mode}_ms_per_step"} <= ENV_TIME_COLUMNS.keys()
     assert row.adaptive_alone_rtf == pytest.approx(10.0 / row.adaptive_alone_ms_per_step)
+    # the exact env alone too, and the speedup of the two alone
+    assert row.exact_alone_rtf == pytest.approx(10.0 / row.exact_alone_ms_per_step)
+    assert row.alone_speedup == pytest.approx(
+        row.exact_alone_ms_per_step / row.adaptive_alone_ms_per_step
+    )
+    assert {"exact_alone_rtf", "alone_speedup"} <= ENV_COLUMNS.keys()
     assert LOAD.match(row.load) and ENV_COLUMNS["load"] == ""
 
 
