@@ -19,17 +19,15 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from wander_env.dvs import DVSEmulator, LogFrame
+from wander_env.frames.flow_bounds import adaptive_key_ticks, left_to_dvs, view_flow_bounds_px
 from wander_env.frames.keyframe_maths import (
     SUBPIXEL_PX,
     Keyframe,
     KeyPair,
     View,
-    adaptive_key_ticks,
     blend,
-    left_to_dvs,
     make_keyframe,
     turned,
-    view_flow_bounds_px,
 )
 from wander_env.frames.source import FrameParams, FrameSource
 from wander_env.frames.stage import Angles, Stage
@@ -114,7 +112,7 @@ def _same_motion(a: Trajectory, b: Trajectory) -> bool:
 
 class KeyframeFrames(FrameSource):
     """Keys rendered at the step's start along the trajectory where the predicted image
-    motion asks for them (:func:`~wander_env.frames.keyframe_maths.adaptive_key_ticks`: as
+    motion asks for them (:func:`~wander_env.frames.flow_bounds.adaptive_key_ticks`: as
     few as one a step, none while nothing moves; every ``keyframe_us`` where the motion
     has no bound); the frames between them synthesised
     (:class:`~wander_env.frames.keyframe_maths.KeyPair`), and none where nothing moves by
@@ -390,7 +388,7 @@ class KeyframeFrames(FrameSource):
 
     def _left_to_dvs(self, start: View, layout: StepLayout, at_key: set[int]) -> set[int]:
         """The ticks (not already the keys' blend) whose frames the DVS goes without
-        (:func:`~wander_env.frames.keyframe_maths.left_to_dvs`; the keys stay)."""
+        (:func:`~wander_env.frames.flow_bounds.left_to_dvs`; the keys stay)."""
         stage = self.stage
         ticks, views = layout.ticks, layout.views
         handed = [i for i, t in enumerate(ticks) if t not in layout.interpolated]

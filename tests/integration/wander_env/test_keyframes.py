@@ -20,7 +20,8 @@ from wander_env.camera import (
 )
 from wander_env.dvs import DVSEmulator, DVSParams
 from wander_env.entities import PAN_JOINT
-from wander_env.frames.keyframe_maths import View, make_keyframe, synthesize, view_flow_bounds_px
+from wander_env.frames.flow_bounds import view_flow_bounds_px
+from wander_env.frames.keyframe_maths import View, make_keyframe, synthesize
 from wander_env.mjcf import compile_scene, geom_layer_ids
 from wander_env.ptu.params import PTUParams
 from wander_env.renderer import CameraRenderer

@@ -12,7 +12,8 @@ import pytest
 import wander_env  # noqa: F401  (registers the environments)
 from wander_env.actions import gaze_degrees_to_action
 from wander_env.camera import intrinsics, project
-from wander_env.frames.keyframe_maths import View, adaptive_key_ticks, view_flow_bounds_px
+from wander_env.frames.flow_bounds import adaptive_key_ticks, view_flow_bounds_px
+from wander_env.frames.keyframe_maths import View
 
 K = intrinsics(128, 128, 90.0)  # f = 64 px
 SHAPE = (128, 128)
