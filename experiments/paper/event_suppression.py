@@ -62,10 +62,12 @@ from experiments.paper.event_suppression_protocol import (
     HAND_PHASES,
     PHASES,
     SHAKE_PHASES,
-    ClockedTrajectory,
     PhaseClock,
+    Recording,
     Segment,
     Shake,
+    ShakeScript,
+    WindowRecorder,
     recording,
     shake_start,
 )
@@ -75,7 +77,7 @@ from experiments.paper.event_suppression_scoring import (
     score,
     trial_figures,
 )
-from experiments.runs.episode import Recorder, run_episode
+from experiments.runs.episode import run_episode
 from experiments.studies.framework import (
     Comparison,
     Experiment,
@@ -84,7 +86,6 @@ from experiments.studies.framework import (
     TrialSpec,
     load_artifacts,
 )
-from wander_env.actions import gaze_degrees_to_action
 from wander_env.camera import focal_length_px
 from wander_env.env_config import WanderConfig
 from wander_env.scene_config import SceneConfig
@@ -94,9 +95,6 @@ from wander_env.viz import save_figure
 __all__ = [
     "EXPERIMENT",
     "EventSuppressionConfig",
-    "Recording",
-    "ShakeScript",
-    "WindowRecorder",
     "image_speeds",
     "phase_row",
     "record",
@@ -293,75 +291,6 @@ def schedule(cfg: EventSuppressionConfig, seed: int) -> tuple[Segment, ...]:
 # The trial
 
 
-@dataclass(frozen=True)
-class Recording:
-    """A row's windows: events per window (n, 2, H, W), the hand's mask (n, H, W), the
-    gaze (n, 2) degrees and the hand's image centre (n, 2) px at each window's end."""
-
-    counts: np.ndarray
-    masks: np.ndarray
-    gaze: np.ndarray
-    hand_px: np.ndarray
-
-
-class ShakeScript:
-    """The policy of a row, no agent: after the env's reset the hand's trajectories run on
-    the hand's clock (``hand_clock``, their speed times ``scale``); before window ``k``
-    the PTU is steered to the shake's point at the window's end on the shake's clock
-    (``shake_clock``; ``start`` and ``sense`` the trial's)."""
-
-    def __init__(
-        self,
-        env: Any,
-        cfg: EventSuppressionConfig,
-        clocks: tuple[PhaseClock, PhaseClock],
-        scale: float,
-        start: float,
-        sense: int,
-    ) -> None:
-        self.base = env.unwrapped
-        self.cfg, self.scale, self.start, self.sense = cfg, scale, start, sense
-        self.shake_clock, self.hand_clock = clocks
-        self.k = 0
-
-    def reset(self) -> None:
-        anim = self.base.animator
-        anim.trajectories = tuple(
-            ClockedTrajectory(tr, self.hand_clock, self.scale) for tr in anim.trajectories
-        )
-        self.k = 0
-
-    def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
-        cfg, cam = self.cfg, self.base.scene.camera
-        self.k += 1
-        want = cfg.shake.angles(self.shake_clock(self.k * cfg.window_s), self.start, self.sense)
-        pan, tilt = np.subtract(want, self.base.ptu.target_deg)
-        action = gaze_degrees_to_action(pan, tilt, cam.width, cam.height, cam.hfov_deg)
-        return action.astype(np.float32)
-
-
-class WindowRecorder(Recorder):
-    """A row's :class:`Recording`, a window (step) at a time, in memory: the events, the
-    hand's mask, the gaze and the hand's image centre at the window's end."""
-
-    def __init__(self, n: int, height: int, width: int) -> None:
-        self.recording = Recording(
-            np.zeros((n, 2, height, width), np.uint16),
-            np.zeros((n, height, width), bool),
-            np.zeros((n, 2)),
-            np.zeros((n, 2)),
-        )
-        self.k = 0
-
-    def on_step(self, env: Any, policy: Any, obs: Any, info: dict[str, Any]) -> None:
-        rec, k = self.recording, self.k
-        rec.counts[k] = obs["events"]
-        rec.masks[k] = info["object_mask"] > 0
-        rec.gaze[k] = obs["gaze"]
-        rec.hand_px[k] = info["objects"][0]["centre_px"]
-        self.k += 1
-
-
 def record(cfg: EventSuppressionConfig, phase: str, seed: int) -> Recording:
     """Record the row of ``phase`` of the trial of ``seed`` (module docstring): the env
     reset at the shake's start gaze and stepped a window at a time under
@@ -381,7 +310,7 @@ def record(cfg: EventSuppressionConfig, phase: str, seed: int) -> Recording:
     windows = WindowRecorder(n, base.height, base.width)
     try:
         gaze0 = cfg.shake.angles(shake0, start, sense)
-        policy = ShakeScript(env, cfg, clocks, scale, start, sense)
+        policy = ShakeScript(env, cfg.shake, cfg.window_s, clocks, scale, start, sense)
         run_episode(env, policy, n, (windows,), seed=seed, options={"gaze_deg": gaze0})
     finally:
         env.close()

@@ -17,14 +17,20 @@ from typing import Any
 
 import numpy as np
 
+from experiments.runs.episode import Recorder
+from wander_env.actions import gaze_degrees_to_action
+
 __all__ = [
     "HAND_PHASES",
     "PHASES",
     "SHAKE_PHASES",
     "ClockedTrajectory",
     "PhaseClock",
+    "Recording",
     "Segment",
     "Shake",
+    "ShakeScript",
+    "WindowRecorder",
     "recording",
     "shake_start",
 ]
@@ -147,3 +153,79 @@ class ClockedTrajectory:
 
     def position(self, t: float) -> np.ndarray:
         return self.inner.position(self.scale * self.clock(t))
+
+
+# ----------------------------------------------------------------------------------------
+# A row recorded: the policy that steers the gaze, the windows kept
+
+
+@dataclass(frozen=True)
+class Recording:
+    """A row's windows: events per window (n, 2, H, W), the hand's mask (n, H, W), the
+    gaze (n, 2) degrees and the hand's image centre (n, 2) px at each window's end."""
+
+    counts: np.ndarray
+    masks: np.ndarray
+    gaze: np.ndarray
+    hand_px: np.ndarray
+
+
+class ShakeScript:
+    """The policy of a row of the hand trials, no agent: after the env's reset the hand's
+    trajectories run on the hand's clock (``hand_clock``, their speed times ``scale``);
+    before window ``k`` the PTU is steered to ``shake``'s point at the window's end
+    (``window_s`` each) on the shake's clock (``shake_clock``; ``start`` and ``sense``
+    the trial's)."""
+
+    def __init__(
+        self,
+        env: Any,
+        shake: Shake,
+        window_s: float,
+        clocks: tuple[PhaseClock, PhaseClock],
+        scale: float,
+        start: float,
+        sense: int,
+    ) -> None:
+        self.base = env.unwrapped
+        self.shake, self.window_s = shake, window_s
+        self.scale, self.start, self.sense = scale, start, sense
+        self.shake_clock, self.hand_clock = clocks
+        self.k = 0
+
+    def reset(self) -> None:
+        anim = self.base.animator
+        anim.trajectories = tuple(
+            ClockedTrajectory(tr, self.hand_clock, self.scale) for tr in anim.trajectories
+        )
+        self.k = 0
+
+    def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
+        cam = self.base.scene.camera
+        self.k += 1
+        want = self.shake.angles(self.shake_clock(self.k * self.window_s), self.start, self.sense)
+        pan, tilt = np.subtract(want, self.base.ptu.target_deg)
+        action = gaze_degrees_to_action(pan, tilt, cam.width, cam.height, cam.hfov_deg)
+        return action.astype(np.float32)
+
+
+class WindowRecorder(Recorder):
+    """A row's :class:`Recording`, a window (step) at a time, in memory: the events, the
+    hand's mask, the gaze and the hand's image centre at the window's end."""
+
+    def __init__(self, n: int, height: int, width: int) -> None:
+        self.recording = Recording(
+            np.zeros((n, 2, height, width), np.uint16),
+            np.zeros((n, height, width), bool),
+            np.zeros((n, 2)),
+            np.zeros((n, 2)),
+        )
+        self.k = 0
+
+    def on_step(self, env: Any, policy: Any, obs: Any, info: dict[str, Any]) -> None:
+        rec, k = self.recording, self.k
+        rec.counts[k] = obs["events"]
+        rec.masks[k] = info["object_mask"] > 0
+        rec.gaze[k] = obs["gaze"]
+        rec.hand_px[k] = info["objects"][0]["centre_px"]
+        self.k += 1
