@@ -15,10 +15,12 @@ EGL context belongs to the thread that made it current).
 
 from __future__ import annotations
 
+import atexit
 import threading
+import weakref
 from collections import deque
 from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future
 from typing import Any, TypeVar
 
 __all__ = ["DrawThread"]
@@ -28,38 +30,51 @@ _Work = tuple[Future, Callable[..., Any], tuple[Any, ...]]
 
 
 class _Queues:
-    """The two queues and their lock, shared by the owner and the thread's pumps (which
-    never hold the :class:`DrawThread`: an owner dropped without closing still lets the
-    executor's thread end)."""
+    """The two queues, their lock and whether the thread is to end, shared by the owner
+    and the thread (which never holds the :class:`DrawThread`: an owner dropped without
+    closing still ends it)."""
 
     def __init__(self) -> None:
         self.now: deque[_Work] = deque()
         self.ahead: deque[_Work] = deque()
-        self.lock = threading.Lock()
-        self.closed = False
+        self.wake = threading.Condition()
+        self.closing = False
+
+    def cancel_ahead(self) -> None:
+        with self.wake:
+            for future, _, _ in self.ahead:
+                future.cancel()
+            self.ahead.clear()
+
+    def end(self) -> None:
+        """Cancel the work ahead; the thread ends once the step's work left has run."""
+        with self.wake:
+            for future, _, _ in self.ahead:
+                future.cancel()
+            self.ahead.clear()
+            self.closing = True
+            self.wake.notify()
 
     def next(self) -> _Work | None:
-        """The next piece of work: the step's first (None: nothing left)."""
-        with self.lock:
+        """The next piece of work, waited for: the step's first (None: the thread ends)."""
+        with self.wake:
+            while not (self.now or self.ahead or self.closing):
+                self.wake.wait()
             if self.now:
                 return self.now.popleft()
             if self.ahead:
                 return self.ahead.popleft()
             return None
 
-    def cancel_ahead(self) -> None:
-        with self.lock:
-            for future, _, _ in self.ahead:
-                future.cancel()
-            self.ahead.clear()
+
+def _serve(queues: _Queues) -> None:
+    """The thread's loop (holds nothing of a piece of work while it waits)."""
+    while (work := queues.next()) is not None:
+        _run(work)
+        del work
 
 
-def _pump(queues: _Queues) -> None:
-    """(On the thread.) Run one piece of work, chosen now: one pump is queued on the
-    executor per piece handed over, so every piece runs (or was cancelled)."""
-    work = queues.next()
-    if work is None:
-        return
+def _run(work: _Work) -> None:
     future, fn, args = work
     if not future.set_running_or_notify_cancel():
         return
@@ -70,30 +85,41 @@ def _pump(queues: _Queues) -> None:
 
 
 class DrawThread:
-    """One thread (a one-worker ``ThreadPoolExecutor``: joined at the interpreter's exit,
-    ended when dropped), the step's queue first, the work ahead when the step's is empty
-    (see the module docstring). ``name`` prefixes the thread's name."""
+    """One thread, the step's queue first, the work ahead when the step's is empty (see
+    the module docstring); ``name`` names the thread. Handing work over takes only this
+    object's own lock (no lock another thread's fork waits on: a ``ThreadPoolExecutor``'s
+    submit holds the lock its fork hook takes). Ended when closed, when dropped, or at
+    the interpreter's exit."""
 
     def __init__(self, name: str) -> None:
         self._q = _Queues()
-        self._executor = ThreadPoolExecutor(1, thread_name_prefix=name)
-        self.ident: int = self._executor.submit(threading.get_ident).result()
+        self._thread = threading.Thread(target=_serve, args=(self._q,), name=name, daemon=True)
+        self._thread.start()
+        self._at_exit = _AtExit(self._q, self._thread)
+        atexit.register(self._at_exit)
+        # Dropped without close: the thread ends, and the exit hook goes with it.
+        weakref.finalize(self, self._at_exit.drop)
+
+    @property
+    def ident(self) -> int | None:
+        """The thread's id."""
+        return self._thread.ident
 
     def submit(self, fn: Callable[..., T], *args: Any, ahead: bool = False) -> Future[T]:
         """Queue ``fn(*args)``: the step's work, or with ``ahead`` work ahead of time."""
         work: _Work = (Future(), fn, args)
         q = self._q
-        with q.lock:
-            if q.closed:
+        with q.wake:
+            if q.closing:
                 raise RuntimeError("the render thread is closed")
             (q.ahead if ahead else q.now).append(work)
-        self._executor.submit(_pump, q)
+            q.wake.notify()
         return work[0]
 
     def promote(self) -> None:
         """The work ahead that has not started joins the step's queue (in its order)."""
         q = self._q
-        with q.lock:
+        with q.wake:
             q.now.extend(q.ahead)
             q.ahead.clear()
 
@@ -103,8 +129,23 @@ class DrawThread:
 
     def close(self) -> None:
         """Cancel the work ahead, run the step's work left, end the thread (idempotent)."""
-        q = self._q
-        q.cancel_ahead()
-        with q.lock:
-            q.closed = True
-        self._executor.shutdown(wait=threading.get_ident() != self.ident)
+        self._at_exit.drop()
+        if self._thread.ident != threading.get_ident():
+            self._thread.join()
+
+
+class _AtExit:
+    """The exit hook of one thread: ends and joins it (once); :meth:`drop` ends it
+    without waiting and unregisters the hook."""
+
+    def __init__(self, queues: _Queues, thread: threading.Thread) -> None:
+        self.queues, self.thread = queues, thread
+
+    def __call__(self) -> None:
+        self.queues.end()
+        if self.thread.ident != threading.get_ident():
+            self.thread.join()
+
+    def drop(self) -> None:
+        self.queues.end()
+        atexit.unregister(self)
