@@ -48,10 +48,8 @@ class _Queues:
 
     def end(self) -> None:
         """Cancel the work ahead; the thread ends once the step's work left has run."""
-        with self.wake:
-            for future, _, _ in self.ahead:
-                future.cancel()
-            self.ahead.clear()
+        with self.wake:  # (a re-entrant lock: cancel_ahead takes it again)
+            self.cancel_ahead()
             self.closing = True
             self.wake.notify()
 
@@ -130,8 +128,7 @@ class DrawThread:
     def close(self) -> None:
         """Cancel the work ahead, run the step's work left, end the thread (idempotent)."""
         self._at_exit.drop()
-        if self._thread.ident != threading.get_ident():
-            self._thread.join()
+        self._at_exit.join()
 
 
 class _AtExit:
@@ -143,6 +140,10 @@ class _AtExit:
 
     def __call__(self) -> None:
         self.queues.end()
+        self.join()
+
+    def join(self) -> None:
+        """Wait for the thread to end (unless called on it)."""
         if self.thread.ident != threading.get_ident():
             self.thread.join()
 

@@ -216,7 +216,7 @@ class KeyframeFrames(FrameSource):
 
     def reset(self, t_us: int, angles: Angles) -> LogFrame:
         self._drop_ahead()
-        self._mask_ahead, self._made = None, {}
+        self._mask_ahead = None
         key = self.render_key(t_us, angles, self.stage.camera_view(t_us, *angles))
         self.start_with([key])
         return key.prepared
@@ -342,9 +342,7 @@ class KeyframeFrames(FrameSource):
             need.add(len(key_t) - 1)
         layout.need = need
 
-    def _draw_keys(
-        self, layout: StepLayout, first: RenderedKey | None = None, ahead: bool = False
-    ) -> list[RenderedKey]:
+    def _draw_keys(self, layout: StepLayout, first: RenderedKey | None) -> list[RenderedKey]:
         """The layout's new keys handed to the draw side in time order (``first`` already
         there), each with its geometry where that is sure to be needed, so that the frames
         up to a key are made while the next one is drawn."""
@@ -352,10 +350,10 @@ class KeyframeFrames(FrameSource):
         for n in range(len(layout.idx)):
             key = first if n == 0 and first is not None else None
             if key is None:
-                key = self.render_key(*self._key_of(layout, n), ahead=ahead)
+                key = self.render_key(*self._key_of(layout, n))
             new.append(key)
             if n + 1 in layout.need:
-                self.request_geometry(key, ahead=ahead)
+                self.request_geometry(key)
         return new
 
     def _start(self, ref: RenderedKey, layout: StepLayout, new: list[RenderedKey]) -> None:
@@ -426,14 +424,14 @@ class KeyframeFrames(FrameSource):
         at_key = {key.t_us for key in keys}
         skip = at_key | layout.interpolated | layout.skipped
         return {
-            t: self.stage.submit(self._made_frame, keys, t, view, ahead=ahead)
+            t: self.stage.submit(self._made_frame, *_pair_in(keys, t), t, view, ahead=ahead)
             for t, view in zip(layout.ticks, layout.views, strict=True)
             if t not in skip
         }
 
-    def _made_frame(self, keys: list[RenderedKey], t_us: int, view: View) -> LogFrame:
-        """(On the draw side.) The synthesised frame of ``view`` at ``t_us``."""
-        a, b = _pair_in(keys, t_us)
+    def _made_frame(self, a: RenderedKey, b: RenderedKey, t_us: int, view: View) -> LogFrame:
+        """The frame of ``view`` at ``t_us`` synthesised between the keys ``a`` and ``b``
+        (on the draw side where the plan hands it over)."""
         w = (t_us - a.t_us) / (b.t_us - a.t_us)
         return self.dvs.prepare(self.synthesize(self._keypair(a, b), view, w))
 
@@ -460,7 +458,7 @@ class KeyframeFrames(FrameSource):
             bound = view_flow_bounds_px([a.view, b.view], [view, view], k, self.radii, shape)
             if bound.max() < SUBPIXEL_PX and not (turned(a.view, view) or turned(b.view, view)):
                 return self.dvs.prepare(blend(a.lum, b.lum, w))
-        return self.dvs.prepare(self.synthesize(self._keypair(a, b), view, w))
+        return self._made_frame(a, b, t_us, view)
 
     def synthesize(self, pair: KeyPair, view: View, w: float) -> np.ndarray:
         """An in-between frame (a method of its own, for profiling)."""

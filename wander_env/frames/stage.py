@@ -212,10 +212,10 @@ class Stage:
         it is work for the next step, drawn on a guess: it runs when the step's work
         waits for nothing, and is adopted or dropped at the next step's start."""
         self._check_process()
-        if not self.render_thread or threading.get_ident() == self._draw_ident:
+        if not self.render_thread or self.on_draw_thread:
             if ahead:
                 raise ValueError("work ahead needs the render thread (Stage.draws_ahead)")
-            if threading.get_ident() != self._draw_ident:
+            if not self.on_draw_thread:
                 self._charging = self._step_counts[0]
             done: Future[T] = Future()
             try:
