@@ -426,12 +426,17 @@ class Stage:
         """Free the renderer on the draw side and join the render thread (idempotent).
         In a process forked after drawing, the GL state is the parent's: forgotten, not
         freed."""
-        thread, self._thread, self._last = self._thread, None, None
-        self._ahead_count = self._ahead_last = None
-        if thread is not None:
+        thread = self._thread
+        forked = self._renderer_pid is not None and self._renderer_pid != os.getpid()
+        if thread is not None and not forked:
+            # The step's work left (a step that raised leaves some) runs while the thread
+            # is still this stage's: work that poses on the draw side stays on it.
             thread.cancel_ahead()
+            thread.submit(lambda: None).result()
+        self._thread = self._last = None
+        self._ahead_count = self._ahead_last = None
         renderer, self._renderer = self._renderer, None
-        if self._renderer_pid is not None and self._renderer_pid != os.getpid():
+        if forked:
             if renderer is not None:
                 renderer.abandon()
             if self.caster is not None:

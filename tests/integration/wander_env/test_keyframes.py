@@ -312,7 +312,7 @@ def test_layer_boxes_hold_every_candidate(hand, parallax):
         covered.append(sum(int((r[1] - r[0]) * (r[3] - r[2])) for r in regions))
     object_px = int(((a.layers == 1) | (b.layers == 1)).sum())
     assert object_px > 300
-    assert all(object_px <= c <= 2 * object_px for c in covered)
+    assert all(object_px <= c <= 2 * object_px for c in covered), (object_px, covered)
 
 
 def test_flow_bounds_are_the_formula_of_the_poses():
