@@ -102,7 +102,7 @@ def render_floor(
 
     from wander_env.camera import focal_length_px
     from wander_env.dvs import DVSEmulator
-    from wander_env.frames.keyframe_maths import _static_kernel
+    from wander_env.frames.keyframe_maths import _static_kernel, warp_keys
 
     # The renderer is driven from here, on this thread: no render thread.
     env = gym.make("wander/Wander-v0", scene=scene, render_thread=False)
@@ -176,8 +176,8 @@ def render_floor(
         weights = np.array([0.5, 0.5])
         add(
             "in-between frame today: two keys' homography warp (static world)",
-            lambda i: _static_kernel(out, weights, 0, lum, hinv),
-            "numba, nearest",
+            lambda i: _static_kernel(out, weights, 0, lum, warp_keys(lum, hinv), hinv),
+            "OpenCV cubic + numba blend",
         )
         # An equirectangular panorama at the sensor's centre resolution, through cv2.remap.
         f = focal_length_px(w, u.hfov_deg)

@@ -29,7 +29,7 @@ warp of both keys (:func:`_static_kernel`) and the layers' kernel runs over the 
 layers' boxes alone.
 
 Sampling. The static world under a rotation is sampled by cubic convolution at the
-source position (:func:`_cubic_sample`, Keys' kernel with ``a = -0.75``): a sub-pixel
+source position (:func:`warp_keys`, Keys' kernel with ``a = -0.75``): a sub-pixel
 turn of the camera moves the key's content by its fraction of a pixel, as it moves the
 world under a render's samples. Nearest-pixel sampling there left each key as it was
 below half a pixel, so a frame between keys was their time-weighted blend: each pixel's
@@ -126,6 +126,7 @@ class Keyframe:
     boxes: np.ndarray  # (L, 4) int64 (y0, y1, x0, x1) of each layer's pixels
     rho_median: np.ndarray  # (L,) median inverse depth of each layer's pixels
     rho_max: np.ndarray  # (L,) largest inverse depth of each layer's pixels
+    static_taps: np.ndarray  # (H + 1, W + 1) bool, see :func:`_static_tap_map`
 
 
 def make_keyframe(
@@ -155,7 +156,32 @@ def make_keyframe(
     boxes = np.zeros((n, 4), np.int64)
     rho_median, rho_max = np.zeros(n), np.zeros(n)
     _layer_stats(layers, inv, present, boxes, rho_median, rho_max)
-    return Keyframe(int(t_us), lum, view, inv, layers, present, boxes, rho_median, rho_max)
+    taps = _static_tap_map(layers)
+    return Keyframe(int(t_us), lum, view, inv, layers, present, boxes, rho_median, rho_max, taps)
+
+
+@numba.njit(cache=True, nogil=True)
+def _static_tap_map(layers):
+    """(H + 1, W + 1) bool: at [y0 + 1, x0 + 1] (x0 in [-1, W), y0 in [-1, H)), whether
+    the 4 × 4 pixels a cubic sample whose position's floor is (x0, y0) reads (columns
+    x0 - 1 .. x0 + 2, rows y0 - 1 .. y0 + 2, clamped to the image) are all the static
+    world's (layer 0). Two passes of a 4-wide window's count of other layers."""
+    h, w = layers.shape
+    rows = np.empty((h, w + 1), np.int32)  # per row and x0: the window's pixels off layer 0
+    for yy in range(h):
+        for i in range(w + 1):
+            n = 0
+            for d in range(-2, 2):  # x0 - 1 .. x0 + 2 with x0 = i - 1
+                n += layers[yy, min(max(i + d, 0), w - 1)] != 0
+            rows[yy, i] = n
+    out = np.empty((h + 1, w + 1), np.bool_)
+    for j in range(h + 1):
+        for i in range(w + 1):
+            n = 0
+            for d in range(-2, 2):
+                n += rows[min(max(j + d, 0), h - 1), i]
+            out[j, i] = n == 0
+    return out
 
 
 @numba.njit(cache=True, nogil=True)
@@ -279,11 +305,16 @@ def _source_pixel(hinv, kk, x, y):
     return px, py
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def _candidate(kk, x, y, first, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving):
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _candidate(
+    kk, x, y, first, lum, warped, taps, layers, inv, present, boxes, hinv, bvec, rho0, moving
+):
     """Key ``kk``'s nearest candidate for target pixel (x, y) among its layers from
     ``first`` on (see the module docstring): (its luminance, its inverse depth in the
-    target view); inverse depth -1 where no layer has one."""
+    target view); inverse depth -1 where no layer has one. ``warped``: each key's cubic
+    sample at every target pixel's source position (:func:`warp_keys`), the static
+    world's candidate where all the sample's taps are the static world's (``taps``,
+    each key's :func:`_static_tap_map`; else its nearest pixel)."""
     h, w = layers.shape[1], layers.shape[2]
     n_layers = present.shape[1]
     ax = hinv[kk, 0, 0] * x + hinv[kk, 0, 1] * y + hinv[kk, 0, 2]
@@ -329,32 +360,30 @@ def _candidate(kk, x, y, first, lum, layers, inv, present, boxes, hinv, bvec, rh
             best_r = r_t
             best_v = lum[kk, iy, ix]
             if ll == 0 and not mov:  # as the static world's kernel, where it reads no layer
-                sx, sy = _source_pixel(hinv, kk, x, y)  # (px, py), rounded as there
-                off = abs(sx - math.floor(sx + 0.5)) >= _ON_PIXEL
-                if (off or abs(sy - math.floor(sy + 0.5)) >= _ON_PIXEL) and _static_taps(
-                    layers, kk, sx, sy
-                ):
-                    best_v = _cubic_sample(lum, kk, sx, sy)
+                tx = min(max(math.floor(px) + 1, 0), w)
+                ty = min(max(math.floor(py) + 1, 0), h)
+                if taps[kk, ty, tx]:
+                    best_v = max(warped[kk, y, x], 0.0)
     return best_v, best_r
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _static_taps(layers, kk, px, py):
-    """Whether the 4 × 4 pixels :func:`_cubic_sample` reads at (px, py) in key ``kk``
-    are all the static world's (layer 0)."""
-    h, w = layers.shape[1], layers.shape[2]
-    x0, y0 = math.floor(px), math.floor(py)
-    for j in range(-1, 3):
-        yy = min(max(y0 + j, 0), h - 1)
-        for i in range(-1, 3):
-            if layers[kk, yy, min(max(x0 + i, 0), w - 1)] != 0:
-                return False
-    return True
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _synth_kernel(
-    out, regions, weights, near, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
+    out,
+    regions,
+    weights,
+    near,
+    lum,
+    warped,
+    taps,
+    layers,
+    inv,
+    present,
+    boxes,
+    hinv,
+    bvec,
+    rho0,
+    moving,
 ):
     """Fill ``out`` (H, W) inside each of ``regions`` (R, 4) (y0, y1, x0, x1; a pixel in
     two is computed twice, to the same value): per pixel and key (index 0, 1), the
@@ -372,7 +401,21 @@ def _synth_kernel(
                     if wk <= 0.0:
                         continue
                     best_v, best_r = _candidate(
-                        kk, x, y, 0, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
+                        kk,
+                        x,
+                        y,
+                        0,
+                        lum,
+                        warped,
+                        taps,
+                        layers,
+                        inv,
+                        present,
+                        boxes,
+                        hinv,
+                        bvec,
+                        rho0,
+                        moving,
                     )
                     if best_r > 0.0:
                         num += wk * best_v
@@ -387,74 +430,33 @@ def _synth_kernel(
 # A source position this close to a pixel centre (px) is that pixel (a camera that has
 # not turned, up to rounding in its homography).
 _ON_PIXEL = 1e-9
-# The cubic convolution kernel's parameter (Keys 1981; -0.5 is Catmull-Rom): -0.75 keeps
-# more of a key's contrast at a sub-pixel shift, as OpenCV's and Pillow's bicubic do.
-_CUBIC_A = -0.75
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _cubic_weights(f: float) -> tuple[float, float, float, float]:
-    """The cubic convolution weights of the pixels at -1, 0, 1 and 2 from a source
-    position ``f`` in [0, 1) past a pixel centre (1, 0, 0, 0 at ``f`` = 0; sum 1)."""
-    a = _CUBIC_A
-    t = 1.0 + f
-    w0 = ((a * t - 5.0 * a) * t + 8.0 * a) * t - 4.0 * a
-    w1 = ((a + 2.0) * f - (a + 3.0)) * f * f + 1.0
-    t = 1.0 - f
-    w2 = ((a + 2.0) * t - (a + 3.0)) * t * t + 1.0
-    return w0, w1, w2, 1.0 - w0 - w1 - w2
+def warp_keys(lum: np.ndarray, hinv: np.ndarray) -> np.ndarray:
+    """Each key's luminance (``lum`` (2, H, W) float32) at every target pixel's source
+    position under its target-to-source homography ``hinv[k]``: cubic convolution over
+    the 4 × 4 pixels around it (Keys 1981 with ``a = -0.75``, as OpenCV's and Pillow's
+    bicubic: it keeps more of a key's contrast at a sub-pixel shift than Catmull-Rom's
+    -0.5), the border's pixels repeated beyond the image (OpenCV's ``INTER_CUBIC``,
+    which rounds the position to 1/32 px: a pixel centre gives that pixel). May dip below
+    0 beside an edge: the kernels clamp it."""
+    import cv2  # (here: OpenCV's import starts thread pools a key's maths does not need)
 
-
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _cubic_sample(lum, kk, px, py):
-    """Key ``kk``'s luminance at the source position (px, py): cubic convolution
-    (:data:`_CUBIC_A`) over its 4 × 4 pixels around it (the border's pixels repeated
-    beyond the image), no less than 0. Within :data:`_ON_PIXEL` of a pixel centre, that
-    pixel's value."""
-    h, w = lum.shape[1], lum.shape[2]
-    ix, iy = math.floor(px + 0.5), math.floor(py + 0.5)
-    if abs(px - ix) < _ON_PIXEL and abs(py - iy) < _ON_PIXEL:
-        return lum[kk, min(max(iy, 0), h - 1), min(max(ix, 0), w - 1)]
-    x0, y0 = math.floor(px), math.floor(py)
-    fx, fy = px - x0, py - y0
-    wx0, wx1, wx2, wx3 = _cubic_weights(fx)
-    wy0, wy1, wy2, wy3 = _cubic_weights(fy)
-    if 1 <= x0 <= w - 3 and 1 <= y0 <= h - 3:  # inside: no pixel repeated at the border
-        xa, ya = x0 - 1, y0 - 1
-        acc = wy0 * _cubic_row(lum, kk, ya, xa, wx0, wx1, wx2, wx3)
-        acc += wy1 * _cubic_row(lum, kk, ya + 1, xa, wx0, wx1, wx2, wx3)
-        acc += wy2 * _cubic_row(lum, kk, ya + 2, xa, wx0, wx1, wx2, wx3)
-        acc += wy3 * _cubic_row(lum, kk, ya + 3, xa, wx0, wx1, wx2, wx3)
-        return max(acc, 0.0)
-    xa, xb = min(max(x0 - 1, 0), w - 1), min(max(x0, 0), w - 1)
-    xc, xd = min(max(x0 + 1, 0), w - 1), min(max(x0 + 2, 0), w - 1)
-    acc = 0.0
-    for j in range(4):
-        yy = min(max(y0 - 1 + j, 0), h - 1)
-        wj = wy0 if j == 0 else wy1 if j == 1 else wy2 if j == 2 else wy3
-        acc += wj * (
-            wx0 * lum[kk, yy, xa]
-            + wx1 * lum[kk, yy, xb]
-            + wx2 * lum[kk, yy, xc]
-            + wx3 * lum[kk, yy, xd]
-        )
-    return max(acc, 0.0)
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _cubic_row(lum, kk, y, x, w0, w1, w2, w3):
-    """One row of :func:`_cubic_sample`'s 4 × 4 (pixels x .. x + 3 of row y)."""
-    row = lum[kk, y]
-    return w0 * row[x] + w1 * row[x + 1] + w2 * row[x + 2] + w3 * row[x + 3]
+    h, w = lum.shape[1:]
+    flags, border = cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP, cv2.BORDER_REPLICATE
+    out = np.empty_like(lum)
+    for k in range(2):
+        cv2.warpPerspective(lum[k], hinv[k], (w, h), out[k], flags=flags, borderMode=border)
+    return out
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _static_kernel(out, weights, near, lum, hinv):
+def _static_kernel(out, weights, near, lum, warped, hinv):
     """Fill ``out`` (H, W) with both keys (index 0, 1) warped by their target-to-source
-    homographies ``hinv`` (:func:`_cubic_sample`; a key whose homography is the identity
-    to 1e-12, a camera that has not turned since it, gives its own pixels) and blended
-    with ``weights``, each where it sees the pixel; a pixel neither sees takes key
-    ``near``'s nearest edge pixel."""
+    homographies ``hinv`` (``warped``, :func:`warp_keys`, no less than 0; a key whose
+    homography is the identity to 1e-12, a camera that has not turned since it, gives
+    its own pixels) and blended with ``weights``, each where it sees the pixel; a pixel
+    neither sees takes key ``near``'s nearest edge pixel."""
     h, w = out.shape
     same = np.zeros(2, np.bool_)
     for kk in range(2):
@@ -475,7 +477,7 @@ def _static_kernel(out, weights, near, lum, hinv):
                     continue
                 px, py = _source_pixel(hinv, kk, x, y)
                 if -0.5 <= px < w - 0.5 and -0.5 <= py < h - 0.5:
-                    num += weights[kk] * _cubic_sample(lum, kk, px, py)
+                    num += weights[kk] * max(warped[kk, y, x], 0.0)
                     den += weights[kk]
             if den > 0.0:
                 out[y, x] = num / den
@@ -528,12 +530,13 @@ class KeyPair:
 
     @cached_property
     def _stacked(self) -> tuple[np.ndarray, ...]:
-        """Both keys' luminance, layers, inverse depth, layer presence and median inverse
-        depth, stacked for the kernel (made when a frame first needs them)."""
+        """Both keys' luminance, layers, inverse depth, layer presence, median inverse
+        depth and static tap maps, stacked for the kernel (made when a frame first needs
+        them)."""
         keys = (self.a, self.b)
         return tuple(
             np.stack([getattr(key, name) for key in keys])
-            for name in ("lum", "layers", "inv_depth", "present", "rho_median")
+            for name in ("lum", "layers", "inv_depth", "present", "rho_median", "static_taps")
         )
 
     def weight(self, t_us: int) -> float:
@@ -593,30 +596,56 @@ class KeyPair:
         weights = np.array([1.0 - w, w])
         near = int(w > 0.5)
         out = np.empty_like(self.a.lum)
+        lum = self._stacked[0]
+        warped = lum  # (read only where the static world is a warp: made there)
         if moving[:, 0].any():  # the camera centre moved: parallax everywhere
             regions = np.array([[0, h, 0, wd]])
         else:
-            _static_kernel(out, weights, near, self._stacked[0], hinv)
+            warped = warp_keys(lum, hinv)
+            _static_kernel(out, weights, near, lum, warped, hinv)
             regions = self.regions(boxes)
             if not len(regions):
                 return out
             near = -1
-        _synth_kernel(out, regions, weights, near, *self.kernel_args(hinv, bvec, moving, boxes))
+        args = self.kernel_args(hinv, bvec, moving, boxes, warped)
+        _synth_kernel(out, regions, weights, near, *args)
         return out
 
     def kernel_args(
-        self, hinv: np.ndarray, bvec: np.ndarray, moving: np.ndarray, boxes: np.ndarray
+        self,
+        hinv: np.ndarray,
+        bvec: np.ndarray,
+        moving: np.ndarray,
+        boxes: np.ndarray,
+        warped: np.ndarray | None = None,
     ) -> tuple[np.ndarray, ...]:
-        """The two keys' stacked layers with a view's :meth:`params`, in the order the
-        layers' kernels take them (``lum, layers, inv, present, boxes, hinv, bvec, rho0,
-        moving``)."""
-        lum, layers, inv, present, rho0 = self._stacked
-        return lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
+        """The two keys' stacked layers with a view's :meth:`params` and the keys'
+        ``warped`` static world (:func:`warp_keys`; None for a kernel that reads only the
+        moving layers), in the order the layers' kernels take them (``lum, warped, taps,
+        layers, inv, present, boxes, hinv, bvec, rho0, moving``)."""
+        lum, layers, inv, present, rho0, taps = self._stacked
+        warped = lum if warped is None else warped
+        return lum, warped, taps, layers, inv, present, boxes, hinv, bvec, rho0, moving
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def layers_over(
-    out, bg, bg_rho, regions, weights, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
+    out,
+    bg,
+    bg_rho,
+    regions,
+    weights,
+    lum,
+    warped,
+    taps,
+    layers,
+    inv,
+    present,
+    boxes,
+    hinv,
+    bvec,
+    rho0,
+    moving,
 ):
     """Composite two keys' moving layers (ids >= 1) over the background ``bg`` (H, W)
     with inverse depth ``bg_rho`` into ``out`` inside ``regions`` (R, 4): per key, its
@@ -634,7 +663,21 @@ def layers_over(
                     if wk <= 0.0:
                         continue
                     v, rt = _candidate(
-                        kk, x, y, 1, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
+                        kk,
+                        x,
+                        y,
+                        1,
+                        lum,
+                        warped,
+                        taps,
+                        layers,
+                        inv,
+                        present,
+                        boxes,
+                        hinv,
+                        bvec,
+                        rho0,
+                        moving,
                     )
                     if rt > 0.0 and rt >= floor:
                         num += wk * v

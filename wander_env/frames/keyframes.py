@@ -445,7 +445,7 @@ class KeyframeFrames(FrameSource):
         if key is not None:
             return key.prepared
         made = self._made.pop(t_us, None)
-        if made is not None:
+        if made is not None and not made.cancel():  # (not started there: made here)
             return made.result()
         a, b = self.pair(t_us)
         w = (t_us - a.t_us) / (b.t_us - a.t_us)

@@ -267,7 +267,12 @@ def test_layer_boxes_hold_every_candidate(hand, parallax):
     0 and its largest) holds every pixel that can take a candidate from it: the frame
     made over the boxes equals, bit for bit, the layers' kernel run over the whole image
     with no boxes; and the boxes cover far fewer pixels than the image."""
-    from wander_env.frames.keyframe_maths import KeyPair, _static_kernel, _synth_kernel
+    from wander_env.frames.keyframe_maths import (
+        KeyPair,
+        _static_kernel,
+        _synth_kernel,
+        warp_keys,
+    )
 
     p0 = np.array([0.25, 0.01, 1.0])
     shift = np.array([0.01, -0.03, 0.005])
@@ -287,26 +292,14 @@ def test_layer_boxes_hold_every_candidate(hand, parallax):
         weights = np.array([1.0 - w, w])
         full = np.empty((128, 128), np.float32)
         near = int(w > 0.5)
+        warped = None
         if not parallax:
-            _static_kernel(full, weights, near, pair._stacked[0], hinv)
+            warped = warp_keys(pair._stacked[0], hinv)
+            _static_kernel(full, weights, near, pair._stacked[0], warped, hinv)
             near = -1
         no_boxes = np.broadcast_to(whole, boxes.shape).copy()
-        lum, layers, inv, present, rho0 = pair._stacked
-        _synth_kernel(
-            full,
-            whole,
-            weights,
-            near,
-            lum,
-            layers,
-            inv,
-            present,
-            no_boxes,
-            hinv,
-            bvec,
-            rho0,
-            moving,
-        )
+        args = pair.kernel_args(hinv, bvec, moving, no_boxes, warped)
+        _synth_kernel(full, whole, weights, near, *args)
         assert np.array_equal(pair.frame(view, w), full)
         regions = pair.regions(boxes)
         covered.append(sum(int((r[1] - r[0]) * (r[3] - r[2])) for r in regions))

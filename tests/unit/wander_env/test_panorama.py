@@ -129,15 +129,12 @@ def test_a_moving_layer_is_composited_in_front_of_the_background_not_behind() ->
     mid = View(np.eye(3), np.zeros(3), np.array([[0, 0, 0], [12 / f, 0, 1.0]]))
     hinv, bvec, moving, boxes = pair.params(mid)
     regions = pair.regions(boxes)
-    lum, layers, inv, present, rho0 = pair._stacked
     bg = np.full((32, 32), 0.3, np.float32)
     for bg_depth, want_square in ((2.0, True), (0.5, False)):
         out = bg.copy()
         rho = np.full((32, 32), 1.0 / bg_depth)
         w = np.array([0.5, 0.5])
-        layers_over(
-            out, bg, rho, regions, w, lum, layers, inv, present, boxes, hinv, bvec, rho0, moving
-        )
+        layers_over(out, bg, rho, regions, w, *pair.kernel_args(hinv, bvec, moving, boxes))
         square = np.zeros((32, 32), bool)
         square[12:20, 12:20] = True
         if want_square:
