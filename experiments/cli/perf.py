@@ -22,7 +22,8 @@ from experiments.cli.options import (
     SetOpt,
     command_config,
     int_list,
-    seconds_option,
+    seconds_flag,
+    seed_flag,
 )
 
 __all__ = ["app"]
@@ -79,11 +80,9 @@ def bench_dvs(
 def bench_env(
     ctx: typer.Context,
     scene: SceneOpt = None,
-    seconds: Annotated[
-        float | None,
-        seconds_option("Simulated seconds per row (default: the config's, 2)."),
-        ConfigKey("seconds"),
-    ] = None,
+    seconds: seconds_flag(
+        "Simulated seconds per row (default: the config's, 2).", "seconds"
+    ) = None,
     ground_truth: Annotated[
         bool | None,
         typer.Option(help="Render segmentation masks too (default: the config's, yes)."),
@@ -175,16 +174,8 @@ def bench_env(
 def bench_agent(
     ctx: typer.Context,
     scene: SceneOpt = None,
-    seconds: Annotated[
-        float | None,
-        seconds_option("Simulated seconds of closed loop (default: the config's, 5)."),
-        ConfigKey("env.episode_seconds"),
-    ] = None,
-    seed: Annotated[
-        int | None,
-        typer.Option(help="Seed of the env and the agent (default: the config's, 0)."),
-        ConfigKey("seed"),
-    ] = None,
+    seconds: seconds_flag("Simulated seconds of closed loop (default: the config's, 5).") = None,
+    seed: seed_flag("Seed of the env and the agent (default: the config's, 0).") = None,
     keyframe_ms: KeyframeMsOpt = None,
     config: ConfigFileOpt = None,
     set_: SetOpt = None,
