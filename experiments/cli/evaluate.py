@@ -16,6 +16,7 @@ from experiments.cli.options import (
     FRAME_OPTIONS,
     DvsOpt,
     SceneOpt,
+    SeedsOpt,
     command_config,
     int_list,
     resolve_out,
@@ -39,7 +40,7 @@ def evaluate(
     ] = None,
     scene: SceneOpt = None,
     seconds: seconds_flag("Simulated seconds per seed (default: the config's, 20).") = None,
-    seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
+    seeds: SeedsOpt = "0,1,2",
     dvs: DvsOpt = None,
     **shared: Any,
 ) -> None:

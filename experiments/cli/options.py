@@ -56,6 +56,7 @@ __all__ = [
     "SceneOpt",
     "SecondsOpt",
     "SeedOpt",
+    "SeedsOpt",
     "SetOpt",
     "SomsNormOpt",
     "StreamlinedOpt",
@@ -253,6 +254,8 @@ SecondsOpt = seconds_flag("Simulated seconds.")
 SeedOpt = Annotated[
     int, typer.Option(callback=check_seed, help="Base seed (repeat r uses seed + r).")
 ]
+#: ``--seeds``: a command's seeds, comma-separated (read with :func:`int_list`).
+SeedsOpt = Annotated[str, typer.Option(help="Comma-separated seeds.")]
 RunDirOpt = Annotated[
     Path | None,
     typer.Option(

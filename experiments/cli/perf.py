@@ -19,6 +19,7 @@ from experiments.cli.options import (
     ConfigKey,
     KeyframeMsOpt,
     SceneOpt,
+    SeedsOpt,
     SetOpt,
     command_config,
     int_list,
@@ -33,13 +34,16 @@ app = typer.Typer(
     "here, not in tests)."
 )
 
+#: ``--repeats`` of the timing tables (its default is each table's).
+TimedRepeatsOpt = Annotated[
+    int, typer.Option(min=1, help="Timed runs per row; the median is shown.")
+]
+
 
 @app.command("dvs")
 def bench_dvs(
     frames: Annotated[int, typer.Option(min=1, help="Frames per timed run (1 kHz).")] = 1000,
-    repeats: Annotated[
-        int, typer.Option(min=1, help="Timed runs per row; the median is shown.")
-    ] = 3,
+    repeats: TimedRepeatsOpt = 3,
     peers: Annotated[
         bool, typer.Option(help="Also run evlib's ESIM and v2e on the same frames.")
     ] = False,
@@ -214,9 +218,7 @@ def bench_agent(
 def bench_floor(
     scene: SceneOpt = "office",
     calls: Annotated[int, typer.Option(min=1, help="Calls per timed run.")] = 100,
-    repeats: Annotated[
-        int, typer.Option(min=1, help="Timed runs per row; the median is shown.")
-    ] = 5,
+    repeats: TimedRepeatsOpt = 5,
 ) -> None:
     """What one render of a key costs here, the real-time factor the renders a step need
     leave room for, and a per-tick panorama warp (a prototype) against them."""
@@ -279,7 +281,7 @@ def bench_fidelity(
     motions: Annotated[str, typer.Option(help="Comma-separated: still, walk, saccade.")] = (
         "still,walk,saccade"
     ),
-    seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
+    seeds: SeedsOpt = "0,1,2",
     seconds: Annotated[float, typer.Option(min=0.01, help="Simulated seconds per run.")] = 0.1,
     reference_hz: Annotated[
         float, typer.Option(min=1.0, help="Render ticks per second of the reference.")
