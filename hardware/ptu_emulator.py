@@ -313,24 +313,19 @@ class PTUEmulator:
         return self._both_axes("accel")
 
     @property
-    def echo(self) -> bool:
-        """Echo mode (``EE``/``ED``)."""
-        return self._firmware.echo
-
-    @property
-    def verbose(self) -> bool:
-        """Feedback mode: True verbose (``FV``), False terse (``FT``)."""
-        return self._firmware.verbose
-
-    @property
-    def slaved(self) -> bool:
-        """Position execution mode: True slaved (``S``), False immediate (``I``)."""
-        return self._firmware.slaved
-
-    @property
-    def velocity_mode(self) -> bool:
-        """Speed control mode: True pure velocity (``CV``), False independent (``CI``)."""
-        return self._firmware.velocity_mode
+    def modes(self) -> dict[str, bool]:
+        """The firmware's mode flags: ``echo`` (``EE``/``ED``), ``verbose`` feedback
+        (``FV``/``FT``), ``slaved`` position execution (``S``/``I``), ``velocity_mode``
+        (pure velocity ``CV``, independent ``CI``) and ``limits_enabled`` (``LE``/``LD``)."""
+        f = self._firmware
+        with self._lock:
+            return {
+                "echo": f.echo,
+                "verbose": f.verbose,
+                "slaved": f.slaved,
+                "velocity_mode": f.velocity_mode,
+                "limits_enabled": f.limits_enabled,
+            }
 
     def _both_axes(self, attr: str, *, advance: bool = False) -> tuple[Any, Any]:
         """(pan, tilt) values of the axes' ``attr``, read under the lock (after bringing

@@ -109,13 +109,6 @@ def default_name(path: Path) -> str:
 # Running (with progress bars; the runner is experiments.benchmark.runner)
 
 
-def _set_threads(threads: int | None) -> None:
-    if threads is not None:
-        import torch
-
-        torch.set_num_threads(threads)
-
-
 class _Bars:
     """Rich progress bars: one for the sequences, one per sequence's windows."""
 
@@ -257,6 +250,20 @@ def _model_record(model: Any) -> dict[str, Any]:
     return {"agent": to_plain(model.agent)}
 
 
+def _begin(
+    ctx: typer.Context, out: Path | None, name: str, shared: dict[str, Any]
+) -> tuple[Any, RunFolder]:
+    """A command's model config (:func:`_model_config`: a bad flag stops the command
+    before anything is written), torch's CPU threads (``--threads``) and its results
+    folder ``name`` (``--out``, ``--force``)."""
+    model = _model_config(ctx)
+    if shared["threads"] is not None:
+        import torch
+
+        torch.set_num_threads(shared["threads"])
+    return model, resolve_out(ctx, out, name, shared["force"])
+
+
 def _check_std_over(std_over: str) -> None:
     if std_over not in ("sequences", "windows"):
         raise typer.BadParameter(f"--std-over must be 'sequences' or 'windows', got {std_over!r}")
@@ -282,13 +289,11 @@ def _score_dataset(
     std_over, max_windows, progress = flags["std_over"], flags["max_windows"], flags["progress"]
     _check_std_over(std_over)
     started = time.monotonic()
-    model = _model_config(ctx)
-    _set_threads(flags["threads"])
+    model, folder = _begin(ctx, flags["out"], f"benchmark-{dataset}", flags)
+    out = folder.path
     config = {"dataset": dataset, "path": str(flags["path"]), **options}
     config.update({p.name: flags[p.name] for p in DATASET_OPTIONS if p not in MODEL_OPTIONS})
     config.update(_model_record(model))
-    folder = resolve_out(ctx, flags["out"], f"benchmark-{dataset}", flags["force"])
-    out = folder.path
     sampler = WindowSampler()
     try:
         seqs, n = load(flags["max_sequences"])
@@ -443,10 +448,8 @@ def events(
     sensor_size = parse_sensor(sensor) if sensor else None
     offset = parse_offset(mask_offset) if mask_offset else None
     seq_name = name or default_name(file)
-    model = _model_config(ctx)
-    folder = resolve_out(ctx, out, f"benchmark-events-{seq_name}", shared["force"])
+    model, folder = _begin(ctx, out, f"benchmark-events-{seq_name}", shared)
     out = folder.path
-    _set_threads(shared["threads"])
     try:
         seq = load_generic(file, masks, sensor_size, window_us, name=seq_name, subset="events")
         seq = limit_windows(seq, max_windows)
@@ -531,10 +534,8 @@ def suppression(
 
     started = time.monotonic()
     sensor_size = parse_sensor(sensor) if sensor else None
-    model = _model_config(ctx)
-    folder = resolve_out(ctx, out, "benchmark-suppression", shared["force"])
+    model, folder = _begin(ctx, out, "benchmark-suppression", shared)
     out = folder.path
-    _set_threads(shared["threads"])
     notes: dict[str, list[str]] = {}
     try:
         files = event_files(paths)

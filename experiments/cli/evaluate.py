@@ -14,13 +14,13 @@ from experiments.cli.errors import long_command
 from experiments.cli.options import (
     AGENT_OPTIONS,
     FRAME_OPTIONS,
-    ConfigKey,
     DvsOpt,
     SceneOpt,
+    SeedsOpt,
     command_config,
     int_list,
     resolve_out,
-    seconds_option,
+    seconds_flag,
     with_options,
 )
 
@@ -39,12 +39,8 @@ def evaluate(
         ),
     ] = None,
     scene: SceneOpt = None,
-    seconds: Annotated[
-        float | None,
-        seconds_option("Simulated seconds per seed (default: the config's, 20)."),
-        ConfigKey("env.episode_seconds"),
-    ] = None,
-    seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
+    seconds: seconds_flag("Simulated seconds per seed (default: the config's, 20).") = None,
+    seeds: SeedsOpt = "0,1,2",
     dvs: DvsOpt = None,
     **shared: Any,
 ) -> None:

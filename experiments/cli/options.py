@@ -56,6 +56,7 @@ __all__ = [
     "SceneOpt",
     "SecondsOpt",
     "SeedOpt",
+    "SeedsOpt",
     "SetOpt",
     "SomsNormOpt",
     "StreamlinedOpt",
@@ -76,7 +77,8 @@ __all__ = [
     "option",
     "resolve_out",
     "run_env_job",
-    "seconds_option",
+    "seconds_flag",
+    "seed_flag",
     "with_options",
 ]
 
@@ -234,18 +236,26 @@ DvsOpt = Annotated[
 ]
 
 
-def seconds_option(help: str) -> Any:
-    """The ``--seconds`` option (checked: :func:`check_seconds`) with a command's own help,
-    for ``Annotated[float, seconds_option("..."), ConfigKey(...)]``."""
-    return typer.Option(callback=_unset_or(check_seconds), help=help)
+def seconds_flag(help: str, key: str = "env.episode_seconds") -> Any:
+    """A ``--seconds`` (checked: :func:`check_seconds`) that sets the config's ``key``, with
+    a command's own help: ``seconds: seconds_flag("Simulated seconds per row.") = None``."""
+    return Annotated[
+        float | None, typer.Option(callback=_unset_or(check_seconds), help=help), ConfigKey(key)
+    ]
 
 
-SecondsOpt = Annotated[
-    float | None, seconds_option("Simulated seconds."), ConfigKey("env.episode_seconds")
-]
+def seed_flag(help: str) -> Any:
+    """A job's ``--seed``, which sets the config's ``seed``, with a command's own help:
+    ``seed: seed_flag("Seed of the agent.") = None``."""
+    return Annotated[int | None, typer.Option(help=help), ConfigKey("seed")]
+
+
+SecondsOpt = seconds_flag("Simulated seconds.")
 SeedOpt = Annotated[
     int, typer.Option(callback=check_seed, help="Base seed (repeat r uses seed + r).")
 ]
+#: ``--seeds``: a command's seeds, comma-separated (read with :func:`int_list`).
+SeedsOpt = Annotated[str, typer.Option(help="Comma-separated seeds.")]
 RunDirOpt = Annotated[
     Path | None,
     typer.Option(

@@ -19,10 +19,12 @@ from experiments.cli.options import (
     ConfigKey,
     KeyframeMsOpt,
     SceneOpt,
+    SeedsOpt,
     SetOpt,
     command_config,
     int_list,
-    seconds_option,
+    seconds_flag,
+    seed_flag,
 )
 
 __all__ = ["app"]
@@ -32,13 +34,16 @@ app = typer.Typer(
     "here, not in tests)."
 )
 
+#: ``--repeats`` of the timing tables (its default is each table's).
+TimedRepeatsOpt = Annotated[
+    int, typer.Option(min=1, help="Timed runs per row; the median is shown.")
+]
+
 
 @app.command("dvs")
 def bench_dvs(
     frames: Annotated[int, typer.Option(min=1, help="Frames per timed run (1 kHz).")] = 1000,
-    repeats: Annotated[
-        int, typer.Option(min=1, help="Timed runs per row; the median is shown.")
-    ] = 3,
+    repeats: TimedRepeatsOpt = 3,
     peers: Annotated[
         bool, typer.Option(help="Also run evlib's ESIM and v2e on the same frames.")
     ] = False,
@@ -79,11 +84,9 @@ def bench_dvs(
 def bench_env(
     ctx: typer.Context,
     scene: SceneOpt = None,
-    seconds: Annotated[
-        float | None,
-        seconds_option("Simulated seconds per row (default: the config's, 2)."),
-        ConfigKey("seconds"),
-    ] = None,
+    seconds: seconds_flag(
+        "Simulated seconds per row (default: the config's, 2).", "seconds"
+    ) = None,
     ground_truth: Annotated[
         bool | None,
         typer.Option(help="Render segmentation masks too (default: the config's, yes)."),
@@ -175,16 +178,8 @@ def bench_env(
 def bench_agent(
     ctx: typer.Context,
     scene: SceneOpt = None,
-    seconds: Annotated[
-        float | None,
-        seconds_option("Simulated seconds of closed loop (default: the config's, 5)."),
-        ConfigKey("env.episode_seconds"),
-    ] = None,
-    seed: Annotated[
-        int | None,
-        typer.Option(help="Seed of the env and the agent (default: the config's, 0)."),
-        ConfigKey("seed"),
-    ] = None,
+    seconds: seconds_flag("Simulated seconds of closed loop (default: the config's, 5).") = None,
+    seed: seed_flag("Seed of the env and the agent (default: the config's, 0).") = None,
     keyframe_ms: KeyframeMsOpt = None,
     config: ConfigFileOpt = None,
     set_: SetOpt = None,
@@ -223,9 +218,7 @@ def bench_agent(
 def bench_floor(
     scene: SceneOpt = "office",
     calls: Annotated[int, typer.Option(min=1, help="Calls per timed run.")] = 100,
-    repeats: Annotated[
-        int, typer.Option(min=1, help="Timed runs per row; the median is shown.")
-    ] = 5,
+    repeats: TimedRepeatsOpt = 5,
 ) -> None:
     """What one render of a key costs here, the real-time factor the renders a step need
     leave room for, and a per-tick panorama warp (a prototype) against them."""
@@ -288,7 +281,7 @@ def bench_fidelity(
     motions: Annotated[str, typer.Option(help="Comma-separated: still, walk, saccade.")] = (
         "still,walk,saccade"
     ),
-    seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
+    seeds: SeedsOpt = "0,1,2",
     seconds: Annotated[float, typer.Option(min=0.01, help="Simulated seconds per run.")] = 0.1,
     reference_hz: Annotated[
         float, typer.Option(min=1.0, help="Render ticks per second of the reference.")

@@ -21,19 +21,18 @@ import typer
 from experiments.cli.console import console, step_progress
 from experiments.cli.errors import long_command
 from experiments.cli.options import (
-    AgentAlphaOpt,
+    AGENT_OPTIONS,
     ConfigKey,
-    FixationalOpt,
     ForceOpt,
     RunDirOpt,
     SetOpt,
-    SomsNormOpt,
-    StreamlinedOpt,
     VideoOpt,
-    WindowOpt,
     command_config,
+    option,
     resolve_out,
-    seconds_option,
+    seconds_flag,
+    seed_flag,
+    with_options,
 )
 from experiments.runs.failure import exit_code
 from experiments.runs.signals import SignalExit
@@ -83,6 +82,10 @@ RIG_DEFAULTS = {"env.replay": "fast"}
 
 
 @long_command("wander rig")
+@with_options(
+    AGENT_OPTIONS,
+    (option("video", VideoOpt), option("force", ForceOpt, False), option("set_", SetOpt)),
+)
 def rig(
     ctx: typer.Context,
     ptu: Annotated[
@@ -112,11 +115,9 @@ def rig(
         ),
         ConfigKey("env.replay"),
     ] = None,
-    seconds: Annotated[
-        float | None,
-        seconds_option("Run length in seconds of camera time (default: the config's, 10)."),
-        ConfigKey("env.episode_seconds"),
-    ] = None,
+    seconds: seconds_flag(
+        "Run length in seconds of camera time (default: the config's, 10)."
+    ) = None,
     hfov_deg: Annotated[
         float | None,
         typer.Option(
@@ -127,20 +128,9 @@ def rig(
         ),
         ConfigKey("env.hfov_deg"),
     ] = None,
-    seed: Annotated[
-        int | None,
-        typer.Option(help="Seed of the agent (walk, controller; default: 0)."),
-        ConfigKey("seed"),
-    ] = None,
+    seed: seed_flag("Seed of the agent (walk, controller; default: 0).") = None,
     out: RunDirOpt = None,
-    window: WindowOpt = None,
-    fixational: FixationalOpt = None,
-    streamlined: StreamlinedOpt = None,
-    alpha: AgentAlphaOpt = None,
-    soms_norm: SomsNormOpt = None,
-    video: VideoOpt = None,
-    force: ForceOpt = False,
-    set_: SetOpt = None,
+    **shared: Any,
 ) -> None:
     """Run the attention agent closed-loop on the rig; write the run folder of `wander run`.
     Unset flags take RigRunConfig's values (`--set agent.KEY=VALUE` reaches every agent
@@ -155,7 +145,7 @@ def rig(
         raise typer.BadParameter(
             f"no such event file: {str(replay_file)!r}", param_hint="'--camera'"
         )
-    folder = resolve_out(ctx, out, "rig", force)
+    folder = resolve_out(ctx, out, "rig", shared["force"])
     out = folder.final
     try:
         with step_progress(

@@ -42,7 +42,8 @@ from experiments.cli.options import (
     one_of,
     resolve_out,
     run_env_job,
-    seconds_option,
+    seconds_flag,
+    seed_flag,
     with_options,
 )
 
@@ -58,11 +59,9 @@ MAX_VIDEO_FPS = 1000
 def demo(
     ctx: typer.Context,
     out: RunDirOpt = None,
-    seconds: Annotated[
-        float | None,
-        seconds_option("Simulated seconds of the stimulus (default: the config's, 1)."),
-        ConfigKey("seconds"),
-    ] = None,
+    seconds: seconds_flag(
+        "Simulated seconds of the stimulus (default: the config's, 1).", "seconds"
+    ) = None,
     preset: Annotated[
         str | None,
         typer.Option(
@@ -71,11 +70,7 @@ def demo(
         ),
         ConfigKey("preset"),
     ] = None,
-    seed: Annotated[
-        int | None,
-        typer.Option(help="Seed of the stimulus and the emulator's noise (default: 0)."),
-        ConfigKey("seed"),
-    ] = None,
+    seed: seed_flag("Seed of the stimulus and the emulator's noise (default: 0).") = None,
     force: ForceOpt = False,
     set_: SetOpt = None,
 ) -> None:
@@ -97,11 +92,7 @@ def demo(
 
 
 #: ``--seed`` of the job commands (``run``, ``record``): the config's ``seed``.
-JobSeedOpt = Annotated[
-    int | None,
-    typer.Option(help="Seed of the env, the policy or walk, and the controller."),
-    ConfigKey("seed"),
-]
+JobSeedOpt = seed_flag("Seed of the env, the policy or walk, and the controller.")
 
 
 @long_command("wander record")

@@ -35,14 +35,7 @@ from experiments.benchmark.protocol import ProtocolConfig, WindowRow, evaluate_s
 from experiments.benchmark.summary import paper_reference
 from experiments.paper.env_block import check_env_block, trial_env
 from experiments.runs.episode import Recorder, run_episode
-from experiments.studies.framework import (
-    Comparison,
-    Experiment,
-    Repeats,
-    Row,
-    TrialSeconds,
-    TrialSpec,
-)
+from experiments.studies import framework as study
 from wander_env.actions import gaze_degrees_to_action
 from wander_env.env_config import SceneName, WanderConfig
 from wander_env.events import concatenate
@@ -80,12 +73,12 @@ class DetectionConfig:
     scenes: tuple[SceneName, ...] = ("office", "hand", "gratings")
     camera_speeds_deg_s: tuple[float, ...] = (0.0, 10.0, 30.0, 60.0)
     sweep_amplitude_deg: float = 5.0
-    duration_s: TrialSeconds = 2.0
+    duration_s: study.TrialSeconds = 2.0
     warmup_s: float = 0.2
     env: WanderConfig = field(default_factory=lambda: WanderConfig(dvs="paper"))
     box: int = 8
     baseline_sigma_px: float = 2.0
-    repeats: Repeats = 2
+    repeats: study.Repeats = 2
     soms: SOMSParams = field(default_factory=lambda: SOMSParams(dt=0.02))
     proto: ProtoObjectParams = field(default_factory=lambda: ProtoObjectParams(dt=0.02))
 
@@ -213,7 +206,7 @@ def _means(rows: list[WindowRow], warmup_us: int) -> dict[str, float]:
     return out
 
 
-def run_trial(cfg: DetectionConfig, spec: TrialSpec) -> dict[str, Any]:
+def run_trial(cfg: DetectionConfig, spec: study.TrialSpec) -> dict[str, Any]:
     """One scene / speed / seed: record, then score with and without the proto stage."""
     scene, speed = str(spec.params["scene"]), float(spec.params["camera_speed_deg_s"])
     seq, speed_meas = record_sequence(cfg, scene, speed, spec.seed)
@@ -253,7 +246,7 @@ def grid(cfg: DetectionConfig) -> list[dict[str, Any]]:
 # Summary and plots
 
 
-def group_means(rows: list[Row], metric: str) -> dict[tuple[str, float], float]:
+def group_means(rows: list[study.Row], metric: str) -> dict[tuple[str, float], float]:
     """Mean of ``metric`` over repeats, per (scene, camera speed)."""
     acc: dict[tuple[str, float], list[float]] = {}
     for r in rows:
@@ -267,7 +260,7 @@ def _pct(v: float) -> str:
     return "—" if math.isnan(v) else f"{100 * v:.1f} %"
 
 
-def compare(cfg: DetectionConfig, rows: list[Row]) -> list[Comparison]:
+def compare(cfg: DetectionConfig, rows: list[study.Row]) -> list[study.Comparison]:
     """Per scene and camera speed: our accuracy with / without proto-objects, IoU,
     precision and SSIM beside the paper's EVIMO figures."""
     ref = paper_reference("evimo")
@@ -291,7 +284,7 @@ def compare(cfg: DetectionConfig, rows: list[Row]) -> list[Comparison]:
     for i, (s, v) in enumerate(a_p):
         k = (s, v)
         out.append(
-            Comparison(
+            study.Comparison(
                 f"{s}, camera {v:g}°/s (measured {speed[k]:.0f})",
                 paper if i == 0 else "″",
                 f"accuracy {_pct(a_p[k])} with / {_pct(a_o[k])} without proto-objects; "
@@ -301,7 +294,9 @@ def compare(cfg: DetectionConfig, rows: list[Row]) -> list[Comparison]:
     return out
 
 
-def plot(cfg: DetectionConfig, rows: list[Row], results_dir: Path, fig_dir: Path) -> list[Path]:
+def plot(
+    cfg: DetectionConfig, rows: list[study.Row], results_dir: Path, fig_dir: Path
+) -> list[Path]:
     """Accuracy (with / without proto-objects) and OMS-map scores against camera speed."""
     import matplotlib
 
@@ -340,7 +335,7 @@ def plot(cfg: DetectionConfig, rows: list[Row], results_dir: Path, fig_dir: Path
     return [path]
 
 
-EXPERIMENT = Experiment(
+EXPERIMENT = study.Experiment(
     name="detection",
     description=(
         "Detection accuracy (8×8 box around the salient point), true IoU, precision and SSIM "

@@ -78,14 +78,7 @@ from experiments.paper.event_suppression_scoring import (
     trial_figures,
 )
 from experiments.runs.episode import run_episode
-from experiments.studies.framework import (
-    Comparison,
-    Experiment,
-    Repeats,
-    Row,
-    TrialSpec,
-    load_artifacts,
-)
+from experiments.studies import framework as study
 from wander_env.camera import focal_length_px
 from wander_env.env_config import WanderConfig
 from wander_env.scene_config import SceneConfig
@@ -164,7 +157,7 @@ class EventSuppressionConfig:
     phases: tuple[str, ...] = PHASES
     shake: Shake = field(default_factory=Shake)
     hand_ratio: float | None = None
-    repeats: Repeats = 10
+    repeats: study.Repeats = 10
     soms: SOMSParams | SOMSPreset = field(default_factory=lambda: soms_preset("table"))
     second_soms: SOMSParams | SOMSPreset | None = None
     hit_sigma_px: float = 2.0
@@ -345,7 +338,7 @@ def phase_row(
     }
 
 
-def run_trial(cfg: EventSuppressionConfig, spec: TrialSpec) -> dict[str, Any]:
+def run_trial(cfg: EventSuppressionConfig, spec: study.TrialSpec) -> dict[str, Any]:
     """The row of phase ``spec.params["phase"]`` of the trial of ``spec.seed``; with a
     ``second_soms``, its figures on the same windows in ``second:`` columns."""
     phase = str(spec.params["phase"])
@@ -382,7 +375,7 @@ def _ci(values: Sequence[float], unit: str = " %") -> str:
     return f"{m:.1f}{unit} [{lo:.1f}, {hi:.1f}]"
 
 
-def _windows(rows: Sequence[Row], what: str) -> tuple[float, float]:
+def _windows(rows: Sequence[study.Row], what: str) -> tuple[float, float]:
     """Mean ± std per window of ``what`` (events_in / events_out) pooled over ``rows``."""
     return pooled_mean_std(
         np.array([float(r[f"{what}_mean"]) for r in rows]),
@@ -391,7 +384,7 @@ def _windows(rows: Sequence[Row], what: str) -> tuple[float, float]:
     )
 
 
-def compare(cfg: EventSuppressionConfig, rows: list[Row]) -> list[Comparison]:
+def compare(cfg: EventSuppressionConfig, rows: list[study.Row]) -> list[study.Comparison]:
     """The paper's Table beside ours: over whole trials, then per phase (windows pooled
     over trials; fractions as the mean over trials with a 95 % bootstrap interval)."""
     ref = PAPER_SUPPRESSION
@@ -408,38 +401,38 @@ def compare(cfg: EventSuppressionConfig, rows: list[Row]) -> list[Comparison]:
     hits, steps = sum(int(r["hand_hits"]) for r in moving), sum(int(r["hit_steps"]) for r in moving)
     lo, hi = wilson_interval(hits, steps)
     out = [
-        Comparison("trials", "10", str(len(seeds)), f"phases {', '.join(cfg.phases)}"),
-        Comparison(
+        study.Comparison("trials", "10", str(len(seeds)), f"phases {', '.join(cfg.phases)}"),
+        study.Comparison(
             f"events in per {w}",
             f"{ref['events_in_mean']} ± {ref['events_in_std']}",
             f"{mi:.1f} ± {si:.1f}",
             "all windows of all rows; ours a simulated 128×128 scene, theirs a Speck",
         ),
-        Comparison(
+        study.Comparison(
             f"sOMS events out per {w}",
             f"{ref['events_out_mean']} ± {ref['events_out_std']}",
             f"{mo:.1f} ± {so:.1f}",
         ),
-        Comparison(
+        study.Comparison(
             "events suppressed",
             f"{ref['suppressed_pct']} %",
             _ci(col("suppressed")),
             f"over a trial, mean over trials; bar: ≥ {SUPPRESSED_BAR:g} % (85 ± 10 % or above)",
         ),
-        Comparison(
+        study.Comparison(
             "hand hit, hand-moving phases (8×8 box around the OMS map's densest point)",
             "—",
             f"{_ci(col('hit'))}; pooled {100 * hits / steps if steps else math.nan:.1f} % of "
             f"{steps} sOMS steps (Wilson {100 * lo:.1f}–{100 * hi:.1f} %)",
             f"bar: ≥ {HIT_BAR:g} %",
         ),
-        Comparison(
+        study.Comparison(
             "shake-only events suppressed",
             "—",
             _ci(col("shake_suppressed")),
             f"bar: ≥ {SHAKE_BAR:g} %",
         ),
-        Comparison(
+        study.Comparison(
             "hand's events kept / background's kept, hand-moving phases",
             "—",
             f"{_ci(col('hand_kept'))} / {_ci(col('background_kept'))}",
@@ -458,7 +451,9 @@ def compare(cfg: EventSuppressionConfig, rows: list[Row]) -> list[Comparison]:
         ]
         if phase in HAND_PHASES:
             parts.append(f"hit {_ci([float(r['hand_hit_pct']) for r in mine])}")
-        out.append(Comparison(f"phase `{phase}`", "—", "; ".join(parts), f"{len(mine)} trials"))
+        out.append(
+            study.Comparison(f"phase `{phase}`", "—", "; ".join(parts), f"{len(mine)} trials")
+        )
     return out
 
 
@@ -478,7 +473,7 @@ def soms_label(sp: FrontBlock) -> str:
 
 
 def plot(
-    cfg: EventSuppressionConfig, rows: list[Row], results_dir: Path, fig_dir: Path
+    cfg: EventSuppressionConfig, rows: list[study.Row], results_dir: Path, fig_dir: Path
 ) -> list[Path]:
     """The paper's Figure: events in (red) and out (blue) per window over the first
     trial, its phases shaded; beside it, per phase over all trials, the events
@@ -496,7 +491,7 @@ def plot(
     first = sorted((r for r in rows if int(r["repeat"]) == 0), key=lambda r: int(r["phase_index"]))
     t0 = 0.0
     for r in first:
-        arts = load_artifacts(results_dir, r)
+        arts = study.load_artifacts(results_dir, r)
         n = len(arts.get("events_in", ()))
         t = t0 + (np.arange(n) + 1) * cfg.window_s
         ax.axvspan(
@@ -558,7 +553,7 @@ def plot(
     return [path]
 
 
-EXPERIMENT = Experiment(
+EXPERIMENT = study.Experiment(
     name="event_suppression",
     description=(
         "Events per 2 ms before and after the sOMS in the hand scene, per phase: the camera "

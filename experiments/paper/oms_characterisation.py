@@ -45,15 +45,7 @@ from experiments.analysis.metrics import iou, precision
 from experiments.analysis.stats import number_text
 from experiments.paper.env_block import check_env_block, trial_env
 from experiments.runs.episode import Recorder, run_episode
-from experiments.studies.framework import (
-    Comparison,
-    Experiment,
-    Repeats,
-    Row,
-    TrialSeconds,
-    TrialSpec,
-    load_artifacts,
-)
+from experiments.studies import framework as study
 from wander_env.env_config import WanderConfig
 from wander_env.scene_config import GRATING_MODES
 from wander_env.scenes import assets_dir
@@ -89,7 +81,7 @@ class OMSCharacterisationConfig:
     env's block (the paper's DVS by default); each trial sets its grating scene, step and
     length (:data:`ENV_SET_PER_TRIAL`)."""
 
-    duration_s: TrialSeconds = 4.0
+    duration_s: study.TrialSeconds = 4.0
     env: WanderConfig = field(default_factory=lambda: WanderConfig(dvs="paper"))
     modes: tuple[str, ...] = GRATING_MODES
     background_cycles_per_deg: float = 0.05
@@ -128,7 +120,7 @@ class OMSCharacterisationConfig:
     )
     groups: tuple[str, ...] = ("mode", "frequency", "speed", "kernel")
     soms: SOMSParams = field(default_factory=lambda: SOMSParams(dt=0.02))
-    repeats: Repeats = 1
+    repeats: study.Repeats = 1
 
     def __post_init__(self) -> None:
         check_env_block(self.env, ENV_SET_PER_TRIAL)
@@ -305,7 +297,7 @@ class _Firing(Recorder):
         self.ious.append(iou(oms.any(axis=0), mask))
 
 
-def run_trial(cfg: OMSCharacterisationConfig, spec: TrialSpec) -> dict[str, Any]:
+def run_trial(cfg: OMSCharacterisationConfig, spec: study.TrialSpec) -> dict[str, Any]:
     """Render the stimulus, emulate the DVS, run the sOMS; firing statistics."""
     p = spec.params
     scene = grating_scene(
@@ -377,7 +369,7 @@ def run_trial(cfg: OMSCharacterisationConfig, spec: TrialSpec) -> dict[str, Any]
 # Summary and plots
 
 
-def _by(rows: list[Row], group: str) -> list[Row]:
+def _by(rows: list[study.Row], group: str) -> list[study.Row]:
     return [r for r in rows if r["group"] == group]
 
 
@@ -385,14 +377,14 @@ def _f(v: Any, fmt: str = ".3g") -> str:
     return number_text(v, fmt)
 
 
-def compare(cfg: OMSCharacterisationConfig, rows: list[Row]) -> list[Comparison]:
+def compare(cfg: OMSCharacterisationConfig, rows: list[study.Row]) -> list[study.Comparison]:
     """The paper's qualitative findings beside our numbers."""
-    out: list[Comparison] = []
+    out: list[study.Comparison] = []
     modes = {r["condition"]: r for r in _by(rows, "mode")}
     if "eye+object" in modes:
         r = modes["eye+object"]
         out.append(
-            Comparison(
+            study.Comparison(
                 "eye+object: object response",
                 "robust response to the object moving against the background",
                 f"object events kept {_f(r['object_kept_pct'])} %, background kept "
@@ -402,7 +394,7 @@ def compare(cfg: OMSCharacterisationConfig, rows: list[Row]) -> list[Comparison]
     if "eye-only" in modes:
         r = modes["eye-only"]
         out.append(
-            Comparison(
+            study.Comparison(
                 "eye-only: background suppressed",
                 "most background activity suppressed; higher MFR and ISI than the others",
                 f"{_f(r['suppressed_pct'])} % of events suppressed; MFR "
@@ -412,7 +404,7 @@ def compare(cfg: OMSCharacterisationConfig, rows: list[Row]) -> list[Comparison]
     if "object-only" in modes:
         r = modes["object-only"]
         out.append(
-            Comparison(
+            study.Comparison(
                 "object-only: object response",
                 "robust response",
                 f"object events kept {_f(r['object_kept_pct'])} %; OMS precision "
@@ -423,7 +415,7 @@ def compare(cfg: OMSCharacterisationConfig, rows: list[Row]) -> list[Comparison]
     if freq:
         prec = [float(r["oms_precision"]) for r in freq]
         out.append(
-            Comparison(
+            study.Comparison(
                 "spatial frequencies (exp. 4–9): scale invariance",
                 "object motion enhanced in all cases",
                 f"OMS precision {_f(np.nanmin(prec), '.2f')}–{_f(np.nanmax(prec), '.2f')} over "
@@ -438,7 +430,7 @@ def compare(cfg: OMSCharacterisationConfig, rows: list[Row]) -> list[Comparison]
             for r in speed
         )
         out.append(
-            Comparison(
+            study.Comparison(
                 "background as fast or faster (exp. 10–16)",
                 "fails to enhance object motion in all 7",
                 f"fails (object kept ≤ background kept, or precision ≤ 0.5) in {fails} of "
@@ -452,7 +444,7 @@ def compare(cfg: OMSCharacterisationConfig, rows: list[Row]) -> list[Comparison]
             for r in kern
         )
         out.append(
-            Comparison(
+            study.Comparison(
                 "kernel σ / size sweep (MFR, ISI)",
                 "MFR and ISI fall with σc/σs; similar at σc = 2; more activity at size 32",
                 text,
@@ -462,7 +454,7 @@ def compare(cfg: OMSCharacterisationConfig, rows: list[Row]) -> list[Comparison]
 
 
 def plot(
-    cfg: OMSCharacterisationConfig, rows: list[Row], results_dir: Path, fig_dir: Path
+    cfg: OMSCharacterisationConfig, rows: list[study.Row], results_dir: Path, fig_dir: Path
 ) -> list[Path]:
     """MFR and ISI per condition (Figures OMSMFRISI, sigmakernels), events kept in the
     patch and the background, and example event / OMS maps (Figure OMSchar)."""
@@ -497,7 +489,7 @@ def plot(
     paths.append(save_figure(fig, fig_dir / "oms_characterisation_rates.png", dpi=100))
 
     examples = [r for r in rows if r["group"] in ("mode", "speed")]
-    arts = [load_artifacts(results_dir, r) for r in examples]
+    arts = [study.load_artifacts(results_dir, r) for r in examples]
     if examples and all(arts):
         fig, axes = plt.subplots(2, len(examples), figsize=(2.2 * len(examples), 4.6))
         axes = np.asarray(axes).reshape(2, -1)
@@ -524,7 +516,7 @@ def plot(
     return paths
 
 
-EXPERIMENT = Experiment(
+EXPERIMENT = study.Experiment(
     name="oms_characterisation",
     description=(
         "Grating stimuli (eye+object, eye-only, object-only; spatial-frequency and speed "

@@ -65,14 +65,7 @@ from experiments.paper.oms_stimuli import (
     family,
     split,
 )
-from experiments.studies.framework import (
-    Comparison,
-    Experiment,
-    Repeats,
-    Row,
-    TrialSeconds,
-    TrialSpec,
-)
+from experiments.studies import framework as study
 from wander_env.viz import save_figure
 
 __all__ = ["EXPERIMENT", "OMSScorecardConfig", "variants"]
@@ -106,11 +99,11 @@ class OMSScorecardConfig:
     periods: tuple[int, ...] = PERIODS_PX
     motions: tuple[str, ...] = MOTIONS
     presets: tuple[str, ...] = PRESETS
-    replicates: Repeats = 2
-    duration_s: TrialSeconds = 0.3
+    replicates: study.Repeats = 2
+    duration_s: study.TrialSeconds = 0.3
     real_dir: str = "../shared/realdata/uzh_poster_egomotion"
     real_bins_ms: tuple[int, ...] = (2, 10, 20)
-    hand_repeats: Repeats = 10
+    hand_repeats: study.Repeats = 10
     office_results: tuple[str, ...] = ()
     office_results_paper: tuple[str, ...] = ()
     reuse: tuple[str, ...] = ()
@@ -296,7 +289,7 @@ def reused_row(cfg: OMSScorecardConfig, part: str, seed: int) -> dict[str, Any] 
     return None
 
 
-def run_trial(cfg: OMSScorecardConfig, spec: TrialSpec) -> dict[str, Any]:
+def run_trial(cfg: OMSScorecardConfig, spec: study.TrialSpec) -> dict[str, Any]:
     part = str(spec.params["part"])
     if part != "office":
         row = reused_row(cfg, part, spec.seed)
@@ -328,7 +321,7 @@ def _ok(flag: bool) -> str:
 
 
 def _family_lines(
-    row: Row, half: str, keys: tuple[str, ...]
+    row: study.Row, half: str, keys: tuple[str, ...]
 ) -> list[tuple[str, str, dict[str, str]]]:
     out = []
     n = row["stimuli"]
@@ -364,7 +357,9 @@ def _family_lines(
     return out
 
 
-def scorecard(cfg: OMSScorecardConfig, rows: list[Row]) -> list[tuple[str, str, dict[str, str]]]:
+def scorecard(
+    cfg: OMSScorecardConfig, rows: list[study.Row]
+) -> list[tuple[str, str, dict[str, str]]]:
     """``(claim, bar, {variant: cell})`` for every claim the rows hold."""
     out: list[tuple[str, str, dict[str, str]]] = []
     by = {str(r["part"]): r for r in rows}
@@ -421,22 +416,24 @@ def scorecard(cfg: OMSScorecardConfig, rows: list[Row]) -> list[tuple[str, str, 
     return out
 
 
-def compare(cfg: OMSScorecardConfig, rows: list[Row]) -> list[Comparison]:
+def compare(cfg: OMSScorecardConfig, rows: list[study.Row]) -> list[study.Comparison]:
     """The scorecard as the report's table: paper column = ``compare`` (the paper-literal
     sOMS, or the front end on Speck's cores), ours = the agent's default; the bar in the
     note."""
     out = [
-        Comparison(claim, cells.get(cfg.compare, "—"), cells.get("agent", "—"), bar)
+        study.Comparison(claim, cells.get(cfg.compare, "—"), cells.get("agent", "—"), bar)
         for claim, bar, cells in scorecard(cfg, rows)
     ]
     if out:
         out.append(choice_comparison(cfg.compare))
     if out and cfg.compare != "paper":  # the table's first column holds another variant
-        out.insert(0, Comparison("columns", _LABELS[cfg.compare], _LABELS["agent"], "compare"))
+        out.insert(
+            0, study.Comparison("columns", _LABELS[cfg.compare], _LABELS["agent"], "compare")
+        )
     return out
 
 
-def choice_comparison(compare: str = "paper") -> Comparison:
+def choice_comparison(compare: str = "paper") -> study.Comparison:
     """The report's line on the two variants' thresholds and how ours was chosen."""
     from agents.attention import AGENT_SOMS
 
@@ -452,7 +449,7 @@ def choice_comparison(compare: str = "paper") -> Comparison:
         if compare == "paper"
         else "none: a fixed int8 threshold per layer (IAF, no map-wide norm)"
     )
-    return Comparison(
+    return study.Comparison(
         "sOMS threshold (Eq. 1's norm)",
         first,
         f"{p.norm} norm of the σ {p.pool_sigma:g} px pooled surround excess, {how}, α {p.alpha:g}",
@@ -461,7 +458,9 @@ def choice_comparison(compare: str = "paper") -> Comparison:
     )
 
 
-def plot(cfg: OMSScorecardConfig, rows: list[Row], results_dir: Path, fig_dir: Path) -> list[Path]:
+def plot(
+    cfg: OMSScorecardConfig, rows: list[study.Row], results_dir: Path, fig_dir: Path
+) -> list[Path]:
     """Bars of the family's figures per claim group, both variants, held-out half."""
     import matplotlib
 
@@ -500,7 +499,7 @@ def plot(cfg: OMSScorecardConfig, rows: list[Row], results_dir: Path, fig_dir: P
     return [save_figure(fig, fig_dir / "oms_scorecard.png")]
 
 
-EXPERIMENT = Experiment(
+EXPERIMENT = study.Experiment(
     name="oms_scorecard",
     description=(
         "Every sOMS claim of the paper, pass/fail, for the paper-literal sOMS beside the "

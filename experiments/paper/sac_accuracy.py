@@ -52,14 +52,7 @@ from experiments.analysis.stats import mean_std
 from experiments.paper.env_block import check_env_block, trial_env
 from experiments.paper.forced_saccades import ForcedSaccades, run_forced
 from experiments.runs.episode import Recorder
-from experiments.studies.framework import (
-    MAX_TRIAL_S,
-    Comparison,
-    Experiment,
-    Repeats,
-    Row,
-    TrialSpec,
-)
+from experiments.studies import framework as study
 from wander_env.camera import cast_pixel, degrees_to_pixels
 from wander_env.env_config import WanderConfig
 from wander_env.ptu.params import PTUParams
@@ -95,7 +88,7 @@ class SacAccuracyConfig:
     ends a saccade that has not settled; each trial turns the fixational walk off)."""
 
     conditions: tuple[Condition, ...] = ("ideal", "backlash_offset")
-    repeats: Repeats = 10
+    repeats: study.Repeats = 10
     target_range_x_px: float = 24.0
     target_range_y_px: float = 10.0
     pan_backlash_pos: float = 4.0
@@ -113,9 +106,9 @@ class SacAccuracyConfig:
         check_env_block(self.env, ENV_SET_PER_TRIAL)
         if self.repeats < 1:
             raise ValueError(f"repeats must be >= 1, got {self.repeats}")
-        if not self.agent.max_saccade_s + 1.0 <= MAX_TRIAL_S:  # a trial's length
+        if not self.agent.max_saccade_s + 1.0 <= study.MAX_TRIAL_S:  # a trial's length
             raise ValueError(
-                f"agent.max_saccade_s must be <= {MAX_TRIAL_S - 1:g}, got "
+                f"agent.max_saccade_s must be <= {study.MAX_TRIAL_S - 1:g}, got "
                 f"{self.agent.max_saccade_s}"
             )
         if not self.conditions:
@@ -196,7 +189,7 @@ class Landing(Recorder):
         self.t = float(info["t"])
 
 
-def run_trial(cfg: SacAccuracyConfig, spec: TrialSpec) -> dict[str, Any]:
+def run_trial(cfg: SacAccuracyConfig, spec: study.TrialSpec) -> dict[str, Any]:
     """One forced saccade to a random pixel (:func:`~experiments.paper.forced_saccades.run_forced`);
     the target's world point (:class:`Landing`) is projected back after the saccade to
     measure its displacement from the fovea."""
@@ -254,7 +247,7 @@ def grid(cfg: SacAccuracyConfig) -> list[dict[str, Any]]:
 # Summary and plots
 
 
-def condition_stats(rows: list[Row], condition: str) -> dict[str, tuple[float, float]]:
+def condition_stats(rows: list[study.Row], condition: str) -> dict[str, tuple[float, float]]:
     """Mean and std (over trials) of |dx|, |dy| and the distance for one condition."""
     sel = [r for r in rows if r["condition"] == condition]
     return {
@@ -262,7 +255,7 @@ def condition_stats(rows: list[Row], condition: str) -> dict[str, tuple[float, f
     }
 
 
-def compare(cfg: SacAccuracyConfig, rows: list[Row]) -> list[Comparison]:
+def compare(cfg: SacAccuracyConfig, rows: list[study.Row]) -> list[study.Comparison]:
     """The paper's x and y displacement beside ours, per PTU condition."""
     out = []
     conditions = list(dict.fromkeys(str(r["condition"]) for r in rows))
@@ -271,7 +264,7 @@ def compare(cfg: SacAccuracyConfig, rows: list[Row]) -> list[Comparison]:
         for i, c in enumerate(conditions):
             mean, std = condition_stats(rows, c)[key]
             out.append(
-                Comparison(
+                study.Comparison(
                     f"displacement {axis} (absolute), {c} PTU",
                     f"{m} ± {s} px" if i == 0 else "″",
                     f"{mean:.2f} ± {std:.2f} px",
@@ -281,11 +274,11 @@ def compare(cfg: SacAccuracyConfig, rows: list[Row]) -> list[Comparison]:
     for i, c in enumerate(conditions):
         sel = [r for r in rows if r["condition"] == c]
 
-        def mean_abs(key: str, sel: list[Row] = sel) -> float:
+        def mean_abs(key: str, sel: list[study.Row] = sel) -> float:
             return mean_std(abs(float(r[key])) for r in sel)[0]
 
         out.append(
-            Comparison(
+            study.Comparison(
                 f"sources of the error, {c} PTU",
                 "tilt play/backlash and the camera's offset from the tilt hinge" if i == 0 else "″",
                 f"camera angles reached vs ideal {mean_abs('angle_error_x_px'):.2f} / "
@@ -296,7 +289,9 @@ def compare(cfg: SacAccuracyConfig, rows: list[Row]) -> list[Comparison]:
     return out
 
 
-def plot(cfg: SacAccuracyConfig, rows: list[Row], results_dir: Path, fig_dir: Path) -> list[Path]:
+def plot(
+    cfg: SacAccuracyConfig, rows: list[study.Row], results_dir: Path, fig_dir: Path
+) -> list[Path]:
     """Displacements (dx, dy) of every trial per condition, and mean |dx|, |dy| beside the
     paper's."""
     import matplotlib
@@ -347,7 +342,7 @@ def plot(cfg: SacAccuracyConfig, rows: list[Row], results_dir: Path, fig_dir: Pa
     return [path]
 
 
-EXPERIMENT = Experiment(
+EXPERIMENT = study.Experiment(
     name="sac_accuracy",
     description=(
         "Saccades of the sAC to random target pixels in the shelf scene: displacement of the "

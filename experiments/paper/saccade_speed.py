@@ -40,15 +40,7 @@ from experiments.jobs.run_agent import closed_loop_metrics
 from experiments.paper import ptu_main_sequence
 from experiments.paper.env_block import check_env_block, trial_env
 from experiments.paper.speed_study import AXIS_LABELS, plot_surfaces
-from experiments.studies.framework import (
-    Comparison,
-    Experiment,
-    Repeats,
-    Row,
-    TrialSeconds,
-    TrialSpec,
-    load_artifacts,
-)
+from experiments.studies import framework as study
 from wander_env.camera import SPECK_HFOV_DEG, pixels_to_degrees
 from wander_env.env_config import PtuPreset, SceneName, WanderConfig
 from wander_env.ptu.params import PTUParams
@@ -103,7 +95,7 @@ class SaccadeSpeedConfig:
     ``window_s`` is the baseline's window; each setting sets the window and the walk's
     steps (``fixation.n_steps``, ``fixation.max_step_pos``)."""
 
-    duration_s: TrialSeconds = 3.0
+    duration_s: study.TrialSeconds = 3.0
     design: Literal["one_at_a_time", "factorial"] = "one_at_a_time"
     ptu_preset: Literal["ideal", "flir"] = "flir"
     windows_s: tuple[float, ...] = (0.05, FIXATION_WINDOW_S, 0.25)
@@ -125,7 +117,7 @@ class SaccadeSpeedConfig:
         40.0,
     )
     main_sequence_scene: SceneName = "shelf"
-    repeats: Repeats = 10
+    repeats: study.Repeats = 10
     env: WanderConfig = field(default_factory=lambda: WanderConfig(scene="office"))
     agent: AgentParams = field(default_factory=AgentParams)
 
@@ -248,7 +240,7 @@ def _closed_loop(cfg: SaccadeSpeedConfig, p: dict[str, Any], seed: int) -> dict[
     try:
         m = closed_loop_metrics(env, agent, cfg.duration_s, seed)
         link = env.unwrapped.ptu.link
-        latencies = list(link.latencies_s) if link is not None else []
+        latencies = list(link.schedule.latencies_s) if link is not None else []
     finally:
         agent.close()
         env.close()
@@ -269,7 +261,7 @@ def _closed_loop(cfg: SaccadeSpeedConfig, p: dict[str, Any], seed: int) -> dict[
     }
 
 
-def run_trial(cfg: SaccadeSpeedConfig, spec: TrialSpec) -> dict[str, Any]:
+def run_trial(cfg: SaccadeSpeedConfig, spec: study.TrialSpec) -> dict[str, Any]:
     """The closed loop at one setting; at the first repeat of a setting marked
     ``main_sequence`` (one per PTU setting: the PTU is deterministic), its main sequence
     and the fits too."""
@@ -316,7 +308,7 @@ def grid(cfg: SaccadeSpeedConfig) -> list[dict[str, Any]]:
 # Summary and plots
 
 
-def _value(row: Row) -> tuple[str, Any]:
+def _value(row: study.Row) -> tuple[str, Any]:
     factor = str(row["factor"])
     if factor == "baseline":
         return "baseline", ""
@@ -343,26 +335,26 @@ MEASURES = (
 TESTED = ("time_to_foveate_s", "detection_accuracy")
 
 
-def settings(rows: list[Row]) -> dict[tuple[Any, ...], list[Row]]:
+def settings(rows: list[study.Row]) -> dict[tuple[Any, ...], list[study.Row]]:
     """Rows grouped by setting (:data:`SETTING_COLUMNS`), in grid order."""
-    out: dict[tuple[Any, ...], list[Row]] = {}
+    out: dict[tuple[Any, ...], list[study.Row]] = {}
     for r in rows:
         out.setdefault(tuple(r[c] for c in SETTING_COLUMNS), []).append(r)
     return out
 
 
-def _label(r: Row) -> str:
+def _label(r: study.Row) -> str:
     factor, v = _value(r)
     return "baseline (paper's values)" if factor == "baseline" else f"{factor} = {v}"
 
 
-def _pairs(a: list[Row], b: list[Row], key: str) -> tuple[list[float], list[float]]:
+def _pairs(a: list[study.Row], b: list[study.Row], key: str) -> tuple[list[float], list[float]]:
     bs = {int(r["seed"]): float(r[key]) for r in b}
     common = [r for r in a if int(r["seed"]) in bs]
     return [float(r[key]) for r in common], [bs[int(r["seed"])] for r in common]
 
 
-def compare(cfg: SaccadeSpeedConfig, rows: list[Row]) -> list[Comparison]:
+def compare(cfg: SaccadeSpeedConfig, rows: list[study.Row]) -> list[study.Comparison]:
     """Per setting: each measure's mean over the repeats with its bootstrap 95 % interval,
     the time to foveate and detection accuracy against the baseline (paired by seed:
     permutation test, d_z, rank-biserial), and the main-sequence fits of each PTU
@@ -370,7 +362,7 @@ def compare(cfg: SaccadeSpeedConfig, rows: list[Row]) -> list[Comparison]:
     no numbers here (future work), except its 124 ms decision latency."""
     groups = settings(rows)
     out = [
-        Comparison(
+        study.Comparison(
             "latency to the salient point",
             "0.124 s (St_w), then the saccade",
             f"{cfg.agent.window_s:g} s window + time to foveate "
@@ -388,7 +380,9 @@ def compare(cfg: SaccadeSpeedConfig, rows: list[Row]) -> list[Comparison]:
                 parts = []
                 for key, label, fmt in MEASURES[:2]:
                     parts.append(f"{label} {_ci(sel, key, fmt)}")
-                out.append(Comparison(f"{factor} = {v} (marginal)", "—", "; ".join(parts), ""))
+                out.append(
+                    study.Comparison(f"{factor} = {v} (marginal)", "—", "; ".join(parts), "")
+                )
     else:
         for g in groups.values():
             r0 = g[0]
@@ -399,7 +393,7 @@ def compare(cfg: SaccadeSpeedConfig, rows: list[Row]) -> list[Comparison]:
                     t = paired_comparison(*_pairs(g, base, key))
                     notes.append(f"{key} − baseline: {t.text('.3g')}")
             out.append(
-                Comparison(
+                study.Comparison(
                     _label(r0),
                     "— (future work)",
                     "; ".join(parts),
@@ -415,7 +409,7 @@ def compare(cfg: SaccadeSpeedConfig, rows: list[Row]) -> list[Comparison]:
                 f"{r0['ptu_preset']} PTU"
             )
             out.append(
-                Comparison(
+                study.Comparison(
                     f"main sequence, {name}",
                     "— (future work)",
                     fits,
@@ -425,12 +419,12 @@ def compare(cfg: SaccadeSpeedConfig, rows: list[Row]) -> list[Comparison]:
     return out
 
 
-def _ci(rows: list[Row], key: str, fmt: str) -> str:
+def _ci(rows: list[study.Row], key: str, fmt: str) -> str:
     return ci_text(mean_ci(float(r[key]) for r in rows), fmt)
 
 
 def factor_intervals(
-    rows: list[Row], column: str, key: str, levels: list[float]
+    rows: list[study.Row], column: str, key: str, levels: list[float]
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(means, lower, upper error-bar lengths) of ``key`` at each level of ``column``: the
     mean over the rows at that level and its bootstrap 95 % interval (0-length bars
@@ -447,7 +441,9 @@ def factor_intervals(
     return m, lo, hi
 
 
-def plot(cfg: SaccadeSpeedConfig, rows: list[Row], results_dir: Path, fig_dir: Path) -> list[Path]:
+def plot(
+    cfg: SaccadeSpeedConfig, rows: list[study.Row], results_dir: Path, fig_dir: Path
+) -> list[Path]:
     """The main sequence (amplitude vs peak velocity and duration) per PTU setting, with
     the PTU's trapezoid; and each measure against each factor."""
     import matplotlib
@@ -460,7 +456,7 @@ def plot(cfg: SaccadeSpeedConfig, rows: list[Row], results_dir: Path, fig_dir: P
     for r in rows:
         if r["repeat"] != 0:
             continue
-        arts = load_artifacts(results_dir, r)
+        arts = study.load_artifacts(results_dir, r)
         if "ms_amplitude_deg" in arts:
             series.append((r, _trial_ptu(r), arts))
     ms_path = ptu_main_sequence.plot(
@@ -524,7 +520,7 @@ def plot(cfg: SaccadeSpeedConfig, rows: list[Row], results_dir: Path, fig_dir: P
     return [ms_path, sweep_path]
 
 
-EXPERIMENT = Experiment(
+EXPERIMENT = study.Experiment(
     name="saccade_speed",
     description=(
         "One factor at a time around the paper's values (or a factorial design): PTU speed "

@@ -71,17 +71,7 @@ from experiments.jobs.scanpath_figure import (
 )
 from experiments.paper.env_block import check_env_block, trial_env
 from experiments.paper.scanpath_recorder import ScanpathRecorder
-from experiments.studies.framework import (
-    Comparison,
-    Experiment,
-    GridStepDeg,
-    RadiusDeg,
-    Repeats,
-    Row,
-    TrialSeconds,
-    TrialSpec,
-    load_artifacts,
-)
+from experiments.studies import framework as study
 from wander_env.camera import SPECK_HFOV_DEG, focal_length_px, pixel_to_world_angles
 from wander_env.env_config import SceneName, WanderConfig
 from wander_env.viz import save_figure
@@ -108,14 +98,14 @@ class ScanpathConfig:
 
     scenes: tuple[SceneName, ...] = ("shelf", "office")
     conditions: tuple[Condition, ...] = ("saccades", "fixational")
-    duration_s: TrialSeconds = 5.0
+    duration_s: study.TrialSeconds = 5.0
     saccades_window_s: float = 0.01
     fixational_window_s: float = FIXATION_WINDOW_S
     saccades_fixational: bool = True
-    repeats: Repeats = 10
+    repeats: study.Repeats = 10
     box: int = 8
-    radius_deg: RadiusDeg = 5.0
-    mosaic_step_deg: GridStepDeg = 0.5
+    radius_deg: study.RadiusDeg = 5.0
+    mosaic_step_deg: study.GridStepDeg = 0.5
     env: WanderConfig = field(default_factory=WanderConfig)
     agent: AgentParams = field(default_factory=AgentParams)
     # MultiMatch normalises lengths and positions by a "screen": the camera's field of
@@ -176,7 +166,7 @@ def merge_windows(windows: np.ndarray, ends_fixation: Sequence[bool]) -> np.ndar
     return np.array(out, dtype=np.float64).reshape(-1, 4)
 
 
-def _export_name(row: Row) -> str:
+def _export_name(row: study.Row) -> str:
     return f"{row['scene']}_{row['condition']}_seed{row['seed']}.csv"
 
 
@@ -200,7 +190,7 @@ def agent_params(cfg: ScanpathConfig, condition: str, env: Any) -> AgentParams:
 # The trial
 
 
-def run_trial(cfg: ScanpathConfig, spec: TrialSpec) -> dict[str, Any]:
+def run_trial(cfg: ScanpathConfig, spec: study.TrialSpec) -> dict[str, Any]:
     """One scene / condition: the closed loop for ``duration_s``, then the statistics."""
     scene, condition = str(spec.params["scene"]), str(spec.params["condition"])
     env = trial_env(cfg.env, scene=scene, episode_seconds=cfg.duration_s + 1.0)
@@ -288,7 +278,7 @@ def grid(cfg: ScanpathConfig) -> list[dict[str, Any]]:
 # Summary, exports and plots
 
 
-def _by(rows: list[Row], scene: str, condition: str, metric: str) -> tuple[float, float]:
+def _by(rows: list[study.Row], scene: str, condition: str, metric: str) -> tuple[float, float]:
     return mean_std(
         float(r[metric]) for r in rows if r["scene"] == scene and r["condition"] == condition
     )
@@ -321,7 +311,7 @@ PAPER_SCANPATH = {
 }
 
 
-def compare(cfg: ScanpathConfig, rows: list[Row]) -> list[Comparison]:
+def compare(cfg: ScanpathConfig, rows: list[study.Row]) -> list[study.Comparison]:
     """Per scene and measure: each condition's mean over the repeats with its bootstrap
     95 % interval, and the fixational − saccades difference tested (paired by seed:
     permutation test, d_z, rank-biserial); then the MultiMatch / AOI-string similarity
@@ -342,7 +332,9 @@ def compare(cfg: ScanpathConfig, rows: list[Row]) -> list[Comparison]:
             t = tests.get((s, key))
             note = f"fixational − saccades: {t.text('.3g')}; {per}" if t is not None else per
             out.append(
-                Comparison(f"{s}: {label}", PAPER_SCANPATH.get(key, "—"), " / ".join(parts), note)
+                study.Comparison(
+                    f"{s}: {label}", PAPER_SCANPATH.get(key, "—"), " / ".join(parts), note
+                )
             )
     if any("scanpath_json" in r for r in rows):
         screen = tuple(cfg.multimatch_screen_deg)
@@ -353,7 +345,7 @@ def compare(cfg: ScanpathConfig, rows: list[Row]) -> list[Comparison]:
             ]
             n = max(t[k + "_n"] for k in sa.SIMILARITY_MEASURES)
             out.append(
-                Comparison(
+                study.Comparison(
                     f"{t['scene']}: MultiMatch, {t['group']}",
                     "—",
                     "; ".join(parts),
@@ -362,7 +354,7 @@ def compare(cfg: ScanpathConfig, rows: list[Row]) -> list[Comparison]:
             )
         for (s, k), c in sa.stability_tests(rows, screen).items():
             out.append(
-                Comparison(
+                study.Comparison(
                     f"{s}: repeatability ({k} similarity to the other seeds)",
                     PAPER_SCANPATH["stability"],
                     f"fixational − saccades: {c.text('.3f')}",
@@ -372,7 +364,9 @@ def compare(cfg: ScanpathConfig, rows: list[Row]) -> list[Comparison]:
     return out
 
 
-def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path) -> list[Path]:
+def plot(
+    cfg: ScanpathConfig, rows: list[study.Row], results_dir: Path, fig_dir: Path
+) -> list[Path]:
     """The scanpath figure (a panel per scene and condition: the saliency mosaic, the
     fixations sized by duration, the saccade lines, the salient points green on an
     object, red off), a bar chart of the statistics, and the fixation tables
@@ -389,7 +383,7 @@ def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path)
     firsts = {}
     for r in rows:
         firsts.setdefault((str(r["scene"]), str(r["condition"])), r)
-        arts = load_artifacts(results_dir, r)
+        arts = study.load_artifacts(results_dir, r)
         if "fixations" in arts:
             aois = {"aoi": json.loads(str(r["aois_json"]))}
             scanpath_stats.write_fixations(
@@ -409,7 +403,7 @@ def plot(cfg: ScanpathConfig, rows: list[Row], results_dir: Path, fig_dir: Path)
         for j, c in enumerate(conditions):
             ax = axes[i, j]
             r = firsts.get((s, c))
-            arts = load_artifacts(results_dir, r) if r is not None else {}
+            arts = study.load_artifacts(results_dir, r) if r is not None else {}
             _draw_scanpath(ax, arts, limits)
             title = f"{s}, {c}"
             if r is not None:
@@ -441,7 +435,7 @@ def _stat_panels(cfg: ScanpathConfig) -> list[tuple[str, str]]:
 
 
 def bar_intervals(
-    rows: list[Row], scenes: Sequence[str], condition: str, key: str
+    rows: list[study.Row], scenes: Sequence[str], condition: str, key: str
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(means, lower, upper error-bar lengths) of ``key`` per scene for one condition:
     the mean over the repeats and its bootstrap 95 % interval
@@ -459,7 +453,7 @@ def bar_intervals(
     return m, m - np.array([v[1] for v in stats], float), np.array([v[2] for v in stats]) - m
 
 
-def plot_statistics(cfg: ScanpathConfig, rows: list[Row], path: Path) -> Path:
+def plot_statistics(cfg: ScanpathConfig, rows: list[study.Row], path: Path) -> Path:
     """Bars of the per-trial statistics per scene and condition: the mean over the
     repeats with its bootstrap 95 % interval, and on the hit-rate panel the
     fixational − saccades test (paired by seed: permutation p, d_z)."""
@@ -558,7 +552,7 @@ def _draw_scanpath(
     ax.legend(loc="lower right", fontsize=6)
 
 
-EXPERIMENT = Experiment(
+EXPERIMENT = study.Experiment(
     name="scanpath",
     description=(
         "Scanpaths of the closed-loop agent in the shelf and office scenes, the paper's "

@@ -244,8 +244,10 @@ class CommandLink:
     bytes' time on the line, word by word (command, then the unit's reply).
 
     Driven by :class:`~wander_env.ptu.unit.PanTiltUnit` (:meth:`next_time`, :meth:`fire`);
-    ``latencies_s`` holds each acknowledged command's latency (submission to the last
-    ``*``), as the rig's ``info["command_latency_s"]`` measures it.
+    Its :attr:`schedule` holds the link's record: ``latencies_s``, each acknowledged
+    command's latency (submission to the last ``*``), as the rig's
+    ``info["command_latency_s"]`` measures it; ``counts``, commands sent and replaced,
+    polls (as the rig's ``stats``); ``positions``, the last poll's answer.
 
     >>> link = CommandLink(PTULinkParams(), (0, 0))
     >>> link.submit((100, 0), 0.0)        # the line is idle: PP100 goes out at once
@@ -261,31 +263,6 @@ class CommandLink:
         self._samples = list(start)
         self._reply: int | None = None
         self._next = self.schedule.due_s()
-
-    @property
-    def latency_s(self) -> float:
-        """The latest acknowledged command's latency (NaN before the first)."""
-        return self.schedule.latency_s
-
-    @property
-    def latencies_s(self) -> list[float]:
-        """Every acknowledged command's latency, in order."""
-        return self.schedule.latencies_s
-
-    @property
-    def counts(self) -> dict[str, int]:
-        """Commands sent and replaced, polls (as the rig's ``stats``)."""
-        return self.schedule.counts
-
-    @property
-    def positions(self) -> Target:
-        """The last poll's answer."""
-        return self.schedule.positions
-
-    @property
-    def poll_target(self) -> Target:
-        """The acknowledged target when the last poll began."""
-        return self.schedule.poll_target
 
     def copy(self) -> CommandLink:
         """An independent link in the same state."""

@@ -340,7 +340,7 @@ class PanTiltUnit:
     def command_latency_s(self) -> float:
         """The latest command's latency on the :attr:`link` (NaN without one or before
         the first acknowledged command)."""
-        return self.link.latency_s if self.link is not None else math.nan
+        return self.link.schedule.latency_s if self.link is not None else math.nan
 
     # -- helpers ----------------------------------------------------------------------
 

@@ -41,8 +41,8 @@ def test_a_command_on_an_idle_line_costs_its_bytes() -> None:
     link.submit((100, -50), 0.0)
     ptu.step(0.05)
     # PP100 + *, then TP-50 + *: (6 + 3) + (6 + 3) bytes
-    assert link.latencies_s == [pytest.approx(18 * BYTE, abs=1e-12)]
-    assert link.counts["commands_sent"] == 1
+    assert link.schedule.latencies_s == [pytest.approx(18 * BYTE, abs=1e-12)]
+    assert link.schedule.counts["commands_sent"] == 1
 
 
 def test_a_command_waits_for_the_poll_in_progress() -> None:
@@ -53,7 +53,7 @@ def test_a_command_waits_for_the_poll_in_progress() -> None:
     # The poll: PP (3) + "* 0\r\n" (5), TP (3) + "* 0\r\n" (5) = 16 bytes from 10 ms;
     # then PP100 (6) + * (3).
     expected = 0.010 + 16 * BYTE + 9 * BYTE - 0.0105
-    assert ptu.link.latencies_s == [pytest.approx(expected, abs=1e-9)]
+    assert ptu.link.schedule.latencies_s == [pytest.approx(expected, abs=1e-9)]
 
 
 def test_the_axis_moves_only_once_the_command_has_arrived() -> None:
@@ -85,7 +85,7 @@ def test_moving_is_the_rigs_until_a_poll_sees_the_target() -> None:
     # The link adds the command's 9 bytes before the move and up to a poll after it.
     assert t_flir - t_ideal >= 9 * BYTE * 1e3
     assert t_flir - t_ideal <= (9 + 16) * BYTE * 1e3 + 10 + 16 * BYTE * 1e3 + 1
-    assert ptu.link.positions == (20, 0) and ptu.link.poll_target == (20, 0)
+    assert ptu.link.schedule.positions == (20, 0) and ptu.link.schedule.poll_target == (20, 0)
 
 
 def test_the_split_of_the_steps_does_not_change_the_result() -> None:
@@ -96,9 +96,9 @@ def test_the_split_of_the_steps_does_not_change_the_result() -> None:
                 unit.set_target(pan_deg=(k % 8) * 0.5, tilt_deg=-(k % 3) * 0.3)
             for _ in range(substeps):
                 unit.step(0.01 / substeps)
-    assert a.link.latencies_s == pytest.approx(b.link.latencies_s, abs=1e-12)
+    assert a.link.schedule.latencies_s == pytest.approx(b.link.schedule.latencies_s, abs=1e-12)
     assert a.positions == b.positions and a.moving == b.moving
-    assert a.link.counts == b.link.counts
+    assert a.link.schedule.counts == b.link.schedule.counts
 
 
 def test_presets_round_trip_through_asdict_and_pickle() -> None:
@@ -170,7 +170,7 @@ def test_simulated_latency_matches_the_rig_env_on_the_emulator_at_9600_baud(tmp_
         sim.set_target_positions(*target)
         sim.step(0.01)
     sim.step(0.2)
-    sim_latencies = sim.link.latencies_s
+    sim_latencies = sim.link.schedule.latencies_s
     assert len(sim_latencies) == len(range(0, n_steps, 6))
     assert len(rig_latencies) >= 10  # a loaded host lags the real-time steps: commands merge
     rig_med, sim_med = float(np.median(rig_latencies)), float(np.median(sim_latencies))
@@ -286,4 +286,8 @@ def test_the_sim_link_and_the_rig_link_put_the_same_bytes_on_the_wire() -> None:
         *poll,
         *poll,
     ]
-    assert sim.counts == rig.counts == {"commands_sent": 5, "commands_replaced": 1, "polls": 9}
+    assert (
+        sim.schedule.counts
+        == rig.counts
+        == {"commands_sent": 5, "commands_replaced": 1, "polls": 9}
+    )

@@ -94,7 +94,13 @@ def test_init_sets_modes_and_queries_the_unit(emu, ptu):
     cmds = emu.commands
     assert cmds[:4] == ["FT", "ED", "CI", "I"]
     assert {"PR", "TR", "PN", "PX", "TN", "TX", "PL", "PU", "TL", "TU"} <= set(cmds[4:])
-    assert (emu.echo, emu.verbose, emu.slaved, emu.velocity_mode) == (False, False, False, False)
+    assert emu.modes == {
+        "echo": False,
+        "verbose": False,
+        "slaved": False,
+        "velocity_mode": False,
+        "limits_enabled": True,
+    }
     assert ptu.resolution_arcsec == pytest.approx((PAN_RES, TILT_RES))
     assert ptu.deg_per_position == pytest.approx((DP, DT))
     assert ptu.pan_limits_deg == pytest.approx((-6000 * DP, 6000 * DP))
@@ -232,7 +238,7 @@ def test_slaved_mode_queues_positions_until_await(emu, ptu):
     ptu.await_motion()  # A executes the stored commands and waits for them
     assert emu.positions == (50, -10)
     ptu.send("I")
-    assert not emu.slaved
+    assert not emu.modes["slaved"]
 
 
 # -- refusals and errors ------------------------------------------------------------------
@@ -277,7 +283,7 @@ def test_error_replies_raise_with_the_units_message(emu, ptu):
 def test_verbose_feedback_and_echo_are_parsed(emu, ptu):
     ptu.send("FV")
     ptu.send("EE")
-    assert emu.verbose and emu.echo
+    assert emu.modes["verbose"] and emu.modes["echo"]
     assert ptu.send("PR") == "46.2857 seconds arc per position"
     ptu.goto(pan_deg=-70 * DP, tilt_deg=30 * DT)
     assert ptu.position() == pytest.approx((-70 * DP, 30 * DT))
