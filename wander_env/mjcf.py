@@ -67,10 +67,6 @@ Examples:
 
 from __future__ import annotations
 
-import os
-
-os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: headless rendering
-
 import dataclasses
 from collections.abc import Iterable
 from dataclasses import dataclass

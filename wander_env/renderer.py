@@ -29,11 +29,8 @@ Examples:
 
 from __future__ import annotations
 
-import os
-
-os.environ.setdefault("MUJOCO_GL", "egl")
-
 import contextlib
+import os
 from dataclasses import dataclass
 
 import mujoco

@@ -52,7 +52,8 @@ class RenderedKey:
     shape: tuple[int, int]  # (H, W)
     same_as: RenderedKey | None = None
     full: Keyframe | None = None  # with its geometry, once made
-    geometry: Future[Keyframe] | None = None  # its geometry, once asked for
+    geometry: Future[tuple[np.ndarray, np.ndarray] | None] | None = None  # its layers
+    # and depth, once asked for
     pair: tuple[RenderedKey, KeyPair] | None = None  # the pair ending here, once made
 
     @property
@@ -171,39 +172,38 @@ class KeyframeFrames(FrameSource):
 
     def keyframe(self, key: RenderedKey) -> Keyframe:
         """``key`` with its geometry: its layers and depth drawn on first use (the model
-        posed again at the key's time and angles), then kept."""
+        posed again at the key's time and angles), made a :class:`Keyframe` by the thread
+        that first needs it (the draw side only draws), then kept."""
         if key.full is None:
             if key.same_as is not None:
                 key.full = replace(self.keyframe(key.same_as), t_us=key.t_us, view=key.view)
             else:
-                pending = self.request_geometry(key)
+                self.request_geometry(key)
+                pending = key.geometry
                 if self.stage.on_draw_thread and not pending.done():
                     # On the render thread, whose queue holds the drawing behind the work
-                    # running now: made here (the queued one then finds it made).
-                    self._draw_geometry(key)
+                    # running now: drawn here (the queued one then finds the key made).
+                    drawn = self._draw_geometry(key)
                 else:
-                    key.full = pending.result()
+                    drawn = pending.result()
+                if drawn is not None and key.full is None:  # (else made meanwhile)
+                    layers, depth = drawn
+                    key.full = make_keyframe(key.t_us, key.lum, key.view, depth, layers)
         return key.full
 
-    def request_geometry(self, key: RenderedKey, ahead: bool = False) -> Future[Keyframe]:
+    def request_geometry(self, key: RenderedKey, ahead: bool = False) -> None:
         """Hand the drawing of ``key``'s geometry (that of the key it shares it with) to
         the draw side, once; a frame that needs it reads it with :meth:`keyframe`."""
         root = key if key.same_as is None else key.same_as
-        if root.geometry is None:
-            if root.full is not None:
-                root.geometry = Future()
-                root.geometry.set_result(root.full)
-            else:
-                root.geometry = self.stage.submit(self._draw_geometry, root, ahead=ahead)
-        return root.geometry
+        if root.geometry is None and root.full is None:
+            root.geometry = self.stage.submit(self._draw_geometry, root, ahead=ahead)
 
-    def _draw_geometry(self, key: RenderedKey) -> Keyframe:
-        """(On the draw side.) ``key``'s layers and depth, made a :class:`Keyframe` (once:
-        kept as ``key.full``)."""
-        if key.full is None:
-            layers, depth = self.stage.geometry_at(key.t_us, key.angles)
-            key.full = make_keyframe(key.t_us, key.lum, key.view, depth, layers)
-        return key.full
+    def _draw_geometry(self, key: RenderedKey) -> tuple[np.ndarray, np.ndarray] | None:
+        """(On the draw side.) ``key``'s layers and depth (None where the key was made
+        meanwhile)."""
+        if key.full is not None:
+            return None
+        return self.stage.geometry_at(key.t_us, key.angles)
 
     def start_with(self, keys: list[RenderedKey]) -> None:
         """The stream's keys from here on: ``keys`` (none: no key, nothing planned)."""
@@ -260,14 +260,16 @@ class KeyframeFrames(FrameSource):
         self._drop_ahead()
         ref = self.keys[-1]
         layout = self._key_ticks(ref, trajectory)
-        # The keys' colours first (the draw side starts at once), then the rest of the plan.
-        new = [
-            self.render_key(*self._key_of(layout, n), ahead=True) for n in range(len(layout.idx))
-        ]
         self._frames_plan(ref, layout)
-        for n, key in enumerate(new, 1):
-            if n in layout.need:
-                self.request_geometry(key, ahead=True)
+        if 0 in layout.need:
+            self.request_geometry(ref, ahead=True)
+        # Each key's colour, then its geometry where needed: the frames up to a key can
+        # be made while the next one is drawn.
+        new = []
+        for n in range(len(layout.idx)):
+            new.append(self.render_key(*self._key_of(layout, n), ahead=True))
+            if n + 1 in layout.need:
+                self.request_geometry(new[-1], ahead=True)
         made = self._make_frames([ref, *new], layout, ahead=True) if new else {}
         self._ahead = _Ahead(trajectory, ref, layout, new, made, self.stage.ahead_epoch)
 
@@ -331,13 +333,14 @@ class KeyframeFrames(FrameSource):
         layout.skipped = set()
         if p.interpolate_px is not None:
             layout.skipped = self._left_to_dvs(ref.view, layout, at_key)
-        # The geometry sure to be needed: both keys of every synthesised tick, the step
-        # end's for the ground truth, and with geometry_at_keys (a source compositing the
-        # keys' layers at every frame) every new key's.
+        # The geometry sure (or all but) to be needed: where any tick is synthesised,
+        # every key's (a key's tick whose change is large has sub-frames synthesised
+        # before it: the plan cannot tell which); the step end's for the ground truth;
+        # and with geometry_at_keys (a source compositing the keys' layers at every
+        # frame) every new key's.
         need = set(range(1, len(key_t))) if self.geometry_at_keys else set()
-        for (t, _), j in zip(between, later, strict=True):
-            if t not in layout.interpolated and t not in layout.skipped:
-                need |= {j - 1, j}
+        if any(t not in layout.interpolated and t not in layout.skipped for t, _ in between):
+            need |= set(range(len(key_t)))
         if p.ground_truth and key_t[-1] == ticks[-1]:
             need.add(len(key_t) - 1)
         layout.need = need

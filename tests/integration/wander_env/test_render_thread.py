@@ -242,8 +242,9 @@ def test_a_draw_from_outside_between_steps_draws_what_it_posed_and_drops_the_wor
 
 def test_the_render_thread_makes_a_geometry_queued_behind_the_work_that_needs_it() -> None:
     """Work on the render thread (a frame drawn ahead) that needs a key's geometry queued
-    behind it (asked for when the step adopted the frame) makes it there and then, and
-    the queued drawing finds it made: one draw, no wait for work that cannot run yet."""
+    behind it (asked for when the step adopted the frame) draws it there and then, and
+    the queued drawing finds the key made: one draw, no wait for work that cannot run
+    yet."""
     env = gym.make("wander/Wander-v0", scene="office", ground_truth=False)
     u = env.unwrapped
     try:
@@ -256,10 +257,12 @@ def test_the_render_thread_makes_a_geometry_queued_behind_the_work_that_needs_it
         stage.begin_step()
         stage.submit(gate.wait, 60)
         needs = stage.submit(source.keyframe, key)  # runs before the drawing it asks for
-        queued = source.request_geometry(key)
+        source.request_geometry(key)
+        queued = key.geometry
         gate.set()
         made = needs.result(timeout=60)
-        assert queued.result(timeout=60) is made is key.full
+        assert made is key.full and made.layers.shape == (128, 128)
+        assert queued.result(timeout=60) is None  # the queued drawing found the key made
         assert stage.geometry_draws == 1
     finally:
         env.close()
