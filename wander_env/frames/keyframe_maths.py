@@ -306,15 +306,15 @@ def _source_pixel(hinv, kk, x, y):
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _candidate(
-    kk, x, y, first, lum, warped, taps, layers, inv, present, boxes, hinv, bvec, rho0, moving
-):
+def _candidate(kk, x, y, first, keys):
     """Key ``kk``'s nearest candidate for target pixel (x, y) among its layers from
     ``first`` on (see the module docstring): (its luminance, its inverse depth in the
-    target view); inverse depth -1 where no layer has one. ``warped``: each key's cubic
-    sample at every target pixel's source position (:func:`warp_keys`), the static
-    world's candidate where all the sample's taps are the static world's (``taps``,
-    each key's :func:`_static_tap_map`; else its nearest pixel)."""
+    target view); inverse depth -1 where no layer has one. ``keys``: the two keys'
+    arrays with a view's parameters (:meth:`KeyPair.kernel_args`); its ``warped``, each
+    key's cubic sample at every target pixel's source position (:func:`warp_keys`), is
+    the static world's candidate where all the sample's taps are the static world's
+    (``taps``, each key's :func:`_static_tap_map`; else its nearest pixel)."""
+    lum, warped, taps, layers, inv, present, boxes, hinv, bvec, rho0, moving = keys
     h, w = layers.shape[1], layers.shape[2]
     n_layers = present.shape[1]
     ax = hinv[kk, 0, 0] * x + hinv[kk, 0, 1] * y + hinv[kk, 0, 2]
@@ -368,29 +368,14 @@ def _candidate(
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _synth_kernel(
-    out,
-    regions,
-    weights,
-    near,
-    lum,
-    warped,
-    taps,
-    layers,
-    inv,
-    present,
-    boxes,
-    hinv,
-    bvec,
-    rho0,
-    moving,
-):
+def _synth_kernel(out, regions, weights, near, keys):
     """Fill ``out`` (H, W) inside each of ``regions`` (R, 4) (y0, y1, x0, x1; a pixel in
     two is computed twice, to the same value): per pixel and key (index 0, 1), the
-    nearest layer candidate (:func:`_candidate`), blended with ``weights``. A
+    nearest layer candidate of ``keys`` (:func:`_candidate`), blended with ``weights``. A
     pixel neither key sees takes key ``near``'s nearest edge pixel, or, with ``near`` < 0,
     keeps its value."""
     h, w = out.shape
+    lum, hinv = keys[0], keys[7]
     for r in range(len(regions)):
         for y in range(regions[r, 0], regions[r, 1]):
             for x in range(regions[r, 2], regions[r, 3]):
@@ -400,23 +385,7 @@ def _synth_kernel(
                     wk = weights[kk]
                     if wk <= 0.0:
                         continue
-                    best_v, best_r = _candidate(
-                        kk,
-                        x,
-                        y,
-                        0,
-                        lum,
-                        warped,
-                        taps,
-                        layers,
-                        inv,
-                        present,
-                        boxes,
-                        hinv,
-                        bvec,
-                        rho0,
-                        moving,
-                    )
+                    best_v, best_r = _candidate(kk, x, y, 0, keys)
                     if best_r > 0.0:
                         num += wk * best_v
                         den += wk
@@ -607,8 +576,9 @@ class KeyPair:
             if not len(regions):
                 return out
             near = -1
-        args = self.kernel_args(hinv, bvec, moving, boxes, warped)
-        _synth_kernel(out, regions, weights, near, *args)
+        _synth_kernel(
+            out, regions, weights, near, self.kernel_args(hinv, bvec, moving, boxes, warped)
+        )
         return out
 
     def kernel_args(
@@ -619,9 +589,9 @@ class KeyPair:
         boxes: np.ndarray,
         warped: np.ndarray | None = None,
     ) -> tuple[np.ndarray, ...]:
-        """The two keys' stacked layers with a view's :meth:`params` and the keys'
-        ``warped`` static world (:func:`warp_keys`; None for a kernel that reads only the
-        moving layers), in the order the layers' kernels take them (``lum, warped, taps,
+        """The layers' kernels' ``keys``: the two keys' stacked layers with a view's
+        :meth:`params` and the keys' ``warped`` static world (:func:`warp_keys`; None for
+        a kernel that reads only the moving layers), one tuple (``lum, warped, taps,
         layers, inv, present, boxes, hinv, bvec, rho0, moving``)."""
         lum, layers, inv, present, rho0, taps = self._stacked
         warped = lum if warped is None else warped
@@ -629,27 +599,10 @@ class KeyPair:
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def layers_over(
-    out,
-    bg,
-    bg_rho,
-    regions,
-    weights,
-    lum,
-    warped,
-    taps,
-    layers,
-    inv,
-    present,
-    boxes,
-    hinv,
-    bvec,
-    rho0,
-    moving,
-):
+def layers_over(out, bg, bg_rho, regions, weights, keys):
     """Composite two keys' moving layers (ids >= 1) over the background ``bg`` (H, W)
     with inverse depth ``bg_rho`` into ``out`` inside ``regions`` (R, 4): per key, its
-    nearest moving-layer candidate (the synthesis's own lookup) where it is
+    nearest moving-layer candidate of ``keys`` (the synthesis's own lookup) where it is
     not behind the background, else the background, blended with ``weights``; a pixel no
     key's layer reaches keeps ``bg``. Idempotent per pixel (regions may overlap)."""
     for r in range(len(regions)):
@@ -662,23 +615,7 @@ def layers_over(
                     wk = weights[kk]
                     if wk <= 0.0:
                         continue
-                    v, rt = _candidate(
-                        kk,
-                        x,
-                        y,
-                        1,
-                        lum,
-                        warped,
-                        taps,
-                        layers,
-                        inv,
-                        present,
-                        boxes,
-                        hinv,
-                        bvec,
-                        rho0,
-                        moving,
-                    )
+                    v, rt = _candidate(kk, x, y, 1, keys)
                     if rt > 0.0 and rt >= floor:
                         num += wk * v
                         hit = True

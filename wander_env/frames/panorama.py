@@ -301,7 +301,7 @@ class PanoramaFrames(FrameSource):
             return bg
         out = bg.copy()
         weights = np.array([1.0 - w, w])
-        layers_over(out, bg, rho, regions, weights, *pair.kernel_args(hinv, bvec, moving, boxes))
+        layers_over(out, bg, rho, regions, weights, pair.kernel_args(hinv, bvec, moving, boxes))
         return out
 
     def _edge_key(self, key: RenderedKey) -> Keyframe:

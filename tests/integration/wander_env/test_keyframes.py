@@ -298,8 +298,9 @@ def test_layer_boxes_hold_every_candidate(hand, parallax):
             _static_kernel(full, weights, near, pair._stacked[0], warped, hinv)
             near = -1
         no_boxes = np.broadcast_to(whole, boxes.shape).copy()
-        args = pair.kernel_args(hinv, bvec, moving, no_boxes, warped)
-        _synth_kernel(full, whole, weights, near, *args)
+        _synth_kernel(
+            full, whole, weights, near, pair.kernel_args(hinv, bvec, moving, no_boxes, warped)
+        )
         assert np.array_equal(pair.frame(view, w), full)
         regions = pair.regions(boxes)
         covered.append(sum(int((r[1] - r[0]) * (r[3] - r[2])) for r in regions))

@@ -134,7 +134,7 @@ def test_a_moving_layer_is_composited_in_front_of_the_background_not_behind() ->
         out = bg.copy()
         rho = np.full((32, 32), 1.0 / bg_depth)
         w = np.array([0.5, 0.5])
-        layers_over(out, bg, rho, regions, w, *pair.kernel_args(hinv, bvec, moving, boxes))
+        layers_over(out, bg, rho, regions, w, pair.kernel_args(hinv, bvec, moving, boxes))
         square = np.zeros((32, 32), bool)
         square[12:20, 12:20] = True
         if want_square:
