@@ -15,6 +15,7 @@ from __future__ import annotations
 import bisect
 from concurrent.futures import Future
 from dataclasses import dataclass, field, replace
+from itertools import pairwise
 
 import numpy as np
 
@@ -333,13 +334,15 @@ class KeyframeFrames(FrameSource):
         layout.skipped = set()
         if p.interpolate_px is not None:
             layout.skipped = self._left_to_dvs(ref.view, layout, at_key)
-        # The geometry sure (or all but) to be needed: where any tick is synthesised,
-        # every key's (a key's tick whose change is large has sub-frames synthesised
-        # before it: the plan cannot tell which); the step end's for the ground truth;
-        # and with geometry_at_keys (a source compositing the keys' layers at every
-        # frame) every new key's.
+        # The geometry sure (or all but) to be needed: where any tick is synthesised or
+        # the camera turns, every key's (a frame whose change is large has sub-frames
+        # synthesised before it, which the plan cannot foresee); the step end's for the
+        # ground truth; and with geometry_at_keys (a source compositing the keys' layers
+        # at every frame) every new key's.
         need = set(range(1, len(key_t))) if self.geometry_at_keys else set()
-        if any(t not in layout.interpolated and t not in layout.skipped for t, _ in between):
+        if any(turned(a, b) for a, b in pairwise(key_v)) or any(
+            t not in layout.interpolated and t not in layout.skipped for t, _ in between
+        ):
             need |= set(range(len(key_t)))
         if p.ground_truth and key_t[-1] == ticks[-1]:
             need.add(len(key_t) - 1)
