@@ -394,10 +394,19 @@ def write_csv(rows: Sequence[Mapping[str, Any]], path: Path) -> Path:
     return path
 
 
+#: Columns that hold names, never numbers: a trial id is 16 hex digits, which can read as
+#: an int (``8462951001639847``) or a float (``12e4567890123456``).
+TEXT_COLUMNS = ("trial_id",)
+
+
 def read_csv(path: Path) -> list[Row]:
-    """Rows of :func:`write_csv` with their types back (int, float, bool, str)."""
+    """Rows of :func:`write_csv` with their types back (int, float, bool, str; the
+    :data:`TEXT_COLUMNS` as written)."""
     with Path(path).open(newline="") as f:
-        return [{k: _parse_cell(v) for k, v in rec.items()} for rec in csv.DictReader(f)]
+        return [
+            {k: v if k in TEXT_COLUMNS else _parse_cell(v) for k, v in rec.items()}
+            for rec in csv.DictReader(f)
+        ]
 
 
 # ----------------------------------------------------------------------------------------

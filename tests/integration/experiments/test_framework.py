@@ -174,6 +174,16 @@ def test_csv_round_trip_keeps_types_and_exact_floats(tmp_path):
     assert back[0]["b"] == 0.1 + 0.2 and math.isnan(back[0]["e"]) and back[0]["d"] is True
 
 
+def test_trial_ids_that_look_like_numbers_read_back_as_text(tmp_path):
+    """A trial id is 16 hex digits: all digits, or digits around one ``e``, it read back
+    as an int or a float (``inf``), and the report refused the sweep's table."""
+    ids = ["8462951001639847", "12e4567890123456", "96fb95b94aed619d"]
+    rows = [{"trial": i, "trial_id": t, "value": 0.5} for i, t in enumerate(ids)]
+    back = read_csv(write_csv(rows, tmp_path / "results.csv"))
+    assert [r["trial_id"] for r in back] == ids
+    assert back == rows
+
+
 def test_result_folder_has_table_config_run_record_summary_and_artifacts(tmp_path):
     exp = toy_experiment()
     cfg = ToyConfig(n=3, repeats=1)
