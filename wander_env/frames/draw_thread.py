@@ -125,6 +125,11 @@ class DrawThread:
         """The work ahead that has not started is cancelled (never runs)."""
         self._q.cancel_ahead()
 
+    def settle(self) -> None:
+        """Wait until the step's work handed over so far, and the piece running now, have
+        run (work ahead still queued runs after; not from the thread itself)."""
+        self.submit(lambda: None).result()
+
     def close(self) -> None:
         """Cancel the work ahead, run the step's work left, end the thread (idempotent)."""
         self._at_exit.drop()

@@ -396,11 +396,6 @@ def _synth_kernel(out, regions, weights, near, keys):
                     out[y, x] = lum[near, _nearest(py, h), _nearest(px, w)]
 
 
-# A source position this close to a pixel centre (px) is that pixel (a camera that has
-# not turned, up to rounding in its homography).
-_ON_PIXEL = 1e-9
-
-
 def warp_keys(lum: np.ndarray, hinv: np.ndarray) -> np.ndarray:
     """Each key's luminance (``lum`` (2, H, W) float32) at every target pixel's source
     position under its target-to-source homography ``hinv[k]``: cubic convolution over
@@ -566,7 +561,7 @@ class KeyPair:
         near = int(w > 0.5)
         out = np.empty_like(self.a.lum)
         lum = self._stacked[0]
-        warped = lum  # (read only where the static world is a warp: made there)
+        warped = None  # the keys' cubic warp, made where the static world is one
         if moving[:, 0].any():  # the camera centre moved: parallax everywhere
             regions = np.array([[0, h, 0, wd]])
         else:

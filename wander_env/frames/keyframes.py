@@ -264,13 +264,7 @@ class KeyframeFrames(FrameSource):
         self._frames_plan(ref, layout)
         if 0 in layout.need:
             self.request_geometry(ref, ahead=True)
-        # Each key's colour, then its geometry where needed: the frames up to a key can
-        # be made while the next one is drawn.
-        new = []
-        for n in range(len(layout.idx)):
-            new.append(self.render_key(*self._key_of(layout, n), ahead=True))
-            if n + 1 in layout.need:
-                self.request_geometry(new[-1], ahead=True)
+        new = self._draw_keys(layout, None, ahead=True)
         made = self._make_frames([ref, *new], layout, ahead=True) if new else {}
         self._ahead = _Ahead(trajectory, ref, layout, new, made, self.stage.ahead_epoch)
 
@@ -348,18 +342,21 @@ class KeyframeFrames(FrameSource):
             need.add(len(key_t) - 1)
         layout.need = need
 
-    def _draw_keys(self, layout: StepLayout, first: RenderedKey | None) -> list[RenderedKey]:
+    def _draw_keys(
+        self, layout: StepLayout, first: RenderedKey | None, ahead: bool = False
+    ) -> list[RenderedKey]:
         """The layout's new keys handed to the draw side in time order (``first`` already
         there), each with its geometry where that is sure to be needed, so that the frames
-        up to a key are made while the next one is drawn."""
+        up to a key are made while the next one is drawn; ``ahead``: for the next step, on
+        a guess."""
         new = []
         for n in range(len(layout.idx)):
             key = first if n == 0 and first is not None else None
             if key is None:
-                key = self.render_key(*self._key_of(layout, n))
+                key = self.render_key(*self._key_of(layout, n), ahead=ahead)
             new.append(key)
             if n + 1 in layout.need:
-                self.request_geometry(key)
+                self.request_geometry(key, ahead=ahead)
         return new
 
     def _start(self, ref: RenderedKey, layout: StepLayout, new: list[RenderedKey]) -> None:

@@ -126,7 +126,7 @@ class Stage:
         self.drop_ahead()
         self.drain()
         if self._thread is not None:  # work ahead that had started: done before the reset
-            self._thread.submit(lambda: None).result()
+            self._thread.settle()
         self._animator = animator
         self._posed = None
         self.begin_step()
@@ -432,7 +432,7 @@ class Stage:
             # The step's work left (a step that raised leaves some) runs while the thread
             # is still this stage's: work that poses on the draw side stays on it.
             thread.cancel_ahead()
-            thread.submit(lambda: None).result()
+            thread.settle()
         self._thread = self._last = None
         self._ahead_count = self._ahead_last = None
         renderer, self._renderer = self._renderer, None
