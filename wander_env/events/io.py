@@ -162,8 +162,9 @@ def _read_npy(path: Path, sensor_size: SensorSize | None, limits: ReadLimits) ->
     return checked_recording(path, columns, sensor_size, {}, limits)
 
 
-def _h5_column(path: Path, group: Any, name: str) -> Any:
-    """An HDF5 event column, its claimed length checked against what is stored."""
+def _h5_column(path: Path, group: Any, name: str, unfinished: bool = False) -> Any:
+    """An HDF5 event column, its claimed length checked against what is stored (for the
+    stream of an ``unfinished`` writer, :func:`stream_state` reads only stored chunks)."""
     import h5py
 
     ds = group[name]
@@ -177,7 +178,7 @@ def _h5_column(path: Path, group: Any, name: str) -> Any:
     if ds.is_virtual or ds.external:
         raise EventFileError(path, "stored outside the file (virtual/external): refused", field)
     n = ds.shape[0]
-    if n == 0:
+    if n == 0 or (unfinished and ds.chunks is not None):
         return ds
     if ds.chunks is None:
         stored = ds.id.get_storage_size()
@@ -208,11 +209,14 @@ def _read_h5(path: Path, sensor_size: SensorSize | None, limits: ReadLimits) -> 
                 raise EventFileError(
                     path, f"is a {type(g).__name__}, expected a group of x, y, t, p", "events"
                 )
-            columns = {k: _h5_column(path, g, k) for k in ("x", "y", "t", "p") if k in g}
+            unfinished = "complete" in f.attrs and not bool(f.attrs["complete"])
+            columns = {
+                k: _h5_column(path, g, k, unfinished) for k in ("x", "y", "t", "p") if k in g
+            }
             if sensor_size is None and "sensor_size" in f.attrs:
                 sensor_size = check_sensor_size(path, f.attrs["sensor_size"], limits.max_side)
             metadata = parse_metadata(path, f.attrs["metadata"]) if "metadata" in f.attrs else {}
-            n, metadata = stream_state(path, f.attrs, n_rows(path, columns), metadata)
+            n, metadata = stream_state(path, f.attrs, columns, sensor_size, metadata)
             return checked_recording(path, columns, sensor_size, metadata, limits, n=n)
     except EventFileError:
         raise
@@ -221,17 +225,64 @@ def _read_h5(path: Path, sensor_size: SensorSize | None, limits: ReadLimits) -> 
 
 
 def stream_state(
-    path: Path, attrs: Any, stored: int, metadata: dict[str, Any]
+    path: Path,
+    attrs: Any,
+    columns: dict[str, Any],
+    sensor_size: SensorSize | None,
+    metadata: dict[str, Any],
 ) -> tuple[int, dict[str, Any]]:
     """Events to read from a file that :class:`~wander_env.events.stream.EventStreamWriter`
-    wrote, and its metadata; one it did not finish says where it stops."""
+    wrote, and its metadata; one it did not finish says where it stops.
+
+    A stream killed while it flushed can claim more than it stored (its new length on
+    disk before its last chunk) or hold a torn last chunk (the writer rewrites the partial
+    chunk at the end of what it had flushed, and a kill in that write leaves it
+    undecodable). Only stored chunks are read, torn ones are dropped from the end (the
+    events up to the last chunk that decodes in every column are read), and
+    ``incomplete["torn_events"]`` counts the flushed events that were lost so.
+    """
+    stored = n_rows(path, columns)
     if "complete" not in attrs or bool(attrs["complete"]):
         return stored, metadata
-    flushed = int(attrs.get("events_flushed", stored))
-    n = min(stored, max(flushed, 0))
-    t_end = int(attrs.get("t_flushed_us", -1))
+    flushed = min(stored, max(int(attrs.get("events_flushed", stored)), 0))
+    n = _decodable_prefix(columns, flushed, sensor_size)
+    t_end = int(attrs.get("t_flushed_us", -1)) if n == flushed else int(columns["t"][n - 1])
     incomplete = {"events": n, "last_t_us": t_end if n else None}
+    if n < flushed:
+        incomplete["torn_events"] = flushed - n
     return n, {**metadata, "incomplete": incomplete}
+
+
+def _decodable_prefix(columns: dict[str, Any], n: int, sensor_size: SensorSize | None) -> int:
+    """``n`` capped at the stored chunks, or the start of the earliest of the last chunks
+    that does not decode in some column or holds events no writer wrote (walking back to
+    a chunk that decodes in all and is :func:`_plausible`)."""
+    chunked = [c for c in columns.values() if getattr(c, "chunks", None)]
+    for column in chunked:  # chunks are stored in order: those missing are the last ones
+        n = min(n, column.id.get_num_chunks() * column.chunks[0])
+    step = min((c.chunks[0] for c in chunked), default=0)
+    while n > 0 and step:
+        start = (n - 1) // step * step
+        try:
+            block = {k: np.asarray(c[start:n]) for k, c in columns.items()}
+        except OSError:  # a filter (gzip, shuffle) failed on a torn chunk
+            block = None
+        if block is not None and _plausible(block, sensor_size):
+            break
+        n = start
+    return n
+
+
+def _plausible(block: dict[str, np.ndarray], sensor_size: SensorSize | None) -> bool:
+    """Whether a chunk's events are in time order, on the sensor and of polarity 0 or 1:
+    a chunk stored before its events holds fill values, and one whose place the writer
+    reused for another column's chunk decodes to that column's numbers."""
+    x, y, t, p = (block[k] for k in ("x", "y", "t", "p"))
+    good = bool(np.all(np.diff(t) >= 0) and np.all((p == 0) | (p == 1)))
+    if sensor_size is not None:
+        w, h = int(sensor_size[0]), int(sensor_size[1])
+        good = good and bool(np.all((x >= 0) & (x < w) & (y >= 0) & (y < h)))
+    return good
 
 
 def _read_aedat4(path: Path, sensor_size: SensorSize | None, limits: ReadLimits) -> EventRecording:

@@ -9,7 +9,8 @@ memory of a run does not grow with its length. Until :meth:`~EventStreamWriter.c
 the file says ``complete = False`` and how far it got (``events_flushed``,
 ``t_flushed_us``): a run killed mid-way leaves a file that
 :func:`~wander_env.events.io.read_events` reads up to its last flushed chunk, with
-``metadata["incomplete"]`` saying where it stops.
+``metadata["incomplete"]`` saying where it stops (a kill during a flush can tear the
+partial chunk being rewritten: the reader drops it and counts its events as torn).
 
 :class:`H5Appender` does the same for per-step arrays (ground truth). Before each
 write the free space is checked: a full disk (or an unwritable folder) raises

@@ -19,7 +19,7 @@ from experiments.cli.errors import current_run, long_command
 from experiments.runs.folder import RunFolder
 from experiments.runs.signals import SignalExit
 from wander_env.events import make_events
-from wander_env.events.io import read_events
+from wander_env.events.io import EventFileError, read_events
 from wander_env.events.stream import EventStreamWriter, H5Appender, OutputError, VideoSink
 
 
@@ -38,6 +38,66 @@ def test_chunks_are_flushed_as_they_fill_and_an_unfinished_file_says_where_it_st
     rec = read_events(path)
     assert len(rec.events) == 600 and rec.events["t"][-1] == 5099
     assert rec.metadata == {"seed": 3, "incomplete": {"events": 600, "last_t_us": 5099}}
+
+
+def _tear(path: Path, column: str, at: int) -> None:
+    """Overwrite the stored bytes of the chunk of ``events/column`` holding event ``at``,
+    as a kill while the writer rewrote it would leave them."""
+    with h5py.File(path, "r") as f:
+        info = f["events"][column].id.get_chunk_info_by_coord((at,))
+    with open(path, "r+b") as fh:
+        fh.seek(info.byte_offset)
+        fh.write(b"\xff" * info.size)
+
+
+def test_a_stream_killed_while_it_rewrote_its_last_chunk_reads_up_to_that_chunk(tmp_path):
+    path = tmp_path / "events.h5"
+    writer = EventStreamWriter(path, (8, 4, 2), {"seed": 3}, chunk_events=250, flush_s=1e9)
+    for k in range(6):
+        writer.append(step(k))
+    assert writer.flushed == 600  # chunks [0, 250) and [250, 500) whole, [500, 600) partial
+    writer._abandon()
+    _tear(path, "t", 599)
+    rec = read_events(path)
+    assert np.array_equal(rec.events, np.concatenate([step(k) for k in range(5)]))
+    stop = {"events": 500, "last_t_us": 4099, "torn_events": 100}
+    assert rec.metadata == {"seed": 3, "incomplete": stop}
+
+
+def _off_sensor(f: h5py.File) -> None:
+    f["events/x"][550] = 200  # another column's numbers where x's chunk was
+
+
+def _claims_ahead(f: h5py.File) -> None:
+    for name in ("x", "y", "t", "p"):  # the new length on disk before its events
+        f["events"][name].resize((700,))
+    f.attrs["events_flushed"] = 700
+
+
+@pytest.mark.parametrize("damage", [_off_sensor, _claims_ahead])
+def test_a_last_chunk_that_decodes_to_events_no_writer_wrote_is_dropped(tmp_path, damage):
+    path = tmp_path / "events.h5"
+    writer = EventStreamWriter(path, (8, 4, 2), {"seed": 3}, chunk_events=250, flush_s=1e9)
+    for k in range(6):
+        writer.append(step(k))
+    writer._abandon()
+    with h5py.File(path, "r+") as f:
+        damage(f)
+    rec = read_events(path)
+    assert len(rec.events) == 500 and rec.events["t"][-1] == 4099
+    torn = 100 if damage is _off_sensor else 200
+    assert rec.metadata["incomplete"] == {"events": 500, "last_t_us": 4099, "torn_events": torn}
+
+
+def test_a_torn_chunk_before_the_last_is_an_error_not_a_shorter_recording(tmp_path):
+    path = tmp_path / "events.h5"
+    writer = EventStreamWriter(path, (8, 4, 2), {"seed": 3}, chunk_events=250, flush_s=1e9)
+    for k in range(6):
+        writer.append(step(k))
+    writer._abandon()
+    _tear(path, "x", 0)
+    with pytest.raises(EventFileError, match=r"events\.h5.*not a readable HDF5 file"):
+        read_events(path)
 
 
 def test_a_finished_stream_equals_the_events_and_takes_the_final_metadata(tmp_path):
