@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -379,38 +380,42 @@ def _f(v: Any, fmt: str = ".3g") -> str:
 
 def compare(cfg: OMSCharacterisationConfig, rows: list[study.Row]) -> list[study.Comparison]:
     """The paper's qualitative findings beside our numbers."""
-    out: list[study.Comparison] = []
     modes = {r["condition"]: r for r in _by(rows, "mode")}
-    if "eye+object" in modes:
-        r = modes["eye+object"]
-        out.append(
-            study.Comparison(
-                "eye+object: object response",
-                "robust response to the object moving against the background",
+    # Per mode: the finding, the paper's words and our numbers from the mode's row.
+    findings: list[tuple[str, str, str, Callable[[study.Row], str]]] = [
+        (
+            "eye+object",
+            "object response",
+            "robust response to the object moving against the background",
+            lambda r: (
                 f"object events kept {_f(r['object_kept_pct'])} %, background kept "
-                f"{_f(r['background_kept_pct'])} %; OMS precision {_f(r['oms_precision'], '.2f')}",
-            )
-        )
-    if "eye-only" in modes:
-        r = modes["eye-only"]
-        out.append(
-            study.Comparison(
-                "eye-only: background suppressed",
-                "most background activity suppressed; higher MFR and ISI than the others",
+                f"{_f(r['background_kept_pct'])} %; OMS precision {_f(r['oms_precision'], '.2f')}"
+            ),
+        ),
+        (
+            "eye-only",
+            "background suppressed",
+            "most background activity suppressed; higher MFR and ISI than the others",
+            lambda r: (
                 f"{_f(r['suppressed_pct'])} % of events suppressed; MFR "
-                f"{_f(r['mfr_mean_hz'])} Hz, ISI {_f(r['isi_mean_ms'], '.0f')} ms",
-            )
-        )
-    if "object-only" in modes:
-        r = modes["object-only"]
-        out.append(
-            study.Comparison(
-                "object-only: object response",
-                "robust response",
+                f"{_f(r['mfr_mean_hz'])} Hz, ISI {_f(r['isi_mean_ms'], '.0f')} ms"
+            ),
+        ),
+        (
+            "object-only",
+            "object response",
+            "robust response",
+            lambda r: (
                 f"object events kept {_f(r['object_kept_pct'])} %; OMS precision "
-                f"{_f(r['oms_precision'], '.2f')}",
-            )
-        )
+                f"{_f(r['oms_precision'], '.2f')}"
+            ),
+        ),
+    ]
+    out = [
+        study.Comparison(f"{mode}: {finding}", paper, ours(modes[mode]))
+        for mode, finding, paper, ours in findings
+        if mode in modes
+    ]
     freq = _by(rows, "frequency")
     if freq:
         prec = [float(r["oms_precision"]) for r in freq]
