@@ -10,6 +10,7 @@ import pytest
 from experiments.paper.oms_characterisation import (
     EXPERIMENT,
     OMSCharacterisationConfig,
+    compare,
     grating_scene,
     grid,
     isi_stats,
@@ -59,6 +60,42 @@ def test_grating_scene_sets_the_stimulus_and_keeps_the_rest():
         40.0,
     )
     assert data["camera"] == {"width": 128, "height": 128}
+
+
+def test_compare_states_each_modes_finding_in_the_papers_order():
+    """One comparison per mode present, eye+object, eye-only, object-only (whatever the
+    rows' order), with that mode's numbers; an absent mode gives none."""
+    base = {
+        "group": "mode",
+        "object_kept_pct": 80.1,
+        "background_kept_pct": 1.5,
+        "oms_precision": 0.912,
+        "suppressed_pct": 91.25,
+        "mfr_mean_hz": 3.3,
+        "isi_mean_ms": 120.4,
+    }
+    rows = [{**base, "condition": c} for c in ("object-only", "eye-only", "eye+object")]
+    got = [(c.result, c.paper, c.ours) for c in compare(OMSCharacterisationConfig(), rows)]
+    assert got == [
+        (
+            "eye+object: object response",
+            "robust response to the object moving against the background",
+            "object events kept 80.1 %, background kept 1.5 %; OMS precision 0.91",
+        ),
+        (
+            "eye-only: background suppressed",
+            "most background activity suppressed; higher MFR and ISI than the others",
+            "91.2 % of events suppressed; MFR 3.3 Hz, ISI 120 ms",
+        ),
+        (
+            "object-only: object response",
+            "robust response",
+            "object events kept 80.1 %; OMS precision 0.91",
+        ),
+    ]
+    assert [c.result for c in compare(OMSCharacterisationConfig(), rows[1:2])] == [
+        "eye-only: background suppressed"
+    ]
 
 
 def test_config_refuses_a_bad_mode_group_or_kernel():
