@@ -73,16 +73,59 @@ OBJECT_RGB = ((255, 160, 0), (0, 190, 90), (200, 0, 200), (0, 170, 220), (140, 9
 
 
 def polarity_labels(counts: np.ndarray) -> np.ndarray:
-    """``(2, H, W)`` per-polarity counts -> ``(H, W)`` uint8: 0 none, 1 OFF, 2 ON (the
-    polarity with more events; ON on a tie), the rule of :func:`wander_env.viz.event_image`."""
+    """``(..., 2, H, W)`` per-polarity counts -> ``(..., H, W)`` uint8: 0 none, 1 OFF, 2 ON
+    (the polarity with more events; ON on a tie), the rule of
+    :func:`wander_env.viz.event_image`."""
     counts = np.asarray(counts)
-    if counts.ndim != 3 or counts.shape[0] != 2:
+    if counts.ndim < 3 or counts.shape[-3] != 2:
         raise ValueError(f"expected per-polarity counts of shape (2, H, W), got {counts.shape}")
-    off, on = counts[0], counts[1]
+    off, on = counts[..., 0, :, :], counts[..., 1, :, :]
     out = np.zeros(on.shape, np.uint8)
     out[(on > 0) & (on >= off)] = ON_LABEL
     out[(off > 0) & (off > on)] = OFF_LABEL
     return out
+
+
+def _ns(t_s: Any) -> np.ndarray:
+    """Simulated seconds -> integer nanoseconds of the timeline (rounded)."""
+    return np.round(np.asarray(t_s, dtype=np.float64) * 1e9).astype(np.int64)
+
+
+def _present(t_ns: np.ndarray, items: Sequence[Any]) -> list[tuple[np.ndarray, list]]:
+    """The items that are there, with their times, in groups of one array shape."""
+    groups: dict[tuple[int, ...], tuple[list[int], list]] = {}
+    for k, item in enumerate(items):
+        if item is not None:
+            item = np.asarray(item)
+            at, arrays = groups.setdefault(item.shape, ([], []))
+            at.append(k)
+            arrays.append(item)
+    return [(t_ns[at], arrays) for at, arrays in groups.values()]
+
+
+def _flat(images: Any) -> np.ndarray:
+    """``(N, H, W[, C])`` images -> ``(N, H·W·C)`` uint8 rows, one buffer per image."""
+    stack = np.ascontiguousarray(np.stack(images), dtype=np.uint8)
+    return stack.reshape(len(stack), -1)
+
+
+def _format(rr: Any, image: np.ndarray, color_model: str | None = None) -> Any:
+    """Rerun's description of a uint8 ``image``'s layout."""
+    h, w = image.shape[:2]
+    return rr.components.ImageFormat(
+        width=w, height=h, color_model=color_model, channel_datatype="U8"
+    )
+
+
+def _jpeg(image: np.ndarray, quality: int) -> bytes:
+    """An RGB ``image`` as JPEG bytes (OpenCV's encoder)."""
+    import cv2
+
+    bgr = cv2.cvtColor(np.ascontiguousarray(image, dtype=np.uint8), cv2.COLOR_RGB2BGR)
+    ok, data = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:
+        raise ValueError(f"OpenCV could not encode a {image.shape} image as JPEG")
+    return data.tobytes()
 
 
 class RunLog:
@@ -133,43 +176,58 @@ class RunLog:
         self.closed = False
 
     def _at(self, t_s: float) -> None:
-        self.rec.set_time(TIMELINE, duration=float(t_s))
+        self.rec.set_time(TIMELINE, duration=np.timedelta64(int(_ns(t_s)), "ns"))
 
-    def step(
+    def steps(
         self,
-        t_s: float,
+        t_s: Sequence[float],
         *,
-        camera: np.ndarray | None = None,
-        events: np.ndarray | None = None,
-        oms: np.ndarray | None = None,
-        gaze_deg: Sequence[float] | None = None,
-        ptu_target_deg: Sequence[float] | None = None,
-        object_mask: np.ndarray | None = None,
+        camera: Sequence[np.ndarray | None] | None = None,
+        events: Sequence[np.ndarray | None] | None = None,
+        oms: Sequence[np.ndarray | None] | None = None,
+        gaze_deg: Sequence[Sequence[float] | None] | None = None,
+        ptu_target_deg: Sequence[Sequence[float] | None] | None = None,
+        object_mask: Sequence[np.ndarray | None] | None = None,
     ) -> None:
-        """Log what one step has (``None``: not logged): the camera image ``(H, W, 3)``
-        uint8, per-polarity ``events`` and ``oms`` counts ``(2, H, W)``, the gaze and PTU
-        target (pan, tilt) in degrees, the object-id mask ``(H, W)``."""
+        """Log steps at times ``t_s``: each other argument, when given, holds one item per
+        step (``None``: nothing at that step): the camera image ``(H, W, 3)`` uint8,
+        per-polarity ``events`` and ``oms`` counts ``(2, H, W)``, the gaze and PTU target
+        (pan, tilt) in degrees, the object-id mask ``(H, W)``. Each entity's images go
+        in one column send (a log call per image costs 4× the CPU)."""
         rr = self._rr
-        self._at(t_s)
+        t = _ns(t_s)
         if camera is not None:
-            image = rr.Image(np.ascontiguousarray(camera, dtype=np.uint8))
-            if self.camera_jpeg_quality is not None:
-                image = image.compress(jpeg_quality=self.camera_jpeg_quality)
-            self.rec.log("camera", image)
-        if events is not None:
-            self.rec.log("events", rr.SegmentationImage(polarity_labels(events)))
-        if oms is not None:
-            self.rec.log("oms", rr.SegmentationImage(polarity_labels(oms)))
-        if object_mask is not None:
-            self.rec.log("object_mask", rr.SegmentationImage(np.asarray(object_mask, np.uint8)))
-        for name, value in (("gaze", gaze_deg), ("ptu_target", ptu_target_deg)):
-            if value is not None:
-                self._scalar(f"{name}/pan", t_s, float(value[0]))
-                self._scalar(f"{name}/tilt", t_s, float(value[1]))
+            for at, images in _present(t, camera):
+                if self.camera_jpeg_quality is None:
+                    fmt = _format(rr, images[0], "RGB")
+                    columns = rr.Image.columns(buffer=_flat(images), format=[fmt] * len(at))
+                else:
+                    blobs = [_jpeg(image, self.camera_jpeg_quality) for image in images]
+                    columns = rr.EncodedImage.columns(
+                        blob=blobs, media_type=["image/jpeg"] * len(at)
+                    )
+                self._send("camera", at, columns)
+        labelled = (("events", events, polarity_labels), ("oms", oms, polarity_labels))
+        for entity, items, label in (*labelled, ("object_mask", object_mask, None)):
+            for at, arrays in _present(t, items or ()):
+                stack = np.stack(arrays)
+                stack = label(stack) if label is not None else stack.astype(np.uint8)
+                fmt = _format(rr, stack[0])
+                columns = rr.SegmentationImage.columns(buffer=_flat(stack), format=[fmt] * len(at))
+                self._send(entity, at, columns)
+        for name, values in (("gaze", gaze_deg), ("ptu_target", ptu_target_deg)):
+            for k, value in enumerate(values or ()):
+                if value is not None:
+                    self._scalar(f"{name}/pan", t[k], float(value[0]))
+                    self._scalar(f"{name}/tilt", t[k], float(value[1]))
 
-    def _scalar(self, entity: str, t_s: float, value: float) -> None:
+    def _send(self, entity: str, t_ns: np.ndarray, columns: Any) -> None:
+        times = self._rr.TimeColumn(TIMELINE, duration=t_ns.astype("timedelta64[ns]"))
+        self.rec.send_columns(entity, indexes=[times], columns=columns)
+
+    def _scalar(self, entity: str, t_ns: int, value: float) -> None:
         times, values = self._series.setdefault(entity, ([], []))
-        times.append(float(t_s))
+        times.append(int(t_ns))
         values.append(value)
 
     def decision(
@@ -200,11 +258,7 @@ class RunLog:
         self.closed = True
         rr = self._rr
         for entity, (times, values) in self._series.items():
-            self.rec.send_columns(
-                entity,
-                indexes=[rr.TimeColumn(TIMELINE, duration=times)],
-                columns=rr.Scalars.columns(scalars=values),
-            )
+            self._send(entity, np.asarray(times, np.int64), rr.Scalars.columns(scalars=values))
         self.rec.flush()
         self.rec.disconnect()
 
@@ -283,25 +337,21 @@ class StepLogger:
         return row
 
     def write(self, rows: Sequence[StepRow]) -> None:
-        """Log ``rows`` in order."""
+        """Log ``rows`` (the images of each entity in one send)."""
+        self.log.steps(
+            [r.t for r in rows],
+            camera=[r.camera for r in rows],
+            events=[r.events for r in rows],
+            oms=[r.oms for r in rows],
+            gaze_deg=[r.gaze_deg for r in rows],
+            ptu_target_deg=[r.ptu_target_deg for r in rows],
+            object_mask=[r.object_mask for r in rows],
+        )
         for r in rows:
-            self.log.step(
-                r.t,
-                camera=r.camera,
-                events=r.events,
-                oms=r.oms,
-                gaze_deg=r.gaze_deg,
-                ptu_target_deg=r.ptu_target_deg,
-                object_mask=r.object_mask,
-            )
             if r.decision is not None:
                 self.log.decision(r.t, *r.decision)
             for text in r.notes:
                 self.log.annotate(r.t, text)
-
-    def step(self, obs: dict, info: dict, agent: Any = None) -> None:
-        """Log the step just taken and what the agent decided in it."""
-        self.write([self.row(obs, info, agent)])
 
     def close(self) -> None:
         self.log.close()

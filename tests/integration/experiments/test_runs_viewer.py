@@ -82,7 +82,7 @@ def test_decisions_and_annotations_round_trip(tmp_path: Path) -> None:
     log = RunLog(tmp_path / "run.rrd", object_names=["ball"])
     saliency = np.zeros((128, 128), np.float32)
     saliency[40, 90] = 0.75
-    log.step(0.01, gaze_deg=(1.5, -2.25))
+    log.steps([0.01], gaze_deg=[(1.5, -2.25)])
     log.decision(0.13, saliency, (90, 40))
     log.annotate(0.13, "fixation 0")
     log.decision(0.50, saliency * 0, None)
