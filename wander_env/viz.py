@@ -10,6 +10,7 @@ Examples:
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 from typing import Any
 
@@ -117,13 +118,20 @@ def saliency_rgb(values: np.ndarray) -> np.ndarray:
     >>> saliency_rgb(np.array([[0.0, 2.0]])).tolist()
     [[[0, 0, 4], [252, 253, 191]]]
     """
-    import cv2
-
     v = np.clip(np.nan_to_num(np.asarray(values, dtype=np.float64)), 0.0, None)
     peak = v.max() if v.size else 0.0
     grey = np.rint(255 * (v / peak if peak > 0 else v)).astype(np.uint8)
-    bgr = cv2.applyColorMap(grey, cv2.COLORMAP_MAGMA)
-    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB).reshape(*v.shape, 3)
+    return _magma()[grey]
+
+
+@functools.cache
+def _magma() -> np.ndarray:
+    """OpenCV's magma colour map as a ``(256, 3)`` RGB table (``applyColorMap`` builds
+    its table anew at every call: 0.4 ms for a 128×128 map, against 0.03 ms to index)."""
+    import cv2
+
+    bgr = cv2.applyColorMap(np.arange(256, dtype=np.uint8)[:, None], cv2.COLORMAP_MAGMA)
+    return np.ascontiguousarray(bgr[:, 0, ::-1])
 
 
 def _text(img: np.ndarray, text: str, x: int, y: int, scale: float = 0.5) -> int:
