@@ -123,3 +123,18 @@ def test_antialias_override_reaches_the_model():
     env.close()
     with pytest.raises(ValueError, match="antialias_samples"):
         gym.make("wander/Wander-v0", scene="shelf", antialias_samples=-1)
+
+
+@pytest.mark.parametrize(("preset", "threads"), [(None, 1), ("2", 2)])
+def test_importing_wander_env_keeps_opencv_on_the_calling_thread_unless_set(preset, threads):
+    """OPENCV_FOR_THREADS_NUM defaults to 1 (wander_env/__init__.py); a user's value wins."""
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "OPENCV_FOR_THREADS_NUM"}
+    if preset is not None:
+        env["OPENCV_FOR_THREADS_NUM"] = preset
+    code = "import cv2, wander_env; print(cv2.getNumThreads())"
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert int(out.stdout) == threads
