@@ -446,11 +446,12 @@ class VideoSink:
                     size,
                     fps=self.fps,
                     quality=None,  # the rate is set by -crf below
-                    # libx264's "superfast" preset at CRF 26: on 300 labelled frames of a
-                    # run (1036x304) 1.1 s of CPU against 1.6-1.9 s for "veryfast" at its
-                    # default CRF 23, the file as large (3.1 against 3.0 MB) and the
-                    # frames alike to the eye; the encoder shares the cores with the loop
-                    output_params=["-preset", "superfast", "-crf", "26"],
+                    # libx264's "superfast" preset at CRF 26 on one thread: on 300
+                    # labelled frames of a run (1036x304) 0.94-0.98 s of CPU against
+                    # 1.1-1.3 s on its own threads and 1.6-1.9 s for "veryfast" at its
+                    # default CRF 23, the file as large (3.1 against 3.0 MB) and the frames
+                    # alike to the eye; the encoder shares the cores with the loop
+                    output_params=["-preset", "superfast", "-crf", "26", "-threads", "1"],
                     macro_block_size=1,
                     ffmpeg_log_level="warning",
                     ffmpeg_timeout=self.close_timeout_s,
