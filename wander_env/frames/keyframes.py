@@ -16,6 +16,7 @@ import bisect
 from concurrent.futures import Future
 from dataclasses import dataclass, field, replace
 from itertools import pairwise
+from typing import TypeVar
 
 import numpy as np
 
@@ -35,6 +36,8 @@ from wander_env.frames.stage import Angles, Stage
 from wander_env.ptu.unit import Trajectory
 
 __all__ = ["KeyframeFrames", "RenderedKey"]
+
+T = TypeVar("T")
 
 
 @dataclass(eq=False)
@@ -99,6 +102,13 @@ class _Ahead:
     new: list[RenderedKey]
     made: dict[int, Future[LogFrame]]
     epoch: int  # the stage's ahead_epoch when handed over
+
+
+def _done(value: T) -> Future[T]:
+    """A future that holds ``value``."""
+    future: Future[T] = Future()
+    future.set_result(value)
+    return future
 
 
 def _pair_in(keys: list[RenderedKey], t_us: int) -> tuple[RenderedKey, RenderedKey]:
@@ -181,16 +191,47 @@ class KeyframeFrames(FrameSource):
             else:
                 self.request_geometry(key)
                 pending = key.geometry
-                if self.stage.on_draw_thread and not pending.done():
+                stage = self.stage
+                if stage.on_draw_thread and (not pending.done() or pending.cancelled()):
                     # On the render thread, whose queue holds the drawing behind the work
-                    # running now: drawn here (the queued one then finds the key made).
+                    # running now (or the main thread took it): drawn here (the queued
+                    # one then finds the key made).
                     drawn = self._draw_geometry(key)
+                elif self._cast_here(key):
+                    drawn = key.geometry.result()
                 else:
+                    self._help_until(pending)
                     drawn = pending.result()
                 if drawn is not None and key.full is None:  # (else made meanwhile)
                     layers, depth = drawn
+                    self._help_until(key.drawn)
                     key.full = make_keyframe(key.t_us, key.lum, key.view, depth, layers)
         return key.full
+
+    def _cast_here(self, key: RenderedKey) -> bool:
+        """(Main thread.) Cast the geometry of ``key`` (a key that shares none) here if
+        the render thread has not started drawing it and casting needs no GL; whether
+        it was."""
+        pending = key.geometry
+        if pending is None or key.full is not None or not self.stage.casts_here():
+            return False
+        if not pending.cancel():  # started or done there
+            return False
+        key.geometry = _done(self.stage.geometry_here(key.t_us, key.angles))
+        return True
+
+    def _help_until(self, future: Future) -> None:
+        """(Main thread.) While ``future`` (the render thread's) is not done, cast the
+        geometry of keys the render thread has not started (the latest first: the
+        render thread takes its queue from the front), so that a wait does its work."""
+        if future.done() or self.stage.on_draw_thread:
+            return
+        ahead = self._ahead.new if self._ahead is not None else []
+        for key in reversed([*self.keys, *ahead]):
+            if future.done():
+                return
+            if key.same_as is None:
+                self._cast_here(key)
 
     def request_geometry(self, key: RenderedKey, ahead: bool = False) -> None:
         """Hand the drawing of ``key``'s geometry (that of the key it shares it with) to
@@ -446,6 +487,7 @@ class KeyframeFrames(FrameSource):
         pixel; else a synthesised frame."""
         key = self._key_at.get(t_us)
         if key is not None:
+            self._help_until(key.drawn)
             return key.prepared
         made = self._made.pop(t_us, None)
         if made is not None and not made.cancel():  # (not started there: made here)

@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 from dataclasses import dataclass
 from typing import Annotated
 
@@ -329,6 +330,7 @@ class PrimitiveCaster:
         self._renderer = None  # the cube's (created where it renders)
         self._renderer_pid: int | None = None
         self._static: dict[bytes, np.ndarray] = {}  # rotation -> static inverse depth
+        self._static_lock = threading.Lock()
         data = mujoco.MjData(model)
         mujoco.mj_kinematics(model, data)
         mujoco.mj_camlight(model, data)
@@ -340,6 +342,12 @@ class PrimitiveCaster:
     def reset(self) -> None:
         """Forget the static cube (render it again on next use)."""
         self._cube, self._static = None, {}
+
+    @property
+    def cube_ready(self) -> bool:
+        """Whether the static cube is rendered: casting then needs no GL, so any thread
+        may cast (each with its own posed data)."""
+        return self._cube is not None
 
     def _static_rho(self, data: mujoco.MjData, rot: np.ndarray) -> np.ndarray:
         """The static world's inverse depth (H, W) with the camera's rotation ``rot``
@@ -361,15 +369,17 @@ class PrimitiveCaster:
                 data.cam_xpos[self._cam] = saved
             self._cube, self._static, self._renderer_pid = dist, {}, os.getpid()
         key = rot.tobytes()
-        rho = self._static.get(key)
+        with self._static_lock:  # (the main thread casts a key's geometry too)
+            rho = self._static.get(key)
         if rho is None:
-            if len(self._static) >= 8:
-                self._static.pop(next(iter(self._static)))
             rho = np.empty((self.height, self.width), np.float64)
             k = self.k
             f, cx, cy = float(k[0, 0]), float(k[0, 2]), float(k[1, 2])
             cube_inverse_depth(rho, self._cube, FACE_ROTATIONS, rot, f, cx, cy)
-            self._static[key] = rho
+            with self._static_lock:
+                if len(self._static) >= 8:
+                    self._static.pop(next(iter(self._static)))
+                self._static[key] = rho
         return rho
 
     def layers_depth(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:

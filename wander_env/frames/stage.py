@@ -118,6 +118,7 @@ class Stage:
                 model, self.width, self.height, rc, params.visible_geom_groups
             )
         self._cast_for: SceneAnimator | None = None  # the reset the caster's cube is of
+        self._cast_data: mujoco.MjData | None = None  # posed by geometry_here (main thread)
 
     # -- the env's verbs --------------------------------------------------------------------
     def begin_episode(self, animator: SceneAnimator) -> None:
@@ -301,13 +302,15 @@ class Stage:
     def _pose(self, t_us: int, pan_deg: float, tilt_deg: float) -> None:
         if self._posed == (t_us, pan_deg, tilt_deg):
             return
-        data = self._draw_data
+        self._pose_into(self._draw_data, t_us, pan_deg, tilt_deg)
+        self._posed = (t_us, pan_deg, tilt_deg)
+
+    def _pose_into(self, data: mujoco.MjData, t_us: int, pan_deg: float, tilt_deg: float) -> None:
         data.qpos[self._pan_adr] = math.radians(pan_deg)
         data.qpos[self._tilt_adr] = math.radians(tilt_deg)
         self._animator.apply(data, t_us * 1e-6)
         mujoco.mj_kinematics(self.model, data)
         mujoco.mj_camlight(self.model, data)
-        self._posed = (t_us, pan_deg, tilt_deg)
 
     def render(self) -> np.ndarray:
         """RGB uint8 (H, W, 3) of the posed draw data."""
@@ -346,6 +349,30 @@ class Stage:
         renderer = self._the_renderer()
         renderer.update(self._draw_data)
         return renderer.segment_depth_current(self.layer_lut)
+
+    def casts_here(self) -> bool:
+        """Whether :meth:`geometry_here` can cast a key's geometry on this thread now:
+        off the render thread, where the keys' layers are ray cast and the caster's
+        static cube is of this episode (no GL left to do). Posing then writes only the
+        pose's own data: the one scene whose posing writes the model (the gratings'
+        strip colours) has a plane screen, which the caster does not take."""
+        return (
+            self._from_outside()
+            and self.casts("key_layers")
+            and self._cast_for is self._animator
+            and self.caster.cube_ready
+        )
+
+    def geometry_here(self, t_us: int, angles: Angles) -> tuple[np.ndarray, np.ndarray]:
+        """(motion layers int32, depth m) at ``t_us`` and ``angles``, ray cast on this
+        thread into a pose of its own (only where :meth:`casts_here`): the same arrays
+        as :meth:`geometry_at` on the draw side, while the render thread draws."""
+        if not self.casts_here():
+            raise RuntimeError("geometry_here: this thread cannot cast now (casts_here)")
+        if self._cast_data is None:
+            self._cast_data = mujoco.MjData(self.model)
+        self._pose_into(self._cast_data, t_us, *angles)
+        return self.caster.geometry(self._cast_data)
 
     def object_mask(self) -> np.ndarray:
         """Object ids (H, W) int32 of the posed draw data (0 = background)."""

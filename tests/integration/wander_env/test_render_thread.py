@@ -266,3 +266,44 @@ def test_the_render_thread_makes_a_geometry_queued_behind_the_work_that_needs_it
         assert stage.geometry_draws == 1
     finally:
         env.close()
+
+
+def test_a_key_geometry_the_render_thread_has_not_started_is_cast_by_the_thread_that_needs_it():
+    """A key's geometry queued behind other work: the main thread, needing the key, casts
+    it itself (no GL: office's moving objects are primitives) and cancels the queued
+    drawing; the layers and depth are those the draw side casts for the same pose."""
+    env = gym.make("wander/Wander-v0", scene="office")
+    u = env.unwrapped
+    try:
+        env.reset(seed=0)
+        source, stage = u.source, u.stage
+        key = source.keys[-1]
+        assert key.full is None and stage.casts_here()
+        gate = threading.Event()
+        stage.begin_step()
+        stage.submit(gate.wait, 60)
+        source.request_geometry(key)
+        queued = key.geometry
+        made = source.keyframe(key)  # the render thread waits at the gate meanwhile
+        assert queued.cancelled() and made is key.full
+        gate.set()
+        layers, depth = stage.on_draw_side(stage.geometry_at, key.t_us, key.angles)
+        assert np.array_equal(made.layers, layers) and np.array_equal(made.inv_depth, 1 / depth)
+        assert stage.geometry_draws == 0 and int((layers > 0).sum()) > 0
+    finally:
+        env.close()
+
+
+def test_only_a_thread_off_the_render_thread_casts_and_only_where_no_gl_is_left():
+    """casts_here: the main thread of office, once its cube is rendered; not the render
+    thread itself; not gratings (its screen is a plane: GL draws its geometry; its posing
+    writes the strips' colours into the model the render thread draws)."""
+    for scene, expected in (("office", True), ("gratings", False)):
+        env = gym.make("wander/Wander-v0", scene=scene)
+        try:
+            env.reset(seed=0)
+            stage = env.unwrapped.stage
+            assert stage.casts_here() is expected, scene
+            assert stage.on_draw_side(stage.casts_here) is False
+        finally:
+            env.close()
