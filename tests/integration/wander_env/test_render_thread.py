@@ -277,8 +277,10 @@ def test_a_key_geometry_the_render_thread_has_not_started_is_cast_by_the_thread_
     try:
         env.reset(seed=0)
         source, stage = u.source, u.stage
-        key = source.keys[-1]
-        assert key.full is None and stage.casts_here()
+        start = source.keys[-1]
+        t_us = start.t_us + 5000
+        key = source.render_key(t_us, start.angles, stage.camera_view(t_us, *start.angles))
+        assert key.geometry is None and stage.casts_here()
         gate = threading.Event()
         stage.begin_step()
         stage.submit(gate.wait, 60)
