@@ -13,6 +13,8 @@ between (the main thread runs the DVS over one while the next is made)."""
 from __future__ import annotations
 
 import bisect
+import threading
+from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass, field, replace
 from itertools import pairwise
@@ -44,31 +46,41 @@ T = TypeVar("T")
 class RenderedKey:
     """A key as rendered: its colour, the colour's DVS input and luminance at ``t_us``
     from the camera at ``angles`` (``view``), drawn on the stage's draw side (``drawn``:
-    read when first needed). Its geometry (layers and depth, one more draw) is made only
-    when something asks for it (:meth:`KeyframeFrames.keyframe`): a synthesised frame
-    between it and a neighbour, or the ground truth's mask. ``same_as``: an earlier key
-    whose geometry this one shares (nothing moved between them)."""
+    read when first needed). Its DVS input is made once (``prepare``, the DVS's) by the
+    first thread that reads it (the render thread only draws its colour). Its geometry
+    (layers and depth, one more draw) is made only when something asks for it
+    (:meth:`KeyframeFrames.keyframe`): a synthesised frame between it and a neighbour,
+    or the ground truth's mask. ``same_as``: an earlier key whose geometry this one
+    shares (nothing moved between them)."""
 
     t_us: int
     angles: Angles
     view: View
-    drawn: Future[tuple[np.ndarray, LogFrame]]  # (RGB, its DVS input)
+    drawn: Future[np.ndarray]  # its RGB
     shape: tuple[int, int]  # (H, W)
+    prepare: Callable[[np.ndarray], LogFrame]  # RGB -> the DVS's input
     same_as: RenderedKey | None = None
     full: Keyframe | None = None  # with its geometry, once made
     geometry: Future[tuple[np.ndarray, np.ndarray] | None] | None = None  # its layers
     # and depth, once asked for
     pair: tuple[RenderedKey, KeyPair] | None = None  # the pair ending here, once made
+    _prepared: LogFrame | None = field(default=None, repr=False)
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     @property
     def rgb(self) -> np.ndarray:
         """The key's colour frame (H, W, 3) uint8."""
-        return self.drawn.result()[0]
+        return self.drawn.result()
 
     @property
     def prepared(self) -> LogFrame:
-        """The key's DVS input."""
-        return self.drawn.result()[1]
+        """The key's DVS input (made here if no thread has made it yet)."""
+        if self._prepared is None:
+            rgb = self.drawn.result()
+            with self._lock:
+                if self._prepared is None:
+                    self._prepared = self.prepare(rgb)
+        return self._prepared
 
     @property
     def lum(self) -> np.ndarray:
@@ -170,16 +182,12 @@ class KeyframeFrames(FrameSource):
         """A key of the model posed at ``t_us`` and ``angles``, its colour handed to the
         draw side (read when first needed); ``ahead``: for the next step, on a guess."""
         stage = self.stage
-        drawn = stage.submit(self._draw_colour, t_us, angles, ahead=ahead)
-        key = RenderedKey(t_us, angles, view, drawn, (stage.height, stage.width))
+        drawn = stage.submit(stage.colour_at, t_us, angles, ahead=ahead)
+        shape = (stage.height, stage.width)
+        key = RenderedKey(t_us, angles, view, drawn, shape, self.dvs.prepare)
         if not ahead:
             self._latest = key
         return key
-
-    def _draw_colour(self, t_us: int, angles: Angles) -> tuple[np.ndarray, LogFrame]:
-        """(On the draw side.) A key's colour and its DVS input."""
-        rgb = self.stage.colour_at(t_us, angles)
-        return rgb, self.dvs.prepare(rgb)
 
     def keyframe(self, key: RenderedKey) -> Keyframe:
         """``key`` with its geometry: its layers and depth drawn on first use (the model

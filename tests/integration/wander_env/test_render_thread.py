@@ -309,3 +309,28 @@ def test_only_a_thread_off_the_render_thread_casts_and_only_where_no_gl_is_left(
             assert stage.on_draw_side(stage.casts_here) is False
         finally:
             env.close()
+
+
+def test_a_keys_dvs_input_is_made_once_by_the_thread_that_first_reads_it():
+    """The render thread draws a key's colour only; the key's DVS input is made when first
+    read, there, and kept."""
+    env = gym.make("wander/Wander-v0", scene="office")
+    u = env.unwrapped
+    try:
+        env.reset(seed=0)
+        source, stage = u.source, u.stage
+        calls: list[str] = []
+        prepare = source.dvs.prepare
+        source.dvs.prepare = lambda rgb: (
+            calls.append(threading.current_thread().name) or prepare(rgb)
+        )
+        start = source.keys[-1]
+        t_us = start.t_us + 5000
+        key = source.render_key(t_us, start.angles, stage.camera_view(t_us, *start.angles))
+        rgb = key.drawn.result(timeout=60)
+        assert calls == [] and rgb.shape == (128, 128, 3)
+        made = key.prepared
+        assert key.prepared is made and calls == [threading.current_thread().name]
+        assert np.array_equal(made.lum, prepare(rgb).lum)
+    finally:
+        env.close()
