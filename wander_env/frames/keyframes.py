@@ -228,18 +228,23 @@ class KeyframeFrames(FrameSource):
         key.geometry = _done(self.stage.geometry_here(key.t_us, key.angles))
         return True
 
+    def _mask_is_layers(self, key: RenderedKey | None) -> bool:
+        """Whether the ground truth's mask at ``key`` is its ray-cast layers: a key drawn
+        at its own pose (not one standing for a still step's end), layers ray cast (the
+        caster labels them with the objects' ids, as its masks)."""
+        return key is not None and key.same_as is None and self.stage.casts("key_layers")
+
     def _cast_layers(self, key: RenderedKey) -> np.ndarray:
-        """The layers of ``key``'s ray-cast geometry (its object mask: the caster labels
-        the layers with the objects' ids), read from its keyframe or its geometry."""
-        root = key if key.same_as is None else key.same_as
-        if root.full is None:
-            self.request_geometry(root)
-            if not self._cast_here(root):
-                self._help_until(root.geometry)
-            drawn = root.geometry.result()
+        """The layers of ``key``'s ray-cast geometry, read from its keyframe or its
+        geometry (cast here where the render thread has not started it)."""
+        if key.full is None:
+            self.request_geometry(key)
+            if not self._cast_here(key):
+                self._help_until(key.geometry)
+            drawn = key.geometry.result()
             if drawn is not None:
                 return drawn[0]
-        return root.full.layers
+        return key.full.layers
 
     def _help_until(self, future: Future) -> None:
         """(Main thread.) While ``future`` (the render thread's) is not done, cast the
@@ -314,7 +319,7 @@ class KeyframeFrames(FrameSource):
         if self.params.ground_truth and self.stage.casts("ground_truth"):
             end = (layout.ticks[-1], layout.angles[-1])
             key = self._key_at.get(end[0])
-            if key is not None and self.stage.casts("key_layers"):
+            if self._mask_is_layers(key):
                 self.request_geometry(key)  # the mask is the key's layers: one cast for both
             else:
                 self._mask_ahead = (end[0], self.stage.submit(self.stage.object_mask_at, *end))
@@ -539,7 +544,7 @@ class KeyframeFrames(FrameSource):
         if self.stage.casts("ground_truth"):  # ray cast, handed over at the step's start
             if self._mask_ahead is not None and self._mask_ahead[0] == t_us:
                 return self._mask_ahead[1].result()
-            if key is not None and self.stage.casts("key_layers"):
+            if self._mask_is_layers(key):
                 return self._cast_layers(key).copy()
             if key is not None:  # (a source whose stream ends elsewhere: the key's pose)
                 return self.stage.on_draw_side(self.stage.object_mask_at, key.t_us, key.angles)

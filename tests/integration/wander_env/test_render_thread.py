@@ -334,3 +334,23 @@ def test_a_keys_dvs_input_is_made_once_by_the_thread_that_first_reads_it():
         assert np.array_equal(made.lum, prepare(rgb).lum)
     finally:
         env.close()
+
+
+def test_the_mask_at_a_step_end_key_is_the_casters_mask_at_its_pose():
+    """With ray-cast layers the ground truth's mask at a step's last key is that key's
+    layers (one cast for both): equal, step by step, to the caster's mask at the key's
+    time and angles."""
+    env = gym.make("wander/Wander-v0", scene="office")
+    u = env.unwrapped
+    try:
+        env.reset(seed=1)
+        stage, hits = u.stage, 0
+        for a in ACTIONS:
+            _, _, _, _, info = env.step(a)
+            key = u.source.keys[-1]
+            expected = stage.on_draw_side(stage.object_mask_at, key.t_us, key.angles)
+            assert np.array_equal(info["object_mask"], expected)
+            hits += int((expected > 0).sum())
+        assert hits > 0
+    finally:
+        env.close()
