@@ -343,6 +343,10 @@ def _crashed(processes: Mapping[int, Any], marks: Path) -> list[tuple[str, str]]
     deadline = time.monotonic() + 5.0  # a dead worker's exit code is there a moment later
     for pid, proc in processes.items():
         proc.join(max(0.0, deadline - time.monotonic()))
+        # The join returns when the worker's pipe closes, which the kernel does a moment
+        # before the exit status can be read (2-3 runs in 12 of the test read none): wait.
+        while proc.exitcode is None and time.monotonic() < deadline:
+            time.sleep(0.005)
         code = proc.exitcode
         if code is not None and code not in (0, -signal.SIGTERM) and pid in running:
             own.append((running[pid], _death(code)))
