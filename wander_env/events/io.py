@@ -263,26 +263,32 @@ def _decodable_prefix(columns: dict[str, Any], n: int, sensor_size: SensorSize |
     step = min((c.chunks[0] for c in chunked), default=0)
     while n > 0 and step:
         start = (n - 1) // step * step
-        try:
-            block = {k: np.asarray(c[start:n]) for k, c in columns.items()}
-        except OSError:  # a filter (gzip, shuffle) failed on a torn chunk
-            block = None
-        if block is not None and _plausible(block, sensor_size):
+        if _plausible(columns, start, n, sensor_size):
             break
         n = start
     return n
 
 
-def _plausible(block: dict[str, np.ndarray], sensor_size: SensorSize | None) -> bool:
-    """Whether a chunk's events are in time order, on the sensor and of polarity 0 or 1:
-    a chunk stored before its events holds fill values, and one whose place the writer
-    reused for another column's chunk decodes to that column's numbers."""
-    x, y, t, p = (block[k] for k in ("x", "y", "t", "p"))
-    good = bool(np.all(np.diff(t) >= 0) and np.all((p == 0) | (p == 1)))
-    if sensor_size is not None:
-        w, h = int(sensor_size[0]), int(sensor_size[1])
-        good = good and bool(np.all((x >= 0) & (x < w) & (y >= 0) & (y < h)))
-    return good
+def _plausible(
+    columns: dict[str, Any], start: int, stop: int, sensor_size: SensorSize | None
+) -> bool:
+    """Whether the events ``start:stop`` decode in every column and pass
+    :func:`~wander_env.events.validate_events` (on the sensor, where its size is known;
+    polarity 0 or 1; in time order): a chunk stored before its events holds fill values,
+    and one whose place the writer reused for another column's chunk decodes to that
+    column's numbers."""
+    events = np.empty(stop - start, EVENT_DTYPE)
+    try:
+        for k, column in columns.items():
+            events[k] = column[start:stop]
+    except OSError:  # a filter (gzip, shuffle) failed on a torn chunk
+        return False
+    unbounded = (np.iinfo(np.int64).max, np.iinfo(np.int64).max)
+    try:
+        validate_events(events, sensor_size or unbounded)
+    except ValueError:
+        return False
+    return True
 
 
 def _read_aedat4(path: Path, sensor_size: SensorSize | None, limits: ReadLimits) -> EventRecording:
