@@ -197,24 +197,28 @@ class KeyframeFrames(FrameSource):
             if key.same_as is not None:
                 key.full = replace(self.keyframe(key.same_as), t_us=key.t_us, view=key.view)
             else:
-                self.request_geometry(key)
-                pending = key.geometry
-                stage = self.stage
-                if stage.on_draw_thread and (not pending.done() or pending.cancelled()):
-                    # On the render thread, whose queue holds the drawing behind the work
-                    # running now (or the main thread took it): drawn here (the queued
-                    # one then finds the key made).
-                    drawn = self._draw_geometry(key)
-                elif self._cast_here(key):
-                    drawn = key.geometry.result()
-                else:
-                    self._help_until(pending)
-                    drawn = pending.result()
+                drawn = self._geometry_now(key)
                 if drawn is not None and key.full is None:  # (else made meanwhile)
                     layers, depth = drawn
                     self._help_until(key.drawn)
                     key.full = make_keyframe(key.t_us, key.lum, key.view, depth, layers)
         return key.full
+
+    def _geometry_now(self, key: RenderedKey) -> tuple[np.ndarray, np.ndarray] | None:
+        """The layers and depth of ``key`` (a key that shares none, not yet made), asked
+        for if they were not: on the render thread drawn there and then (its queue holds
+        the drawing behind the work running now, or the main thread took it; the queued
+        one then finds the key made); elsewhere cast here if the render thread has not
+        started them, else waited for, doing its casts meanwhile. None where the key was
+        made meanwhile."""
+        self.request_geometry(key)
+        pending = key.geometry
+        if self.stage.on_draw_thread and (not pending.done() or pending.cancelled()):
+            return self._draw_geometry(key)
+        if self._cast_here(key):
+            return key.geometry.result()
+        self._help_until(pending)
+        return pending.result()
 
     def _cast_here(self, key: RenderedKey) -> bool:
         """(Main thread.) Cast the geometry of ``key`` (a key that shares none) here if
@@ -238,10 +242,7 @@ class KeyframeFrames(FrameSource):
         """The layers of ``key``'s ray-cast geometry, read from its keyframe or its
         geometry (cast here where the render thread has not started it)."""
         if key.full is None:
-            self.request_geometry(key)
-            if not self._cast_here(key):
-                self._help_until(key.geometry)
-            drawn = key.geometry.result()
+            drawn = self._geometry_now(key)
             if drawn is not None:
                 return drawn[0]
         return key.full.layers
@@ -250,7 +251,7 @@ class KeyframeFrames(FrameSource):
         """(Main thread.) While ``future`` (the render thread's) is not done, cast the
         geometry of keys the render thread has not started (the latest first: the
         render thread takes its queue from the front), so that a wait does its work."""
-        if future.done() or self.stage.on_draw_thread:
+        if future.done() or not self.stage.casts_here():
             return
         ahead = self._ahead.new if self._ahead is not None else []
         for key in reversed([*self.keys, *ahead]):
