@@ -159,7 +159,7 @@ def run_agent(
         typer.Option(
             callback=_check_video_fps,
             help="run.mp4's frames per simulated second (a frame is composed only when "
-            "due; default: the config's, 30).",
+            "due; default: the config's, 25).",
         ),
         ConfigKey("video_fps"),
     ] = None,

@@ -28,11 +28,8 @@ saliency, P, fixations, saccades): the Rerun recorder of ``wander run``, ``recor
 :meth:`StepLogger.row` after each env step and :meth:`StepLogger.write` with the rows (in
 batches, on the run's writer thread).
 
-Examples:
-    >>> import numpy as np
-    >>> counts = np.zeros((2, 2, 2)); counts[1, 0, 0] = 2; counts[0, 0, 0] = 1; counts[0, 1, 1] = 1
-    >>> polarity_labels(counts).tolist()
-    [[2, 0], [0, 1]]
+The events and OMS maps are segmentation images of
+:func:`wander_env.viz.polarity_codes` (0 none, 1 OFF, 2 ON).
 """
 
 from __future__ import annotations
@@ -49,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from wander_env.viz import OFF_RGB, ON_RGB
+from wander_env.viz import NO_EVENT, OFF_CODE, OFF_RGB, ON_CODE, ON_RGB, polarity_codes
 
 __all__ = [
     "RRD_NAME",
@@ -60,30 +57,14 @@ __all__ = [
     "command_text",
     "open_command",
     "open_run_log",
-    "polarity_labels",
     "read_recording",
     "view",
 ]
 
 RRD_NAME = "run.rrd"
 TIMELINE = "sim_time"
-NO_EVENT, OFF_LABEL, ON_LABEL = 0, 1, 2
 #: Distinct colours for the object ids of ``object_mask`` (cycled).
 OBJECT_RGB = ((255, 160, 0), (0, 190, 90), (200, 0, 200), (0, 170, 220), (140, 90, 40))
-
-
-def polarity_labels(counts: np.ndarray) -> np.ndarray:
-    """``(..., 2, H, W)`` per-polarity counts -> ``(..., H, W)`` uint8: 0 none, 1 OFF, 2 ON
-    (the polarity with more events; ON on a tie), the rule of
-    :func:`wander_env.viz.event_image`."""
-    counts = np.asarray(counts)
-    if counts.ndim < 3 or counts.shape[-3] != 2:
-        raise ValueError(f"expected per-polarity counts of shape (2, H, W), got {counts.shape}")
-    off, on = counts[..., 0, :, :], counts[..., 1, :, :]
-    out = np.zeros(on.shape, np.uint8)
-    out[(on > 0) & (on >= off)] = ON_LABEL
-    out[(off > 0) & (off > on)] = OFF_LABEL
-    return out
 
 
 def _ns(t_s: Any) -> np.ndarray:
@@ -153,8 +134,8 @@ class RunLog:
         polarity = rr.AnnotationContext(
             [
                 rr.AnnotationInfo(id=NO_EVENT, label="no event", color=(255, 255, 255, 0)),
-                rr.AnnotationInfo(id=OFF_LABEL, label="OFF", color=OFF_RGB),
-                rr.AnnotationInfo(id=ON_LABEL, label="ON", color=ON_RGB),
+                rr.AnnotationInfo(id=OFF_CODE, label="OFF", color=OFF_RGB),
+                rr.AnnotationInfo(id=ON_CODE, label="ON", color=ON_RGB),
             ]
         )
         self.rec.log("events", polarity, static=True)
@@ -207,7 +188,7 @@ class RunLog:
                         blob=blobs, media_type=["image/jpeg"] * len(at)
                     )
                 self._send("camera", at, columns)
-        labelled = (("events", events, polarity_labels), ("oms", oms, polarity_labels))
+        labelled = (("events", events, polarity_codes), ("oms", oms, polarity_codes))
         for entity, items, label in (*labelled, ("object_mask", object_mask, None)):
             for at, arrays in _present(t, items or ()):
                 stack = np.stack(arrays)

@@ -31,6 +31,7 @@ from typer.testing import CliRunner
 
 from experiments.cli.errors import long_command
 from experiments.cli.main import app
+from experiments.jobs.run_agent import VIDEO_FPS
 from experiments.runs.folder import RunFolder
 from experiments.runs.recorders import video_frames
 from experiments.runs.signals import DeferredSignals, SignalExit, handle_signals
@@ -316,8 +317,8 @@ def test_sigterm_sent_during_rendering_always_exits_143_with_the_folder_finished
         assert "incomplete" not in read_events(out / "events.h5").metadata
         if steps:
             assert m["video_complete"] is True, k
-            # the frames due at 30 a simulated second, to the last
-            assert frames_in(out / "run.mp4") == video_frames(steps, 0.01, 30), k
+            # the frames due at VIDEO_FPS a simulated second, to the last
+            assert frames_in(out / "run.mp4") == video_frames(steps, 0.01, VIDEO_FPS), k
         else:
             assert "video_complete" not in m and not (out / "run.mp4").exists(), k
         stopped_at.append(steps)
@@ -356,7 +357,7 @@ def test_a_signal_while_the_run_folder_is_written_waits_for_run_json(
     )
     assert strict_json(out / "run.json")["summary"]["steps"] == 100
     assert read_events(out / "events.h5").metadata["summary"]["steps"] == 100
-    assert frames_in(out / "run.mp4") == video_frames(100, 0.01, 30) == 30
+    assert frames_in(out / "run.mp4") == video_frames(100, 0.01, VIDEO_FPS) == VIDEO_FPS
 
 
 # ----------------------------------------------------------------------------------------
@@ -434,7 +435,7 @@ def test_wander_run_stopped_by_sigterm_leaves_a_playable_video(tmp_path):
     )
     m = strict_json(out / "metrics.json")
     assert m["signal"] == "SIGTERM" and m["video_complete"] is True
-    assert frames_in(out / "run.mp4") == video_frames(m["steps"], 0.01, 30) > 0
+    assert frames_in(out / "run.mp4") == video_frames(m["steps"], 0.01, VIDEO_FPS) > 0
 
 
 def test_view_without_a_display_prints_the_web_viewer_command_and_the_copy_hint(tmp_path):

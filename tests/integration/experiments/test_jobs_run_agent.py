@@ -51,7 +51,7 @@ def test_run_folder_contents(run_dir: Path) -> None:
     assert soms["alpha"] == run_json["agent"]["soms"]["alpha"] == 0.8
     assert soms["norm"] == run_json["agent"]["soms"]["norm"] == "quantile"
     frames = imageio.mimread(run_dir / "run.mp4", memtest=False)
-    assert len(frames) == 45  # 1.5 s at 30 frames a simulated second (--video-fps)
+    assert len(frames) == 38  # 1.5 s at 25 frames a simulated second (--video-fps): 37.5
     assert frames[0].shape == (24 + 2 * 128 + 24, 4 * 2 * 128 + 3 * 4, 3)
     # One decision per window: the first after 13 steps, then after each saccade.
     assert m["decisions"] >= 1

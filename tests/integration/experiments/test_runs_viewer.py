@@ -11,11 +11,12 @@ import pytest
 from PIL import Image
 
 from experiments.jobs.record import RecordConfig, record
-from experiments.runs.viewer import RunLog, polarity_labels, view
+from experiments.runs.viewer import RunLog, view
 from experiments.runs.viewer import read_recording as read_rrd
 from wander_env.env_config import WanderConfig
 from wander_env.events import time_window, to_frame
 from wander_env.events.io import read_events
+from wander_env.viz import polarity_codes
 
 
 def labels(value: object) -> np.ndarray:
@@ -59,23 +60,13 @@ def test_record_rrd_holds_every_step_exactly(recorded: Path) -> None:
     edges_us = [0, *[round(t * 1e6) for t in t_s]]
     for k, (_, v) in enumerate(frames):
         window = time_window(rec.events, edges_us[k] + 1, edges_us[k + 1] + 1)
-        assert np.array_equal(labels(v), polarity_labels(to_frame(window, rec.sensor_size)))
+        assert np.array_equal(labels(v), polarity_codes(to_frame(window, rec.sensor_size)))
     assert sum(int((labels(v) > 0).sum()) for _, v in frames) > 0
     # The camera: a JPEG per step that decodes to the sensor's size.
     cams = data[("/camera", "EncodedImage:blob")]
     assert [t for t, _ in cams] == t_ns
     image = Image.open(io.BytesIO(bytes(cams[0][1][0])))
     assert image.size == (128, 128) and image.mode == "RGB"
-
-
-def test_polarity_labels_follow_the_event_image_rule() -> None:
-    counts = np.zeros((2, 3, 1))
-    counts[1, 0, 0] = 2  # ON only
-    counts[0, 1, 0], counts[1, 1, 0] = 3, 1  # more OFF
-    counts[0, 2, 0], counts[1, 2, 0] = 2, 2  # a tie: ON
-    assert polarity_labels(counts)[:, 0].tolist() == [2, 1, 2]
-    with pytest.raises(ValueError, match=r"shape \(2, H, W\), got \(3, 3\)"):
-        polarity_labels(np.zeros((3, 3)))
 
 
 def test_decisions_and_annotations_round_trip(tmp_path: Path) -> None:

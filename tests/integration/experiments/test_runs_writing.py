@@ -87,6 +87,11 @@ def test_a_bad_video_rate_is_one_line_before_anything_runs(tmp_path):
     assert RunConfig(video_fps=MAX_VIDEO_FPS).video_fps == MAX_VIDEO_FPS == 1000
     with pytest.raises(ValueError, match=r"^video_fps: .*1000, got 1001$"):
         RunConfig(video_fps=MAX_VIDEO_FPS + 1)
+    # and its default the one the flag's help names
+    help_text = " ".join(
+        CliRunner().invoke(app, ["run", "--help"]).output.replace("│", " ").split()
+    )
+    assert RunConfig().video_fps == 25 and "default: the config's, 25)" in help_text
 
 
 def test_a_write_that_fails_on_the_thread_is_the_runs_error_and_the_folder_is_finished(

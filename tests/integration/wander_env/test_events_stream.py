@@ -33,11 +33,23 @@ def test_chunks_are_flushed_as_they_fill_and_an_unfinished_file_says_where_it_st
     writer = EventStreamWriter(path, (8, 4, 2), {"seed": 3}, chunk_events=250, flush_s=1e9)
     for k in range(7):
         writer.append(step(k))
-    assert (writer.flushed, writer.events_written) == (600, 700)  # 3 flushes of >= 250
-    writer._abandon()  # as if the process died here: the buffered 100 are lost
+    # the chunks [0, 250) and [250, 500) as they filled, each written once; the rest waits
+    assert (writer.flushed, writer.events_written) == (500, 700)
+    with h5py.File(path, "r") as f:
+        assert [f["events"][c].id.get_num_chunks() for c in "xytp"] == [2, 2, 2, 2]
+    writer._abandon()  # as if the process died here: the buffered 200 are lost
     rec = read_events(path)
-    assert len(rec.events) == 600 and rec.events["t"][-1] == 5099
-    assert rec.metadata == {"seed": 3, "incomplete": {"events": 600, "last_t_us": 5099}}
+    assert len(rec.events) == 500 and rec.events["t"][-1] == 4099
+    assert rec.metadata == {"seed": 3, "incomplete": {"events": 500, "last_t_us": 4099}}
+
+
+def test_a_timed_flush_writes_every_buffered_event(tmp_path):
+    writer = EventStreamWriter(tmp_path / "events.h5", (8, 4, 2), chunk_events=250, flush_s=0)
+    for k in range(3):
+        writer.append(step(k))
+        assert writer.flushed == writer.events_written == 100 * (k + 1)
+    writer.close()
+    assert len(read_events(tmp_path / "events.h5").events) == 300
 
 
 def _tear(path: Path, column: str, at: int) -> None:
@@ -55,7 +67,8 @@ def test_a_stream_killed_while_it_rewrote_its_last_chunk_reads_up_to_that_chunk(
     writer = EventStreamWriter(path, (8, 4, 2), {"seed": 3}, chunk_events=250, flush_s=1e9)
     for k in range(6):
         writer.append(step(k))
-    assert writer.flushed == 600  # chunks [0, 250) and [250, 500) whole, [500, 600) partial
+    writer.flush()  # as a timed flush does: the partial chunk [500, 600) written too
+    assert writer.flushed == 600
     writer._abandon()
     _tear(path, "t", 599)
     rec = read_events(path)
@@ -80,6 +93,7 @@ def test_a_last_chunk_that_decodes_to_events_no_writer_wrote_is_dropped(tmp_path
     writer = EventStreamWriter(path, (8, 4, 2), {"seed": 3}, chunk_events=250, flush_s=1e9)
     for k in range(6):
         writer.append(step(k))
+    writer.flush()
     writer._abandon()
     with h5py.File(path, "r+") as f:
         damage(f)
@@ -202,10 +216,11 @@ def test_video_sink_writes_the_frames_it_is_given(tmp_path):
     frames = imageio.mimread(path, memtest=False)
     assert len(frames) == 5 and frames[0].shape == (24, 32, 3)
     assert [int(np.median(f)) for f in frames] == pytest.approx([0, 40, 80, 120, 160], abs=3)
-    # encoded with libx264's "superfast" preset at CRF 26 (x264 writes its options into the
-    # stream): diamond search and subpixel refinement 1, where its default has hex and 7
+    # encoded with libx264's "ultrafast" preset at CRF 28 (x264 writes its options into the
+    # stream): no CABAC, diamond search, no subpixel refinement (its default: CABAC, hex, 7)
     options = path.read_bytes().split(b"options: ", 1)[1].split(b"\x00", 1)[0]
-    assert b" me=dia subme=1 " in options and b" crf=26.0 " in options
+    assert b"cabac=0 " in options and b" me=dia subme=0 " in options
+    assert b" crf=28.0 " in options
 
 
 def test_video_sink_refuses_a_frame_of_another_size_or_type(tmp_path):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from wander_env.viz import OFF_RGB, ON_RGB, event_image, tile, upscale
+from wander_env.viz import OFF_RGB, ON_RGB, event_image, polarity_codes, tile, upscale
 
 
 def test_event_image_colours():
@@ -19,6 +19,20 @@ def test_event_image_colours():
     assert tuple(img[1, 1]) == (255, 255, 255)
     with pytest.raises(ValueError, match=r"\(2, H, W\)"):
         event_image(np.zeros((3, 2, 2)))
+
+
+def test_polarity_codes_follow_the_event_image_rule_on_a_batch():
+    counts = np.zeros((2, 2, 4, 1))  # two steps
+    counts[0, 1, 0, 0] = 2  # ON only
+    counts[0, 0, 1, 0], counts[0, 1, 1, 0] = 3, 1  # more OFF
+    counts[0, 0, 2, 0], counts[0, 1, 2, 0] = 2, 2  # a tie: ON
+    counts[1, 0, 3, 0] = 1  # the second step: OFF only
+    codes = polarity_codes(counts)
+    assert codes.dtype == np.uint8 and codes[..., 0].tolist() == [[2, 1, 2, 0], [0, 0, 0, 1]]
+    rgb = [tuple(event_image(counts[0])[k, 0]) for k in range(4)]
+    assert rgb == [ON_RGB, OFF_RGB, ON_RGB, (255, 255, 255)]
+    with pytest.raises(ValueError, match=r"shape \(2, H, W\), got \(3, 3\)"):
+        polarity_codes(np.zeros((3, 3)))
 
 
 def test_tile_and_upscale_shapes():
