@@ -211,8 +211,8 @@ def test_a_video_whose_close_was_cut_short_is_marked_incomplete(tmp_path):
     path = tmp_path / "run.mp4"
     sink = VideoSink(path, fps=100, close_timeout_s=0.001)  # ffmpeg is ended at once
     rng = np.random.default_rng(0)
-    for _ in range(120):  # noise: libx264 is far from done when ffmpeg is ended
-        sink.append(rng.integers(0, 256, (256, 256, 3), dtype=np.uint8))
+    for _ in range(40):  # large noise frames: libx264 is far from done when ffmpeg is ended
+        sink.append(rng.integers(0, 256, (1024, 1024, 3), dtype=np.uint8))
     error = sink.finish(None)
     assert isinstance(error, OutputError) and "incomplete" in str(error)
     assert sink.complete is False and not mp4_complete(path)
