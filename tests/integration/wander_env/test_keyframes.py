@@ -309,6 +309,32 @@ def test_layer_boxes_hold_every_candidate(hand, parallax):
     assert all(object_px <= c <= 2 * object_px for c in covered), (object_px, covered)
 
 
+def test_a_keys_layer_statistics_and_the_static_median_taken_only_for_parallax(hand):
+    """Per layer: presence, box, largest and (moving layers) median inverse depth, as
+    numpy takes them; the static world's median is the key's ``static_rho_median``, in the
+    kernels' arguments only where the camera centre moved (elsewhere 0: its ``b`` is 0)."""
+    from wander_env.frames.keyframe_maths import KeyPair
+
+    p0 = np.array([0.25, 0.01, 1.0])
+    a = hand.key(0, 0.0, p0)
+    b = hand.key(2000, 0.4, p0 + np.array([0.01, -0.03, 0.005]))
+    for key in (a, b):
+        inv = key.inv_depth
+        assert key.present.tolist() == [True, True]
+        ys, xs = np.nonzero(key.layers == 1)
+        assert key.boxes[1].tolist() == [ys.min(), ys.max() + 1, xs.min(), xs.max() + 1]
+        assert key.rho_max.tolist() == [inv[key.layers == k].max() for k in (0, 1)]
+        assert key.rho_median.tolist() == [0.0, np.median(inv[key.layers == 1])]
+        assert key.static_rho_median == np.median(inv[key.layers == 0]) > 0
+    pair = KeyPair(a, b, hand.k)
+    view = hand.pose(0.2, p0)
+    for shift, static in (([0, 0, 0], [0.0, 0.0]), ([0.004, 0, 0], [a, b])):
+        moved = View(view.rotation, np.add(view.centre, shift), view.layer_positions)
+        rho0 = pair.kernel_args(*pair.params(moved))[9]
+        want = [k if isinstance(k, float) else k.static_rho_median for k in static]
+        assert rho0[:, 0].tolist() == want
+
+
 def test_flow_bounds_are_the_formula_of_the_poses():
     """view_flow_bounds_px (one compiled pair at a time) against the formula in numpy:
     1.25 x (the largest move of the image's corners and edge midpoints under the
