@@ -433,7 +433,10 @@ class VideoSink:
         self.complete: bool | None = None  # set by finish
 
     def append(self, frame: np.ndarray) -> None:
-        """Write one RGB frame ``(H, W, 3)`` uint8 (every frame the first one's size)."""
+        """Write one RGB frame ``(H, W, 3)`` uint8 of an even width and height (H.264's
+        4:2:0 colour; every frame the first one's size)."""
+        import cv2
+
         frame = np.asarray(frame)
         if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
             raise ValueError(
@@ -441,6 +444,11 @@ class VideoSink:
                 f"{frame.dtype}"
             )
         size = (frame.shape[1], frame.shape[0])
+        if size[0] % 2 or size[1] % 2:
+            raise ValueError(
+                f"{self.path}: a video frame's width and height must be even (4:2:0 "
+                f"colour), got {size[0]}x{size[1]} px"
+            )
         if self._size is not None and size != self._size:
             raise ValueError(
                 f"{self.path}: frame of {size[0]}x{size[1]} px after frames of "
@@ -454,6 +462,9 @@ class VideoSink:
                 self._frames = imageio_ffmpeg.write_frames(
                     str(self.path),
                     size,
+                    # OpenCV makes the 4:2:0 planes: ffmpeg's own conversion from RGB
+                    # took 0.2 of its 0.59 s of CPU on 300 frames, OpenCV's 0.06 s
+                    pix_fmt_in="yuv420p",
                     fps=self.fps,
                     quality=None,  # the rate is set by -crf below
                     # libx264's "ultrafast" preset at CRF 28 on one thread: on 300
@@ -467,7 +478,7 @@ class VideoSink:
                     ffmpeg_timeout=self.close_timeout_s,
                 )
                 self._frames.send(None)  # starts ffmpeg
-            self._frames.send(np.ascontiguousarray(frame))
+            self._frames.send(cv2.cvtColor(np.ascontiguousarray(frame), cv2.COLOR_RGB2YUV_I420))
         except Exception as err:
             check_space(self.path, frame.nbytes)
             raise OutputError(self.path, err) from err

@@ -230,6 +230,8 @@ def test_video_sink_refuses_a_frame_of_another_size_or_type(tmp_path):
         sink.append(np.zeros((16, 32, 3), np.uint8))
     with pytest.raises(ValueError, match=r"must be \(H, W, 3\) uint8, got \(16, 16, 3\) float64"):
         sink.append(np.zeros((16, 16, 3)))
+    with pytest.raises(ValueError, match=r"v.mp4: .*width and height must be even .*got 17x15 px"):
+        VideoSink(tmp_path / "v.mp4", fps=10).append(np.zeros((15, 17, 3), np.uint8))
     assert sink.finish(None) is None
 
 
