@@ -195,7 +195,8 @@ def run_closed_loop(
     counters, the folder) and ``recorders`` (a study's or the rig's own: what their
     ``metrics()`` return is added to ``metrics.json``). The files are written as
     ``writing`` says (:class:`~experiments.runs.recorders.WriteParams`; ``None``: its
-    defaults, on a writer thread, events and Rerun rows every 100 ms of simulated time).
+    defaults, on a writer thread, events a chunk at a time, Rerun rows every 0.5 s of
+    simulated time).
 
     ``halt`` (the rig: halt the PTU; it must not raise) is called as soon as the loop ends
     on an error or a signal, before the video is closed and the folder written.

@@ -60,10 +60,12 @@ class WriteParams:
     ``queue_jobs`` writes waiting: the loop waits when it is that far ahead) or in the
     loop; the events and the Rerun rows in batches of ``batch_s`` simulated seconds (0:
     every step) or ``batch_events`` events, whichever comes first. The files are the
-    same either way (tested)."""
+    same either way (tested). Rerun rows in batches of 0.5 s rather than 0.1 s took the
+    writer 0.42-0.43 s of CPU instead of 0.59-0.60 s on a 10 s run (one column send per
+    entity and batch); the events' batches are a chunk of ``events.h5`` either way."""
 
     threaded: bool = True
-    batch_s: Annotated[float, pydantic.Field(ge=0)] = 0.1
+    batch_s: Annotated[float, pydantic.Field(ge=0)] = 0.5
     batch_events: Annotated[int, pydantic.Field(ge=1)] = 1 << 16
     queue_jobs: Annotated[int, pydantic.Field(ge=1)] = 32
 
