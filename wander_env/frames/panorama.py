@@ -191,6 +191,7 @@ class PanoramaFrames(FrameSource):
             cube_inverse_depth,
             cube_warp,
             cube_warp_srgb,
+            pixel_rays,
         )
 
         key = rotation.tobytes()
@@ -211,7 +212,8 @@ class PanoramaFrames(FrameSource):
             got = self._bg[key] = (lum, None)
         if depth and got[1] is None:
             rho = np.empty((stage.height, stage.width), np.float64)
-            cube_inverse_depth(rho, dist, FACE_ROTATIONS, rotation, f, cx, cy)
+            rays = pixel_rays(stage.width, stage.height, f, cx, cy)
+            cube_inverse_depth(rho, dist, FACE_ROTATIONS, rotation, *rays)
             got = self._bg[key] = (got[0], rho)
         return got
 

@@ -319,6 +319,10 @@ class PrimitiveCaster:
         self._cam = int(model.camera(CAMERA_NAME).id)
         self._tilt = int(model.joint(TILT_JOINT).id)
         self.k = intrinsics(width, height, float(model.cam_fovy[self._cam]))
+        from wander_env.frames.cube import pixel_rays
+
+        k = self.k
+        self._rays = pixel_rays(width, height, float(k[0, 0]), float(k[0, 2]), float(k[1, 2]))
         self.layer_lut = geom_layer_ids(model)
         groups = np.isin(model.geom_group, visible_groups)
         self._geoms = np.flatnonzero((self.layer_lut != 0) & groups)
@@ -373,9 +377,7 @@ class PrimitiveCaster:
             rho = self._static.get(key)
         if rho is None:
             rho = np.empty((self.height, self.width), np.float64)
-            k = self.k
-            f, cx, cy = float(k[0, 0]), float(k[0, 2]), float(k[1, 2])
-            cube_inverse_depth(rho, self._cube, FACE_ROTATIONS, rot, f, cx, cy)
+            cube_inverse_depth(rho, self._cube, FACE_ROTATIONS, rot, *self._rays)
             with self._static_lock:
                 if len(self._static) >= 8:
                     self._static.pop(next(iter(self._static)))

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from wander_env.camera import intrinsics
-from wander_env.frames.cube import FACE_ROTATIONS, cube_inverse_depth, cube_warp
+from wander_env.frames.cube import FACE_ROTATIONS, cube_inverse_depth, cube_warp, pixel_rays
 from wander_env.frames.keyframe_maths import View
 
 
@@ -83,7 +83,8 @@ def test_inverse_depth_of_a_sphere_of_distances() -> None:
     dist = np.full((6, 16, 16), 2.5, np.float32)
     k = intrinsics(8, 8, 90.0)
     out = np.empty((8, 8))
-    cube_inverse_depth(out, dist, FACE_ROTATIONS, _rotation(33.0, 5.0), k[0, 0], 3.5, 3.5)
+    rays = pixel_rays(8, 8, k[0, 0], 3.5, 3.5)
+    cube_inverse_depth(out, dist, FACE_ROTATIONS, _rotation(33.0, 5.0), *rays)
     ys, xs = np.mgrid[0:8, 0:8]
     want = np.sqrt(((xs - 3.5) / k[0, 0]) ** 2 + ((ys - 3.5) / k[0, 0]) ** 2 + 1) / 2.5
     assert np.allclose(out, want, rtol=1e-6)
