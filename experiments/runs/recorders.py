@@ -33,10 +33,11 @@ from experiments.analysis.metrics import detection_hit
 from experiments.runs.episode import Recorder
 from experiments.runs.folder import RunFolder
 from experiments.runs.signals import SignalExit
+from experiments.runs.video import VideoSink
 from experiments.runs.viewer import StepRow, open_run_log
 from wander_env.config import check_annotated
 from wander_env.entities import object_body_name
-from wander_env.events.stream import EventStreamWriter, H5Appender, VideoSink
+from wander_env.events.stream import EventStreamWriter, H5Appender
 
 __all__ = [
     "DetectionRecorder",

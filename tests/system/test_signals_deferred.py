@@ -35,10 +35,10 @@ from experiments.jobs.run_agent import VIDEO_FPS
 from experiments.runs.folder import RunFolder
 from experiments.runs.recorders import video_frames
 from experiments.runs.signals import DeferredSignals, SignalExit, handle_signals
+from experiments.runs.video import VideoSink, mp4_complete
 from hardware.rig_env import RigConfig
 from wander_env.env_config import WanderConfig
-from wander_env.events.io import read_events
-from wander_env.events.stream import OutputError, VideoSink, mp4_complete
+from wander_env.events.io import OutputError, read_events
 
 STOPPED = "SignalExit: stopped by SIGTERM (signal 15)"
 
