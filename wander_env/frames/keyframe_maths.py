@@ -124,7 +124,7 @@ class Keyframe:
     layers: np.ndarray  # (H, W) int32 motion layer of each pixel
     present: np.ndarray  # (L,) bool: the layer has pixels in this key
     boxes: np.ndarray  # (L, 4) int64 (y0, y1, x0, x1) of each layer's pixels
-    rho_median: np.ndarray  # (L,) median inverse depth of each moving layer's pixels; 0 at 0
+    rho_median: np.ndarray  # (L,) moving layers' median inverse depth; [0] is 0: see below
     rho_max: np.ndarray  # (L,) largest inverse depth of each layer's pixels
     static_taps: np.ndarray  # (H + 1, W + 1) bool, see :func:`_static_tap_map`
 
