@@ -118,6 +118,7 @@ class PanoramaFrames(FrameSource):
             stage, dvs, params, geometry_at_keys=True, frames_on_draw_side=False
         )
         self._cube: tuple[np.ndarray, np.ndarray] | None = None
+        self._rays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # with the cube
         self._offset = 0.0
         self._face_renderer: CameraRenderer | None = None  # the cube's, on the draw side
         self._hide = stage.layer_lut != 0
@@ -161,7 +162,7 @@ class PanoramaFrames(FrameSource):
 
     def build(self, t_us: int, angles: Angles) -> None:
         """Render the panorama from the camera centre at ``t_us`` and ``angles``."""
-        from wander_env.frames.cube import box_filter, render_cube
+        from wander_env.frames.cube import box_filter, pixel_rays, render_cube
 
         stage, pp = self.stage, self.panorama
         n = round(2 * float(stage.k[0, 0]) * pp.samples)
@@ -179,6 +180,8 @@ class PanoramaFrames(FrameSource):
         if pp.srgb and pp.prefilter:
             srgb, self._offset = box_filter(srgb, pp.samples)
         self._cube = (srgb if pp.srgb else lum, dist)
+        k = stage.k
+        self._rays = pixel_rays(stage.width, stage.height, k[0, 0], k[0, 2], k[1, 2])
         self._bg = {}
 
     def background(
@@ -191,7 +194,6 @@ class PanoramaFrames(FrameSource):
             cube_inverse_depth,
             cube_warp,
             cube_warp_srgb,
-            pixel_rays,
         )
 
         key = rotation.tobytes()
@@ -212,8 +214,7 @@ class PanoramaFrames(FrameSource):
             got = self._bg[key] = (lum, None)
         if depth and got[1] is None:
             rho = np.empty((stage.height, stage.width), np.float64)
-            rays = pixel_rays(stage.width, stage.height, f, cx, cy)
-            cube_inverse_depth(rho, dist, FACE_ROTATIONS, rotation, *rays)
+            cube_inverse_depth(rho, dist, FACE_ROTATIONS, rotation, *self._rays)
             got = self._bg[key] = (got[0], rho)
         return got
 
