@@ -72,7 +72,7 @@ def polarity_codes(counts: np.ndarray) -> np.ndarray:
     if counts.ndim < 3 or counts.shape[-3] != 2:
         raise ValueError(f"expected per-polarity counts of shape (2, H, W), got {counts.shape}")
     off, on = counts[..., 0, :, :], counts[..., 1, :, :]
-    return np.where(on >= off, np.uint8(ON_CODE) * (on > 0), off > 0).astype(np.uint8)
+    return np.where(on >= off, np.uint8(ON_CODE) * (on > 0), off > 0).astype(np.uint8, copy=False)
 
 
 def event_image(counts: np.ndarray) -> np.ndarray:
