@@ -70,6 +70,7 @@ __all__ = [
     "check_wait",
     "check_workers",
     "command_config",
+    "config_flag",
     "flag_keys",
     "flag_name",
     "int_list",
@@ -221,33 +222,40 @@ def _unset_or(check: Callable[[Any], Any]) -> Callable[[Any], Any]:
     return lambda value: None if value is None else check(value)
 
 
-SceneOpt = Annotated[
-    str | None,
-    typer.Option(
-        callback=_unset_or(check_scene),
-        help="office, gratings, shelf, hand, or a scene YAML file.",
-    ),
-    ConfigKey("env.scene"),
-]
-DvsOpt = Annotated[
-    str | None,
-    typer.Option(callback=_unset_or(check_dvs), help="DVS preset: ideal, paper or speck."),
-    ConfigKey("env.dvs"),
-]
+def config_flag(
+    kind: Any,
+    key: str,
+    help: str,
+    *names: str,
+    check: Callable[[Any], Any] | None = None,
+    negate: bool = False,
+    **option: Any,
+) -> Any:
+    """A job's flag that sets the config's ``key`` (:class:`ConfigKey`, ``negate`` as
+    there): of type ``kind`` or ``None``, its default, which leaves the config's value;
+    ``check`` checks a value given; ``names`` (e.g. ``"--hfov"``) and ``option`` go to its
+    ``typer.Option``: ``video: config_flag(bool, "video", "Write video.mp4.") = None``."""
+    if check is not None:
+        option["callback"] = _unset_or(check)
+    return Annotated[kind | None, typer.Option(*names, help=help, **option), ConfigKey(key, negate)]
+
+
+SceneOpt = config_flag(
+    str, "env.scene", "office, gratings, shelf, hand, or a scene YAML file.", check=check_scene
+)
+DvsOpt = config_flag(str, "env.dvs", "DVS preset: ideal, paper or speck.", check=check_dvs)
 
 
 def seconds_flag(help: str, key: str = "env.episode_seconds") -> Any:
     """A ``--seconds`` (checked: :func:`check_seconds`) that sets the config's ``key``, with
     a command's own help: ``seconds: seconds_flag("Simulated seconds per row.") = None``."""
-    return Annotated[
-        float | None, typer.Option(callback=_unset_or(check_seconds), help=help), ConfigKey(key)
-    ]
+    return config_flag(float, key, help, check=check_seconds)
 
 
 def seed_flag(help: str) -> Any:
     """A job's ``--seed``, which sets the config's ``seed``, with a command's own help:
     ``seed: seed_flag("Seed of the agent.") = None``."""
-    return Annotated[int | None, typer.Option(help=help), ConfigKey("seed")]
+    return config_flag(int, "seed", help)
 
 
 SecondsOpt = seconds_flag("Simulated seconds.")
@@ -271,75 +279,58 @@ ForceOpt = Annotated[
         "then swapped in: nothing of the earlier run remains).",
     ),
 ]
-WindowOpt = Annotated[
-    float | None,
-    typer.Option(
-        callback=_unset_or(check_window),
-        help="Fixation window St_w in seconds (agent.window_s; default: the config's).",
-    ),
-    ConfigKey("agent.window_s"),
-]
-FixationalOpt = Annotated[
-    bool | None,
-    typer.Option(
-        help="Fixational eye movements during fixations (agent.fixational; default: the config's)."
-    ),
-    ConfigKey("agent.fixational"),
-]
-StreamlinedOpt = Annotated[
-    bool | None,
-    typer.Option(
-        help="Streamlined proto-object model (V = V+ or V-, the paper's) instead of one "
-        "population per polarity (agent.proto.polarity_split = not streamlined; default: "
-        "the config's).",
-    ),
-    ConfigKey("agent.proto.polarity_split", negate=True),
-]
-VideoOpt = Annotated[
-    bool | None, typer.Option(help="Write run.mp4 (default: the config's)."), ConfigKey("video")
-]
-AgentAlphaOpt = Annotated[
-    float | None,
-    typer.Option(
-        min=0.0,
-        max=1.0,
-        help="sOMS threshold α of Eq. (1) (agent.soms.alpha; default: the config's, the "
-        "paper's table value).",
-    ),
-    ConfigKey("agent.soms.alpha"),
-]
-SomsNormOpt = Annotated[
-    str | None,
-    typer.Option(
-        "--soms-norm",
-        callback=one_of(("quantile", "minmax")),
-        help="sOMS norm: quantile (the agent's) or minmax (the paper-literal sOMS) "
-        "(agent.soms.norm; default: the config's).",
-    ),
-    ConfigKey("agent.soms.norm"),
-]
+WindowOpt = config_flag(
+    float,
+    "agent.window_s",
+    "Fixation window St_w in seconds (agent.window_s; default: the config's).",
+    check=check_window,
+)
+FixationalOpt = config_flag(
+    bool,
+    "agent.fixational",
+    "Fixational eye movements during fixations (agent.fixational; default: the config's).",
+)
+StreamlinedOpt = config_flag(
+    bool,
+    "agent.proto.polarity_split",
+    "Streamlined proto-object model (V = V+ or V-, the paper's) instead of one "
+    "population per polarity (agent.proto.polarity_split = not streamlined; default: "
+    "the config's).",
+    negate=True,
+)
+VideoOpt = config_flag(bool, "video", "Write run.mp4 (default: the config's).")
+AgentAlphaOpt = config_flag(
+    float,
+    "agent.soms.alpha",
+    "sOMS threshold α of Eq. (1) (agent.soms.alpha; default: the config's, the "
+    "paper's table value).",
+    min=0.0,
+    max=1.0,
+)
+SomsNormOpt = config_flag(
+    str,
+    "agent.soms.norm",
+    "sOMS norm: quantile (the agent's) or minmax (the paper-literal sOMS) "
+    "(agent.soms.norm; default: the config's).",
+    "--soms-norm",
+    check=one_of(("quantile", "minmax")),
+)
 
 
-FramesOpt = Annotated[
-    str | None,
-    typer.Option(help="How the env makes its frames: " + frame_modes_help() + "."),
-    ConfigKey("env.frames"),
-]
-QualityOpt = Annotated[
-    str | None,
-    typer.Option(
-        help="Rendering quality: fast (4 samples a pixel, as exact rendering) or fine "
-        "(16 samples a pixel: closer to the world, about 3x the rendering time).",
-    ),
-    ConfigKey("env.quality"),
-]
-KeyframeMsOpt = Annotated[
-    float | None,
-    typer.Option(
-        help="Key interval (ms) of --frames keyframes where the image motion has no bound."
-    ),
-    ConfigKey("env.keyframe_ms"),
-]
+FramesOpt = config_flag(
+    str, "env.frames", "How the env makes its frames: " + frame_modes_help() + "."
+)
+QualityOpt = config_flag(
+    str,
+    "env.quality",
+    "Rendering quality: fast (4 samples a pixel, as exact rendering) or fine "
+    "(16 samples a pixel: closer to the world, about 3x the rendering time).",
+)
+KeyframeMsOpt = config_flag(
+    float,
+    "env.keyframe_ms",
+    "Key interval (ms) of --frames keyframes where the image motion has no bound.",
+)
 ConfigFileOpt = Annotated[
     Path | None,
     typer.Option(

@@ -16,12 +16,12 @@ import typer
 from experiments.cli.console import console, print_table
 from experiments.cli.options import (
     ConfigFileOpt,
-    ConfigKey,
     KeyframeMsOpt,
     SceneOpt,
     SeedsOpt,
     SetOpt,
     command_config,
+    config_flag,
     int_list,
     seconds_flag,
     seed_flag,
@@ -87,27 +87,21 @@ def bench_env(
     seconds: seconds_flag(
         "Simulated seconds per row (default: the config's, 2).", "seconds"
     ) = None,
-    ground_truth: Annotated[
-        bool | None,
-        typer.Option(help="Render segmentation masks too (default: the config's, yes)."),
-        ConfigKey("env.ground_truth"),
-    ] = None,
-    antialias: Annotated[
-        int | None,
-        typer.Option(min=0, help="MSAA samples (overrides the scene's; 0 = off)."),
-        ConfigKey("env.antialias_samples"),
-    ] = None,
+    ground_truth: config_flag(
+        bool, "env.ground_truth", "Render segmentation masks too (default: the config's, yes)."
+    ) = None,
+    antialias: config_flag(
+        int, "env.antialias_samples", "MSAA samples (overrides the scene's; 0 = off).", min=0
+    ) = None,
     breakdown: Annotated[bool, typer.Option(help="Also time the parts of one env's step.")] = True,
     keyframe_ms: KeyframeMsOpt = None,
     envs: Annotated[str, typer.Option(help="Comma-separated env counts.")] = "1,2,4",
-    keyframe_px: Annotated[
-        float | None,
-        typer.Option(
-            min=0.01,
-            help="Motion bound (px) of the adaptive keys' column (default: the config's, 2).",
-        ),
-        ConfigKey("env.keyframe_px"),
-    ] = None,
+    keyframe_px: config_flag(
+        float,
+        "env.keyframe_px",
+        "Motion bound (px) of the adaptive keys' column (default: the config's, 2).",
+        min=0.01,
+    ) = None,
     config: ConfigFileOpt = None,
     set_: SetOpt = None,
 ) -> None:

@@ -28,6 +28,7 @@ from experiments.cli.options import (
     SetOpt,
     VideoOpt,
     command_config,
+    config_flag,
     option,
     resolve_out,
     seconds_flag,
@@ -104,30 +105,26 @@ def rig(
         ),
         ConfigKey("env.camera"),
     ],
-    replay: Annotated[
-        str | None,
-        typer.Option(
-            help="Replay pacing: 'fast' (windows advance in stream time, so every step's "
-            "events are fixed by the file; the default), 'stepped' (as 'fast', and the PTU's "
-            "commands and polls run in stream time too: a step returns with its exchanges "
-            "done) or "
-            "'realtime' (paced by the wall clock, like a live camera). Ignored for a Speck."
-        ),
-        ConfigKey("env.replay"),
-    ] = None,
+    replay: config_flag(
+        str,
+        "env.replay",
+        "Replay pacing: 'fast' (windows advance in stream time, so every step's "
+        "events are fixed by the file; the default), 'stepped' (as 'fast', and the PTU's "
+        "commands and polls run in stream time too: a step returns with its exchanges "
+        "done) or "
+        "'realtime' (paced by the wall clock, like a live camera). Ignored for a Speck.",
+    ) = None,
     seconds: seconds_flag(
         "Run length in seconds of camera time (default: the config's, 10)."
     ) = None,
-    hfov_deg: Annotated[
-        float | None,
-        typer.Option(
-            "--hfov",
-            help="The lens's horizontal field of view in degrees (default: the Speck's, "
-            "2·atan(5.12/3.4) = 112.8°). A recording from another camera (e.g. a DVS128) "
-            "needs its own lens's; run.json records the value used.",
-        ),
-        ConfigKey("env.hfov_deg"),
-    ] = None,
+    hfov_deg: config_flag(
+        float,
+        "env.hfov_deg",
+        "The lens's horizontal field of view in degrees (default: the Speck's, "
+        "2·atan(5.12/3.4) = 112.8°). A recording from another camera (e.g. a DVS128) "
+        "needs its own lens's; run.json records the value used.",
+        "--hfov",
+    ) = None,
     seed: seed_flag("Seed of the agent (walk, controller; default: 0).") = None,
     out: RunDirOpt = None,
     **shared: Any,

@@ -29,7 +29,6 @@ from experiments.cli.errors import long_command
 from experiments.cli.options import (
     AGENT_OPTIONS,
     FRAME_OPTIONS,
-    ConfigKey,
     DvsOpt,
     ForceOpt,
     RunDirOpt,
@@ -39,6 +38,7 @@ from experiments.cli.options import (
     VideoOpt,
     check_dvs,
     command_config,
+    config_flag,
     one_of,
     resolve_out,
     run_env_job,
@@ -62,14 +62,12 @@ def demo(
     seconds: seconds_flag(
         "Simulated seconds of the stimulus (default: the config's, 1).", "seconds"
     ) = None,
-    preset: Annotated[
-        str | None,
-        typer.Option(
-            callback=lambda value: None if value is None else check_dvs(value),
-            help="DVS preset: ideal, paper or speck (default: the config's, paper).",
-        ),
-        ConfigKey("preset"),
-    ] = None,
+    preset: config_flag(
+        str,
+        "preset",
+        "DVS preset: ideal, paper or speck (default: the config's, paper).",
+        check=check_dvs,
+    ) = None,
     seed: seed_flag("Seed of the stimulus and the emulator's noise (default: 0).") = None,
     force: ForceOpt = False,
     set_: SetOpt = None,
@@ -102,29 +100,23 @@ def record(
     out: RunDirOpt = None,
     scene: SceneOpt = None,
     seconds: SecondsOpt = None,
-    policy: Annotated[
-        str | None,
-        typer.Option(
-            callback=one_of(("still", "fixational", "saccades")),
-            help="still, fixational or saccades.",
-        ),
-        ConfigKey("policy"),
-    ] = None,
+    policy: config_flag(
+        str,
+        "policy",
+        "still, fixational or saccades.",
+        check=one_of(("still", "fixational", "saccades")),
+    ) = None,
     dvs: DvsOpt = None,
     seed: JobSeedOpt = None,
-    video: Annotated[
-        bool | None, typer.Option(help="Write video.mp4 (camera | events)."), ConfigKey("video")
-    ] = None,
-    format: Annotated[
-        str | None,
-        typer.Option(
-            "--format",
-            callback=one_of(("h5", "aedat4", "evt3", "evimo2")),
-            help="Events as h5, aedat4 or evt3 (.raw); or evimo2: the EVIMO2v2 layout "
-            "(events + per-step masks) that `wander benchmark evimo` scores.",
-        ),
-        ConfigKey("format"),
-    ] = None,
+    video: config_flag(bool, "video", "Write video.mp4 (camera | events).") = None,
+    format: config_flag(
+        str,
+        "format",
+        "Events as h5, aedat4 or evt3 (.raw); or evimo2: the EVIMO2v2 layout "
+        "(events + per-step masks) that `wander benchmark evimo` scores.",
+        "--format",
+        check=one_of(("h5", "aedat4", "evt3", "evimo2")),
+    ) = None,
     **shared: Any,
 ) -> None:
     """Record events, ground truth and a video of the env under a simple gaze policy.
@@ -154,15 +146,13 @@ def run_agent(
     seed: JobSeedOpt = None,
     dvs: DvsOpt = None,
     video: VideoOpt = None,
-    video_fps: Annotated[
-        int | None,
-        typer.Option(
-            callback=_check_video_fps,
-            help="run.mp4's frames per simulated second (a frame is composed only when "
-            "due; default: the config's, 25).",
-        ),
-        ConfigKey("video_fps"),
-    ] = None,
+    video_fps: config_flag(
+        int,
+        "video_fps",
+        "run.mp4's frames per simulated second (a frame is composed only when "
+        "due; default: the config's, 25).",
+        check=_check_video_fps,
+    ) = None,
     config: Annotated[
         Path | None,
         typer.Option(
