@@ -57,6 +57,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
+from wander_env.file_error import FileError
+
 if TYPE_CHECKING:  # (zipfile and ElementTree are imported where used: config.py imports this)
     import xml.etree.ElementTree as ET
 
@@ -157,25 +159,18 @@ def limits_table(limits: FileLimits = LIMITS) -> str:
     return "\n".join(["| cap | value | why |", "|---|---|---|", *rows])
 
 
-class UntrustedFileError(ValueError):
+@dataclass(eq=False, repr=False)
+class UntrustedFileError(FileError):
     """A file refused: one line, ``FILE: [field: ]what is wrong``; ``missing`` when there
     is no such file, ``kind`` what it is when it is not a regular file ("a folder", ...)."""
 
-    def __init__(
-        self,
-        path: str | os.PathLike,
-        problem: str,
-        field: str | None = None,
-        missing: bool = False,
-        kind: str | None = None,
-    ) -> None:
-        self.path = str(path)
-        self.problem = problem
-        self.field = field
-        self.missing = missing
-        self.kind = kind
-        where = f"{field}: " if field else ""
-        super().__init__(" ".join(f"{self.path}: {where}{problem}".split()))
+    missing: bool = False
+    kind: str | None = None
+
+    def message(self) -> str:
+        """``FILE: [FIELD: ]PROBLEM``, its white space folded to single spaces."""
+        where = f"{self.field}: " if self.field else ""
+        return " ".join(f"{self.path}: {where}{self.problem}".split())
 
 
 class FileRecord(NamedTuple):

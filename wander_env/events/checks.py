@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from wander_env.events import EVENT_DTYPE, SensorSize
+from wander_env.file_error import FileError
 
 #: The largest sensor side a reader accepts unless its caller raises the limit.
 MAX_SENSOR_SIDE = 8192
@@ -60,22 +61,17 @@ CHUNK_EVENTS = 1 << 20
 _FIELDS = ("x", "y", "t", "p")
 
 
-class EventFileError(ValueError):
-    """An event file could not be read: names the file, the field and what was wrong."""
+@dataclass(eq=False, repr=False)
+class EventFileError(FileError):
+    """An event file could not be read: names the file, the field and what was wrong (the
+    offending ``value``)."""
 
-    def __init__(
-        self,
-        path: str | os.PathLike,
-        problem: str,
-        field: str | None = None,
-        value: Any = None,
-    ) -> None:
-        self.path = str(path)
-        self.problem = problem
-        self.field = field
-        self.value = value
-        where = f"field {field!r}: " if field is not None else ""
-        super().__init__(f"{self.path}: {where}{problem}")
+    value: Any = None
+
+    def message(self) -> str:
+        """``FILE: field 'FIELD': PROBLEM``."""
+        where = f"field {self.field!r}: " if self.field is not None else ""
+        return f"{self.path}: {where}{self.problem}"
 
 
 def check_sensor_size(

@@ -258,7 +258,7 @@ def test_the_simulator_names_no_floor_above_it_even_as_a_string():
 
 #: The only modules of ``wander_env`` outside ``wander_env.events`` that the event library
 #: may import: small helpers that import nothing of ours (checked below) and no simulator.
-EVENTS_MAY_IMPORT = ("wander_env.strict_json", "wander_env.closing")
+EVENTS_MAY_IMPORT = ("wander_env.strict_json", "wander_env.closing", "wander_env.file_error")
 
 
 def test_the_event_library_stands_on_its_own():
@@ -322,6 +322,7 @@ def test_reading_and_writing_events_loads_no_simulator():
         "wander_env.events.formats",
         "wander_env.events.io",
         "wander_env.events.stream",
+        "wander_env.file_error",
         "wander_env.strict_json",
     ]
     heavy = ("mujoco", "torch", "gymnasium.envs.mujoco", "numba", "sinabs", "nengo", "cv2")
