@@ -183,10 +183,9 @@ def evt3_event_count(words: np.ndarray) -> int:
 
 
 def read_prophesee_raw(
-    path: Path, sensor_size: SensorSize | None = None, limits: ReadLimits | None = None
+    path: Path, sensor_size: SensorSize | None, limits: ReadLimits
 ) -> EventRecording:
     """Prophesee ``.raw``: EVT 3.0 through ``evt3``, EVT 2.0 through ``faery``."""
-    limits = limits or ReadLimits()
     data = path.read_bytes()
     fields, start = prophesee_header(data)
     version = _evt_version(fields)
@@ -269,11 +268,8 @@ def _checked(path: Path, columns: dict[str, np.ndarray]) -> dict[str, np.ndarray
     return {k: np.asarray(v) for k, v in columns.items()}
 
 
-def read_dat(
-    path: Path, sensor_size: SensorSize | None = None, limits: ReadLimits | None = None
-) -> EventRecording:
+def read_dat(path: Path, sensor_size: SensorSize | None, limits: ReadLimits) -> EventRecording:
     """Prophesee DAT 2 (CD events) through ``faery``."""
-    limits = limits or ReadLimits()
     import faery
 
     data = path.read_bytes()
