@@ -132,6 +132,15 @@ class WanderEnv(CameraEnv):
         """Colour frames rendered in the last step (or reset)."""
         return self.stage.renders
 
+    def warm_up(self) -> None:
+        """Start what the first reset would wait for: the draw side's GL contexts
+        (:meth:`~wander_env.frames.Stage.warm_up`) and numba's compiler with the DVS's
+        kernels (about 0.3 s at a process's first numba call), on the render thread while
+        the caller goes on. Only for a caller that keeps this process: a process forked
+        after it cannot draw."""
+        self.stage.warm_up()
+        self.stage.submit(self.dvs.prepare, np.zeros((self.height, self.width, 3), np.uint8))
+
     # -- pickling: the configuration, not the GL context --------------------------------
     def __getstate__(self) -> dict[str, Any]:
         return {"render_mode": self.render_mode, "config": self.config}

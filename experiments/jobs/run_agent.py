@@ -543,6 +543,7 @@ def run(
     env = None
     try:
         env = gym.make("wander/Wander-v0", **config.env)
+        env.unwrapped.warm_up()  # its GL contexts and kernels while the agent is built
         agent = AttentionAgent(config.agent_params(env), seed=config.seed)
     except KeyboardInterrupt as stop:  # Ctrl-C or a signal while setting up
         _stopped_in_setup(Path(out_dir), config, record, stop)

@@ -42,6 +42,7 @@ __all__ = [
     "FACE_ROTATIONS",
     "box_filter",
     "cube_inverse_depth",
+    "cube_renderer",
     "cube_warp",
     "cube_warp_srgb",
     "pixel_rays",
@@ -249,6 +250,19 @@ def _hidden_groups(model: mujoco.MjModel, hide: np.ndarray, group: int):
     return ctx()
 
 
+def cube_renderer(
+    model: mujoco.MjModel, n: int, renderer: CameraRenderer | None = None
+) -> CameraRenderer:
+    """The renderer of :func:`render_cube`'s ``n × n`` faces: ``renderer`` where it is
+    one of that size, else a new one (a GL context of its own), the model's offscreen
+    buffer grown to fit."""
+    glob = model.vis.global_
+    glob.offwidth, glob.offheight = max(glob.offwidth, n), max(glob.offheight, n)
+    if renderer is None or renderer.width != n:
+        renderer = CameraRenderer(model, n, n, params=RenderParams(visible_geom_groups=(0, 1, 2)))
+    return renderer
+
+
 def render_cube(
     model: mujoco.MjModel,
     data: mujoco.MjData,
@@ -271,10 +285,7 @@ def render_cube(
     if headlight not in ("camera", "face", "off"):
         raise ValueError(f"headlight must be 'camera', 'face' or 'off', got {headlight!r}")
     cam = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, CAMERA_NAME)
-    glob = model.vis.global_
-    glob.offwidth, glob.offheight = max(glob.offwidth, n), max(glob.offheight, n)
-    if renderer is None or renderer.width != n:
-        renderer = CameraRenderer(model, n, n, params=RenderParams(visible_geom_groups=(0, 1, 2)))
+    renderer = cube_renderer(model, n, renderer)
     lut = srgb_to_linear(np.arange(256) / 255.0)
     wlut = (LUMA[:, None] * lut[None, :]).astype(np.float32)
     lum = np.empty((6, n, n), np.float32)

@@ -51,7 +51,7 @@ import math
 import os
 import threading
 from dataclasses import dataclass
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import mujoco
 import numba
@@ -63,6 +63,9 @@ from wander_env.entities import TILT_JOINT
 from wander_env.field_doc import field_doc
 from wander_env.gl_fork import ForkedGLError, fork_error_message
 from wander_env.mjcf import geom_layer_ids
+
+if TYPE_CHECKING:
+    from wander_env.renderer import CameraRenderer
 
 __all__ = [
     "CAST_GEOM_TYPES",
@@ -353,25 +356,36 @@ class PrimitiveCaster:
         may cast (each with its own posed data)."""
         return self._cube is not None
 
+    def cube_renderer(self) -> CameraRenderer:
+        """(Where it renders.) The static cube's renderer, created on first use (a GL
+        context of its own: about 0.1 s the first time in a process); a caller may make
+        it ahead of the first cast (:meth:`wander_env.frames.Stage.warm_up`)."""
+        from wander_env.frames.cube import cube_renderer
+
+        if self._renderer is not None and self._renderer_pid != os.getpid():
+            raise ForkedGLError(fork_error_message(self._renderer_pid, os.getpid()))
+        n = round(2 * float(self.k[0, 0]) * self.params.cube_samples)
+        self._renderer = cube_renderer(self.model, n, self._renderer)
+        self._renderer_pid = os.getpid()
+        return self._renderer
+
     def _static_rho(self, data: mujoco.MjData, rot: np.ndarray) -> np.ndarray:
         """The static world's inverse depth (H, W) with the camera's rotation ``rot``
         from the cube's centre (the cube rendered on first use after a reset)."""
         from wander_env.frames.cube import FACE_ROTATIONS, cube_inverse_depth, render_cube
 
         if self._cube is None:
-            if self._renderer is not None and self._renderer_pid != os.getpid():
-                raise ForkedGLError(fork_error_message(self._renderer_pid, os.getpid()))
-            n = round(2 * float(self.k[0, 0]) * self.params.cube_samples)
+            renderer = self.cube_renderer()
             saved = data.cam_xpos[self._cam].copy()
             self._cube_centre = data.xanchor[self._tilt].copy()
             data.cam_xpos[self._cam] = self._cube_centre
             try:
-                _, _, dist, self._renderer = render_cube(
-                    self.model, data, n, self.layer_lut != 0, "off", self._renderer
+                _, _, dist, _ = render_cube(
+                    self.model, data, renderer.width, self.layer_lut != 0, "off", renderer
                 )
             finally:
                 data.cam_xpos[self._cam] = saved
-            self._cube, self._static, self._renderer_pid = dist, {}, os.getpid()
+            self._cube, self._static = dist, {}
         key = rot.tobytes()
         with self._static_lock:  # (the main thread casts a key's geometry too)
             rho = self._static.get(key)

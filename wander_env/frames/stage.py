@@ -25,7 +25,8 @@ Two sides, two ``MjData``:
   :attr:`Stage.data`): the main thread's data, where only the PTU's joints move (views
   for the frame sources, the camera for the ground truth's projection).
 
-The renderer (and the thread) are created on first use, in the process that renders; in
+The renderer (and the thread) are created on first use (or by :meth:`Stage.warm_up`), in
+the process that renders; in
 a process forked after that, drawing raises :class:`~wander_env.gl_fork.ForkedGLError`
 (see :mod:`wander_env.gl_fork`); :meth:`Stage.close` joins the thread.
 
@@ -131,6 +132,19 @@ class Stage:
         self._animator = animator
         self._posed = None
         self.begin_step()
+
+    def warm_up(self) -> Future[None]:
+        """Make the draw side's GL contexts now (the renderer's and the caster's: about
+        0.1 s each, the first in a process) instead of at the first reset; with the
+        render thread in the background, while the caller goes on. Only for a caller
+        that keeps this process: a process forked after it cannot draw
+        (:mod:`wander_env.gl_fork`)."""
+        return self.submit(self._warm_up)
+
+    def _warm_up(self) -> None:
+        self._the_renderer()
+        if self.casts("ground_truth") or self.casts("key_layers"):
+            self.caster.cube_renderer()
 
     def begin_step(self) -> None:
         """A step's (or reset's) start: the draw counters back to zero (work ahead keeps

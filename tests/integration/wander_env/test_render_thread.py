@@ -28,10 +28,12 @@ def _render_threads() -> set[threading.Thread]:
     return {t for t in threading.enumerate() if t.name.startswith("wander-render")}
 
 
-def _trace(frames: str, render_thread: bool) -> list[tuple]:
+def _trace(frames: str, render_thread: bool, warm_up: bool = False) -> list[tuple]:
     before = _render_threads()
     env = gym.make("wander/Wander-v0", scene="office", frames=frames, render_thread=render_thread)
     u = env.unwrapped
+    if warm_up:
+        u.warm_up()
     try:
         _, info = env.reset(seed=2)
         out = [(info["object_mask"].tobytes(), u.renders_in_step, u.camera_frame.tobytes())]
@@ -66,6 +68,37 @@ def test_the_render_thread_changes_nothing_but_where_the_drawing_runs(frames: st
     assert sum(len(s[0]) for s in off[1:]) > 0  # events were made
     assert on == off
     assert _render_threads() <= before  # close() joined it
+
+
+def test_warm_up_makes_the_gl_contexts_before_the_reset_and_changes_no_event(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``warm_up`` makes both GL contexts (the renderer's, the caster's cube's) on the
+    render thread before the first reset, which then makes none; every step's events,
+    mask, counts and camera frame are those of an env not warmed up, byte for byte."""
+    from wander_env.renderer import CameraRenderer
+
+    made: list[tuple[int, int, str]] = []
+    init = CameraRenderer.__init__
+
+    def counted(self, model, width, height, *args, **kwargs) -> None:
+        init(self, model, width, height, *args, **kwargs)
+        made.append((width, height, threading.current_thread().name))
+
+    monkeypatch.setattr(CameraRenderer, "__init__", counted)
+    env = gym.make("wander/Wander-v0", scene="office")
+    try:
+        env.unwrapped.warm_up()
+        env.unwrapped.stage.drain()
+        stage = env.unwrapped.stage  # the cube's faces: cube_samples x 2f a side
+        n = round(2 * stage.k[0, 0] * stage.caster.params.cube_samples)
+        assert made == [(128, 128, "wander-render"), (n, n, "wander-render")]
+        env.reset(seed=2)
+        env.step(ACTIONS[0])
+        assert len(made) == 2
+    finally:
+        env.close()
+    assert _trace("keyframes", True, warm_up=True) == _trace("keyframes", True)
 
 
 def _ahead_trace(actions: list[np.ndarray], draw_ahead: bool) -> tuple[list, list, int, int]:
