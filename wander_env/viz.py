@@ -21,6 +21,18 @@ OFF_RGB = (30, 60, 220)
 BACKGROUND_RGB = (255, 255, 255)
 
 
+def pyplot() -> Any:
+    """matplotlib's ``pyplot`` on its Agg backend: every plot of wander is drawn off
+    screen and written to a file (:func:`save_figure`). Imported here, when a plot is
+    made, so that a command that draws none does not pay for it."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
 def save_figure(
     fig: Any, path: Path, dpi: int = 110, rect: tuple[float, float, float, float] | None = None
 ) -> Path:

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from wander_env.viz import event_image, legend_below, polarity_patches, save_figure
+from wander_env.viz import event_image, legend_below, polarity_patches, pyplot, save_figure
 
 __all__ = ["WindowSampler", "WindowView", "plot_maps_vs_masks"]
 
@@ -97,10 +97,7 @@ def _box(ax: Any, point: tuple[float, float] | None, box: int, colour: str) -> N
 
 def plot_maps_vs_masks(path: Path, views: list[WindowView], title: str, box: int = 8) -> Path:
     """Write the figure (one row per window) to ``path``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     from matplotlib.patches import Patch
 
     if not views:

@@ -19,7 +19,7 @@ import numpy as np
 from experiments.jobs.synthetic import disc_over_texture
 from wander_env.dvs import DVSEmulator, DVSParams
 from wander_env.events import concatenate, time_window, to_frame
-from wander_env.viz import event_image, legend_below, polarity_patches, save_figure
+from wander_env.viz import event_image, legend_below, polarity_patches, pyplot, save_figure
 
 
 @dataclass(frozen=True)
@@ -49,10 +49,7 @@ def plot_event_panels(
 ) -> Path:
     """``events.png``: ``config.panels`` event frames of ``config.panel_ms`` each (red ON,
     blue OFF), every panel titled with its time span, axes in pixels, an ON/OFF legend."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     from matplotlib.patches import Patch
 
     w, h = size[0], size[1]

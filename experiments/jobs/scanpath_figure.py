@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from wander_env.camera import field_of_view_deg, world_angles_to_pixels
-from wander_env.viz import save_figure
+from wander_env.viz import pyplot, save_figure
 
 
 @dataclass(frozen=True)
@@ -164,10 +164,7 @@ def plot_scanpath(
     the salient points are drawn in the sensor's frame (:func:`draw_sensor_frame`),
     this text saying why.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     panels = 2 if gaze_trace is not None and len(gaze_trace) else 1
     fig, axes = plt.subplots(1, panels, figsize=(7.2 * panels, 5.8), squeeze=False)

@@ -41,7 +41,7 @@ from wander_env.env_config import SceneName, WanderConfig
 from wander_env.events import concatenate
 from wander_env.ptu.params import PTUParams
 from wander_env.ptu.units import FLIR_RESOLUTION_ARCSEC
-from wander_env.viz import save_figure
+from wander_env.viz import pyplot, save_figure
 
 __all__ = [
     "EXPERIMENT",
@@ -298,10 +298,7 @@ def plot(
     cfg: DetectionConfig, rows: list[study.Row], results_dir: Path, fig_dir: Path
 ) -> list[Path]:
     """Accuracy (with / without proto-objects) and OMS-map scores against camera speed."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig_dir.mkdir(parents=True, exist_ok=True)
     scenes = list(dict.fromkeys(str(r["scene"]) for r in rows))

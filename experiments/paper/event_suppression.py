@@ -83,7 +83,7 @@ from wander_env.camera import focal_length_px
 from wander_env.env_config import WanderConfig
 from wander_env.scene_config import SceneConfig
 from wander_env.trajectories import LinearBounceParams
-from wander_env.viz import save_figure
+from wander_env.viz import pyplot, save_figure
 
 __all__ = [
     "EXPERIMENT",
@@ -479,10 +479,7 @@ def plot(
     trial, its phases shaded; beside it, per phase over all trials, the events
     suppressed, the hand's and the background's kept and the hand hit with 95 %
     intervals."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     from matplotlib.patches import Patch
 
     fig_dir.mkdir(parents=True, exist_ok=True)

@@ -50,7 +50,7 @@ from experiments.studies import framework as study
 from wander_env.env_config import WanderConfig
 from wander_env.scene_config import GRATING_MODES
 from wander_env.scenes import assets_dir
-from wander_env.viz import save_figure
+from wander_env.viz import pyplot, save_figure
 
 __all__ = [
     "EXPERIMENT",
@@ -463,10 +463,7 @@ def plot(
 ) -> list[Path]:
     """MFR and ISI per condition (Figures OMSMFRISI, sigmakernels), events kept in the
     patch and the background, and example event / OMS maps (Figure OMSchar)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig_dir.mkdir(parents=True, exist_ok=True)
     paths = []

@@ -66,7 +66,7 @@ from experiments.paper.oms_stimuli import (
     split,
 )
 from experiments.studies import framework as study
-from wander_env.viz import save_figure
+from wander_env.viz import pyplot, save_figure
 
 __all__ = ["EXPERIMENT", "OMSScorecardConfig", "variants"]
 
@@ -462,10 +462,7 @@ def plot(
     cfg: OMSScorecardConfig, rows: list[study.Row], results_dir: Path, fig_dir: Path
 ) -> list[Path]:
     """Bars of the family's figures per claim group, both variants, held-out half."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     row = next((r for r in rows if r["part"] == "family-test"), None)
     if row is None:

@@ -35,7 +35,7 @@ from wander_env.env_config import WanderConfig
 from wander_env.ptu.axis import move_duration, peak_speed
 from wander_env.ptu.params import PTUParams
 from wander_env.ptu.units import degrees_to_positions
-from wander_env.viz import save_figure
+from wander_env.viz import pyplot, save_figure
 
 __all__ = [
     "MIN_FIT_AMPLITUDES",
@@ -236,10 +236,7 @@ def plot(
     """Amplitude against peak velocity and duration, one series per (row, its PTU, its
     :func:`measure` artifacts), with the PTU's trapezoid and the row's fits, into
     ``path``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     amps = np.linspace(0.5, max_amplitude_deg, 100)

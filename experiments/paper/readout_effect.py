@@ -42,6 +42,7 @@ import numpy as np
 from experiments.analysis.stats import ci_text, mean_ci
 from experiments.paper.event_suppression_protocol import Shake
 from wander_env.readout import LOST
+from wander_env.viz import pyplot
 
 __all__ = [
     "CASES",
@@ -218,10 +219,7 @@ PARTS: tuple[tuple[str, tuple[str, ...], str], ...] = (
 def figure(results: Sequence[CaseResult], path: Path, seeds: int, seconds: float) -> None:
     """A stacked bar per case and preset: the share of the events in that the readout
     delivered, dropped, filtered and held at the episode's end (means over seeds)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     groups: dict[tuple[str, str], list[CaseResult]] = {}
     for r in results:

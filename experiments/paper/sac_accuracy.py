@@ -57,7 +57,7 @@ from wander_env.camera import cast_pixel, degrees_to_pixels
 from wander_env.env_config import WanderConfig
 from wander_env.ptu.params import PTUParams
 from wander_env.renderer import project_points
-from wander_env.viz import save_figure
+from wander_env.viz import pyplot, save_figure
 
 __all__ = [
     "EXPERIMENT",
@@ -294,10 +294,7 @@ def plot(
 ) -> list[Path]:
     """Displacements (dx, dy) of every trial per condition, and mean |dx|, |dy| beside the
     paper's."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig_dir.mkdir(parents=True, exist_ok=True)
     conditions = list(dict.fromkeys(str(r["condition"]) for r in rows))

@@ -44,7 +44,7 @@ from experiments.studies import framework as study
 from wander_env.camera import SPECK_HFOV_DEG, pixels_to_degrees
 from wander_env.env_config import PtuPreset, SceneName, WanderConfig
 from wander_env.ptu.params import PTUParams
-from wander_env.viz import save_figure
+from wander_env.viz import pyplot, save_figure
 
 __all__ = [
     "EXPERIMENT",
@@ -446,10 +446,7 @@ def plot(
 ) -> list[Path]:
     """The main sequence (amplitude vs peak velocity and duration) per PTU setting, with
     the PTU's trapezoid; and each measure against each factor."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig_dir.mkdir(parents=True, exist_ok=True)
     series = []

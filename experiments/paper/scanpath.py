@@ -74,7 +74,7 @@ from experiments.paper.scanpath_recorder import ScanpathRecorder
 from experiments.studies import framework as study
 from wander_env.camera import SPECK_HFOV_DEG, focal_length_px, pixel_to_world_angles
 from wander_env.env_config import SceneName, WanderConfig
-from wander_env.viz import save_figure
+from wander_env.viz import pyplot, save_figure
 
 __all__ = [
     "EXPERIMENT",
@@ -372,10 +372,7 @@ def plot(
     object, red off), a bar chart of the statistics, and the fixation tables
     ``results_dir/fixations/*.csv`` (:func:`experiments.analysis.scanpath_stats.write_fixations`,
     with each fixation's ``aoi``)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig_dir.mkdir(parents=True, exist_ok=True)
     scenes = list(dict.fromkeys(str(r["scene"]) for r in rows))
@@ -457,10 +454,7 @@ def plot_statistics(cfg: ScanpathConfig, rows: list[study.Row], path: Path) -> P
     """Bars of the per-trial statistics per scene and condition: the mean over the
     repeats with its bootstrap 95 % interval, and on the hit-rate panel the
     fixational − saccades test (paired by seed: permutation p, d_z)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     from experiments.paper.scanpath_analysis import cells, condition_tests
 

@@ -38,7 +38,7 @@ from experiments.analysis.stats import mean_ci
 from experiments.paper.oms_family import Measure, group_of, measure
 from experiments.paper.oms_stimuli import Stimulus
 from experiments.studies.framework import Row
-from wander_env.viz import legend_below, save_figure
+from wander_env.viz import legend_below, pyplot, save_figure
 
 __all__ = [
     "Cost",
@@ -218,10 +218,7 @@ def table(costs: Sequence[Cost]) -> str:
 
 def plot(costs: Sequence[Cost], path: Path, note: str = "") -> Path:
     """Both front ends' figures side by side with their 95 % intervals, one row each."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     y = np.arange(len(costs))
     fig, ax = plt.subplots(figsize=(10, 0.45 * len(costs) + 1.8))

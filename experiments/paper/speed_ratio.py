@@ -30,7 +30,7 @@ import numpy as np
 
 from experiments.analysis.stats import mean_ci
 from experiments.studies.framework import Row
-from wander_env.viz import save_figure
+from wander_env.viz import pyplot, save_figure
 
 __all__ = ["RATIO", "VARIANTS", "Point", "crossing", "curve", "plot", "table"]
 
@@ -161,10 +161,7 @@ def plot(rows: Sequence[Row], path: Path, shake_px_s: float) -> Path:
     """Hit rate, suppression, background's and hand's events kept against the ratio (log
     axis), both sOMS and both amplitudes, 95 % intervals; ratio 1 and the 50 / 90 % levels
     marked."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     amps = sorted({float(r[AMPLITUDE]) for r in rows})
     ratios = sorted({float(r[RATIO]) for r in rows})

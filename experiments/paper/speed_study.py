@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from experiments.analysis.stats import mean_ci
-from wander_env.viz import save_figure
+from wander_env.viz import pyplot, save_figure
 
 __all__ = ["PANELS", "Surface", "plot_surfaces", "surface"]
 
@@ -98,10 +98,7 @@ def surface(rows: Sequence[dict[str, Any]], x: str, y: str, measure: str) -> Sur
 def plot_surfaces(rows: Sequence[dict[str, Any]], path: Path, title: str = "") -> Path:
     """The :data:`PANELS` as heat maps (a colour bar each; in each cell its mean, 95 %
     bootstrap interval and trial count), into ``path``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, axes = plt.subplots(2, 2, figsize=(11.5, 9.0), squeeze=False)
     for ax, (measure, label, fx, fy) in zip(axes.ravel(), PANELS, strict=True):
