@@ -234,7 +234,7 @@ def config_flag(
     """A job's flag that sets the config's ``key`` (:class:`ConfigKey`, ``negate`` as
     there): of type ``kind`` or ``None``, its default, which leaves the config's value;
     ``check`` checks a value given; ``names`` (e.g. ``"--hfov"``) and ``option`` go to its
-    ``typer.Option``: ``video: config_flag(bool, "video", "Write video.mp4.") = None``."""
+    ``typer.Option``: ``video: config_flag(bool, "video", "Write run.mp4.") = None``."""
     if check is not None:
         option["callback"] = _unset_or(check)
     return Annotated[kind | None, typer.Option(*names, help=help, **option), ConfigKey(key, negate)]
