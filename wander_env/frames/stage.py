@@ -26,9 +26,9 @@ Two sides, two ``MjData``:
   for the frame sources, the camera for the ground truth's projection).
 
 The renderer (and the thread) are created on first use (or by :meth:`Stage.warm_up`), in
-the process that renders; in
-a process forked after that, drawing raises :class:`~wander_env.gl_fork.ForkedGLError`
-(see :mod:`wander_env.gl_fork`); :meth:`Stage.close` joins the thread.
+the process that renders; in a process forked after that, drawing raises
+:class:`~wander_env.gl_fork.ForkedGLError` (see :mod:`wander_env.gl_fork`);
+:meth:`Stage.close` joins the thread.
 
 Where every moving object is a primitive, :attr:`Stage.caster`
 (:mod:`wander_env.frames.raycast`) makes the object masks and the keys' layers and depth
