@@ -24,7 +24,7 @@ import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
 from experiments.perf.clock import LOAD_COLUMN, Clock
-from wander_env.frames.cube import FACE_ROTATIONS, cube_warp
+from wander_env.frames.cube import cube_warp
 
 FLOOR_COLUMNS: dict[str, str] = {
     "part": "",
@@ -216,7 +216,7 @@ def render_floor(
             add(
                 f"cube-map warp (faces {n}x{n}): {what} a pixel",
                 lambda i, faces=faces, s=s, b=bilinear: cube_warp(
-                    out, faces, FACE_ROTATIONS, _pan(0.01 * i), f, (w - 1) / 2, (h - 1) / 2, s, b
+                    out, faces, _pan(0.01 * i), f, (w - 1) / 2, (h - 1) / 2, s, b
                 ),
                 "numba, rotation per tick",
             )

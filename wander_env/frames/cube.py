@@ -21,7 +21,7 @@ Examples:
     >>> import numpy as np
     >>> faces = np.stack([np.full((4, 4), i, np.float32) for i in range(6)])
     >>> out = np.empty((3, 3), np.float32)
-    >>> cube_warp(out, faces, FACE_ROTATIONS, np.eye(3), 1.0, 1.0, 1.0, 1, False)
+    >>> cube_warp(out, faces, np.eye(3), 1.0, 1.0, 1.0, 1, False)
     >>> int(out[1, 1])  # the centre ray looks along the camera's +z: face 4
     4
 """
@@ -71,24 +71,30 @@ FACE_ROTATIONS: np.ndarray = _face_rotations()
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _face_pixel(d0, d1, d2, face_rot, half):
-    """(face, x, y) of the world direction ``d`` on a cube of faces ``2·half`` wide."""
+def _face_pixel(d0, d1, d2, half):
+    """(face, x, y) of the world direction ``d`` on a cube of faces ``2·half`` wide:
+    ``c``, ``d`` in the face's axes (``FACE_ROTATIONS[face].T @ d``), written out per face
+    (each rotation only permutes and negates axes, so this is the same arithmetic)."""
     a0, a1, a2 = abs(d0), abs(d1), abs(d2)
     if a0 >= a1 and a0 >= a2:
-        face = 0 if d0 > 0 else 1
+        if d0 > 0:
+            face, c0, c1, c2 = 0, -d1, -d2, d0
+        else:
+            face, c0, c1, c2 = 1, d1, -d2, -d0
     elif a1 >= a2:
-        face = 2 if d1 > 0 else 3
+        if d1 > 0:
+            face, c0, c1, c2 = 2, d0, -d2, d1
+        else:
+            face, c0, c1, c2 = 3, -d0, -d2, -d1
+    elif d2 > 0:
+        face, c0, c1, c2 = 4, d0, d1, d2
     else:
-        face = 4 if d2 > 0 else 5
-    r = face_rot[face]
-    c0 = r[0, 0] * d0 + r[1, 0] * d1 + r[2, 0] * d2
-    c1 = r[0, 1] * d0 + r[1, 1] * d1 + r[2, 1] * d2
-    c2 = r[0, 2] * d0 + r[1, 2] * d1 + r[2, 2] * d2
+        face, c0, c1, c2 = 5, d0, -d1, -d2
     return face, half * (c0 / c2 + 1.0) - 0.5, half * (c1 / c2 + 1.0) - 0.5
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _ray_face(x, y, i, j, s, f, cx, cy, rot, face_rot, half):
+def _ray_face(x, y, i, j, s, f, cx, cy, rot, half):
     """(face, x, y) on the cube where sub-pixel ray ``(i, j)`` of the ``s × s`` rays of
     sensor pixel ``(x, y)``, turned by ``rot``, lands."""
     v = (y - 0.5 + (j + 0.5) / s - cy) / f
@@ -96,7 +102,7 @@ def _ray_face(x, y, i, j, s, f, cx, cy, rot, face_rot, half):
     d0 = rot[0, 0] * u + rot[0, 1] * v + rot[0, 2]
     d1 = rot[1, 0] * u + rot[1, 1] * v + rot[1, 2]
     d2 = rot[2, 0] * u + rot[2, 1] * v + rot[2, 2]
-    return _face_pixel(d0, d1, d2, face_rot, half)
+    return _face_pixel(d0, d1, d2, half)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -114,9 +120,9 @@ def _nearest_at(fx, fy, n):
 
 
 @numba.njit(cache=True, nogil=True)
-def cube_warp(out, faces, face_rot, rot, f, cx, cy, s, bilinear):
-    """Fill ``out`` (H, W) from the cube ``faces`` (6, n, n) (world-from-face rotations
-    ``face_rot``): per sensor pixel the average over its ``s × s`` sub-pixel rays turned
+def cube_warp(out, faces, rot, f, cx, cy, s, bilinear):
+    """Fill ``out`` (H, W) from the cube ``faces`` (6, n, n) (the faces of
+    :data:`FACE_ROTATIONS`): per sensor pixel the average over its ``s × s`` sub-pixel rays turned
     by ``rot`` (world-from-camera; focal length ``f`` px, centre ``cx, cy``), one
     bilinear or nearest sample a ray."""
     h, w = out.shape
@@ -128,7 +134,7 @@ def cube_warp(out, faces, face_rot, rot, f, cx, cy, s, bilinear):
             acc = 0.0
             for j in range(s):
                 for i in range(s):
-                    face, fx, fy = _ray_face(x, y, i, j, s, f, cx, cy, rot, face_rot, half)
+                    face, fx, fy = _ray_face(x, y, i, j, s, f, cx, cy, rot, half)
                     if bilinear:
                         ix, iy, tx, ty = _bilinear_at(fx, fy, n)
                         row0, row1 = faces[face, iy], faces[face, iy + 1]
@@ -142,7 +148,7 @@ def cube_warp(out, faces, face_rot, rot, f, cx, cy, s, bilinear):
 
 
 @numba.njit(cache=True, nogil=True)
-def cube_warp_srgb(out, faces, face_rot, rot, f, cx, cy, s, bilinear, wlut, offset=0.0):
+def cube_warp_srgb(out, faces, rot, f, cx, cy, s, bilinear, wlut, offset=0.0):
     """:func:`cube_warp` of sRGB faces (6, n, n, 3) (codes, uint8 or float): per sensor
     pixel each channel's codes averaged over its ``s × s`` rays and rounded (as a
     supersampled render's resolve averages them), then its linear luminance
@@ -158,7 +164,7 @@ def cube_warp_srgb(out, faces, face_rot, rot, f, cx, cy, s, bilinear, wlut, offs
             acc[:] = 0.0
             for j in range(s):
                 for i in range(s):
-                    face, fx, fy = _ray_face(x, y, i, j, s, f, cx, cy, rot, face_rot, half)
+                    face, fx, fy = _ray_face(x, y, i, j, s, f, cx, cy, rot, half)
                     fx += offset
                     fy += offset
                     if bilinear:
@@ -201,7 +207,7 @@ def pixel_rays(
 
 
 @numba.njit(cache=True, nogil=True)
-def cube_inverse_depth(out, dist, face_rot, rot, u, v, norm):
+def cube_inverse_depth(out, dist, rot, u, v, norm):
     """Fill ``out`` (H, W) with each sensor pixel's inverse depth (1/m along the
     optical axis) from the cube of ray distances ``dist`` (6, n, n), nearest sample of
     the pixel's central ray (``u``, ``v``, ``norm``: :func:`pixel_rays`) turned by
@@ -216,7 +222,7 @@ def cube_inverse_depth(out, dist, face_rot, rot, u, v, norm):
             d0 = rot[0, 0] * ux + rot[0, 1] * vy + rot[0, 2]
             d1 = rot[1, 0] * ux + rot[1, 1] * vy + rot[1, 2]
             d2 = rot[2, 0] * ux + rot[2, 1] * vy + rot[2, 2]
-            face, fx, fy = _face_pixel(d0, d1, d2, face_rot, half)
+            face, fx, fy = _face_pixel(d0, d1, d2, half)
             ix, iy = _nearest_at(fx, fy, n)
             out[y, x] = norm[y, x] / dist[face, iy, ix]
 

@@ -189,12 +189,7 @@ class PanoramaFrames(FrameSource):
     ) -> tuple[np.ndarray, np.ndarray | None]:
         """(luminance, inverse depth (None unless ``depth``)) (H, W) of the static world
         for a camera rotation (kept for the rotations of the current step)."""
-        from wander_env.frames.cube import (
-            FACE_ROTATIONS,
-            cube_inverse_depth,
-            cube_warp,
-            cube_warp_srgb,
-        )
+        from wander_env.frames.cube import cube_inverse_depth, cube_warp, cube_warp_srgb
 
         key = rotation.tobytes()
         stage, (faces, dist) = self.stage, self._cube
@@ -207,14 +202,14 @@ class PanoramaFrames(FrameSource):
             if pp.srgb:  # prefiltered: one bilinear sample of the box-filtered faces
                 s, bilinear = (1, True) if pp.prefilter else (pp.samples, pp.bilinear)
                 args = (f, cx, cy, s, bilinear, self.dvs.channel_luminance, self._offset)
-                cube_warp_srgb(lum, faces, FACE_ROTATIONS, rotation, *args)
+                cube_warp_srgb(lum, faces, rotation, *args)
             else:
                 args = (f, cx, cy, pp.samples, pp.bilinear)
-                cube_warp(lum, faces, FACE_ROTATIONS, rotation, *args)
+                cube_warp(lum, faces, rotation, *args)
             got = self._bg[key] = (lum, None)
         if depth and got[1] is None:
             rho = np.empty((stage.height, stage.width), np.float64)
-            cube_inverse_depth(rho, dist, FACE_ROTATIONS, rotation, *self._rays)
+            cube_inverse_depth(rho, dist, rotation, *self._rays)
             got = self._bg[key] = (got[0], rho)
         return got
 

@@ -372,7 +372,7 @@ class PrimitiveCaster:
     def _static_rho(self, data: mujoco.MjData, rot: np.ndarray) -> np.ndarray:
         """The static world's inverse depth (H, W) with the camera's rotation ``rot``
         from the cube's centre (the cube rendered on first use after a reset)."""
-        from wander_env.frames.cube import FACE_ROTATIONS, cube_inverse_depth, render_cube
+        from wander_env.frames.cube import cube_inverse_depth, render_cube
 
         if self._cube is None:
             renderer = self.cube_renderer()
@@ -391,7 +391,7 @@ class PrimitiveCaster:
             rho = self._static.get(key)
         if rho is None:
             rho = np.empty((self.height, self.width), np.float64)
-            cube_inverse_depth(rho, self._cube, FACE_ROTATIONS, rot, *self._rays)
+            cube_inverse_depth(rho, self._cube, rot, *self._rays)
             with self._static_lock:
                 if len(self._static) >= 8:
                     self._static.pop(next(iter(self._static)))
