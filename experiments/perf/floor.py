@@ -169,7 +169,7 @@ def render_floor(
         add("DVS: one step (two keys 5 ms apart, alternately)", dvs_step)
         h, w = u.height, u.width
         rng = np.random.default_rng(seed)
-        lum = rng.random((2, h, w)).astype(np.float32)
+        lum = tuple(rng.random((2, h, w)).astype(np.float32))
         out = np.empty((h, w), np.float32)
         hinv = np.stack([np.eye(3), np.eye(3)])
         hinv[1, 0, 2] = 0.3

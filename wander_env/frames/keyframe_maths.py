@@ -66,6 +66,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any
 
 import numba
 import numpy as np
@@ -330,16 +331,28 @@ def _source_pixel(hinv, kk, x, y):
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _candidate(kk, x, y, first, keys):
+def _key_images(keys, kk):
+    """Key ``kk``'s images of ``keys`` (:meth:`KeyPair.kernel_args`): its luminance,
+    warped static world, tap map, layers and inverse depth. A kernel takes both keys'
+    once, before its pixel loops, and calls :func:`_candidate` with one or the other in
+    two branches: picking them per pixel (by index, or by a run-time choice between the
+    two) made the layers' kernel 3× slower."""
+    return keys[0][kk], keys[1][kk], keys[2][kk], keys[3][kk], keys[4][kk]
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _candidate(kk, x, y, first, keys, images):
     """Key ``kk``'s nearest candidate for target pixel (x, y) among its layers from
     ``first`` on (see the module docstring): (its luminance, its inverse depth in the
     target view); inverse depth -1 where no layer has one. ``keys``: the two keys'
-    arrays with a view's parameters (:meth:`KeyPair.kernel_args`); its ``warped``, each
-    key's cubic sample at every target pixel's source position (:func:`warp_keys`), is
-    the static world's candidate where all the sample's taps are the static world's
-    (``taps``, each key's :func:`_static_tap_map`; else its nearest pixel)."""
-    lum, warped, taps, layers, inv, present, boxes, hinv, bvec, rho0, moving = keys
-    h, w = layers.shape[1], layers.shape[2]
+    arrays with a view's parameters (:meth:`KeyPair.kernel_args`); ``images``: key
+    ``kk``'s own (:func:`_key_images`). Its ``warped``, the key's cubic sample at every
+    target pixel's source position (:func:`warp_keys`), is the static world's candidate
+    where all the sample's taps are the static world's (``taps``, the key's
+    :func:`_static_tap_map`; else its nearest pixel)."""
+    present, boxes, hinv, bvec, rho0, moving = keys[5:]
+    lum, warped, taps, layers, inv = images
+    h, w = layers.shape
     n_layers = present.shape[1]
     ax = hinv[kk, 0, 0] * x + hinv[kk, 0, 1] * y + hinv[kk, 0, 2]
     ay = hinv[kk, 1, 0] * x + hinv[kk, 1, 1] * y + hinv[kk, 1, 2]
@@ -361,9 +374,9 @@ def _candidate(kk, x, y, first, keys):
                 lam = (1.0 + rho * b2) / az
                 ix = _nearest(lam * ax - rho * b0, w)
                 iy = _nearest(lam * ay - rho * b1, h)
-                if layers[kk, iy, ix] != ll or inv[kk, iy, ix] == rho:
+                if layers[iy, ix] != ll or inv[iy, ix] == rho:
                     break  # a fixed point: the iterations left change nothing
-                rho = inv[kk, iy, ix]
+                rho = inv[iy, ix]
         lam = (1.0 + rho * b2) / az
         px = lam * ax - rho * b0
         py = lam * ay - rho * b1
@@ -371,9 +384,9 @@ def _candidate(kk, x, y, first, keys):
             continue
         ix = _nearest(px, w)
         iy = _nearest(py, h)
-        if layers[kk, iy, ix] != ll:
+        if layers[iy, ix] != ll:
             continue
-        src = inv[kk, iy, ix]
+        src = inv[iy, ix]
         if mov:
             if abs(src - rho) * math.hypot(b0, b1) >= 0.5:
                 continue  # the depth assumed is not the source's: not converged
@@ -382,12 +395,12 @@ def _candidate(kk, x, y, first, keys):
         r_t = rho / lam
         if r_t > best_r:
             best_r = r_t
-            best_v = lum[kk, iy, ix]
+            best_v = lum[iy, ix]
             if ll == 0 and not mov:  # as the static world's kernel, where it reads no layer
                 tx = min(max(math.floor(px) + 1, 0), w)
                 ty = min(max(math.floor(py) + 1, 0), h)
-                if taps[kk, ty, tx]:
-                    best_v = max(warped[kk, y, x], 0.0)
+                if taps[ty, tx]:
+                    best_v = max(warped[y, x], 0.0)
     return best_v, best_r
 
 
@@ -400,6 +413,7 @@ def _synth_kernel(out, regions, weights, near, keys):
     keeps its value."""
     h, w = out.shape
     lum, hinv = keys[0], keys[7]
+    key0, key1 = _key_images(keys, 0), _key_images(keys, 1)
     for r in range(len(regions)):
         for y in range(regions[r, 0], regions[r, 1]):
             for x in range(regions[r, 2], regions[r, 3]):
@@ -409,7 +423,10 @@ def _synth_kernel(out, regions, weights, near, keys):
                     wk = weights[kk]
                     if wk <= 0.0:
                         continue
-                    best_v, best_r = _candidate(kk, x, y, 0, keys)
+                    if kk == 0:
+                        best_v, best_r = _candidate(0, x, y, 0, keys, key0)
+                    else:
+                        best_v, best_r = _candidate(1, x, y, 0, keys, key1)
                     if best_r > 0.0:
                         num += wk * best_v
                         den += wk
@@ -417,22 +434,24 @@ def _synth_kernel(out, regions, weights, near, keys):
                     out[y, x] = num / den
                 elif near >= 0:  # seen by neither key: the nearer key's nearest edge pixel
                     px, py = _source_pixel(hinv, near, x, y)
-                    out[y, x] = lum[near, _nearest(py, h), _nearest(px, w)]
+                    out[y, x] = lum[near][_nearest(py, h), _nearest(px, w)]
 
 
-def warp_keys(lum: np.ndarray, hinv: np.ndarray) -> np.ndarray:
-    """Each key's luminance (``lum`` (2, H, W) float32) at every target pixel's source
-    position under its target-to-source homography ``hinv[k]``: cubic convolution over
-    the 4 × 4 pixels around it (Keys 1981 with ``a = -0.75``, as OpenCV's and Pillow's
-    bicubic: it keeps more of a key's contrast at a sub-pixel shift than Catmull-Rom's
-    -0.5), the border's pixels repeated beyond the image (OpenCV's ``INTER_CUBIC``,
-    which rounds the position to 1/32 px: a pixel centre gives that pixel). May dip below
-    0 beside an edge: the kernels clamp it."""
+def warp_keys(
+    lum: tuple[np.ndarray, np.ndarray], hinv: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each key's luminance (``lum``: the two keys' (H, W) float32) at every target
+    pixel's source position under its target-to-source homography ``hinv[k]``: cubic
+    convolution over the 4 × 4 pixels around it (Keys 1981 with ``a = -0.75``, as
+    OpenCV's and Pillow's bicubic: it keeps more of a key's contrast at a sub-pixel shift
+    than Catmull-Rom's -0.5), the border's pixels repeated beyond the image (OpenCV's
+    ``INTER_CUBIC``, which rounds the position to 1/32 px: a pixel centre gives that
+    pixel). May dip below 0 beside an edge: the kernels clamp it."""
     import cv2  # (here: OpenCV's import starts thread pools a key's maths does not need)
 
-    h, w = lum.shape[1:]
+    h, w = lum[0].shape
     flags, border = cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP, cv2.BORDER_REPLICATE
-    out = np.empty_like(lum)
+    out = (np.empty_like(lum[0]), np.empty_like(lum[1]))
     for k in range(2):
         cv2.warpPerspective(lum[k], hinv[k], (w, h), out[k], flags=flags, borderMode=border)
     return out
@@ -460,18 +479,18 @@ def _static_kernel(out, weights, near, lum, warped, hinv):
                 if weights[kk] <= 0.0:  # a key at weight 0 adds nothing
                     continue
                 if same[kk]:
-                    num += weights[kk] * lum[kk, y, x]
+                    num += weights[kk] * lum[kk][y, x]
                     den += weights[kk]
                     continue
                 px, py = _source_pixel(hinv, kk, x, y)
                 if -0.5 <= px < w - 0.5 and -0.5 <= py < h - 0.5:
-                    num += weights[kk] * max(warped[kk, y, x], 0.0)
+                    num += weights[kk] * max(warped[kk][y, x], 0.0)
                     den += weights[kk]
             if den > 0.0:
                 out[y, x] = num / den
             else:
                 px, py = _source_pixel(hinv, near, x, y)
-                out[y, x] = lum[near, _nearest(py, h), _nearest(px, w)]
+                out[y, x] = lum[near][_nearest(py, h), _nearest(px, w)]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -502,8 +521,8 @@ def _regions(present, boxes):
 
 
 class KeyPair:
-    """Two consecutive keys and the frames between them: their pixels stacked once for
-    the kernel; per frame, only the views' homographies and the layers' motion."""
+    """Two consecutive keys and the frames between them: their arrays gathered once for
+    the kernels; per frame, only the views' homographies and the layers' motion."""
 
     def __init__(
         self, a: Keyframe, b: Keyframe, k: np.ndarray, k_inv: np.ndarray | None = None
@@ -517,14 +536,19 @@ class KeyPair:
         self._k_inv = np.linalg.inv(self.k) if k_inv is None else k_inv
 
     @cached_property
-    def _stacked(self) -> tuple[np.ndarray, ...]:
+    def _arrays(self) -> tuple[Any, ...]:
         """Both keys' luminance, layers, inverse depth, layer presence, median inverse
-        depth and static tap maps, stacked for the kernel (made when a frame first needs
-        them)."""
-        keys = (self.a, self.b)
-        return tuple(
-            np.stack([getattr(key, name) for key in keys])
-            for name in ("lum", "layers", "inv_depth", "present", "rho_median", "static_taps")
+        depth and static tap maps for the kernel: the images as pairs of the keys' own
+        arrays (a key's pixels are not copied), the per-layer values stacked (made when a
+        frame first needs them)."""
+        a, b = self.a, self.b
+        return (
+            (a.lum, b.lum),
+            (a.layers, b.layers),
+            (a.inv_depth, b.inv_depth),
+            np.stack([a.present, b.present]),
+            np.stack([a.rho_median, b.rho_median]),
+            (a.static_taps, b.static_taps),
         )
 
     def weight(self, t_us: int) -> float:
@@ -569,7 +593,7 @@ class KeyPair:
         """The moving layers' target regions (R, 4): per layer, the union of its boxes
         (``boxes`` from :meth:`params`) from the keys that have it, or both boxes where
         they cover fewer pixels than their union; empty ones left out."""
-        return _regions(self._stacked[3], boxes)
+        return _regions(self._arrays[3], boxes)
 
     def frame(self, view: View, w: float) -> np.ndarray:
         """The frame (H, W) float32 linear luminance of ``view`` at time fraction ``w``.
@@ -584,7 +608,7 @@ class KeyPair:
         weights = np.array([1.0 - w, w])
         near = int(w > 0.5)
         out = np.empty_like(self.a.lum)
-        lum = self._stacked[0]
+        lum = self._arrays[0]
         warped = None  # the keys' cubic warp, made where the static world is one
         if moving[:, 0].any():  # the camera centre moved: parallax everywhere
             regions = np.array([[0, h, 0, wd]])
@@ -606,16 +630,16 @@ class KeyPair:
         bvec: np.ndarray,
         moving: np.ndarray,
         boxes: np.ndarray,
-        warped: np.ndarray | None = None,
-    ) -> tuple[np.ndarray, ...]:
-        """The layers' kernels' ``keys``: the two keys' stacked layers with a view's
+        warped: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> tuple[Any, ...]:
+        """The layers' kernels' ``keys``: the two keys' arrays with a view's
         :meth:`params` and the keys' ``warped`` static world (:func:`warp_keys`; None for
         a kernel that reads only the moving layers), one tuple (``lum, warped, taps,
         layers, inv, present, boxes, hinv, bvec, rho0, moving``). Where the static
         world moves relative to a key (its centre moved), ``rho0`` holds that key's
         :attr:`Keyframe.static_rho_median` (elsewhere the value changes nothing: the
         static layer's ``b`` is 0)."""
-        lum, layers, inv, present, rho0, taps = self._stacked
+        lum, layers, inv, present, rho0, taps = self._arrays
         if moving[:, 0].any():
             rho0 = rho0.copy()
             for i, key in enumerate((self.a, self.b)):
@@ -632,6 +656,7 @@ def layers_over(out, bg, bg_rho, regions, weights, keys):
     nearest moving-layer candidate of ``keys`` (the synthesis's own lookup) where it is
     not behind the background, else the background, blended with ``weights``; a pixel no
     key's layer reaches keeps ``bg``. Idempotent per pixel (regions may overlap)."""
+    key0, key1 = _key_images(keys, 0), _key_images(keys, 1)
     for r in range(len(regions)):
         for y in range(regions[r, 0], regions[r, 1]):
             for x in range(regions[r, 2], regions[r, 3]):
@@ -642,7 +667,10 @@ def layers_over(out, bg, bg_rho, regions, weights, keys):
                     wk = weights[kk]
                     if wk <= 0.0:
                         continue
-                    v, rt = _candidate(kk, x, y, 1, keys)
+                    if kk == 0:
+                        v, rt = _candidate(0, x, y, 1, keys, key0)
+                    else:
+                        v, rt = _candidate(1, x, y, 1, keys, key1)
                     if rt > 0.0 and rt >= floor:
                         num += wk * v
                         hit = True

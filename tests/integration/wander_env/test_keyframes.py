@@ -294,8 +294,8 @@ def test_layer_boxes_hold_every_candidate(hand, parallax):
         near = int(w > 0.5)
         warped = None
         if not parallax:
-            warped = warp_keys(pair._stacked[0], hinv)
-            _static_kernel(full, weights, near, pair._stacked[0], warped, hinv)
+            warped = warp_keys(pair._arrays[0], hinv)
+            _static_kernel(full, weights, near, pair._arrays[0], warped, hinv)
             near = -1
         no_boxes = np.broadcast_to(whole, boxes.shape).copy()
         _synth_kernel(
