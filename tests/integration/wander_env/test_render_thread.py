@@ -303,87 +303,82 @@ def test_the_render_thread_makes_a_geometry_queued_behind_the_work_that_needs_it
         env.close()
 
 
-def test_a_key_geometry_the_render_thread_has_not_started_is_cast_by_the_thread_that_needs_it():
-    """A key's geometry queued behind other work: the main thread, needing the key, casts
-    it itself (no GL: office's moving objects are primitives) and cancels the queued
-    drawing; the layers and depth are those the draw side casts for the same pose."""
+@pytest.fixture
+def office():
+    """The office env (render thread on) reset with seed 0; closed after the test."""
     env = gym.make("wander/Wander-v0", scene="office")
-    u = env.unwrapped
     try:
         env.reset(seed=0)
-        source, stage = u.source, u.stage
-        start = source.keys[-1]
-        t_us = start.t_us + 5000
-        key = source.render_key(t_us, start.angles, stage.camera_view(t_us, *start.angles))
-        assert key.geometry is None and stage.casts_here()
-        gate = threading.Event()
-        stage.begin_step()
-        stage.submit(gate.wait, 60)
-        source.request_geometry(key)
-        queued = key.geometry
-        made = source.keyframe(key)  # the render thread waits at the gate meanwhile
-        assert queued.cancelled() and made is key.full
-        gate.set()
-        layers, depth = stage.on_draw_side(stage.geometry_at, key.t_us, key.angles)
-        assert np.array_equal(made.layers, layers) and np.array_equal(made.inv_depth, 1 / depth)
-        assert stage.geometry_draws == 0 and int((layers > 0).sum()) > 0
+        yield env.unwrapped
     finally:
         env.close()
 
 
-def test_a_key_colour_the_render_thread_has_not_started_is_drawn_by_the_thread_that_needs_it():
+def _held(stage) -> threading.Event:
+    """A new step whose first work holds the render thread until the event is set."""
+    gate = threading.Event()
+    stage.begin_step()
+    stage.submit(gate.wait, 60)
+    return gate
+
+
+def test_a_key_geometry_the_render_thread_has_not_started_is_cast_by_the_thread_that_needs_it(
+    office,
+):
+    """A key's geometry queued behind other work: the main thread, needing the key, casts
+    it itself (no GL: office's moving objects are primitives) and cancels the queued
+    drawing; the layers and depth are those the draw side casts for the same pose."""
+    source, stage = office.source, office.stage
+    start = source.keys[-1]
+    t_us = start.t_us + 5000
+    key = source.render_key(t_us, start.angles, stage.camera_view(t_us, *start.angles))
+    assert key.geometry is None and stage.casts_here()
+    gate = _held(stage)
+    source.request_geometry(key)
+    queued = key.geometry
+    made = source.keyframe(key)  # the render thread waits at the gate meanwhile
+    assert queued.cancelled() and made is key.full
+    gate.set()
+    layers, depth = stage.on_draw_side(stage.geometry_at, key.t_us, key.angles)
+    assert np.array_equal(made.layers, layers) and np.array_equal(made.inv_depth, 1 / depth)
+    assert stage.geometry_draws == 0 and int((layers > 0).sum()) > 0
+
+
+def test_a_key_colour_the_render_thread_has_not_started_is_drawn_by_the_thread_that_needs_it(
+    office,
+):
     """A key's colour queued behind other work: the main thread takes the draw back and
     draws it with a renderer of its own, into the same future; the pixels are those the
     render thread draws for the same pose, and the step counts the draw once. A draw
     already done is not taken again."""
-    env = gym.make("wander/Wander-v0", scene="office")
-    u = env.unwrapped
-    try:
-        env.reset(seed=0)
-        source, stage = u.source, u.stage
-        start = source.keys[-1]
-        t_us, angles = start.t_us + 5000, (start.angles[0] + 2.0, start.angles[1] - 1.0)
-        gate = threading.Event()
-        stage.begin_step()
-        stage.submit(gate.wait, 60)
-        key = source.render_key(t_us, angles, stage.camera_view(t_us, *angles))
-        assert stage.draws_here() and stage.draw_here(key.drawn)
-        here = key.drawn.result(timeout=0)  # done before the render thread is let go
-        gate.set()
-        assert stage.renders == 1 and not stage.draw_here(key.drawn)
-        there = stage.colour_at(t_us, angles)  # on the render thread
-        assert stage.renders == 2
-        assert here.shape == (u.height, u.width, 3) and len(np.unique(here)) > 10
-        assert np.array_equal(here, there)
-    finally:
-        env.close()
+    source, stage = office.source, office.stage
+    start = source.keys[-1]
+    t_us, angles = start.t_us + 5000, (start.angles[0] + 2.0, start.angles[1] - 1.0)
+    gate = _held(stage)
+    key = source.render_key(t_us, angles, stage.camera_view(t_us, *angles))
+    assert stage.draws_here() and stage.draw_here(key.drawn)
+    here = key.drawn.result(timeout=0)  # done before the render thread is let go
+    gate.set()
+    assert stage.renders == 1 and not stage.draw_here(key.drawn)
+    there = stage.colour_at(t_us, angles)  # on the render thread
+    assert stage.renders == 2
+    assert here.shape == (office.height, office.width, 3) and len(np.unique(here)) > 10
+    assert np.array_equal(here, there)
 
 
-def test_only_a_thread_off_the_render_thread_draws_and_not_where_posing_writes_the_model():
-    """draws_here: the main thread of office; not the render thread itself; not gratings
-    (its posing writes the strips' colours into the model the render thread draws)."""
+@pytest.mark.parametrize("verb", ["casts_here", "draws_here"])
+def test_only_a_thread_off_the_render_thread_casts_or_draws_and_not_in_the_gratings(verb):
+    """casts_here and draws_here: the main thread of office, once its cube is rendered;
+    not the render thread itself; not gratings (its posing writes the strips' colours into
+    the model the render thread draws; and its screen is a plane: GL draws its
+    geometry)."""
     for scene, expected in (("office", True), ("gratings", False)):
         env = gym.make("wander/Wander-v0", scene=scene)
         try:
             env.reset(seed=0)
             stage = env.unwrapped.stage
-            assert stage.draws_here() is expected, scene
-            assert stage.on_draw_side(stage.draws_here) is False
-        finally:
-            env.close()
-
-
-def test_only_a_thread_off_the_render_thread_casts_and_only_where_no_gl_is_left():
-    """casts_here: the main thread of office, once its cube is rendered; not the render
-    thread itself; not gratings (its screen is a plane: GL draws its geometry; its posing
-    writes the strips' colours into the model the render thread draws)."""
-    for scene, expected in (("office", True), ("gratings", False)):
-        env = gym.make("wander/Wander-v0", scene=scene)
-        try:
-            env.reset(seed=0)
-            stage = env.unwrapped.stage
-            assert stage.casts_here() is expected, scene
-            assert stage.on_draw_side(stage.casts_here) is False
+            assert getattr(stage, verb)() is expected, scene
+            assert stage.on_draw_side(getattr(stage, verb)) is False
         finally:
             env.close()
 
