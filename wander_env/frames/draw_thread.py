@@ -48,6 +48,7 @@ class _Queues:
             self.ahead.clear()
 
     def take(self, future: Future) -> tuple[Callable[..., Any], tuple[Any, ...]] | None:
+        """The queued work of ``future`` removed, as ``(fn, args)`` (None: not queued)."""
         with self.wake:
             for queue in (self.now, self.ahead):
                 for i, (queued, fn, args) in enumerate(queue):

@@ -168,6 +168,7 @@ class KeyframeFrames(FrameSource):
         self._views: dict[int, View] = {}  # tick t_us -> its view (this step)
         self._interpolated: set[int] = set()  # ticks the keys' blend (subpixel from both)
         self._skipped: set[int] = set()  # more ticks the DVS interpolates over
+        self._only_keys = False  # the step synthesises no frame (see _start)
         self._made: dict[int, Future[LogFrame]] = {}  # tick -> its frame, on the draw side
         self._ahead: _Ahead | None = None  # the next step's keys, drawn on a guess
         self._mask_ahead: tuple[int, Future[np.ndarray]] | None = None  # (t_us, mask)
