@@ -152,7 +152,7 @@ class Stage:
 
     def _warm_up(self) -> None:
         self._the_renderer()
-        if self.casts("ground_truth") or self.casts("key_layers"):
+        if self._uses_caster():
             self.caster.cube_renderer()
 
     def begin_step(self) -> None:
@@ -381,12 +381,17 @@ class Stage:
         static cube is of this episode (no GL left to do). Posing then writes only the
         pose's own data: the one scene whose posing writes the model (the gratings'
         strip colours) has a plane screen, which the caster does not take."""
-        return (
-            self._from_outside()
-            and self.casts("key_layers")
-            and self._cast_for is self._animator
-            and self.caster.cube_ready
-        )
+        return self._from_outside() and self.casts("key_layers") and self._cube_of_episode()
+
+    def _uses_caster(self) -> bool:
+        """Whether the caster makes the masks or the keys' layers (its static cube
+        rendered once an episode, on the draw side)."""
+        return self.casts("ground_truth") or self.casts("key_layers")
+
+    def _cube_of_episode(self) -> bool:
+        """Whether the caster's static cube of this episode is rendered: casting then
+        needs no GL, and the draw side no longer changes the model for it."""
+        return self._cast_for is self._animator and self.caster.cube_ready
 
     def geometry_here(self, t_us: int, angles: Angles) -> tuple[np.ndarray, np.ndarray]:
         """(motion layers int32, depth m) at ``t_us`` and ``angles``, ray cast on this
@@ -411,8 +416,7 @@ class Stage:
         colours, which are the model's)."""
         if not self._from_outside() or self._renderer is None or self._animator is None:
             return False
-        uses_caster = self.casts("ground_truth") or self.casts("key_layers")
-        if uses_caster and not (self._cast_for is self._animator and self.caster.cube_ready):
+        if self._uses_caster() and not self._cube_of_episode():
             return False
         return not self._animator.poses_model
 

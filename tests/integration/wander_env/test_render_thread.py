@@ -275,6 +275,14 @@ def test_a_draw_from_outside_between_steps_draws_what_it_posed_and_drops_the_wor
         env.close()
 
 
+def _held(stage) -> threading.Event:
+    """A new step whose first work holds the render thread until the event is set."""
+    gate = threading.Event()
+    stage.begin_step()
+    stage.submit(gate.wait, 60)
+    return gate
+
+
 def test_the_render_thread_makes_a_geometry_queued_behind_the_work_that_needs_it() -> None:
     """Work on the render thread (a frame drawn ahead) that needs a key's geometry queued
     behind it (asked for when the step adopted the frame) draws it there and then, and
@@ -288,9 +296,7 @@ def test_the_render_thread_makes_a_geometry_queued_behind_the_work_that_needs_it
         source, stage = u.source, u.stage
         key = source.keys[-1]
         assert key.full is None and key.geometry is None
-        gate = threading.Event()
-        stage.begin_step()
-        stage.submit(gate.wait, 60)
+        gate = _held(stage)
         needs = stage.submit(source.keyframe, key)  # runs before the drawing it asks for
         source.request_geometry(key)
         queued = key.geometry
@@ -312,14 +318,6 @@ def office():
         yield env.unwrapped
     finally:
         env.close()
-
-
-def _held(stage) -> threading.Event:
-    """A new step whose first work holds the render thread until the event is set."""
-    gate = threading.Event()
-    stage.begin_step()
-    stage.submit(gate.wait, 60)
-    return gate
 
 
 def test_a_key_geometry_the_render_thread_has_not_started_is_cast_by_the_thread_that_needs_it(
