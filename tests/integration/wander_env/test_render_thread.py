@@ -381,29 +381,21 @@ def test_only_a_thread_off_the_render_thread_casts_or_draws_and_not_in_the_grati
             env.close()
 
 
-def test_a_keys_dvs_input_is_made_once_by_the_thread_that_first_reads_it():
+def test_a_keys_dvs_input_is_made_once_by_the_thread_that_first_reads_it(office):
     """The render thread draws a key's colour only; the key's DVS input is made when first
     read, there, and kept."""
-    env = gym.make("wander/Wander-v0", scene="office")
-    u = env.unwrapped
-    try:
-        env.reset(seed=0)
-        source, stage = u.source, u.stage
-        calls: list[str] = []
-        prepare = source.dvs.prepare
-        source.dvs.prepare = lambda rgb: (
-            calls.append(threading.current_thread().name) or prepare(rgb)
-        )
-        start = source.keys[-1]
-        t_us = start.t_us + 5000
-        key = source.render_key(t_us, start.angles, stage.camera_view(t_us, *start.angles))
-        rgb = key.drawn.result(timeout=60)
-        assert calls == [] and rgb.shape == (128, 128, 3)
-        made = key.prepared
-        assert key.prepared is made and calls == [threading.current_thread().name]
-        assert np.array_equal(made.lum, prepare(rgb).lum)
-    finally:
-        env.close()
+    source, stage = office.source, office.stage
+    calls: list[str] = []
+    prepare = source.dvs.prepare
+    source.dvs.prepare = lambda rgb: calls.append(threading.current_thread().name) or prepare(rgb)
+    start = source.keys[-1]
+    t_us = start.t_us + 5000
+    key = source.render_key(t_us, start.angles, stage.camera_view(t_us, *start.angles))
+    rgb = key.drawn.result(timeout=60)
+    assert calls == [] and rgb.shape == (128, 128, 3)
+    made = key.prepared
+    assert key.prepared is made and calls == [threading.current_thread().name]
+    assert np.array_equal(made.lum, prepare(rgb).lum)
 
 
 def test_the_mask_at_a_step_end_key_is_the_casters_mask_at_its_pose():
