@@ -149,7 +149,8 @@ def bench_env(
     )
     print_table(
         f"Environment, scene '{scene}': {modes} (real-time factor = simulated s / wall s; "
-        "speedup = exact / keyframes step time; load: the 1-minute load average at "
+        "speedup = exact / keyframes step time; dvs fps: the machine's speed just before, "
+        "`wander perf dvs`'s 128x128 moving row; load: the 1-minute load average at "
         "start-end)",
         rows,
         ENV_COLUMNS,
@@ -195,7 +196,8 @@ def bench_agent(
     print_table("Agent latency at 128x128 (ms per call)", rows, LATENCY_COLUMNS)
     print_table(
         "Closed loop (env + agent, the env's default frames; real-time factor = simulated s "
-        "/ wall s)",
+        "/ wall s; dvs fps: the machine's speed just before, `wander perf dvs`'s 128x128 "
+        "moving row)",
         [loop],
         LOOP_COLUMNS,
     )

@@ -34,6 +34,7 @@ from agents.attention import AgentParams, AttentionAgent
 from agents.proto_object import ProtoObjectSaliency
 from experiments.jobs.run_agent import OneEpisodeRun
 from experiments.perf.clock import LOAD_COLUMN, Clock, Timings, timed
+from experiments.perf.dvs import CALIBRATION_COLUMN, calibration_fps
 from wander_env.env_config import WanderConfig
 
 # The columns of `wander perf agent`'s tables (row field -> format spec).
@@ -55,6 +56,7 @@ LOOP_COLUMNS: dict[str, str] = {
     "agent_ms_per_step": ".2f",
     "realtime_factor": ".2f",
     "keys_ahead_adopted": "",
+    **CALIBRATION_COLUMN,
     **LOAD_COLUMN,
 }
 MODES_COLUMNS: dict[str, str] = {
@@ -102,6 +104,7 @@ class LoopRow:
     realtime_factor: float
     cpu_s: float = float("nan")  # this process's CPU time over the loop
     keys_ahead_adopted: str = "–"  # keys drawn ahead adopted, of those drawn ahead
+    dvs_fps: float = float("nan")  # the machine's speed just before (calibration_fps)
     load: str = "–"
 
 
@@ -145,6 +148,7 @@ def bench_agent(config: AgentBenchConfig) -> tuple[list[LatencyRow], LoopRow]:
     (module doc). Afterwards the parts the speed work replaced are timed old against new
     on the run's own inputs (:func:`compare_impls`)."""
     seconds, seed, scene = config.seconds, config.seed, _scene_name(config.env)
+    dvs_fps = calibration_fps()
     env, agent = _agent_in_env(config, config.env)
     acc = Timings()
     record: dict[str, list] = {}
@@ -215,6 +219,7 @@ def bench_agent(config: AgentBenchConfig) -> tuple[list[LatencyRow], LoopRow]:
         realtime_factor=n * agent.params.step_s / clock.wall_s,
         cpu_s=clock.cpu_s,
         keys_ahead_adopted=ahead,
+        dvs_fps=dvs_fps,
         load=load,
     )
     return rows, loop

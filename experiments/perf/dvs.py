@@ -48,6 +48,8 @@ NOISE_PRESET = "speck"  # every noise term on: mismatch, low-pass, refractory, l
 PEER_THRESHOLD = 0.2  # the contrast threshold every emulator gets in the peer comparison
 
 
+#: The column of a speed table that gives the hour's machine speed (:func:`calibration_fps`).
+CALIBRATION_COLUMN: dict[str, str] = {"dvs_fps": ",.0f"}
 # The columns of `wander perf dvs`'s tables (row field -> format spec).
 DVS_COLUMNS: dict[str, str] = {
     "sensor": "",
@@ -179,6 +181,26 @@ def bench_dvs(n_frames: int = 1000, repeats: int = 3, seed: int = 0) -> list[DVS
                     )
                 )
     return rows
+
+
+def calibration_fps(n_frames: int = 1000, repeats: int = 3, seed: int = 0) -> float:
+    """The machine's speed at the hour of a measurement: the DVS emulator's frames/s
+    (wall time, the median of ``repeats`` runs of ``n_frames`` frames) on the 128×128
+    moving pattern with ideal pixels, the workload of :func:`bench_dvs`'s ``128x128
+    moving ideal`` row. ``wander perf env`` and ``wander perf agent`` print it beside their
+    real-time factors (column :data:`CALIBRATION_COLUMN`): this machine's speed drifts by
+    up to 35 % within hours, on every part, while a real-time factor divided by this
+    rate moved by about 6 % (``docs/benchmarks.md``)."""
+    (w, h), speed = (128, 128), SENSORS[(128, 128)]
+    frames = drifting_texture(w, h, n_frames + 1, speed, seed=seed)
+    emu = DVSEmulator(w, h, DVSParams(), seed=seed)
+    _run(emu, frames[:3])  # compile (or load the cached kernels)
+    times = []
+    for _ in range(repeats):
+        clock = Clock()
+        _run(emu, frames, clock)
+        times.append(clock.wall_s)
+    return n_frames / statistics.median(times)
 
 
 def linear_frames(frames: np.ndarray) -> np.ndarray:

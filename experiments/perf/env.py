@@ -34,6 +34,7 @@ import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
 from experiments.perf.clock import LOAD_COLUMN, Clock, Timings, timed
+from experiments.perf.dvs import CALIBRATION_COLUMN, calibration_fps
 from wander_env.env_config import WanderConfig
 from wander_env.field_doc import field_doc
 
@@ -69,6 +70,7 @@ ENV_COLUMNS: dict[str, str] = {
     "speedup": ".2f",
     "adaptive_speedup": ".2f",
     "alone_speedup": ".2f",
+    **CALIBRATION_COLUMN,
     **LOAD_COLUMN,
 }
 ENV_TIME_COLUMNS: dict[str, str] = {
@@ -138,6 +140,7 @@ class EnvBenchRow:
     exact_alone_rtf: float = float("nan")
     exact_alone_ms_per_step: float = float("nan")
     alone_speedup: float = float("nan")
+    dvs_fps: float = float("nan")  # the machine's speed just before the row (calibration_fps)
     load: str = "–"  # 1-minute load average at the row's start and end
 
 
@@ -187,6 +190,7 @@ def bench_env(
     rows = []
     for dvs in presets:
         for n in env_counts:
+            dvs_fps = calibration_fps()
             envs = {}
             for mode, kw in modes.items():
                 make = _make(replace(base, dvs=dvs, **kw))
@@ -270,6 +274,7 @@ def bench_env(
                     exact_alone_rtf=n * steps * period / alone["exact"].wall_s,
                     exact_alone_ms_per_step=alone["exact"].ms_per(steps)[0],
                     alone_speedup=alone["exact"].wall_s / alone["adaptive"].wall_s,
+                    dvs_fps=dvs_fps,
                     load=row_clock.load,
                 )
             )

@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 from experiments.cli.main import app
 from experiments.jobs.evaluate_agent import QualityRow, detection_interval, pooled
-from experiments.perf.agent import AgentBenchConfig, bench_agent, latency_row
+from experiments.perf.agent import LOOP_COLUMNS, AgentBenchConfig, bench_agent, latency_row
 from experiments.studies.framework import read_csv
 from wander_env.config import validate
 from wander_env.strict_json import to_strict_json
@@ -43,6 +43,8 @@ def test_bench_agent_times_every_stage_call() -> None:
     assert loop.simulated_s == pytest.approx(0.3) and loop.realtime_factor > 0
     # Beside each wall time, the process's CPU time and the load average around the run.
     assert loop.cpu_s > 0 and re.match(r"^\d+\.\d\d-\d+\.\d\d$", loop.load)
+    # and the machine's speed just before (the DVS's frames/s on its calibration pattern)
+    assert math.isfinite(loop.dvs_fps) and loop.dvs_fps > 0 and "dvs_fps" in LOOP_COLUMNS
     assert all(r.load == loop.load for r in rows)
     assert all(math.isfinite(r.cpu_median_ms) for r in rows if r.calls)
 

@@ -3,14 +3,24 @@
 from __future__ import annotations
 
 import importlib.util
+import math
 import re
 
 import numpy as np
 import pytest
 
 from experiments.jobs.synthetic import drifting_texture
-from experiments.perf.dvs import PEERS, bench_dvs, bench_inputs, bench_peers, linear_frames
-from wander_env.dvs import DVSEmulator
+from experiments.perf import dvs as dvs_bench
+from experiments.perf.dvs import (
+    PEERS,
+    SENSORS,
+    bench_dvs,
+    bench_inputs,
+    bench_peers,
+    calibration_fps,
+    linear_frames,
+)
+from wander_env.dvs import DVSEmulator, DVSParams
 
 LOAD = r"^\d+\.\d\d-\d+\.\d\d$"  # the load average column: start-end
 
@@ -46,6 +56,25 @@ def test_dvs_rows_report_cpu_and_load():
     rows = bench_dvs(n_frames=4, repeats=1)
     assert len(rows) == 8 and all(r.frames_per_s > 0 and r.cpu_frames_per_s > 0 for r in rows)
     assert all(re.match(LOAD, r.load) for r in rows)
+
+
+def test_the_calibration_times_the_workload_of_the_128_moving_ideal_row(monkeypatch):
+    """``calibration_fps``: a compile call of 3 frames, then ``repeats`` timed runs of the
+    128×128 moving pattern (``n_frames`` steps) with ideal pixels, as ``bench_dvs``'s row."""
+    runs = []
+    real = dvs_bench._run
+
+    def spy(emu, frames, clock=None):
+        runs.append((emu.width, emu.height, emu.params, frames.copy()))
+        return real(emu, frames, clock)
+
+    monkeypatch.setattr(dvs_bench, "_run", spy)
+    fps = calibration_fps(n_frames=6, repeats=2)
+    assert math.isfinite(fps) and fps > 0
+    assert [len(frames) for *_, frames in runs] == [3, 7, 7]
+    assert all((w, h, p) == (128, 128, DVSParams()) for w, h, p, _ in runs)
+    moving = drifting_texture(128, 128, 7, SENSORS[(128, 128)], seed=0)
+    assert np.array_equal(runs[1][3], moving) and np.array_equal(runs[0][3], moving[:3])
 
 
 def test_peer_rows_wander_first_and_missing_peers_say_so():

@@ -77,6 +77,8 @@ def test_bench_env_steps_the_default_alone_as_well_as_in_turns() -> None:
     )
     assert {"exact_alone_rtf", "alone_speedup"} <= ENV_COLUMNS.keys()
     assert LOAD.match(row.load) and ENV_COLUMNS["load"] == ""
+    # the machine's speed just before the row (the DVS's frames/s on its calibration pattern)
+    assert math.isfinite(row.dvs_fps) and row.dvs_fps > 0 and "dvs_fps" in ENV_COLUMNS
 
 
 def test_step_breakdown_reports_cpu_and_load() -> None:
