@@ -50,6 +50,7 @@ PEER_THRESHOLD = 0.2  # the contrast threshold every emulator gets in the peer c
 
 #: The column of a speed table that gives the hour's machine speed (:func:`calibration_fps`).
 CALIBRATION_COLUMN: dict[str, str] = {"dvs_fps": ",.0f"}
+
 # The columns of `wander perf dvs`'s tables (row field -> format spec).
 DVS_COLUMNS: dict[str, str] = {
     "sensor": "",
@@ -143,6 +144,24 @@ def _run(emu: DVSEmulator, frames: np.ndarray, clock: Clock | None = None) -> tu
     return n, on_frame
 
 
+def _timed_runs(
+    emu: DVSEmulator, frames: np.ndarray, repeats: int, whole: Clock | None = None
+) -> tuple[list[Clock], int, int]:
+    """``repeats`` timed runs of ``frames`` after an untimed call on their first 3 (it
+    compiles the kernels, or loads the cached ones): each run's clock (each also added to
+    ``whole``), and the last run's events and events stamped on a frame time."""
+    _run(emu, frames[:3])
+    clocks: list[Clock] = []
+    count = on_frame = 0
+    for _ in range(repeats):
+        clock = Clock()
+        count, on_frame = _run(emu, frames, clock)
+        if whole is not None:
+            whole.add(clock.wall_s, clock.cpu_s)
+        clocks.append(clock)
+    return clocks, count, on_frame
+
+
 def bench_dvs(n_frames: int = 1000, repeats: int = 3, seed: int = 0) -> list[DVSBenchRow]:
     rows = []
     for (w, h), speed in SENSORS.items():
@@ -152,15 +171,9 @@ def bench_dvs(n_frames: int = 1000, repeats: int = 3, seed: int = 0) -> list[DVS
             noises = (("ideal", DVSParams()), ("all on", DVSParams.preset(NOISE_PRESET)))
             for noise, params in noises:
                 emu = DVSEmulator(w, h, params, seed=seed)
-                _run(emu, frames[:3])  # compile
-                times, cpus, count, on_frame, whole = [], [], 0, 0, Clock()
-                for _ in range(repeats):
-                    clock = Clock()
-                    count, on_frame = _run(emu, frames, clock)
-                    whole.add(clock.wall_s, clock.cpu_s)
-                    times.append(clock.wall_s)
-                    cpus.append(clock.cpu_s)
-                dt = statistics.median(times)
+                whole = Clock()
+                clocks, count, on_frame = _timed_runs(emu, frames, repeats, whole)
+                dt = statistics.median(c.wall_s for c in clocks)
                 # Peak memory from a separate run: tracing allocations slows them down.
                 tracemalloc.start()
                 _run(emu, frames)
@@ -176,7 +189,8 @@ def bench_dvs(n_frames: int = 1000, repeats: int = 3, seed: int = 0) -> list[DVS
                         events_per_frame=count / n_frames,
                         on_frame_time_pct=100 * on_frame / max(count, 1),
                         peak_mib=peak,
-                        cpu_frames_per_s=n_frames / max(statistics.median(cpus), 1e-12),
+                        cpu_frames_per_s=n_frames
+                        / max(statistics.median(c.cpu_s for c in clocks), 1e-12),
                         load=whole.load,
                     )
                 )
@@ -193,14 +207,8 @@ def calibration_fps(n_frames: int = 1000, repeats: int = 3, seed: int = 0) -> fl
     rate moved by about 6 % (``docs/benchmarks.md``)."""
     (w, h), speed = (128, 128), SENSORS[(128, 128)]
     frames = drifting_texture(w, h, n_frames + 1, speed, seed=seed)
-    emu = DVSEmulator(w, h, DVSParams(), seed=seed)
-    _run(emu, frames[:3])  # compile (or load the cached kernels)
-    times = []
-    for _ in range(repeats):
-        clock = Clock()
-        _run(emu, frames, clock)
-        times.append(clock.wall_s)
-    return n_frames / statistics.median(times)
+    clocks, _, _ = _timed_runs(DVSEmulator(w, h, DVSParams(), seed=seed), frames, repeats)
+    return n_frames / statistics.median(c.wall_s for c in clocks)
 
 
 def linear_frames(frames: np.ndarray) -> np.ndarray:
