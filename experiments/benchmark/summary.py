@@ -118,6 +118,17 @@ def _group_summary(
     return s
 
 
+#: What a subset's and the overall std is over: sequences (the paper's tables) or windows.
+STD_OVER = ("sequences", "windows")
+
+
+def check_std_over(std_over: str) -> str:
+    """``std_over`` if it is one of :data:`STD_OVER`, else a ``ValueError`` naming it."""
+    if std_over not in STD_OVER:
+        raise ValueError(f"std_over must be 'sequences' or 'windows', got {std_over!r}")
+    return std_over
+
+
 def summarize(
     rows: Sequence[WindowRow], std_over: str = "sequences", ddof: int = 0
 ) -> list[Summary]:
@@ -126,8 +137,7 @@ def summarize(
     Order: for each dataset, its sequences (in order of appearance), then its subsets
     (sorted), then ``subset="all"``.
     """
-    if std_over not in ("sequences", "windows"):
-        raise ValueError(f"std_over must be 'sequences' or 'windows', got {std_over!r}")
+    check_std_over(std_over)
     by_seq: dict[tuple[str, str, str], list[WindowRow]] = {}
     for r in rows:
         by_seq.setdefault((r.dataset, r.subset, r.sequence), []).append(r)

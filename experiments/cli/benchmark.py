@@ -9,34 +9,24 @@ Commands (each writes ``results.csv``, ``results.md`` and ``run.json`` to ``--ou
 - ``suppression PATH...`` — the fraction of events sOMS suppresses on recordings
   without masks (e.g. ego-motion only, where every kept event is a false positive).
 
-The protocol is :mod:`experiments.benchmark.protocol`; the model is
-:class:`agents.pipeline.SaliencyPipeline` (sOMS → proto-object saliency),
-one step per dataset window. Registered in ``experiments/cli/main.py`` as
+Each command parses its flags, builds the model's config and folder and passes the flags
+by name to its job (:mod:`experiments.benchmark.jobs`), showing the job's progress as
+bars. The protocol is :mod:`experiments.benchmark.protocol`; the model is
+:class:`agents.pipeline.SaliencyPipeline` (sOMS → proto-object saliency), one step per
+dataset window. Registered in ``experiments/cli/main.py`` as
 ``app.add_typer(benchmark_app, name="benchmark")``.
 """
 
 from __future__ import annotations
 
-import itertools
 import time
-from collections.abc import Callable, Iterable, Sequence
-from contextlib import AbstractContextManager, nullcontext
+from collections.abc import Callable
+from contextlib import nullcontext
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
 
-from experiments.benchmark.runner import (
-    event_files,
-    limit_windows,
-    run_sequences,
-    run_suppression,
-    suppression_markdown,
-    suppression_record,
-    write_benchmark_outputs,
-    write_suppression_csv,
-    write_suppression_outputs,
-)
 from experiments.cli.console import progress_bars
 from experiments.cli.errors import fail
 from experiments.cli.options import (
@@ -106,90 +96,79 @@ def default_name(path: Path) -> str:
 
 
 # ----------------------------------------------------------------------------------------
-# Running (with progress bars; the runner is experiments.benchmark.runner)
+# Running (the jobs are experiments.benchmark.jobs)
 
 
 class _Bars:
-    """Rich progress bars: one for the sequences, one per sequence's windows."""
+    """A job's progress as rich bars: one for the sequences, one per sequence's windows,
+    one per recording's suppression steps."""
 
-    def __init__(self, progress: Any, what: str, n_sequences: int | None) -> None:
+    def __init__(self, progress: Any) -> None:
         self.progress = progress
-        self.outer = progress.add_task(what, total=n_sequences)
-        self.tasks: dict[int, Any] = {}
+        self.outer: Any = None
+        self.tasks: dict[Any, Any] = {}
 
-    def __call__(self, ev: Any) -> None:
-        task = self.tasks.get(ev.sequence_index)
-        if task is None:
-            task = self.progress.add_task(f"  {ev.subset}/{ev.sequence}", total=ev.n_windows)
-            self.tasks[ev.sequence_index] = task
-        self.progress.update(task, completed=ev.window + 1)
+    def sequences(self, what: str, n_sequences: int | None) -> None:
+        self.outer = self.progress.add_task(what, total=n_sequences)
+
+    def window(self, ev: Any) -> None:
+        self._show(ev.sequence_index, f"  {ev.subset}/{ev.sequence}", ev)
 
     def sequence_done(self) -> None:
         self.progress.advance(self.outer)
 
+    def recording(self, name: str, ev: Any) -> None:
+        self._show(name, f"suppression {name}", ev)
 
-def _run_sequences(
-    sequences: Iterable[Any],
-    n_sequences: int | None,
-    what: str,
-    model_config: Any,
-    protocol: Any,
-    max_windows: int | None,
-    show_progress: bool,
-    sampler: Any = None,
-) -> tuple[list[Any], dict[str, list[str]], dict[str, float]]:
-    """:func:`~experiments.benchmark.runner.run_sequences` with progress bars."""
-    with _progress_context(show_progress) as progress:
-        bars = _Bars(progress, what, n_sequences) if progress is not None else None
-        return run_sequences(
-            sequences,
-            n_sequences,
-            model_config,
-            protocol,
-            max_windows,
-            sampler,
-            bars,
-            None if bars is None else bars.sequence_done,
+    def _show(self, key: Any, label: str, ev: Any) -> None:
+        task = self.tasks.get(key)
+        if task is None:
+            task = self.tasks[key] = self.progress.add_task(label, total=ev.n_windows)
+        self.progress.update(task, completed=ev.window + 1, total=ev.n_windows)
+
+
+class _Command:
+    """A command's model config and results folder; :meth:`run` runs its job there."""
+
+    def __init__(
+        self, ctx: typer.Context, model: Any, folder: RunFolder, shared: dict[str, Any]
+    ) -> None:
+        self.ctx, self.model, self.folder, self.shared = ctx, model, folder, shared
+        self.started = time.monotonic()
+
+    def run(self, job: Callable[..., str], *args: Any, **flags: Any) -> None:
+        """``job(folder, model, *args, progress=..., **flags)`` (progress bars with
+        ``--progress``); its bad input as one line (exit 2); then its results and the
+        files written."""
+        folder = self.folder
+        try:
+            with progress_bars() if self.shared["progress"] else nullcontext(None) as bars:
+                progress = None if bars is None else _Bars(bars)
+                md = job(folder.path, self.model, *args, progress=progress, **flags)
+        except (ValueError, OSError) as err:
+            raise fail(err, self.ctx) from None
+        typer.echo(md)
+        out, maps = folder.final, (folder.path / "maps_vs_masks.png").is_file()
+        typer.echo(
+            f"wrote {out}/results.csv, {out}/results.md, {out}/run.json"
+            + (f", {out}/maps_vs_masks.png" if maps else "")
+            + " "
+            f"({time.monotonic() - self.started:.1f} s)"
         )
-
-
-def _run_suppression(
-    recordings: Sequence[tuple[str, Any, tuple[int, int, int]]],
-    window_us: int,
-    model_config: Any,
-    show_progress: bool,
-) -> list[Any]:
-    """:func:`~experiments.benchmark.runner.run_suppression` with a bar per recording."""
-    with _progress_context(show_progress) as progress:
-        tasks: dict[str, Any] = {}
-
-        def tick(name: str, ev: Any) -> None:
-            if name not in tasks:
-                tasks[name] = progress.add_task(f"suppression {name}", total=None)
-            progress.update(tasks[name], completed=ev.window + 1, total=ev.n_windows)
-
-        callback = tick if progress is not None else None
-        return run_suppression(recordings, window_us, model_config, callback)
-
-
-def _progress_context(show: bool) -> AbstractContextManager[Any]:
-    return progress_bars() if show else nullcontext(None)
-
-
-def _finish(folder: RunFolder, md: str, started: float) -> None:
-    """Print the results and the files written (named where the folder ends)."""
-    typer.echo(md)
-    out, maps = folder.final, (folder.path / "maps_vs_masks.png").is_file()
-    typer.echo(
-        f"wrote {out}/results.csv, {out}/results.md, {out}/run.json"
-        + (f", {out}/maps_vs_masks.png" if maps else "")
-        + " "
-        f"({time.monotonic() - started:.1f} s)"
-    )
 
 
 # ----------------------------------------------------------------------------------------
 # Options shared by the commands
+
+
+def _check_std_over(value: str) -> str:
+    from experiments.benchmark.summary import check_std_over
+
+    try:
+        return check_std_over(value)
+    except ValueError as err:
+        raise typer.BadParameter(str(err)) from None
+
 
 MaxWindowsOpt = Annotated[
     int | None,
@@ -206,14 +185,14 @@ StdOverOpt = Annotated[
     str,
     typer.Option(
         "--std-over",
+        callback=_check_std_over,
         help="Subset/overall std over 'sequences' (the paper's tables) or pooled 'windows'.",
     ),
 ]
 
 
 # The flags of the benchmark model (every command), of the run (every command) and of the
-# dataset commands (evimo, llevos; in the order run.json lists them, threads and
-# progress aside).
+# dataset commands (evimo, llevos).
 MAX_WINDOWS = option("max_windows", MaxWindowsOpt, None)
 MODEL_OPTIONS = (
     option("streamlined", StreamlinedOpt),
@@ -233,88 +212,26 @@ DATASET_OPTIONS = (
 )
 
 
-def _model_config(ctx: typer.Context) -> Any:
-    """The benchmark model's :class:`ModelConfig` of the command line: its defaults (the
-    paper's pipeline) <- ``--streamlined``, ``--alpha`` <- ``--set`` (e.g.
-    ``agent.soms.alpha=0.5``), through :func:`experiments.cli.options.command_config`."""
+def _begin(ctx: typer.Context, out: Path | None, name: str, shared: dict[str, Any]) -> _Command:
+    """A command's model config (:class:`~experiments.benchmark.model.ModelConfig`'s
+    defaults, the paper's pipeline, <- ``--streamlined``, ``--alpha`` <- ``--set``, e.g.
+    ``agent.soms.alpha=0.5``: a bad flag stops the command before anything is written),
+    torch's CPU threads (``--threads``) and its results folder ``name`` (``--out``,
+    ``--force``)."""
     from experiments.benchmark.model import ModelConfig
 
-    return command_config(ctx, ModelConfig)
-
-
-def _model_record(model: Any) -> dict[str, Any]:
-    """run.json's record of the model: the agent's block (the step ``dt`` is each
-    sequence's, ``model_dt_s``)."""
-    from wander_env.config import to_plain
-
-    return {"agent": to_plain(model.agent)}
-
-
-def _begin(
-    ctx: typer.Context, out: Path | None, name: str, shared: dict[str, Any]
-) -> tuple[Any, RunFolder]:
-    """A command's model config (:func:`_model_config`: a bad flag stops the command
-    before anything is written), torch's CPU threads (``--threads``) and its results
-    folder ``name`` (``--out``, ``--force``)."""
-    model = _model_config(ctx)
+    model = command_config(ctx, ModelConfig)
     if shared["threads"] is not None:
         import torch
 
         torch.set_num_threads(shared["threads"])
-    return model, resolve_out(ctx, out, name, shared["force"])
+    return _Command(ctx, model, resolve_out(ctx, out, name, shared["force"]), shared)
 
 
-def _check_std_over(std_over: str) -> None:
-    if std_over not in ("sequences", "windows"):
-        raise typer.BadParameter(f"--std-over must be 'sequences' or 'windows', got {std_over!r}")
-
-
-def _score_dataset(
-    ctx: typer.Context,
-    label: str,
-    dataset: str,
-    load: Callable[[int | None], tuple[Iterable[Any], int]],
-    flags: dict[str, Any],
-    options: dict[str, Any],
-) -> None:
-    """Score a dataset's sequences with the benchmark model and write its results folder.
-
-    ``flags`` are the command's (``path``, ``out`` and the shared :data:`DATASET_OPTIONS`
-    and :data:`RUN_OPTIONS`); ``options`` its own, for
-    ``run.json``; ``load(max_sequences)`` finds the sequences and counts them.
-    """
-    from experiments.benchmark.figure import WindowSampler
-    from experiments.benchmark.protocol import ProtocolConfig
-
-    std_over, max_windows, progress = flags["std_over"], flags["max_windows"], flags["progress"]
-    _check_std_over(std_over)
-    started = time.monotonic()
-    model, folder = _begin(ctx, flags["out"], f"benchmark-{dataset}", flags)
-    out = folder.path
-    config = {"dataset": dataset, "path": str(flags["path"]), **options}
-    config.update({p.name: flags[p.name] for p in DATASET_OPTIONS if p not in MODEL_OPTIONS})
-    config.update(_model_record(model))
-    sampler = WindowSampler()
-    try:
-        seqs, n = load(flags["max_sequences"])
-        rows, notes, dts = _run_sequences(
-            seqs, n, label, model, ProtocolConfig(), max_windows, progress, sampler
-        )
-    except (ValueError, OSError) as err:
-        raise fail(err, ctx) from None
-    md = write_benchmark_outputs(
-        out,
-        rows,
-        dataset,
-        f"Benchmark: {label}",
-        f"wander benchmark {dataset}",
-        {**config, "model_dt_s": dts},
-        notes,
-        extra_record={"elapsed_s": time.monotonic() - started},
-        std_over=std_over,
-        views=sampler.views,
-    )
-    _finish(folder, md, started)
+def _dataset_flags(shared: dict[str, Any]) -> dict[str, Any]:
+    """The shared flags of the dataset commands that their jobs pass on to
+    :func:`~experiments.benchmark.jobs.score_dataset`."""
+    return {k: shared[k] for k in ("max_sequences", "max_windows", "std_over")}
 
 
 # ----------------------------------------------------------------------------------------
@@ -347,16 +264,11 @@ def evimo(
     **shared: Any,
 ) -> None:
     """EVIMO: per-subset accuracy, IoU, precision, SSIM beside the paper's Table."""
-    from experiments.benchmark.datasets.evimo import find_evimo_sequences, load_evimo_sequence
-
-    def load(max_sequences: int | None) -> tuple[Iterable[Any], int]:
-        sources = find_evimo_sequences(path, subset)
-        if max_sequences is not None:
-            sources = sources[:max_sequences]
-        return (load_evimo_sequence(s, window_mode, window_us) for s in sources), len(sources)
+    from experiments.benchmark.jobs import score_evimo
 
     options = {"subsets": subset, "window_mode": window_mode, "window_us": window_us}
-    _score_dataset(ctx, "EVIMO", "evimo", load, {"path": path, "out": out, **shared}, options)
+    job = _begin(ctx, out, "benchmark-evimo", shared)
+    job.run(score_evimo, path, **options, **_dataset_flags(shared))
 
 
 @app.command("llevos")
@@ -379,21 +291,11 @@ def llevos(
     **shared: Any,
 ) -> None:
     """LLE-VOS: accuracy mean ± std over sequences beside the paper's 53.3 % ± 25.56."""
-    from experiments.benchmark.datasets.llevos import (
-        LLEVOSConfig,
-        find_llevos_root,
-        list_llevos_sequences,
-        load_llevos,
-    )
-
-    def load(max_sequences: int | None) -> tuple[Iterable[Any], int]:
-        cfg = LLEVOSConfig(time_unit=time_unit, npy_columns=npy_columns)
-        names = sequence or list_llevos_sequences(find_llevos_root(path))
-        n = len(names) if max_sequences is None else min(len(names), max_sequences)
-        return itertools.islice(load_llevos(path, sequence, cfg), n), n
+    from experiments.benchmark.jobs import score_llevos
 
     options = {"sequences": sequence, "time_unit": time_unit, "npy_columns": npy_columns}
-    _score_dataset(ctx, "LLE-VOS", "llevos", load, {"path": path, "out": out, **shared}, options)
+    job = _begin(ctx, out, "benchmark-llevos", shared)
+    job.run(score_llevos, path, **options, **_dataset_flags(shared))
 
 
 @app.command("events")
@@ -438,71 +340,22 @@ def events(
     **shared: Any,
 ) -> None:
     """Any event file + a mask folder: hit rate, IoU, precision, SSIM, sOMS suppression."""
-    from experiments.benchmark.datasets.generic import load_generic
-    from experiments.benchmark.figure import WindowSampler
-    from experiments.benchmark.protocol import ProtocolConfig
-    from wander_env.events import time_window
+    from experiments.benchmark.jobs import score_events
 
-    max_windows, progress = shared["max_windows"], shared["progress"]
-    started = time.monotonic()
     sensor_size = parse_sensor(sensor) if sensor else None
     offset = parse_offset(mask_offset) if mask_offset else None
     seq_name = name or default_name(file)
-    model, folder = _begin(ctx, out, f"benchmark-events-{seq_name}", shared)
-    out = folder.path
-    try:
-        seq = load_generic(file, masks, sensor_size, window_us, name=seq_name, subset="events")
-        seq = limit_windows(seq, max_windows)
-        sampler = WindowSampler()
-        rows, notes, dts = _run_sequences(
-            [seq],
-            1,
-            "events",
-            model,
-            ProtocolConfig(mask_offset_xy=offset),
-            None,
-            progress,
-            sampler,
-        )
-        extra_md, extra_rec = "", {}
-        if suppression and seq.windows:
-            win = round(dts[f"{seq.subset}/{seq.name}"] * 1e6)
-            ev = seq.events
-            if max_windows is not None:
-                ev = time_window(ev, int(ev["t"][0]) if len(ev) else 0, seq.windows[-1].t_end_us)
-            (res,) = _run_suppression([(seq.name, ev, seq.sensor_size)], win, model, progress)
-            t0 = int(ev["t"][0]) if len(ev) else 0
-            write_suppression_csv(out / "suppression.csv", [(seq.name, res, t0)])
-            extra_md = suppression_markdown([seq.name], [res])
-            extra_rec = {"suppression": suppression_record([seq.name], [res])}
-    except (ValueError, OSError) as err:
-        raise fail(err, ctx) from None
-    config = {
-        "dataset": "generic",
-        "events": str(file),
-        "masks": str(masks),
-        "name": seq_name,
-        "sensor": list(seq.sensor_size),
-        "window_us": window_us,
-        "mask_offset_xy": offset,
-        "max_windows": max_windows,
-        **_model_record(model),
-        "suppression": suppression,
-        "model_dt_s": dts,
-    }
-    md = write_benchmark_outputs(
-        out,
-        rows,
-        "generic",
-        f"Benchmark: {seq_name} ({file.name} + {masks.name}/)",
-        "wander benchmark events",
-        config,
-        notes,
-        extra_markdown=extra_md,
-        extra_record={**extra_rec, "elapsed_s": time.monotonic() - started},
-        views=sampler.views,
+    _begin(ctx, out, f"benchmark-events-{seq_name}", shared).run(
+        score_events,
+        file,
+        masks,
+        name=seq_name,
+        sensor_size=sensor_size,
+        window_us=window_us,
+        mask_offset=offset,
+        max_windows=shared["max_windows"],
+        suppression=suppression,
     )
-    _finish(folder, md, started)
 
 
 @app.command("suppression")
@@ -528,48 +381,11 @@ def suppression(
     **shared: Any,
 ) -> None:
     """Fraction of events sOMS suppresses on recordings without masks (e.g. ego-motion only)."""
-    from wander_env.events import time_window
-    from wander_env.events.checks import check_sensor_area
-    from wander_env.events.io import read_events
+    from experiments.benchmark.jobs import measure_suppression
 
-    started = time.monotonic()
     sensor_size = parse_sensor(sensor) if sensor else None
-    model, folder = _begin(ctx, out, "benchmark-suppression", shared)
-    out = folder.path
-    notes: dict[str, list[str]] = {}
-    try:
-        files = event_files(paths)
-        recs = []
-        for f in files:
-            rec = read_events(f, sensor_size)
-            check_sensor_area(f, rec.sensor_size)  # before the next file is read
-            ev = rec.events
-            notes[f.stem] = []
-            if rec.metadata.get("sensor_size_inferred"):
-                notes[f.stem].append(
-                    f"sensor size {rec.sensor_size[0]}x{rec.sensor_size[1]} inferred from the "
-                    "largest coordinates (give --sensor WxH)"
-                )
-            if max_windows is not None and len(ev):
-                t0 = int(ev["t"][0])
-                ev = time_window(ev, t0, t0 + max_windows * window_us)
-                notes[f.stem].append(f"limited to the first {max_windows} windows")
-            recs.append((f.stem, ev, rec.sensor_size))
-        results = _run_suppression(recs, window_us, model, shared["progress"])
-    except (ValueError, OSError) as err:
-        raise fail(err, ctx) from None
-    config = {
-        "paths": [str(p) for p in paths],
-        "files": [str(f) for f in files],
-        "sensor": {n: list(s) for n, _, s in recs},
-        "window_us": window_us,
-        "max_windows": max_windows,
-        **_model_record(model),
-    }
-    md = write_suppression_outputs(
-        out, recs, results, config, notes, elapsed_s=time.monotonic() - started
-    )
-    _finish(folder, md, started)
+    options = {"sensor_size": sensor_size, "window_us": window_us, "max_windows": max_windows}
+    _begin(ctx, out, "benchmark-suppression", shared).run(measure_suppression, paths, **options)
 
 
 def main() -> None:  # pragma: no cover - ``python -m experiments.cli.benchmark``

@@ -237,6 +237,59 @@ def test_events_square_hits_every_scored_window(tmp_path):
     assert "# Event suppression: data" in md
 
 
+class ProgressLog:
+    """A :class:`~experiments.benchmark.jobs.BenchmarkProgress` that writes down each call."""
+
+    def __init__(self) -> None:
+        self.calls: list[tuple] = []
+
+    def sequences(self, what, n_sequences):
+        self.calls.append(("sequences", what, n_sequences))
+
+    def window(self, event):
+        self.calls.append(("window", event.sequence, event.window, event.n_windows))
+
+    def sequence_done(self):
+        self.calls.append(("sequence_done",))
+
+    def recording(self, name, event):
+        self.calls.append(("recording", name, event.window, event.n_windows))
+
+
+def test_the_events_job_from_python_writes_what_the_command_writes(tmp_path):
+    from experiments.benchmark.jobs import score_events
+
+    file, masks = write_events_and_masks(tmp_path / "data")
+    by_hand, by_command = tmp_path / "by_hand", tmp_path / "by_command"
+    by_hand.mkdir()
+    log = ProgressLog()
+    md = score_events(by_hand, ModelConfig(), file, masks, name="data", progress=log)
+    result = invoke("events", file, "--masks", masks, "--out", by_command, "--no-progress")
+    assert result.exit_code == 0, result.output
+    assert md == (by_hand / "results.md").read_text() == (by_command / "results.md").read_text()
+    for name in ("results.csv", "summary.csv", "suppression.csv"):
+        assert (by_hand / name).read_bytes() == (by_command / name).read_bytes(), name
+    # the scoring: one sequence of 6 windows, then the suppression's 6 steps
+    assert log.calls == [
+        ("sequences", "events", 1),
+        *[("window", "data", k, N_WIN) for k in range(N_WIN)],
+        ("sequence_done",),
+        *[("recording", "data", k, N_WIN) for k in range(N_WIN)],
+    ]
+
+
+def test_evimo_job_refuses_a_bad_std_over_before_it_reads_anything(tmp_path):
+    from experiments.benchmark.jobs import score_evimo
+
+    with pytest.raises(ValueError, match="std_over must be 'sequences' or 'windows', got 'all'"):
+        score_evimo(tmp_path, ModelConfig(), tmp_path / "absent", std_over="all")
+    assert list(tmp_path.iterdir()) == []
+    result = invoke("evimo", tmp_path / "absent", "--std-over", "all", "--out", tmp_path / "o")
+    assert result.exit_code == 2
+    assert "Invalid value for '--std-over'" in result.output
+    assert not (tmp_path / "o").exists()
+
+
 def test_events_limit_streamlined_and_resized_masks(tmp_path):
     file, masks = write_events_and_masks(tmp_path / "data")
     out = tmp_path / "out"
