@@ -5,6 +5,8 @@ the commands; each group lives in its own module of :mod:`experiments.cli`;
 
 from __future__ import annotations
 
+import faulthandler
+import io
 from typing import Annotated
 
 import typer
@@ -49,7 +51,21 @@ def _options(
         ),
     ] = False,
 ) -> None:
-    """The options before a command (``wander --version``)."""
+    """The options before a command (``wander --version``); a crash in native code from
+    here on prints every thread's Python stack (:func:`_report_crashes`)."""
+    _report_crashes()
+
+
+def _report_crashes() -> None:
+    """A fatal signal in native code (a driver's or a kernel's segfault) prints the Python
+    stack of every thread on stderr before the process dies (:mod:`faulthandler`), where
+    stderr is a file and nothing (pytest) enabled it already."""
+    if faulthandler.is_enabled():
+        return
+    try:
+        faulthandler.enable(all_threads=True)
+    except (AttributeError, ValueError, io.UnsupportedOperation):  # stderr has no descriptor
+        return
 
 
 def _bench_is_perf() -> None:

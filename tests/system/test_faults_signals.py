@@ -3,7 +3,8 @@
 Each long command (here ``wander run``, ``wander rig``, ``wander record``) must halt,
 flush and close its files, write ``metrics.json`` (strict JSON) naming the signal and
 exit with 128 + the signal; after SIGKILL the streamed ``events.h5`` is still readable
-up to its last flushed chunk and says where it stops.
+up to its last flushed chunk and says where it stops. A crash in native code prints every
+thread's Python stack.
 """
 
 from __future__ import annotations
@@ -184,12 +185,35 @@ def test_sigkill_leaves_a_readable_stream_that_says_where_it_stops(tmp_path):
     proc = start(["record", "--seconds", "30", "--no-video"], out)
     after_start(proc, out, 5.0)
     proc.kill()
-    proc.communicate(timeout=60)
-    assert proc.returncode == -signal.SIGKILL
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == -signal.SIGKILL, err  # (a crash before the kill: its stacks)
     rec = read_events(out / "events.h5")
     stop = rec.metadata["incomplete"]
     assert stop["events"] == len(rec.events) > 0
     assert stop["last_t_us"] == rec.events["t"][-1] < 30_000_000
+
+
+def test_a_native_crash_in_a_command_prints_every_threads_python_stack():
+    code = (
+        "import ctypes, sys, threading\n"
+        "from experiments.cli.main import app\n"
+        "@app.command('crash-here')\n"
+        "def crash_here():\n"
+        "    threading.Thread(target=threading.Event().wait, name='idle', daemon=True).start()\n"
+        "    ctypes.string_at(0)  # reads address 0: SIGSEGV\n"
+        "sys.argv = ['wander', 'crash-here']\n"
+        "app()\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env.pop("PYTHONFAULTHANDLER", None)
+    proc = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120
+    )
+    assert proc.returncode == -signal.SIGSEGV, proc.stderr
+    assert "Fatal Python error: Segmentation fault" in proc.stderr
+    crashed, other = proc.stderr.split("Current thread 0x")[1], proc.stderr.split("Thread 0x")
+    assert "in crash_here" in crashed  # the crashing thread's stack
+    assert len(other) == 2 and "in wait" in other[1]  # and the idle thread's
 
 
 def test_a_signal_while_setting_up_still_leaves_a_folder(tmp_path, monkeypatch):
