@@ -554,7 +554,7 @@ class DVSEmulator:
             self.th_on,
             self.th_off,
             self._last_event,
-            p.refractory_us,
+            float(p.refractory_us),  # (an int, e.g. from YAML, would compile a second kernel)
             float(t0),
             float(t_us),
             self.width,

@@ -63,6 +63,17 @@ def test_refractory_period_drops_crossings_too_close_to_the_last_event():
     assert ev["t"].tolist() == [100, 400, 700, 1000]
 
 
+def test_an_integer_refractory_period_runs_the_same_compiled_kernel():
+    from wander_env.dvs import _emit
+
+    events = []
+    for refractory in (250, 250.0):  # an int, as YAML gives `refractory_us: 250`
+        emu = one_pixel(th=0.1, refractory_us=refractory)
+        events.append(emu.step(level(1.0), t_us=1000)["t"].tolist())
+    assert events == [[100, 400, 700, 1000]] * 2
+    assert {str(sig[6]) for sig in _emit.signatures} == {"float64"}
+
+
 def test_refractory_period_caps_the_rate_of_a_flickering_pixel():
     emu = DVSEmulator(8, 8, DVSParams(threshold_on=0.05, threshold_off=0.05, refractory_us=1000))
     emu.reset(np.full((8, 8), 0.2), 0)
