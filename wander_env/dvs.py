@@ -98,6 +98,10 @@ class DVSParams:
             raise ValueError(
                 f"DVSParams.hot_pixel_fraction must be <= 1, got {self.hot_pixel_fraction}"
             )
+        # Floats, as the config path (pydantic) gives them: an int or a NumPy scalar from
+        # Python would compile a second copy of each kernel that takes the field.
+        for f in fields(self):
+            object.__setattr__(self, f.name, float(getattr(self, f.name)))
 
     @classmethod
     def preset(cls, name: str, **overrides: float) -> DVSParams:
@@ -554,7 +558,7 @@ class DVSEmulator:
             self.th_on,
             self.th_off,
             self._last_event,
-            float(p.refractory_us),  # (an int, e.g. from YAML, would compile a second kernel)
+            p.refractory_us,
             float(t0),
             float(t_us),
             self.width,

@@ -66,8 +66,9 @@ def test_refractory_period_drops_crossings_too_close_to_the_last_event():
 def test_an_integer_refractory_period_runs_the_same_compiled_kernel():
     from wander_env.dvs import _emit
 
+    assert type(DVSParams(refractory_us=250).refractory_us) is float
     events = []
-    for refractory in (250, 250.0):  # an int, as YAML gives `refractory_us: 250`
+    for refractory in (250, 250.0):  # an int, as Python code may give it
         emu = one_pixel(th=0.1, refractory_us=refractory)
         events.append(emu.step(level(1.0), t_us=1000)["t"].tolist())
     assert events == [[100, 400, 700, 1000]] * 2
