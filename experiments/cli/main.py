@@ -6,7 +6,6 @@ the commands; each group lives in its own module of :mod:`experiments.cli`;
 from __future__ import annotations
 
 import faulthandler
-import io
 from typing import Annotated
 
 import typer
@@ -64,7 +63,7 @@ def _report_crashes() -> None:
         return
     try:
         faulthandler.enable(all_threads=True)
-    except (AttributeError, ValueError, io.UnsupportedOperation):  # stderr has no descriptor
+    except (RuntimeError, AttributeError, ValueError):  # no stderr, or one without a descriptor
         return
 
 

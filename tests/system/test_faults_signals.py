@@ -216,6 +216,23 @@ def test_a_native_crash_in_a_command_prints_every_threads_python_stack():
     assert len(other) == 2 and "in wait" in other[1]  # and the idle thread's
 
 
+def test_a_command_runs_where_there_is_no_stderr_to_print_a_crash_on():
+    code = (
+        "import sys\n"
+        "from experiments.cli.main import app\n"
+        "sys.stderr = None  # as under a launcher that closed it\n"
+        "sys.argv = ['wander', 'run', '--help']\n"
+        "app()\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env.pop("PYTHONFAULTHANDLER", None)
+    proc = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "Usage: wander run" in proc.stdout
+
+
 def test_a_signal_while_setting_up_still_leaves_a_folder(tmp_path, monkeypatch):
     import experiments.jobs.run_agent as run_agent
 
