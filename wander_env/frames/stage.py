@@ -124,11 +124,12 @@ class Stage:
                 model, self.width, self.height, rc, params.visible_geom_groups
             )
         self._cast_for: SceneAnimator | None = None  # the reset the caster's cube is of
-        # The main thread's own pose and renderer (geometry_here, draw_here), and the lock
-        # of the draw counts both threads add to.
+        # The main thread's own pose and renderer (geometry_here, draw_here), the lock
+        # of the draw counts both threads add to, and the one both renderers draw under.
         self._here_data: mujoco.MjData | None = None
         self._here_renderer: CameraRenderer | None = None
         self._count_lock = threading.Lock()
+        self._gl_lock = threading.Lock()
 
     # -- the env's verbs --------------------------------------------------------------------
     def begin_episode(self, animator: SceneAnimator) -> None:
@@ -202,7 +203,9 @@ class Stage:
 
     def _the_renderer(self) -> CameraRenderer:
         if self._renderer is None:
-            self._renderer = CameraRenderer(self.model, self.width, self.height, params=self.params)
+            self._renderer = CameraRenderer(
+                self.model, self.width, self.height, params=self.params, gl_lock=self._gl_lock
+            )
             self._renderer_pid = os.getpid()
         return self._renderer
 
@@ -441,7 +444,7 @@ class Stage:
                 count.renders += 1
             if self._here_renderer is None:
                 self._here_renderer = CameraRenderer(
-                    self.model, self.width, self.height, params=self.params
+                    self.model, self.width, self.height, params=self.params, gl_lock=self._gl_lock
                 )
             drawn.set_result(self._here_renderer.render(self._here_pose(*args)))
         except BaseException as e:  # raised where the draw is read, as on the thread
