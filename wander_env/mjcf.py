@@ -314,12 +314,6 @@ class SceneAnimator:
         )
         self._positions.clear()
 
-    @property
-    def poses_model(self) -> bool:
-        """Whether :meth:`apply` writes the model too (the gratings' strip colours), not
-        only the data it poses: then only one thread may pose at a time."""
-        return self._gratings is not None
-
     def object_positions(self, t: float) -> np.ndarray:
         """(n_objects, 3) world positions (m) of the moving objects at time t (read-only:
         recent times' positions are kept, as posing, views and ground truth ask for the

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import threading
 from dataclasses import dataclass
 
 import mujoco
@@ -96,15 +95,8 @@ class CameraRenderer(Closing):
         height: int = 128,
         camera: str | int = CAMERA_NAME,
         params: RenderParams | None = None,
-        gl_lock: threading.Lock | None = None,
     ) -> None:
         self.params = params if params is not None else RenderParams()
-        # Held around every GL call. Renderers that draw from different threads share one:
-        # two threads drawing at once, each in a context of its own, crashed in
-        # mjr_render (a segfault, seen in CI).
-        self._gl_lock: threading.Lock | contextlib.nullcontext = (
-            gl_lock if gl_lock is not None else contextlib.nullcontext()
-        )
         if isinstance(camera, str):
             cam_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, camera)
             if cam_id < 0:
@@ -131,12 +123,10 @@ class CameraRenderer(Closing):
         self._seg_con: mujoco.MjrContext | None = None
         claim_gl()  # in a child forked after GL was initialised: ForkedGLError, not a hang
         try:
-            with self._gl_lock:
-                self._gl = mujoco.GLContext(width * ss, height * ss)
-                self._gl.make_current()
-                self._con = self._context(model.vis.quality.offsamples)
-                offsamples = model.vis.quality.offsamples
-                self._seg_con = self._context(0) if offsamples > 0 else self._con
+            self._gl = mujoco.GLContext(width * ss, height * ss)
+            self._gl.make_current()
+            self._con = self._context(model.vis.quality.offsamples)
+            self._seg_con = self._context(0) if model.vis.quality.offsamples > 0 else self._con
         except mujoco.FatalError as e:
             self.close()
             backend = os.environ.get("MUJOCO_GL", "")
@@ -194,11 +184,10 @@ class CameraRenderer(Closing):
         the raw depth buffer into ``depth`` when given)."""
         if con is None or self._gl is None:
             raise RuntimeError("CameraRenderer is closed")
-        with self._gl_lock:
-            self._gl.make_current()
-            mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, con)
-            mujoco.mjr_render(self._rect, self._scene, con)
-            mujoco.mjr_readPixels(self._rgb, depth, self._rect, con)
+        self._gl.make_current()
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, con)
+        mujoco.mjr_render(self._rect, self._scene, con)
+        mujoco.mjr_readPixels(self._rgb, depth, self._rect, con)
         return self._rgb
 
     def update(self, data: mujoco.MjData) -> None:
@@ -313,11 +302,10 @@ class CameraRenderer(Closing):
         cons = {id(c): c for c in (self._con, self._seg_con) if c is not None}.values()
         self._con = self._seg_con = None
         if self._gl is not None:
-            with self._gl_lock:
-                self._gl.make_current()
-                for con in cons:
-                    con.free()
-                self._gl.free()
+            self._gl.make_current()
+            for con in cons:
+                con.free()
+            self._gl.free()
             self._gl = None
 
     def abandon(self) -> None:

@@ -6,8 +6,7 @@ the main thread finishes this step and the agent decides) runs only while none o
 step's work waits, so a guess never delays what is needed now by more than the one
 piece of work already running. Work ahead is either :meth:`DrawThread.promote` d to the
 step's queue (the guess was right) or :meth:`DrawThread.cancel_ahead` ed (it was not:
-what has not started never runs). A piece of work not started yet may also be
-:meth:`DrawThread.take` n back by the thread that handed it over, to do it its own way.
+what has not started never runs).
 
 Each piece of work gets a :class:`~concurrent.futures.Future` (its result or its
 exception, raised where the result is read). The GL context lives on this thread (an
@@ -46,16 +45,6 @@ class _Queues:
             for future, _, _ in self.ahead:
                 future.cancel()
             self.ahead.clear()
-
-    def take(self, future: Future) -> tuple[Callable[..., Any], tuple[Any, ...]] | None:
-        """The queued work of ``future`` removed, as ``(fn, args)`` (None: not queued)."""
-        with self.wake:
-            for queue in (self.now, self.ahead):
-                for i, (queued, fn, args) in enumerate(queue):
-                    if queued is future:
-                        del queue[i]
-                        return fn, args
-        return None
 
     def end(self) -> None:
         """Cancel the work ahead; the thread ends once the step's work left has run."""
@@ -135,12 +124,6 @@ class DrawThread:
     def cancel_ahead(self) -> None:
         """The work ahead that has not started is cancelled (never runs)."""
         self._q.cancel_ahead()
-
-    def take(self, future: Future) -> tuple[Callable[..., Any], tuple[Any, ...]] | None:
-        """Take back the work of ``future`` if it has not started (from either queue):
-        its ``(fn, args)``, which this thread will never run; the caller then owns
-        ``future`` and sets its result. None: it has started, run or been cancelled."""
-        return self._q.take(future)
 
     def settle(self) -> None:
         """Wait until the step's work handed over so far, and the piece running now, have

@@ -201,7 +201,7 @@ class KeyframeFrames(FrameSource):
                 drawn = self._geometry_now(key)
                 if drawn is not None and key.full is None:  # (else made meanwhile)
                     layers, depth = drawn
-                    self._await_colour(key)
+                    self._help_until(key.drawn)
                     key.full = make_keyframe(key.t_us, key.lum, key.view, depth, layers)
         return key.full
 
@@ -248,38 +248,18 @@ class KeyframeFrames(FrameSource):
                 return drawn[0]
         return key.full.layers
 
-    def _await_colour(self, key: RenderedKey) -> None:
-        """(Main thread.) Before reading ``key``'s colour: drawn here if the render thread
-        has not started it (:meth:`~wander_env.frames.Stage.draw_here`: the same pixels,
-        while that thread draws the next), else waited for with :meth:`_help_until`."""
-        if not key.drawn.done() and not self.stage.draw_here(key.drawn):
-            self._help_until(key.drawn)
-
     def _help_until(self, future: Future) -> None:
-        """(Main thread.) While ``future`` (the render thread's) is not done, do the work
-        of keys the render thread has not started (the latest first: the render thread
-        takes its queue from the front), so that a wait does its work: cast their
-        geometry (where :meth:`~wander_env.frames.Stage.casts_here`) and, in a step that
-        synthesises no frame, draw the step's keys' colour (where
-        :meth:`~wander_env.frames.Stage.draws_here`). Only there: where the main thread
-        synthesises frames it has work of its own, and a draw taken on waiting for
-        a nearly done one delayed it (the closed loop ran 2 % slower); keys drawn ahead
-        on a guess are left to the render thread (a guess a changed trajectory drops
-        would be work lost)."""
-        if future.done():
-            return
-        draws = self._only_keys and self.stage.draws_here()
-        casts = self.stage.casts_here()
-        if not (draws or casts):
+        """(Main thread.) While ``future`` (the render thread's) is not done, cast the
+        geometry of keys the render thread has not started (the latest first: the
+        render thread takes its queue from the front), so that a wait does its work."""
+        if future.done() or not self.stage.casts_here():
             return
         ahead = self._ahead.new if self._ahead is not None else []
         for key in reversed([*self.keys, *ahead]):
-            if draws and key in self.keys and not future.done():
-                self.stage.draw_here(key.drawn)
-            if casts and not future.done() and key.same_as is None:
-                self._cast_here(key)
             if future.done():
                 return
+            if key.same_as is None:
+                self._cast_here(key)
 
     def request_geometry(self, key: RenderedKey, ahead: bool = False) -> None:
         """Hand the drawing of ``key``'s geometry (that of the key it shares it with) to
@@ -299,7 +279,6 @@ class KeyframeFrames(FrameSource):
         """The stream's keys from here on: ``keys`` (none: no key, nothing planned)."""
         self.keys, self._key_at = keys, {key.t_us: key for key in keys}
         self._views, self._made, self._interpolated, self._skipped = {}, {}, set(), set()
-        self._only_keys = False
 
     def key_at(self, t_us: int) -> RenderedKey | None:
         """The key of this step rendered at ``t_us`` (None: none there)."""
@@ -480,10 +459,6 @@ class KeyframeFrames(FrameSource):
         self._views = dict(zip(ticks, views, strict=True))
         self._interpolated, self._skipped = layout.interpolated, layout.skipped
         self._key_at = {key.t_us: key for key in self.keys}
-        # Whether the step synthesises no frame (its ticks are keys, blends or left to
-        # the DVS): the main thread then only waits for the draw side (_help_until).
-        made = set(ticks) - self._key_at.keys() - layout.interpolated - layout.skipped
-        self._only_keys = not made
 
     def _left_to_dvs(self, start: View, layout: StepLayout, at_key: set[int]) -> set[int]:
         """The ticks (not already the keys' blend) whose frames the DVS goes without
@@ -544,14 +519,12 @@ class KeyframeFrames(FrameSource):
         pixel; else a synthesised frame."""
         key = self._key_at.get(t_us)
         if key is not None:
-            self._await_colour(key)
+            self._help_until(key.drawn)
             return key.prepared
         made = self._made.pop(t_us, None)
         if made is not None and not made.cancel():  # (not started there: made here)
             return made.result()
         a, b = self.pair(t_us)
-        self._await_colour(a)
-        self._await_colour(b)
         w = (t_us - a.t_us) / (b.t_us - a.t_us)
         if t_us in self._interpolated:
             return self.dvs.prepare(blend(a.lum, b.lum, w))

@@ -25,10 +25,9 @@ Two sides, two ``MjData``:
   :attr:`Stage.data`): the main thread's data, where only the PTU's joints move (views
   for the frame sources, the camera for the ground truth's projection).
 
-A thread that would wait for draw-side work the render thread has not started may take
-it back and do it itself, with a pose (and a GL context) of its own: a key's geometry
-where it is ray cast (:meth:`Stage.geometry_here`), a key's colour where posing writes
-only the pose's data (:meth:`Stage.draw_here`); the same pixels either way.
+A thread that would wait for a key's geometry the render thread has not started may cast
+it itself where it is ray cast, with a pose of its own (:meth:`Stage.geometry_here`):
+the same arrays either way. Only the draw side draws: a stage's GL runs on one thread.
 
 The renderer (and the thread) are created on first use (or by :meth:`Stage.warm_up`), in
 the process that renders; in a process forked after that, drawing raises
@@ -124,12 +123,7 @@ class Stage:
                 model, self.width, self.height, rc, params.visible_geom_groups
             )
         self._cast_for: SceneAnimator | None = None  # the reset the caster's cube is of
-        # The main thread's own pose and renderer (geometry_here, draw_here), the lock
-        # of the draw counts both threads add to, and the one both renderers draw under.
-        self._here_data: mujoco.MjData | None = None
-        self._here_renderer: CameraRenderer | None = None
-        self._count_lock = threading.Lock()
-        self._gl_lock = threading.Lock()
+        self._here_data: mujoco.MjData | None = None  # the main thread's pose (geometry_here)
 
     # -- the env's verbs --------------------------------------------------------------------
     def begin_episode(self, animator: SceneAnimator) -> None:
@@ -203,9 +197,7 @@ class Stage:
 
     def _the_renderer(self) -> CameraRenderer:
         if self._renderer is None:
-            self._renderer = CameraRenderer(
-                self.model, self.width, self.height, params=self.params, gl_lock=self._gl_lock
-            )
+            self._renderer = CameraRenderer(self.model, self.width, self.height, params=self.params)
             self._renderer_pid = os.getpid()
         return self._renderer
 
@@ -344,8 +336,7 @@ class Stage:
         return self.on_draw_side(self._render)
 
     def _render(self) -> np.ndarray:
-        with self._count_lock:
-            self._charging.renders += 1
+        self._charging.renders += 1
         return self._the_renderer().render(self._draw_data)
 
     def casts(self, what: Literal["ground_truth", "key_layers"]) -> bool:
@@ -372,8 +363,7 @@ class Stage:
     def _geometry(self) -> tuple[np.ndarray, np.ndarray]:
         if self.casts("key_layers"):
             return self._ready_caster().geometry(self._draw_data)
-        with self._count_lock:
-            self._charging.geometry_draws += 1
+        self._charging.geometry_draws += 1
         renderer = self._the_renderer()
         renderer.update(self._draw_data)
         return renderer.segment_depth_current(self.layer_lut)
@@ -410,48 +400,6 @@ class Stage:
             self._here_data = mujoco.MjData(self.model)
         self._pose_into(self._here_data, t_us, *angles)
         return self._here_data
-
-    def draws_here(self) -> bool:
-        """Whether :meth:`draw_here` can draw on this thread now: off the render thread,
-        once the draw side changes the model no more this episode (it does while it makes
-        its renderer and renders the caster's static cube: both change the model for a
-        moment), where posing writes only the pose's own data (not the gratings' strip
-        colours, which are the model's)."""
-        if not self._from_outside() or self._renderer is None or self._animator is None:
-            return False
-        if self._uses_caster() and not self._cube_of_episode():
-            return False
-        return not self._animator.poses_model
-
-    def draw_here(self, drawn: Future[np.ndarray]) -> bool:
-        """(Main thread, only where :meth:`draws_here`.) Take the colour draw ``drawn``
-        (:meth:`colour_at` work handed to the render thread) back if that thread has not
-        started it, and draw it here with a renderer of this thread's own (a GL context
-        of its own, made on first use): the same pixels (the same model, parameters and
-        pose), set on the same future and counted where the render thread would have
-        counted them. Whether it did; so a thread that would wait for a draw makes it,
-        beside the render thread drawing the next."""
-        self._check_process()
-        work = self._thread.take(drawn) if self.draws_here() else None
-        if work is None:
-            return False
-        _, (count, fn, args) = work
-        drawn.set_running_or_notify_cancel()
-        try:
-            if fn != self.colour_at:
-                raise RuntimeError(f"draw_here: {fn!r} is not a colour draw")
-            with self._count_lock:
-                count.renders += 1
-            if self._here_renderer is None:
-                self._here_renderer = CameraRenderer(
-                    self.model, self.width, self.height, params=self.params, gl_lock=self._gl_lock
-                )
-            drawn.set_result(self._here_renderer.render(self._here_pose(*args)))
-        except BaseException as e:  # raised where the draw is read, as on the thread
-            drawn.set_exception(e)
-            if not isinstance(e, Exception):  # a signal stops here too
-                raise
-        return True
 
     def object_mask(self) -> np.ndarray:
         """Object ids (H, W) int32 of the posed draw data (0 = background)."""
@@ -542,9 +490,6 @@ class Stage:
         self._thread = self._last = None
         self._ahead_count = self._ahead_last = None
         renderer, self._renderer = self._renderer, None
-        here, self._here_renderer = self._here_renderer, None
-        if here is not None:  # (this thread's own, made here)
-            here.abandon() if forked else here.close()
         if forked:
             if renderer is not None:
                 renderer.abandon()

@@ -74,10 +74,9 @@ def test_warm_up_makes_the_gl_contexts_before_the_reset_and_changes_no_event(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """``warm_up`` makes both GL contexts (the renderer's, the caster's cube's) on the
-    render thread before the first reset, which then makes none there (the main thread
-    makes its own once if it draws a key itself: :meth:`Stage.draw_here`); every step's
-    events, mask, counts and camera frame are those of an env not warmed up, byte for
-    byte."""
+    render thread before the first reset, which then makes none (nor does any other
+    thread: only the render thread draws); every step's events, mask, counts and camera
+    frame are those of an env not warmed up, byte for byte."""
     from wander_env.renderer import CameraRenderer
 
     made: list[tuple[int, int, str]] = []
@@ -97,7 +96,7 @@ def test_warm_up_makes_the_gl_contexts_before_the_reset_and_changes_no_event(
         assert made == [(128, 128, "wander-render"), (n, n, "wander-render")]
         env.reset(seed=2)
         env.step(ACTIONS[0])
-        assert made[2:] in ([], [(128, 128, "MainThread")])
+        assert len(made) == 2
     finally:
         env.close()
     assert _trace("keyframes", True, warm_up=True) == _trace("keyframes", True)
@@ -342,41 +341,16 @@ def test_a_key_geometry_the_render_thread_has_not_started_is_cast_by_the_thread_
     assert stage.geometry_draws == 0 and int((layers > 0).sum()) > 0
 
 
-def test_a_key_colour_the_render_thread_has_not_started_is_drawn_by_the_thread_that_needs_it(
-    office,
-):
-    """A key's colour queued behind other work: the main thread takes the draw back and
-    draws it with a renderer of its own, into the same future; the pixels are those the
-    render thread draws for the same pose, and the step counts the draw once. A draw
-    already done is not taken again."""
-    source, stage = office.source, office.stage
-    start = source.keys[-1]
-    t_us, angles = start.t_us + 5000, (start.angles[0] + 2.0, start.angles[1] - 1.0)
-    gate = _held(stage)
-    key = source.render_key(t_us, angles, stage.camera_view(t_us, *angles))
-    assert stage.draws_here() and stage.draw_here(key.drawn)
-    here = key.drawn.result(timeout=0)  # done before the render thread is let go
-    gate.set()
-    assert stage.renders == 1 and not stage.draw_here(key.drawn)
-    there = stage.colour_at(t_us, angles)  # on the render thread
-    assert stage.renders == 2
-    assert here.shape == (office.height, office.width, 3) and len(np.unique(here)) > 10
-    assert np.array_equal(here, there)
-
-
-@pytest.mark.parametrize("verb", ["casts_here", "draws_here"])
-def test_only_a_thread_off_the_render_thread_casts_or_draws_and_not_in_the_gratings(verb):
-    """casts_here and draws_here: the main thread of office, once its cube is rendered;
-    not the render thread itself; not gratings (its posing writes the strips' colours into
-    the model the render thread draws; and its screen is a plane: GL draws its
-    geometry)."""
+def test_only_a_thread_off_the_render_thread_casts_and_not_in_the_gratings():
+    """casts_here: the main thread of office, once its cube is rendered; not the render
+    thread itself; not gratings (its screen is a plane: GL draws its geometry)."""
     for scene, expected in (("office", True), ("gratings", False)):
         env = gym.make("wander/Wander-v0", scene=scene)
         try:
             env.reset(seed=0)
             stage = env.unwrapped.stage
-            assert getattr(stage, verb)() is expected, scene
-            assert stage.on_draw_side(getattr(stage, verb)) is False
+            assert stage.casts_here() is expected, scene
+            assert stage.on_draw_side(stage.casts_here) is False
         finally:
             env.close()
 

@@ -51,27 +51,6 @@ def test_promoted_work_joins_the_steps_queue_in_order_and_cancelled_work_never_r
         thread.close()
 
 
-def test_work_taken_back_before_it_starts_never_runs_there() -> None:
-    """take: queued work (the step's or ahead) comes back as (fn, args) and never runs on
-    the thread; work that ran (or is running) cannot be taken back."""
-    thread, ran = DrawThread("test-draw"), []
-    try:
-        go = _blocked(thread)
-        now = thread.submit(ran.append, "now")
-        ahead = thread.submit(ran.append, "ahead", ahead=True)
-        last = thread.submit(ran.append, "last")
-        assert thread.take(now) == (ran.append, ("now",))
-        assert thread.take(ahead) == (ran.append, ("ahead",))
-        assert thread.take(now) is None  # (taken already)
-        go.set()
-        last.result(timeout=60)
-        thread.settle()
-        assert ran == ["last"] and thread.take(last) is None
-        assert not now.done() and not ahead.done()  # the taker's to finish
-    finally:
-        thread.close()
-
-
 def test_an_error_is_raised_where_the_result_is_read() -> None:
     thread = DrawThread("test-draw")
     try:
