@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import warnings
 from dataclasses import dataclass
 
 import mujoco
@@ -79,6 +80,9 @@ class CameraRenderer(Closing):
 
     Create it in the process that renders: a process forked after GL was initialised
     cannot render, and this raises :class:`~wander_env.gl_fork.ForkedGLError` there.
+    Close it on the thread that draws with it: dropped without :meth:`close` (collected
+    on whichever thread runs the garbage collector), it frees nothing through GL and
+    warns (``ResourceWarning``); destroying its GL context frees what it held.
 
     It drives MuJoCo's renderer directly (one GL context, ``mjv_updateScene``,
     ``mjr_render``, ``mjr_readPixels`` into a reused buffer): the same pixels as
@@ -298,24 +302,81 @@ class CameraRenderer(Closing):
     # -- lifetime -------------------------------------------------------------------------
 
     def close(self) -> None:
-        """Free the render contexts and the GL context (idempotent)."""
-        cons = {id(c): c for c in (self._con, self._seg_con) if c is not None}.values()
-        self._con = self._seg_con = None
-        if self._gl is not None:
+        """Free the render contexts and the GL context (idempotent). Where the GL context
+        cannot be made current (it is current on another thread), :meth:`abandon` s
+        them instead."""
+        if self._gl is None:
+            self._con = self._seg_con = None
+            return
+        try:
             self._gl.make_current()
-            for con in cons:
-                con.free()
-            self._gl.free()
-            self._gl = None
+        except Exception:  # (EGL_BAD_ACCESS: current on another thread)
+            self.abandon()
+            return
+        for con in self._render_contexts():
+            con.free()
+        self._con = self._seg_con = None
+        self._gl.free()
+        self._gl = None
 
     def abandon(self) -> None:
-        """Forget the GL objects without freeing them: in a process forked from the one
-        that made them they are the parent's (closing is then a no-op)."""
+        """Forget the GL objects without a GL call: in a process forked from the one that
+        made them (they are the parent's), or on a thread where the GL context cannot be
+        made current. Each render context's GL names are cleared first, so that freeing
+        it (MuJoCo's ``mjr_freeContext``, run when it is dropped) deletes nothing in
+        whatever GL context is current then: the same names there are another
+        renderer's. Closing is then a no-op."""
+        for con in self._render_contexts():
+            _forget_gl_names(con)
         self._con = self._seg_con = self._gl = None
 
+    def _render_contexts(self) -> list[mujoco.MjrContext]:
+        """The render contexts, each once (the two are one without multisampling)."""
+        cons = {id(c): c for c in (self._con, self._seg_con) if c is not None}
+        return list(cons.values())
+
     def __del__(self) -> None:
+        if getattr(self, "_gl", None) is None:  # (closed, or failed in __init__)
+            return
         with contextlib.suppress(Exception):  # interpreter shutdown: nothing to report to
-            self.close()
+            warnings.warn(
+                f"CameraRenderer ({self.width}x{self.height}) dropped without close(): "
+                "its GL objects are left to its GL context's destruction",
+                ResourceWarning,
+                stacklevel=2,
+            )
+        # Never a GL call here: the collector runs on any thread, maybe one drawing in a
+        # GL context of its own, where freeing would delete that context's objects.
+        with contextlib.suppress(Exception):
+            self.abandon()
+
+
+def _forget_gl_names(con: mujoco.MjrContext) -> None:
+    """Clear the GL object names ``con`` holds (textures, render and frame buffers,
+    display lists, skins' buffers) without a GL call: ``mjr_freeContext`` then deletes
+    nothing (it deletes by these names in the GL context current when it runs)."""
+    con.ntexture = 0
+    for name in (
+        "offColor",
+        "offColor_r",
+        "offDepthStencil",
+        "offDepthStencil_r",
+        "offFBO",
+        "offFBO_r",
+        "shadowTex",
+        "shadowFBO",
+        "rangePlane",
+        "rangeMesh",
+        "rangeHField",
+        "rangeBuiltin",
+        "rangeFont",
+    ):
+        setattr(con, name, 0)
+    for names in (con.auxColor, con.auxColor_r, con.auxFBO, con.auxFBO_r):
+        names[:] = 0
+    if con.nskin:  # (the arrays are NumPy views of the context's own; empty: a tuple)
+        for names in (con.skinvertVBO, con.skinnormalVBO, con.skintexcoordVBO, con.skinfaceVBO):
+            names[:] = 0  # (glDeleteBuffers skips name 0)
 
 
 def project_points(

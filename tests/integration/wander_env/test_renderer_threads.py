@@ -1,0 +1,105 @@
+"""A renderer closed or dropped on a thread other than the one it draws on leaves the GL
+objects of the renderer drawing there intact.
+
+Two renderers of one model hold the same GL object names, each in its own GL context.
+MuJoCo frees a render context by those names in whatever GL context is current when it
+runs, so a renderer freed on a thread drawing with another deleted that renderer's
+buffers, textures and display lists (seen: its masks read garbage ids).
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: headless rendering
+
+import gc
+import threading
+import warnings
+from collections.abc import Iterator
+
+import mujoco
+import numpy as np
+import pytest
+
+from wander_env.mjcf import compile_scene
+from wander_env.renderer import CameraRenderer
+from wander_env.scenes import load_scene_config
+
+
+@pytest.fixture(scope="module")
+def posed() -> tuple[mujoco.MjModel, mujoco.MjData]:
+    model = compile_scene(load_scene_config("office"))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    return model, data
+
+
+@pytest.fixture
+def elsewhere(posed) -> Iterator[dict[str, CameraRenderer]]:
+    """A renderer made and drawn on a thread of its own, which stays alive (its GL context
+    current there) until the test ends."""
+    model, data = posed
+    held: dict[str, CameraRenderer] = {}
+    made, done = threading.Event(), threading.Event()
+
+    def draw_there() -> None:
+        held["renderer"] = CameraRenderer(model)
+        held["renderer"].render(data)
+        made.set()
+        done.wait(60)
+
+    thread = threading.Thread(target=draw_there, daemon=True)
+    thread.start()
+    assert made.wait(60)
+    yield held
+    done.set()
+    thread.join(60)
+
+
+def _frames(renderer: CameraRenderer, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+    return renderer.render_with_mask(data)
+
+
+def test_a_renderer_dropped_here_without_close_frees_nothing_of_this_threads(posed, elsewhere):
+    model, data = posed
+    with CameraRenderer(model) as here:
+        rgb, mask = _frames(here, data)
+        assert int(mask.max()) == 2 and len(np.unique(rgb)) > 10
+        with pytest.warns(ResourceWarning, match=r"CameraRenderer \(128x128\) dropped"):
+            del elsewhere["renderer"]
+            gc.collect()
+        rgb_after, mask_after = _frames(here, data)
+    assert np.array_equal(rgb_after, rgb)
+    assert np.array_equal(mask_after, mask)
+
+
+def test_closing_a_renderer_current_on_another_thread_forgets_it(posed, elsewhere):
+    """Its GL context cannot be made current here: close() forgets its GL objects (no
+    error, closed after) and this thread's renderer draws the same frames."""
+    model, data = posed
+    there = elsewhere["renderer"]
+    with CameraRenderer(model) as here:
+        rgb, mask = _frames(here, data)
+        there.close()
+        with pytest.raises(RuntimeError, match="closed"):
+            there.render(data)
+        rgb_after, mask_after = _frames(here, data)
+    assert np.array_equal(rgb_after, rgb)
+    assert np.array_equal(mask_after, mask)
+
+
+def test_a_renderer_closed_on_its_own_thread_is_freed_there(posed):
+    """The usual path: closed where it draws, it frees its GL objects, warns nothing,
+    and a renderer made after draws the same frames as one made before."""
+    model, data = posed
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with CameraRenderer(model) as before:
+            expected = _frames(before, data)
+        del before
+        gc.collect()
+        with CameraRenderer(model) as again:
+            got = _frames(again, data)
+    assert [w for w in caught if issubclass(w.category, ResourceWarning)] == []
+    assert np.array_equal(got[0], expected[0]) and np.array_equal(got[1], expected[1])
