@@ -23,11 +23,15 @@ def make(scene: str = "shelf", **kw) -> gym.Env:
 
 
 def run(env: gym.Env, actions: list[np.ndarray], seed: int) -> list[dict]:
-    _, info = env.reset(seed=seed)
-    infos = [info]
-    for a in actions:
-        infos.append(env.step(a)[4])
-    return infos
+    """The infos of a reset and the steps of ``actions``; ``env`` closed after."""
+    try:
+        _, info = env.reset(seed=seed)
+        infos = [info]
+        for a in actions:
+            infos.append(env.step(a)[4])
+        return infos
+    finally:
+        env.close()
 
 
 def test_reset_gives_the_documented_spaces():
