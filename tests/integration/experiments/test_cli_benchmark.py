@@ -508,10 +508,11 @@ def test_maps_vs_masks_figure_samples_scored_windows(tmp_path):
     result = invoke("events", file, "--masks", masks, "--out", out, "--no-progress")
     assert result.exit_code == 0, result.output
     assert f"{out}/maps_vs_masks.png" in result.output
-    picture = Image.open(out / "maps_vs_masks.png")
+    with Image.open(out / "maps_vs_masks.png") as picture:
+        size = picture.size
     sampler = WindowSampler()
     sampler.start_sequence(N_WIN)
     rows = len(sampler.wanted)
     assert rows == 4
     # 12 x (3 rows of inches per window + 0.9) inches at 110 dpi.
-    assert picture.size == (1320, round((3.0 * rows + 0.9) * 110))
+    assert size == (1320, round((3.0 * rows + 0.9) * 110))
