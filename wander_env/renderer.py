@@ -353,8 +353,10 @@ class CameraRenderer(Closing):
 
 def _forget_gl_names(con: mujoco.MjrContext) -> None:
     """Clear the GL object names ``con`` holds (textures, render and frame buffers,
-    display lists, skins' buffers) without a GL call: ``mjr_freeContext`` then deletes
-    nothing (it deletes by these names in the GL context current when it runs)."""
+    display lists) without a GL call: ``mjr_freeContext`` then deletes none of them (it
+    deletes by these names in the GL context current when it runs). A skinned model's
+    skin buffers are the exception: their names are read-only tuples in Python, so they
+    are still deleted by name there."""
     con.ntexture = 0
     for name in (
         "offColor",
@@ -374,9 +376,6 @@ def _forget_gl_names(con: mujoco.MjrContext) -> None:
         setattr(con, name, 0)
     for names in (con.auxColor, con.auxColor_r, con.auxFBO, con.auxFBO_r):
         names[:] = 0
-    if con.nskin:  # (the arrays are NumPy views of the context's own; empty: a tuple)
-        for names in (con.skinvertVBO, con.skinnormalVBO, con.skintexcoordVBO, con.skinfaceVBO):
-            names[:] = 0  # (glDeleteBuffers skips name 0)
 
 
 def project_points(

@@ -103,3 +103,21 @@ def test_a_renderer_closed_on_its_own_thread_is_freed_there(posed):
             got = _frames(again, data)
     assert [w for w in caught if issubclass(w.category, ResourceWarning)] == []
     assert np.array_equal(got[0], expected[0]) and np.array_equal(got[1], expected[1])
+
+
+def test_abandoning_a_skinned_models_renderer_clears_its_names_and_raises_nothing():
+    """A skin's buffer names cannot be cleared from Python (read-only); abandoning still
+    clears every other name and forgets the renderer (as in a forked child)."""
+    xml = """<mujoco><worldbody><body name="b"><geom type="sphere" size="0.1"/></body>
+      <camera name="event_camera" pos="0 0 1"/></worldbody>
+      <deformable><skin name="s" vertex="0 0 0 1 0 0 0 1 0 0 0 1"
+        face="0 1 2 0 2 3 0 3 1 1 3 2"><bone body="b" bindpos="0 0 0" bindquat="1 0 0 0"
+        vertid="0 1 2 3" vertweight="1 1 1 1"/></skin></deformable></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    renderer = CameraRenderer(model, 64, 64)
+    con = renderer._con
+    assert con.nskin == 1 and con.offFBO > 0 and con.rangeBuiltin > 0
+    renderer.abandon()
+    assert (con.offFBO, con.rangeBuiltin, con.ntexture) == (0, 0, 0)
+    assert renderer._con is None and renderer._gl is None
+    renderer.close()  # (a no-op now)
