@@ -193,6 +193,16 @@ def test_sigkill_leaves_a_readable_stream_that_says_where_it_stops(tmp_path):
     assert stop["last_t_us"] == rec.events["t"][-1] < 30_000_000
 
 
+def _python(code: str) -> subprocess.CompletedProcess[str]:
+    """``code`` run by this Python with the project importable, faulthandler left to
+    the code (not enabled from the environment)."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env.pop("PYTHONFAULTHANDLER", None)
+    return subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120
+    )
+
+
 def test_a_native_crash_in_a_command_prints_every_threads_python_stack():
     code = (
         "import ctypes, sys, threading\n"
@@ -204,11 +214,7 @@ def test_a_native_crash_in_a_command_prints_every_threads_python_stack():
         "sys.argv = ['wander', 'crash-here']\n"
         "app()\n"
     )
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    env.pop("PYTHONFAULTHANDLER", None)
-    proc = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120
-    )
+    proc = _python(code)
     assert proc.returncode == -signal.SIGSEGV, proc.stderr
     assert "Fatal Python error: Segmentation fault" in proc.stderr
     crashed, other = proc.stderr.split("Current thread 0x")[1], proc.stderr.split("Thread 0x")
@@ -224,11 +230,7 @@ def test_a_command_runs_where_there_is_no_stderr_to_print_a_crash_on():
         "sys.argv = ['wander', 'run', '--help']\n"
         "app()\n"
     )
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    env.pop("PYTHONFAULTHANDLER", None)
-    proc = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120
-    )
+    proc = _python(code)
     assert proc.returncode == 0, proc.stderr
     assert "Usage: wander run" in proc.stdout
 
