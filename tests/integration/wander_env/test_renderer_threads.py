@@ -57,19 +57,15 @@ def elsewhere(posed) -> Iterator[dict[str, CameraRenderer]]:
     thread.join(60)
 
 
-def _frames(renderer: CameraRenderer, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-    return renderer.render_with_mask(data)
-
-
 def test_a_renderer_dropped_here_without_close_frees_nothing_of_this_threads(posed, elsewhere):
     model, data = posed
     with CameraRenderer(model) as here:
-        rgb, mask = _frames(here, data)
+        rgb, mask = here.render_with_mask(data)
         assert int(mask.max()) == 2 and len(np.unique(rgb)) > 10
         with pytest.warns(ResourceWarning, match=r"CameraRenderer \(128x128\) dropped"):
             del elsewhere["renderer"]
             gc.collect()
-        rgb_after, mask_after = _frames(here, data)
+        rgb_after, mask_after = here.render_with_mask(data)
     assert np.array_equal(rgb_after, rgb)
     assert np.array_equal(mask_after, mask)
 
@@ -80,11 +76,11 @@ def test_closing_a_renderer_current_on_another_thread_forgets_it(posed, elsewher
     model, data = posed
     there = elsewhere["renderer"]
     with CameraRenderer(model) as here:
-        rgb, mask = _frames(here, data)
+        rgb, mask = here.render_with_mask(data)
         there.close()
         with pytest.raises(RuntimeError, match="closed"):
             there.render(data)
-        rgb_after, mask_after = _frames(here, data)
+        rgb_after, mask_after = here.render_with_mask(data)
     assert np.array_equal(rgb_after, rgb)
     assert np.array_equal(mask_after, mask)
 
@@ -96,11 +92,11 @@ def test_a_renderer_closed_on_its_own_thread_is_freed_there(posed):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         with CameraRenderer(model) as before:
-            expected = _frames(before, data)
+            expected = before.render_with_mask(data)
         del before
         gc.collect()
         with CameraRenderer(model) as again:
-            got = _frames(again, data)
+            got = again.render_with_mask(data)
     assert [w for w in caught if issubclass(w.category, ResourceWarning)] == []
     assert np.array_equal(got[0], expected[0]) and np.array_equal(got[1], expected[1])
 
