@@ -33,7 +33,7 @@ import numpy as np
 from agents.attention import AgentParams, AttentionAgent
 from agents.proto_object import ProtoObjectSaliency
 from experiments.jobs.run_agent import OneEpisodeRun
-from experiments.perf.clock import LOAD_COLUMN, Clock, Timings, timed
+from experiments.perf.clock import LOAD_COLUMN, Clock, Measured, Timings, timed
 from experiments.perf.dvs import CALIBRATION_COLUMN, calibration_fps
 from wander_env.env_config import WanderConfig
 
@@ -79,7 +79,7 @@ MODES_COLUMNS: dict[str, str] = {
 
 
 @dataclass(frozen=True)
-class LatencyRow:
+class LatencyRow(Measured):
     """One stage: number of calls and the median / 95th percentile / max wall time, the
     median CPU time of this process, in ms; the load average around the run."""
 
@@ -89,11 +89,10 @@ class LatencyRow:
     p95_ms: float
     max_ms: float
     cpu_median_ms: float = float("nan")
-    load: str = "–"
 
 
 @dataclass(frozen=True)
-class LoopRow:
+class LoopRow(Measured):
     """The closed loop: simulated seconds per wall second of env + agent."""
 
     scene: str
@@ -105,7 +104,6 @@ class LoopRow:
     cpu_s: float = float("nan")  # this process's CPU time over the loop
     keys_ahead_adopted: str = "–"  # keys drawn ahead adopted, of those drawn ahead
     dvs_fps: float = float("nan")  # the machine's speed just before (calibration_fps)
-    load: str = "–"
 
 
 def latency_row(
@@ -124,7 +122,7 @@ def latency_row(
         float(np.percentile(ms, 95)),
         float(ms.max()),
         cpu,
-        load,
+        load=load,
     )
 
 
@@ -226,7 +224,7 @@ def bench_agent(config: AgentBenchConfig) -> tuple[list[LatencyRow], LoopRow]:
 
 
 @dataclass(frozen=True)
-class ModesRow:
+class ModesRow(Measured):
     """The closed loop with both frame modes, run side by side in one process."""
 
     scene: str
@@ -243,7 +241,6 @@ class ModesRow:
     keyframes_decisions: int
     exact_cpu_ms: float = float("nan")  # env + agent, this process's CPU time a step
     keyframes_cpu_ms: float = float("nan")
-    load: str = "–"
 
 
 def loop_modes(config: AgentBenchConfig) -> ModesRow:

@@ -8,7 +8,7 @@ average when its first span began and its last ended; :func:`timed` wraps a func
 that each call is such a span (its wall and CPU seconds kept per call, for percentiles).
 Every speed table of ``wander perf env|agent|floor|dvs`` has, beside its wall-time
 columns, the CPU time of the same spans and a ``load`` column (:data:`LOAD_COLUMN`,
-``start-end``).
+``start-end``): its rows are :class:`Measured`.
 
 Examples:
     >>> clock = Clock()
@@ -30,10 +30,19 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["LOAD_COLUMN", "Clock", "Timings", "timed"]
+__all__ = ["LOAD_COLUMN", "Clock", "Measured", "Timings", "timed"]
 
 #: The ``load`` column of a speed table (row field -> format spec).
 LOAD_COLUMN: dict[str, str] = {"load": ""}
+
+
+@dataclass(frozen=True, kw_only=True)
+class Measured:
+    """A speed table's row: ``load``, the 1-minute load average around its measurement
+    (:attr:`Clock.load`, ``start-end``; ``–`` where none was taken), given by keyword
+    after the row's own fields."""
+
+    load: str = "–"
 
 
 @dataclass

@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from experiments.jobs.synthetic import drifting_texture
-from experiments.perf.clock import LOAD_COLUMN, Clock
+from experiments.perf.clock import LOAD_COLUMN, Clock, Measured
 from wander_env.dvs import DVSEmulator, DVSParams
 
 # Drift speeds (px/frame) that give about 1,000 and 4,000 events per frame with `ideal`.
@@ -86,8 +86,8 @@ PEER_COLUMNS: dict[str, str] = {
 }
 
 
-@dataclass
-class DVSBenchRow:
+@dataclass(frozen=True)
+class DVSBenchRow(Measured):
     sensor: str
     scene: str
     noise: str
@@ -97,11 +97,10 @@ class DVSBenchRow:
     on_frame_time_pct: float  # events stamped exactly on a frame time (interpolation check)
     peak_mib: float
     cpu_frames_per_s: float = float("nan")  # by the process's CPU time
-    load: str = "–"
 
 
-@dataclass
-class InputPathRow:
+@dataclass(frozen=True)
+class InputPathRow(Measured):
     """One input format of the same moving pattern; ``time_ratio`` is this row's time per
     frame over the linear float32 row's (1.00: as fast)."""
 
@@ -111,11 +110,10 @@ class InputPathRow:
     events: int
     time_ratio: float
     cpu_frames_per_s: float = float("nan")  # by the process's CPU time
-    load: str = "–"
 
 
-@dataclass
-class PeerRow:
+@dataclass(frozen=True)
+class PeerRow(Measured):
     """One emulator on the peer frames. ``wander_speedup`` = this emulator's time per
     frame / wander's; ``events_diff_pct`` = (events − wander's) / wander's, in %. The
     numbers are None (printed "–") when the emulator could not be run; ``note`` says why."""
@@ -128,7 +126,6 @@ class PeerRow:
     events_diff_pct: float | None
     note: str
     cpu_frames_per_s: float | None = None  # by the process's CPU time
-    load: str = "–"
 
 
 def _run(emu: DVSEmulator, frames: np.ndarray, clock: Clock | None = None) -> tuple[int, int]:

@@ -33,7 +33,7 @@ import gymnasium as gym
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
-from experiments.perf.clock import LOAD_COLUMN, Clock, Timings, timed
+from experiments.perf.clock import LOAD_COLUMN, Clock, Measured, Timings, timed
 from experiments.perf.dvs import CALIBRATION_COLUMN, calibration_fps
 from wander_env.env_config import WanderConfig
 from wander_env.field_doc import field_doc
@@ -101,8 +101,8 @@ ENV_COUNT_COLUMNS: dict[str, str] = {
 }
 
 
-@dataclass
-class EnvBenchRow:
+@dataclass(frozen=True)
+class EnvBenchRow(Measured):
     """One DVS preset and env count, both frame modes measured side by side."""
 
     scene: str
@@ -141,7 +141,6 @@ class EnvBenchRow:
     exact_alone_ms_per_step: float = float("nan")
     alone_speedup: float = float("nan")
     dvs_fps: float = float("nan")  # the machine's speed just before the row (calibration_fps)
-    load: str = "–"  # 1-minute load average at the row's start and end
 
 
 @dataclass(frozen=True)
@@ -288,8 +287,8 @@ def _renders(env: Any) -> int:
     return int(env.unwrapped.renders_in_step)
 
 
-@dataclass
-class StepBreakdown:
+@dataclass(frozen=True)
+class StepBreakdown(Measured):
     """Where one env's step goes: ms per step of each part, and per render call."""
 
     scene: str
@@ -306,7 +305,6 @@ class StepBreakdown:
     segment_ms: float  # ground truth's masks and keys' layers + depth (drawn or ray cast)
     pose_ms: float  # PTU angles and objects into the model, kinematics
     other_ms: float  # the rest: PTU model, events to counts, info
-    load: str  # 1-minute load average at the start and end of the timed steps
 
 
 def step_breakdown(env_config: WanderConfig, seconds: float, seed: int = 0) -> StepBreakdown:

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
-from experiments.perf.clock import LOAD_COLUMN, Clock
+from experiments.perf.clock import LOAD_COLUMN, Clock, Measured
 from wander_env.frames.cube import cube_warp
 
 FLOOR_COLUMNS: dict[str, str] = {
@@ -46,7 +46,7 @@ BOUND_COLUMNS: dict[str, str] = {
 
 
 @dataclass(frozen=True)
-class FloorRow:
+class FloorRow(Measured):
     """One part: median and best of the runs' wall time and the median of their CPU
     time, ms per call; the load average around the runs."""
 
@@ -55,11 +55,10 @@ class FloorRow:
     ms_best: float
     note: str = ""
     cpu_ms_median: float = float("nan")
-    load: str = "–"
 
 
 @dataclass(frozen=True)
-class BoundRow:
+class BoundRow(Measured):
     """A step's GL passes alone and the real-time factor they leave room for."""
 
     step: str
@@ -68,7 +67,6 @@ class BoundRow:
     gl_ms: float
     rtf_bound: float  # control period / GL ms: the RTF if everything else took no time
     gl_cpu_ms: float = float("nan")  # the same from the parts' CPU times
-    load: str = "–"  # around the whole measurement
 
 
 def _time(fn: Callable[[int], object], calls: int, repeats: int) -> tuple[float, float, float, str]:
@@ -124,7 +122,7 @@ def render_floor(
         def add(part: str, fn: Callable[[int], object], note: str = "") -> float:
             with whole.span():
                 med, best, cpu, load = _time(fn, calls, repeats)
-            rows.append(FloorRow(part, med, best, note, cpu, load))
+            rows.append(FloorRow(part, med, best, note, cpu, load=load))
             cpu_of[part] = cpu
             return med
 
@@ -234,5 +232,5 @@ def render_floor(
     for name, n_colour, n_geom in steps:
         gl = n_colour * colour + n_geom * geometry
         gl_cpu = n_colour * cpu_of[colour_part] + n_geom * cpu_of[geometry_part]
-        bounds.append(BoundRow(name, n_colour, n_geom, gl, period_ms / gl, gl_cpu, whole.load))
+        bounds.append(BoundRow(name, n_colour, n_geom, gl, period_ms / gl, gl_cpu, load=whole.load))
     return rows, bounds
