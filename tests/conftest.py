@@ -26,6 +26,11 @@ from pathlib import Path
 import pytest
 
 os.environ.setdefault("MUJOCO_GL", "egl")
+# A native crash prints every thread's Python stack (pytest's faulthandler) and nothing
+# else. Ray's own crash handler, installed when Ray starts, would run first: it writes to
+# the stderr pytest captures (lost with the process) before handing the signal on, and a
+# crash in the system tier after Ray had started printed no stack at all.
+os.environ.setdefault("RAY_DISABLE_FAILURE_SIGNAL_HANDLER", "1")
 
 TESTS = Path(__file__).resolve().parent
 SUPPORT = TESTS / "support"
