@@ -47,8 +47,8 @@ them and runs the DVS (:mod:`wander_env.frames.stage`; the same events without i
 :meth:`WanderEnv.close` joins it. Constructing an env touches no GL and starts no thread,
 so ``AsyncVectorEnv`` with the default ("fork") start method works. A process forked
 after its parent rendered cannot render: there ``reset`` or ``step`` raises
-:class:`~wander_env.gl_fork.ForkedGLError`, which says to use ``context="spawn"`` (see
-:mod:`wander_env.gl_fork`).
+:class:`~wander_env.gl_process.ForkedGLError`, which says to use ``context="spawn"`` (see
+:mod:`wander_env.gl_process`).
 
 Examples:
     >>> import gymnasium, wander_env

@@ -1,5 +1,7 @@
-"""OpenGL across ``fork``: a forked child cannot use the GL state it inherits, so refuse.
+"""The process's OpenGL: who may draw (not a child forked after GL was initialised), and
+one thread drawing at a time.
 
+**Across fork.** A forked child cannot use the GL state it inherits, so it is refused.
 Mesa's software rasteriser (llvmpipe, what EGL runs on without a GPU) starts worker
 threads when its display is initialised and waits on them inside GL calls. ``fork``
 copies the process without those threads: a child that creates a GL context on the
@@ -17,10 +19,22 @@ thread (:mod:`wander_env.frames.stage`), which a forked child does not have: the
 stage raises the same error before handing the thread any work, and forgets the parent's
 GL objects when closed, freeing nothing.
 
-Which process initialised GL is process-wide state by nature; it is kept here, in one
-place: the pid that created a context through :func:`claim_gl`, or, where something else
-(``mujoco.Renderer``, the user's own code) initialised MuJoCo's EGL display, the parent's
-pid, noted by an ``os.register_at_fork`` hook in the child.
+**One drawer at a time.** Every GL call of :class:`~wander_env.renderer.CameraRenderer`
+(making a context, drawing and reading, freeing) runs under :func:`gl_lock`, one
+re-entrant lock for the process. Each env draws on one thread (its render thread), so a
+process with one env never waits on it; where one process holds several envs (a
+``"sync"`` vector env, ``wander perf env``'s modes in turns) their render threads take
+turns. Two threads each drawing in a context of its own is what OpenGL allows, but three
+processes of this project died in native code (twice inside ``mjr_render``) while two of
+their threads drew at once, and none has been seen with one drawer; the cost of taking
+turns is in ``docs/benchmarks.md``.
+
+Which process initialised GL, and its lock, are process-wide state by nature; they are
+kept here, in one place: the pid that created a context through :func:`claim_gl`, or,
+where something else (``mujoco.Renderer``, the user's own code) initialised MuJoCo's EGL
+display, the parent's pid, noted by an ``os.register_at_fork`` hook in the child; and the
+lock, made anew in a forked child (a thread that held the parent's is not there to
+release it).
 
 Examples:
     >>> claim_gl()  # this process may create GL contexts (it was not forked after GL)
@@ -32,9 +46,12 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
 
 # The pid of the process whose GL state this memory holds; None while no GL is known.
 _GL_OWNER: dict[str, int | None] = {"pid": None}
+# The lock every GL call of this process runs under.
+_GL_LOCK: dict[str, threading.RLock] = {"lock": threading.RLock()}
 
 
 class ForkedGLError(RuntimeError):
@@ -53,7 +70,20 @@ def _note_inherited_gl() -> None:
         _GL_OWNER["pid"] = os.getppid()
 
 
+def _new_lock_in_child() -> None:
+    """At fork, in the child: a lock of its own (the parent's may be held by a thread the
+    child does not have)."""
+    _GL_LOCK["lock"] = threading.RLock()
+
+
 os.register_at_fork(after_in_child=_note_inherited_gl)
+os.register_at_fork(after_in_child=_new_lock_in_child)
+
+
+def gl_lock() -> threading.RLock:
+    """The lock this process's GL calls run under (re-entrant: a renderer collected inside
+    a locked call, on the same thread, takes it again)."""
+    return _GL_LOCK["lock"]
 
 
 def gl_owner_pid() -> int | None:
@@ -84,4 +114,4 @@ def claim_gl() -> None:
     _GL_OWNER["pid"] = pid
 
 
-__all__ = ["ForkedGLError", "claim_gl", "fork_error_message", "gl_owner_pid"]
+__all__ = ["ForkedGLError", "claim_gl", "fork_error_message", "gl_lock", "gl_owner_pid"]

@@ -45,7 +45,7 @@ from wander_env.camera import (
     rotation_from_mujoco,
 )
 from wander_env.closing import Closing
-from wander_env.gl_fork import claim_gl
+from wander_env.gl_process import claim_gl, gl_lock
 from wander_env.mjcf import geom_object_ids
 
 
@@ -79,10 +79,13 @@ class CameraRenderer(Closing):
     """RGB and segmentation frames from one camera of a model; close() when done.
 
     Create it in the process that renders: a process forked after GL was initialised
-    cannot render, and this raises :class:`~wander_env.gl_fork.ForkedGLError` there.
+    cannot render, and this raises :class:`~wander_env.gl_process.ForkedGLError` there.
     Close it on the thread that draws with it: dropped without :meth:`close` (collected
     on whichever thread runs the garbage collector), it frees nothing through GL and
     warns (``ResourceWarning``); destroying its GL context frees what it held.
+
+    Its GL calls run under the process's GL lock (:func:`~wander_env.gl_process.gl_lock`):
+    renderers on different threads take turns.
 
     It drives MuJoCo's renderer directly (one GL context, ``mjv_updateScene``,
     ``mjr_render``, ``mjr_readPixels`` into a reused buffer): the same pixels as
@@ -127,10 +130,11 @@ class CameraRenderer(Closing):
         self._seg_con: mujoco.MjrContext | None = None
         claim_gl()  # in a child forked after GL was initialised: ForkedGLError, not a hang
         try:
-            self._gl = mujoco.GLContext(width * ss, height * ss)
-            self._gl.make_current()
-            self._con = self._context(model.vis.quality.offsamples)
-            self._seg_con = self._context(0) if model.vis.quality.offsamples > 0 else self._con
+            with gl_lock():
+                self._gl = mujoco.GLContext(width * ss, height * ss)
+                self._gl.make_current()
+                self._con = self._context(model.vis.quality.offsamples)
+                self._seg_con = self._context(0) if model.vis.quality.offsamples > 0 else self._con
         except mujoco.FatalError as e:
             self.close()
             backend = os.environ.get("MUJOCO_GL", "")
@@ -188,10 +192,11 @@ class CameraRenderer(Closing):
         the raw depth buffer into ``depth`` when given)."""
         if con is None or self._gl is None:
             raise RuntimeError("CameraRenderer is closed")
-        self._gl.make_current()
-        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, con)
-        mujoco.mjr_render(self._rect, self._scene, con)
-        mujoco.mjr_readPixels(self._rgb, depth, self._rect, con)
+        with gl_lock():
+            self._gl.make_current()
+            mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, con)
+            mujoco.mjr_render(self._rect, self._scene, con)
+            mujoco.mjr_readPixels(self._rgb, depth, self._rect, con)
         return self._rgb
 
     def update(self, data: mujoco.MjData) -> None:
@@ -308,16 +313,17 @@ class CameraRenderer(Closing):
         if self._gl is None:
             self._con = self._seg_con = None
             return
-        try:
-            self._gl.make_current()
-        except Exception:  # (EGL_BAD_ACCESS: current on another thread)
-            self.abandon()
-            return
-        for con in self._render_contexts():
-            con.free()
-        self._con = self._seg_con = None
-        self._gl.free()
-        self._gl = None
+        with gl_lock():
+            try:
+                self._gl.make_current()
+            except Exception:  # (EGL_BAD_ACCESS: current on another thread)
+                self.abandon()
+                return
+            for con in self._render_contexts():
+                con.free()
+            self._con = self._seg_con = None
+            self._gl.free()
+            self._gl = None
 
     def abandon(self) -> None:
         """Forget the GL objects without a GL call: in a process forked from the one that
@@ -326,9 +332,12 @@ class CameraRenderer(Closing):
         it (MuJoCo's ``mjr_freeContext``, run when it is dropped) deletes nothing in
         whatever GL context is current then: the same names there are another
         renderer's. Closing is then a no-op."""
-        for con in self._render_contexts():
-            _forget_gl_names(con)
-        self._con = self._seg_con = self._gl = None
+        with gl_lock():
+            for con in self._render_contexts():
+                _forget_gl_names(con)
+            gl, self._con, self._seg_con, self._gl = self._gl, None, None, None
+            if gl is not None:  # (EGL defers destroying a context current elsewhere)
+                gl.free()
 
     def _render_contexts(self) -> list[mujoco.MjrContext]:
         """The render contexts, each once (the two are one without multisampling)."""

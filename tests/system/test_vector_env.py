@@ -21,8 +21,8 @@ from locations import ROOT, SUPPORT
 from vector_drive import NUM_ENVS, STEPS, WAIT_S, drive_and_close, make_env
 
 import wander_env  # noqa: F401  (registers the environments)
-from wander_env import gl_fork
-from wander_env.gl_fork import ForkedGLError, claim_gl
+from wander_env import gl_process
+from wander_env.gl_process import ForkedGLError, claim_gl
 
 
 def child_env() -> dict[str, str]:
@@ -97,26 +97,26 @@ def test_fork_after_rendering_in_the_parent_fails_at_once_naming_spawn():
 
 
 def test_claim_gl_refuses_a_process_forked_after_gl(monkeypatch):
-    monkeypatch.setitem(gl_fork._GL_OWNER, "pid", os.getpid() + 1)  # as after a fork
+    monkeypatch.setitem(gl_process._GL_OWNER, "pid", os.getpid() + 1)  # as after a fork
     with pytest.raises(ForkedGLError, match=rf"initialised in process {os.getpid() + 1} "):
         claim_gl()
-    monkeypatch.setitem(gl_fork._GL_OWNER, "pid", None)
+    monkeypatch.setitem(gl_process._GL_OWNER, "pid", None)
     claim_gl()
-    assert gl_fork.gl_owner_pid() == os.getpid()
+    assert gl_process.gl_owner_pid() == os.getpid()
 
 
 def test_the_fork_hook_notes_an_egl_display_initialised_outside_claim_gl(monkeypatch):
     class FakeEGL:
         EGL_DISPLAY = object()
 
-    monkeypatch.setitem(gl_fork._GL_OWNER, "pid", None)
+    monkeypatch.setitem(gl_process._GL_OWNER, "pid", None)
     monkeypatch.setitem(sys.modules, "mujoco.egl", FakeEGL)
-    gl_fork._note_inherited_gl()  # what runs in a forked child
-    assert gl_fork.gl_owner_pid() == os.getppid()
-    monkeypatch.setitem(gl_fork._GL_OWNER, "pid", None)
+    gl_process._note_inherited_gl()  # what runs in a forked child
+    assert gl_process.gl_owner_pid() == os.getppid()
+    monkeypatch.setitem(gl_process._GL_OWNER, "pid", None)
     FakeEGL.EGL_DISPLAY = None
-    gl_fork._note_inherited_gl()
-    assert gl_fork.gl_owner_pid() is None
+    gl_process._note_inherited_gl()
+    assert gl_process.gl_owner_pid() is None
 
 
 def test_a_renderer_inherited_through_fork_is_refused(monkeypatch):

@@ -61,7 +61,7 @@ from wander_env.camera import CAMERA_NAME, intrinsics, rotation_from_mujoco
 from wander_env.config import check_annotated
 from wander_env.entities import TILT_JOINT
 from wander_env.field_doc import field_doc
-from wander_env.gl_fork import ForkedGLError, fork_error_message
+from wander_env.gl_process import ForkedGLError, fork_error_message
 from wander_env.mjcf import geom_layer_ids
 
 if TYPE_CHECKING:

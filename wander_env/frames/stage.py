@@ -31,7 +31,7 @@ the same arrays either way. Only the draw side draws: a stage's GL runs on one t
 
 The renderer (and the thread) are created on first use (or by :meth:`Stage.warm_up`), in
 the process that renders; in a process forked after that, drawing raises
-:class:`~wander_env.gl_fork.ForkedGLError` (see :mod:`wander_env.gl_fork`);
+:class:`~wander_env.gl_process.ForkedGLError` (see :mod:`wander_env.gl_process`);
 :meth:`Stage.close` joins the thread.
 
 Where every moving object is a primitive, :attr:`Stage.caster`
@@ -57,7 +57,7 @@ from wander_env.entities import PAN_JOINT, TILT_JOINT
 from wander_env.frames.draw_thread import DrawThread
 from wander_env.frames.keyframe_maths import View
 from wander_env.frames.raycast import PrimitiveCaster, RaycastParams, unsupported_geoms
-from wander_env.gl_fork import ForkedGLError, fork_error_message
+from wander_env.gl_process import ForkedGLError, fork_error_message
 from wander_env.mjcf import SceneAnimator, geom_layer_ids, geom_layer_radii
 from wander_env.renderer import CameraRenderer, RenderParams
 from wander_env.scene_config import SceneConfig
@@ -142,7 +142,7 @@ class Stage:
         0.1 s each, the first in a process) instead of at the first reset; with the
         render thread in the background, while the caller goes on. Only for a caller
         that keeps this process: a process forked after it cannot draw
-        (:mod:`wander_env.gl_fork`)."""
+        (:mod:`wander_env.gl_process`)."""
         return self.submit(self._warm_up)
 
     def _warm_up(self) -> None:

@@ -23,7 +23,7 @@ from wander_env.frames.raycast import (
     unsupported_geoms,
 )
 from wander_env.frames.stage import Stage
-from wander_env.gl_fork import ForkedGLError
+from wander_env.gl_process import ForkedGLError
 from wander_env.mjcf import SceneAnimator, build_mjcf
 from wander_env.ptu.params import PTUParams
 from wander_env.renderer import RenderParams

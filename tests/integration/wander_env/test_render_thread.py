@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import wander_env  # noqa: F401  (registers the environments)
-from wander_env.gl_fork import ForkedGLError
+from wander_env.gl_process import ForkedGLError
 
 ACTIONS = [np.array([0.5, -0.3], np.float32)] + [
     np.array([0.01 * ((k * 7) % 5 - 2), 0.01 * ((k * 3) % 5 - 2)], np.float32) for k in range(9)

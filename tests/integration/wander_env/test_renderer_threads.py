@@ -5,6 +5,9 @@ Two renderers of one model hold the same GL object names, each in its own GL con
 MuJoCo frees a render context by those names in whatever GL context is current when it
 runs, so a renderer freed on a thread drawing with another deleted that renderer's
 buffers, textures and display lists (seen: its masks read garbage ids).
+
+Renderers on different threads draw one at a time (the process's GL lock), and a child
+forked while a thread of its parent held that lock gets a lock of its own.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported: headless
 
 import gc
 import threading
+import time
 import warnings
 from collections.abc import Iterator
 
@@ -22,6 +26,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from wander_env.gl_process import gl_lock
 from wander_env.mjcf import compile_scene
 from wander_env.renderer import CameraRenderer
 from wander_env.scenes import load_scene_config
@@ -117,3 +122,69 @@ def test_abandoning_a_skinned_models_renderer_clears_its_names_and_raises_nothin
     assert (con.offFBO, con.rangeBuiltin, con.ntexture) == (0, 0, 0)
     assert renderer._con is None and renderer._gl is None
     renderer.close()  # (a no-op now)
+
+
+def test_renderers_on_two_threads_draw_one_at_a_time(posed, monkeypatch):
+    """Each draw (``mjr_render`` made slow here, 2 ms) runs while no other thread draws:
+    of 2 × 15 draws on two threads, at most one is ever inside ``mjr_render``, and each
+    thread's frames are the ones a lone renderer draws."""
+    model, data = posed
+    inside, most = [0], [0]
+    count = threading.Lock()
+    render = mujoco.mjr_render
+
+    def slow_render(*args):
+        with count:
+            inside[0] += 1
+            most[0] = max(most[0], inside[0])
+        time.sleep(0.002)
+        render(*args)
+        with count:
+            inside[0] -= 1
+
+    with CameraRenderer(model) as lone:
+        expected = lone.render(data)
+    monkeypatch.setattr(mujoco, "mjr_render", slow_render)
+    frames: dict[int, list[np.ndarray]] = {0: [], 1: []}
+    start = threading.Barrier(2)
+
+    def draw(k: int) -> None:
+        with CameraRenderer(model) as renderer:
+            start.wait(60)
+            frames[k] = [renderer.render(data) for _ in range(15)]
+
+    threads = [threading.Thread(target=draw, args=(k,)) for k in (0, 1)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(120)
+    assert most[0] == 1
+    assert [len(f) for f in frames.values()] == [15, 15]
+    assert all(np.array_equal(rgb, expected) for f in frames.values() for rgb in f)
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs fork")
+def test_a_child_forked_while_a_thread_holds_the_gl_lock_gets_a_free_one():
+    """The parent's lock is held by another thread at the fork; the child takes its own
+    at once (exit status 0) instead of waiting for a thread it does not have."""
+    held, release = threading.Event(), threading.Event()
+
+    def hold() -> None:
+        with gl_lock():
+            held.set()
+            release.wait(60)
+
+    holder = threading.Thread(target=hold)
+    holder.start()
+    assert held.wait(60)
+    try:
+        pid = os.fork()
+        if pid == 0:  # the child: exit at once, without the parent's cleanup
+            os._exit(0 if gl_lock().acquire(timeout=10) else 1)
+        _, status = os.waitpid(pid, 0)
+    finally:
+        release.set()
+        holder.join(60)
+    assert os.waitstatus_to_exitcode(status) == 0
+    assert gl_lock().acquire(blocking=False)  # and the parent's is free again
+    gl_lock().release()
