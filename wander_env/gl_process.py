@@ -24,10 +24,10 @@ GL objects when closed, freeing nothing.
 re-entrant lock for the process. Each env draws on one thread (its render thread), so a
 process with one env never waits on it; where one process holds several envs (a
 ``"sync"`` vector env, ``wander perf env``'s modes in turns) their render threads take
-turns. Two threads each drawing in a context of its own is what OpenGL allows, but three
-processes of this project died in native code (twice inside ``mjr_render``) while two of
-their threads drew at once, and none has been seen with one drawer; the cost of taking
-turns is in ``docs/benchmarks.md``.
+turns. Two threads each drawing in a context of its own is what OpenGL allows, but
+processes of this project died in native code while two of their threads drew at once
+(in CI: twice inside ``mjr_render``, once with no stack printed), and none has been seen
+to die with one drawer; the cost of taking turns is in ``docs/benchmarks.md``.
 
 Which process initialised GL, and its lock, are process-wide state by nature; they are
 kept here, in one place: the pid that created a context through :func:`claim_gl`, or,

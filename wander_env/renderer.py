@@ -331,12 +331,13 @@ class CameraRenderer(Closing):
         made current. Each render context's GL names are cleared first, so that freeing
         it (MuJoCo's ``mjr_freeContext``, run when it is dropped) deletes nothing in
         whatever GL context is current then: the same names there are another
-        renderer's. Closing is then a no-op."""
+        renderer's. Its EGL context is destroyed (EGL defers that while the context is
+        current on another thread). Closing is then a no-op."""
         with gl_lock():
             for con in self._render_contexts():
                 _forget_gl_names(con)
             gl, self._con, self._seg_con, self._gl = self._gl, None, None, None
-            if gl is not None:  # (EGL defers destroying a context current elsewhere)
+            if gl is not None:
                 gl.free()
 
     def _render_contexts(self) -> list[mujoco.MjrContext]:
