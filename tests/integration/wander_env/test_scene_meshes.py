@@ -96,7 +96,12 @@ def test_a_mesh_is_scaled_and_centred_on_its_position(tmp_path, writer):
     )
     scene = build_mjcf(cfg)
     assert sorted(scene.assets) == ["mesh_1" + obj.suffix, "mesh_2" + obj.suffix]
-    assert model.nmesh == 2
+    # the two files' meshes, and the PTU base's cylinder as a prism (cylinders_as_prisms)
+    assert [model.mesh(i).name for i in range(model.nmesh)] == [
+        "mesh_1",
+        "mesh_2",
+        "wander_cylinder_prism_0",
+    ]
 
 
 def test_a_textured_mesh_renders_its_texture_and_is_segmented(tmp_path):
