@@ -26,7 +26,7 @@ import pydantic
 
 import wander_env  # noqa: F401  (registers the environments)
 from agents.scripted import GazePolicy, Policy
-from experiments.runs.episode import Recorder, run_episode
+from experiments.runs.episode import OneEpisode, Recorder, run_episode
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
 from experiments.runs.recorders import (
@@ -41,7 +41,6 @@ from experiments.runs.recorders import (
 from experiments.runs.signals import DeferredSignals
 from experiments.studies.framework import MAX_SEED
 from wander_env.camera import focal_length_px
-from wander_env.config import check_annotated
 from wander_env.env_config import WanderConfig
 from wander_env.events.evimo2 import write_evimo2_sequence
 from wander_env.events.io import read_events, write_events
@@ -52,7 +51,7 @@ FORMATS = {"h5": "events.h5", "aedat4": "events.aedat4", "evt3": "events.raw", "
 
 
 @dataclass(frozen=True)
-class RecordConfig:
+class RecordConfig(OneEpisode):
     """What ``wander record`` records: the env's block (its ``episode_seconds`` is the
     recording's length: 5 s by default), the gaze policy
     (:data:`agents.scripted.POLICIES`) and its seed, the seconds between its saccades, the
@@ -64,14 +63,6 @@ class RecordConfig:
     saccade_interval_s: Annotated[float, pydantic.Field(gt=0)] = 0.5
     video: bool = True
     format: Literal["h5", "aedat4", "evt3", "evimo2"] = "h5"
-
-    def __post_init__(self) -> None:
-        check_annotated(self)
-
-    @property
-    def seconds(self) -> float:
-        """The recording's length: one episode."""
-        return self.env.episode_seconds
 
 
 def record(

@@ -50,7 +50,7 @@ import pydantic
 from agents.attention import AgentParams, AttentionAgent
 from experiments.analysis import scanpath_stats
 from experiments.jobs.scanpath_figure import plot_scanpath
-from experiments.runs.episode import Recorder, run_episode
+from experiments.runs.episode import OneEpisode, Recorder, run_episode
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
 from experiments.runs.recorders import (
@@ -66,7 +66,6 @@ from experiments.runs.recorders import (
 from experiments.runs.signals import DeferredSignals, SignalExit
 from experiments.studies.framework import MAX_SEED
 from wander_env.camera import degrees_to_pixels, focal_length_px, pixel_to_world_angles
-from wander_env.config import check_annotated
 from wander_env.env_config import WanderConfig
 from wander_env.events.stream import EventStreamWriter
 from wander_env.viz import event_image, labelled_frame, saliency_rgb
@@ -92,18 +91,10 @@ __all__ = [
 VIDEO_FPS = 25
 
 
-class OneEpisodeRun:
-    """What the configs of ``wander run`` and ``wander rig`` share: their fields checked
-    against their annotations, the run one episode of their ``env`` block long, and the
-    agent of their ``agent`` block matched to the env."""
-
-    def __post_init__(self) -> None:
-        check_annotated(self)
-
-    @property
-    def seconds(self) -> float:
-        """The run's length: one episode."""
-        return self.env.episode_seconds
+class OneEpisodeRun(OneEpisode):
+    """What the configs of ``wander run`` and ``wander rig`` share beside
+    :class:`~experiments.runs.episode.OneEpisode`: the agent of their ``agent`` block
+    matched to the env."""
 
     def agent_params(self, env: Any) -> AgentParams:
         """The ``agent`` block with the env's sensor (``width_px``, ``height_px``) and

@@ -55,7 +55,23 @@ from typing import Any, Protocol
 
 from experiments.runs.signals import DeferredSignals
 
-__all__ = ["Policy", "Recorder", "run_episode"]
+__all__ = ["OneEpisode", "Policy", "Recorder", "run_episode"]
+
+
+class OneEpisode:
+    """The base of a job's config whose run is one episode of its ``env`` block (``wander
+    run``, ``record``, ``rig``): the dataclass's fields checked against their annotations
+    when it is made (:func:`wander_env.config.check_annotated`)."""
+
+    def __post_init__(self) -> None:
+        from wander_env.config import check_annotated  # pydantic: only where a config is made
+
+        check_annotated(self)
+
+    @property
+    def seconds(self) -> float:
+        """The run's length: one episode of ``env``."""
+        return self.env.episode_seconds  # type: ignore[attr-defined]
 
 
 class Policy(Protocol):
