@@ -102,7 +102,9 @@ class FileLimits:
     """
 
     json_bytes: int = _cap(
-        8 * MiB, "A JSON document: config.json, run.json, a trial file (a few kB)."
+        8 * MiB,
+        "A JSON document: config.json, run.json (a few kB); a sweep's trial files have "
+        "their own cap, 16 MiB (experiments.runs.trials).",
     )
     json_depth: int = _cap(64, "Lists and objects nested in a JSON document (ours nest 4-6 deep).")
     mjcf_bytes: int = _cap(8 * MiB, "An MJCF file, and all the MJCF files one include brings.")

@@ -345,8 +345,9 @@ SetOpt = Annotated[
     list[str] | None,
     typer.Option(
         "--set",
-        help="Set any config key: --set env.keyframe_px=4, --set agent.soms.alpha=0.5 "
-        "(repeatable; applied last).",
+        help="Set any key of the command's config by its dotted path: --set "
+        "env.keyframe_px=4, --set agent.soms.alpha=0.5 where the config holds those "
+        "blocks (repeatable; applied last; an unknown key lists the keys).",
     ),
 ]
 
