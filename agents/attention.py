@@ -261,6 +261,35 @@ class AgentParams:
         step = getattr(cfg, "control_period_s", cls.step_s)
         return cls(**{"width_px": int(w), "height_px": int(h), "step_s": step, **overrides})
 
+    def check_reads(self, *blocks: str, speck: bool = True) -> None:
+        """Refuse a setting that a study of the agent's components would ignore: a config
+        that runs only the ``blocks`` named (``"soms"``, ``"proto"``) at a step of its own
+        (the benchmark, the sOMS and detection experiments) holds the agent's whole block;
+        every other field must keep its default. With ``speck`` false, ``soms`` must be an
+        sOMS (:class:`agents.soms.SOMSParams`), not the front end on Speck's cores.
+        ValueError ``agent.FIELD: ...``.
+
+        >>> AgentParams(window_s=0.05).check_reads("soms", "proto")
+        Traceback (most recent call last):
+        ...
+        ValueError: agent.window_s: 0.05 plays no part here (only agent.soms, agent.proto \
+do); leave it at its default, 0.124
+        """
+        if not speck and not isinstance(self.soms, SOMSParams):
+            raise ValueError(
+                "agent.soms: the sOMS pipeline runs here; the front end on Speck's cores "
+                f"({type(self.soms).__name__}) is not one"
+            )
+        default = AgentParams()
+        for f in fields(self):
+            value, default_value = getattr(self, f.name), getattr(default, f.name)
+            if f.name not in blocks and value != default_value:
+                used = ", ".join(f"agent.{b}" for b in blocks)
+                raise ValueError(
+                    f"agent.{f.name}: {value!r} plays no part here (only {used} do); leave "
+                    f"it at its default, {default_value!r}"
+                )
+
 
 class Phase(enum.Enum):
     """The agent's state."""

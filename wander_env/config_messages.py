@@ -140,7 +140,7 @@ def _lower(msg: str) -> str:
 # ----------------------------------------------------------------------------------------
 # Path-first messages
 
-_LEADING_FIELD = re.compile(r"^(?:\w+\.)?(\w+)((?:\[\d+\])*)(:?) ")
+_LEADING_FIELD = re.compile(r"^(?:[A-Z]\w*\.)?(\w+)((?:\[\d+\])*)(:?) ")  # after a class name
 
 
 def _bare(tp: Any) -> Any:

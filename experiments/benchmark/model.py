@@ -55,7 +55,8 @@ class ModelConfig:
     direct or separable) and ``proto`` (``polarity_split: false`` is the paper's
     streamlined model on ``V = V+ ∨ V−``; ``conv`` direct or FFT, same results); both
     run with the step ``dt``. The agent's other settings (fixation window, saccades) play
-    no part in the benchmark.
+    no part in the benchmark: a changed one is refused
+    (:meth:`agents.attention.AgentParams.check_reads`).
     """
 
     dt: float = 0.005
@@ -65,11 +66,7 @@ class ModelConfig:
     def __post_init__(self) -> None:
         if not (self.dt > 0 and math.isfinite(self.dt)):
             raise ValueError(f"ModelConfig.dt must be a positive number of seconds, got {self.dt}")
-        if not isinstance(self.agent.soms, SOMSParams):
-            raise ValueError(
-                "agent.soms: the benchmark scores the sOMS pipeline; the Speck front end "
-                f"({type(self.agent.soms).__name__}) is not one"
-            )
+        self.agent.check_reads("soms", "proto", speck=False)
 
     def soms_params(self) -> SOMSParams:
         """The :class:`SOMSParams` of this config (the agent's, with the step ``dt``)."""

@@ -19,13 +19,14 @@ not scored. One row per trial: means over the scored windows.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
+from agents.attention import AgentParams
 from agents.pipeline import SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
@@ -54,7 +55,7 @@ __all__ = [
 #: The env fields each trial sets (what sets them): the block leaves them at defaults.
 ENV_SET_PER_TRIAL = {
     "scene": "scenes",
-    "control_period_s": "soms.dt",
+    "control_period_s": "step_s",
     "episode_seconds": "duration_s",
     "ptu": "camera_speeds_deg_s",
 }
@@ -65,10 +66,12 @@ class DetectionConfig:
     """Defaults: the paper's sOMS / proto-object table values and its 8×8 box; scenes,
     speed levels, sweep amplitude and trial length are ours.
 
-    ``soms`` and ``proto`` are the two stages' parameter blocks (``--set soms.alpha=0.5``);
-    their ``dt`` is the window of one step, the same in both (:attr:`step_s`). ``env`` is
-    the env's block (``--set env.frames=exact``); each trial sets its scene, step,
-    length and PTU (:data:`ENV_SET_PER_TRIAL`)."""
+    ``agent`` is the agent's block (:class:`agents.attention.AgentParams`) whose two
+    stages the experiment runs: its ``soms`` (the paper-literal sOMS by default, min-max
+    norm, α 0.80) and ``proto`` (``--set agent.soms.alpha=0.5``), both stepped every
+    ``step_s`` (one event window); the agent's other settings play no part and are refused
+    (as in ``wander benchmark``). ``env`` is the env's block (``--set env.frames=exact``);
+    each trial sets its scene, step, length and PTU (:data:`ENV_SET_PER_TRIAL`)."""
 
     scenes: tuple[SceneName, ...] = ("office", "hand", "gratings")
     camera_speeds_deg_s: tuple[float, ...] = (0.0, 10.0, 30.0, 60.0)
@@ -79,8 +82,8 @@ class DetectionConfig:
     box: int = 8
     baseline_sigma_px: float = 2.0
     repeats: study.Repeats = 2
-    soms: SOMSParams = field(default_factory=lambda: SOMSParams(dt=0.02))
-    proto: ProtoObjectParams = field(default_factory=lambda: ProtoObjectParams(dt=0.02))
+    step_s: float = 0.02
+    agent: AgentParams = field(default_factory=lambda: AgentParams(soms=SOMSParams()))
 
     def __post_init__(self) -> None:
         check_env_block(self.env, ENV_SET_PER_TRIAL)
@@ -88,11 +91,7 @@ class DetectionConfig:
             raise ValueError(
                 f"need duration_s > warmup_s >= 0, got {self.duration_s}, {self.warmup_s}"
             )
-        if self.proto.dt != self.soms.dt:
-            raise ValueError(
-                f"proto.dt ({self.proto.dt}) must equal soms.dt ({self.soms.dt}): both are "
-                "the step; step_s sets both"
-            )
+        self.agent.check_reads("soms", "proto", speck=False)
         ticks = self.step_s * 1000.0
         if not self.step_s > 0 or abs(ticks - round(ticks)) > 1e-9:
             raise ValueError(f"step_s must be a whole number of ms, got {self.step_s}")
@@ -103,10 +102,13 @@ class DetectionConfig:
         if self.repeats < 1:
             raise ValueError(f"repeats must be >= 1, got {self.repeats}")
 
-    @property
-    def step_s(self) -> float:
-        """One step (one event window), seconds: the blocks' ``dt``."""
-        return self.soms.dt
+    def soms_params(self) -> SOMSParams:
+        """The agent's sOMS block, stepped every ``step_s``."""
+        return replace(self.agent.soms, dt=self.step_s)  # type: ignore[type-var]
+
+    def proto_params(self) -> ProtoObjectParams:
+        """The agent's proto-object block, stepped every ``step_s``."""
+        return replace(self.agent.proto, dt=self.step_s)
 
 
 # ----------------------------------------------------------------------------------------
@@ -213,9 +215,9 @@ def run_trial(cfg: DetectionConfig, spec: study.TrialSpec) -> dict[str, Any]:
     protocol = ProtocolConfig(box=cfg.box)
     warm = round(cfg.warmup_s * 1e6)
     baseline = SaliencyPipeline(
-        cfg.soms, saliency="oms_density", density_sigma_px=cfg.baseline_sigma_px
+        cfg.soms_params(), saliency="oms_density", density_sigma_px=cfg.baseline_sigma_px
     )
-    proto = SaliencyPipeline(cfg.soms, cfg.proto)
+    proto = SaliencyPipeline(cfg.soms_params(), cfg.proto_params())
     with_proto = _means(evaluate_sequence(seq, proto, protocol), warm)
     without = _means(evaluate_sequence(seq, baseline, protocol), warm)
     n_windows = len(seq.windows)
@@ -324,8 +326,8 @@ def plot(
     for ax in axes:
         ax.legend(fontsize=7)
     fig.suptitle(
-        f"Detection against camera speed (α = {cfg.soms.alpha:g}, {cfg.duration_s:g} s per trial, "
-        "means over windows and repeats)",
+        f"Detection against camera speed (α = {cfg.agent.soms.alpha:g}, {cfg.duration_s:g} s "
+        "per trial, means over windows and repeats)",
         fontsize=10,
     )
     path = save_figure(fig, fig_dir / "detection.png")

@@ -21,7 +21,7 @@ Rows: one per trial and phase (the grid is the phases). The row of phase ``P`` i
 recorded by itself: the env starts with the hand and the camera where the trial's clocks
 put them at ``P``'s start, runs ``lead_s`` of the phase before ``P`` (a pause before
 the first; it warms the DVS and the sOMS and is not scored), then ``P``. The env steps
-every ``window_s`` (2 ms); the sOMS steps once per ``soms.dt`` on the summed counts and
+every ``window_s`` (2 ms); the sOMS steps once per ``soms_step_s`` on the summed counts and
 its map gates each of the step's windows' events (an event counts as *out* when it falls
 on a pixel the OMS map fires at, both polarities).
 
@@ -48,11 +48,12 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
+from agents.attention import AGENT_SOMS, AgentParams
 from agents.soms import SOMSParams
 from agents.speck_front import SpeckFrontParams
 from experiments.analysis.stats import mean_ci, wilson_interval
@@ -92,37 +93,13 @@ __all__ = [
     "phase_row",
     "record",
     "schedule",
-    "soms_preset",
 ]
 
 
-#: The named sOMS blocks of ``soms=...``: the paper's table, the agent's default, or the
-#: front end on Speck's cores.
-SOMSPreset = Literal["table", "agent", "speck"]
 #: An sOMS block: the host's float sOMS or the front end on Speck's cores.
 FrontBlock = SOMSParams | SpeckFrontParams
 
 Range = tuple[float, float]
-
-
-def soms_preset(name: str, dt: float = 0.02) -> FrontBlock:
-    """The sOMS block ``name`` at step ``dt``: ``"table"`` the paper's table (min-max norm),
-    ``"agent"`` the agent's default (:data:`agents.attention.AGENT_SOMS`), ``"speck"`` the
-    front end on Speck's cores (:class:`agents.speck_front.SpeckFrontParams`; its DoG
-    spikes on the sensor grid are the OMS map).
-
-    >>> soms_preset("table").norm, soms_preset("agent").norm, soms_preset("agent").dt
-    ('minmax', 'quantile', 0.02)
-    """
-    if name == "agent":
-        from agents.attention import AGENT_SOMS
-
-        return replace(AGENT_SOMS, dt=dt)
-    if name == "table":
-        return SOMSParams(dt=dt)
-    if name == "speck":
-        return SpeckFrontParams(dt=dt)
-    raise ValueError(f"soms must be a parameter block or 'table', 'agent' or 'speck', got {name!r}")
 
 
 #: The env fields each trial sets (what sets them): the block leaves them at defaults.
@@ -136,12 +113,15 @@ class EventSuppressionConfig:
     config file with its reason.
 
     ``shake_s``, ``hand_s``, ``both_s``, ``pause_s``: each phase's length range (s),
-    drawn per trial. ``soms`` is the sOMS block (``--set soms.alpha=0.6``) or a preset
-    name (:func:`soms_preset`: ``--set soms=agent`` runs the agent's sOMS, ``soms=speck``
-    the front end on Speck's cores, kept as the name); its ``dt`` is
-    the sOMS step, a whole number of ``window_s`` windows. ``second_soms`` (a block or a
-    preset name, same ``dt``) is scored on the same windows too (the ``second:``
-    columns: two sOMS side by side on identical events). ``env`` is the env's block
+    drawn per trial. ``agent`` is the agent's block (:class:`agents.attention.AgentParams`)
+    whose front end the trials score: its ``soms`` (``--set agent.soms.alpha=0.6``; the
+    paper's table by default, ``SOMSParams()``; ``--set agent.soms=agent`` the agent's
+    default sOMS, ``agent.soms=speck`` the front end on Speck's cores), stepped every
+    ``soms_step_s``, a whole number of ``window_s`` windows; the agent's other settings
+    play no part and are refused. ``second_agent`` (None: none) is a second agent block
+    whose front end is scored on the same windows at the same step (the ``second:``
+    columns: two front ends side by side on identical events; ``--set
+    second_agent.soms=agent``). ``env`` is the env's block
     (the hand scene and the Speck by default); each trial sets its step and length
     (:data:`ENV_SET_PER_TRIAL`).
     ``hand_margin_px``: the hand's events are those on its swept mask or within that many
@@ -158,22 +138,18 @@ class EventSuppressionConfig:
     shake: Shake = field(default_factory=Shake)
     hand_ratio: float | None = None
     repeats: study.Repeats = 10
-    soms: SOMSParams | SOMSPreset = field(default_factory=lambda: soms_preset("table"))
-    second_soms: SOMSParams | SOMSPreset | None = None
+    soms_step_s: float = 0.02
+    agent: AgentParams = field(default_factory=lambda: AgentParams(soms=SOMSParams()))
+    second_agent: AgentParams | None = None
     hit_sigma_px: float = 2.0
     hand_margin_px: int = 2
 
     def __post_init__(self) -> None:
         check_env_block(self.env, ENV_SET_PER_TRIAL)
-        # a preset name: its block ("speck" stays a name: its block is not a config block)
-        if isinstance(self.soms, str) and self.soms != "speck":
-            object.__setattr__(self, "soms", soms_preset(self.soms))
-        if isinstance(self.second_soms, str) and self.second_soms != "speck":
-            object.__setattr__(self, "second_soms", soms_preset(self.second_soms, self.soms_step_s))
-        second = self.second_params
-        if second is not None and second.dt != self.soms_step_s:
-            raise ValueError(f"second_soms.dt={second.dt} must equal soms.dt={self.soms_step_s}")
-        for name in ("window_s", "hit_sigma_px"):
+        self.agent.check_reads("soms")
+        if self.second_agent is not None:
+            self.second_agent.check_reads("soms")
+        for name in ("window_s", "soms_step_s", "hit_sigma_px"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         for p in PHASES:
@@ -197,7 +173,7 @@ class EventSuppressionConfig:
         k = self.soms_step_s / self.window_s
         if abs(k - round(k)) > 1e-9 or round(k) < 1:
             raise ValueError(
-                f"soms.dt={self.soms_step_s} must be a whole number of windows "
+                f"soms_step_s={self.soms_step_s} must be a whole number of windows "
                 f"(window_s={self.window_s})"
             )
         lead = self.lead_s / self.soms_step_s
@@ -209,26 +185,15 @@ class EventSuppressionConfig:
         lo, hi = getattr(self, f"{phase}_s")
         return float(lo), float(hi)
 
-    @property
-    def soms_step_s(self) -> float:
-        """One sOMS step, seconds (``soms.dt``)."""
-        return self.soms_params.dt
-
-    @property
     def soms_params(self) -> FrontBlock:
-        """The sOMS block (``soms``, a preset name resolved)."""
-        if self.soms == "speck":
-            return soms_preset("speck")
-        assert isinstance(self.soms, SOMSParams)
-        return self.soms
+        """The agent's front end (its ``soms``), stepped every ``soms_step_s``."""
+        return replace(self.agent.soms, dt=self.soms_step_s)
 
-    @property
     def second_params(self) -> FrontBlock | None:
-        """The second sOMS block (``second_soms`` resolved at ``soms``' step), or None."""
-        if self.second_soms == "speck":
-            return soms_preset("speck", self.soms_step_s)
-        assert self.second_soms is None or isinstance(self.second_soms, SOMSParams)
-        return self.second_soms
+        """The second agent's front end at the same step, or None."""
+        if self.second_agent is None:
+            return None
+        return replace(self.second_agent.soms, dt=self.soms_step_s)
 
     @property
     def windows_per_step(self) -> int:
@@ -340,12 +305,13 @@ def phase_row(
 
 def run_trial(cfg: EventSuppressionConfig, spec: study.TrialSpec) -> dict[str, Any]:
     """The row of phase ``spec.params["phase"]`` of the trial of ``spec.seed``; with a
-    ``second_soms``, its figures on the same windows in ``second:`` columns."""
+    ``second_agent``, its figures on the same windows in ``second:`` columns."""
     phase = str(spec.params["phase"])
     rec = record(cfg, phase, spec.seed)
-    row = phase_row(cfg, phase, spec.seed, rec, cfg.soms_params)
-    if cfg.second_params is not None:
-        other = phase_row(cfg, phase, spec.seed, rec, cfg.second_params)
+    row = phase_row(cfg, phase, spec.seed, rec, cfg.soms_params())
+    second = cfg.second_params()
+    if second is not None:
+        other = phase_row(cfg, phase, spec.seed, rec, second)
         row |= {
             f"second:{k}": v
             for k, v in other.items()
@@ -465,9 +431,9 @@ def soms_label(sp: FrontBlock) -> str:
     block."""
     if isinstance(sp, SpeckFrontParams):
         return "front end on Speck's cores (int8 DoG, IAF)"
-    if sp == soms_preset("agent", sp.dt):
+    if sp == replace(AGENT_SOMS, dt=sp.dt):
         return f"agent's sOMS ({sp.norm} norm, α {sp.alpha:g})"
-    if sp == soms_preset("table", sp.dt):
+    if sp == SOMSParams(dt=sp.dt):
         return f"paper-literal sOMS (min-max, α {sp.alpha:g})"
     return f"sOMS ({sp.norm} norm, α {sp.alpha:g})"
 
@@ -541,7 +507,7 @@ def plot(
     ax.set_title(f"per phase, {len({r['seed'] for r in rows})} trials", fontsize=9)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=3)
     fig.suptitle(
-        f"Event suppression by the {soms_label(cfg.soms_params)}: the hand scene, shake "
+        f"Event suppression by the {soms_label(cfg.soms_params())}: the hand scene, shake "
         f"±{cfg.shake.amplitude_deg:g}° at {cfg.shake.speed_deg_s:g}°/s, events per "
         f"{cfg.window_s * 1000:g} ms",
         fontsize=10,

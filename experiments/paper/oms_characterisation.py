@@ -41,6 +41,7 @@ import numpy as np
 import yaml
 
 import wander_env  # noqa: F401  (registers the environments)
+from agents.attention import AgentParams
 from agents.soms import SOMS, SOMSParams
 from experiments.analysis.metrics import iou, precision
 from experiments.analysis.stats import number_text
@@ -67,7 +68,7 @@ Kernel = tuple[float, float, int]
 #: The env fields each trial sets (what sets them): the block leaves them at defaults.
 ENV_SET_PER_TRIAL = {
     "scene": "the grid's grating",
-    "control_period_s": "soms.dt",
+    "control_period_s": "step_s",
     "episode_seconds": "duration_s",
 }
 
@@ -77,8 +78,10 @@ class OMSCharacterisationConfig:
     """Defaults: the paper's protocol (4 s clips, sOMS updated every 20 ms, IEBCS DVS
     settings, its kernel sweep; sOMS table values) on the ``gratings`` scene's stimulus.
 
-    ``soms`` is the sOMS block (``--set soms.alpha=0.6``); its ``dt`` is the step
-    (:attr:`step_s`), and the kernel group replaces its kernel fields. ``env`` is the
+    ``agent`` is the agent's block (:class:`agents.attention.AgentParams`) whose sOMS the
+    experiment runs (``--set agent.soms.alpha=0.6``; the paper-literal sOMS by default,
+    min-max norm, α 0.80), stepped every ``step_s``; the kernel group replaces its kernel
+    fields, and the agent's other settings play no part and are refused. ``env`` is the
     env's block (the paper's DVS by default); each trial sets its grating scene, step and
     length (:data:`ENV_SET_PER_TRIAL`)."""
 
@@ -120,7 +123,8 @@ class OMSCharacterisationConfig:
         (8.0, 16.0, 32),
     )
     groups: tuple[str, ...] = ("mode", "frequency", "speed", "kernel")
-    soms: SOMSParams = field(default_factory=lambda: SOMSParams(dt=0.02))
+    step_s: float = 0.02
+    agent: AgentParams = field(default_factory=lambda: AgentParams(soms=SOMSParams()))
     repeats: study.Repeats = 1
 
     def __post_init__(self) -> None:
@@ -138,13 +142,13 @@ class OMSCharacterisationConfig:
             raise ValueError(f"groups must be among mode, frequency, speed, kernel; got {bad}")
         if self.repeats < 1:
             raise ValueError(f"repeats must be >= 1, got {self.repeats}")
+        self.agent.check_reads("soms", speck=False)
         for k in self.kernels:
-            with_kernel(self.soms, k)  # validates
+            with_kernel(self.soms_params(), k)  # validates
 
-    @property
-    def step_s(self) -> float:
-        """One step (one sOMS update), seconds: ``soms.dt``."""
-        return self.soms.dt
+    def soms_params(self) -> SOMSParams:
+        """The agent's sOMS block, stepped every ``step_s`` (one sOMS update)."""
+        return replace(self.agent.soms, dt=self.step_s)  # type: ignore[type-var]
 
 
 def with_kernel(params: SOMSParams, kernel: Kernel) -> SOMSParams:
@@ -231,7 +235,8 @@ def grid(cfg: OMSCharacterisationConfig) -> list[dict[str, Any]]:
     """The trial conditions, group by group (see the module docstring)."""
     f0 = (cfg.background_cycles_per_deg, cfg.object_cycles_per_deg)
     v0 = (cfg.background_speed_deg_s, cfg.object_speed_deg_s)
-    k0 = (cfg.soms.sigma_c, cfg.soms.sigma_s, cfg.soms.kernel_size)
+    sp = cfg.soms_params()
+    k0 = (sp.sigma_c, sp.sigma_s, sp.kernel_size)
     out: list[dict[str, Any]] = []
     for group in cfg.groups:
         if group == "mode":
@@ -308,7 +313,7 @@ def run_trial(cfg: OMSCharacterisationConfig, spec: study.TrialSpec) -> dict[str
         float(p["background_deg_s"]),
         float(p["object_deg_s"]),
     )
-    soms = SOMS(with_kernel(cfg.soms, (p["sigma_c"], p["sigma_s"], p["kernel_size"])))
+    soms = SOMS(with_kernel(cfg.soms_params(), (p["sigma_c"], p["sigma_s"], p["kernel_size"])))
     n = round(cfg.duration_s / cfg.step_s)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "gratings_variant.yaml"

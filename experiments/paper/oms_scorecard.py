@@ -1,7 +1,8 @@
 """The sOMS scorecard: every sOMS finding of the paper, pass or fail with its figures,
 for the paper-literal sOMS (min-max norm, α 0.80: ``SOMSParams()``) beside the agent's
-default (``AgentParams().resolved().soms``, the ``"quantile"`` norm whose divisor is the
-map's peak clipped to [2, 3.5] × its 90th percentile).
+(its ``agent`` block's ``soms``; by default :data:`agents.attention.AGENT_SOMS`, the
+``"quantile"`` norm whose divisor is the map's peak clipped to [2, 3.5] × its 90th
+percentile; ``--set agent.soms.alpha=0.7`` scores another).
 
 Parts (``parts``), one trial each (both variants in the same trial):
 
@@ -24,7 +25,8 @@ Parts (``parts``), one trial each (both variants in the same trial):
   hand hit (8×8 box around the OMS map's densest point) in ≥ 90 % of the
   sOMS steps of the hand-moving phases (hand, both).
 - ``office``: the agent's detection accuracy in the office (``wander evaluate``): read
-  from the ``quality.json`` files named in ``office_results`` (agent default) and
+  from the ``quality.json`` files named in ``office_results`` (runs of the ``agent``
+  block's sOMS: a file whose run had another is refused) and
   ``office_results_paper`` (paper-literal, ``--alpha``-style runs with ``norm=minmax``);
   ≥ 90 % on each file's pooled decisions, with the 95 % interval.
 
@@ -41,12 +43,13 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 
+from agents.attention import AGENT_SOMS, AgentParams
 from agents.soms import SOMSParams
 from agents.speck_front import SpeckFrontParams
 from experiments.paper.oms_family import (
@@ -66,6 +69,8 @@ from experiments.paper.oms_stimuli import (
     split,
 )
 from experiments.studies import framework as study
+from wander_env.config import to_plain
+from wander_env.untrusted import read_json
 from wander_env.viz import pyplot, save_figure
 
 __all__ = ["EXPERIMENT", "OMSScorecardConfig", "variants"]
@@ -76,13 +81,21 @@ HAND_BARS = {"hit": 90.0, "suppressed": 75.0, "shake_suppressed": 90.0, "hand_ke
 #: What the first column can hold (``compare``): the paper-literal sOMS or the front end
 #: on Speck's cores (:class:`agents.speck_front.SpeckFrontParams`).
 COMPARED = ("paper", "speck")
-#: Each first-column variant's sOMS block name in :func:`event_suppression.soms_preset`.
-_PRESET = {"paper": "table", "speck": "speck", "agent": "agent"}
 _LABELS = {
     "paper": "paper-literal (min-max, α 0.80)",
     "speck": "front end on Speck's cores (int8 DoG, IAF)",
-    "agent": "agent default (quantile norm)",
 }
+
+
+def agent_label(soms: SOMSParams | SpeckFrontParams) -> str:
+    """The second column's heading: the agent's default, or the config's ``agent.soms``."""
+    if replace(soms, dt=AGENT_SOMS.dt) == AGENT_SOMS:
+        return "agent default (quantile norm)"
+    if isinstance(soms, SpeckFrontParams):
+        return "agent.soms: the front end on Speck's cores"
+    return f"agent.soms ({soms.norm} norm, α {soms.alpha:g})"
+
+
 REAL_CLIPS = ("poster_6dof", "poster_translation")
 
 
@@ -91,7 +104,9 @@ class OMSScorecardConfig:
     """The scorecard's parts and their sizes (module docstring); ``compare`` is the
     variant scored beside the agent's default: ``paper`` the paper-literal sOMS, ``speck``
     the front end on Speck's cores (``--set compare=speck``; ``office_results_paper``
-    then names its ``wander evaluate --set soms=speck`` results)."""
+    then names its ``wander evaluate --set agent.soms=speck`` results). ``agent`` is the
+    agent's block whose front end (its ``soms``) is the second column; its other
+    settings play no part and are refused."""
 
     parts: tuple[str, ...] = PARTS
     textures: tuple[str, ...] = TEXTURES
@@ -108,8 +123,10 @@ class OMSScorecardConfig:
     office_results_paper: tuple[str, ...] = ()
     reuse: tuple[str, ...] = ()
     compare: Literal["paper", "speck"] = "paper"
+    agent: AgentParams = field(default_factory=AgentParams)
 
     def __post_init__(self) -> None:
+        self.agent.check_reads("soms")
         if self.compare not in COMPARED:
             raise ValueError(f"compare must be one of {COMPARED}, got {self.compare!r}")
         bad = [p for p in self.parts if p not in PARTS]
@@ -132,15 +149,15 @@ class OMSScorecardConfig:
             raise ValueError(f"hand_repeats must be >= 1, got {self.hand_repeats}")
 
 
-def variants(compare: str = "paper") -> dict[str, SOMSParams | SpeckFrontParams]:
+def variants(
+    compare: str = "paper", agent: SOMSParams | SpeckFrontParams = AGENT_SOMS
+) -> dict[str, SOMSParams | SpeckFrontParams]:
     """The first column's variant ``compare`` (``paper``: the paper-literal sOMS,
     ``SOMSParams()``, min-max, α 0.80; ``speck``: the front end on Speck's cores,
-    ``SpeckFrontParams()``) and ``agent``: the agent's default
-    (``AgentParams().resolved().soms``)."""
-    from agents.attention import AGENT_SOMS
-
+    ``SpeckFrontParams()``) and ``agent``: the agent's front end ``agent`` (the
+    config's ``agent.soms``)."""
     first = SOMSParams(conv="separable") if compare == "paper" else SpeckFrontParams()
-    return {compare: first, "agent": AGENT_SOMS}
+    return {compare: first, "agent": agent}
 
 
 def stimuli(cfg: OMSScorecardConfig, seed: int) -> list:
@@ -164,7 +181,7 @@ def stimuli(cfg: OMSScorecardConfig, seed: int) -> list:
 def _family_row(cfg: OMSScorecardConfig, seed: int, half: str) -> dict[str, Any]:
     train, test = split(stimuli(cfg, seed))
     chosen = train if half == "train" else test
-    vs = variants(cfg.compare)
+    vs = variants(cfg.compare, cfg.agent.soms)
     items: dict[str, list] = {k: [] for k in vs}
     for s in chosen:
         for k, m in measure(s, vs).items():
@@ -191,7 +208,7 @@ def _real_row(cfg: OMSScorecardConfig) -> dict[str, Any]:
             raise FileNotFoundError(f"real_dir: {path} not found (set real_dir)")
         rec = read_events(path, (240, 180))  # DAVIS240C
         for ms in cfg.real_bins_ms:
-            for k, p in variants(cfg.compare).items():
+            for k, p in variants(cfg.compare, cfg.agent.soms).items():
                 model: PipelineBase
                 if isinstance(p, SpeckFrontParams):
                     w, h = rec.sensor_size
@@ -211,18 +228,20 @@ def _hand_row(cfg: OMSScorecardConfig, seed: int) -> dict[str, Any]:
         EventSuppressionConfig,
         phase_row,
         record,
-        soms_preset,
     )
     from experiments.paper.event_suppression_protocol import HAND_PHASES, PHASES
     from experiments.paper.event_suppression_scoring import trial_figures
 
     hc = EventSuppressionConfig(repeats=cfg.hand_repeats)
-    rows: dict[str, list[dict[str, Any]]] = {cfg.compare: [], "agent": []}
+    # the hand trials' own paper-literal block (direct convolution), at their sOMS step
+    first = SOMSParams() if cfg.compare == "paper" else SpeckFrontParams()
+    blocks = {cfg.compare: first, "agent": cfg.agent.soms}
+    rows: dict[str, list[dict[str, Any]]] = {k: [] for k in blocks}
     for r in range(cfg.hand_repeats):
         for phase in PHASES:
             rec = record(hc, phase, seed + r)
-            for k in rows:
-                m = phase_row(hc, phase, seed + r, rec, soms_preset(_PRESET[k]))
+            for k, block in blocks.items():
+                m = phase_row(hc, phase, seed + r, rec, replace(block, dt=hc.soms_step_s))
                 rows[k].append({"seed": seed + r, "phase": phase, **m})
     row: dict[str, Any] = {}
     for k, mine in rows.items():
@@ -234,11 +253,41 @@ def _hand_row(cfg: OMSScorecardConfig, seed: int) -> dict[str, Any]:
     return row
 
 
+def read_quality(
+    path: str, key: str, soms: SOMSParams | SpeckFrontParams | None = None
+) -> dict[str, Any]:
+    """The ``quality.json`` of a ``wander evaluate`` run named in the config's ``key``
+    (a bounded, regular file); with ``soms``, its run's ``agent.soms`` must be that block
+    (the step aside). ValueError naming the key and the file otherwise."""
+    data = read_json(path)
+    if not (
+        isinstance(data, dict)
+        and isinstance(data.get("pooled"), dict)
+        and isinstance(data.get("rows"), list)
+    ):
+        raise ValueError(f"{key}: {path}: not the quality.json of a wander evaluate run")
+    if soms is not None:
+        run = data.get("config", {}).get("run", {}) if isinstance(data.get("config"), dict) else {}
+        ran = run.get("agent", {}).get("soms") if isinstance(run.get("agent"), dict) else None
+        if not isinstance(ran, dict):
+            raise ValueError(f"{key}: {path}: its run records no agent.soms")
+        mine = {k: v for k, v in to_plain(soms).items() if k != "dt"}
+        if {k: v for k, v in ran.items() if k != "dt"} != mine:
+            raise ValueError(
+                f"{key}: {path}: its run's agent.soms is not this scorecard's (agent.soms)"
+            )
+    return data
+
+
 def _office_row(cfg: OMSScorecardConfig) -> dict[str, Any]:
     row: dict[str, Any] = {}
-    for k, files in (("agent", cfg.office_results), (cfg.compare, cfg.office_results_paper)):
+    sources = (
+        ("agent", "office_results", cfg.office_results, cfg.agent.soms),
+        (cfg.compare, "office_results_paper", cfg.office_results_paper, None),
+    )
+    for k, field_name, files, soms in sources:
         for i, f in enumerate(files):
-            data = json.loads(Path(f).read_text())
+            data = read_quality(f, field_name, soms)
             pooled = data["pooled"]
             seeds = [r["seed"] for r in data["rows"]]
             row[f"{k}:office{i}:seeds"] = ",".join(str(s) for s in seeds)
@@ -271,8 +320,9 @@ def reused_row(cfg: OMSScorecardConfig, part: str, seed: int) -> dict[str, Any] 
     from experiments.studies.framework import ID_COLUMNS, read_csv
 
     for folder in map(Path, cfg.reuse):
-        conf = json.loads((folder / "config.json").read_text())
-        run = json.loads((folder / "run.json").read_text())
+        conf, run = read_json(folder / "config.json"), read_json(folder / "run.json")
+        if not (isinstance(conf, dict) and isinstance(run, dict)):
+            raise ValueError(f"reuse: {folder}: config.json and run.json must be objects")
         rows = [r for r in read_csv(folder / "results.csv") if r.get("part") == part]
         if not rows:
             continue
@@ -418,43 +468,48 @@ def scorecard(
 
 def compare(cfg: OMSScorecardConfig, rows: list[study.Row]) -> list[study.Comparison]:
     """The scorecard as the report's table: paper column = ``compare`` (the paper-literal
-    sOMS, or the front end on Speck's cores), ours = the agent's default; the bar in the
-    note."""
+    sOMS, or the front end on Speck's cores), ours = the agent's (``agent.soms``); the bar
+    in the note."""
     out = [
         study.Comparison(claim, cells.get(cfg.compare, "—"), cells.get("agent", "—"), bar)
         for claim, bar, cells in scorecard(cfg, rows)
     ]
     if out:
-        out.append(choice_comparison(cfg.compare))
-    if out and cfg.compare != "paper":  # the table's first column holds another variant
-        out.insert(
-            0, study.Comparison("columns", _LABELS[cfg.compare], _LABELS["agent"], "compare")
-        )
+        out.append(choice_comparison(cfg.compare, cfg.agent.soms))
+    default = replace(cfg.agent.soms, dt=AGENT_SOMS.dt) == AGENT_SOMS
+    if out and (cfg.compare != "paper" or not default):  # the columns are not the usual two
+        heads = (_LABELS[cfg.compare], agent_label(cfg.agent.soms))
+        out.insert(0, study.Comparison("columns", *heads, "compare"))
     return out
 
 
-def choice_comparison(compare: str = "paper") -> study.Comparison:
-    """The report's line on the two variants' thresholds and how ours was chosen."""
-    from agents.attention import AGENT_SOMS
-
-    p = AGENT_SOMS
+def choice_comparison(
+    compare: str = "paper", p: SOMSParams | SpeckFrontParams = AGENT_SOMS
+) -> study.Comparison:
+    """The report's line on the two variants' thresholds (``p``: the agent's front end)
+    and how the agent's default was chosen."""
+    fixed = "none: a fixed int8 threshold per layer (IAF, no map-wide norm)"
+    if isinstance(p, SpeckFrontParams):
+        first = "min-max over the map, α 0.80" if compare == "paper" else fixed
+        return study.Comparison("sOMS threshold (Eq. 1's norm)", first, fixed, "agent.soms")
     how = (
         f"divisor: the map's peak clipped to [{p.peak_ratio:g}, {p.gain:g}] × its "
         f"{p.quantile:g} quantile"
         if p.peak_ratio is not None
         else f"divisor: {p.gain:g} × its {p.quantile:g} quantile"
     )
-    first = (
-        "min-max over the map, α 0.80"
-        if compare == "paper"
-        else "none: a fixed int8 threshold per layer (IAF, no map-wide norm)"
+    first = "min-max over the map, α 0.80" if compare == "paper" else fixed
+    chosen = (
+        "ours chosen on the even-seed half (most family claims, then the largest margin: "
+        "`experiments.paper.oms_family.tune`); the odd half held out"
+        if replace(p, dt=AGENT_SOMS.dt) == AGENT_SOMS
+        else "ours: the config's agent.soms"
     )
     return study.Comparison(
         "sOMS threshold (Eq. 1's norm)",
         first,
         f"{p.norm} norm of the σ {p.pool_sigma:g} px pooled surround excess, {how}, α {p.alpha:g}",
-        "ours chosen on the even-seed half (most family claims, then the largest margin: "
-        "`experiments.paper.oms_family.tune`); the odd half held out",
+        chosen,
     )
 
 
@@ -478,7 +533,7 @@ def plot(
     x = np.arange(len(figs))
     fig, ax = plt.subplots(figsize=(9, 3.8))
     for j, k in enumerate((cfg.compare, "agent")):
-        label = _LABELS[k]
+        label = _LABELS[k] if k != "agent" else agent_label(cfg.agent.soms)
         vals = [float(row[f"{k}:{g}:{n}"]) for g, n, _ in figs]
         ax.bar(x + (j - 0.5) * 0.38, vals, 0.38, label=label)
     for xi, bar in zip(x, (0.9, 0.9, 0.3, 0.9, 0.3, None), strict=True):

@@ -5,7 +5,7 @@ mean with its 95 % interval.
 Three sources, each from the command that measures it (docs/speck.md lists them):
 
 - **hand trials** (:func:`hand_costs`): the ``results.csv`` of ``wander experiment
-  event_suppression --set soms=speck --set second_soms=agent`` (both scored on the same
+  event_suppression --set agent.soms=speck --set second_agent.soms=agent`` (both scored on the same
   recorded windows; the agent's in the ``second:`` columns); per trial the figures of
   :func:`experiments.paper.event_suppression_scoring.trial_figures`, the interval a bootstrap
   over trials;
@@ -16,7 +16,7 @@ Three sources, each from the command that measures it (docs/speck.md lists them)
   background-faster stimuli where the object is still enhanced; intervals by bootstrap
   over stimuli;
 - **detection** (:func:`detection_costs`): the ``quality.json`` of two ``wander evaluate``
-  runs, ``--set soms=speck`` and the default, same seeds: pooled detection accuracy
+  runs, ``--set agent.soms=speck`` and the default, same seeds: pooled detection accuracy
   (Wilson interval, as ``wander evaluate`` prints it) and the sOMS suppression (mean over
   seeds, bootstrap interval).
 
@@ -38,6 +38,7 @@ from experiments.analysis.stats import mean_ci
 from experiments.paper.oms_family import Measure, group_of, measure
 from experiments.paper.oms_stimuli import Stimulus
 from experiments.studies.framework import Row
+from wander_env.untrusted import read_json
 from wander_env.viz import legend_below, pyplot, save_figure
 
 __all__ = [
@@ -78,12 +79,14 @@ _HAND = (
 
 
 def hand_costs(rows: Sequence[Row]) -> list[Cost]:
-    """The hand trials' figures from an ``event_suppression`` run with ``soms=speck`` and
-    ``second_soms=agent`` (module docstring)."""
+    """The hand trials' figures from an ``event_suppression`` run with ``agent.soms=speck`` and
+    ``second_agent.soms=agent`` (module docstring)."""
     from experiments.paper.event_suppression_scoring import trial_figures
 
     if not rows or not any(k.startswith("second:") for k in rows[0]):
-        raise ValueError("the rows have no second: columns (run with second_soms=agent)")
+        raise ValueError(
+            "the rows have no second: columns (run with --set second_agent.soms=agent)"
+        )
     second = [
         {"seed": r["seed"], "phase": r["phase"]}
         | {k.removeprefix("second:"): v for k, v in r.items() if k.startswith("second:")}
@@ -138,9 +141,9 @@ def family_costs(stimuli: Sequence[Stimulus]) -> list[Cost]:
 
 def detection_costs(speck_quality: Path, host_quality: Path) -> list[Cost]:
     """Detection accuracy and sOMS suppression from two ``wander evaluate`` folders'
-    ``quality.json`` (``--set soms=speck`` and the default), which must name the same
+    ``quality.json`` (``--set agent.soms=speck`` and the default), which must name the same
     seeds (ValueError otherwise)."""
-    data = [json.loads(Path(p).read_text()) for p in (speck_quality, host_quality)]
+    data = [read_json(p) for p in (speck_quality, host_quality)]  # bounded, regular files
     seeds = [[r["seed"] for r in d["rows"]] for d in data]
     if seeds[0] != seeds[1]:
         raise ValueError(f"the evaluate runs have different seeds: {seeds[0]} and {seeds[1]}")
@@ -188,8 +191,7 @@ def read_costs(path: Path) -> list[Cost]:
         return float(m), float(lo), float(hi), int(n)
 
     return [
-        Cost(**{**d, "speck": fig(d["speck"]), "host": fig(d["host"])})
-        for d in json.loads(Path(path).read_text())
+        Cost(**{**d, "speck": fig(d["speck"]), "host": fig(d["host"])}) for d in read_json(path)
     ]
 
 

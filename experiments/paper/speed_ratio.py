@@ -6,7 +6,7 @@ the background is faster. Here the same finding is measured as a curve on a scen
 room: the ``both`` phase of the hand trials (:mod:`experiments.paper.event_suppression`)
 with the hand's image speed set to ``hand_ratio`` times the shake's (both in px/s at the
 sensor centre), at two shake amplitudes of the same speed, for the agent's sOMS and the
-paper-literal one scored on the same events (``second_soms``).
+paper-literal one scored on the same events (``second_agent``).
 
 The rows come from the sweep ``experiments/paper/configs/sweep_speed_ratio.yaml``; this
 module reads its ``results.csv`` and gives, per sOMS, amplitude and ratio, the hand hit

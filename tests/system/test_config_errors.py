@@ -194,10 +194,10 @@ CASES = [
         "'nosuch'",
     ),
     (
-        ["experiment", "event_suppression", "--set", "soms=nosuch"],
+        ["experiment", "event_suppression", "--set", "agent.soms=nosuch"],
         {},
-        "wander experiment: error: --set: soms: "
-        "expected SOMSParams or one of 'table', 'agent', 'speck', got 'nosuch'",
+        "wander experiment: error: --set: agent.soms: soms must be one of ['agent', 'paper', "
+        "'speck'] or a parameter block, got 'nosuch'",
     ),
     # ranges
     (
@@ -230,16 +230,16 @@ CASES = [
         "input should be less than or equal to 180, got '1e6'",
     ),
     (
-        ["experiment", "event_suppression", "--set", "soms.kernel_size=100000"],
+        ["experiment", "event_suppression", "--set", "agent.soms.kernel_size=100000"],
         {},
-        "wander experiment: error: --set: soms.kernel_size: kernel_size must be in [1, 128], "
-        "got 100000",
+        "wander experiment: error: --set: agent.soms.kernel_size: kernel_size must be in "
+        "[1, 128], got 100000",
     ),
     (
-        ["experiment", "detection", "--set", "soms.kernel_size=100000"],
+        ["experiment", "detection", "--set", "agent.soms.kernel_size=100000"],
         {},
-        "wander experiment: error: --set: soms.kernel_size: kernel_size must be in [1, 128], "
-        "got 100000",
+        "wander experiment: error: --set: agent.soms.kernel_size: kernel_size must be in "
+        "[1, 128], got 100000",
     ),
     (
         ["experiment", "event_suppression", "--set", "repeats=" + "9" * 5000],
@@ -248,9 +248,10 @@ CASES = [
         "characters; at most 100",
     ),
     (
-        ["experiment", "event_suppression", "--set", "soms=" + "[" * 3000 + "]" * 3000],
+        ["experiment", "event_suppression", "--set", "agent.soms=" + "[" * 3000 + "]" * 3000],
         {},
-        "wander experiment: error: --set soms: line 1, column 65: nested deeper than 64 levels",
+        "wander experiment: error: --set agent.soms: line 1, column 65: nested deeper than 64 "
+        "levels",
     ),
     (
         ["experiment", "event_suppression", "--set", ".".join(["soms"] * 3000) + "=1"],

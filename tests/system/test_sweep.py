@@ -15,7 +15,7 @@ TINY_SWEEP = {
         {
             "experiment": "event_suppression",
             "set": {"repeats": 1, "phases": ["hand"], "hand_s": [0.02, 0.02], "lead_s": 0.0},
-            "grid": {"soms.alpha": [0.5, 0.8]},
+            "grid": {"agent.soms.alpha": [0.5, 0.8]},
         }
     ],
 }
@@ -27,7 +27,7 @@ TOY_SWEEP = {
         {
             "experiment": "event_suppression",
             "set": {"repeats": 2, "phases": ["hand"]},
-            "grid": {"soms.alpha": [0.5, 0.8], "env.scene": ["hand", "office"]},
+            "grid": {"agent.soms.alpha": [0.5, 0.8], "env.scene": ["hand", "office"]},
         }
     ],
 }
@@ -42,7 +42,7 @@ class CountingRunner:
     def __call__(self, spec: TrialSpec) -> dict:
         self.calls.append(spec.id)
         row = {"trial": spec.index, "trial_id": spec.id, "repeat": spec.repeat, "seed": spec.seed}
-        alpha = spec.config["soms"]["alpha"]
+        alpha = spec.config["agent"]["soms"]["alpha"]
         return {**row, **spec.extra, **spec.params, "value": alpha * 10 + spec.seed}
 
 
@@ -56,11 +56,11 @@ def test_expand_is_grid_times_seeds_times_repeats_in_order_without_duplicates():
     first = specs[0]
     assert first.extra == {
         "experiment": "event_suppression",
-        "cfg.soms.alpha": 0.5,
+        "cfg.agent.soms.alpha": 0.5,
         "cfg.env.scene": "hand",
     }
     assert (first.repeat, first.config["repeats"], first.params) == (0, 2, {"phase": "hand"})
-    assert [(s.extra["cfg.soms.alpha"], s.extra["cfg.env.scene"]) for s in specs[::3]] == [
+    assert [(s.extra["cfg.agent.soms.alpha"], s.extra["cfg.env.scene"]) for s in specs[::3]] == [
         (0.5, "hand"),
         (0.5, "office"),
         (0.8, "hand"),
@@ -105,7 +105,7 @@ def test_resume_skips_finished_trials_and_runs_only_missing_or_new_ones(tmp_path
     runner.calls.clear()
     grown = {**TOY_SWEEP, "experiments": [dict(TOY_SWEEP["experiments"][0])]}
     grown["experiments"][0]["grid"] = {
-        "soms.alpha": [0.5, 0.8, 0.9],
+        "agent.soms.alpha": [0.5, 0.8, 0.9],
         "env.scene": ["hand", "office"],
     }
     res = run_sweep(sweep_from_dict(grown), tmp_path, backend="serial", runner=runner)
@@ -118,7 +118,7 @@ def test_resume_skips_finished_trials_and_runs_only_missing_or_new_ones(tmp_path
         "repeat",
         "seed",
         "experiment",
-        "cfg.soms.alpha",
+        "cfg.agent.soms.alpha",
         "cfg.env.scene",
         "phase",
     ]
@@ -131,7 +131,7 @@ def test_local_processes_give_the_same_table_as_this_process(tmp_path):
     serial = (tmp_path / "serial" / "results.csv").read_bytes()
     assert serial == (tmp_path / "local" / "results.csv").read_bytes()
     rows = read_csv(tmp_path / "serial" / "results.csv")
-    assert [(r["cfg.soms.alpha"], r["windows"]) for r in rows] == [(0.5, 10), (0.8, 10)]
+    assert [(r["cfg.agent.soms.alpha"], r["windows"]) for r in rows] == [(0.5, 10), (0.8, 10)]
 
 
 @pytest.mark.slow  # ~10 s on an idle machine, 20-40 s when the 2 cores are shared

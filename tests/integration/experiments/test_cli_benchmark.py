@@ -178,7 +178,7 @@ def test_model_bad_input_is_named():
     assert ModelConfig().proto_params() == ProtoObjectParams(dt=0.005)
     streamlined = AgentParams(soms=SOMSParams(), proto=ProtoObjectParams(polarity_split=False))
     assert ModelConfig(agent=streamlined).proto_params().polarity_split is False
-    with pytest.raises(ValueError, match=r"^agent.soms: the benchmark scores the sOMS pipeline"):
+    with pytest.raises(ValueError, match=r"^agent\.soms: the sOMS pipeline runs here; the front"):
         ModelConfig(agent=AgentParams(soms="speck"))
     with pytest.raises(ValueError, match=r"SOMSParams\.dt=0\.01, ProtoObjectParams\.dt=0\.02"):
         SaliencyPipeline(SOMSParams(dt=0.01), ProtoObjectParams(dt=0.02))

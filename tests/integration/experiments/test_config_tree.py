@@ -100,17 +100,17 @@ AGENT_SETTINGS = {
 JOB_CONFIGS = [RunConfig, RigRunConfig, ModelConfig]
 
 
-def _field_names(cls: type, skip: str = "agent") -> list[str]:
+def _field_names(cls: type, skip: tuple[str, ...] = ("agent",)) -> list[str]:
     """The dotted names of every field of dataclass ``cls``, through nested dataclass
-    blocks (each member of a union), except under the field ``skip``."""
+    blocks (each member of a union), except under the fields ``skip``."""
     out = []
     hints = typing.get_type_hints(cls)
     for f in dataclasses.fields(cls):
         out.append(f.name)
         tp = hints[f.name]
         blocks = [t for t in (typing.get_args(tp) or (tp,)) if dataclasses.is_dataclass(t)]
-        if f.name != skip:
-            out += [f"{f.name}.{n}" for b in blocks for n in _field_names(b, skip="")]
+        if f.name not in skip:
+            out += [f"{f.name}.{n}" for b in blocks for n in _field_names(b, skip=())]
     return out
 
 
@@ -124,33 +124,62 @@ def test_the_agent_settings_are_one_block_in_every_job_config(cls: type) -> None
     assert typing.get_type_hints(cls)["agent"] is AgentParams
 
 
-#: The experiments that run the attention agent, and the studies of one of its components
-#: alone (the sOMS, the saliency front end: no agent), whose config holds that component's
-#: block as the thing studied.
+#: The experiments that run the attention agent; the others study some of its components
+#: alone (the sOMS, the saliency front end), which they read from the agent's block.
 AGENT_EXPERIMENTS = {"sac_accuracy", "saccade_speed", "scanpath"}
 COMPONENT_STUDIES = {
-    "oms_characterisation": ["soms", "soms.alpha"],
-    "event_suppression": ["window_s", "soms", "soms.alpha", "second_soms.alpha"],
-    "detection": ["soms", "soms.alpha", "proto", "proto.polarity_split"],
-    "oms_scorecard": [],
+    "oms_characterisation": ("soms",),
+    "event_suppression": ("soms",),
+    "detection": ("soms", "proto"),
+    "oms_scorecard": ("soms",),
 }
+#: Fields whose name an agent setting shares and which are not one: the hand trials'
+#: event-count window (2 ms), not the agent's fixation window.
+NOT_AGENT_SETTINGS = {"event_suppression": ["window_s"]}
+
+
+def _agent_blocks(cls: type) -> list[str]:
+    """The fields of ``cls`` that are agent blocks (AgentParams, or AgentParams | None)."""
+    hints = typing.get_type_hints(cls)
+    return [
+        f.name
+        for f in dataclasses.fields(cls)
+        if AgentParams in (typing.get_args(hints[f.name]) or (hints[f.name],))
+    ]
+
+
+def test_every_experiment_is_an_agent_experiment_or_a_component_study() -> None:
+    assert sorted(AGENT_EXPERIMENTS | set(COMPONENT_STUDIES)) == sorted(EXPERIMENT_NAMES)
 
 
 @pytest.mark.parametrize("name", EXPERIMENT_NAMES)
-def test_an_experiment_with_an_agent_holds_its_settings_as_one_agent_block(name: str) -> None:
-    """Every experiment config is walked: one with an agent has an ``agent`` block
-    (AgentParams) and no agent setting outside it; a component study holds only its
-    component's block (listed)."""
+def test_every_experiment_holds_the_agent_settings_as_agent_blocks(name: str) -> None:
+    """Every experiment config is walked: its ``agent`` block is an AgentParams (the hand
+    trials' optional ``second_agent`` too), and no agent setting stands outside them."""
     cls = get_experiment(name).config_type
-    flat = [n for n in _field_names(cls) if n.split(".")[-1] in AGENT_SETTINGS]
-    if name in AGENT_EXPERIMENTS:
-        assert typing.get_type_hints(cls)["agent"] is AgentParams and flat == []
-    else:
-        assert "agent" not in typing.get_type_hints(cls) and flat == COMPONENT_STUDIES[name]
+    blocks = _agent_blocks(cls)
+    assert blocks == (["agent", "second_agent"] if name == "event_suppression" else ["agent"])
+    flat = [n for n in _field_names(cls, skip=tuple(blocks)) if n.split(".")[-1] in AGENT_SETTINGS]
+    assert flat == NOT_AGENT_SETTINGS.get(name, [])
 
 
-@pytest.mark.parametrize("name", sorted(AGENT_EXPERIMENTS))
-def test_set_agent_soms_alpha_reaches_every_agent_experiment(name: str) -> None:
+@pytest.mark.parametrize("name", sorted(COMPONENT_STUDIES))
+def test_a_component_study_refuses_an_agent_setting_it_ignores(name: str) -> None:
+    """A study of the agent's components reads only them: ``agent.window_s`` (the
+    fixation window, no part of any) is one line, exit 2; its components are listed."""
+    bad = RUNNER.invoke(
+        app, ["experiment", name, "--set", "agent.window_s=0.05"], prog_name="wander"
+    )
+    used = ", ".join(f"agent.{b}" for b in COMPONENT_STUDIES[name])
+    assert bad.exit_code == 2
+    assert bad.output.strip() == (
+        f"wander experiment: error: --set: agent.window_s: 0.05 plays no part here (only "
+        f"{used} do); leave it at its default, 0.124"
+    )
+
+
+@pytest.mark.parametrize("name", EXPERIMENT_NAMES)
+def test_set_agent_soms_alpha_reaches_every_experiment(name: str) -> None:
     result = RUNNER.invoke(
         app,
         ["experiment", name, "--show-config", "--set", "agent.soms.alpha=0.5"],
@@ -159,8 +188,9 @@ def test_set_agent_soms_alpha_reaches_every_agent_experiment(name: str) -> None:
     assert result.exit_code == 0, result.output
     shown = json.loads(result.output)
     assert shown["agent"]["soms"]["alpha"] == 0.5
+    default = resolve_config(get_experiment(name)).agent.soms
     assert resolve_config(get_experiment(name), sets=["agent.soms.alpha=0.5"]).agent.soms == (
-        replace(AgentParams().soms, alpha=0.5)
+        replace(default, alpha=0.5)
     )
     bad = RUNNER.invoke(
         app, ["experiment", name, "--set", "agent.soms.alpha=x"], prog_name="wander"
@@ -189,12 +219,22 @@ def test_set_agent_soms_alpha_reaches_every_agent_experiment(name: str) -> None:
             "[0, 1], got 2.0",
         ),
         (
+            ["benchmark", "suppression", ".", "--set", "agent.window_s=0.05"],
+            "wander benchmark suppression: error: --set: agent.window_s: 0.05 plays no part "
+            "here (only agent.soms, agent.proto do); leave it at its default, 0.124",
+        ),
+        (
+            ["experiment", "detection", "--set", "agent.soms=speck"],
+            "wander experiment: error: --set: agent.soms: the sOMS pipeline runs here; the "
+            "front end on Speck's cores (SpeckFrontParams) is not one",
+        ),
+        (
             ["run", "--set", "soms.alpha=0.5"],
             "wander run: error: --set: unknown key 'soms' for RunConfig; allowed keys: env "
             "(WanderConfig), seed (int), video (bool), video_fps (int), agent (AgentParams)",
         ),
     ],
-    ids=["run", "evaluate", "benchmark", "flat"],
+    ids=["run", "evaluate", "benchmark", "benchmark-ignored", "detection-speck", "flat"],
 )
 def test_a_bad_agent_value_is_one_line_naming_the_key_and_value(
     args: list[str], line: str, tmp_path: Path

@@ -131,9 +131,9 @@ def test_every_registered_experiment_has_a_default_config_file_equal_to_its_defa
 def test_config_file_then_set_override_the_defaults(tmp_path):
     exp = get_experiment("event_suppression")
     path = tmp_path / "c.yaml"
-    path.write_text("soms: {alpha: 0.5}\nrepeats: 3\n")
+    path.write_text("agent: {soms: {alpha: 0.5}}\nrepeats: 3\n")
     cfg = resolve_config(exp, path, ["repeats=4"])
-    assert (cfg.soms.alpha, cfg.repeats, cfg.window_s) == (0.5, 4, 0.002)
+    assert (cfg.agent.soms.alpha, cfg.repeats, cfg.window_s) == (0.5, 4, 0.002)
     path.write_text("alpah: 0.5\n")
     with pytest.raises(ConfigError, match=rf"{path}: unknown key 'alpah'"):
         resolve_config(exp, path)
@@ -323,11 +323,12 @@ def test_cli_rejects_unknown_keys_and_bad_values_by_name():
     runner = CliRunner()
     res = runner.invoke(_app(), ["experiment", "detection", "--set", "alph=1"])
     assert res.exit_code == 2
-    assert "unknown key 'alph'" in res.output and "soms (SOMSParams)" in res.output
-    res = runner.invoke(_app(), ["experiment", "detection", "--set", "soms.alpha=abc"])
-    assert res.exit_code == 2 and "soms.alpha: expected float, got 'abc'" in res.output
-    res = runner.invoke(_app(), ["experiment", "detection", "--set", "soms.alpha=2"])
-    assert res.exit_code == 2 and "soms.alpha: alpha must be in [0, 1], got 2.0" in res.output
+    assert "unknown key 'alph'" in res.output and "agent (AgentParams)" in res.output
+    res = runner.invoke(_app(), ["experiment", "detection", "--set", "agent.soms.alpha=abc"])
+    assert res.exit_code == 2 and "agent.soms.alpha: expected float, got 'abc'" in res.output
+    res = runner.invoke(_app(), ["experiment", "detection", "--set", "agent.soms.alpha=2"])
+    assert res.exit_code == 2
+    assert "agent.soms.alpha: alpha must be in [0, 1], got 2.0" in res.output
     res = runner.invoke(_app(), ["experiment", "detection", "--show-config", "--set", "repeats=1"])
     assert res.exit_code == 0 and '"repeats": 1' in res.output
 

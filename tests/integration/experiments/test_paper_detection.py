@@ -92,7 +92,7 @@ def test_short_trial_scores_windows_after_the_warmup():
         "duration_s=0.3",
         "warmup_s=0.1",
         "repeats=1",
-        "soms.alpha=0.5",
+        "agent.soms.alpha=0.5",
     ]
     cfg = resolve_config(EXPERIMENT, sets=sets)
     (spec,) = make_trials(EXPERIMENT, cfg, 0)

@@ -231,20 +231,20 @@ def test_pooled_mean_std_equals_the_statistics_of_the_union():
 def test_the_agent_variant_uses_the_agents_soms():
     from agents.attention import AgentParams
 
-    p = EventSuppressionConfig(soms="agent").soms_params
+    p = EventSuppressionConfig(agent=AgentParams(soms="agent")).soms_params()
     assert p == replace(AgentParams().soms, dt=0.02)
-    assert EventSuppressionConfig().soms_params.norm == "minmax"
-    from_set = validate(EventSuppressionConfig, parse_sets(["soms=agent"], EventSuppressionConfig))
-    assert from_set.soms == p
-    with pytest.raises(ValueError, match="soms"):
-        EventSuppressionConfig(soms="other")  # type: ignore[arg-type]
+    assert EventSuppressionConfig().soms_params() == SOMSParams(dt=0.02)  # the paper's table
+    sets = parse_sets(["agent.soms=agent"], EventSuppressionConfig)
+    assert validate(EventSuppressionConfig, sets).soms_params() == p
+    with pytest.raises(ValueError, match="soms must be one of"):
+        EventSuppressionConfig(agent=AgentParams(soms="other"))  # type: ignore[arg-type]
 
 
 def test_config_checks_windows_steps_and_phases():
-    with pytest.raises(ValueError, match="whole number of windows"):
-        validate(EventSuppressionConfig, {"soms": {"dt": 0.003}})
-    cfg = validate(EventSuppressionConfig, {"soms": {"alpha": 0.5}})
-    assert cfg.soms == SOMSParams(alpha=0.5, dt=0.02)
+    with pytest.raises(ValueError, match=r"soms_step_s=0\.003 must be a whole number of windows"):
+        validate(EventSuppressionConfig, {"soms_step_s": 0.003})
+    cfg = validate(EventSuppressionConfig, {"agent": {"soms": {"alpha": 0.5}}})
+    assert cfg.soms_params() == SOMSParams(alpha=0.5, dt=0.02)
     with pytest.raises(ValueError, match="phases must be"):
         EventSuppressionConfig(phases=("wave",))
     with pytest.raises(ValueError, match="hand_s must be"):
@@ -274,8 +274,8 @@ def test_short_trial_rows_per_phase(tmp_path):
         "both_s=[0.04, 0.04]",
         "pause_s=[0.04, 0.04]",
         "lead_s=0.02",
-        "soms=agent",
-        "second_soms=table",
+        "agent.soms=agent",
+        "second_agent.soms={norm: minmax}",
     ]
     cfg = resolve_config(EXPERIMENT, sets=sets)
     specs = make_trials(EXPERIMENT, cfg, 3)
@@ -295,18 +295,19 @@ def test_short_trial_rows_per_phase(tmp_path):
     assert both["second:events_in"] == both["events_in"]
     assert both["second:hit_steps"] == both["hit_steps"]
     assert both["second:events_out"] != both["events_out"]
-    with pytest.raises(ValueError, match=r"second_soms\.dt"):
-        EventSuppressionConfig(second_soms=SOMSParams(dt=0.01))
+    assert cfg.second_params() == SOMSParams(dt=0.02)  # at the first's step
 
 
 def test_soms_is_a_block_or_a_preset_name_and_bad_values_say_which():
     with pytest.raises(ConfigError) as e:
-        validate(EventSuppressionConfig, {"soms": "bogus"}, where="--set")
+        validate(EventSuppressionConfig, {"agent": {"soms": "bogus"}}, where="--set")
     assert str(e.value) == (
-        "--set: soms: expected SOMSParams or one of 'table', 'agent', 'speck', got 'bogus'"
+        "--set: agent.soms: soms must be one of ['agent', 'paper', 'speck'] or a parameter "
+        "block, got 'bogus'"
     )
-    cfg = validate(EventSuppressionConfig, parse_sets(["soms.alpha=0.3"], EventSuppressionConfig))
-    assert (cfg.soms_params.alpha, cfg.soms_params.norm, cfg.windows_per_step) == (
+    sets = parse_sets(["agent.soms.alpha=0.3"], EventSuppressionConfig)
+    cfg = validate(EventSuppressionConfig, sets)
+    assert (cfg.soms_params().alpha, cfg.soms_params().norm, cfg.windows_per_step) == (
         0.3,
         "minmax",
         10,

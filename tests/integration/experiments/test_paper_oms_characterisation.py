@@ -113,7 +113,12 @@ def test_the_papers_findings_at_alpha_one_half():
     the relative threshold keeps almost nothing, see the README)."""
     cfg = resolve_config(
         EXPERIMENT,
-        sets=["duration_s=0.3", "soms.alpha=0.5", "groups=[mode, speed]", "speed_pairs=[[60, 30]]"],
+        sets=[
+            "duration_s=0.3",
+            "agent.soms.alpha=0.5",
+            "groups=[mode, speed]",
+            "speed_pairs=[[60, 30]]",
+        ],
     )
     rows = {r["condition"]: r for r in map(run_spec, make_trials(EXPERIMENT, cfg, 0))}
     both, eye, obj, fast = (

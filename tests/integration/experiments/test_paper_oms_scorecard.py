@@ -179,3 +179,52 @@ def test_hand_line_passes_only_when_every_hand_bar_holds():
         "shake-only 99.5 %; hand's events kept 62.0 %"
     )
     assert cells["paper"].startswith("FAIL hand hit in 100.0 %")  # keeps 17 % of the hand
+
+
+def _quality(path, soms: dict | None, accuracy: float = 0.9) -> str:
+    """A ``wander evaluate`` quality.json whose run had the agent sOMS ``soms``."""
+    import json
+
+    pooled = {"detection_accuracy": accuracy, "detection_ci_low": 0.8}
+    pooled |= {"detection_ci_high": 0.95, "scored": 40}
+    run = {} if soms is None else {"agent": {"soms": soms}}
+    data = {"config": {"run": run}, "rows": [{"seed": 0}, {"seed": 1}], "pooled": pooled}
+    path.write_text(json.dumps(data))
+    return str(path)
+
+
+def test_office_results_must_be_runs_of_the_agent_block(tmp_path):
+    """The office part reads ``wander evaluate`` results of the config's ``agent.soms``
+    (its step aside): another agent's, a file of another shape, or one that is not a
+    regular file is refused, naming the key and the file."""
+    from dataclasses import replace
+
+    from agents.attention import AGENT_SOMS
+    from experiments.paper.oms_scorecard import read_quality, run_trial
+    from experiments.studies.framework import TrialSpec
+    from wander_env.config import to_plain
+    from wander_env.untrusted import UntrustedFileError
+
+    plain = to_plain(replace(AGENT_SOMS, dt=0.02))  # the step may differ
+    good = _quality(tmp_path / "good.json", plain, accuracy=0.925)
+    cfg = resolve_config(get_experiment("oms_scorecard"), sets=["parts=[office]"])
+    cfg = replace(cfg, office_results=(good,))
+    row = run_trial(cfg, TrialSpec("oms_scorecard", {}, {"part": "office"}, 0))
+    assert row["agent:office0:accuracy"] == 0.925 and row["agent:office0:seeds"] == "0,1"
+    assert row["agent:office0:scored"] == 40
+
+    other = resolve_config(get_experiment("oms_scorecard"), sets=["agent.soms.alpha=0.7"])
+    with pytest.raises(ValueError) as e:
+        read_quality(good, "office_results", other.agent.soms)
+    assert str(e.value) == (
+        f"office_results: {good}: its run's agent.soms is not this scorecard's (agent.soms)"
+    )
+    old = _quality(tmp_path / "old.json", None)
+    with pytest.raises(ValueError, match=r"^office_results: .*old\.json: its run records no "):
+        read_quality(old, "office_results", AGENT_SOMS)
+    (tmp_path / "list.json").write_text("[1, 2]")
+    with pytest.raises(ValueError) as e:
+        read_quality(str(tmp_path / "list.json"), "office_results_paper")
+    assert str(e.value).endswith("list.json: not the quality.json of a wander evaluate run")
+    with pytest.raises(UntrustedFileError, match="not a regular file"):
+        read_quality("/dev/zero", "office_results")

@@ -51,7 +51,7 @@ def test_hand_costs_pair_the_speck_and_the_host_figures_per_trial():
     assert costs["hand hit (hand-moving sOMS steps)"].speck[0] == pytest.approx(70.0)
     assert costs["hand hit (hand-moving sOMS steps)"].host[0] == pytest.approx(100.0)
     assert costs["shake-only events suppressed"].speck[0] == pytest.approx(70.0)
-    with pytest.raises(ValueError, match="second_soms=agent"):
+    with pytest.raises(ValueError, match=r"second_agent\.soms=agent"):
         hand_costs([{"seed": 0, "phase": "hand", "events_in": 1}])
 
 

@@ -144,15 +144,18 @@ def test_front_end_rejects_the_wrong_input_shape():
 
 
 def test_the_experiments_score_the_speck_front_end_by_name():
+    from agents.attention import AgentParams
     from experiments.paper.event_suppression import EventSuppressionConfig
     from experiments.paper.event_suppression_scoring import map_model
     from experiments.paper.oms_family import measure
     from experiments.paper.oms_stimuli import Stimulus
 
-    cfg = EventSuppressionConfig(soms="speck", second_soms="agent")
-    assert cfg.soms == "speck" and cfg.soms_params == SpeckFrontParams(dt=0.02)
-    assert cfg.second_params.dt == 0.02 and cfg.windows_per_step == 10
-    model = map_model(cfg.soms_params, 96, 80)
+    cfg = EventSuppressionConfig(
+        agent=AgentParams(soms="speck"), second_agent=AgentParams(soms="agent")
+    )
+    assert cfg.soms_params() == SpeckFrontParams(dt=0.02)
+    assert cfg.second_params().dt == 0.02 and cfg.windows_per_step == 10
+    model = map_model(cfg.soms_params(), 96, 80)
     assert isinstance(model, SpeckFront) and model.step(np.zeros((2, 96, 80))).oms.shape == (
         2,
         96,
