@@ -136,6 +136,43 @@ class _PlainLoader(yaml.SafeLoader):
         finally:
             self.depth -= 1
 
+    def construct_mapping(self, node: Any, deep: bool = False) -> Any:
+        """A mapping, a key given twice refused (PyYAML keeps the last one silently)."""
+        seen: set[Any] = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            if not isinstance(key, str | int | float | bool):
+                continue  # unhashable: refused later as a key that is not a string
+            if key in seen:
+                raise _Refused(problem=f"duplicate key {key!r}", problem_mark=key_node.start_mark)
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+    def _decimal(self, node: Any, integer: bool) -> None:
+        """Refuse YAML 1.1's other ways of writing a number (``017`` octal, ``0x10``,
+        ``0b1``, ``1:20`` base 60, ``1_000``): each reads as another value than it seems."""
+        text = node.value.lstrip("+-")
+        other = text[:2].lower() in ("0x", "0b", "0o") or ":" in text or "_" in text
+        octal = integer and len(text) > 1 and text[0] == "0"
+        if other or octal:
+            raise _Refused(
+                problem=f"{node.value!r}: write numbers in plain decimal (YAML 1.1 reads this "
+                "form as octal, hexadecimal, binary or base 60)",
+                problem_mark=node.start_mark,
+            )
+
+    def construct_yaml_int(self, node: Any) -> int:
+        self._decimal(node, integer=True)
+        return super().construct_yaml_int(node)
+
+    def construct_yaml_float(self, node: Any) -> float:
+        self._decimal(node, integer=False)
+        return super().construct_yaml_float(node)
+
+
+_PlainLoader.add_constructor("tag:yaml.org,2002:int", _PlainLoader.construct_yaml_int)
+_PlainLoader.add_constructor("tag:yaml.org,2002:float", _PlainLoader.construct_yaml_float)
+
 
 def _yaml_value(text: str) -> Any:
     """``text`` parsed by :class:`_PlainLoader` (yaml.YAMLError on any problem)."""
@@ -299,7 +336,11 @@ def _float_text(v: Any) -> float | None:
 
 
 def _set_at(data: Any, loc: tuple[Any, ...], value: Any) -> None:
+    """Put ``value`` at pydantic's error location ``loc`` in ``data``; a tagged union's
+    member (``agent.soms``'s ``"SOMSParams"``) stands in ``loc`` but names no key."""
     for part in loc[:-1]:
+        if isinstance(data, dict) and part not in data:
+            continue
         data = data[part]
     data[loc[-1]] = value
 

@@ -323,9 +323,24 @@ def parse_json(text: str, where: str | os.PathLike, limits: FileLimits = LIMITS)
     if depth > limits.json_depth:
         raise UntrustedFileError(where, f"JSON nested {depth} deep; at most {limits.json_depth}")
     try:
-        return json.loads(text)
+        return json.loads(text, object_pairs_hook=_unique_keys)
     except json.JSONDecodeError as err:
         raise UntrustedFileError(where, f"not valid JSON, cut short or damaged ({err})") from None
+    except _DuplicateKey as err:
+        raise UntrustedFileError(where, f"the key {err.args[0]!r} is given twice") from None
+
+
+class _DuplicateKey(Exception):
+    """A JSON object names a key twice (``json`` would keep the last silently)."""
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise _DuplicateKey(key)
+        out[key] = value
+    return out
 
 
 def read_json(

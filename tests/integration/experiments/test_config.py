@@ -88,6 +88,43 @@ def test_yaml_file_error_names_the_file_the_field_and_the_value(tmp_path):
     assert msg == f"{path}: scenes[1]: expected str, got 3"
 
 
+def test_a_key_given_twice_is_refused_not_the_last_one_kept(tmp_path):
+    from experiments.studies.framework import get_experiment
+
+    path = tmp_path / "det.yaml"
+    path.write_text("repeats: 1\nagent:\n  soms: {alpha: 0.5}\nrepeats: 3\n")
+    with pytest.raises(ConfigError) as e:
+        resolve_config(get_experiment("detection"), path)
+    assert str(e.value) == f"{path}: line 4, column 1: duplicate key 'repeats'"
+
+
+@pytest.mark.parametrize("text", ["017", "0x10", "0b11", "1:20", "1_000", "-017", "1:20.5"])
+def test_yaml_11_number_forms_that_read_as_other_values_are_refused(text):
+    """PyYAML reads ``017`` as 15 and ``1:20`` as 80: nothing silently cast."""
+    with pytest.raises(ConfigError) as e:
+        parse_sets([f"block.k={text}"], Outer)
+    assert str(e.value) == (
+        f"--set block.k: line 1, column 1: {text!r}: write numbers in plain decimal (YAML 1.1 "
+        "reads this form as octal, hexadecimal, binary or base 60)"
+    )
+    assert parse_sets(["block.k=0", "block.alpha=017.5"], Outer) == {
+        "block": {"k": 0, "alpha": 17.5}
+    }
+
+
+@pytest.mark.parametrize("value", ["5e-1", "0.5", ".5"])
+def test_a_front_end_field_written_as_a_numeric_string_is_read_as_the_number(tmp_path, value):
+    """``5e-1`` is a string to YAML 1.1; in the tagged union of ``agent.soms`` it is read
+    as the float it writes, as it is elsewhere."""
+    from experiments.studies.framework import get_experiment
+
+    cfg = resolve_config(get_experiment("detection"), sets=[f"agent.soms.alpha={value}"])
+    assert cfg.agent.soms.alpha == 0.5
+    path = tmp_path / "c.yaml"
+    path.write_text(f"agent:\n  soms:\n    alpha: {value}\n")
+    assert resolve_config(get_experiment("detection"), path).agent.soms.alpha == 0.5
+
+
 def test_set_cannot_set_a_block_and_one_of_its_keys():
     with pytest.raises(ConfigError, match="block is set to a value already"):
         parse_sets(["block=1", "block.k=2"], Outer)

@@ -116,6 +116,16 @@ def test_json_nested_100000_deep_is_one_line(tmp_path):
     assert json_nesting('["[[[", {"a": "\\"[["}]') == 2
 
 
+def test_a_json_key_given_twice_is_refused_not_the_last_one_kept(tmp_path):
+    path = tmp_path / "run.json"
+    path.write_text('{"seed": 1, "config": {"a": 1, "a": 2}}')
+    with pytest.raises(UntrustedFileError) as info:
+        read_json(path)
+    assert str(info.value) == f"{path}: the key 'a' is given twice"
+    path.write_text('{"seed": 1, "config": {"a": 1, "b": [{"a": 2}]}}')
+    assert read_json(path) == {"seed": 1, "config": {"a": 1, "b": [{"a": 2}]}}
+
+
 def _npz(members: dict[str, np.ndarray]) -> bytes:
     buf = io.BytesIO()
     np.savez_compressed(buf, **members)
