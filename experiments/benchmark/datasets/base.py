@@ -109,21 +109,40 @@ def events_from_columns(
     p: np.ndarray,
     sensor_size: SensorSize,
     notes: list[str] | None = None,
+    where: str | os.PathLike = "events",
 ) -> np.ndarray:
-    """Events in the shared format from columns: sorted by ``t``, inside the sensor.
+    """Events in the shared format from the columns of the file ``where``: sorted by
+    ``t``, inside the sensor.
 
-    ``t_us`` is cast to int64, ``x``/``y`` rounded to int16, ``p > 0`` is ON. Unsorted
-    input is stably sorted and events outside the sensor are dropped; both are said
-    in ``notes`` (appended to) rather than done silently.
+    ``t_us`` is cast to int64, ``x``/``y`` must be whole numbers, ``p`` 0/1 or −1/1
+    (``p > 0`` is ON); :class:`DatasetLayoutError` naming ``where`` otherwise, as for
+    columns of different lengths. Unsorted input is stably sorted and events outside the
+    sensor are dropped; both are said in ``notes`` (appended to) rather than done
+    silently.
     """
     n = len(t_us)
     if not (len(x) == len(y) == len(p) == n):
-        raise ValueError(
-            f"event columns differ in length: t {n}, x {len(x)}, y {len(y)}, p {len(p)}"
+        raise DatasetLayoutError(
+            where, f"event columns differ in length: t {n}, x {len(x)}, y {len(y)}, p {len(p)}"
         )
+    for name, col in (("x", x), ("y", y)):
+        col = np.asarray(col)
+        if not np.issubdtype(col.dtype, np.integer):  # floats: whole and finite
+            bad = ~np.isfinite(col) | (col % 1 != 0)
+            if bad.any():
+                raise DatasetLayoutError(
+                    where, f"{name} holds values that are not whole numbers, e.g. {col[bad][0]}"
+                )
+    p = np.asarray(p)
+    if p.dtype != np.bool_:
+        bad = (p != 0) & (p != 1) & (p != -1)
+        if bad.any():
+            raise DatasetLayoutError(
+                where, f"p holds values other than 0/1 or -1/1, e.g. {p[bad][0]}"
+            )
     w, h = int(sensor_size[0]), int(sensor_size[1])
-    xi = np.rint(np.asarray(x, dtype=np.float64)).astype(np.int64)
-    yi = np.rint(np.asarray(y, dtype=np.float64)).astype(np.int64)
+    xi = np.asarray(x).astype(np.int64)
+    yi = np.asarray(y).astype(np.int64)
     inside = (xi >= 0) & (xi < w) & (yi >= 0) & (yi < h)
     ev = np.empty(int(inside.sum()), dtype=EVENT_DTYPE)
     ev["t"] = np.asarray(t_us)[inside]
@@ -140,9 +159,21 @@ def events_from_columns(
     return ev
 
 
-def seconds_to_us(t_s: np.ndarray) -> np.ndarray:
-    """Seconds (float) to integer microseconds, rounded to nearest."""
-    return np.rint(np.asarray(t_s, dtype=np.float64) * 1e6).astype(np.int64)
+def seconds_to_us(t_s: np.ndarray, where: str | os.PathLike = "t") -> np.ndarray:
+    """Seconds (float) to integer microseconds, rounded to nearest; a NaN or infinite time
+    (which no cast keeps) is :class:`DatasetLayoutError` naming ``where``."""
+    return scaled_times(t_s, 1e6, where)
+
+
+def scaled_times(t: np.ndarray, scale: float, where: str | os.PathLike = "t") -> np.ndarray:
+    """``t × scale`` rounded to integer microseconds; :class:`DatasetLayoutError` naming
+    ``where`` for a NaN or infinite time, or one past int64's microseconds."""
+    us = np.asarray(t, dtype=np.float64) * scale
+    bad = ~np.isfinite(us) | (np.abs(us) >= 2.0**63)
+    if bad.any():
+        value = np.asarray(t)[bad][0]
+        raise DatasetLayoutError(where, f"t holds {value}, not a finite time")
+    return np.rint(us).astype(np.int64)
 
 
 def check_windows_ordered(windows: list[MaskWindow], where: str = "windows") -> None:

@@ -450,12 +450,13 @@ def _load_evimo1(src: EvimoSource, mode: str, window_us: int | None) -> Sequence
     sensor = (w, h, 2)
     notes: list[str] = []
     events = events_from_columns(
-        seconds_to_us(raw_events[:, 0]),
+        seconds_to_us(raw_events[:, 0], path),
         raw_events[:, 1],
         raw_events[:, 2],
         raw_events[:, 3],
         sensor,
         notes,
+        path,
     )
     labels = [mask_labels(masks[i]) for i in range(masks.shape[0])]
     sources = [f"{path}:mask[{i}]" for i in range(masks.shape[0])]
@@ -521,7 +522,8 @@ def _load_evimo2(src: EvimoSource, mode: str, window_us: int | None) -> Sequence
     sensor = (int(w), int(h), 2)
     if "samsung" in d.as_posix().lower():
         notes.append("Samsung camera: polarity kept as stored (inverted vs Prophesee)")
-    events = events_from_columns(seconds_to_us(t), xy[:, 0], xy[:, 1], p, sensor, notes)
+    t_us = seconds_to_us(t, d / "dataset_events_t.npy")
+    events = events_from_columns(t_us, xy[:, 0], xy[:, 1], p, sensor, notes, d)
     windows = _windows(ts_s, labels, sources, mode, window_us)
     notes.append(f"windows: {mode}")
     return SequenceData("evimo", src.subset, src.name, sensor, events, windows, str(d), notes)

@@ -58,6 +58,7 @@ from experiments.benchmark.datasets.base import (
     MaskWindow,
     SequenceData,
     events_from_columns,
+    scaled_times,
 )
 from experiments.benchmark.datasets.masks import mask_fit, read_mask_png
 from wander_env.events import empty_events
@@ -206,7 +207,7 @@ def load_llevos_sequence(
     prev: tuple[str, int] | None = None
     for stem, path in ev_files.items():
         cols = read_event_file(path, config)
-        t_us = np.rint(np.asarray(cols["t"], dtype=np.float64) * scale).astype(np.int64)
+        t_us = scaled_times(cols["t"], scale, path)
         x, y = np.asarray(cols["x"]), np.asarray(cols["y"])
         if len(t_us) and (
             x.min() < 0 or y.min() < 0 or x.max() >= sensor[0] or y.max() >= sensor[1]
@@ -217,7 +218,7 @@ def load_llevos_sequence(
                 f"{sensor[0]}x{sensor[1]} annotation grid",
                 "events on the annotation grid (or pass sensor_size)",
             )
-        ev = events_from_columns(t_us, x, y, cols["p"], sensor, notes)
+        ev = events_from_columns(t_us, x, y, cols["p"], sensor, notes, path)
         if len(ev) == 0:
             continue
         first, last = int(ev["t"][0]), int(ev["t"][-1])

@@ -339,6 +339,31 @@ def test_evimo2v2_folder_loader(tmp_path):
     assert len(list(load_evimo(seq_dir))) == 1
 
 
+def test_evimo2_columns_that_no_cast_keeps_are_refused_naming_the_file(tmp_path):
+    """A NaN time, a polarity other than 0/1, a fractional coordinate and columns of
+    different lengths are each one line naming the file, never cast."""
+    seq = write_evimo2(tmp_path / "imo" / "seq")
+    t = np.array([0.001, np.nan, 0.0031, 0.0042, 0.0099])
+    np.save(seq / "dataset_events_t.npy", t)
+    with pytest.raises(DatasetLayoutError) as e:
+        list(load_evimo(tmp_path))
+    assert str(e.value) == f"{seq / 'dataset_events_t.npy'}: t holds nan, not a finite time"
+    np.save(seq / "dataset_events_t.npy", t[[0, 0, 2, 3, 4]])
+    np.save(seq / "dataset_events_p.npy", np.array([1, 0, 7, 1, 0], dtype=np.uint8))
+    with pytest.raises(DatasetLayoutError) as e:
+        list(load_evimo(tmp_path))
+    assert str(e.value) == f"{seq}: p holds values other than 0/1 or -1/1, e.g. 7"
+    np.save(seq / "dataset_events_p.npy", np.array([1, 0, 1, 1], dtype=np.uint8))
+    with pytest.raises(DatasetLayoutError) as e:
+        list(load_evimo(tmp_path))
+    assert str(e.value) == f"{seq}: event columns differ in length: t 5, x 5, y 5, p 4"
+    np.save(seq / "dataset_events_p.npy", np.array([1, 0, 1, 1, 0], dtype=np.uint8))
+    np.save(seq / "dataset_events_xy.npy", np.array([[0, 0], [3.7, 4], [7, 5], [7, 5], [1, 1]]))
+    with pytest.raises(DatasetLayoutError) as e:
+        list(load_evimo(tmp_path))
+    assert str(e.value) == f"{seq}: x holds values that are not whole numbers, e.g. 3.7"
+
+
 def test_evimo_wrong_layout_errors(tmp_path):
     with pytest.raises(DatasetLayoutError, match=r"expected: PATH/<subset>/<sequence>\.npz"):
         find_evimo_sequences(tmp_path)
@@ -439,6 +464,12 @@ def test_llevos_wrong_layout_errors(tmp_path):
         list(load_llevos(root, sequences=["00001"]))
     np.savez(ev / "00002.npz", x=np.array([1]), y=np.array([1]), t=np.array([250]), p=np.array([1]))
     with pytest.raises(DatasetLayoutError, match=r"00002\.npz: starts at t=250 µs before"):
+        list(load_llevos(root, sequences=["00001"]))
+    np.savez(ev / "00002.npz", x=np.array([1]), y=np.array([1]), t=np.array([np.inf]), p=[1])
+    with pytest.raises(DatasetLayoutError, match=r"00002\.npz: t holds inf, not a finite time$"):
+        list(load_llevos(root, sequences=["00001"]))
+    np.savez(ev / "00002.npz", x=np.array([1]), y=np.array([1]), t=np.array([300]), p=[5])
+    with pytest.raises(DatasetLayoutError, match=r"00002\.npz: p holds values other than 0/1"):
         list(load_llevos(root, sequences=["00001"]))
     np.savez(ev / "00002.npz", a=np.zeros(3))
     with pytest.raises(DatasetLayoutError, match=r"00002\.npz: keys \['a'\]"):
