@@ -41,7 +41,6 @@ stay the halves); the same seed gives the same scorecard.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -311,6 +310,7 @@ _SHARED = (
     "real_dir",
     "real_bins_ms",
     "hand_repeats",
+    "agent",
 )
 
 
@@ -326,7 +326,7 @@ def reused_row(cfg: OMSScorecardConfig, part: str, seed: int) -> dict[str, Any] 
         rows = [r for r in read_csv(folder / "results.csv") if r.get("part") == part]
         if not rows:
             continue
-        mine = {k: v for k, v in json.loads(json.dumps(cfg.__dict__)).items() if k in _SHARED}
+        mine = {k: v for k, v in to_plain(cfg).items() if k in _SHARED}
         theirs = {k: conf.get(k) for k in _SHARED}
         if conf.get("experiment") != "oms_scorecard" or mine != theirs:
             diff = sorted(k for k in _SHARED if mine[k] != theirs[k])

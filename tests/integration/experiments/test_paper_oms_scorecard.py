@@ -228,3 +228,31 @@ def test_office_results_must_be_runs_of_the_agent_block(tmp_path):
     assert str(e.value).endswith("list.json: not the quality.json of a wander evaluate run")
     with pytest.raises(UntrustedFileError, match="not a regular file"):
         read_quality("/dev/zero", "office_results")
+
+
+def test_a_part_is_reused_only_from_a_run_of_the_same_config_and_seed(tmp_path):
+    """``reuse`` copies a part's row from an earlier scorecard of the same family, bins,
+    hand settings and agent block (``agent.soms`` is the second column), and refuses one
+    run with another."""
+    import json
+    from dataclasses import replace
+
+    from experiments.paper.oms_scorecard import reused_row
+    from experiments.studies.framework import config_to_dict, write_csv
+
+    exp = get_experiment("oms_scorecard")
+    cfg = resolve_config(exp, sets=SMALL)
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "config.json").write_text(json.dumps({"experiment": exp.name, **config_to_dict(cfg)}))
+    (old / "run.json").write_text(json.dumps({"seed": 3}))
+    ids = {"trial": 0, "trial_id": "t0", "repeat": 0, "seed": 3}
+    write_csv([{**ids, "part": "real", "agent:real:x": 0.25}], old / "results.csv")
+    mine = replace(cfg, reuse=(str(old),))
+    assert reused_row(mine, "real", 3) == {"agent:real:x": 0.25, "reused_from": str(old)}
+    assert reused_row(mine, "hand", 3) is None
+    with pytest.raises(ValueError, match=r"has seed 3, this run 4$"):
+        reused_row(mine, "real", 4)
+    other = resolve_config(exp, sets=[*SMALL, "agent.soms.alpha=0.7"])
+    with pytest.raises(ValueError, match=r"was run with another config \(agent\)$"):
+        reused_row(replace(other, reuse=(str(old),)), "real", 3)
