@@ -151,8 +151,8 @@ def _amount(name: str, value: int) -> str:
 def limits_table(limits: FileLimits = LIMITS) -> str:
     """The caps as a Markdown table: name, value, why.
 
-    >>> limits_table().splitlines()[2]
-    '| `json_bytes` | 8 MiB | A JSON document: config.json, run.json, a trial file (a few kB). |'
+    >>> limits_table().splitlines()[3]
+    '| `json_depth` | 64 | Lists and objects nested in a JSON document (ours nest 4-6 deep). |'
     """
     rows = [
         f"| `{f.name}` | {_amount(f.name, getattr(limits, f.name))} | {f.metadata['why']} |"
