@@ -36,6 +36,7 @@ from experiments.cli.options import (
     SetOpt,
     StreamlinedOpt,
     command_config,
+    int_range,
     option,
     resolve_out,
     with_options,
@@ -170,6 +171,10 @@ def _check_std_over(value: str) -> str:
         raise typer.BadParameter(str(err)) from None
 
 
+#: The most torch CPU threads ``--threads`` may ask for (torch crashes or hangs with
+#: thousands).
+MAX_THREADS = 256
+
 MaxWindowsOpt = Annotated[
     int | None,
     typer.Option(
@@ -178,7 +183,12 @@ MaxWindowsOpt = Annotated[
 ]
 MaxSequencesOpt = Annotated[int | None, typer.Option(min=1, help="Only the first N sequences.")]
 ThreadsOpt = Annotated[
-    int | None, typer.Option("--threads", min=1, help="torch CPU threads (default: torch's).")
+    int | None,
+    typer.Option(
+        "--threads",
+        callback=int_range(1, MAX_THREADS),
+        help=f"torch CPU threads, 1 to {MAX_THREADS} (default: torch's).",
+    ),
 ]
 ProgressOpt = Annotated[bool, typer.Option("--progress/--no-progress", help="Progress bars.")]
 StdOverOpt = Annotated[

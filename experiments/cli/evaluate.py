@@ -18,9 +18,10 @@ from experiments.cli.options import (
     SceneOpt,
     SeedsOpt,
     command_config,
-    int_list,
+    out_path,
     resolve_out,
     seconds_flag,
+    seed_list,
     with_options,
 )
 
@@ -34,8 +35,9 @@ def evaluate(
     out: Annotated[
         Path | None,
         typer.Option(
+            parser=out_path,
             help="Folder for one run folder per seed (default: a new time-stamped "
-            "runs/evaluate-DATE-TIME/; an existing non-empty folder needs --force)."
+            "runs/evaluate-DATE-TIME/; an existing non-empty folder needs --force).",
         ),
     ] = None,
     scene: SceneOpt = None,
@@ -49,19 +51,19 @@ def evaluate(
     from experiments.jobs.evaluate_agent import EvaluateConfig
     from experiments.jobs.evaluate_agent import evaluate as run_eval
 
-    seed_list = int_list(seeds, "--seeds", "seed")
+    seed_values = seed_list(seeds)
     config = command_config(ctx, EvaluateConfig)
     folder = resolve_out(ctx, out, "evaluate", shared["force"])
     with progress_bars() as bar:
         steps = round(config.seconds / config.env.control_period_s)
-        task = bar.add_task("evaluate", total=steps * len(seed_list))
-        done = {s: 0 for s in seed_list}
+        task = bar.add_task("evaluate", total=steps * len(seed_values))
+        done = {s: 0 for s in seed_values}
 
         def tick(seed: int, i: int, n: int) -> None:
             done[seed] = i
             bar.update(task, completed=sum(done.values()))
 
-        rows = run_eval(folder.path, config, seed_list, progress=tick)
+        rows = run_eval(folder.path, config, seed_values, progress=tick)
     print_table(
         f"Agent quality in {config.env.scene!r} ({config.seconds:g} s per seed; all = the "
         "seeds pooled)",

@@ -24,6 +24,7 @@ from experiments.cli.options import (
     command_config,
     folder_problem,
     one_of,
+    out_path,
     own_folder,
 )
 from experiments.runs.folder import RunFolder
@@ -49,10 +50,11 @@ def experiment(
     out: Annotated[
         Path | None,
         typer.Option(
+            parser=out_path,
             help="Result folder (default: a new results/NAME/DATE-TIME-seedN). A folder where "
             "the same command stopped (same config and seed; without --out the newest under "
             "results/NAME) is resumed, its finished trials kept; any other non-empty folder "
-            "needs --force, which starts afresh."
+            "needs --force, which starts afresh.",
         ),
     ] = None,
     force: ForceOpt = False,
@@ -148,6 +150,23 @@ def _check_backend(value: str) -> str:
     return one_of(BACKENDS)(value)
 
 
+def _check_address(value: str | None) -> str | None:
+    """A Ray cluster address as ``ray.init`` takes it: ``auto``, ``HOST:PORT`` or
+    ``ray://HOST:PORT`` (a port 1 to 65535); None: unset.
+
+    >>> _check_address("ray://head:10001"), _check_address("10.0.0.2:6379")
+    ('ray://head:10001', '10.0.0.2:6379')
+    """
+    if value is None or value == "auto":
+        return value
+    host, _, port = value.removeprefix("ray://").rpartition(":")
+    if not (host and port.isascii() and port.isdigit() and 1 <= int(port) <= 65535):
+        raise typer.BadParameter(
+            f"must be auto, HOST:PORT or ray://HOST:PORT (a port 1 to 65535), got {value!r}"
+        )
+    return value
+
+
 @long_command("wander sweep")
 def sweep(
     ctx: typer.Context,
@@ -162,10 +181,16 @@ def sweep(
         ),
     ] = None,
     address: Annotated[
-        str | None, typer.Option(help="Ray cluster address (default: start a local Ray).")
+        str | None,
+        typer.Option(
+            callback=_check_address,
+            help="Ray cluster address (--backend ray): auto, HOST:PORT or ray://HOST:PORT "
+            "(default: start a local Ray).",
+        ),
     ] = None,
     out: Annotated[
-        Path | None, typer.Option(help="Sweep folder (default: results/sweeps/NAME).")
+        Path | None,
+        typer.Option(parser=out_path, help="Sweep folder (default: results/sweeps/NAME)."),
     ] = None,
     timeout: Annotated[
         float,
@@ -179,12 +204,18 @@ def sweep(
     from experiments.studies.framework import ConfigError
     from experiments.studies.sweep import BackendFailed, TrialCrashed, expand, load_sweep, run_sweep
 
+    if address is not None and backend != "ray":
+        raise typer.BadParameter(
+            f"a Ray cluster's address, only with --backend ray, got --backend {backend}",
+            param_hint="'--address'",
+        )
     try:
         sw = load_sweep(config)
         n = len(expand(sw))
     except ConfigError as e:
         raise fail(e, ctx) from None
-    run = RunFolder(out or Path("results") / "sweeps" / sw.name, current_run(ctx))
+    path = out or Path("results") / "sweeps" / sw.name
+    run = own_folder(ctx, lambda now: RunFolder.for_sweep(path, now))
     folder = run.path
     with progress_bars() as bar:
         task = bar.add_task(f"sweep {sw.name}", total=n)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import inspect
 import math
+import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -69,20 +70,26 @@ __all__ = [
     "check_seed",
     "check_wait",
     "check_workers",
+    "comma_list",
     "command_config",
     "config_flag",
     "flag_keys",
     "flag_name",
     "int_list",
+    "int_range",
     "one_of",
     "option",
+    "out_path",
     "resolve_out",
     "run_env_job",
     "seconds_flag",
     "seed_flag",
+    "seed_list",
     "with_options",
 ]
 
+
+T = TypeVar("T")
 
 #: The longest run a ``--seconds`` may ask for (simulated seconds: a day).
 MAX_SECONDS = 86400.0
@@ -120,11 +127,27 @@ def check_seed(value: int) -> int:
 MAX_WORKERS = 256
 
 
-def check_workers(value: int | None) -> int | None:
-    """A number of worker processes: 1 to :data:`MAX_WORKERS` (None: the default)."""
-    if value is not None and not 1 <= value <= MAX_WORKERS:
-        raise typer.BadParameter(f"must be an integer in [1, {MAX_WORKERS}], got {value}")
-    return value
+def int_range(minimum: int, maximum: int) -> Callable[[int | None], int | None]:
+    """A check that an integer is in [``minimum``, ``maximum``] (None passes: an optional
+    left unset).
+
+    >>> try:
+    ...     int_range(1, 8)(9)
+    ... except typer.BadParameter as err:
+    ...     print(err)
+    must be an integer in [1, 8], got 9
+    """
+
+    def check(value: int | None) -> int | None:
+        if value is not None and not minimum <= value <= maximum:
+            raise typer.BadParameter(f"must be an integer in [{minimum}, {maximum}], got {value}")
+        return value
+
+    return check
+
+
+#: A number of worker processes: 1 to :data:`MAX_WORKERS` (None: the default).
+check_workers = int_range(1, MAX_WORKERS)
 
 
 def check_wait(value: float) -> float:
@@ -178,23 +201,76 @@ def one_of(allowed: Sequence[str]) -> Callable[[str], str]:
     return check
 
 
-def int_list(text: str, flag: str, what: str = "value", minimum: int | None = None) -> list[int]:
-    """Comma-separated integers of option ``flag`` (at least one; each >= ``minimum``).
+def comma_list(text: str, flag: str, what: str, example: str, parse: Callable[[str], T]) -> list[T]:
+    """The comma-separated items of option ``flag``, each read by ``parse`` (a
+    :class:`typer.BadParameter` of it names ``flag``): at least one, none empty, none
+    given twice (``what`` and ``example`` for the messages).
 
-    >>> int_list("0, 1,2", "--seeds")
+    >>> comma_list("office, hand", "--scenes", "scene", "office,hand", str)
+    ['office', 'hand']
+    >>> try:
+    ...     comma_list("office,,hand", "--scenes", "scene", "office,hand", str)
+    ... except typer.BadParameter as err:
+    ...     print(err.format_message())
+    Invalid value for '--scenes': has an empty scene, got 'office,,hand'
+    """
+    hint = f"'{flag}'"
+    items = [v.strip() for v in text.split(",")]
+    if not any(items):
+        raise typer.BadParameter(f"needs at least one {what}, e.g. {example}", param_hint=hint)
+    if not all(items):
+        raise typer.BadParameter(f"has an empty {what}, got {text!r}", param_hint=hint)
+    values: list[T] = []
+    for item in items:
+        try:
+            value = parse(item)
+        except typer.BadParameter as err:
+            raise typer.BadParameter(err.message, param_hint=hint) from None
+        if value in values:
+            raise typer.BadParameter(f"{what} {item} is given twice, got {text!r}", param_hint=hint)
+        values.append(value)
+    return values
+
+
+def int_list(text: str, flag: str, what: str, minimum: int, maximum: int) -> list[int]:
+    """Comma-separated integers in [``minimum``, ``maximum``] of option ``flag``
+    (:func:`comma_list`: at least one, none empty, none twice).
+
+    >>> int_list("0, 1,2", "--seeds", "seed", 0, 9)
     [0, 1, 2]
     """
-    try:
-        values = [int(v) for v in text.split(",") if v.strip()]
-    except ValueError as err:
-        msg = f"must be integers separated by commas, e.g. 0,1,2, got {text!r}"
-        raise typer.BadParameter(msg, param_hint=f"'{flag}'") from err
-    if not values:
-        raise typer.BadParameter(f"needs at least one {what}, e.g. 0,1,2", param_hint=f"'{flag}'")
-    if minimum is not None and min(values) < minimum:
-        msg = f"must be integers >= {minimum}, got {text!r}"
-        raise typer.BadParameter(msg, param_hint=f"'{flag}'")
-    return values
+    from wander_env.config import MAX_NUMBER_CHARS
+
+    def parse(item: str) -> int:
+        if not re.fullmatch(r"[+-]?[0-9]+", item):
+            raise typer.BadParameter(
+                f"must be integers separated by commas, e.g. 0,1,2, got {text!r}"
+            )
+        if len(item) > MAX_NUMBER_CHARS:  # int() refuses 4300 digits: said here, on one line
+            raise typer.BadParameter(
+                f"a number of {len(item)} characters; at most {MAX_NUMBER_CHARS}"
+            )
+        value = int(item)
+        int_range(minimum, maximum)(value)
+        return value
+
+    return comma_list(text, flag, what, "0,1,2", parse)
+
+
+def seed_list(text: str) -> list[int]:
+    """A ``--seeds`` (:data:`SeedsOpt`): comma-separated seeds, each an integer in [0,
+    :data:`experiments.studies.framework.MAX_SEED`], none twice."""
+    from experiments.studies.framework import MAX_SEED
+
+    return int_list(text, "--seeds", "seed", 0, MAX_SEED)
+
+
+def out_path(text: str) -> Path:
+    """An ``--out`` folder: a path, not empty (an empty one would mean the current folder
+    unsaid)."""
+    if not text:
+        raise typer.BadParameter("must name a folder, got ''")
+    return Path(text)
 
 
 @dataclass(frozen=True)
@@ -254,21 +330,22 @@ def seconds_flag(help: str, key: str = "env.episode_seconds") -> Any:
 
 def seed_flag(help: str) -> Any:
     """A job's ``--seed``, which sets the config's ``seed``, with a command's own help:
-    ``seed: seed_flag("Seed of the agent.") = None``."""
-    return config_flag(int, "seed", help)
+    ``seed: seed_flag("Seed of the agent.") = None`` (checked: :func:`check_seed`)."""
+    return config_flag(int, "seed", help, check=check_seed)
 
 
 SecondsOpt = seconds_flag("Simulated seconds.")
 SeedOpt = Annotated[
     int, typer.Option(callback=check_seed, help="Base seed (repeat r uses seed + r).")
 ]
-#: ``--seeds``: a command's seeds, comma-separated (read with :func:`int_list`).
-SeedsOpt = Annotated[str, typer.Option(help="Comma-separated seeds.")]
+#: ``--seeds``: a command's seeds, comma-separated (read with :func:`seed_list`).
+SeedsOpt = Annotated[str, typer.Option(help="Comma-separated seeds, none twice.")]
 RunDirOpt = Annotated[
     Path | None,
     typer.Option(
+        parser=out_path,
         help="The run folder (default: a new time-stamped runs/COMMAND-DATE-TIME/; an "
-        "existing non-empty folder needs --force)."
+        "existing non-empty folder needs --force).",
     ),
 ]
 ForceOpt = Annotated[
@@ -276,7 +353,8 @@ ForceOpt = Annotated[
     typer.Option(
         "--force",
         help="Replace an existing, non-empty --out folder (the new run is built beside it, "
-        "then swapped in: nothing of the earlier run remains).",
+        "then swapped in: nothing of the earlier run remains); not the current folder, nor "
+        "one that holds it.",
     ),
 ]
 WindowOpt = config_flag(
@@ -352,7 +430,6 @@ SetOpt = Annotated[
 ]
 
 
-T = TypeVar("T")
 F = TypeVar("F", bound=Callable[..., Any])
 
 

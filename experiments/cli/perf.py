@@ -7,6 +7,7 @@ with a notice).
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from pathlib import Path
 from typing import Annotated
@@ -15,16 +16,22 @@ import typer
 
 from experiments.cli.console import console, print_table
 from experiments.cli.options import (
+    MAX_WORKERS,
     ConfigFileOpt,
     KeyframeMsOpt,
     SceneOpt,
     SeedsOpt,
     SetOpt,
+    check_scene,
+    comma_list,
     command_config,
     config_flag,
     int_list,
+    int_range,
+    one_of,
     seconds_flag,
     seed_flag,
+    seed_list,
 )
 
 __all__ = ["app"]
@@ -34,15 +41,36 @@ app = typer.Typer(
     "here, not in tests)."
 )
 
+#: The most timed runs a row of a timing table may ask for.
+MAX_REPEATS = 100
+#: The most frames a ``wander perf dvs`` run may ask for: its frames are held in memory
+#: (about 0.75 MB each at 346x260, every input path's copy).
+MAX_DVS_FRAMES = 5000
+#: The longest ``wander perf fidelity`` run (simulated seconds per seed; the reference
+#: renders every tick at up to 256 samples a pixel).
+MAX_FIDELITY_SECONDS = 60.0
+#: The fastest render ticks of ``wander perf fidelity``'s reference.
+MAX_REFERENCE_HZ = 100_000.0
+
 #: ``--repeats`` of the timing tables (its default is each table's).
 TimedRepeatsOpt = Annotated[
-    int, typer.Option(min=1, help="Timed runs per row; the median is shown.")
+    int,
+    typer.Option(
+        callback=int_range(1, MAX_REPEATS),
+        help=f"Timed runs per row (1 to {MAX_REPEATS}); the median is shown.",
+    ),
 ]
 
 
 @app.command("dvs")
 def bench_dvs(
-    frames: Annotated[int, typer.Option(min=1, help="Frames per timed run (1 kHz).")] = 1000,
+    frames: Annotated[
+        int,
+        typer.Option(
+            callback=int_range(1, MAX_DVS_FRAMES),
+            help=f"Frames per timed run (1 kHz; 1 to {MAX_DVS_FRAMES}: they are held in memory).",
+        ),
+    ] = 1000,
     repeats: TimedRepeatsOpt = 3,
     peers: Annotated[
         bool, typer.Option(help="Also run evlib's ESIM and v2e on the same frames.")
@@ -95,7 +123,12 @@ def bench_env(
     ) = None,
     breakdown: Annotated[bool, typer.Option(help="Also time the parts of one env's step.")] = True,
     keyframe_ms: KeyframeMsOpt = None,
-    envs: Annotated[str, typer.Option(help="Comma-separated env counts.")] = "1,2,4",
+    envs: Annotated[
+        str,
+        typer.Option(
+            help=f"Comma-separated env counts (each 1 to {MAX_WORKERS} env processes, none twice)."
+        ),
+    ] = "1,2,4",
     keyframe_px: config_flag(
         float,
         "env.keyframe_px",
@@ -120,7 +153,7 @@ def bench_env(
     )
     from experiments.perf.env import bench_env as run
 
-    counts = tuple(int_list(envs, "--envs", "env count", minimum=1))
+    counts = tuple(int_list(envs, "--envs", "env count", 1, MAX_WORKERS))
     bench = command_config(ctx, EnvBenchConfig, config_file=config)
     default = EnvBenchConfig().env
     given = [k for k in ROW_KEYS if getattr(bench.env, k) != getattr(default, k)]
@@ -269,21 +302,74 @@ def bench_panorama(
     )
 
 
+def _check_fidelity_seconds(value: float) -> float:
+    """``wander perf fidelity --seconds``: a whole number (>= 1) of the env's control
+    periods, at most :data:`MAX_FIDELITY_SECONDS`."""
+    from wander_env.env_config import WanderConfig
+
+    period = WanderConfig.control_period_s
+    steps = value / period
+    if not (
+        math.isfinite(value)
+        and 1 <= round(steps)
+        and abs(steps - round(steps)) < 1e-9
+        and value <= MAX_FIDELITY_SECONDS
+    ):
+        raise typer.BadParameter(
+            f"must be a whole number of {period:g} s control periods in [{period:g}, "
+            f"{MAX_FIDELITY_SECONDS:g}] seconds, got {value!r}"
+        )
+    return value
+
+
+def _check_reference_hz(value: float) -> float:
+    """``wander perf fidelity --reference-hz``: finite, at most :data:`MAX_REFERENCE_HZ`,
+    a rate the env takes (:class:`wander_env.env_config.WanderConfig`'s checks: a whole
+    number of ticks a control period, keys on ticks)."""
+    from wander_env.env_config import WanderConfig
+
+    if not (math.isfinite(value) and 0 < value <= MAX_REFERENCE_HZ):
+        raise typer.BadParameter(
+            f"must be a finite number of Hz in (0, {MAX_REFERENCE_HZ:g}], got {value!r}"
+        )
+    try:
+        WanderConfig(render_rate_hz=value)
+    except ValueError as err:
+        raise typer.BadParameter(str(err)) from None
+    return value
+
+
 @app.command("fidelity")
 def bench_fidelity(
     scenes: Annotated[
-        str, typer.Option(help="Comma-separated scenes.")
+        str, typer.Option(help="Comma-separated scenes (or scene files), none twice.")
     ] = "office,hand,shelf,gratings",
-    motions: Annotated[str, typer.Option(help="Comma-separated: still, walk, saccade.")] = (
-        "still,walk,saccade"
-    ),
+    motions: Annotated[
+        str, typer.Option(help="Comma-separated, none twice: still, walk, saccade.")
+    ] = "still,walk,saccade",
     seeds: SeedsOpt = "0,1,2",
-    seconds: Annotated[float, typer.Option(min=0.01, help="Simulated seconds per run.")] = 0.1,
+    seconds: Annotated[
+        float,
+        typer.Option(
+            callback=_check_fidelity_seconds,
+            help="Simulated seconds per run: a whole number of control periods (10 ms), at "
+            f"most {MAX_FIDELITY_SECONDS:g}.",
+        ),
+    ] = 0.1,
     reference_hz: Annotated[
-        float, typer.Option(min=1.0, help="Render ticks per second of the reference.")
+        float,
+        typer.Option(
+            callback=_check_reference_hz,
+            help="Render ticks per second of the reference: a whole number of ticks a 10 ms "
+            f"control period, at most {MAX_REFERENCE_HZ:g}.",
+        ),
     ] = 4000.0,
     reference_supersample: Annotated[
-        int, typer.Option(min=1, help="Supersampling of the reference (x the scenes' MSAA).")
+        int,
+        typer.Option(
+            callback=int_range(1, 8),
+            help="Supersampling of the reference, 1 to 8 (x the scenes' MSAA).",
+        ),
     ] = 4,
 ) -> None:
     """Every frame mode (exact, 16 samples, the default, the default at quality fine, one
@@ -302,16 +388,14 @@ def bench_fidelity(
     )
     from experiments.perf.fidelity import bench_fidelity as run
 
-    names = [m.strip() for m in motions.split(",") if m.strip()]
-    bad = [m for m in names if m not in MOTIONS]
-    if bad:
-        raise typer.BadParameter(f"--motions: unknown {bad}, choose from {MOTIONS}")
-    seed_list = tuple(int_list(seeds, "--seeds", "seed"))
+    scene_names = comma_list(scenes, "--scenes", "scene", "office,hand", check_scene)
+    names = comma_list(motions, "--motions", "motion", "still,walk", one_of(MOTIONS))
+    seed_values = seed_list(seeds)
     t0 = time.perf_counter()
     rows = run(
-        scenes=tuple(s.strip() for s in scenes.split(",") if s.strip()),
+        scenes=tuple(scene_names),
         motions=tuple(names),
-        seeds=seed_list,
+        seeds=tuple(seed_values),
         seconds=seconds,
         reference_hz=reference_hz,
         reference_supersample=reference_supersample,

@@ -220,7 +220,7 @@ def view(
 
     try:
         what, command = open_view(run_dir)
-    except FileNotFoundError as err:
+    except (FileNotFoundError, ValueError) as err:
         raise typer.BadParameter(str(err), param_hint="'RUN_DIR'") from None
     if what == "spawned":
         typer.echo(f"opened {run_dir / 'run.rrd'} in the Rerun viewer", err=True)

@@ -13,31 +13,56 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
+import pydantic
 
 from experiments.jobs.synthetic import disc_over_texture
+from experiments.studies.framework import MAX_SEED
+from wander_env.config import check_annotated
 from wander_env.dvs import DVSEmulator, DVSParams
+from wander_env.env_config import DvsPreset
 from wander_env.events import concatenate, time_window, to_frame
 from wander_env.viz import event_image, legend_below, polarity_patches, pyplot, save_figure
+
+#: The most bytes the demo's frames may take (they are held in memory: ``(seconds x
+#: frame_rate_hz + 1)`` frames of ``width x height`` RGB pixels).
+MAX_FRAME_BYTES = 2**30
 
 
 @dataclass(frozen=True)
 class DemoConfig:
-    seconds: float = 1.0
-    frame_rate_hz: float = 1000.0
-    width: int = 128
-    height: int = 128
-    preset: str = "paper"
-    seed: int = 0
-    panels: int = 8  # event frames in the picture
-    panel_ms: float = 20.0  # each shows this much time
+    """The DVS demo: ``seconds`` of the stimulus at ``frame_rate_hz`` frames a second (a
+    frame at least 1 µs), ``width x height`` pixels, the DVS ``preset``, the ``seed``, and
+    the picture's ``panels`` event frames of ``panel_ms`` each. Its frames are held in
+    memory: at most :data:`MAX_FRAME_BYTES` of them."""
+
+    seconds: Annotated[float, pydantic.Field(gt=0, le=86400)] = 1.0  # at most a day
+    frame_rate_hz: Annotated[float, pydantic.Field(gt=0, le=1e6)] = 1000.0
+    width: Annotated[int, pydantic.Field(ge=16, le=2048)] = 128
+    height: Annotated[int, pydantic.Field(ge=16, le=2048)] = 128
+    preset: DvsPreset = "paper"
+    seed: Annotated[int, pydantic.Field(ge=0, le=MAX_SEED)] = 0
+    panels: Annotated[int, pydantic.Field(ge=1, le=64)] = 8  # event frames in the picture
+    panel_ms: Annotated[float, pydantic.Field(gt=0)] = 20.0  # each shows this much time
 
     def __post_init__(self) -> None:
-        for name in ("seconds", "frame_rate_hz"):  # "field: what is wrong" (wander_env.config)
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name}: must be > 0, got {getattr(self, name)}")
-        if self.panels < 1 or self.panel_ms * self.panels > self.seconds * 1000:
+        check_annotated(self)  # "field: what is wrong, got value" (wander_env.config)
+        frames = round(self.seconds * self.frame_rate_hz)
+        if frames < 2:
+            raise ValueError(
+                f"seconds: {self.seconds:g} s at {self.frame_rate_hz:g} Hz is {frames} "
+                "frame(s); the demo needs at least 2"
+            )
+        size = (frames + 1) * self.width * self.height * 3
+        if size > MAX_FRAME_BYTES:
+            raise ValueError(
+                f"seconds: {self.seconds:g} s at {self.frame_rate_hz:g} Hz of "
+                f"{self.width}x{self.height} frames take {size / 2**20:,.0f} MiB; at most "
+                f"{MAX_FRAME_BYTES / 2**20:,.0f} MiB"
+            )
+        if self.panel_ms * self.panels > self.seconds * 1000:
             raise ValueError(
                 f"seconds: {self.panels} panels of {self.panel_ms} ms do not fit in "
                 f"{self.seconds} s"

@@ -26,15 +26,17 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
+import pydantic
 
 from agents.attention import AgentParams, AttentionAgent
 from agents.proto_object import ProtoObjectSaliency
 from experiments.jobs.run_agent import OneEpisodeRun
 from experiments.perf.clock import LOAD_COLUMN, Clock, Measured, Timings, timed
 from experiments.perf.dvs import CALIBRATION_COLUMN, calibration_fps
+from experiments.studies.framework import MAX_SEED
 from wander_env.env_config import WanderConfig
 
 # The columns of `wander perf agent`'s tables (row field -> format spec).
@@ -137,7 +139,7 @@ class AgentBenchConfig(OneEpisodeRun):
     the agent, and the agent's block (:class:`agents.attention.AgentParams`)."""
 
     env: WanderConfig = field(default_factory=_bench_env)
-    seed: int = 0
+    seed: Annotated[int, pydantic.Field(ge=0, le=MAX_SEED)] = 0
     agent: AgentParams = field(default_factory=AgentParams)
 
 

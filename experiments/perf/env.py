@@ -35,6 +35,7 @@ import numpy as np
 import wander_env  # noqa: F401  (registers the environments)
 from experiments.perf.clock import LOAD_COLUMN, Clock, Measured, Timings, timed
 from experiments.perf.dvs import CALIBRATION_COLUMN, calibration_fps
+from experiments.studies.framework import MAX_SEED
 from wander_env.env_config import WanderConfig
 from wander_env.field_doc import field_doc
 
@@ -154,7 +155,7 @@ class EnvBenchConfig:
     seconds: Annotated[
         float, field_doc("Simulated seconds each row steps", unit="s", gt=0, le=86400)
     ] = 2.0
-    seed: int = 0
+    seed: Annotated[int, field_doc("Seed of the envs' resets", ge=0, le=MAX_SEED)] = 0
 
 
 def _make(env: WanderConfig):

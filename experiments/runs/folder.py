@@ -25,10 +25,11 @@ exist is made the same way; one that exists empty is used; one that is not empty
 (:class:`FileExistsError`) unless ``force``: then the run is built in a new sibling folder
 (``.wander-new-*``) and :meth:`RunFolder.finish` swaps it in by renames, so nothing of the
 earlier run (an old ``INCOMPLETE``, an old ``run.mp4``) survives beside the new one, and a
-reader never sees the two mixed. :meth:`RunFolder.finish` ends every run (the command line
-calls it when the command ends, however it ends): it swaps a forced folder in (a forced run
-that wrote nothing leaves the earlier run as it was) and removes a folder it made that
-stayed empty (a run refused during its set-up leaves nothing behind).
+reader never sees the two mixed (so ``force`` is refused for the current folder and the
+folders above it, which no sibling can replace). :meth:`RunFolder.finish` ends every run
+(the command line calls it when the command ends, however it ends): it swaps a forced
+folder in (a forced run that wrote nothing leaves the earlier run as it was) and removes a
+folder it made that stayed empty (a run refused during its set-up leaves nothing behind).
 
 A command owns a :class:`CurrentRun`; a folder named with it registers itself there, so
 that the command's failure handling finds the folder whether ``--out`` named it or not.
@@ -159,9 +160,40 @@ class RunFolder:
     def claim(cls, out: Path, force: bool = False, current: CurrentRun | None = None) -> RunFolder:
         """The folder ``out`` made this run's: created when missing, used when empty,
         refused when it is a file or (unless ``force``) holds an earlier run; with ``force``
-        the run is built in a new sibling that :meth:`finish` swaps in. Raises
-        :class:`FileExistsError` for a refusal, :class:`OSError` when ``out`` cannot be
-        created (under a file, a name too long, a read-only place)."""
+        the run is built in a new sibling that :meth:`finish` swaps in, so ``force`` is
+        refused for the current folder and the folders above it (no sibling of theirs can
+        replace them). Raises :class:`FileExistsError` for a refusal, :class:`OSError` when
+        ``out`` cannot be created (under a file, a name too long, a read-only place)."""
+        if force and out.resolve() in (Path.cwd(), *Path.cwd().parents):
+            raise FileExistsError(
+                f"{str(out)!r} is the current folder or holds it: --force cannot replace it, "
+                "give another --out"
+            )
+        if cls._make(out):
+            return cls(out, current, made=True)
+        if not any(out.iterdir()):
+            return cls(out, current)
+        if not force:
+            raise FileExistsError(
+                f"{str(out)!r} is not empty: pass --force to replace it, "
+                "or leave --out out for a new folder"
+            )
+        build = tempfile.mkdtemp(prefix=".wander-new-", dir=out.parent)
+        return cls(build, current, final=out, made=True)
+
+    @classmethod
+    def for_sweep(cls, out: Path, current: CurrentRun | None = None) -> RunFolder:
+        """A sweep's folder ``out``: created when missing, used as it is when it exists (a
+        rerun resumes the trials stored there). Raises :class:`FileExistsError` when it is
+        a file, :class:`OSError` when it cannot be created (as :meth:`claim`)."""
+        return cls(out, current, made=cls._make(out))
+
+    @staticmethod
+    def _make(out: Path) -> bool:
+        """Create the folder ``out`` (and its parents); False when it exists as a folder
+        already. Raises :class:`FileExistsError` when it is a file, :class:`OSError`
+        naming ``out`` when it cannot be created (under a file, a name too long, a
+        read-only place)."""
         if out.exists() and not out.is_dir():
             raise FileExistsError(f"{str(out)!r} exists and is not a folder")
         try:
@@ -175,16 +207,8 @@ class RunFolder:
         except OSError as err:  # the path itself named: not a parent
             raise type(err)(err.errno, err.strerror, str(out)) from None
         else:
-            return cls(out, current, made=True)
-        if not any(out.iterdir()):
-            return cls(out, current)
-        if not force:
-            raise FileExistsError(
-                f"{str(out)!r} is not empty: pass --force to replace it, "
-                "or leave --out out for a new folder"
-            )
-        build = tempfile.mkdtemp(prefix=".wander-new-", dir=out.parent)
-        return cls(build, current, final=out, made=True)
+            return True
+        return False
 
     def finish(self) -> Path:
         """End the run's hold on its folder; returns where the folder now is (``final``).

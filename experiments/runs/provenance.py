@@ -143,16 +143,26 @@ def input_record(config: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def check_inputs(record: Mapping[str, Any], where: str) -> None:
-    """Every file ``record`` (a ``run.json``) hashed in ``inputs.files`` still has its
-    SHA-256; ValueError ``WHERE: inputs.files: FILE changed since the run ...`` (one line)
-    otherwise."""
+    """``record`` (a ``run.json``) holds ``inputs``, a mapping whose ``scenes`` and
+    ``files`` are mappings, and every file hashed in ``inputs.files`` still has its
+    SHA-256; ValueError ``WHERE: inputs...: what is wrong`` (one line) otherwise (``inputs.
+    files: FILE changed since the run ...``)."""
+    from wander_env.config_messages import shown
     from wander_env.untrusted import UntrustedFileError, hash_file
 
-    inputs = record.get("inputs") or {}
-    files = inputs.get("files") if isinstance(inputs, Mapping) else None
-    if not isinstance(files, Mapping):
-        return
-    for path, digest in files.items():
+    if "inputs" not in record:
+        raise ValueError(f"{where}: inputs: missing (the scene and the files the run read)")
+    inputs = record["inputs"]
+    if not isinstance(inputs, Mapping):
+        raise ValueError(
+            f"{where}: inputs: must be a mapping of scenes and files, got {shown(inputs)}"
+        )
+    for key in ("scenes", "files"):
+        if not isinstance(inputs.get(key), Mapping):
+            raise ValueError(
+                f"{where}: inputs.{key}: must be a mapping, got {shown(inputs.get(key))}"
+            )
+    for path, digest in inputs["files"].items():
         try:
             now = hash_file(path).sha256
         except UntrustedFileError as err:
@@ -166,28 +176,49 @@ def check_inputs(record: Mapping[str, Any], where: str) -> None:
 
 def rerun_config(path: Path, cls: Callable[..., T], command: str) -> T:
     """The config of the run whose ``run.json`` is ``path`` (a run of ``command``), as a
-    ``cls``, its scene the resolved scene the run recorded; ValueError (one line naming
-    the file and field) when it is not such a run or a file it read changed since
-    (:func:`check_inputs`)."""
+    ``cls``, its scene the resolved scene the run recorded and its seed the run's
+    ``seed``; ValueError (one line naming the file, the key and the value) when it is not
+    such a run or a file it read changed since (:func:`check_inputs`)."""
     from wander_env.config import validate
+    from wander_env.config_messages import shown
     from wander_env.untrusted import UntrustedFileError, read_json
 
     try:
         record = read_json(path)
     except UntrustedFileError as err:
         raise ValueError(str(err)) from None
-    if not isinstance(record, dict) or not isinstance(record.get("config"), dict):
+    if not isinstance(record, dict):
+        raise ValueError(f"{path}: must be a run folder's JSON object, got {shown(record)}")
+    if "config" not in record:
         raise ValueError(f"{path}: config: missing (not a run folder's run.json)")
+    config = record["config"]
+    if not isinstance(config, dict):
+        raise ValueError(f"{path}: config: must be a mapping of settings, got {shown(config)}")
     if record.get("command") != command:
         found = str(record.get("command"))[:80]
         raise ValueError(f"{path}: command: {found!r} is not a {command!r} run")
-    check_inputs(record, str(path))
-    config = dict(record["config"])
+    if "seed" not in record:
+        raise ValueError(f"{path}: seed: missing (the run's seed)")
+    seed = validate(cls, {"seed": record["seed"]}, where=str(path)).seed  # as cls takes it
+    if config.get("seed", seed) != seed:
+        raise ValueError(
+            f"{path}: config.seed: must be the run's seed {seed}, got {shown(config['seed'])}"
+        )
     env = config.get("env")
-    scenes = (record.get("inputs") or {}).get("scenes") or {}
-    if isinstance(env, dict) and isinstance(env.get("scene"), str) and env["scene"] in scenes:
-        config["env"] = {**env, "scene": scenes[env["scene"]]}  # the scene as it resolved
-    return validate(cls, config, where=f"{path}: config")
+    if not isinstance(env, dict) or "scene" not in env:
+        raise ValueError(
+            f"{path}: config.env: must be a mapping naming the run's scene, got {shown(env)}"
+        )
+    check_inputs(record, str(path))
+    scenes = record["inputs"]["scenes"]
+    if isinstance(env["scene"], str):
+        if env["scene"] not in scenes:
+            raise ValueError(
+                f"{path}: inputs.scenes: no entry for the run's scene, got config.env.scene "
+                f"{shown(env['scene'])}"
+            )
+        env = {**env, "scene": scenes[env["scene"]]}  # the scene as it resolved
+    return validate(cls, {**config, "env": env, "seed": seed}, where=f"{path}: config")
 
 
 __all__ = [

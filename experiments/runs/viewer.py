@@ -37,6 +37,7 @@ from __future__ import annotations
 import math
 import os
 import shutil
+import stat
 import subprocess
 import sys
 from collections.abc import Sequence
@@ -49,11 +50,13 @@ import numpy as np
 from wander_env.viz import NO_EVENT, OFF_CODE, OFF_RGB, ON_CODE, ON_RGB, polarity_codes
 
 __all__ = [
+    "RRD_MAGIC",
     "RRD_NAME",
     "TIMELINE",
     "RunLog",
     "StepLogger",
     "StepRow",
+    "check_recording",
     "command_text",
     "open_command",
     "open_run_log",
@@ -62,6 +65,8 @@ __all__ = [
 ]
 
 RRD_NAME = "run.rrd"
+#: How a Rerun recording file starts: ``RRF`` (then its encoding's version, ``RRF2``).
+RRD_MAGIC = b"RRF"
 TIMELINE = "sim_time"
 #: Distinct colours for the object ids of ``object_mask`` (cycled).
 OBJECT_RGB = ((255, 160, 0), (0, 190, 90), (200, 0, 200), (0, 170, 220), (140, 90, 40))
@@ -384,16 +389,42 @@ def open_command(rrd: Path) -> list[str]:
     return [sys.executable, "-m", "rerun", str(rrd)]
 
 
+def check_recording(rrd: Path) -> None:
+    """``rrd`` is a regular, readable file that starts as a Rerun recording does
+    (:data:`RRD_MAGIC`; the rest is the viewer's to read). ValueError, one line naming the
+    file, otherwise.
+
+    >>> check_recording(Path("/dev/null"))
+    Traceback (most recent call last):
+    ...
+    ValueError: '/dev/null' is not a regular file
+    """
+    try:
+        if not stat.S_ISREG(rrd.stat().st_mode):  # a FIFO would block the read below
+            raise ValueError(f"{str(rrd)!r} is not a regular file")
+        with open(rrd, "rb") as f:
+            head = f.read(len(RRD_MAGIC))
+    except OSError as err:
+        raise ValueError(f"cannot read {str(rrd)!r}: {err.strerror}") from None
+    if not head:
+        raise ValueError(f"{str(rrd)!r} is empty: the run wrote no recording")
+    if head != RRD_MAGIC:
+        raise ValueError(
+            f"{str(rrd)!r} is not a Rerun recording: it starts with {head!r}, not {RRD_MAGIC!r}"
+        )
+
+
 def view(run_dir: Path, env: dict[str, str] | None = None) -> tuple[str, list[str]]:
     """Open ``run_dir/run.rrd`` in the viewer when there is a display; headless, only say
     how. Returns ``("spawned" | "headless", command)``; raises FileNotFoundError when the
-    folder has no recording."""
+    folder has no recording, ValueError when it is no recording (:func:`check_recording`)."""
     env = dict(os.environ if env is None else env)
     rrd = Path(run_dir) / RRD_NAME
-    if not rrd.is_file():
+    if not rrd.exists():
         raise FileNotFoundError(
             f"no {RRD_NAME} in {str(run_dir)!r} (a run folder of wander run, record or rig)"
         )
+    check_recording(rrd)
     command = open_command(rrd.resolve())
     if not (env.get("DISPLAY") or env.get("WAYLAND_DISPLAY")):
         return "headless", command

@@ -44,6 +44,40 @@ def billion_laughs() -> str:
     return "\n".join(lines) + "\n"
 
 
+SWEEP = "name: t\nexperiments: [{experiment: event_suppression, set: {repeats: 1}}]\n"
+#: A run.json of `wander run` but for its inputs.
+RUN = {"command": "wander run", "config": {"env": {"scene": "office"}, "seed": 0}, "seed": 0}
+NO_INPUTS = {"scenes": {}, "files": {}}
+# (run.json, the line after "wander rerun: error: ")
+RERUN_CASES = [
+    (RUN, "r/run.json: inputs: missing (the scene and the files the run read)"),
+    (
+        {**RUN, "inputs": "x"},
+        "r/run.json: inputs: must be a mapping of scenes and files, got 'x'",
+    ),
+    (
+        {**RUN, "inputs": {"scenes": [], "files": {}}},
+        "r/run.json: inputs.scenes: must be a mapping, got []",
+    ),
+    (
+        {**RUN, "inputs": NO_INPUTS},
+        "r/run.json: inputs.scenes: no entry for the run's scene, got config.env.scene 'office'",
+    ),
+    ({**RUN, "config": 5}, "r/run.json: config: must be a mapping of settings, got 5"),
+    ({**RUN, "seed": "x"}, "r/run.json: seed: expected int, got 'x'"),
+    ({**RUN, "seed": -1}, "r/run.json: seed: input should be greater than or equal to 0, got -1"),
+    ({k: v for k, v in RUN.items() if k != "seed"}, "r/run.json: seed: missing (the run's seed)"),
+    (
+        {**RUN, "seed": 1, "inputs": NO_INPUTS},
+        "r/run.json: config.seed: must be the run's seed 1, got 0",
+    ),
+    (
+        {**RUN, "config": {"seed": 0}},
+        "r/run.json: config.env: must be a mapping naming the run's scene, got None",
+    ),
+    ([1], "r/run.json: must be a run folder's JSON object, got [1]"),
+]
+
 # (command line, {file: content}, the one line on stderr)
 CASES = [
     # --config: the one YAML reader's refusals
@@ -280,6 +314,267 @@ CASES = [
         {},
         "wander run: Invalid value for '--seconds': must be a finite number of seconds in "
         "(0, 86400], got 1e+308",
+    ),
+    # run folders: an empty --out, --force on the current folder, a sweep's --out on a file
+    *(
+        (
+            [*command, "--out", ""],
+            {},
+            f"wander {command[0]}: Invalid value for '--out': must name a folder, got ''",
+        )
+        for command in (
+            ["run"],
+            ["record"],
+            ["demo"],
+            ["evaluate"],
+            ["rerun", "r"],
+            ["experiment", "detection"],
+            ["sweep", "s.yaml"],
+        )
+    ),
+    (
+        ["benchmark", "suppression", "x.npy", "--out", ""],
+        {},
+        "wander benchmark suppression: Invalid value for '--out': must name a folder, got ''",
+    ),
+    *(
+        (
+            [command, "--out", out, "--force"],
+            {"old.txt": "an earlier run"},
+            f"wander {command}: Invalid value for '--out': {out!r} is the current folder or "
+            "holds it: --force cannot replace it, give another --out",
+        )
+        for command, out in (("demo", "."), ("run", "."), ("evaluate", ".."), ("record", "."))
+    ),
+    (
+        ["sweep", "s.yaml", "--out", "afile"],
+        {"s.yaml": SWEEP, "afile": "x"},
+        "wander sweep: Invalid value for '--out': 'afile' exists and is not a folder",
+    ),
+    (
+        ["sweep", "s.yaml", "--out", "afile/x"],
+        {"s.yaml": SWEEP, "afile": "x"},
+        "wander sweep: Invalid value for '--out': cannot create 'afile/x': Not a directory",
+    ),
+    (
+        ["sweep", "s.yaml", "--backend", "ray", "--address", "bogus"],
+        {"s.yaml": SWEEP},
+        "wander sweep: Invalid value for '--address': must be auto, HOST:PORT or "
+        "ray://HOST:PORT (a port 1 to 65535), got 'bogus'",
+    ),
+    (
+        ["sweep", "s.yaml", "--address", "head:6379"],
+        {"s.yaml": SWEEP},
+        "wander sweep: Invalid value for '--address': a Ray cluster's address, only with "
+        "--backend ray, got --backend local",
+    ),
+    # seeds, checked while the command line is parsed
+    *(
+        (
+            args,
+            {},
+            f"wander {name}: Invalid value for '{flag}': must be an integer in "
+            f"[0, 4294967295], got {value}",
+        )
+        for args, name, flag, value in (
+            (["evaluate", "--seeds", "-1"], "evaluate", "--seeds", -1),
+            (["evaluate", "--seeds", "0," + "9" * 20], "evaluate", "--seeds", "9" * 20),
+            (["demo", "--seed", "-1"], "demo", "--seed", -1),
+            (["record", "--seed", "-1"], "record", "--seed", -1),
+            (["perf", "agent", "--seed", "-1"], "perf agent", "--seed", -1),
+            (["perf", "fidelity", "--seeds", "-1"], "perf fidelity", "--seeds", -1),
+        )
+    ),
+    (
+        ["demo", "--set", "seed=-1"],
+        {},
+        "wander demo: error: --set: seed: input should be greater than or equal to 0, got -1",
+    ),
+    (
+        ["perf", "env", "--set", "seed=-1"],
+        {},
+        "wander perf env: error: --set: seed: input should be greater than or equal to 0, got -1",
+    ),
+    # comma-separated lists: no empty item, none twice, each checked
+    (
+        ["evaluate", "--seeds", "9" * 5000],
+        {},
+        "wander evaluate: Invalid value for '--seeds': a number of 5000 characters; at most 100",
+    ),
+    (
+        ["evaluate", "--seeds", "1,,2"],
+        {},
+        "wander evaluate: Invalid value for '--seeds': has an empty seed, got '1,,2'",
+    ),
+    (
+        ["evaluate", "--seeds", "1,2,"],
+        {},
+        "wander evaluate: Invalid value for '--seeds': has an empty seed, got '1,2,'",
+    ),
+    (
+        ["evaluate", "--seeds", "1, 1"],
+        {},
+        "wander evaluate: Invalid value for '--seeds': seed 1 is given twice, got '1, 1'",
+    ),
+    (
+        ["perf", "env", "--envs", "1,,2"],
+        {},
+        "wander perf env: Invalid value for '--envs': has an empty env count, got '1,,2'",
+    ),
+    (
+        ["perf", "env", "--envs", "2,2"],
+        {},
+        "wander perf env: Invalid value for '--envs': env count 2 is given twice, got '2,2'",
+    ),
+    (
+        ["perf", "fidelity", "--scenes", ""],
+        {},
+        "wander perf fidelity: Invalid value for '--scenes': needs at least one scene, e.g. "
+        "office,hand",
+    ),
+    (
+        ["perf", "fidelity", "--scenes", "office,,hand"],
+        {},
+        "wander perf fidelity: Invalid value for '--scenes': has an empty scene, got "
+        "'office,,hand'",
+    ),
+    (
+        ["perf", "fidelity", "--scenes", "office,office"],
+        {},
+        "wander perf fidelity: Invalid value for '--scenes': scene office is given twice, got "
+        "'office,office'",
+    ),
+    (
+        ["perf", "fidelity", "--scenes", "office,nope"],
+        {},
+        f"wander perf fidelity: Invalid value for '--scenes': unknown scene 'nope'; allowed: "
+        f"{SCENES} or a scene .yaml file",
+    ),
+    (
+        ["perf", "fidelity", "--motions", "walk,walk"],
+        {},
+        "wander perf fidelity: Invalid value for '--motions': motion walk is given twice, got "
+        "'walk,walk'",
+    ),
+    # sizes and counts, bounded before anything is allocated
+    (
+        ["benchmark", "suppression", "x.npy", "--threads", "100000"],
+        {},
+        "wander benchmark suppression: Invalid value for '--threads': must be an integer in "
+        "[1, 256], got 100000",
+    ),
+    (
+        ["perf", "dvs", "--frames", "1000000000000"],
+        {},
+        "wander perf dvs: Invalid value for '--frames': must be an integer in [1, 5000], got "
+        "1000000000000",
+    ),
+    (
+        ["perf", "dvs", "--repeats", "1000000000"],
+        {},
+        "wander perf dvs: Invalid value for '--repeats': must be an integer in [1, 100], got "
+        "1000000000",
+    ),
+    (
+        ["perf", "env", "--envs", "100000"],
+        {},
+        "wander perf env: Invalid value for '--envs': must be an integer in [1, 256], got 100000",
+    ),
+    *(
+        (
+            ["perf", "fidelity", "--seconds", value],
+            {},
+            "wander perf fidelity: Invalid value for '--seconds': must be a whole number of "
+            f"0.01 s control periods in [0.01, 60] seconds, got {shown}",
+        )
+        for value, shown in (("1e30", "1e+30"), ("nan", "nan"), ("0.015", "0.015"))
+    ),
+    (
+        ["perf", "fidelity", "--reference-hz", "1e12"],
+        {},
+        "wander perf fidelity: Invalid value for '--reference-hz': must be a finite number of "
+        "Hz in (0, 100000], got 1000000000000.0",
+    ),
+    (
+        ["perf", "fidelity", "--reference-hz", "150"],
+        {},
+        "wander perf fidelity: Invalid value for '--reference-hz': control_period_s: 0.01 must "
+        "be a whole number (>= 1) of render periods (render_rate_hz=150.0)",
+    ),
+    (
+        ["perf", "fidelity", "--reference-supersample", "1000"],
+        {},
+        "wander perf fidelity: Invalid value for '--reference-supersample': must be an integer "
+        "in [1, 8], got 1000",
+    ),
+    # the DVS demo's config
+    *(
+        (
+            ["demo", *(a for item in sets for a in ("--set", item))],
+            {},
+            f"wander demo: error: {line}",
+        )
+        for sets, line in (
+            (["width=0"], "--set: width: input should be greater than or equal to 16, got 0"),
+            (["width=-5"], "--set: width: input should be greater than or equal to 16, got -5"),
+            (
+                ["width=100000", "height=100000"],
+                "--set: width: input should be less than or equal to 2048, got 100000; height: "
+                "input should be less than or equal to 2048, got 100000",
+            ),
+            (
+                ["width=2048", "height=2048"],
+                "--set: seconds: 1 s at 1000 Hz of 2048x2048 frames take 12,012 MiB; at most "
+                "1,024 MiB",
+            ),
+            (
+                ["frame_rate_hz=1e9"],
+                "--set: frame_rate_hz: input should be less than or equal to 1000000, got '1e9'",
+            ),
+            (
+                ["seconds=86400"],
+                "--set: seconds: 86400 s at 1000 Hz of 128x128 frames take 4,050,000 MiB; at "
+                "most 1,024 MiB",
+            ),
+            (
+                ["frame_rate_hz=1", "panels=1", "panel_ms=1"],
+                "--set: seconds: 1 s at 1 Hz is 1 frame(s); the demo needs at least 2",
+            ),
+            (["panels=0"], "--set: panels: input should be greater than or equal to 1, got 0"),
+        )
+    ),
+    (
+        ["demo", "--seconds", "86400"],
+        {},
+        "wander demo: Invalid value for '--seconds': 86400 s at 1000 Hz of 128x128 frames take "
+        "4,050,000 MiB; at most 1,024 MiB",
+    ),
+    # wander rerun: run.json's keys
+    *(
+        (
+            ["rerun", "r"],
+            {"r/": "", "r/run.json": json.dumps(record)},
+            f"wander rerun: error: {line}",
+        )
+        for record, line in RERUN_CASES
+    ),
+    # wander view: run.rrd must be a recording
+    (
+        ["view", "v"],
+        {"v/": "", "v/run.rrd": ""},
+        "wander view: Invalid value for 'RUN_DIR': 'v/run.rrd' is empty: the run wrote no "
+        "recording",
+    ),
+    (
+        ["view", "v"],
+        {"v/": "", "v/run.rrd": "garbage"},
+        "wander view: Invalid value for 'RUN_DIR': 'v/run.rrd' is not a Rerun recording: it "
+        "starts with b'gar', not b'RRF'",
+    ),
+    (
+        ["view", "v"],
+        {"v/": "", "v/run.rrd/": ""},
+        "wander view: Invalid value for 'RUN_DIR': 'v/run.rrd' is not a regular file",
     ),
 ]
 

@@ -36,6 +36,7 @@ from experiments.runs.folder import RunFolder
 from experiments.runs.recorders import video_frames
 from experiments.runs.signals import DeferredSignals, SignalExit, handle_signals
 from experiments.runs.video import VideoSink, mp4_complete
+from experiments.runs.viewer import RRD_MAGIC
 from hardware.rig_env import RigConfig
 from wander_env.env_config import WanderConfig
 from wander_env.events.io import OutputError, read_events
@@ -439,7 +440,7 @@ def test_wander_run_stopped_by_sigterm_leaves_a_playable_video(tmp_path):
 
 
 def test_view_without_a_display_prints_the_web_viewer_command_and_the_copy_hint(tmp_path):
-    (tmp_path / "run.rrd").write_bytes(b"")
+    (tmp_path / "run.rrd").write_bytes(RRD_MAGIC + b"2")  # the viewer reads the rest
     rrd = (tmp_path / "run.rrd").resolve()
     result = CliRunner().invoke(
         app, ["view", str(tmp_path)], env={"DISPLAY": "", "WAYLAND_DISPLAY": ""}

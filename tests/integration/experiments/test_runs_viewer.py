@@ -11,7 +11,7 @@ import pytest
 from PIL import Image
 
 from experiments.jobs.record import RecordConfig, record
-from experiments.runs.viewer import RunLog, view
+from experiments.runs.viewer import RRD_MAGIC, RunLog, view
 from experiments.runs.viewer import read_recording as read_rrd
 from wander_env.env_config import WanderConfig
 from wander_env.events import time_window, to_frame
@@ -91,7 +91,7 @@ def test_decisions_and_annotations_round_trip(tmp_path: Path) -> None:
 
 
 def test_view_prints_the_command_headless_and_spawns_with_a_display(tmp_path, monkeypatch):
-    (tmp_path / "run.rrd").write_bytes(b"")
+    (tmp_path / "run.rrd").write_bytes(RRD_MAGIC + b"2")  # the viewer reads the rest
     what, command = view(tmp_path, env={})
     assert what == "headless" and command[-1] == str((tmp_path / "run.rrd").resolve())
     started = []
