@@ -28,7 +28,8 @@ rest, so that a million objects cost no more than the file): camera sides
 <= :data:`MAX_CAMERA_SIDE` px and at most :data:`MAX_CAMERA_PIXELS` pixels; at most
 :data:`MAX_PARTS` tables, shelves, static or moving objects or includes and
 :data:`MAX_LIGHTS` lights; at most :data:`MAX_MATERIALS` materials and
-:data:`MAX_TEXTURES` textures in all (MuJoCo's renderer's limits).
+:data:`MAX_TEXTURES` textures in all (MuJoCo's renderer's limits); at most
+:data:`MAX_GRATING_STRIPS` strips in the gratings patch.
 
 Examples:
     >>> cfg = SceneConfig(name="empty", camera=CameraConfig(width=64))
@@ -69,6 +70,7 @@ MAX_MATERIALS = 1000  # MuJoCo's renderer refuses a model with more (mjMAXMATERI
 MAX_TEXTURES = 1000  # likewise (mjMAXTEXTURE)
 MAX_PARTS = MAX_MATERIALS  # each table, shelf and prop takes one material
 MAX_LIGHTS = 100  # mjMAXLIGHT
+MAX_GRATING_STRIPS = MAX_CAMERA_SIDE  # the gratings patch's strips: narrower than a pixel
 GRATING_MODES = ("eye+object", "eye-only", "object-only")
 Finite = Annotated[float, pydantic.Field(allow_inf_nan=False)]
 T = TypeVar("T")
@@ -245,7 +247,14 @@ class GratingConfig:
         float, field_doc("Screen beyond the field of view on each side", unit="deg", ge=0, le=60)
     ] = 20.0
     object_strips: Annotated[
-        int, field_doc("Vertical strips the patch is drawn with (each narrower than a pixel)", ge=2)
+        int,
+        field_doc(
+            "Vertical strips the patch is drawn with (each narrower than a pixel); at most "
+            f"{MAX_GRATING_STRIPS}, the widest camera's pixels (the patch is narrower than the "
+            "view): each strip is a geom drawn every frame",
+            ge=2,
+            le=MAX_GRATING_STRIPS,
+        ),
     ] = 128
 
     def __post_init__(self) -> None:

@@ -42,6 +42,7 @@ from wander_env.env_config import SceneName, WanderConfig
 from wander_env.events import concatenate
 from wander_env.ptu.params import PTUParams
 from wander_env.ptu.units import FLIR_RESOLUTION_ARCSEC
+from wander_env.scene_config import MAX_CAMERA_SIDE
 from wander_env.viz import pyplot, save_figure
 
 __all__ = [
@@ -59,6 +60,11 @@ ENV_SET_PER_TRIAL = {
     "episode_seconds": "duration_s",
     "ptu": "camera_speeds_deg_s",
 }
+#: The longest event window (s): the sOMS and the proto-object stage step once a window.
+MAX_STEP_S = 1.0
+#: The widest Gaussian of the baseline (px): the 128-px sensor's side; a wider one
+#: smooths the OMS map flat (and its kernel, 8 σ across, outgrows the map).
+MAX_SIGMA_PX = 128.0
 
 
 @dataclass(frozen=True)
@@ -92,9 +98,28 @@ class DetectionConfig:
                 f"need duration_s > warmup_s >= 0, got {self.duration_s}, {self.warmup_s}"
             )
         self.agent.check_reads("soms", "proto", speck=False)
+        study.check_lists(self, ("scenes", "camera_speeds_deg_s"))
         ticks = self.step_s * 1000.0
-        if not self.step_s > 0 or abs(ticks - round(ticks)) > 1e-9:
-            raise ValueError(f"step_s must be a whole number of ms, got {self.step_s}")
+        if not 0 < self.step_s <= MAX_STEP_S or abs(ticks - round(ticks)) > 1e-9:
+            raise ValueError(
+                f"step_s: must be a whole number of ms in (0, {MAX_STEP_S:g}] s, got {self.step_s}"
+            )
+        if self.step_s > self.duration_s:
+            raise ValueError(
+                f"step_s: must be <= duration_s ({self.duration_s}: one window at least), "
+                f"got {self.step_s}"
+            )
+        if not 1 <= self.box <= MAX_CAMERA_SIDE:
+            raise ValueError(f"box: must be in [1, {MAX_CAMERA_SIDE}] px, got {self.box}")
+        if not 0 < self.baseline_sigma_px <= MAX_SIGMA_PX:
+            raise ValueError(
+                f"baseline_sigma_px: must be in (0, {MAX_SIGMA_PX:g}] px, got "
+                f"{self.baseline_sigma_px}"
+            )
+        if not 0 < self.sweep_amplitude_deg < 90:
+            raise ValueError(
+                f"sweep_amplitude_deg: must be in (0, 90) deg, got {self.sweep_amplitude_deg}"
+            )
         top = FLIR_RESOLUTION_ARCSEC / 3600.0 * PTUParams().pan_upper_speed
         bad = [v for v in self.camera_speeds_deg_s if not 0 <= v <= top]
         if bad:

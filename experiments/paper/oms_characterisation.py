@@ -140,6 +140,16 @@ class OMSCharacterisationConfig:
         bad = [g for g in self.groups if g not in ("mode", "frequency", "speed", "kernel")]
         if bad:
             raise ValueError(f"groups must be among mode, frequency, speed, kernel; got {bad}")
+        study.check_lists(self, ("modes", "frequency_pairs", "speed_pairs", "kernels", "groups"))
+        for name in ("background_cycles_per_deg", "object_cycles_per_deg"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name}: must be > 0 (cycles/deg), got {getattr(self, name)}")
+        for i, pair in enumerate(self.frequency_pairs):
+            if not all(f > 0 for f in pair):
+                raise ValueError(
+                    f"frequency_pairs[{i}]: (background, object) cycles/deg must be > 0, "
+                    f"got {list(pair)}"
+                )
         if self.repeats < 1:
             raise ValueError(f"repeats must be >= 1, got {self.repeats}")
         self.agent.check_reads("soms", speck=False)

@@ -59,6 +59,7 @@ from experiments.paper.oms_family import (
     measure,
 )
 from experiments.paper.oms_stimuli import (
+    MAX_PERIOD_PX,
     MOTIONS,
     OBJECTS,
     PERIODS_PX,
@@ -69,7 +70,7 @@ from experiments.paper.oms_stimuli import (
 )
 from experiments.studies import framework as study
 from wander_env.config import to_plain
-from wander_env.untrusted import read_json
+from wander_env.untrusted import UntrustedFileError, read_json
 from wander_env.viz import pyplot, save_figure
 
 __all__ = ["EXPERIMENT", "OMSScorecardConfig", "variants"]
@@ -146,6 +147,21 @@ class OMSScorecardConfig:
             raise ValueError(f"real_bins_ms must be > 0, got {self.real_bins_ms}")
         if self.hand_repeats < 1:
             raise ValueError(f"hand_repeats must be >= 1, got {self.hand_repeats}")
+        study.check_lists(
+            self, ("parts", "textures", "objects", "periods", "motions", "presets", "real_bins_ms")
+        )
+        study.check_lists(
+            self, ("office_results", "office_results_paper", "reuse"), allow_empty=True
+        )
+        if not all(2 <= p <= MAX_PERIOD_PX for p in self.periods):
+            raise ValueError(
+                f"periods: must be in [2, {MAX_PERIOD_PX}] px (the texture tile), got "
+                f"{list(self.periods)}"
+            )
+
+    def real_clip(self, clip: str) -> Path:
+        """The events file of the real recording ``clip`` in ``real_dir``."""
+        return Path(self.real_dir) / f"{clip}_events_txyp.npy"
 
 
 def variants(
@@ -200,12 +216,8 @@ def _real_row(cfg: OMSScorecardConfig) -> dict[str, Any]:
     from wander_env.events.io import read_events
 
     row: dict[str, Any] = {}
-    folder = Path(cfg.real_dir)
     for clip in REAL_CLIPS:
-        path = folder / f"{clip}_events_txyp.npy"
-        if not path.is_file():
-            raise FileNotFoundError(f"real_dir: {path} not found (set real_dir)")
-        rec = read_events(path, (240, 180))  # DAVIS240C
+        rec = read_events(cfg.real_clip(clip), (240, 180))  # DAVIS240C
         for ms in cfg.real_bins_ms:
             for k, p in variants(cfg.compare, cfg.agent.soms).items():
                 model: PipelineBase
@@ -258,7 +270,10 @@ def read_quality(
     """The ``quality.json`` of a ``wander evaluate`` run named in the config's ``key``
     (a bounded, regular file); with ``soms``, its run's ``agent.soms`` must be that block
     (the step aside). ValueError naming the key and the file otherwise."""
-    data = read_json(path)
+    try:
+        data = read_json(path)
+    except UntrustedFileError as err:
+        raise ValueError(f"{key}: {err}") from None
     if not (
         isinstance(data, dict)
         and isinstance(data.get("pooled"), dict)
@@ -354,7 +369,31 @@ def run_trial(cfg: OMSScorecardConfig, spec: study.TrialSpec) -> dict[str, Any]:
     return _office_row(cfg)
 
 
+def check_inputs(cfg: OMSScorecardConfig) -> None:
+    """The files the parts to run read, checked before any trial runs (by :func:`grid`):
+    the real clips in ``real_dir`` (with ``real`` in ``parts``) and every file named in
+    ``office_results`` and ``office_results_paper`` (:func:`read_quality`). ConfigError
+    naming the key and the file. Not in the config's own check: a stored config (the
+    report's) or one layer of a config (the config file before ``--set``) validates
+    without its files."""
+    try:
+        if "real" in cfg.parts:
+            missing = [p for p in map(cfg.real_clip, REAL_CLIPS) if not p.is_file()]
+            if missing:
+                raise ValueError(
+                    f"real_dir: {missing[0]} not found (the real part reads it: set real_dir, "
+                    f"or leave real out of parts), got {cfg.real_dir!r}"
+                )
+        for i, path in enumerate(cfg.office_results):
+            read_quality(path, f"office_results[{i}]", cfg.agent.soms)
+        for i, path in enumerate(cfg.office_results_paper):
+            read_quality(path, f"office_results_paper[{i}]")
+    except ValueError as err:
+        raise study.ConfigError(str(err)) from None
+
+
 def grid(cfg: OMSScorecardConfig) -> list[dict[str, Any]]:
+    check_inputs(cfg)
     return [{"part": p} for p in cfg.parts]
 
 

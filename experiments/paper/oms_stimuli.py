@@ -56,6 +56,7 @@ from wander_env.dvs import DVSEmulator, DVSParams
 from wander_env.events import to_frame
 
 __all__ = [
+    "MAX_PERIOD_PX",
     "MOTIONS",
     "OBJECTS",
     "PERIODS_PX",
@@ -101,6 +102,9 @@ _RATIO: dict[str, float | None] = {
     "still": None,
 }
 _TEX_SIZE = 256  # periodic texture tile (px); sampled with wrap-around
+#: The coarsest period (px): the texture tile's side (a coarser grating, noise scale or
+#: disc does not fit in the tile).
+MAX_PERIOD_PX = _TEX_SIZE
 
 
 @dataclass(frozen=True)
@@ -134,8 +138,10 @@ class Stimulus:
             raise ValueError(f"Stimulus.motion must be one of {tuple(_RATIO)}, got {self.motion!r}")
         if self.preset not in ("ideal", "paper", "speck"):
             raise ValueError(f"Stimulus.preset must be ideal, paper or speck, got {self.preset!r}")
-        if not self.period_px >= 2:
-            raise ValueError(f"Stimulus.period_px must be >= 2, got {self.period_px}")
+        if not 2 <= self.period_px <= MAX_PERIOD_PX:
+            raise ValueError(
+                f"Stimulus.period_px must be in [2, {MAX_PERIOD_PX}], got {self.period_px}"
+            )
         for name in ("duration_s", "frame_rate_hz", "bin_s", "object_radius_px"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):

@@ -1,18 +1,23 @@
 """``wander report``: REPORT.md from the latest result folders, the paper's numbers beside ours.
 
-For every registered experiment the newest folder ``results/NAME/*`` holding a
-``results.csv`` and a ``run.json`` is read (newest by the ``created`` time in ``run.json``,
-then by folder name); its figures are drawn again into ``<report dir>/report_figures/NAME``
-and a section gives the command, seed, git revision and run time that produced it and the
-experiment's comparison table (``Experiment.compare``). Sweeps found under
-``results/sweeps/*`` are listed with their tables.
+For every registered experiment the newest finished folder ``results/NAME/*`` (one
+holding a ``results.csv``, the table a run writes last, and a ``run.json``) is read (newest
+by the ``created`` time in ``run.json``, then by folder name); its figures are drawn again
+into ``<report dir>/report_figures/NAME`` and a section gives the command, seed, git
+revision and run time that produced it and the experiment's comparison table
+(``Experiment.compare``). A folder without a ``results.csv`` whose ``run.json`` does not
+record a finished run is a run still going or stopped (``wander experiment NAME``
+resumes it) and is passed over. Sweeps found under ``results/sweeps/*`` are listed with
+their tables.
 
 Result folders are read as untrusted input: every file the report uses (``run.json``,
 ``config.json``, ``results.csv``, ``sweep.json``) is read and checked, and every comparison
 computed, before anything is written; a damaged one (cut short, random bytes, a row with
-too few or too many cells, ``abc`` in a number column, rows the experiment cannot use, a
-``trial_id`` that is not a plain name such as ``../../outside``, which would name a file
-outside the folder) is a :class:`ReportInputError` naming the file, and nothing is written.
+too few or too many cells, a table without rows, ``abc`` in a number column, rows the
+experiment cannot use, a ``trial_id`` that is not a plain name such as ``../../outside``,
+which would name a file outside the folder; a finished folder missing its ``run.json`` or
+``results.csv``, or holding a folder in their place) is a :class:`ReportInputError` naming
+the file, and nothing is written.
 Every text the report copies from those files (commands, revisions, folder names, the
 comparisons' cells) is escaped (:func:`md_text`): HTML is shown as text and Markdown's link,
 image and table syntax is neutralised, so a result folder cannot put a script, an
@@ -24,6 +29,7 @@ from __future__ import annotations
 import csv
 import errno
 import html
+import io
 import math
 import os
 import re
@@ -39,7 +45,7 @@ from experiments.studies.framework import (
     EXPERIMENT_NAMES,
     config_from_dict,
     get_experiment,
-    read_csv,
+    parse_csv,
 )
 from wander_env import untrusted
 from wander_env.config_messages import shown
@@ -75,6 +81,10 @@ class ReportInputError(ValueError):
         self.path = str(path)
         super().__init__(f"{path}: {problem}")
 
+
+#: The largest ``results.csv`` read (bytes): 100,000 trials of a few hundred bytes each
+#: fit; parsed, a table takes several times its size in memory.
+MAX_TABLE_BYTES = 64 << 20
 
 #: A trial id: a plain file name (``artifacts/<trial_id>.npz``), never a path.
 _TRIAL_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
@@ -120,13 +130,16 @@ def read_json(path: Path) -> dict[str, Any]:
 
 
 def read_rows(path: Path) -> list[dict[str, Any]]:
-    """The rows of a ``results.csv`` (:func:`experiments.studies.framework.read_csv`), checked
-    first: UTF-8 text, every row as many cells as the header, and no column that mixes numbers
-    with text (``abc`` where the other rows hold numbers); :class:`ReportInputError`
-    otherwise."""
+    """The rows of a ``results.csv`` (:func:`experiments.studies.framework.parse_csv`), checked
+    first: a regular file of at most :data:`MAX_TABLE_BYTES` of UTF-8 text, every row as many
+    cells as the header, at least one row (a run has at least one trial: a table cut inside
+    its header has none), and no column that mixes numbers with text (``abc`` where the
+    other rows hold numbers); :class:`ReportInputError` otherwise."""
     try:
-        with path.open(encoding="utf-8", newline="") as f:
-            table = list(csv.reader(f))
+        text = untrusted.read_bytes(path, MAX_TABLE_BYTES).decode("utf-8")
+        table = list(csv.reader(io.StringIO(text, newline="")))
+    except untrusted.UntrustedFileError as err:
+        raise ReportInputError(path, "missing" if err.missing else err.problem) from None
     except UnicodeDecodeError as err:
         raise ReportInputError(path, f"not UTF-8 text ({err.reason} at byte {err.start})") from None
     except csv.Error as err:
@@ -139,7 +152,9 @@ def read_rows(path: Path) -> list[dict[str, Any]]:
             raise ReportInputError(
                 path, f"line {i} has {len(cells)} cells, the header {len(header)} (cut or damaged)"
             )
-    rows = read_csv(path)
+    if len(table) < 2:
+        raise ReportInputError(path, "no rows (a run writes one per trial): cut or damaged")
+    rows = parse_csv(io.StringIO(text, newline=""))
     for col in header:
         kinds = {
             "text" if isinstance(r[col], str) else "number"
@@ -174,23 +189,34 @@ def _checked(path: Path, what: str, fn: Callable[..., _T], *args: Any, **kwargs:
         raise ReportInputError(path, " ".join(problem.split())) from None
 
 
-def _created(folder: Path) -> tuple[str, str]:
+def _finished(folder: Path) -> tuple[str, str] | None:
+    """The sort key (``run.json``'s ``created``, the name) of the folder ``folder`` when it
+    holds a finished run, else None (module docstring). One holding a ``results.csv`` must
+    hold a ``run.json`` (a regular file, a JSON object), and one without a ``results.csv``
+    whose ``run.json`` records the run's timings (written once all its trials ran) lost
+    its table: :class:`ReportInputError` naming the file."""
+    if os.path.lexists(folder / "results.csv"):
+        return (str(read_json(folder / "run.json").get("created", "")), folder.name)
     try:
         run = untrusted.read_json(folder / "run.json")
-    except (OSError, ValueError, RecursionError):
-        return ("", folder.name)
-    return (str(run.get("created", "")) if isinstance(run, dict) else "", folder.name)
+    except (ValueError, RecursionError):  # none yet, or being written: a run starting
+        return None
+    if isinstance(run, dict) and "timing" in run:
+        raise ReportInputError(
+            folder / "results.csv", "missing, though run.json records a finished run (damaged)"
+        )
+    return None
 
 
 def latest_result(root: Path, name: str) -> Path | None:
-    """The newest complete result folder of experiment ``name`` under ``root``."""
+    """The newest finished result folder of experiment ``name`` under ``root``
+    (:func:`_finished`: a damaged one is a :class:`ReportInputError`)."""
     base = root / name
     if not base.is_dir():
         return None
-    done = [
-        d for d in base.iterdir() if (d / "results.csv").is_file() and (d / "run.json").is_file()
-    ]
-    return max(done, key=_created) if done else None
+    keys = {d: _finished(d) for d in sorted(base.iterdir()) if d.is_dir()}
+    done = {d: k for d, k in keys.items() if k is not None}
+    return max(done, key=done.__getitem__) if done else None
 
 
 @dataclass(frozen=True)
@@ -280,16 +306,23 @@ def _sweep_folders(root: Path) -> list[tuple[Path, dict[str, Any]]]:
     """The sweeps under ``root/sweeps`` with their ``sweep.json`` (checked)."""
     base = root / "sweeps"
     found = (
-        sorted(d for d in base.iterdir() if (d / "sweep.json").is_file()) if base.is_dir() else []
+        sorted(d for d in base.iterdir() if os.path.lexists(d / "sweep.json"))
+        if base.is_dir()
+        else []
     )
     return [(d, read_json(d / "sweep.json")) for d in found]
 
 
 def _sweep_tables(root: Path) -> list[tuple[Path, list[dict[str, Any]]]]:
-    """The sweeps under ``root/sweeps`` that have a table, with its rows (checked)."""
+    """The finished sweeps under ``root/sweeps`` (a ``results.csv`` or the ``sweep.json``
+    written after it) with their rows (checked: a missing table is a
+    :class:`ReportInputError`)."""
     sweeps = root / "sweeps"
     found = sorted(sweeps.iterdir()) if sweeps.is_dir() else []
-    return [(d, read_rows(d / "results.csv")) for d in found if (d / "results.csv").is_file()]
+    done = [
+        d for d in found if os.path.lexists(d / "results.csv") or os.path.lexists(d / "sweep.json")
+    ]
+    return [(d, read_rows(d / "results.csv")) for d in done]
 
 
 def _speed_sweeps(root: Path) -> list[tuple[Path, list[dict[str, Any]]]]:
@@ -447,9 +480,9 @@ def render_report(
         folder = latest_result(root, name)
         results[name] = None if folder is None else load_result(folder, name)
     _studies_table(root, report_dir)
+    sweeps = _sweeps(root, report_dir)  # (each sweep.json checked before its table)
     _speed_sweeps(root)
     _ratio_sweeps(root)
-    sweeps = _sweeps(root, report_dir)
     lines = [
         "# wander: the paper's results and ours",
         "",
@@ -487,8 +520,13 @@ def build_report(root: Path = Path("results"), out: str | os.PathLike = "REPORT.
 
     The figures are drawn in a temporary folder and moved beside the report once all of
     them are: a damaged result file (:class:`ReportInputError`) leaves nothing written.
+    An ``out`` that exists and is not a regular file (``/dev/null``, a FIFO) is a
+    FileExistsError naming it, before anything is read or written: the report and its
+    figures' folder beside it belong in a folder of files.
     """
     out = report_path(out)
+    if out.exists() and not out.is_file():
+        raise FileExistsError(f"{str(out)!r} exists and is not a regular file")
     with tempfile.TemporaryDirectory(prefix="wander-report-") as tmp:
         text = render_report(root, out.parent, Path(tmp))
         try:

@@ -111,8 +111,7 @@ class SacAccuracyConfig:
                 f"agent.max_saccade_s must be <= {study.MAX_TRIAL_S - 1:g}, got "
                 f"{self.agent.max_saccade_s}"
             )
-        if not self.conditions:
-            raise ValueError("conditions must name at least one of 'ideal', 'backlash_offset'")
+        study.check_lists(self, ("conditions",))
         for name in ("target_range_x_px", "target_range_y_px"):
             v = getattr(self, name)
             if not 0 <= v < 63.5:

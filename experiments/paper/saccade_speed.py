@@ -125,6 +125,11 @@ class SaccadeSpeedConfig:
         check_env_block(self.env, ENV_SET_PER_TRIAL)
         if not self.duration_s > 0:
             raise ValueError(f"duration_s must be > 0, got {self.duration_s}")
+        # each factor's values (the baseline's value alone leaves the factor unvaried)
+        study.check_lists(
+            self,
+            (*(name for _, name in FACTORS.values()), "main_sequence_amplitudes_deg"),
+        )
         for w in (self.agent.window_s, *self.windows_s):
             if not w >= 0.01 - 1e-12:
                 raise ValueError(
@@ -145,8 +150,6 @@ class SaccadeSpeedConfig:
             raise ValueError(f"fixational_counts must be >= 1, got {self.fixational_counts}")
         if any(v < 0 for v in self.object_speed_scales):
             raise ValueError(f"object_speed_scales must be >= 0, got {self.object_speed_scales}")
-        if not self.main_sequence_amplitudes_deg:
-            raise ValueError("main_sequence_amplitudes_deg must list at least one amplitude")
         half = pixels_to_degrees(63.0, 128, SPECK_HFOV_DEG)
         if any(not 0 < a <= half for a in self.main_sequence_amplitudes_deg):
             raise ValueError(

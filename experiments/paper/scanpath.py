@@ -116,6 +116,7 @@ class ScanpathConfig:
         check_env_block(self.env, ENV_SET_PER_TRIAL)
         if not self.duration_s > 0:
             raise ValueError(f"duration_s must be > 0, got {self.duration_s}")
+        study.check_lists(self, ("scenes", "conditions"))
         for name in ("saccades_window_s", "fixational_window_s"):
             v = getattr(self, name)
             if not v >= 0.01 - 1e-12:

@@ -26,7 +26,9 @@ Config fields that name something or size the work use the checked types of this
 (:data:`SceneName`, :data:`DvsPreset`, :data:`PtuPreset`, :data:`FrameMode`,
 :data:`TrialSeconds`, :data:`Repeats`, :data:`RadiusDeg`, :data:`GridStepDeg`): an
 unknown name or a value out of range is a ConfigError when the config is validated,
-before any trial runs; one run holds at most :data:`MAX_TRIALS` trials.
+before any trial runs; one run holds at most :data:`MAX_TRIALS` trials. A config's lists
+of what to run (scenes, groups, parts, levels) are checked by :func:`check_lists`: none
+empty, no value twice.
 
 Examples:
     >>> exp = get_experiment("event_suppression")
@@ -47,7 +49,7 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Annotated, Any
@@ -59,6 +61,7 @@ from experiments.runs.provenance import run_record
 from experiments.runs.trials import TrialStore, save_artifacts, split_artifacts
 from experiments.studies.registry import EXPERIMENT_NAMES
 from wander_env.config import ConfigError, coerce, load_yaml, parse_sets, validate
+from wander_env.config_messages import shown
 from wander_env.env_config import DvsPreset, FrameMode, PtuPreset, SceneName
 
 __all__ = [
@@ -79,6 +82,7 @@ __all__ = [
     "SceneName",
     "TrialSeconds",
     "TrialSpec",
+    "check_lists",
     "coerce",
     "config_from_dict",
     "config_to_dict",
@@ -89,10 +93,12 @@ __all__ = [
     "is_unfinished_run",
     "load_artifacts",
     "make_trials",
+    "parse_csv",
     "parse_sets",
     "read_csv",
     "real_time_factor",
     "render_summary",
+    "repeated",
     "resolve_config",
     "run_experiment",
     "run_spec",
@@ -170,6 +176,60 @@ RadiusDeg = Annotated[float, pydantic.Field(gt=0, le=180)]
 #: A grid step on the pan-tilt plane, degrees: in [0.05, 10] (a finer grid of the
 #: PTU's range outgrows memory).
 GridStepDeg = Annotated[float, pydantic.Field(ge=0.05, le=10)]
+
+
+def repeated(values: Iterable[Any]) -> list[Any]:
+    """The values ``values`` lists more than once, each once, in order of their second
+    appearance: equal values (``1`` and ``1.0``) are the same, and lists and mappings are
+    compared by their canonical JSON.
+
+    >>> repeated([3, 1, 3.0, [2], [2], 3])
+    [3.0, [2]]
+    """
+    seen: set[Any] = set()
+    twice: dict[Any, Any] = {}
+    for v in values:
+        try:
+            key: Any = ("value", v)
+            hash(key)
+        except TypeError:  # a list or a mapping
+            key = ("json", _canonical(v))
+        if key in seen:
+            twice.setdefault(key, v)
+        seen.add(key)
+    return list(twice.values())
+
+
+def check_lists(config: Any, names: Iterable[str], allow_empty: bool = False) -> None:
+    """The shared ``__post_init__`` check of a config's lists of what to run (scenes,
+    groups, parts, levels): each of the fields ``names`` lists at least one value (an empty
+    one runs no trial, or leaves the table without the rows it is about; unless
+    ``allow_empty``) and no value twice (the same trials twice). ValueError ``FIELD: must
+    ..., got VALUE``.
+
+    >>> @dataclass(frozen=True)
+    ... class C:
+    ...     scenes: tuple[str, ...] = ("office",)
+    ...     def __post_init__(self):
+    ...         check_lists(self, ("scenes",))
+    >>> C(scenes=())
+    Traceback (most recent call last):
+    ...
+    ValueError: scenes: must list at least one value, got []
+    >>> C(scenes=("office", "hand", "office"))
+    Traceback (most recent call last):
+    ...
+    ValueError: scenes: must list each value once ('office' twice), got ['office', 'hand', 'office']
+    """
+    for name in names:
+        values = list(getattr(config, name))
+        if not values and not allow_empty:
+            raise ValueError(f"{name}: must list at least one value, got []")
+        twice = repeated(values)
+        if twice:
+            raise ValueError(
+                f"{name}: must list each value once ({shown(twice[0])} twice), got {shown(values)}"
+            )
 
 
 # ----------------------------------------------------------------------------------------
@@ -400,13 +460,23 @@ TEXT_COLUMNS = ("trial_id",)
 
 
 def read_csv(path: Path) -> list[Row]:
-    """Rows of :func:`write_csv` with their types back (int, float, bool, str; the
-    :data:`TEXT_COLUMNS` as written)."""
+    """Rows of :func:`write_csv` with their types back (:func:`parse_csv`)."""
     with Path(path).open(newline="") as f:
-        return [
-            {k: v if k in TEXT_COLUMNS else _parse_cell(v) for k, v in rec.items()}
-            for rec in csv.DictReader(f)
-        ]
+        return parse_csv(f)
+
+
+def parse_csv(lines: Iterable[str]) -> list[Row]:
+    """Rows of :func:`write_csv`'s text ``lines`` (a file opened with ``newline=""``, or
+    ``io.StringIO(text, newline="")``) with their types back (int, float, bool, str; the
+    :data:`TEXT_COLUMNS` as written).
+
+    >>> parse_csv(["trial_id,x,ok", "12e4,2.5,true"])
+    [{'trial_id': '12e4', 'x': 2.5, 'ok': True}]
+    """
+    return [
+        {k: v if k in TEXT_COLUMNS else _parse_cell(v) for k, v in rec.items()}
+        for rec in csv.DictReader(lines)
+    ]
 
 
 # ----------------------------------------------------------------------------------------

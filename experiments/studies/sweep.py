@@ -24,10 +24,10 @@ finished folder holds no stale error. At the end all rows are gathered into
 for the grid keys, then the experiment's columns) and ``sweep.json`` (provenance, and the
 real-time factor of the trials run now when they report ``simulated_s``).
 
-Limits, checked before anything runs: seeds in [0, 2**32 - 1], at most
-:data:`experiments.studies.framework.MAX_TRIALS` trials (grid points x seeds x repeats); every
-grid value is validated on its own (naming the file, ``grid.KEY[i]``), their
-combinations when expanded.
+Limits, checked before anything runs: seeds in [0, 2**32 - 1], each listed once (as is each
+grid value), at most :data:`experiments.studies.framework.MAX_TRIALS` trials (grid points x
+seeds x repeats); every grid value is validated on its own (naming the file,
+``grid.KEY[i]``), their combinations when expanded.
 
 Backends: ``serial`` (this process), ``local`` (worker processes, spawn context), ``ray``
 (one task per trial; ``ray.init(address=...)`` joins a cluster — wander must be
@@ -84,12 +84,13 @@ from experiments.studies.framework import (
     load_yaml_mapping,
     make_trials,
     real_time_factor,
+    repeated,
     run_spec,
     serial_executor,
     write_csv,
 )
 from experiments.studies.ray_log import ray_output_to
-from wander_env.config_messages import SHOWN_CHARS
+from wander_env.config_messages import SHOWN_CHARS, shown
 
 __all__ = [
     "BACKENDS",
@@ -168,6 +169,11 @@ def sweep_from_dict(data: Mapping[str, Any], where: str = "sweep") -> SweepConfi
         raise ConfigError(
             f"{where}.seeds: must be a non-empty list of integers in [0, {MAX_SEED}], got {seeds!r}"
         )
+    twice = repeated(seeds)
+    if twice:  # the same trials twice
+        raise ConfigError(
+            f"{where}.seeds: must list each seed once ({twice[0]} twice), got {shown(seeds)}"
+        )
     entries = []
     raw = data.get("experiments")
     if not isinstance(raw, list) or not raw:
@@ -192,6 +198,13 @@ def sweep_from_dict(data: Mapping[str, Any], where: str = "sweep") -> SweepConfi
                 f"{at}.grid: {points} grid points x {len(seeds)} seeds; at most "
                 f"{MAX_TRIALS} trials in a sweep"
             )
+        for k, v in grid.items():
+            twice = repeated(v)
+            if twice:  # the same grid points twice
+                raise ConfigError(
+                    f"{at}.grid.{k}: must list each value once ({shown(twice[0])} twice), "
+                    f"got {shown(v)}"
+                )
         first = {k: v[0] for k, v in grid.items()}
         config_from_dict(exp.config_type, {**sets, **first}, where=at)
         for k, values in grid.items():  # each value once (their combinations: expand)
@@ -547,9 +560,12 @@ def run_sweep(
     command: str = "",
     timeout_s: float = WAIT_TIMEOUT_S,
 ) -> SweepResult:
-    """Run the trials not yet stored, then gather every row into ``results.csv``."""
+    """Run the trials not yet stored, then gather every row into ``results.csv``.
+    ``out_dir`` must be a folder or not exist (FileExistsError naming it otherwise)."""
     if backend not in BACKENDS:
         raise ConfigError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    if out_dir.exists() and not out_dir.is_dir():
+        raise FileExistsError(f"{str(out_dir)!r} exists and is not a folder")
     specs = expand(sweep)
     store = TrialStore(out_dir)  # artifacts are not kept by sweeps
     todo = [s for s in specs if not store.has(s)]

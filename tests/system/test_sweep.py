@@ -84,6 +84,91 @@ def test_sweep_file_errors_name_the_field(tmp_path):
         load_sweep(path)
 
 
+DETECTION = {"repeats": 1, "duration_s": 0.3, "scenes": ["gratings"], "camera_speeds_deg_s": [0]}
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (
+            {"seeds": [0, 1, 0]},
+            "s.yaml.seeds: must list each seed once (0 twice), got [0, 1, 0]",
+        ),
+        (
+            {"experiments": [{"experiment": "detection", "grid": {"box": [4, 8, 4]}}]},
+            "s.yaml.experiments[0].grid.box: must list each value once (4 twice), got [4, 8, 4]",
+        ),
+        (
+            {"experiments": [{"experiment": "detection", "set": DETECTION, "grid": {"box": [0]}}]},
+            "s.yaml.experiments[0]: box: must be in [1, 4096] px, got 0",
+        ),
+        (
+            {"experiments": [{"experiment": "detection", "grid": {"box": [8, -3]}}]},
+            "s.yaml.experiments[0].grid.box[1]: box: must be in [1, 4096] px, got -3",
+        ),
+        (
+            {"experiments": [{"experiment": "detection", "grid": {"scenes": [["office"], []]}}]},
+            "s.yaml.experiments[0].grid.scenes[1]: scenes: must list at least one value, got []",
+        ),
+    ],
+)
+def test_repeated_seeds_or_grid_values_and_bad_grid_values_are_one_line(change, message):
+    with pytest.raises(ConfigError) as err:
+        sweep_from_dict({**TOY_SWEEP, **change}, where="s.yaml")
+    assert str(err.value) == message
+
+
+@pytest.mark.parametrize(
+    ("text", "line"),
+    [
+        (
+            "name: x\nseeds: [0, 0]\nexperiments: [{experiment: detection}]\n",
+            "wander sweep: error: s.yaml.seeds: must list each seed once (0 twice), got [0, 0]",
+        ),
+        (
+            "name: x\nexperiments: [{experiment: detection, grid: {box: [0]}}]\n",
+            "wander sweep: error: s.yaml.experiments[0]: box: must be in [1, 4096] px, got 0",
+        ),
+    ],
+)
+def test_cli_sweep_refuses_them_in_one_line_before_making_its_folder(
+    text, line, tmp_path, monkeypatch
+):
+    from typer.testing import CliRunner
+
+    from experiments.cli.main import app
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "s.yaml").write_text(text)
+    res = CliRunner().invoke(app, ["sweep", "s.yaml"], prog_name="wander")
+    assert (res.exit_code, res.stderr.splitlines(), res.stdout) == (2, [line], "")
+    assert [p.name for p in tmp_path.iterdir()] == ["s.yaml"]  # no sweep folder
+
+
+def test_a_grid_point_that_only_fails_in_combination_is_refused_before_any_trial(tmp_path):
+    grid = {"step_s": [0.02, 0.5], "duration_s": [2.0, 0.3]}  # 0.5 s steps in a 0.3 s trial
+    sweep = sweep_from_dict(
+        {"name": "c", "experiments": [{"experiment": "detection", "set": DETECTION, "grid": grid}]}
+    )
+    runner = CountingRunner()
+    with pytest.raises(ConfigError) as err:
+        run_sweep(sweep, tmp_path / "out", backend="serial", runner=runner)
+    assert str(err.value) == (
+        "detection.grid {'step_s': 0.5, 'duration_s': 0.3}: step_s: must be <= duration_s "
+        "(0.3: one window at least), got 0.5"
+    )
+    assert runner.calls == [] and not (tmp_path / "out").exists()
+
+
+def test_an_out_that_is_a_file_is_refused_naming_it(tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("kept\n")
+    with pytest.raises(FileExistsError) as err:
+        run_sweep(sweep_from_dict(TOY_SWEEP), afile, backend="serial", runner=CountingRunner())
+    assert str(err.value) == f"{str(afile)!r} exists and is not a folder"
+    assert afile.read_text() == "kept\n"
+
+
 def test_resume_skips_finished_trials_and_runs_only_missing_or_new_ones(tmp_path):
     sweep = sweep_from_dict(TOY_SWEEP)
     runner = CountingRunner()

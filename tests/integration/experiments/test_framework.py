@@ -333,6 +333,94 @@ def test_cli_rejects_unknown_keys_and_bad_values_by_name():
     assert res.exit_code == 0 and '"repeats": 1' in res.output
 
 
+def test_check_lists_refuses_empty_lists_and_values_listed_twice():
+    @dataclass(frozen=True)
+    class Lists:
+        scenes: tuple[str, ...] = ("office",)
+        pairs: tuple[tuple[float, float], ...] = ()
+
+        def __post_init__(self) -> None:
+            framework.check_lists(self, ("scenes",))
+            framework.check_lists(self, ("pairs",), allow_empty=True)
+
+    assert Lists().pairs == ()
+    for kwargs, message in (
+        ({"scenes": ()}, "scenes: must list at least one value, got []"),
+        (
+            {"pairs": ((1.0, 2.0), (3.0, 4.0), (1.0, 2.0))},
+            "pairs: must list each value once ((1.0, 2.0) twice), got [(1.0, 2.0), "
+            "(3.0, 4.0), (1.0, 2.0)]",
+        ),
+    ):
+        with pytest.raises(ValueError) as err:
+            Lists(**kwargs)
+        assert str(err.value) == message
+    assert framework.repeated([0, 1, 0, 0, {"a": [1]}, {"a": [1]}]) == [0, {"a": [1]}]
+
+
+_ERR = "wander experiment: error:"
+# (command line, the one line on stderr): each a config whose trials cannot run or would
+# run nothing, or the same trials twice
+REFUSED = [
+    (["detection", "--set", "box=0"], f"{_ERR} --set: box: must be in [1, 4096] px, got 0"),
+    (
+        ["detection", "--set", "step_s=1e30"],
+        f"{_ERR} --set: step_s: must be a whole number of ms in (0, 1] s, got 1e+30",
+    ),
+    (
+        ["detection", "--set", "scenes=[]"],
+        f"{_ERR} --set: scenes: must list at least one value, got []",
+    ),
+    (
+        ["oms_characterisation", "--set", "groups=[]"],
+        f"{_ERR} --set: groups: must list at least one value, got []",
+    ),
+    (
+        ["oms_characterisation", "--set", "frequency_pairs=[[0,1]]"],
+        f"{_ERR} --set: frequency_pairs[0]: (background, object) cycles/deg must be > 0, "
+        "got [0.0, 1.0]",
+    ),
+    (
+        ["oms_scorecard", "--set", "periods=[0]"],
+        f"{_ERR} --set: periods: must be in [2, 256] px (the texture tile), got [0]",
+    ),
+    (
+        ["oms_scorecard", "--set", "parts=[real]", "--set", "real_dir=nodir"],
+        f"{_ERR} real_dir: nodir/poster_6dof_events_txyp.npy not found (the real part reads "
+        "it: set real_dir, or leave real out of parts), got 'nodir'",
+    ),
+    (
+        ["oms_scorecard", "--set", "parts=[office]", "--set", "office_results=[no.json]"],
+        f"{_ERR} office_results[0]: no.json: no such file",
+    ),
+    (
+        ["scanpath", "--set", "conditions=[]"],
+        f"{_ERR} --set: conditions: must list at least one value, got []",
+    ),
+    (
+        ["sac_accuracy", "--set", "conditions=[ideal, ideal]"],
+        f"{_ERR} --set: conditions: must list each value once ('ideal' twice), got "
+        "['ideal', 'ideal']",
+    ),
+    (
+        ["saccade_speed", "--set", "speeds_pos_s=[]"],
+        f"{_ERR} --set: speeds_pos_s: must list at least one value, got []",
+    ),
+]
+
+
+@pytest.mark.parametrize(("args", "line"), REFUSED)
+def test_cli_refuses_such_a_config_in_one_line_before_making_its_folder(
+    args, line, tmp_path, monkeypatch
+):
+    from experiments.cli.main import app
+
+    monkeypatch.chdir(tmp_path)
+    res = CliRunner().invoke(app, ["experiment", *args], prog_name="wander")
+    assert (res.exit_code, res.stderr.splitlines(), res.stdout) == (2, [line], "")
+    assert list(tmp_path.iterdir()) == []  # no result folder
+
+
 @pytest.mark.slow
 def test_cli_experiment_resumes_the_run_it_stopped(tmp_path):
     exp = get_experiment("event_suppression")

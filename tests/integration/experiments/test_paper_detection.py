@@ -18,7 +18,7 @@ from experiments.paper.detection import (
     grid,
     ptu_for_speed,
 )
-from experiments.studies.framework import make_trials, resolve_config, run_spec
+from experiments.studies.framework import ConfigError, make_trials, resolve_config, run_spec
 from wander_env.actions import action_to_gaze_degrees
 from wander_env.ptu.params import PTUParams
 
@@ -34,6 +34,41 @@ def test_ptu_speed_levels_in_degrees_per_second():
     assert ptu_for_speed(0.0) == PTUParams()
     with pytest.raises(ValueError, match=r"camera_speeds_deg_s must be in \[0, 74.6\]"):
         DetectionConfig(camera_speeds_deg_s=(80.0,))
+
+
+@pytest.mark.parametrize(
+    ("item", "message"),
+    [
+        ("box=0", "box: must be in [1, 4096] px, got 0"),
+        ("box=-3", "box: must be in [1, 4096] px, got -3"),
+        ("baseline_sigma_px=-1", "baseline_sigma_px: must be in (0, 128] px, got -1.0"),
+        ("baseline_sigma_px=1000", "baseline_sigma_px: must be in (0, 128] px, got 1000.0"),
+        ("sweep_amplitude_deg=-5", "sweep_amplitude_deg: must be in (0, 90) deg, got -5.0"),
+        ("sweep_amplitude_deg=90", "sweep_amplitude_deg: must be in (0, 90) deg, got 90.0"),
+        ("step_s=1e30", "step_s: must be a whole number of ms in (0, 1] s, got 1e+30"),
+        ("step_s=0.0015", "step_s: must be a whole number of ms in (0, 1] s, got 0.0015"),
+        (
+            "step_s=0.5",  # with duration_s=0.3 below
+            "step_s: must be <= duration_s (0.3: one window at least), got 0.5",
+        ),
+        ("scenes=[]", "scenes: must list at least one value, got []"),
+        ("camera_speeds_deg_s=[]", "camera_speeds_deg_s: must list at least one value, got []"),
+        (
+            "scenes=[office, hand, office]",
+            "scenes: must list each value once ('office' twice), got ['office', 'hand', 'office']",
+        ),
+        (
+            "camera_speeds_deg_s=[0, 10, 0.0]",
+            "camera_speeds_deg_s: must list each value once (0.0 twice), got [0.0, 10.0, 0.0]",
+        ),
+    ],
+)
+def test_config_refuses_values_a_trial_cannot_use(item, message):
+    """Each is one line when the config is validated, before anything runs."""
+    with pytest.raises(ConfigError) as err:
+        resolve_config(EXPERIMENT, sets=["duration_s=0.3", item])
+    assert str(err.value) == f"--set: {message}"
+    assert DetectionConfig(step_s=1.0, box=4096, baseline_sigma_px=128.0).step_s == 1.0
 
 
 def test_sweep_policy_targets_stay_within_the_amplitude():

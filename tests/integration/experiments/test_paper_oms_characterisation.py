@@ -16,7 +16,7 @@ from experiments.paper.oms_characterisation import (
     isi_stats,
     mfr_stats,
 )
-from experiments.studies.framework import make_trials, resolve_config, run_spec
+from experiments.studies.framework import ConfigError, make_trials, resolve_config, run_spec
 
 
 def test_mfr_is_spikes_per_second_over_all_neurons():
@@ -105,6 +105,41 @@ def test_config_refuses_a_bad_mode_group_or_kernel():
         OMSCharacterisationConfig(groups=("sizes",))
     with pytest.raises(ValueError, match=r"kernel_size must be in \[1, 128\], got 0"):
         OMSCharacterisationConfig(kernels=((1.0, 4.0, 0),))
+
+
+@pytest.mark.parametrize(
+    ("item", "message"),
+    [
+        ("groups=[]", "groups: must list at least one value, got []"),
+        ("modes=[]", "modes: must list at least one value, got []"),
+        ("speed_pairs=[]", "speed_pairs: must list at least one value, got []"),
+        (
+            "groups=[mode, kernel, mode]",
+            "groups: must list each value once ('mode' twice), got ['mode', 'kernel', 'mode']",
+        ),
+        (
+            "frequency_pairs=[[0.1, 0.2], [0.1, 0.2]]",
+            "frequency_pairs: must list each value once ((0.1, 0.2) twice), got "
+            "[(0.1, 0.2), (0.1, 0.2)]",
+        ),
+        (
+            "frequency_pairs=[[0.1, 0.2], [0, 1]]",
+            "frequency_pairs[1]: (background, object) cycles/deg must be > 0, got [0.0, 1.0]",
+        ),
+        (
+            "frequency_pairs=[[0.1, -0.2]]",
+            "frequency_pairs[0]: (background, object) cycles/deg must be > 0, got [0.1, -0.2]",
+        ),
+        ("object_cycles_per_deg=0", "object_cycles_per_deg: must be > 0 (cycles/deg), got 0.0"),
+    ],
+)
+def test_config_refuses_empty_or_repeated_lists_and_frequencies_that_are_not_positive(
+    item, message
+):
+    """Each is one line when the config is validated, before a trial writes its scene."""
+    with pytest.raises(ConfigError) as err:
+        resolve_config(EXPERIMENT, sets=[item])
+    assert str(err.value) == f"--set: {message}"
 
 
 @pytest.mark.slow

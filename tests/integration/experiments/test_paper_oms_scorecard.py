@@ -203,7 +203,6 @@ def test_office_results_must_be_runs_of_the_agent_block(tmp_path):
     from experiments.paper.oms_scorecard import read_quality, run_trial
     from experiments.studies.framework import TrialSpec
     from wander_env.config import to_plain
-    from wander_env.untrusted import UntrustedFileError
 
     plain = to_plain(replace(AGENT_SOMS, dt=0.02))  # the step may differ
     good = _quality(tmp_path / "good.json", plain, accuracy=0.925)
@@ -226,8 +225,80 @@ def test_office_results_must_be_runs_of_the_agent_block(tmp_path):
     with pytest.raises(ValueError) as e:
         read_quality(str(tmp_path / "list.json"), "office_results_paper")
     assert str(e.value).endswith("list.json: not the quality.json of a wander evaluate run")
-    with pytest.raises(UntrustedFileError, match="not a regular file"):
+    with pytest.raises(ValueError) as e:
         read_quality("/dev/zero", "office_results")
+    assert str(e.value) == (
+        "office_results: /dev/zero: not a regular file (a character device): refused"
+    )
+
+
+@pytest.mark.parametrize(
+    ("item", "message"),
+    [
+        ("periods=[0]", "periods: must be in [2, 256] px (the texture tile), got [0]"),
+        ("periods=[8, 1000]", "periods: must be in [2, 256] px (the texture tile), got [8, 1000]"),
+        ("parts=[]", "parts: must list at least one value, got []"),
+        ("textures=[]", "textures: must list at least one value, got []"),
+        ("objects=[]", "objects: must list at least one value, got []"),
+        ("motions=[]", "motions: must list at least one value, got []"),
+        ("presets=[]", "presets: must list at least one value, got []"),
+        ("real_bins_ms=[]", "real_bins_ms: must list at least one value, got []"),
+        (
+            "parts=[real, hand, real]",
+            "parts: must list each value once ('real' twice), got ['real', 'hand', 'real']",
+        ),
+        ("periods=[8, 8]", "periods: must list each value once (8 twice), got [8, 8]"),
+        (
+            "office_results=[a.json, a.json]",
+            "office_results: must list each value once ('a.json' twice), got ['a.json', 'a.json']",
+        ),
+    ],
+)
+def test_config_refuses_empty_repeated_or_impossible_lists(item, message):
+    with pytest.raises(ConfigError) as err:
+        resolve_config(get_experiment("oms_scorecard"), sets=[item])
+    assert str(err.value) == f"--set: {message}"
+
+
+def test_the_files_the_parts_read_are_checked_before_any_trial_runs(tmp_path):
+    """The real clips (with ``real`` in parts) and every office_results file: one line
+    naming the key and the file when the trials are made (make_trials, before the result
+    folder), not in a trial; a config without them, as a stored one, still validates."""
+    from experiments.paper.oms_scorecard import REAL_CLIPS
+    from experiments.studies.framework import make_trials
+
+    exp = get_experiment("oms_scorecard")
+    cases = [
+        (
+            ["parts=[real]", f"real_dir={tmp_path}"],
+            f"real_dir: {tmp_path}/poster_6dof_events_txyp.npy not found (the real part reads "
+            f"it: set real_dir, or leave real out of parts), got '{tmp_path}'",
+        ),
+        (
+            ["parts=[office]", f"office_results=[{tmp_path}/no.json]"],
+            f"office_results[0]: {tmp_path}/no.json: no such file",
+        ),
+        (
+            ["parts=[hand]", f"office_results_paper=[{tmp_path}]"],
+            f"office_results_paper[0]: {tmp_path}: not a regular file (a folder): refused",
+        ),
+    ]
+    for sets, message in cases:
+        cfg = resolve_config(exp, sets=sets)  # the config itself is valid
+        with pytest.raises(ConfigError) as err:
+            make_trials(exp, cfg, 0)
+        assert str(err.value) == message
+    other = _quality(tmp_path / "other.json", {"alpha": 0.1})
+    cfg = resolve_config(exp, sets=["parts=[office]", f"office_results=[{other}]"])
+    with pytest.raises(ConfigError) as err:
+        make_trials(exp, cfg, 0)
+    assert str(err.value) == (
+        f"office_results[0]: {other}: its run's agent.soms is not this scorecard's (agent.soms)"
+    )
+    for clip in REAL_CLIPS:
+        (tmp_path / f"{clip}_events_txyp.npy").write_bytes(b"")
+    cfg = resolve_config(exp, sets=["parts=[real]", f"real_dir={tmp_path}"])
+    assert [s.params for s in make_trials(exp, cfg, 0)] == [{"part": "real"}]
 
 
 def test_a_part_is_reused_only_from_a_run_of_the_same_config_and_seed(tmp_path):

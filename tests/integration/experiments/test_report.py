@@ -4,6 +4,7 @@ writes; damaged result folders (one line naming the file, exit 2, nothing writte
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -179,6 +180,32 @@ DAMAGE = {
         "not valid JSON, cut short or damaged (Unterminated string starting at: line 1 "
         "column 2 (char 1))",
     ),
+    "run.json missing": ("run.json", lambda p: p.unlink(), "missing"),
+    "run.json a folder": (
+        "run.json",
+        lambda p: (p.unlink(), p.mkdir()),
+        "not a regular file (a folder): refused",
+    ),
+    "results.csv a folder": (
+        "results.csv",
+        lambda p: (p.unlink(), p.mkdir()),
+        "not a regular file (a folder): refused",
+    ),
+    "results.csv missing from a finished run": (
+        "results.csv",
+        lambda p: (p.unlink(), (p.parent / "run.json").write_text('{"timing": {"total_s": 1}}')),
+        "missing, though run.json records a finished run (damaged)",
+    ),
+    "the table cut inside its header": (
+        "results.csv",
+        lambda p: p.write_text("trial,tri"),
+        "no rows (a run writes one per trial): cut or damaged",
+    ),
+    "a header and no rows": (
+        "results.csv",
+        lambda p: p.write_text(_lines(p)[0] + "\n"),
+        "no rows (a run writes one per trial): cut or damaged",
+    ),
 }
 
 
@@ -198,6 +225,37 @@ def test_a_damaged_result_folder_is_one_line_and_nothing_is_written(tmp_path, ca
     assert not (tmp_path / "docs").exists()
 
 
+def test_a_run_not_finished_is_passed_over_not_refused(tmp_path) -> None:
+    """A folder without a results.csv whose run.json has no timings is a run still going
+    or stopped (a rerun resumes it): the report leaves it out."""
+    folder = _scanpath_folder(tmp_path / "results")
+    (folder / "results.csv").unlink()
+    out = tmp_path / "R.md"
+    args = ["report", "--results", str(tmp_path / "results"), "--out", str(out)]
+    result = CliRunner().invoke(app, args, prog_name="wander")
+    assert result.exit_code == 0, result.output
+    assert "Not run yet: `wander experiment scanpath`." in out.read_text()
+
+
+@pytest.mark.parametrize("kind", ["fifo", "/dev/null"])
+def test_an_out_that_is_not_a_regular_file_is_refused(tmp_path, monkeypatch, kind) -> None:
+    """``--out /dev/null --force`` made /dev/report_figures: refused before anything."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "results").mkdir()
+    out = kind
+    if kind == "fifo":
+        os.mkfifo(tmp_path / "fifo")
+    before = Path("/dev/report_figures").exists()
+    args = ["report", "--results", "results", "--out", out, "--force"]
+    result = CliRunner().invoke(app, args, prog_name="wander")
+    assert (result.exit_code, result.stderr.splitlines()) == (
+        2,
+        [f"wander report: Invalid value for '--out': '{out}' exists and is not a regular file"],
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted({"results", out} - {"/dev/null"})
+    assert Path("/dev/report_figures").exists() == before
+
+
 def test_a_damaged_sweep_file_is_named(tmp_path) -> None:
     sweep = tmp_path / "results" / "sweeps" / "s1"
     sweep.mkdir(parents=True)
@@ -209,6 +267,19 @@ def test_a_damaged_sweep_file_is_named(tmp_path) -> None:
         f"wander report: error: {sweep / 'sweep.json'}: not valid JSON, cut short or damaged "
         "(Expecting ',' delimiter: line 1 column 13 (char 12))"
     ]
+    assert not (tmp_path / "R.md").exists()
+
+
+def test_a_finished_sweep_without_its_table_is_named(tmp_path) -> None:
+    sweep = tmp_path / "results" / "sweeps" / "s1"
+    sweep.mkdir(parents=True)
+    (sweep / "sweep.json").write_text('{"trials": 3}')
+    args = ["report", "--results", str(tmp_path / "results"), "--out", str(tmp_path / "R.md")]
+    result = CliRunner().invoke(app, args, prog_name="wander")
+    assert (result.exit_code, result.stderr.splitlines()) == (
+        2,
+        [f"wander report: error: {sweep / 'results.csv'}: missing"],
+    )
     assert not (tmp_path / "R.md").exists()
 
 

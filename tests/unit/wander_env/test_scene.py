@@ -306,6 +306,20 @@ def test_invalid_file_names_the_file(tmp_path):
         load_scene_config("no_such_scene")
 
 
+def test_a_gratings_patch_of_too_many_strips_is_one_line_naming_the_file(tmp_path):
+    """``object_strips: 100000000`` hung ``wander run --scene FILE`` (a geom per strip)."""
+    text = (assets_dir() / "scenes" / "gratings.yaml").read_text()
+    path = tmp_path / "strips.yaml"
+    path.write_text(text.replace("object_strips: 128", "object_strips: 100000000"))
+    with pytest.raises(ConfigError) as info:
+        load_scene_config(path)
+    assert str(info.value) == (
+        f"{path}: gratings.object_strips: input should be less than or equal to 4096, got 100000000"
+    )
+    path.write_text(text.replace("object_strips: 128", "object_strips: 4096"))
+    assert load_scene_config(path).gratings.object_strips == 4096
+
+
 def test_shipped_scenes_load_to_the_snapshot():
     """Each shipped scene loads to the same SceneConfig as the snapshot taken in
     tests/data/scene_snapshots.json (repr: every class and exact float)."""
@@ -496,6 +510,7 @@ def test_grating_config_built_in_code_is_checked_by_its_annotations():
         ({"distance_m": 0.0}, "distance_m: input should be greater than 0, got 0.0"),
         ({"contrast": 1.5}, "contrast: input should be less than or equal to 1, got 1.5"),
         ({"object_strips": 1}, "object_strips: input should be greater than or equal to 2"),
+        ({"object_strips": 4097}, "object_strips: input should be less than or equal to 4096"),
         ({"object_speed_deg_s": math.inf}, "object_speed_deg_s: input should be a finite"),
     ]
     for changes, message in bad:
