@@ -31,7 +31,7 @@ from experiments.analysis.stats import wilson_interval
 from experiments.jobs.run_agent import RunConfig, run
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
-from experiments.studies.framework import write_csv
+from experiments.runs.tables import write_csv
 from wander_env.env_config import WanderConfig
 
 #: The simulated seconds of each seed's run (:class:`EvaluateConfig`'s

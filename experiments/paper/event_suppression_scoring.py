@@ -25,7 +25,7 @@ from agents.speck_front import SpeckFront, SpeckFrontParams
 from experiments.analysis.metrics import detection_hit
 from experiments.analysis.stats import wilson_interval
 from experiments.paper.event_suppression_protocol import HAND_PHASES
-from experiments.studies.framework import Row
+from experiments.runs.tables import Row
 
 __all__ = [
     "MapModel",

@@ -332,7 +332,8 @@ _SHARED = (
 def reused_row(cfg: OMSScorecardConfig, part: str, seed: int) -> dict[str, Any] | None:
     """The metrics of ``part`` from the first ``cfg.reuse`` folder holding it (None when
     none does); a folder whose config or seed differs is refused (ValueError)."""
-    from experiments.studies.framework import ID_COLUMNS, read_csv
+    from experiments.runs.tables import read_csv
+    from experiments.studies.framework import ID_COLUMNS
 
     for folder in map(Path, cfg.reuse):
         conf, run = read_json(folder / "config.json"), read_json(folder / "run.json")

@@ -29,7 +29,7 @@ from experiments.paper import main_sequence
 from experiments.paper.env_block import trial_env
 from experiments.paper.forced_saccades import ForcedSaccades, run_forced
 from experiments.runs.episode import Recorder
-from experiments.studies.framework import Row
+from experiments.runs.tables import Row
 from wander_env.camera import SPECK_HFOV_DEG, degrees_to_pixels
 from wander_env.env_config import WanderConfig
 from wander_env.ptu.axis import move_duration, peak_speed

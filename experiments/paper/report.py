@@ -41,12 +41,8 @@ from pathlib import Path
 from typing import Any, TypeVar
 from urllib.parse import quote
 
-from experiments.studies.framework import (
-    EXPERIMENT_NAMES,
-    config_from_dict,
-    get_experiment,
-    parse_csv,
-)
+from experiments.runs.tables import parse_csv
+from experiments.studies.framework import EXPERIMENT_NAMES, config_from_dict, get_experiment
 from wander_env import untrusted
 from wander_env.config_messages import shown
 
@@ -130,7 +126,7 @@ def read_json(path: Path) -> dict[str, Any]:
 
 
 def read_rows(path: Path) -> list[dict[str, Any]]:
-    """The rows of a ``results.csv`` (:func:`experiments.studies.framework.parse_csv`), checked
+    """The rows of a ``results.csv`` (:func:`experiments.runs.tables.parse_csv`), checked
     first: a regular file of at most :data:`MAX_TABLE_BYTES` of UTF-8 text, every row as many
     cells as the header, at least one row (a run has at least one trial: a table cut inside
     its header has none), and no column that mixes numbers with text (``abc`` where the

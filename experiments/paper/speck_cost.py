@@ -37,7 +37,7 @@ import numpy as np
 from experiments.analysis.stats import mean_ci
 from experiments.paper.oms_family import Measure, group_of, measure
 from experiments.paper.oms_stimuli import Stimulus
-from experiments.studies.framework import Row
+from experiments.runs.tables import Row
 from wander_env.untrusted import read_json
 from wander_env.viz import legend_below, pyplot, save_figure
 

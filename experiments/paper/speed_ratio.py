@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from experiments.analysis.stats import mean_ci
-from experiments.studies.framework import Row
+from experiments.runs.tables import Row
 from wander_env.viz import pyplot, save_figure
 
 __all__ = ["RATIO", "VARIANTS", "Point", "crossing", "curve", "plot", "table"]

@@ -40,11 +40,9 @@ Examples:
 from __future__ import annotations
 
 import contextlib
-import csv
 import fcntl
 import hashlib
 import importlib
-import io
 import json
 import math
 import os
@@ -58,6 +56,7 @@ import pydantic
 
 from experiments.runs.folder import RUN_JSON, RunFolder
 from experiments.runs.provenance import run_record
+from experiments.runs.tables import Row, Scalar, write_csv
 from experiments.runs.trials import TrialStore, save_artifacts, split_artifacts
 from experiments.studies.registry import EXPERIMENT_NAMES
 from wander_env.config import ConfigError, coerce, load_yaml, parse_sets, validate
@@ -93,9 +92,7 @@ __all__ = [
     "is_unfinished_run",
     "load_artifacts",
     "make_trials",
-    "parse_csv",
     "parse_sets",
-    "read_csv",
     "real_time_factor",
     "render_summary",
     "repeated",
@@ -104,12 +101,9 @@ __all__ = [
     "run_spec",
     "trial_id",
     "unfinished_folder",
-    "write_csv",
     "write_result_folder",
 ]
 
-Scalar = int | float | str | bool
-Row = dict[str, Scalar]
 ID_COLUMNS = ("trial", "trial_id", "repeat", "seed")
 
 
@@ -402,33 +396,7 @@ def serial_executor(
 
 
 # ----------------------------------------------------------------------------------------
-# Tables
-
-
-def _cell(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, float):
-        return "" if math.isnan(v) else repr(v)
-    return str(v)
-
-
-def _parse_cell(text: str) -> Scalar:
-    if text == "":
-        return math.nan
-    if text in ("true", "false"):
-        return text == "true"
-    for conv in (int, float):
-        try:
-            return conv(text)
-        except ValueError:
-            continue
-    return text
-
-
-def columns_of(rows: Sequence[Mapping[str, Any]]) -> list[str]:
-    """Union of the rows' keys (artifact keys ``_*`` left out), in order of first appearance."""
-    return list(dict.fromkeys(k for r in rows for k in r if not k.startswith("_")))
+# Artifacts
 
 
 def load_artifacts(folder: Path, row: Mapping[str, Any]) -> dict[str, Any]:
@@ -439,44 +407,6 @@ def load_artifacts(folder: Path, row: Mapping[str, Any]) -> dict[str, Any]:
     if not path.is_file():
         return {}
     return read_npz(path)
-
-
-def write_csv(rows: Sequence[Mapping[str, Any]], path: Path) -> Path:
-    """Tidy CSV; floats as ``repr`` (exact), NaN as an empty cell, bools as true/false."""
-    cols = columns_of(rows)
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(cols)
-    for r in rows:
-        w.writerow([_cell(r.get(c, math.nan)) for c in cols])
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(buf.getvalue())
-    return path
-
-
-#: Columns that hold names, never numbers: a trial id is 16 hex digits, which can read as
-#: an int (``8462951001639847``) or a float (``12e4567890123456``).
-TEXT_COLUMNS = ("trial_id",)
-
-
-def read_csv(path: Path) -> list[Row]:
-    """Rows of :func:`write_csv` with their types back (:func:`parse_csv`)."""
-    with Path(path).open(newline="") as f:
-        return parse_csv(f)
-
-
-def parse_csv(lines: Iterable[str]) -> list[Row]:
-    """Rows of :func:`write_csv`'s text ``lines`` (a file opened with ``newline=""``, or
-    ``io.StringIO(text, newline="")``) with their types back (int, float, bool, str; the
-    :data:`TEXT_COLUMNS` as written).
-
-    >>> parse_csv(["trial_id,x,ok", "12e4,2.5,true"])
-    [{'trial_id': '12e4', 'x': 2.5, 'ok': True}]
-    """
-    return [
-        {k: v if k in TEXT_COLUMNS else _parse_cell(v) for k, v in rec.items()}
-        for rec in csv.DictReader(lines)
-    ]
 
 
 # ----------------------------------------------------------------------------------------

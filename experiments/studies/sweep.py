@@ -71,12 +71,12 @@ from typing import Any
 
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
+from experiments.runs.tables import Row, write_csv
 from experiments.runs.trials import TrialStore
 from experiments.studies.framework import (
     MAX_SEED,
     MAX_TRIALS,
     ConfigError,
-    Row,
     TrialSpec,
     config_from_dict,
     configs_dir,
@@ -87,7 +87,6 @@ from experiments.studies.framework import (
     repeated,
     run_spec,
     serial_executor,
-    write_csv,
 )
 from experiments.studies.ray_log import ray_output_to
 from wander_env.config_messages import SHOWN_CHARS, shown

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from experiments.studies.framework import ConfigError, TrialSpec, read_csv
+from experiments.runs.tables import read_csv
+from experiments.studies.framework import ConfigError, TrialSpec
 from experiments.studies.sweep import expand, load_sweep, run_sweep, sweep_from_dict
 
 # Two real, tiny trials (event_suppression: the hand phase, 10 windows of 2 ms each).

@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 from experiments.cli.main import app
 from experiments.jobs.evaluate_agent import QualityRow, detection_interval, pooled
 from experiments.perf.agent import LOOP_COLUMNS, AgentBenchConfig, bench_agent, latency_row
-from experiments.studies.framework import read_csv
+from experiments.runs.tables import read_csv
 from wander_env.config import validate
 from wander_env.strict_json import to_strict_json
 

@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 
 from experiments.cli.experiment import register
 from experiments.runs.folder import RunFolder
+from experiments.runs.tables import read_csv, write_csv
 from experiments.studies import framework
 from experiments.studies.framework import (
     EXPERIMENT_NAMES,
@@ -29,14 +30,12 @@ from experiments.studies.framework import (
     load_artifacts,
     make_trials,
     parse_sets,
-    read_csv,
     resolve_config,
     run_experiment,
     run_spec,
     serial_executor,
     trial_id,
     unfinished_folder,
-    write_csv,
     write_result_folder,
 )
 

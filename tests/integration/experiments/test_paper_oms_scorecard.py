@@ -309,7 +309,8 @@ def test_a_part_is_reused_only_from_a_run_of_the_same_config_and_seed(tmp_path):
     from dataclasses import replace
 
     from experiments.paper.oms_scorecard import reused_row
-    from experiments.studies.framework import config_to_dict, write_csv
+    from experiments.runs.tables import write_csv
+    from experiments.studies.framework import config_to_dict
 
     exp = get_experiment("oms_scorecard")
     cfg = resolve_config(exp, sets=SMALL)

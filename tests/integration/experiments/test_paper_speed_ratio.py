@@ -9,7 +9,7 @@ from typer.testing import CliRunner
 
 from experiments.cli.main import app
 from experiments.paper.speed_ratio import crossing, crossings, curve, table
-from experiments.studies.framework import write_csv
+from experiments.runs.tables import write_csv
 
 
 def rows_of(hits: dict[float, list[float]], amp: float = 1.0) -> list[dict]:

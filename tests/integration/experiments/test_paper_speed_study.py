@@ -11,7 +11,7 @@ import pytest
 from experiments.paper import ptu_main_sequence, saccade_speed
 from experiments.paper.main_sequence import fit_linear, fit_saturating, saturating
 from experiments.paper.speed_study import plot_surfaces, surface
-from experiments.studies.framework import read_csv
+from experiments.runs.tables import read_csv
 from experiments.studies.sweep import load_sweep, run_sweep, sweep_from_dict
 from wander_env.ptu.params import PTUParams
 

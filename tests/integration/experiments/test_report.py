@@ -14,7 +14,8 @@ from typer.testing import CliRunner
 from experiments.cli.main import app
 from experiments.paper import scanpath
 from experiments.paper.report import studies_section
-from experiments.studies.framework import config_to_dict, write_csv
+from experiments.runs.tables import write_csv
+from experiments.studies.framework import config_to_dict
 
 
 def test_studies_section_shows_the_tested_statements_beside_the_papers(tmp_path) -> None:
