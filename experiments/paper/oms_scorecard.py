@@ -373,7 +373,8 @@ def run_trial(cfg: OMSScorecardConfig, spec: study.TrialSpec) -> dict[str, Any]:
 def check_inputs(cfg: OMSScorecardConfig) -> None:
     """The files the parts to run read, checked before any trial runs (by :func:`grid`):
     the real clips in ``real_dir`` (with ``real`` in ``parts``) and every file named in
-    ``office_results`` and ``office_results_paper`` (:func:`read_quality`). ConfigError
+    ``office_results`` and ``office_results_paper`` (:func:`read_quality`), and the
+    ``reuse`` folders' ``config.json`` and ``run.json``. ConfigError
     naming the key and the file. Not in the config's own check: a stored config (the
     report's) or one layer of a config (the config file before ``--set``) validates
     without its files."""
@@ -389,6 +390,12 @@ def check_inputs(cfg: OMSScorecardConfig) -> None:
             read_quality(path, f"office_results[{i}]", cfg.agent.soms)
         for i, path in enumerate(cfg.office_results_paper):
             read_quality(path, f"office_results_paper[{i}]")
+        for i, folder in enumerate(cfg.reuse):
+            for name in ("config.json", "run.json"):
+                if not (Path(folder) / name).is_file():
+                    raise ValueError(
+                        f"reuse[{i}]: {folder} holds no {name}: not an oms_scorecard result folder"
+                    )
     except ValueError as err:
         raise study.ConfigError(str(err)) from None
 

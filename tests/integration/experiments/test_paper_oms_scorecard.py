@@ -282,6 +282,10 @@ def test_the_files_the_parts_read_are_checked_before_any_trial_runs(tmp_path):
             ["parts=[hand]", f"office_results_paper=[{tmp_path}]"],
             f"office_results_paper[0]: {tmp_path}: not a regular file (a folder): refused",
         ),
+        (
+            ["parts=[hand]", f"reuse=[{tmp_path}]"],
+            f"reuse[0]: {tmp_path} holds no config.json: not an oms_scorecard result folder",
+        ),
     ]
     for sets, message in cases:
         cfg = resolve_config(exp, sets=sets)  # the config itself is valid
