@@ -27,6 +27,7 @@ from typing import Annotated, Any
 
 import typer
 
+from experiments.cli.checks import int_range
 from experiments.cli.console import progress_bars
 from experiments.cli.errors import fail
 from experiments.cli.options import (
@@ -36,7 +37,6 @@ from experiments.cli.options import (
     SetOpt,
     StreamlinedOpt,
     command_config,
-    int_range,
     option,
     resolve_out,
     with_options,

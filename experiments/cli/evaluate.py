@@ -9,6 +9,7 @@ from typing import Annotated, Any
 
 import typer
 
+from experiments.cli.checks import out_path, seed_list
 from experiments.cli.console import console, print_table, progress_bars
 from experiments.cli.errors import long_command
 from experiments.cli.options import (
@@ -18,10 +19,8 @@ from experiments.cli.options import (
     SceneOpt,
     SeedsOpt,
     command_config,
-    out_path,
     resolve_out,
     seconds_flag,
-    seed_list,
     with_options,
 )
 

@@ -13,18 +13,15 @@ from typing import Annotated
 
 import typer
 
+from experiments.cli.checks import check_wait, check_workers, one_of, out_path
 from experiments.cli.console import console, print_markdown, progress_bars
 from experiments.cli.errors import current_run, fail, long_command
 from experiments.cli.options import (
     ForceOpt,
     SeedOpt,
     SetOpt,
-    check_wait,
-    check_workers,
     command_config,
     folder_problem,
-    one_of,
-    out_path,
     own_folder,
 )
 from experiments.runs.folder import RunFolder

@@ -14,24 +14,26 @@ from typing import Annotated
 
 import typer
 
+from experiments.cli.checks import (
+    MAX_WORKERS,
+    check_scene,
+    comma_list,
+    int_list,
+    int_range,
+    one_of,
+    seed_list,
+)
 from experiments.cli.console import console, print_table
 from experiments.cli.options import (
-    MAX_WORKERS,
     ConfigFileOpt,
     KeyframeMsOpt,
     SceneOpt,
     SeedsOpt,
     SetOpt,
-    check_scene,
-    comma_list,
     command_config,
     config_flag,
-    int_list,
-    int_range,
-    one_of,
     seconds_flag,
     seed_flag,
-    seed_list,
 )
 
 __all__ = ["app"]

@@ -24,6 +24,7 @@ from typing import Annotated, Any
 
 import typer
 
+from experiments.cli.checks import check_dvs, one_of
 from experiments.cli.console import console, step_progress
 from experiments.cli.errors import long_command
 from experiments.cli.options import (
@@ -36,10 +37,8 @@ from experiments.cli.options import (
     SecondsOpt,
     SetOpt,
     VideoOpt,
-    check_dvs,
     command_config,
     config_flag,
-    one_of,
     resolve_out,
     run_env_job,
     seconds_flag,
