@@ -123,11 +123,13 @@ class SweepEntry:
 
 @dataclass(frozen=True)
 class SweepConfig:
-    """A sweep file: name, seeds, experiments."""
+    """A sweep file: name, seeds, experiments; ``where`` the file it was read from (its
+    errors name it)."""
 
     name: str
     seeds: tuple[int, ...] = (0,)
     experiments: tuple[SweepEntry, ...] = ()
+    where: str = "sweep"
 
 
 @dataclass
@@ -212,7 +214,7 @@ def sweep_from_dict(data: Mapping[str, Any], where: str = "sweep") -> SweepConfi
                     exp.config_type, {**sets, **first, k: v}, where=f"{at}.grid.{k}[{j}]"
                 )
         entries.append(SweepEntry(exp.name, dict(sets), {k: list(v) for k, v in grid.items()}))
-    return SweepConfig(name, tuple(seeds), tuple(entries))
+    return SweepConfig(name, tuple(seeds), tuple(entries), where)
 
 
 def load_sweep(path: Path) -> SweepConfig:
@@ -230,17 +232,18 @@ def expand(sweep: SweepConfig) -> list[TrialSpec]:
     trials); duplicates (same trial id) are kept once."""
     specs: list[TrialSpec] = []
     seen: set[str] = set()
-    for entry in sweep.experiments:
+    for i, entry in enumerate(sweep.experiments):
+        at = f"{sweep.where}.experiments[{i}]"
         exp = get_experiment(entry.experiment)
         default = configs_dir() / f"{exp.name}.yaml"
         base = exp.config_type()
         if default.is_file():
             base = config_from_dict(exp.config_type, load_yaml_mapping(default), base, str(default))
-        base = config_from_dict(exp.config_type, entry.set, base, where=f"{exp.name}.set")
+        base = config_from_dict(exp.config_type, entry.set, base, where=f"{at}.set")
         keys = list(entry.grid)
         for values in itertools.product(*(entry.grid[k] for k in keys)):
             point = dict(zip(keys, values, strict=True))
-            cfg = config_from_dict(exp.config_type, point, base, where=f"{exp.name}.grid {point}")
+            cfg = config_from_dict(exp.config_type, point, base, where=f"{at}.grid {point}")
             extra = {"experiment": exp.name}
             extra.update({f"cfg.{k}": _column_value(v) for k, v in point.items()})
             for seed in sweep.seeds:

@@ -149,14 +149,15 @@ def test_cli_sweep_refuses_them_in_one_line_before_making_its_folder(
 def test_a_grid_point_that_only_fails_in_combination_is_refused_before_any_trial(tmp_path):
     grid = {"step_s": [0.02, 0.5], "duration_s": [2.0, 0.3]}  # 0.5 s steps in a 0.3 s trial
     sweep = sweep_from_dict(
-        {"name": "c", "experiments": [{"experiment": "detection", "set": DETECTION, "grid": grid}]}
+        {"name": "c", "experiments": [{"experiment": "detection", "set": DETECTION, "grid": grid}]},
+        where="c.yaml",
     )
     runner = CountingRunner()
     with pytest.raises(ConfigError) as err:
         run_sweep(sweep, tmp_path / "out", backend="serial", runner=runner)
     assert str(err.value) == (
-        "detection.grid {'step_s': 0.5, 'duration_s': 0.3}: step_s: must be <= duration_s "
-        "(0.3: one window at least), got 0.5"
+        "c.yaml.experiments[0].grid {'step_s': 0.5, 'duration_s': 0.3}: step_s: must be <= "
+        "duration_s (0.3: one window at least), got 0.5"
     )
     assert runner.calls == [] and not (tmp_path / "out").exists()
 
