@@ -97,6 +97,9 @@ def agent_label(soms: SOMSParams | SpeckFrontParams) -> str:
 
 
 REAL_CLIPS = ("poster_6dof", "poster_translation")
+#: The longest stimulus (s): its 128×128 float frames at 1 kHz, about 65 MB a second, are held
+#: in memory while it is measured.
+MAX_STIMULUS_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -153,6 +156,11 @@ class OMSScorecardConfig:
         study.check_lists(
             self, ("office_results", "office_results_paper", "reuse"), allow_empty=True
         )
+        if self.duration_s > MAX_STIMULUS_S:
+            raise ValueError(
+                f"duration_s: must be <= {MAX_STIMULUS_S:g} s (a stimulus's frames are held in "
+                f"memory, about 65 MB a second), got {self.duration_s}"
+            )
         if not all(2 <= p <= MAX_PERIOD_PX for p in self.periods):
             raise ValueError(
                 f"periods: must be in [2, {MAX_PERIOD_PX}] px (the texture tile), got "

@@ -236,6 +236,11 @@ def test_office_results_must_be_runs_of_the_agent_block(tmp_path):
     ("item", "message"),
     [
         ("periods=[0]", "periods: must be in [2, 256] px (the texture tile), got [0]"),
+        (
+            "duration_s=60",
+            "duration_s: must be <= 10 s (a stimulus's frames are held in memory, about 65 MB a "
+            "second), got 60.0",
+        ),
         ("periods=[8, 1000]", "periods: must be in [2, 256] px (the texture tile), got [8, 1000]"),
         ("parts=[]", "parts: must list at least one value, got []"),
         ("textures=[]", "textures: must list at least one value, got []"),
