@@ -75,6 +75,7 @@ __all__ = [
     "Fixation",
     "Phase",
     "Saccade",
+    "same_but_step",
     "soms_block",
 ]
 
@@ -115,6 +116,17 @@ def soms_block(name: str) -> SOMSParams | SpeckFrontParams:
     if name not in blocks:
         raise ValueError(f"soms must be one of {sorted(blocks)} or a parameter block, got {name!r}")
     return blocks[name]
+
+
+def same_but_step(a: SOMSParams | SpeckFrontParams, b: SOMSParams | SpeckFrontParams) -> bool:
+    """Whether front ends ``a`` and ``b`` are the same block but for their step ``dt``.
+
+    >>> same_but_step(replace(AGENT_SOMS, dt=0.02), AGENT_SOMS)
+    True
+    >>> same_but_step(SOMSParams(), AGENT_SOMS)
+    False
+    """
+    return replace(a, dt=b.dt) == b
 
 
 def _front_end_data(value: Any) -> Any:

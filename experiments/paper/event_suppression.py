@@ -53,7 +53,7 @@ from typing import Any
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
-from agents.attention import AGENT_SOMS, AgentParams
+from agents.attention import AGENT_SOMS, AgentParams, same_but_step
 from agents.soms import SOMSParams
 from agents.speck_front import SpeckFrontParams
 from experiments.analysis.stats import mean_ci, wilson_interval
@@ -431,9 +431,9 @@ def soms_label(sp: FrontBlock) -> str:
     block."""
     if isinstance(sp, SpeckFrontParams):
         return "front end on Speck's cores (int8 DoG, IAF)"
-    if sp == replace(AGENT_SOMS, dt=sp.dt):
+    if same_but_step(sp, AGENT_SOMS):
         return f"agent's sOMS ({sp.norm} norm, α {sp.alpha:g})"
-    if sp == SOMSParams(dt=sp.dt):
+    if same_but_step(sp, SOMSParams()):
         return f"paper-literal sOMS (min-max, α {sp.alpha:g})"
     return f"sOMS ({sp.norm} norm, α {sp.alpha:g})"
 

@@ -48,7 +48,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from agents.attention import AGENT_SOMS, AgentParams
+from agents.attention import AGENT_SOMS, AgentParams, same_but_step
 from agents.soms import SOMSParams
 from agents.speck_front import SpeckFrontParams
 from experiments.paper.oms_family import (
@@ -89,7 +89,7 @@ _LABELS = {
 
 def agent_label(soms: SOMSParams | SpeckFrontParams) -> str:
     """The second column's heading: the agent's default, or the config's ``agent.soms``."""
-    if replace(soms, dt=AGENT_SOMS.dt) == AGENT_SOMS:
+    if same_but_step(soms, AGENT_SOMS):
         return "agent default (quantile norm)"
     if isinstance(soms, SpeckFrontParams):
         return "agent.soms: the front end on Speck's cores"
@@ -531,7 +531,7 @@ def compare(cfg: OMSScorecardConfig, rows: list[study.Row]) -> list[study.Compar
     ]
     if out:
         out.append(choice_comparison(cfg.compare, cfg.agent.soms))
-    default = replace(cfg.agent.soms, dt=AGENT_SOMS.dt) == AGENT_SOMS
+    default = same_but_step(cfg.agent.soms, AGENT_SOMS)
     if out and (cfg.compare != "paper" or not default):  # the columns are not the usual two
         heads = (_LABELS[cfg.compare], agent_label(cfg.agent.soms))
         out.insert(0, study.Comparison("columns", *heads, "compare"))
@@ -557,7 +557,7 @@ def choice_comparison(
     chosen = (
         "ours chosen on the even-seed half (most family claims, then the largest margin: "
         "`experiments.paper.oms_family.tune`); the odd half held out"
-        if replace(p, dt=AGENT_SOMS.dt) == AGENT_SOMS
+        if same_but_step(p, AGENT_SOMS)
         else "ours: the config's agent.soms"
     )
     return study.Comparison(
