@@ -13,6 +13,7 @@ signal (130, 143, 129).
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -141,6 +142,16 @@ def rig(
     if replay_file is not None and not replay_file.is_file():
         raise typer.BadParameter(
             f"no such event file: {str(replay_file)!r}", param_hint="'--camera'"
+        )
+    port = config.env.ptu_port
+    # A path (not 'emulate', not a pyserial URL such as socket://host:4000) that is not
+    # there is a typo, not a device fault (POSIX: a serial port is a device file).
+    if os.name == "posix" and port != "emulate" and "://" not in port and not Path(port).exists():
+        raise typer.BadParameter(
+            f"no such serial port: {port!r} (is the PTU's USB-serial adapter plugged in? "
+            "Give a device such as /dev/ttyUSB0, a pyserial URL such as socket://host:4000, "
+            "or 'emulate')",
+            param_hint="'--ptu'",
         )
     folder = resolve_out(ctx, out, "rig", shared["force"])
     out = folder.final

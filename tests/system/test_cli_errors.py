@@ -110,6 +110,12 @@ def test_run_with_an_unknown_scene_prints_one_line_and_exits_2():
             "wander rig: Invalid value for '--camera': no such event file: 'no/such.npz'",
         ),
         (
+            ["rig", "--ptu", "/dev/no-such-ptu", "--camera", "speck"],
+            "wander rig: Invalid value for '--ptu': no such serial port: '/dev/no-such-ptu' "
+            "(is the PTU's USB-serial adapter plugged in? Give a device such as /dev/ttyUSB0, "
+            "a pyserial URL such as socket://host:4000, or 'emulate')",
+        ),
+        (
             ["perf", "env", "--scene", "nosuch"],
             "wander perf env: Invalid value for "
             f"'--scene': unknown scene 'nosuch'; allowed: {SCENES}",
