@@ -327,7 +327,6 @@ def plot(
     """Accuracy (with / without proto-objects) and OMS-map scores against camera speed."""
     plt = pyplot()
 
-    fig_dir.mkdir(parents=True, exist_ok=True)
     scenes = list(dict.fromkeys(str(r["scene"]) for r in rows))
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     metrics = {

@@ -448,7 +448,6 @@ def plot(
     plt = pyplot()
     from matplotlib.patches import Patch
 
-    fig_dir.mkdir(parents=True, exist_ok=True)
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.2), gridspec_kw={"width_ratios": [2.2, 1]})
     ax = axes[0]
     first = sorted((r for r in rows if int(r["repeat"]) == 0), key=lambda r: int(r["phase_index"]))

@@ -480,7 +480,6 @@ def plot(
     patch and the background, and example event / OMS maps (Figure OMSchar)."""
     plt = pyplot()
 
-    fig_dir.mkdir(parents=True, exist_ok=True)
     paths = []
     labels = [str(r["condition"]) for r in rows]
     x = np.arange(len(rows))

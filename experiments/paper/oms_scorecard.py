@@ -602,7 +602,6 @@ def plot(
         fontsize=9,
     )
     ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2)
-    fig_dir.mkdir(parents=True, exist_ok=True)
     return [save_figure(fig, fig_dir / "oms_scorecard.png")]
 
 

@@ -295,7 +295,6 @@ def plot(
     paper's."""
     plt = pyplot()
 
-    fig_dir.mkdir(parents=True, exist_ok=True)
     conditions = list(dict.fromkeys(str(r["condition"]) for r in rows))
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
     for i, c in enumerate(conditions):

@@ -451,7 +451,6 @@ def plot(
     the PTU's trapezoid; and each measure against each factor."""
     plt = pyplot()
 
-    fig_dir.mkdir(parents=True, exist_ok=True)
     series = []
     for r in rows:
         if r["repeat"] != 0:

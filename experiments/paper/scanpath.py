@@ -375,7 +375,6 @@ def plot(
     with each fixation's ``aoi``)."""
     plt = pyplot()
 
-    fig_dir.mkdir(parents=True, exist_ok=True)
     scenes = list(dict.fromkeys(str(r["scene"]) for r in rows))
     conditions = list(dict.fromkeys(str(r["condition"]) for r in rows))
     firsts = {}
