@@ -178,10 +178,13 @@ MAX_THREADS = 256
 MaxWindowsOpt = Annotated[
     int | None,
     typer.Option(
-        min=1, help="Score only the first N windows of each sequence (a quick run; noted)."
+        callback=int_range(1),
+        help="Score only the first N windows of each sequence (a quick run; noted).",
     ),
 ]
-MaxSequencesOpt = Annotated[int | None, typer.Option(min=1, help="Only the first N sequences.")]
+MaxSequencesOpt = Annotated[
+    int | None, typer.Option(callback=int_range(1), help="Only the first N sequences.")
+]
 ThreadsOpt = Annotated[
     int | None,
     typer.Option(
@@ -269,7 +272,9 @@ def evimo(
     ] = "preceding",
     window_us: Annotated[
         int | None,
-        typer.Option(min=1, help="Window length in µs (default: median mask spacing)."),
+        typer.Option(
+            callback=int_range(1), help="Window length in µs (default: median mask spacing)."
+        ),
     ] = None,
     **shared: Any,
 ) -> None:
@@ -334,7 +339,9 @@ def events(
     ] = None,
     window_us: Annotated[
         int | None,
-        typer.Option(min=1, help="Mask window in µs (default: smallest step of the names)."),
+        typer.Option(
+            callback=int_range(1), help="Mask window in µs (default: smallest step of the names)."
+        ),
     ] = None,
     mask_offset: Annotated[
         str | None,
@@ -382,11 +389,12 @@ def suppression(
         typer.Option(help="Sensor WxH (default: the file's; a bare .npy infers it)."),
     ] = None,
     window_us: Annotated[
-        int, typer.Option(min=1, help="Step length in µs (the paper counts per 2 ms).")
+        int,
+        typer.Option(callback=int_range(1), help="Step length in µs (the paper counts per 2 ms)."),
     ] = 2000,
     max_windows: Annotated[
         int | None,
-        typer.Option(min=1, help="Only the first N steps of each."),
+        typer.Option(callback=int_range(1), help="Only the first N steps of each."),
     ] = None,
     **shared: Any,
 ) -> None:

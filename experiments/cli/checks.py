@@ -81,20 +81,24 @@ def check_seed(value: int) -> int:
 MAX_WORKERS = 256
 
 
-def int_range(minimum: int, maximum: int) -> Callable[[int | None], int | None]:
-    """A check that an integer is in [``minimum``, ``maximum``] (None passes: an optional
-    left unset).
+def int_range(minimum: int, maximum: int | None = None) -> Callable[[int | None], int | None]:
+    """A check that an integer is in [``minimum``, ``maximum``] (no upper bound without
+    ``maximum``; None passes: an optional left unset). Flags use it, not Typer's ``min``
+    and ``max``, whose message does not show the value given.
 
-    >>> try:
-    ...     int_range(1, 8)(9)
-    ... except typer.BadParameter as err:
-    ...     print(err)
+    >>> for check, value in ((int_range(1, 8), 9), (int_range(1), 0)):
+    ...     try:
+    ...         check(value)
+    ...     except typer.BadParameter as err:
+    ...         print(err)
     must be an integer in [1, 8], got 9
+    must be an integer >= 1, got 0
     """
+    allowed = f"in [{minimum}, {maximum}]" if maximum is not None else f">= {minimum}"
 
     def check(value: int | None) -> int | None:
-        if value is not None and not minimum <= value <= maximum:
-            raise typer.BadParameter(f"must be an integer in [{minimum}, {maximum}], got {value}")
+        if value is not None and not (minimum <= value and (maximum is None or value <= maximum)):
+            raise typer.BadParameter(f"must be an integer {allowed}, got {value}")
         return value
 
     return check

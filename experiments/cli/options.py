@@ -183,8 +183,6 @@ AgentAlphaOpt = config_flag(
     "agent.soms.alpha",
     "sOMS threshold α of Eq. (1) (agent.soms.alpha; default: the config's, the "
     "paper's table value).",
-    min=0.0,
-    max=1.0,
 )
 SomsNormOpt = config_flag(
     str,

@@ -121,7 +121,7 @@ def bench_env(
         bool, "env.ground_truth", "Render segmentation masks too (default: the config's, yes)."
     ) = None,
     antialias: config_flag(
-        int, "env.antialias_samples", "MSAA samples (overrides the scene's; 0 = off).", min=0
+        int, "env.antialias_samples", "MSAA samples (overrides the scene's; 0 = off)."
     ) = None,
     breakdown: Annotated[bool, typer.Option(help="Also time the parts of one env's step.")] = True,
     keyframe_ms: KeyframeMsOpt = None,
@@ -135,7 +135,6 @@ def bench_env(
         float,
         "env.keyframe_px",
         "Motion bound (px) of the adaptive keys' column (default: the config's, 2).",
-        min=0.01,
     ) = None,
     config: ConfigFileOpt = None,
     set_: SetOpt = None,
@@ -248,7 +247,7 @@ def bench_agent(
 @app.command("floor")
 def bench_floor(
     scene: SceneOpt = "office",
-    calls: Annotated[int, typer.Option(min=1, help="Calls per timed run.")] = 100,
+    calls: Annotated[int, typer.Option(callback=int_range(1), help="Calls per timed run.")] = 100,
     repeats: TimedRepeatsOpt = 5,
 ) -> None:
     """What one render of a key costs here, the real-time factor the renders a step need
@@ -273,7 +272,9 @@ def bench_floor(
 @app.command("panorama")
 def bench_panorama(
     scene: SceneOpt = "office",
-    steps: Annotated[int, typer.Option(min=1, help="Timed steps per mode and motion.")] = 20,
+    steps: Annotated[
+        int, typer.Option(callback=int_range(1), help="Timed steps per mode and motion.")
+    ] = 20,
 ) -> None:
     """The panorama frame source against the default, exact and 16 samples a pixel (ms a
     step, modes stepped in turns), and its background against a render by headlight."""
@@ -435,7 +436,9 @@ def bench_formats(
         list[Path] | None,
         typer.Argument(help="Event files (.aedat4 .raw .dat .es); default: ../shared/realdata."),
     ] = None,
-    repeats: Annotated[int, typer.Option(min=1, help="Timed decodes per row (median).")] = 3,
+    repeats: Annotated[
+        int, typer.Option(callback=int_range(1), help="Timed decodes per row (median).")
+    ] = 3,
 ) -> None:
     """Decode real event files with every installed library: speed and agreement."""
     from experiments.perf.formats import COLUMNS, default_files

@@ -110,6 +110,19 @@ def test_run_with_an_unknown_scene_prints_one_line_and_exits_2():
             "wander rig: Invalid value for '--camera': no such event file: 'no/such.npz'",
         ),
         (
+            ["perf", "floor", "--calls", "0"],
+            "wander perf floor: Invalid value for '--calls': must be an integer >= 1, got 0",
+        ),
+        (
+            ["perf", "env", "--antialias", "-1"],
+            "wander perf env: Invalid value for '--antialias': input should be greater than or "
+            "equal to 0, got -1",
+        ),
+        (
+            ["run", "--alpha", "-0.1"],
+            "wander run: Invalid value for '--alpha': alpha must be in [0, 1], got -0.1",
+        ),
+        (
             ["rig", "--ptu", "/dev/no-such-ptu", "--camera", "speck"],
             "wander rig: Invalid value for '--ptu': no such serial port: '/dev/no-such-ptu' "
             "(is the PTU's USB-serial adapter plugged in? Give a device such as /dev/ttyUSB0, "
