@@ -74,7 +74,7 @@ def test_a_signal_dropped_in_a_weakref_callback_is_delivered_again():
 
 def test_a_second_signal_during_clean_up_is_ignored(capfd):
     done = []
-    with pytest.raises(SignalExit):
+    with pytest.raises(SignalExit, match=r"^stopped by SIGTERM \(signal 15\)$"):
         with handle_signals():
             try:
                 os.kill(os.getpid(), signal.SIGTERM)
@@ -243,7 +243,7 @@ def test_a_signal_while_setting_up_still_leaves_a_folder(tmp_path, monkeypatch):
 
     monkeypatch.setattr(run_agent, "AttentionAgent", stopped)
     out = tmp_path / "run"
-    with pytest.raises(SignalExit):
+    with pytest.raises(SignalExit, match=r"^stopped by SIGTERM \(signal 15\)$"):
         run_agent.run(out, run_agent.RunConfig(WanderConfig(episode_seconds=1.0), video=False))
     m = strict_json(out / "metrics.json")
     assert m == {

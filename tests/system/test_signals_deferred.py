@@ -176,7 +176,7 @@ def test_the_episode_loop_reports_the_signal_that_foreign_code_turned_into_anoth
 
 def test_a_second_signal_after_the_first_was_taken_up_is_reported_and_ignored(capfd):
     written = []
-    with pytest.raises(SignalExit):
+    with pytest.raises(SignalExit, match=r"^stopped by SIGTERM \(signal 15\)$"):
         with handle_signals(), DeferredSignals() as signals:
             os.kill(os.getpid(), signal.SIGTERM)
             try:

@@ -45,7 +45,7 @@ def test_timed_keeps_each_calls_wall_and_cpu_time() -> None:
         raise ValueError("x")
 
     g = timed(boom, acc, "g")
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"^x$"):
         g()
     assert len(acc.wall["g"]) == 1  # a call that raised is timed too
     acc.clear()

@@ -187,4 +187,9 @@ def test_command_prints_both_tables_and_refuses_unknown_motions() -> None:
 
 
 def test_command_refuses_zero_seconds() -> None:
-    assert CliRunner().invoke(app, ["perf", "fidelity", "--seconds", "0"]).exit_code == 2
+    result = CliRunner().invoke(app, ["perf", "fidelity", "--seconds", "0"], prog_name="wander")
+    assert result.exit_code == 2
+    assert result.stderr == (
+        "wander perf fidelity: Invalid value for '--seconds': must be a whole number of "
+        "0.01 s control periods in [0.01, 60] seconds, got 0.0\n"
+    )

@@ -150,4 +150,6 @@ def test_run_refuses_a_bad_config_file_in_one_line(tmp_path, text, message):
     assert f" run: error: {config}: {message}" in result.output  # the test runner names it root
     assert result.output.count("\n") == 1 and not (tmp_path / "r").exists()
     missing = runner.invoke(app, ["run", "--config", str(tmp_path / "no.yaml")])
-    assert missing.exit_code == 2 and "'--config': file" in missing.output
+    assert missing.exit_code == 2 and missing.output.endswith(
+        f" run: Invalid value for '--config': file '{tmp_path / 'no.yaml'}' does not exist.\n"
+    )

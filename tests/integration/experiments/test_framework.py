@@ -83,9 +83,16 @@ def test_coerce_accepts_the_declared_types_and_refuses_others():
     assert coerce([[1, 2]], tuple[tuple[float, float], ...]) == ((1.0, 2.0),)
     assert coerce("q", Literal["p", "q"]) == "q"
     assert coerce(None, int | None) is None
-    for value, tp in [(True, int), (1.5, int), ("x", float), ("r", Literal["p", "q"]), (1, bool)]:
-        with pytest.raises(TypeError):
+    for value, tp, message in [
+        (True, int, "expected int"),
+        (1.5, int, "expected int"),
+        ("x", float, "expected float"),
+        ("r", Literal["p", "q"], "expected one of 'p', 'q'"),
+        (1, bool, "expected bool"),
+    ]:
+        with pytest.raises(TypeError) as e:
             coerce(value, tp)
+        assert str(e.value) == message, (value, tp)
     with pytest.raises(TypeError, match=r"expected list \[float, float\]"):
         coerce([1, 2, 3], tuple[float, float])
 
@@ -124,7 +131,7 @@ def test_every_registered_experiment_has_a_default_config_file_equal_to_its_defa
         exp = get_experiment(name)
         assert (configs_dir() / f"{name}.yaml").is_file()
         assert resolve_config(exp) == exp.config_type()
-        assert exp.name == name and exp.compare is not None and exp.plot is not None
+        assert exp.name == name and callable(exp.compare) and callable(exp.plot)
 
 
 def test_config_file_then_set_override_the_defaults(tmp_path):

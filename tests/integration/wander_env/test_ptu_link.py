@@ -62,11 +62,16 @@ def test_the_axis_moves_only_once_the_command_has_arrived() -> None:
     ptu.step(6 * BYTE - 1e-6)  # "PP200 " is 6 bytes
     assert ptu.positions == (0, 0) and ptu.moving
     ptu.step(0.002)
-    assert ptu.pan_velocity_deg_s > 0
+    # From the base speed (1000 positions/s) at 2000 positions/s^2 from the arrival on:
+    # 2 ms less the 1 us before it.
+    deg = ptu.params.pan_deg_per_pos
+    assert ptu.pan_velocity_deg_s == pytest.approx((1000 + 2000 * (0.002 - 1e-6)) * deg)
     ideal = PanTiltUnit(PTUParams.preset("ideal"))
     ideal.set_target(pan_deg=200 * ideal.params.pan_deg_per_pos)
     ideal.step(6 * BYTE - 1e-6)
-    assert ideal.pan_velocity_deg_s > 0 and math.isnan(ideal.command_latency_s)
+    # No link: it accelerates from the step's start.
+    assert ideal.pan_velocity_deg_s == pytest.approx((1000 + 2000 * (6 * BYTE - 1e-6)) * deg)
+    assert math.isnan(ideal.command_latency_s)
 
 
 def test_moving_is_the_rigs_until_a_poll_sees_the_target() -> None:
@@ -85,6 +90,9 @@ def test_moving_is_the_rigs_until_a_poll_sees_the_target() -> None:
     # The link adds the command's 9 bytes before the move and up to a poll after it.
     assert t_flir - t_ideal >= 9 * BYTE * 1e3
     assert t_flir - t_ideal <= (9 + 16) * BYTE * 1e3 + 10 + 16 * BYTE * 1e3 + 1
+    # 20 positions at the base speed: 20 ms; on the link, the step that ends the move
+    # after the command's bytes and the poll that sees the target.
+    assert (t_ideal, t_flir) == (20, 53)
     assert ptu.link.schedule.positions == (20, 0) and ptu.link.schedule.poll_target == (20, 0)
 
 

@@ -10,7 +10,7 @@ import pytest
 import wander_env  # noqa: F401  (registers the envs)
 from wander_env.config import ConfigError, validate
 from wander_env.env_config import WanderConfig
-from wander_env.readout import COUNTERS, ReadoutParams
+from wander_env.readout import COUNTERS, LOST, ReadoutParams
 
 
 def _run(readout) -> tuple[str, list[dict]]:
@@ -45,8 +45,16 @@ def test_readout_counters_reach_info():
     step = counts[1]
     assert list(step) == list(COUNTERS)
     assert step["dropped_queue"] > 0
+    pending = 0
     for c in counts[1:]:
         assert all(isinstance(v, int) for v in c.values())
+        # every event accounted for; only the queue loses any (the rest is off)
+        assert c["in"] == c["out"] + c["dropped_queue"] + c["pending"] - pending
+        assert [c[k] for k in LOST if k != "dropped_queue"] == [0] * (len(LOST) - 1)
+        assert c["pending"] <= 16 and c["out"] <= 2000  # queue_depth; 2e5 ev/s for 10 ms
+        pending = c["pending"]
+    # the saccade's events fill the queue: the last two steps deliver at the full rate
+    assert [c["out"] for c in counts[2:]] == [2000, 2000]
 
 
 def test_the_config_field_takes_none_a_preset_or_a_block():

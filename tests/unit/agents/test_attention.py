@@ -105,7 +105,9 @@ def test_window_fixational_steps_decision_and_saccade(agent: AttentionAgent) -> 
     x, y = agent.target
     assert 88 <= x <= 103 and 28 <= y <= 43, agent.target
     assert agent.phase is Phase.SACCADE
-    assert agent.fixations[0].target_px == (x, y) and agent.fixations[0].oms_events > 0
+    # measured 3907 sOMS events in the window; 1 % for float32 rounding on another CPU
+    assert agent.fixations[0].target_px == (x, y)
+    assert agent.fixations[0].oms_events == pytest.approx(3907, rel=0.01)
     sent = [np.array(action_to_gaze_degrees(decision_action))]
     for _ in range(9):  # 100 ms of controller time in all
         sent.append(np.array(action_to_gaze_degrees(agent.act(obs_of(np.zeros((2, H, W))), {}))))
@@ -162,8 +164,9 @@ def test_suppression_counts(agent: AttentionAgent) -> None:
     rng = np.random.default_rng(2)
     ev = blob_events(0, rng)
     agent.act(obs_of(ev), {"moving": False})
-    assert agent.events_in == int(ev.sum())
-    assert 0 < agent.events_oms < agent.events_in
+    assert agent.events_in == int(ev.sum()) == 621
+    # measured 316 kept; 2 % for float32 rounding on another CPU
+    assert agent.events_oms == pytest.approx(316, rel=0.02)
     assert agent.suppression == pytest.approx(1 - agent.events_oms / agent.events_in)
 
 

@@ -54,9 +54,9 @@ def test_normalised_error_centre_and_edges() -> None:
 def test_steps_for_requires_whole_multiples() -> None:
     assert steps_for(0.01, 0.001) == 10
     assert steps_for(0.124, 0.001) == 124
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="not a whole multiple of dt"):
         steps_for(0.0105, 0.001)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="finite number >= 0"):
         steps_for(-0.01, 0.001)
 
 
@@ -81,11 +81,11 @@ def test_paper_command_positions_literal() -> None:
 
 
 def test_params_validate() -> None:
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="n_neurons"):
         ControlParams(n_neurons=0)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"ControlParams\.dt"):
         ControlParams(dt=0.0)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="tau_output_s"):
         ControlParams(tau_output_s=-1.0)
     p = ControlParams()
     assert (p.n_neurons, p.k_pan, p.k_tilt, p.width_px, p.height_px) == (50, 1.0, 1.0, 128, 128)
@@ -162,9 +162,9 @@ def test_lockstep_time(ctrl: AttentionController) -> None:
     assert ctrl.n_steps == 224
     u = ctrl.output
     assert np.array_equal(ctrl.step(_target(0.2, 0.1), 0.0), u) and ctrl.n_steps == 224
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="not a whole multiple of dt"):
         ctrl.step(_target(0.2, 0.1), 0.0105)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="must be finite"):
         ctrl.step((np.nan, 3.0), PERIOD_S)
 
 

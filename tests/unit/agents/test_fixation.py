@@ -89,9 +89,10 @@ def test_exactly_n_steps_per_fixation() -> None:
     steps = _fixation(fix)
     assert len(steps) == 8 and fix.done
     assert [s.index for s in steps] == list(range(8))
-    with pytest.raises(RuntimeError):
+    with pytest.raises(RuntimeError, match="fixation finished"):
         fix.next_offset()
-    assert len(_fixation(FixationalMovements(FixationParams(n_steps=3), np.random.default_rng(0))))
+    three = FixationalMovements(FixationParams(n_steps=3), np.random.default_rng(0))
+    assert len(_fixation(three)) == 3
     assert fix.params.duration_s == pytest.approx(0.124)
 
 
@@ -176,11 +177,11 @@ def test_due_schedule() -> None:
 
 
 def test_params_validate() -> None:
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="interval_s"):
         FixationParams(interval_s=0.0)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="max_excursion_pos"):
         FixationParams(max_excursion_pos=-1)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="n_steps"):
         FixationParams(n_steps=-1)
     p = FixationParams()
     assert (p.n_steps, p.max_step_pos, p.resolution_arcsec) == (8, 60, 92.5714)

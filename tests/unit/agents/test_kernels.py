@@ -46,7 +46,7 @@ def test_gaussian_sums_to_one_and_matches_formula():
     # even size: the four central pixels share the peak; symmetric under flips
     assert k[3, 3] == pytest.approx(k.max()) and k[4, 4] == pytest.approx(k.max())
     assert np.allclose(k, k[::-1, ::-1]) and np.allclose(k, k.T)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="sigma must be > 0"):
         gaussian_kernel(8, 0.0)
 
 
@@ -141,9 +141,9 @@ def test_even_kernel_alignment_is_torchs():
 
 def test_fft_conv_rejects_wrong_input():
     conv = FFTConv2d(torch.ones(1, 1, 3, 3), 10, 10)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"expected input \(N, 1, 10, 10\)"):
         conv(torch.zeros(1, 1, 10, 11))
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"weight must be \(C_out"):
         FFTConv2d(torch.ones(3, 3), 10, 10)
 
 

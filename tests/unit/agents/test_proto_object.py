@@ -267,9 +267,9 @@ def test_any_size_and_bad_input():
         out = po.step(np.zeros((2, h, w), np.float32))
         assert tuple(out.saliency.shape) == (h, w)
         assert tuple(out.grouping.shape) == (4, h, w)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"oms_map must be \(2, H, W\)"):
         po.step(np.zeros((1, 8, 8), np.float32))
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="levels must be >= 1"):
         ProtoObjectParams(levels=0)
 
 

@@ -68,9 +68,9 @@ def test_tau_in_steps_and_paper_defaults():
     soms = SOMS(SOMSParams(dt=0.005))
     assert float(soms.lif.tau_mem) == pytest.approx(4.0)
     assert soms.alpha_mem == pytest.approx(math.exp(-0.25))
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="dt must be > 0"):
         SOMSParams(dt=0.0)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="alpha"):
         SOMSParams(alpha=1.5)
 
 
@@ -81,8 +81,8 @@ def test_kernel_weights_are_peak_normalised_gaussians():
     # index (3, 3) sits at (-0.5, -0.5): the peak; index (0, 3) at (-0.5, -3.5)
     assert float(w[1, 0, 0, 3]) == pytest.approx(math.exp(-(0.25 + 12.25) / 32.0 + 0.25 / 16.0))
     assert float(w[0, 0, 0, 3]) == pytest.approx(math.exp(-(0.25 + 12.25) / 2.0 + 0.25))
-    # the surround carries about 5.6x the centre's mass
-    assert 5.0 < float(w[1].sum() / w[0].sum()) < 6.5
+    # the surround carries 5.92x the centre's mass
+    assert float(w[1].sum() / w[0].sum()) == pytest.approx(5.9213, rel=1e-4)
     ws = centre_surround_weights(SOMSParams(kernel_norm="sum"))
     assert float(ws[0].sum()) == pytest.approx(1.0) and float(ws[1].sum()) == pytest.approx(1.0)
 
@@ -150,8 +150,10 @@ def test_eye_only_motion_is_mostly_suppressed():
     oms = run(ev)[WARM:]
     n_events = int((ev[WARM:] > 0).sum())
     kept = int(oms.sum())
-    assert n_events > 20 * 1000
-    assert kept / n_events <= 0.2  # >= 80 % of the events suppressed (≈99 % measured)
+    # measured: 561 of 60480 events kept (99.07 % suppressed); the counts are stated
+    # to 0.1 % and 3 % for float rounding on another CPU
+    assert n_events == pytest.approx(60480, rel=1e-3)
+    assert kept == pytest.approx(561, rel=0.03)
     assert np.all(oms <= (ev[WARM:] > 0))  # fires only where an event occurred
 
 
@@ -159,14 +161,18 @@ def test_object_moving_faster_than_the_background_stands_out():
     ev, mask = scene_events(25, v_bg=1, v_obj=3, obj=32)
     oms = run(ev)[WARM:].max(axis=1)  # either polarity
     inside, outside = oms[:, mask].mean(), oms[:, ~mask].mean()
-    assert inside > 0.005
-    assert inside >= 5.0 * outside  # ≈40x measured
+    # measured: 294 spikes on the object's 20 x 1024 pixel-steps, 147 on the rest's
+    # 20 x 15360 (30x the rate); 3 % and 5 % for float rounding on another CPU
+    assert oms[:, mask].sum() == pytest.approx(294, rel=0.03)
+    assert oms[:, ~mask].sum() == pytest.approx(147, rel=0.05)
+    assert inside >= 20.0 * outside
 
 
 def test_object_only_motion_fires_on_the_object():
     ev, mask = scene_events(15, v_bg=0, v_obj=3, obj=32)
     oms = run(ev)[WARM:].max(axis=1)
-    assert oms[:, mask].sum() > 0 and oms[:, ~mask].sum() == 0
+    # measured 114 spikes on the object; 3 % for float rounding on another CPU
+    assert oms[:, mask].sum() == pytest.approx(114, rel=0.03) and oms[:, ~mask].sum() == 0
 
 
 def test_background_faster_than_object_fails_as_in_the_paper():
@@ -183,7 +189,7 @@ def test_any_size_no_events_and_bad_input():
     assert torch.isfinite(out.score).all()
     out = soms.step(np.ones((2, 33, 17), np.float32))  # a new size rebuilds
     assert tuple(out.diff.shape) == (2, 33, 17)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"event_map must be \(2, H, W\)"):
         soms.step(np.zeros((3, 8, 8), np.float32))
 
 
@@ -236,4 +242,7 @@ def test_agent_soms_suppresses_uniform_ego_motion_and_keeps_the_object():
     ev, mask = scene_events(WARM + 4, v_bg=1, v_obj=4, obj=24)
     out = run(ev, p)[WARM:]
     kept = out.sum(axis=(0, 1))
-    assert kept.sum() > 0 and kept[mask].sum() / kept.sum() >= 0.9
+    # measured: 336 of 365 kept events on the object; 3 % for float rounding elsewhere
+    assert kept.sum() == pytest.approx(365, rel=0.03)
+    assert kept[mask].sum() == pytest.approx(336, rel=0.03)
+    assert kept[mask].sum() / kept.sum() >= 0.9

@@ -134,7 +134,8 @@ def test_the_agent_runs_the_speck_front_end_by_name():
     for _ in range(5):
         agent.act({"events": ev, "gaze": np.zeros(2)}, {"moving": False})
     assert agent.decided and abs(agent.target[0] - 40) <= 1 and abs(agent.target[1] - 90) <= 1
-    assert agent.events_in == 5 * int(ev.sum()) and 0 < agent.events_oms < agent.events_in
+    # integer weights, thresholds and counts: the kept count is exact on any CPU
+    assert agent.events_in == 5 * int(ev.sum()) == 500 and agent.events_oms == 405
     agent.close()
 
 
@@ -169,8 +170,11 @@ def test_the_experiments_score_the_speck_front_end_by_name():
         OMSScorecardConfig(compare="chip")
     s = Stimulus("sine", "patch", 16, "ratio-4", "ideal", seed=0, duration_s=0.05)
     m = measure(s, {"speck": SpeckFrontParams(), "agent": AgentParams().soms})
-    assert m["speck"].events_in == m["agent"].events_in > 0
-    assert 0 < m["speck"].kept < m["speck"].events_in
+    # measured 69239 events in, 39344 kept; the ideal DVS's float64 log may round a
+    # threshold crossing differently on another CPU: 0.1 % stated
+    assert m["speck"].events_in == m["agent"].events_in
+    assert m["speck"].events_in == pytest.approx(69239, rel=1e-3)
+    assert m["speck"].kept == pytest.approx(39344, rel=1e-3)
 
 
 def test_wander_run_and_evaluate_pick_the_front_end_by_soms():

@@ -485,5 +485,7 @@ def test_emulator_params_are_checked():
 
 def test_doctests():
     flags = doctest.ELLIPSIS
-    assert doctest.testmod(ptu_driver, optionflags=flags).failed == 0
-    assert doctest.testmod(ptu_emulator, optionflags=flags).failed == 0
+    result = doctest.testmod(ptu_driver, optionflags=flags)
+    assert (result.failed, result.attempted) == (0, 15)  # all ran, none failed
+    result = doctest.testmod(ptu_emulator, optionflags=flags)
+    assert (result.failed, result.attempted) == (0, 4)

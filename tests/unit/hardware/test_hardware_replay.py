@@ -154,10 +154,10 @@ def test_state_errors_and_idempotent_close():
     with pytest.raises(RuntimeError, match="before start"):
         src.read(duration_us=1)
     src.start()
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="duration_us must be a non-negative integer"):
         src.read(duration_us=-1)
     src.read(until_t_us=1000)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"until_t_us=999 is before the end of the last window"):
         src.read(until_t_us=999)
     src.close()
     src.close()
@@ -175,7 +175,7 @@ def test_empty_recording_is_finished_at_once():
 
 
 def test_params_are_validated():
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="speed must be a positive finite number"):
         ReplayParams(speed=0)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="speed must be a positive finite number"):
         ReplaySource(small_recording(), speed=float("nan"))

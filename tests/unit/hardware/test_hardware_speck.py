@@ -203,11 +203,11 @@ def test_preferred_family_and_serial_are_chosen(monkeypatch, events):
 
 
 def test_params_are_validated():
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"read_timeout_ms must be an int in 1\.\.10000"):
         SpeckParams(read_timeout_ms=0.05)  # seconds given for ms
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="queue_events must be >= 1"):
         SpeckParams(queue_events=0)
-    with pytest.raises(TypeError):
+    with pytest.raises(TypeError, match="no_such_option"):
         SpeckSource(no_such_option=1)
 
 
@@ -303,10 +303,10 @@ def test_late_events_are_counted_not_delivered(monkeypatch, events):
 
 def test_window_arguments_are_checked(fake):
     with SpeckSource() as src:
-        with pytest.raises(ValueError):
+        with pytest.raises(ValueError, match="give duration_us or until_t_us, not both"):
             src.read(duration_us=10, until_t_us=20)
         src.read(until_t_us=5_000)
-        with pytest.raises(ValueError):
+        with pytest.raises(ValueError, match=r"until_t_us=4000 is before the end"):
             src.read(until_t_us=4_000)
     with pytest.raises(RuntimeError, match="closed"):
         src.read(duration_us=1)

@@ -82,7 +82,7 @@ def test_refractory_period_caps_the_rate_of_a_flickering_pixel():
     for i in range(1, 201):  # 200 ms of a 1 kHz-sampled flicker between 0.2 and 0.8
         n += len(emu.step(np.full((8, 8), 0.8 if i % 2 else 0.2), i * 1000))
     assert n <= 64 * 200  # at most one event per pixel per refractory period
-    assert n >= 64 * 190
+    assert n == 64 * 197  # each pixel: 197 of the 200 flips (measured)
 
 
 def test_static_scene_with_noise_off_emits_nothing():
@@ -261,7 +261,7 @@ def test_leak_events_of_one_pixel_are_periodic():
     emu = DVSEmulator(1, 1, DVSParams(leak_rate_hz=10.0), seed=0)
     emu.reset(np.full((1, 1), 0.3), 0)
     ev = np.concatenate([emu.step(np.full((1, 1), 0.3), i * 1000) for i in range(1, 1001)])
-    assert len(ev) in (9, 10)
+    assert len(ev) == 10  # a random phase (seed 0) puts the first at 36.3 ms
     assert np.diff(ev["t"]) == pytest.approx(100_000, abs=2)
 
 

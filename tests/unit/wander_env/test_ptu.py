@@ -171,9 +171,12 @@ def test_stopping_distance():
     assert stopping_distance(2000, 2000, 1000) == pytest.approx(750.0)
 
 
-@pytest.mark.parametrize(("vmax", "amax", "vbase"), [(0, 1, 0), (1, -1, 0), (1, 1, -1)])
-def test_move_duration_rejects_bad_limits(vmax, amax, vbase):
-    with pytest.raises(ValueError):
+@pytest.mark.parametrize(
+    ("vmax", "amax", "vbase", "field"),
+    [(0, 1, 0, "vmax"), (1, -1, 0, "amax"), (1, 1, -1, "vbase")],
+)
+def test_move_duration_rejects_bad_limits(vmax, amax, vbase, field):
+    with pytest.raises(ValueError, match=f"^{field} must be a finite number"):
         move_duration(10, vmax, amax, vbase)
 
 
@@ -482,12 +485,16 @@ def test_unit_camera_position_uses_camera_angles():
     )
 
 
-@pytest.mark.parametrize("module", ["units", "link", "params", "axis", "mechanics", "unit"])
-def test_docstring_examples_run(module):
+@pytest.mark.parametrize(
+    ("module", "examples"),
+    [("units", 4), ("link", 13), ("params", 4), ("axis", 7), ("mechanics", 3), ("unit", 14)],
+)
+def test_docstring_examples_run(module, examples):
     import doctest
     import importlib
 
-    assert doctest.testmod(importlib.import_module(f"wander_env.ptu.{module}")).failed == 0
+    result = doctest.testmod(importlib.import_module(f"wander_env.ptu.{module}"))
+    assert (result.failed, result.attempted) == (0, examples)  # all ran, none failed
 
 
 @pytest.mark.parametrize(
