@@ -385,7 +385,7 @@ def test_ptu_going_silent_mid_run_times_out_after_a_halt_attempt(recording, emu,
         assert "halt (H) sent, not acknowledged" in str(info.value)
         assert isinstance(info.value.__cause__, PTUTimeout)
         assert "PP0" in emu.commands[n_before:] and emu.commands[-1] == "H"
-        with pytest.raises(PTUTimeout):  # every later step says so too
+        with pytest.raises(PTUTimeout, match="stopped answering mid-run"):  # every later step too
             env.step(np.zeros(2, np.float32))
         with caplog.at_level(logging.WARNING, logger="hardware.ptu_driver"):
             env.close()  # halts once more; the halt's wait ends at the driver's halt timeout
