@@ -101,3 +101,30 @@ def test_view_prints_the_command_headless_and_spawns_with_a_display(tmp_path, mo
     assert started[0][1]["env"]["DISPLAY"] == ":0"
     with pytest.raises(FileNotFoundError, match=r"no run\.rrd in"):
         view(tmp_path / "empty", env={})
+
+
+def test_view_refuses_what_it_cannot_open_in_one_line(tmp_path, monkeypatch):
+    """Empty, not a recording, a folder, unreadable: each a one-line ValueError naming the
+    file, before a viewer is started (tests run as root: a read that fails is made so)."""
+    from experiments.runs import viewer
+
+    rrd = tmp_path / "run.rrd"
+    rrd.write_bytes(b"")
+    with pytest.raises(ValueError, match=rf"^'{rrd}' is empty: the run wrote no recording$"):
+        view(tmp_path, env={})
+    rrd.write_bytes(b"PK\x03\x04")
+    with pytest.raises(ValueError, match=r"is not a Rerun recording: it starts with b'PK\\x03'"):
+        view(tmp_path, env={})
+    rrd.write_bytes(RRD_MAGIC + b"2")
+
+    def denied(*args, **kwargs):
+        raise PermissionError(13, "Permission denied", str(rrd))
+
+    monkeypatch.setattr(viewer, "open", denied, raising=False)
+    with pytest.raises(ValueError, match=rf"^cannot read '{rrd}': Permission denied$"):
+        view(tmp_path, env={})
+    monkeypatch.undo()
+    rrd.unlink()
+    rrd.mkdir()
+    with pytest.raises(ValueError, match=rf"^'{rrd}' is not a regular file$"):
+        view(tmp_path, env={})
