@@ -62,6 +62,7 @@ from agents.pipeline import PipelineBase, SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
 from agents.speck_front import SpeckFrontParams, SpeckPipeline
+from agents.suppression import kept_events, suppressed_fraction
 from agents.torch_fork import set_torch_threads
 from wander_env.actions import gaze_degrees_to_action
 from wander_env.camera import SPECK_HFOV_DEG, pixel_to_rotation
@@ -453,7 +454,7 @@ class AttentionAgent:
         self.steps += 1
         self.decided = False
 
-        oms_counts = counts * self.pipeline.oms_step(counts).numpy()  # the events sOMS keeps
+        oms_counts = kept_events(counts, self.pipeline.oms_step(counts).numpy())
         self.events_in += int(counts.sum())
         self.events_oms += int(oms_counts.sum())
 
@@ -595,9 +596,7 @@ class AttentionAgent:
     @property
     def suppression(self) -> float:
         """Fraction of the events seen so far that the sOMS suppressed (nan before any)."""
-        if self.events_in == 0:
-            return float("nan")
-        return 1.0 - self.events_oms / self.events_in
+        return suppressed_fraction(self.events_in, self.events_oms)
 
     def close(self) -> None:
         """Release the nengo simulator."""

@@ -68,16 +68,20 @@ class MapsLike(Protocol):
     """What ``model.process`` returns: maps on the sensor grid and the salient point."""
 
     oms: np.ndarray
+    oms_polarity: np.ndarray
     saliency: np.ndarray
     point_xy: tuple[float, float] | None
 
 
 @dataclass(frozen=True, eq=False)
 class Maps:
-    """A plain :class:`MapsLike`: OMS map (bool ``(H, W)``), saliency (float ``(H, W)``)
-    and the saliency argmax ``(x, y)`` (``None`` when there is none)."""
+    """A plain :class:`MapsLike`: the OMS map (bool ``(H, W)``: either polarity fired),
+    per polarity (bool ``(2, H, W)``, channel 0 OFF, 1 ON: which events it keeps,
+    :func:`agents.suppression.kept_events`), the saliency (float ``(H, W)``) and its argmax
+    ``(x, y)`` (``None`` when there is none)."""
 
     oms: np.ndarray
+    oms_polarity: np.ndarray
     saliency: np.ndarray
     point_xy: tuple[float, float] | None = None
 
@@ -188,12 +192,14 @@ def score_window(
 
 
 def check_maps(maps: MapsLike, hw: tuple[int, int], where: str) -> MapsLike:
-    for name in ("oms", "saliency"):
+    """``maps`` on the sensor grid ``hw`` (H, W): its OMS and saliency maps ``(H, W)``,
+    its per-polarity OMS map ``(2, H, W)``; ValueError naming ``where`` otherwise."""
+    for name, shape in (("oms", hw), ("oms_polarity", (2, *hw)), ("saliency", hw)):
         arr = np.asarray(getattr(maps, name))
-        if arr.shape != hw:
+        if arr.shape != shape:
             raise ValueError(
-                f"{where}: the model's {name} map is {arr.shape}, the sensor grid is {hw} "
-                f"(H, W); maps must stay on the sensor grid (pad, never stretch)"
+                f"{where}: the model's {name} map is {arr.shape}, the sensor grid needs "
+                f"{shape}; maps must stay on the sensor grid (pad, never stretch)"
             )
     return maps
 

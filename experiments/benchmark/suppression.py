@@ -9,13 +9,13 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
 
 import numpy as np
 
+from agents.suppression import kept_events, suppressed_fraction
 from experiments.analysis.stats import mean_std
 from experiments.benchmark.protocol import BenchmarkModel, ProgressEvent, ProgressFn, check_maps
 from wander_env.events import SensorSize, check_sorted, time_window, to_frame
@@ -32,22 +32,9 @@ PAPER_SUPPRESSION: Mapping[str, float] = MappingProxyType(
 )
 
 
-def oms_active_events(events: np.ndarray, oms: np.ndarray) -> int:
-    """How many of ``events`` fall on pixels where the OMS map is active.
-
-    >>> from wander_env.events import make_events
-    >>> o = np.zeros((2, 3), bool); o[1, 2] = True
-    >>> oms_active_events(make_events([2, 2, 0], [1, 1, 0], [0, 1, 2], [1, 0, 1]), o)
-    2
-    """
-    if len(events) == 0:
-        return 0
-    return int(np.count_nonzero(np.asarray(oms, dtype=bool)[events["y"], events["x"]]))
-
-
 @dataclass(frozen=True, eq=False)
 class SuppressionResult:
-    """Events into the OMS stage and OMS-active events out, per window."""
+    """Events into the OMS stage and the events it kept, per window."""
 
     window_us: int
     events_in: np.ndarray
@@ -68,7 +55,7 @@ class SuppressionResult:
     @property
     def fraction_suppressed(self) -> float:
         """``1 − out / in`` over the whole recording (the paper's 85.16 %)."""
-        return 1.0 - self.total_out / self.total_in if self.total_in else math.nan
+        return suppressed_fraction(self.total_in, self.total_out)
 
     def per_window(self, ddof: int = 0) -> dict[str, float]:
         """Mean ± std of events in / out per window (the paper's Table layout)."""
@@ -90,12 +77,13 @@ def event_suppression(
     progress: ProgressFn | None = None,
     name: str = "recording",
 ) -> SuppressionResult:
-    """Stream a recording in ``window_us`` steps; count events in and OMS-active out.
+    """Stream a recording in ``window_us`` steps; count events in and kept out.
 
     Meant for a recording with no independently moving object, where every event the
     OMS stage keeps is a false positive. Windows tile ``[t_first, t_last]``; each
-    window's events are counted as *out* when they fall on a pixel active in the OMS
-    map the model returns for that window.
+    window's events are counted as *out* when the OMS map of their polarity, which the
+    model returns for that window, fired at their pixel (:func:`agents.suppression.
+    kept_events`, the agent's and the studies' rule).
     """
     if window_us <= 0:
         raise ValueError(f"window_us must be > 0, got {window_us}")
@@ -111,11 +99,10 @@ def event_suppression(
     for k in range(n):
         a = t0 + k * window_us
         wev = time_window(events, a, a + window_us)
-        maps = check_maps(
-            model.process(to_frame(wev, sensor_size), window_us / 1e6), hw, f"{name} window {k}"
-        )
+        counts = to_frame(wev, sensor_size)
+        maps = check_maps(model.process(counts, window_us / 1e6), hw, f"{name} window {k}")
         ins[k] = len(wev)
-        outs[k] = oms_active_events(wev, maps.oms)
+        outs[k] = int(kept_events(counts, maps.oms_polarity).sum())
         if progress is not None:
             progress(ProgressEvent(name, "", 0, 1, k, n))
     return SuppressionResult(window_us, ins, outs)

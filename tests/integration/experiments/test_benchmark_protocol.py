@@ -44,7 +44,8 @@ class FakeModel:
     def process(self, event_counts: np.ndarray, dt_s: float) -> Maps:
         assert event_counts.shape == (2, H, W)
         self.calls.append((float(event_counts.sum()), dt_s))
-        return Maps(self.oms, np.zeros((H, W), np.float32), self.point)
+        both = np.stack([self.oms, self.oms])  # the same map for either polarity
+        return Maps(self.oms, both, np.zeros((H, W), np.float32), self.point)
 
 
 MASK_A = box(4, 8, 4, 8)  # 16 px

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import numpy as np
 from test_benchmark_protocol import OMS, SENSOR, FakeModel
 
+from experiments.benchmark.protocol import Maps
 from experiments.benchmark.suppression import event_suppression, render_suppression_markdown
 from wander_env.events import make_events
 
@@ -27,3 +29,24 @@ def test_event_suppression_counts():
     assert [c[1] for c in model.calls] == [0.002] * 3
     md = render_suppression_markdown(res, "poster")
     assert "37.50 %" in md and "85.16 %" in md
+
+
+class _OffOnly:
+    """The OMS fired in the OFF map alone, over the whole sensor."""
+
+    def reset(self) -> None:
+        pass
+
+    def process(self, event_counts, dt_s):
+        polarity = np.zeros((2, *OMS.shape), bool)
+        polarity[0] = True
+        return Maps(polarity.any(axis=0), polarity, np.zeros(OMS.shape, np.float32))
+
+
+def test_an_event_is_kept_only_where_the_map_of_its_polarity_fired():
+    """The agent's rule (agents.suppression.kept_events): an ON event at a pixel where only
+    the OFF map fired is suppressed."""
+    events = make_events(x=[5, 5, 6, 7], y=[5, 5, 5, 9], t=[0, 10, 20, 30], p=[1, 0, 1, 0])
+    res = event_suppression(events, SENSOR, _OffOnly(), window_us=2000)
+    assert res.events_in.tolist() == [4] and res.events_out.tolist() == [2]  # the OFF two
+    assert res.fraction_suppressed == 0.5

@@ -473,7 +473,7 @@ def test_alpha_option_on_real_eed_ball_net(tmp_path):
 @needs_realdata
 def test_benchmark_minmax_suppression_on_real_ego_motion(tmp_path):
     """The benchmark's paper-literal (min-max) sOMS on the real ego-motion recordings
-    (camera motion only, 2 ms steps as in the paper): α = 0.5 suppresses 85.44 % of the
+    (camera motion only, 2 ms steps as in the paper): α = 0.5 suppresses 85.48 % of the
     events, the table's 0.80 99.41 % (figures kept reproducible)."""
     pooled = {}
     for alpha in (0.5, 0.8):
@@ -494,7 +494,7 @@ def test_benchmark_minmax_suppression_on_real_ego_motion(tmp_path):
         n_out = sum(r["events_out"] for r in sup.values())
         assert n_in == 130_000
         pooled[alpha] = 1 - n_out / n_in
-    assert pooled[0.5] == pytest.approx(0.8544, abs=5e-5)
+    assert pooled[0.5] == pytest.approx(0.8548, abs=5e-5)
     assert pooled[0.8] == pytest.approx(0.9941, abs=5e-5)
 
 
