@@ -76,6 +76,7 @@ from torch import nn
 from agents.kernels import gaussian_kernel, von_mises_kernel
 from agents.pipeline import PipelineBase
 from agents.proto_object import saliency_argmax
+from agents.speck_limits import SpeckLimits, conv_out, signed_range
 from wander_env.config import check_fields
 
 __all__ = [
@@ -96,7 +97,7 @@ __all__ = [
 ]
 
 #: Speck's weight range (8-bit two's complement).
-INT8_RANGE = (-128, 127)
+INT8_RANGE = signed_range(SpeckLimits().weight_bits)
 
 
 @dataclass(frozen=True)
@@ -192,10 +193,7 @@ class SpeckFrontParams:
     def grid(self) -> tuple[int, int]:
         """The maps' (height, width) after the stride-``dog_stride`` layer."""
         k, s, pad = self.dog_kernel_px, self.dog_stride, self.dog_kernel_px // 2
-        return (
-            (self.height_px + 2 * pad - k) // s + 1,
-            (self.width_px + 2 * pad - k) // s + 1,
-        )
+        return conv_out(self.height_px, k, s, pad), conv_out(self.width_px, k, s, pad)
 
     @property
     def directions_deg(self) -> tuple[float, ...]:

@@ -45,9 +45,11 @@ __all__ = [
     "SpeckLimitError",
     "SpeckLimits",
     "check_network",
+    "conv_out",
     "core_layers",
     "kernel_memory",
     "neuron_memory",
+    "signed_range",
     "violations",
 ]
 
@@ -152,8 +154,23 @@ def _pair(v: int | tuple[int, ...]) -> tuple[int, int]:
     return (int(v), int(v)) if isinstance(v, int) else (int(v[0]), int(v[1]))
 
 
-def _conv_out(n: int, k: int, s: int, p: int) -> int:
+def conv_out(n: int, k: int, s: int, p: int) -> int:
+    """The output size of a convolution over ``n`` pixels: kernel ``k``, stride ``s``,
+    padding ``p`` on each side.
+
+    >>> conv_out(128, 9, 2, 4)  # the Speck front end's first core: 128 -> 64
+    64
+    """
     return (n + 2 * p - k) // s + 1
+
+
+def signed_range(bits: int) -> tuple[int, int]:
+    """The integers a ``bits``-bit two's-complement register holds.
+
+    >>> signed_range(SpeckLimits().weight_bits)
+    (-128, 127)
+    """
+    return -(2 ** (bits - 1)), 2 ** (bits - 1) - 1
 
 
 def core_layers(model: nn.Sequential, input_shape: Sequence[int]) -> list[CoreLayer]:
@@ -192,8 +209,8 @@ def core_layers(model: nn.Sequential, input_shape: Sequence[int]) -> list[CoreLa
         if padding == "same":  # torch: stride 1, the output the input's size
             o_h, o_w = h, w
         else:
-            o_h = _conv_out(h, kernel[0], stride[0], padding[0])
-            o_w = _conv_out(w, kernel[1], stride[1], padding[1])
+            o_h = conv_out(h, kernel[0], stride[0], padding[0])
+            o_w = conv_out(w, kernel[1], stride[1], padding[1])
         out_shape = (int(conv.out_channels), o_h, o_w)
         thr = np.asarray(spk.spike_threshold.detach().cpu().numpy(), np.float64)
         low = getattr(spk, "min_v_mem", None)
@@ -222,7 +239,7 @@ def core_layers(model: nn.Sequential, input_shape: Sequence[int]) -> list[CoreLa
 
 
 def _is_int_in(a: np.ndarray, bits: int) -> bool:
-    lo, hi = -(2 ** (bits - 1)), 2 ** (bits - 1) - 1
+    lo, hi = signed_range(bits)
     return bool(np.all(np.round(a) == a) and a.min(initial=0) >= lo and a.max(initial=0) <= hi)
 
 

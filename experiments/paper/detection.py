@@ -32,7 +32,12 @@ from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
 from experiments.analysis.stats import mean_std
 from experiments.benchmark.datasets.base import MaskWindow, SequenceData
-from experiments.benchmark.protocol import ProtocolConfig, WindowRow, evaluate_sequence
+from experiments.benchmark.protocol import (
+    NOTE_OMS_EMPTY,
+    ProtocolConfig,
+    WindowRow,
+    evaluate_sequence,
+)
 from experiments.benchmark.summary import paper_reference
 from experiments.paper.env_block import check_env_block, trial_env
 from experiments.runs.episode import Recorder, run_episode
@@ -229,7 +234,7 @@ def _means(rows: list[WindowRow], warmup_us: int) -> dict[str, float]:
     out = {"scored_windows": float(len(scored))}
     for name in ("hit", "iou", "precision", "ssim"):
         out[name] = mean_std(getattr(r, name) for r in scored)[0]
-    out["oms_empty"] = float(sum(r.has_note("oms_empty") for r in scored))
+    out["oms_empty"] = float(sum(r.has_note(NOTE_OMS_EMPTY) for r in scored))
     return out
 
 
