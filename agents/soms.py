@@ -206,11 +206,6 @@ class MapLayer(Generic[_Params]):
         """Build (and reset) the state for maps of ``h × w``; each layer defines it."""
         raise NotImplementedError(f"{type(self).__name__} defines no _build")
 
-    @property
-    def alpha_mem(self) -> float:
-        """Membrane decay per step, ``exp(-dt / tau)``."""
-        return math.exp(-self.params.dt / self.params.tau_mem)
-
     def _input(self, m: np.ndarray | torch.Tensor, name: str) -> torch.Tensor:
         """``m`` as a float32 tensor ``(2, H, W)`` (``ValueError`` naming ``name``
         otherwise); a new ``H, W`` rebuilds (and resets) the layer."""

@@ -67,7 +67,8 @@ def test_paper_defaults_and_kernel_bank():
     assert tuple(bank.shape) == (8, 31, 31)
     assert np.allclose(bank[5].numpy(), von_mises_kernel(8.0, 0.2, 225.0), rtol=1e-6)
     po = ProtoObjectSaliency()
-    assert po.alpha_mem == pytest.approx(math.exp(-0.1))
+    for lif in (po.border_lif, po.grouping_lif):  # the decay per step they apply
+        assert float(lif.alpha_mem_calculated) == pytest.approx(math.exp(-0.1), rel=1e-6)
     assert float(po.border_lif.tau_mem) == pytest.approx(10.0)
 
 

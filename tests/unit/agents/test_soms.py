@@ -67,7 +67,8 @@ def test_tau_in_steps_and_paper_defaults():
     assert tau_steps(0.02, 0.001) == pytest.approx(20.0)
     soms = SOMS(SOMSParams(dt=0.005))
     assert float(soms.lif.tau_mem) == pytest.approx(4.0)
-    assert soms.alpha_mem == pytest.approx(math.exp(-0.25))
+    # the decay per step the layer itself applies (lif_step reads it): exp(-dt / tau)
+    assert float(soms.lif.alpha_mem_calculated) == pytest.approx(math.exp(-0.25), rel=1e-6)
     with pytest.raises(ValueError, match="dt must be > 0"):
         SOMSParams(dt=0.0)
     with pytest.raises(ValueError, match="alpha"):
