@@ -69,6 +69,7 @@ from hardware.rig_env import RigConfig
 from hardware.speck import SPECK_DVS_SIZE
 from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.strict_json import to_strict_json
+from wander_env.untrusted import UntrustedFileError
 
 __all__ = [
     "RigCounters",
@@ -347,12 +348,15 @@ def run_rig(
             )
         except BaseException as err:
             base.halt_after_failure()
-            metrics = RunFolder(out_dir).read_json(METRICS_JSON)
+            try:  # the steps the folder recorded: the failure's, not a damaged file's
+                steps = RunFolder(out_dir).read_json(METRICS_JSON).get("steps", 0)
+            except UntrustedFileError:
+                steps = 0
             is_device = _device(err, config) is not None or (
                 isinstance(err, (RuntimeError, OSError)) and _camera_failed(base)
             )
             if isinstance(err, Exception) and is_device:
-                raise _run_failure(err, config, out_dir, metrics.get("steps", 0)) from err
+                raise _run_failure(err, config, out_dir, steps) from err
             raise
         result.metrics = to_strict_json(result.metrics)  # as written: a missing figure is None
         return result

@@ -64,7 +64,6 @@ Examples:
 from __future__ import annotations
 
 import errno
-import json
 import os
 import shutil
 import tempfile
@@ -74,7 +73,9 @@ from typing import Any
 
 from experiments.runs.failure import describe, write_failure
 from experiments.runs.signals import SignalExit
+from wander_env import untrusted
 from wander_env.strict_json import dumps_strict
+from wander_env.untrusted import UntrustedFileError
 
 RUN_JSON = "run.json"
 METRICS_JSON = "metrics.json"
@@ -254,18 +255,34 @@ class RunFolder:
         return self.path
 
     def write_json(self, name: str, data: Any) -> Path:
-        """Write ``data`` as strict, indented JSON (NaN and ±inf as ``null``) to ``name``."""
+        """Write ``data`` as strict, indented JSON (NaN and ±inf as ``null``) to ``name``,
+        whole or not at all: written beside it, then renamed over it (a full disk leaves
+        the earlier file, or none, never a damaged one that :meth:`read_json` refuses)."""
         path = self.create() / name
-        path.write_text(dumps_strict(data, indent=2) + "\n")
+        tmp = path.with_name(f".{name}.tmp")
+        try:
+            tmp.write_text(dumps_strict(data, indent=2) + "\n")
+            os.replace(tmp, path)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
         return path
 
     def read_json(self, name: str) -> dict[str, Any]:
-        """The JSON object in ``name`` ({} when missing, unreadable or not an object)."""
+        """The JSON object in ``name``, read as an untrusted file (bounded:
+        :func:`wander_env.untrusted.read_json`); {} when there is no such file (not written
+        yet). A file that is damaged, unreadable or not an object is an
+        :class:`~wander_env.untrusted.UntrustedFileError` naming it, never taken for {}."""
+        path = self.path / name
         try:
-            data = json.loads((self.path / name).read_text())
-        except (OSError, ValueError, RecursionError):
-            return {}
-        return data if isinstance(data, dict) else {}
+            data = untrusted.read_json(path)
+        except UntrustedFileError as err:
+            if err.missing:
+                return {}
+            raise
+        if not isinstance(data, dict):
+            raise UntrustedFileError(path, f"expected a JSON object, got {type(data).__name__}")
+        return data
 
     def write_run(self, record: dict[str, Any]) -> Path:
         """Write ``run.json``."""
@@ -295,13 +312,10 @@ class RunFolder:
         history of stops in ``run.json`` (``{"stops": [...]}``), so that the folder says
         only how this run ends."""
         metrics, marker = self.path / METRICS_JSON, self.path / INCOMPLETE
-        stop: dict[str, Any] = {}
-        if metrics.is_file():
-            try:
-                data = json.loads(metrics.read_text())
-            except (ValueError, RecursionError):
-                data = {"error": "unreadable metrics.json"}
-            stop.update(data if isinstance(data, dict) else {"error": str(data)[:200]})
+        try:
+            stop = self.read_json(METRICS_JSON)
+        except UntrustedFileError as err:  # a stop all the same: its record says so
+            stop = {"error": f"unreadable {METRICS_JSON}: {err.problem}"}
         if marker.is_file():
             stop["incomplete"] = marker.read_text(errors="replace").strip() or True
         if not stop:
@@ -334,17 +348,17 @@ class RunFolder:
         failed_write = write_failure(err)
         if failed_write is not None:
             self.mark_incomplete(describe(err))
-        metrics = self.read_json(METRICS_JSON)
+        try:
+            metrics = self.read_json(METRICS_JSON)
+        except UntrustedFileError as bad:  # replaced, saying so: the failure comes first
+            metrics = {"unreadable_metrics": bad.problem}
         metrics.setdefault("error", f"{type(err).__name__}: {err}")
         if isinstance(err, SignalExit):
             metrics["signal"] = err.name
         if failed_write is not None:
             metrics["incomplete"] = True
-        path = self.path / METRICS_JSON
         try:
-            tmp = path.with_suffix(".json.tmp")
-            tmp.write_text(dumps_strict(metrics, indent=2) + "\n")
-            os.replace(tmp, path)
+            self.write_json(METRICS_JSON, metrics)
         except (OSError, ValueError):
             pass
 

@@ -268,11 +268,11 @@ def test_hdf5_metadata_nested_100000_deep_is_one_line(tmp_path):
     one_line(
         got,
         "wander benchmark suppression",
-        f"error: {path}: field 'metadata': nested deeper than 64 levels",
+        f"error: {path}: field 'metadata': JSON nested 100001 deep; at most 64",
     )
     with h5py.File(path, "a") as f:
         f.attrs["metadata"] = '{"a": ' + "[" * 64 + "]" * 64 + "}"  # 65 levels: parses
-    with pytest.raises(EventFileError, match="nested deeper than 64 levels"):
+    with pytest.raises(EventFileError, match="JSON nested 65 deep; at most 64"):
         read_events(path)
 
 

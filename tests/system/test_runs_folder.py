@@ -12,6 +12,7 @@ from typer.testing import CliRunner
 
 from experiments.runs.folder import CurrentRun, RunFolder
 from experiments.runs.signals import SignalExit
+from wander_env.untrusted import UntrustedFileError
 
 STAMP = r"\d{8}-\d{6}"
 
@@ -204,6 +205,58 @@ def test_a_resumed_run_moves_the_former_stop_into_the_history(tmp_path):
     assert not (tmp_path / "metrics.json").exists() and not run.incomplete()
     (stop,) = run.read_json("run.json")["stops"]
     assert stop["signal"] == "SIGINT" and stop["incomplete"] == "stopped"
+
+
+def test_read_json_is_empty_only_for_a_file_not_written_yet(tmp_path):
+    run = RunFolder(tmp_path)
+    assert run.read_json("run.json") == {}
+    (tmp_path / "run.json").write_text('{"seed": 1}\n')
+    assert run.read_json("run.json") == {"seed": 1}
+
+
+@pytest.mark.parametrize(
+    ("text", "problem"),
+    [
+        (
+            '{"seed": 1, "stops": [',
+            "not valid JSON, cut short or damaged (Expecting value: line 1 column 23 (char 22))",
+        ),
+        ('["a run"]', "expected a JSON object, got list"),
+        ('{"seed": 1, "seed": 2}', "the key 'seed' is given twice"),
+        ("[" * 65 + "]" * 65, "JSON nested 65 deep; at most 64"),
+    ],
+)
+def test_a_damaged_run_json_is_an_error_naming_it_not_an_empty_record(tmp_path, text, problem):
+    run = RunFolder(tmp_path)
+    (tmp_path / "run.json").write_text(text)
+    with pytest.raises(UntrustedFileError) as info:
+        run.read_json("run.json")
+    assert str(info.value) == f"{tmp_path / 'run.json'}: {problem}"
+    (tmp_path / "metrics.json").write_text('{"steps": 3}')
+    with pytest.raises(UntrustedFileError) as info:  # a resumed run keeps its stops or stops
+        run.take_stop()
+    assert str(info.value) == f"{tmp_path / 'run.json'}: {problem}"
+    assert run.read_json("metrics.json") == {"steps": 3}  # nothing moved, nothing lost
+
+
+def test_a_damaged_metrics_json_is_recorded_as_such_by_the_failure_and_the_stop(tmp_path):
+    run = RunFolder(tmp_path)
+    (tmp_path / "metrics.json").write_text('{"steps": 3')
+    run.record_failure(SignalExit(signal.SIGTERM))
+    damaged = (
+        "not valid JSON, cut short or damaged (Expecting ',' delimiter: line 1 column 12 (char 11))"
+    )
+    assert run.read_json("metrics.json") == {
+        "unreadable_metrics": damaged,
+        "error": "SignalExit: stopped by SIGTERM (signal 15)",
+        "signal": "SIGTERM",
+    }
+    (tmp_path / "metrics.json").write_text('{"steps": 3')
+    run.take_stop()
+    assert run.read_json("run.json") == {
+        "stops": [{"error": f"unreadable metrics.json: {damaged}"}]
+    }
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.json"]
 
 
 def test_wander_demo_without_out_writes_runs_demo_date_time(tmp_path, monkeypatch):

@@ -16,7 +16,9 @@ raises :class:`EventFileError` naming the file, the field and the offending valu
   shared event dtype, each chunk checked first: integer (or whole, finite float)
   values, inside the sensor and the dtype (no silent cast: ``x = 65541`` is an
   error, not 5), polarity 0 or 1, ``t`` finite and sorted;
-- :func:`parse_metadata`: a JSON object, nested at most :data:`MAX_METADATA_DEPTH` deep.
+- :func:`parse_metadata`: a JSON object, by the rules of every untrusted JSON document
+  (:func:`wander_env.untrusted.parse_json`: nested at most ``LIMITS.json_depth`` deep, no
+  key given twice).
 
 Examples:
     >>> import numpy as np
@@ -33,7 +35,6 @@ Examples:
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Mapping
@@ -45,6 +46,7 @@ import numpy as np
 
 from wander_env.events import EVENT_DTYPE, SensorSize
 from wander_env.file_error import FileError
+from wander_env.untrusted import UntrustedFileError, parse_json
 
 #: The largest sensor side a reader accepts unless its caller raises the limit.
 MAX_SENSOR_SIDE = 8192
@@ -54,8 +56,6 @@ MAX_EVENTS = 1 << 24
 #: The largest sensor area (W×H) the agent and the benchmark model process: the HD sensor of
 #: Prophesee's Gen4 / IMX636 (1280×720); their maps take about 1.2 KB a pixel, 1.1 GB here.
 MAX_SENSOR_PIXELS = 1280 * 720
-#: The deepest nesting of a file's JSON metadata that is read.
-MAX_METADATA_DEPTH = 64
 #: Events checked and copied at a time.
 CHUNK_EVENTS = 1 << 20
 _FIELDS = ("x", "y", "t", "p")
@@ -189,7 +189,15 @@ def check_claim(
 
 
 def parse_metadata(path: str | os.PathLike, raw: Any, field: str = "metadata") -> dict[str, Any]:
-    """The ``metadata`` JSON object (bytes or str); :class:`EventFileError` otherwise."""
+    """The ``metadata`` JSON object (bytes or str), parsed by the rules of every untrusted
+    JSON document (:func:`wander_env.untrusted.parse_json`: nested at most
+    ``LIMITS.json_depth`` deep, no key given twice); :class:`EventFileError` otherwise.
+
+    >>> parse_metadata("a.h5", '{"seed": 1, "seed": 2}')
+    Traceback (most recent call last):
+    ...
+    wander_env.events.checks.EventFileError: a.h5: field 'metadata': the key 'seed' is given twice
+    """
     if isinstance(raw, np.ndarray):
         raw = raw.item() if raw.shape == () else raw
     if isinstance(raw, bytes):
@@ -199,17 +207,12 @@ def parse_metadata(path: str | os.PathLike, raw: Any, field: str = "metadata") -
             raise EventFileError(path, f"not UTF-8 text ({err})", field) from None
     if not isinstance(raw, str):
         raise EventFileError(path, f"expected JSON text, got {type(raw).__name__}", field)
-    too_deep = f"nested deeper than {MAX_METADATA_DEPTH} levels"
     try:
-        meta = json.loads(raw)
-    except json.JSONDecodeError as err:
-        raise EventFileError(path, f"not valid JSON ({err}): {raw[:80]!r}", field) from None
-    except RecursionError:
-        raise EventFileError(path, too_deep, field) from None
+        meta = parse_json(raw, path)
+    except UntrustedFileError as err:
+        raise EventFileError(path, err.problem, field) from None
     if not isinstance(meta, dict):
         raise EventFileError(path, f"expected a JSON object, got {type(meta).__name__}", field)
-    if json_depth(meta) > MAX_METADATA_DEPTH:
-        raise EventFileError(path, too_deep, field)
     return meta
 
 

@@ -21,6 +21,7 @@ from wander_env.events.checks import EventFileError
 
 __all__ = [
     "MS_TO_IDX_ZERO_OFFSET_LIMIT_US",
+    "MsToIdx",
     "index_offset_us",
     "ms_to_idx",
     "read_h5_window",
@@ -31,20 +32,23 @@ __all__ = [
 MS_TO_IDX_ZERO_OFFSET_LIMIT_US = 60_000_000
 
 
-def ms_to_idx(t: np.ndarray, t_offset_us: int = 0) -> np.ndarray:
+def ms_to_idx(t: np.ndarray, t_offset_us: int = 0, first_ms: int = 0) -> np.ndarray:
     """DSEC's index: entry ``i`` is the first event with ``t >= t_offset_us + 1000 i``.
 
-    One entry per millisecond up to the last event's.
+    One entry per millisecond up to the last event's, from entry ``first_ms`` on (the
+    rest of an index whose entries before ``first_ms`` fall before every event of ``t``).
 
     >>> ms_to_idx(np.array([0, 10, 999, 1000, 3500])).tolist()
     [0, 3, 4, 4]
+    >>> ms_to_idx(np.array([2500, 3500]), first_ms=2).tolist()
+    [0, 1]
     """
     t = np.asarray(t, dtype=np.int64)
     if t.size == 0:
         return np.zeros(0, np.uint64)
-    n_ms = (int(t[-1]) - int(t_offset_us)) // 1000 + 1
-    starts = int(t_offset_us) + 1000 * np.arange(max(n_ms, 0), dtype=np.int64)
-    return np.searchsorted(t, starts, side="left").astype(np.uint64)
+    last_ms = (int(t[-1]) - int(t_offset_us)) // 1000
+    ms = np.arange(first_ms, max(last_ms + 1, first_ms), dtype=np.int64)
+    return np.searchsorted(t, int(t_offset_us) + 1000 * ms, side="left").astype(np.uint64)
 
 
 def index_offset_us(t: np.ndarray) -> int:
@@ -58,16 +62,51 @@ def index_offset_us(t: np.ndarray) -> int:
     return int(t[0]) // 1000 * 1000
 
 
-def write_ms_to_idx(h5file: Any, events: np.ndarray) -> None:
-    """Add ``ms_to_idx`` and ``t_offset`` (µs) to an open ``h5py.File`` of events.
+class MsToIdx:
+    """:func:`ms_to_idx` of events given in time-ordered batches, none of them kept: the
+    index of the concatenated batches, whatever their sizes (empty ones included).
 
-    ``events/t`` stays absolute: the index counts milliseconds from ``t_offset``, which
-    is 0 — DSEC's own convention — for every recording whose clock starts within a
-    minute of 0 (all simulated ones).
+    >>> index = MsToIdx()
+    >>> for t in ([0, 10], [], [999, 1000], [3500]):
+    ...     index.add(np.array(t, np.int64))
+    >>> index.offset_us, np.concatenate(index.parts).tolist()
+    (0, [0, 3, 4, 4])
     """
-    offset = index_offset_us(events["t"])
-    h5file.create_dataset("ms_to_idx", data=ms_to_idx(events["t"], offset))
-    h5file.create_dataset("t_offset", data=np.int64(offset))
+
+    def __init__(self) -> None:
+        self.offset_us: int | None = None  # set by the first event (index_offset_us)
+        self.parts: list[np.ndarray] = []
+        self.rows = 0  # events added so far
+        self.next_ms = 0  # the first entry not yet indexed
+
+    def add(self, t: np.ndarray) -> None:
+        """Index the batch ``t`` (sorted, at or after every earlier batch's events)."""
+        if len(t) == 0:
+            return
+        if self.offset_us is None:
+            self.offset_us = index_offset_us(t)
+        part = ms_to_idx(t, self.offset_us, self.next_ms)
+        self.parts.append(part + np.uint64(self.rows))
+        self.next_ms += len(part)
+        self.rows += len(t)
+
+    def write(self, h5file: Any) -> None:
+        """Add ``ms_to_idx`` and ``t_offset`` (µs) to an open ``h5py.File``.
+
+        ``events/t`` stays absolute: the index counts milliseconds from ``t_offset``,
+        which is 0 — DSEC's own convention — for every recording whose clock starts within
+        a minute of 0 (all simulated ones); an empty recording has an empty index at 0.
+        """
+        index = np.concatenate(self.parts) if self.parts else np.zeros(0, np.uint64)
+        h5file.create_dataset("ms_to_idx", data=index)
+        h5file.create_dataset("t_offset", data=np.int64(self.offset_us or 0))
+
+
+def write_ms_to_idx(h5file: Any, events: np.ndarray) -> None:
+    """Add the :class:`MsToIdx` index of all of ``events`` to an open ``h5py.File``."""
+    index = MsToIdx()
+    index.add(events["t"])
+    index.write(h5file)
 
 
 def read_h5_window(path: str | os.PathLike, t_start_us: int, t_end_us: int) -> np.ndarray:

@@ -31,7 +31,6 @@ Examples:
 
 from __future__ import annotations
 
-import json
 import os
 import time
 import zlib
@@ -43,7 +42,9 @@ import numpy as np
 
 from wander_env.closing import Closing
 from wander_env.events import EVENT_DTYPE, SensorSize, validate_events
+from wander_env.events.hdf5_index import MsToIdx
 from wander_env.events.io import FORMAT_TAG, OutputError, check_space, divert_h5
+from wander_env.strict_json import dumps_strict
 
 _FIELDS = ("x", "y", "t", "p")
 #: zlib level of the event columns (the ``gzip`` filter's ``compression_opts``): on 2^20
@@ -232,10 +233,7 @@ class EventStreamWriter(_StreamFile):
         self._buffered = 0
         self._tail = np.zeros(0, EVENT_DTYPE)  # flushed events of the partial last chunk
         self._last_flush = time.monotonic()
-        # DSEC's ms_to_idx, built chunk by chunk (equal to hdf5_index.ms_to_idx of all t)
-        self._ms_offset: int | None = None
-        self._ms_idx: list[np.ndarray] = []
-        self._ms_next = 0
+        self._index = MsToIdx()  # DSEC's ms_to_idx, built chunk by chunk
         self._open(path)
         try:
             g = self._file.create_group("events")
@@ -254,7 +252,7 @@ class EventStreamWriter(_StreamFile):
             }
             attrs = self._file.attrs
             attrs["sensor_size"] = np.asarray(self.sensor_size, dtype=np.int64)
-            attrs["metadata"] = json.dumps(dict(metadata or {}), default=str)
+            attrs["metadata"] = dumps_strict(dict(metadata or {}))
             attrs["format"] = FORMAT_TAG
             attrs["complete"] = False
             attrs["events_flushed"] = 0
@@ -328,20 +326,7 @@ class EventStreamWriter(_StreamFile):
             raise OutputError(self.path, err) from err
         self.flushed = b
         self._tail = data[len(data) // self.chunk_events * self.chunk_events :]
-        self._index_chunk(chunk["t"], a)
-
-    def _index_chunk(self, t: np.ndarray, start: int) -> None:
-        """Extend ``ms_to_idx`` by the millisecond boundaries up to this chunk's last event."""
-        from wander_env.events.hdf5_index import index_offset_us
-
-        if self._ms_offset is None:
-            self._ms_offset = index_offset_us(t)
-        last = (int(t[-1]) - self._ms_offset) // 1000
-        if last < self._ms_next:
-            return
-        bounds = self._ms_offset + 1000 * np.arange(self._ms_next, last + 1, dtype=np.int64)
-        self._ms_idx.append((start + np.searchsorted(t, bounds, side="left")).astype(np.uint64))
-        self._ms_next = last + 1
+        self._index.add(chunk["t"])
 
     def close(self, metadata: Mapping[str, Any] | None = None) -> None:
         """Flush the rest, store ``metadata`` (if given), mark the file complete; idempotent."""
@@ -350,11 +335,8 @@ class EventStreamWriter(_StreamFile):
         try:
             self.flush()
             if metadata is not None:
-                self._file.attrs["metadata"] = json.dumps(dict(metadata), default=str)
-            if self._ms_offset is not None:  # the DSEC index of a finished file
-                idx = np.concatenate(self._ms_idx) if self._ms_idx else np.zeros(0, np.uint64)
-                self._file.create_dataset("ms_to_idx", data=idx)
-                self._file.create_dataset("t_offset", data=np.int64(self._ms_offset))
+                self._file.attrs["metadata"] = dumps_strict(dict(metadata))
+            self._index.write(self._file)  # the DSEC index of a finished file
             self._file.attrs["complete"] = True
         finally:
             self._abandon()

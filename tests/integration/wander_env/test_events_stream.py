@@ -153,6 +153,54 @@ def test_a_finished_stream_has_the_dsec_index_of_its_events(tmp_path):
     assert np.array_equal(window, events[keep])
 
 
+def test_both_writers_of_an_h5_write_the_same_events_metadata_and_index(tmp_path):
+    """EventStreamWriter and write_events agree: strict metadata (NaN as null, NumPy
+    scalars as numbers), the same ms_to_idx and t_offset, for a clock that starts late."""
+    from wander_env.events.hdf5_index import read_h5_window
+    from wander_env.events.io import EventRecording, write_events
+
+    start = 1_605_537_493_718_345  # a real clock: t_offset is not 0
+    steps = [step(k) for k in range(9)]
+    for ev in steps:
+        ev["t"] += start
+    steps.insert(4, steps[0][:0])
+    events = np.concatenate(steps)
+    meta = {"nan": float("nan"), "half": np.float32(0.5), "n": np.int64(7), "v": [np.inf]}
+    streamed, whole = tmp_path / "streamed.h5", tmp_path / "whole.h5"
+    writer = EventStreamWriter(streamed, (8, 4, 2), {"seed": 1}, chunk_events=97)
+    for ev in steps:
+        writer.append(ev)
+    writer.close(meta)  # replaces the metadata given at creation
+    write_events(whole, EventRecording(events, (8, 4, 2), meta))
+    expected = {"nan": None, "half": 0.5, "n": 7, "v": [None]}
+    for path in (streamed, whole):
+        rec = read_events(path)
+        assert np.array_equal(rec.events, events) and rec.metadata == expected
+        with h5py.File(path) as f:
+            assert json.loads(f.attrs["metadata"]) == expected
+            index, offset = f["ms_to_idx"][()], int(f["t_offset"][()])
+        assert offset == 1_605_537_493_718_000 and index.dtype == np.uint64
+        assert index.tolist() == [100 * k for k in range(9)]
+        window = read_h5_window(path, start + 2000, start + 5000)
+        assert np.array_equal(window, np.concatenate(steps[2:6]))  # t in [2, 5) ms
+
+
+def test_an_empty_streamed_recording_has_the_index_of_an_empty_one_and_reads(tmp_path):
+    from wander_env.events.hdf5_index import read_h5_window
+    from wander_env.events.io import EventRecording, write_events
+
+    streamed, whole = tmp_path / "streamed.h5", tmp_path / "whole.h5"
+    with EventStreamWriter(streamed, (8, 4, 2), {"note": "no events"}) as writer:
+        writer.append(step(0)[:0])
+    write_events(whole, EventRecording(step(0)[:0], (8, 4, 2), {"note": "no events"}))
+    for path in (streamed, whole):
+        with h5py.File(path) as f:
+            index, offset = f["ms_to_idx"][()], int(f["t_offset"][()])
+        assert index.dtype == np.uint64 and index.tolist() == [] and offset == 0
+        assert read_h5_window(path, 0, 10_000).tolist() == []
+        assert read_events(path).metadata == {"note": "no events"}
+
+
 def test_out_of_order_or_off_sensor_steps_are_refused_naming_the_file(tmp_path):
     path = tmp_path / "events.h5"
     with EventStreamWriter(path, (8, 4, 2)) as writer:

@@ -9,6 +9,7 @@ are decoded by faery/evt3 through ``read_events``).
 
 from __future__ import annotations
 
+import itertools
 import struct
 
 import h5py
@@ -18,7 +19,7 @@ from locations import REALDATA
 
 from wander_env.events import EVENT_DTYPE, make_events, time_window
 from wander_env.events.formats import es_expected_bytes, read_es
-from wander_env.events.hdf5_index import index_offset_us, ms_to_idx, read_h5_window
+from wander_env.events.hdf5_index import MsToIdx, index_offset_us, ms_to_idx, read_h5_window
 from wander_env.events.io import EventFileError, EventRecording, read_events, write_events
 
 needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason="../shared/realdata absent")
@@ -246,6 +247,22 @@ def test_ms_to_idx_is_dsecs_index():
         assert (i == 0 or t[i - 1] < 1000 * ms) and (i == len(t) or t[i] >= 1000 * ms)
     assert index_offset_us(t) == 0
     assert ms_to_idx(np.array([5_000_250, 5_002_000]), 5_000_000).tolist() == [0, 1, 1]
+
+
+def test_ms_to_idx_built_batch_by_batch_is_the_index_of_all_the_events():
+    t = np.sort(np.random.default_rng(5).integers(0, 40_000, 3000))
+    t[100:400] = t[99]  # a long run of equal timestamps split across batches
+    cuts = [0, 0, 1, 99, 250, 250, 1700, 2999, 3000]
+    for offset in (0, 7_000):
+        index = MsToIdx()
+        for a, b in itertools.pairwise(cuts):
+            index.add(t[a:b] + offset)
+        assert index.offset_us == index_offset_us(t + offset) == 0
+        assert np.concatenate(index.parts).tolist() == ms_to_idx(t + offset).tolist()
+    assert ms_to_idx(t, 0, first_ms=12).tolist() == ms_to_idx(t)[12:].tolist()
+    late = MsToIdx()
+    late.add(np.array([90_000_500, 90_002_100]))
+    assert late.offset_us == 90_000_000 and np.concatenate(late.parts).tolist() == [0, 1, 1]
 
 
 def test_h5_writer_adds_ms_to_idx_and_the_reader_seeks_windows_with_it(tmp_path):

@@ -44,6 +44,27 @@ def test_empty_recording_round_trips(tmp_path, suffix):
     assert back.sensor_size == (128, 128, 2) and back.metadata == {"note": "failed at step 1"}
 
 
+@pytest.mark.parametrize(
+    ("text", "problem"),
+    [
+        ('{"seed": 1, "seed": 2}', "the key 'seed' is given twice"),
+        ('{"a": {"b": 1, "b": 1}}', "the key 'b' is given twice"),
+        ('{"a": ' + "[" * 64 + "]" * 64 + "}", "JSON nested 65 deep; at most 64"),
+    ],
+)
+def test_h5_metadata_is_parsed_by_the_rules_of_every_untrusted_json(tmp_path, text, problem):
+    import h5py
+
+    path = tmp_path / "m.h5"
+    write_events(path, recording())
+    with h5py.File(path, "a") as f:
+        f.attrs["metadata"] = text
+    with pytest.raises(EventFileError) as info:
+        read_events(path)
+    assert str(info.value) == f"{path}: field 'metadata': {problem}"
+    assert info.value.field == "metadata"
+
+
 def test_hdf5_is_compressed(tmp_path):
     rec = recording()
     write_events(tmp_path / "a.h5", rec)
