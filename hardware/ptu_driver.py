@@ -57,7 +57,12 @@ try:  # the serial layer's own errors: termios.error (EIO of an unplugged adapte
 except ImportError:  # pragma: no cover - not POSIX
     SERIAL_ERRORS = (serial.SerialException, OSError)
 from wander_env.ptu.link import DELIMITERS, PTULinkParams
-from wander_env.ptu.units import degrees_to_positions, positions_to_degrees, round_position
+from wander_env.ptu.units import (
+    degrees_to_positions,
+    positions_to_degrees,
+    whole_position,
+    whole_speed,
+)
 
 # A standalone number: not glued to a letter, ``^`` or ``.`` (so "sec^2" or "v2.14" don't count).
 _NUMBER = re.compile(r"(?<![\w^.])[-+]?\d+(?:\.\d+)?(?![\w.])")
@@ -466,10 +471,7 @@ class FlirPTU(Closing):
         return positions_to_degrees(pos, self._res_arcsec[axis])
 
     def _pos(self, deg: float, axis: str) -> int:
-        value = float(deg)
-        if not math.isfinite(value):
-            raise ValueError(f"{axis} value must be a finite number, got {deg!r}")
-        return round_position(degrees_to_positions(value, self._res_arcsec[axis]))
+        return whole_position(axis, deg, self._res_arcsec[axis])
 
     def _check_position(self, pos: int, axis: str, what: str) -> None:
         lo, hi = self._limits_pos[axis]
@@ -605,16 +607,17 @@ class FlirPTU(Closing):
     # -- speed and acceleration -------------------------------------------------------------
 
     def set_speed(self, pan_deg_s: float | None = None, tilt_deg_s: float | None = None) -> None:
-        """Set the slew speeds (``PS``/``TS``, on the fly); checked against ``PL``/``PU``."""
-        values = self._rates(pan_deg_s, tilt_deg_s, "speed")
-        for axis, v in values.items():
-            bounds = self._speed_bounds_pos[axis]
-            if bounds is not None and not bounds[0] <= v <= bounds[1]:
-                lo, hi = (self._deg(b, axis) for b in bounds)
-                raise ValueError(
-                    f"{axis} speed {self._deg(v, axis):.4f}°/s ({v} pos/s) is outside the "
-                    f"unit's bounds {lo:.4f}…{hi:.4f}°/s; nothing was sent"
-                )
+        """Set the slew speeds (``PS``/``TS``, on the fly): whole positions/s within the
+        unit's ``PL``/``PU`` (:func:`~wander_env.ptu.units.whole_speed`, the simulator's
+        rule); a speed outside raises ``ValueError`` and nothing is sent."""
+        values = {}
+        for axis, value in (("pan", pan_deg_s), ("tilt", tilt_deg_s)):
+            if value is None:
+                continue
+            # A unit without PL/PU queries checks alone; whole_speed keeps the floor of 1.
+            lower, upper = self._speed_bounds_pos[axis] or (0.0, math.inf)
+            pos_s = degrees_to_positions(value, self._res_arcsec[axis])
+            values[axis] = whole_speed(axis, pos_s, lower, upper)
         with self._lock:
             for axis, v in values.items():
                 self._command(f"{axis[0].upper()}S{v}")
@@ -622,24 +625,20 @@ class FlirPTU(Closing):
     def set_acceleration(
         self, pan_deg_s2: float | None = None, tilt_deg_s2: float | None = None
     ) -> None:
-        """Set the accelerations (``PA``/``TA``); the FLIR manual asks for axes at rest."""
-        values = self._rates(pan_deg_s2, tilt_deg_s2, "acceleration")
+        """Set the accelerations (``PA``/``TA``), whole positions/s², at least one; the
+        FLIR manual asks for axes at rest."""
+        values = {}
+        for axis, value in (("pan", pan_deg_s2), ("tilt", tilt_deg_s2)):
+            if value is None:
+                continue
+            values[axis] = self._pos(value, axis)
+            if values[axis] < 1:
+                raise ValueError(
+                    f"{axis} acceleration must be at least one position/s², got {value!r}"
+                )
         with self._lock:
             for axis, v in values.items():
                 self._command(f"{axis[0].upper()}A{v}")
-
-    def _rates(self, pan: float | None, tilt: float | None, what: str) -> dict[str, int]:
-        out = {}
-        for axis, value in (("pan", pan), ("tilt", tilt)):
-            if value is None:
-                continue
-            v = self._pos(value, axis)
-            if v < 1:
-                raise ValueError(
-                    f"{axis} {what} must be at least one position per second, got {value!r}"
-                )
-            out[axis] = v
-        return out
 
     def speed(self) -> tuple[float, float]:
         """(pan, tilt) commanded speeds (``PS``/``TS``), °/s."""

@@ -40,7 +40,6 @@ Examples:
 
 from __future__ import annotations
 
-import math
 import os
 import select
 import threading
@@ -61,20 +60,18 @@ class PTUEmulatorParams:
 
     ``ptu`` (the unit's :class:`~wander_env.ptu.params.PTUParams`) holds resolution
     (``PR``/``TR``), limits (``PN``/``PX``/``TN``/``TX``), speeds (``PS``), accelerations
-    (``PA``), base (``PB``) and upper (``PU``) speeds;
-    ``lower_speed`` is ``PL``/``TL`` (pos/s). ``echo`` and ``verbose`` are the power-up
-    modes (on, as a factory unit). ``banner`` (``None``: the firmware line and
-    ``Initializing...``) is printed ``banner_delay_s`` after start. ``eol`` ends every
-    reply. ``reset_s`` is how long ``R`` takes. ``silent_after``: stop answering after
-    that many commands (fault injection for timeouts). ``poll_s`` is the thread's poll
-    period while a reply waits on motion. ``baudrate`` (``None``: instant, as a pty is)
-    paces the line as a UART at that rate would: each byte in either direction takes
-    ``bits_per_byte / baudrate`` seconds (8N1: 10 bits), a command is executed once its
-    last byte has arrived, and a reply is readable once its last byte has been sent.
+    (``PA``), base (``PB``), upper (``PU``) and lower (``PL``) speeds. ``echo`` and
+    ``verbose`` are the power-up modes (on, as a factory unit). ``banner`` (``None``: the
+    firmware line and ``Initializing...``) is printed ``banner_delay_s`` after start.
+    ``eol`` ends every reply. ``reset_s`` is how long ``R`` takes. ``silent_after``: stop
+    answering after that many commands (fault injection for timeouts). ``poll_s`` is the
+    thread's poll period while a reply waits on motion. ``baudrate`` (``None``: instant, as
+    a pty is) paces the line as a UART at that rate would: each byte in either direction
+    takes ``bits_per_byte / baudrate`` seconds (8N1: 10 bits), a command is executed once
+    its last byte has arrived, and a reply is readable once its last byte has been sent.
     """
 
     ptu: PTUParams = field(default_factory=PTUParams)
-    lower_speed: float = 31.0
     firmware: str = DEFAULT_FIRMWARE
     banner: str | None = None
     banner_delay_s: float = 0.0
@@ -96,8 +93,6 @@ class PTUEmulatorParams:
             raise ValueError(f"baudrate must be an int > 0 or None, got {self.baudrate!r}")
         if not (isinstance(self.bits_per_byte, int) and self.bits_per_byte > 0):
             raise ValueError(f"bits_per_byte must be an int > 0, got {self.bits_per_byte!r}")
-        if not (math.isfinite(self.lower_speed) and self.lower_speed >= 0):
-            raise ValueError(f"lower_speed must be >= 0, got {self.lower_speed!r}")
         for name in ("banner_delay_s", "reset_s"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
@@ -107,12 +102,6 @@ class PTUEmulatorParams:
             raise ValueError(f"eol must be CR LF, LF or CR, got {self.eol!r}")
         if self.silent_after is not None and self.silent_after < 0:
             raise ValueError(f"silent_after must be >= 0, got {self.silent_after!r}")
-        for axis in ("pan", "tilt"):
-            speed = getattr(self.ptu, f"{axis}_speed")
-            if speed < self.lower_speed:
-                raise ValueError(
-                    f"ptu.{axis}_speed ({speed}) is below lower_speed ({self.lower_speed})"
-                )
 
     @property
     def byte_s(self) -> float:
@@ -146,7 +135,6 @@ class PTUEmulator:
         p = self.params
         self._firmware = PTUFirmware(
             p.ptu,
-            p.lower_speed,
             p.firmware,
             p.reset_s,
             echo=p.echo,

@@ -15,7 +15,7 @@ The replies are the firmware's texts as the FLIR manuals and public drivers give
 ``* <text>`` (verbose) for a query, ``! <message>`` for a failure.
 
 Examples:
-    >>> fw = PTUFirmware(PTUParams(), lower_speed=31.0, now=0.0)
+    >>> fw = PTUFirmware(PTUParams(), now=0.0)
     >>> fw.execute("PP500", now=0.0), fw.execute("A", now=0.0)
     ('*', None)
     >>> fw.advance(0.1); fw.poll(now=0.1), fw.execute("PP", now=0.1)   # on its way
@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 from wander_env.ptu.axis import AxisState, axis_step, stopping_distance
 from wander_env.ptu.params import PTUParams
-from wander_env.ptu.units import round_position, step_counter
+from wander_env.ptu.units import SpeedOutOfRange, round_position, step_counter, whole_speed
 
 __all__ = ["DEFAULT_FIRMWARE", "HALTS", "RESET_REPLY", "PTUFirmware", "command_letters"]
 
@@ -108,7 +108,7 @@ class _Axis:
         return float(min(max(whole, self.min_pos), self.max_pos))
 
 
-def _axes_from(ptu: PTUParams, lower_speed: float) -> dict[str, _Axis]:
+def _axes_from(ptu: PTUParams) -> dict[str, _Axis]:
     axes = {}
     for letter, axis in (("P", "pan"), ("T", "tilt")):
         axes[letter] = _Axis(
@@ -120,7 +120,7 @@ def _axes_from(ptu: PTUParams, lower_speed: float) -> dict[str, _Axis]:
             accel=getattr(ptu, f"{axis}_accel"),
             base=getattr(ptu, f"{axis}_base_speed"),
             upper=getattr(ptu, f"{axis}_upper_speed"),
-            lower=lower_speed,
+            lower=getattr(ptu, f"{axis}_lower_speed"),
         )
     return axes
 
@@ -136,8 +136,8 @@ class PTUFirmware:
     """The unit's controller: two axes and the modes, answering commands.
 
     ``ptu`` gives the axes' resolution (``PR``/``TR``), limits (``PN``/``PX``/``TN``/
-    ``TX``), speeds (``PS``), accelerations (``PA``), base (``PB``) and upper (``PU``)
-    speeds; ``lower_speed`` is ``PL``/``TL`` (pos/s); ``firmware`` the ``V`` answer;
+    ``TX``), speeds (``PS``), accelerations (``PA``), base (``PB``), upper (``PU``) and
+    lower (``PL``) speeds; ``firmware`` the ``V`` answer;
     ``reset_s`` how long ``R`` takes; ``echo`` and ``verbose`` the power-up modes;
     ``now`` the time the axes start at rest at home.
 
@@ -150,7 +150,6 @@ class PTUFirmware:
     def __init__(
         self,
         ptu: PTUParams,
-        lower_speed: float,
         firmware: str = DEFAULT_FIRMWARE,
         reset_s: float = 0.05,
         *,
@@ -158,9 +157,9 @@ class PTUFirmware:
         verbose: bool = True,
         now: float,
     ) -> None:
-        self.ptu, self.lower_speed = ptu, lower_speed
+        self.ptu = ptu
         self.firmware, self.reset_s = firmware, reset_s
-        self.axes = _axes_from(ptu, lower_speed)
+        self.axes = _axes_from(ptu)
         self.echo, self.verbose = echo, verbose
         self.slaved = False
         self.velocity_mode = False
@@ -277,33 +276,30 @@ class PTUFirmware:
             if arg == 0:
                 ax.target = ax.stop_point()
                 return "*"
-            error = self._check_speed(ax, abs(arg))
-            if error:
-                return error
-            ax.speed = float(abs(arg))
-            ax.target = float(ax.max_pos if arg > 0 else ax.min_pos)
-            return "*"
-        error = self._check_speed(ax, arg)
-        if error:
-            return error
-        ax.speed = float(arg)
-        return "*"
+            return self._set_speed(ax, abs(arg), ax.max_pos if arg > 0 else ax.min_pos)
+        return self._set_speed(ax, arg)
 
-    def _check_speed(self, ax: _Axis, speed: int) -> str | None:
-        # "PS3300 ! Pan speed cannot exceed 2902 positions/sec" (PTU-D46 manual §4.4.6).
-        if speed > ax.upper:
-            return f"! {ax.name} speed cannot exceed {_fmt(ax.upper)} positions/sec"
-        # The lower-bound text mirrors the upper one (an assumption: no source shows it).
-        if speed < max(ax.lower, 1.0):
-            return f"! {ax.name} speed cannot be less than {_fmt(max(ax.lower, 1.0))} positions/sec"
-        return None
+    def _set_speed(self, ax: _Axis, speed: int, target: int | None = None) -> str:
+        """Set the axis's speed (and, in pure velocity mode, its ``target``) if the
+        bounds allow it (:func:`~wander_env.ptu.units.whole_speed`, the simulator's and
+        the driver's rule); else the firmware's refusal."""
+        try:
+            ax.speed = float(whole_speed(ax.name.lower(), speed, ax.lower, ax.upper))
+        except SpeedOutOfRange as err:
+            # "PS3300 ! Pan speed cannot exceed 2902 positions/sec" (PTU-D46 manual §4.4.6);
+            # the lower-bound text mirrors it (an assumption: no source shows it).
+            bound = "exceed" if err.above else "be less than"
+            return f"! {ax.name} speed cannot {bound} {_fmt(err.limit)} positions/sec"
+        if target is not None:
+            ax.target = float(target)
+        return "*"
 
     def _delta(self, ax: _Axis, arg: int | None) -> str:
         # E series: ``PD`` queries the current (signed) speed, ``PD<n>`` offsets the speed.
         if arg is None:
-            v = round(ax.state.velocity)
+            v = round_position(ax.state.velocity)
             return self.query(v, f"Current {ax.name} speed is {v} positions/sec")
-        return self._speed(ax, int(ax.speed) + arg)
+        return self._speed(ax, round_position(ax.speed) + arg)
 
     # unit commands: handler(self, arg) -> reply
 
@@ -343,7 +339,7 @@ class PTUFirmware:
         return "*"
 
     def _factory(self, arg: int | None) -> str:
-        fresh = _axes_from(self.ptu, self.lower_speed)
+        fresh = _axes_from(self.ptu)
         for letter, ax in self.axes.items():
             for name in ("speed", "accel", "base", "upper", "lower"):
                 setattr(ax, name, getattr(fresh[letter], name))

@@ -19,7 +19,7 @@ from typing import Any
 
 from hardware.ptu_driver import FlirPTU, PTUError
 from wander_env.ptu.link import LinkSchedule
-from wander_env.ptu.units import degrees_to_positions, positions_to_degrees, round_position
+from wander_env.ptu.units import positions_to_degrees, whole_position
 
 __all__ = ["PTULinkThread"]
 
@@ -57,10 +57,10 @@ class PTULinkThread:
     # -- conversions --------------------------------------------------------------------
 
     def to_positions(self, deg: tuple[float, float]) -> tuple[int, int]:
-        """(pan, tilt) degrees -> whole positions at the unit's resolution."""
-        return (
-            round_position(degrees_to_positions(deg[0], self._res[0])),
-            round_position(degrees_to_positions(deg[1], self._res[1])),
+        """(pan, tilt) degrees -> whole positions at the unit's resolution, as the driver
+        sends them (:func:`~wander_env.ptu.units.whole_position`)."""
+        return whole_position("pan", deg[0], self._res[0]), whole_position(
+            "tilt", deg[1], self._res[1]
         )
 
     def to_degrees(self, pos: tuple[int, int]) -> tuple[float, float]:

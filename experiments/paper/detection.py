@@ -125,10 +125,16 @@ class DetectionConfig:
             raise ValueError(
                 f"sweep_amplitude_deg: must be in (0, 90) deg, got {self.sweep_amplitude_deg}"
             )
-        top = FLIR_RESOLUTION_ARCSEC / 3600.0 * PTUParams().pan_upper_speed
-        bad = [v for v in self.camera_speeds_deg_s if not 0 <= v <= top]
+        d = PTUParams()
+        low, top = (
+            FLIR_RESOLUTION_ARCSEC / 3600.0 * v for v in (d.pan_lower_speed, d.pan_upper_speed)
+        )
+        bad = [v for v in self.camera_speeds_deg_s if not (v == 0 or low <= v <= top)]
         if bad:
-            raise ValueError(f"camera_speeds_deg_s must be in [0, {top:.1f}] (the PTU), got {bad}")
+            raise ValueError(
+                f"camera_speeds_deg_s must be 0 (still) or in [{low:.2f}, {top:.1f}] (the "
+                f"PTU's PL, PU), got {bad}"
+            )
         if self.repeats < 1:
             raise ValueError(f"repeats must be >= 1, got {self.repeats}")
 

@@ -139,9 +139,11 @@ class SaccadeSpeedConfig:
             PTUParams.preset(name)  # raises for an unknown preset
         if self.repeats < 1:
             raise ValueError(f"repeats must be >= 1, got {self.repeats}")
-        upper = PTUParams().pan_upper_speed
-        if any(not 0 < v <= upper for v in self.speeds_pos_s):
-            raise ValueError(f"speeds_pos_s must be in (0, {upper}] (PU), got {self.speeds_pos_s}")
+        lower, upper = PTUParams().pan_lower_speed, PTUParams().pan_upper_speed
+        if any(not lower <= v <= upper for v in self.speeds_pos_s):
+            raise ValueError(
+                f"speeds_pos_s must be in [{lower:g}, {upper:g}] (PL, PU), got {self.speeds_pos_s}"
+            )
         if any(not v > 0 for v in self.accels_pos_s2):
             raise ValueError(f"accels_pos_s2 must be > 0, got {self.accels_pos_s2}")
         if any(v < 0 for v in self.fixational_steps_pos):

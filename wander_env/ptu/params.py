@@ -24,8 +24,11 @@ class PTUParams:
       ``base_speed`` 1000 pos/s (the ``PB``/``TB`` default in the PTU-D46 manual);
     - ``speed`` 2000 pos/s ≈ 51.4°/s, a typical configured ``PS``/``TS`` (an
       assumption: the paper does not give its speed), below ``upper_speed`` 2902 pos/s
-      (the ``PU`` in the manual's example), which bounds
-      :meth:`~wander_env.ptu.unit.PanTiltUnit.set_speed`.
+      (the ``PU`` in the manual's example) and above ``lower_speed`` 31 pos/s (the
+      ``PL`` in the FLIR manual's §4.4.6 example, PTU-D300 v2.18: "Minimum Pan speed is
+      31 positions/sec"); these bound the configured speed and
+      :meth:`~wander_env.ptu.unit.PanTiltUnit.set_speed`, as they bound ``PS`` on the
+      unit (:func:`~wander_env.ptu.units.whole_speed`).
       With these, a 1000-position (25.7°) saccade takes 0.73 s and a 60-position
       fixational step 0.058 s (see :func:`~wander_env.ptu.axis.move_duration`).
 
@@ -51,6 +54,8 @@ class PTUParams:
     tilt_base_speed: float = 1000.0
     pan_upper_speed: float = 2902.0
     tilt_upper_speed: float = 2902.0
+    pan_lower_speed: float = 31.0
+    tilt_lower_speed: float = 31.0
     pan_backlash_pos: float = 0.0
     tilt_backlash_pos: float = 0.0
     camera_forward_m: float = 0.0
@@ -101,12 +106,17 @@ class PTUParams:
             if lo >= hi:
                 raise ValueError(f"PTUParams.{axis}_min_pos ({lo}) must be < {axis}_max_pos ({hi})")
             upper = getattr(self, f"{axis}_upper_speed")
-            for name in (f"{axis}_speed", f"{axis}_base_speed"):
+            for name in (f"{axis}_speed", f"{axis}_base_speed", f"{axis}_lower_speed"):
                 if getattr(self, name) > upper:
                     raise ValueError(
                         f"PTUParams.{name} must be <= {axis}_upper_speed ({upper}), "
                         f"got {getattr(self, name)!r}"
                     )
+            lower, speed = getattr(self, f"{axis}_lower_speed"), getattr(self, f"{axis}_speed")
+            if speed < lower:
+                raise ValueError(
+                    f"PTUParams.{axis}_speed must be >= {axis}_lower_speed ({lower}), got {speed!r}"
+                )
 
     @property
     def pan_deg_per_pos(self) -> float:

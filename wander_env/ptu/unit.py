@@ -32,6 +32,7 @@ from wander_env.ptu.units import (
     positions_to_degrees,
     round_position,
     step_counter,
+    whole_speed,
 )
 
 
@@ -177,21 +178,27 @@ class PanTiltUnit:
         return self.params.clip_deg(pan_deg, tilt_deg)
 
     def set_speed(self, pan_deg_s: float | None = None, tilt_deg_s: float | None = None) -> None:
-        """Change the slew speed on the fly (FLIR ``PS``/``TS``), in degrees per second.
+        """Change the slew speed on the fly (FLIR ``PS``/``TS``), in degrees per second;
+        ``None`` keeps it.
 
-        Must be > 0 and at most the axis's ``upper_speed``; ``None`` keeps it.
+        The unit takes whole positions/s within the axis's ``lower_speed`` and
+        ``upper_speed`` (:func:`~wander_env.ptu.units.whole_speed`, the rig driver's
+        rule); a speed outside raises ``ValueError`` and changes neither axis.
+
+        >>> ptu = PanTiltUnit()
+        >>> ptu.set_speed(pan_deg_s=10.0)
+        >>> ptu.speeds
+        (389.0, 2000.0)
         """
+        p = self.params
+        speeds = list(self._speed)
         for i, (axis, value) in enumerate((("pan", pan_deg_s), ("tilt", tilt_deg_s))):
             if value is None:
                 continue
-            pos_s = degrees_to_positions(value, getattr(self.params, f"{axis}_resolution_arcsec"))
-            upper = getattr(self.params, f"{axis}_upper_speed")
-            if not (math.isfinite(pos_s) and 0 < pos_s <= upper * (1 + REL_TOL)):
-                raise ValueError(
-                    f"{axis} speed must be in (0, {axis}_upper_speed = {upper} pos/s], "
-                    f"got {value!r} deg/s = {pos_s:.6g} pos/s"
-                )
-            self._speed[i] = min(pos_s, upper)
+            pos_s = degrees_to_positions(value, getattr(p, f"{axis}_resolution_arcsec"))
+            lower, upper = getattr(p, f"{axis}_lower_speed"), getattr(p, f"{axis}_upper_speed")
+            speeds[i] = float(whole_speed(axis, pos_s, lower, upper))
+        self._speed = speeds
 
     def step(self, dt_s: float) -> None:
         """Advance the motion model by ``dt_s`` seconds (with a :attr:`link`, stopping at
@@ -294,6 +301,12 @@ class PanTiltUnit:
     def positions(self) -> tuple[int, int]:
         """(pan, tilt) motor positions as the unit reports them (``PP``/``TP``)."""
         return round_position(self._pan.position), round_position(self._tilt.position)
+
+    @property
+    def speeds(self) -> tuple[float, float]:
+        """(pan, tilt) slew speeds (positions/s): the configured ones until
+        :meth:`set_speed` sets whole ones."""
+        return self._speed[0], self._speed[1]
 
     @property
     def target_positions(self) -> tuple[float, float]:

@@ -1,5 +1,7 @@
 """PTU units: degrees ↔ PTU *positions* (motor steps of ``resolution_arcsec`` arc-seconds
-each, 92.5714″ = 0.025714° on the paper's unit), and the whole position a unit reports.
+each, 92.5714″ = 0.025714° on the paper's unit), the whole position a unit reports, and
+the whole positions and slew speeds it takes (the one rule of the simulator, the FLIR
+driver and the firmware emulator).
 """
 
 from __future__ import annotations
@@ -36,6 +38,62 @@ def round_position(pos: float) -> int:
     (3, -3, -2)
     """
     return int(math.copysign(math.floor(abs(pos) + 0.5), pos))
+
+
+def whole_position(axis: str, deg: float, resolution_arcsec: float) -> int:
+    """An angle (or a rate in degrees per second) of ``axis`` as the whole positions a
+    unit takes: :func:`round_position` of :func:`degrees_to_positions`; ``ValueError``
+    naming the axis for a value that is not finite.
+
+    >>> whole_position("pan", 21.3, FLIR_RESOLUTION_ARCSEC)
+    828
+    >>> whole_position("tilt", float("nan"), FLIR_RESOLUTION_ARCSEC)
+    Traceback (most recent call last):
+    ...
+    ValueError: tilt value must be a finite number, got nan
+    """
+    if not math.isfinite(deg):
+        raise ValueError(f"{axis} value must be a finite number, got {deg!r}")
+    return round_position(degrees_to_positions(deg, resolution_arcsec))
+
+
+class SpeedOutOfRange(ValueError):
+    """A slew speed outside an axis's bounds (:func:`whole_speed`): ``limit`` is the bound
+    it crosses (positions/s), ``above`` whether that is the upper one."""
+
+    def __init__(self, message: str, limit: float, above: bool) -> None:
+        super().__init__(message)
+        self.limit, self.above = limit, above
+
+
+def whole_speed(axis: str, pos_s: float, lower: float, upper: float) -> int:
+    """The slew speed ``pos_s`` (positions/s) of ``axis`` as a FLIR unit takes it
+    (``PS``/``TS``): whole positions/s (:func:`round_position`) within the unit's bounds,
+    at least ``lower`` (``PL``) and one, at most ``upper`` (``PU``).
+
+    Raises ``ValueError`` for a value that is not finite and :class:`SpeedOutOfRange`
+    (a ``ValueError``) for one that rounds outside the bounds.
+
+    >>> whole_speed("pan", 30.5, 31.0, 2902.0), whole_speed("pan", 2902.4, 31.0, 2902.0)
+    (31, 2902)
+    >>> try:
+    ...     whole_speed("pan", 19.44, 31.0, 2902.0)
+    ... except SpeedOutOfRange as err:
+    ...     print(err, err.limit, err.above)
+    pan speed must round to 31…2902 positions/s, got 19.44 positions/s 31.0 False
+    """
+    if not math.isfinite(pos_s):
+        raise ValueError(f"{axis} speed must be a finite number, got {pos_s!r} positions/s")
+    lowest = max(lower, 1.0)
+    whole = round_position(pos_s)
+    if not lowest <= whole <= upper:
+        raise SpeedOutOfRange(
+            f"{axis} speed must round to {lowest:g}…{upper:g} positions/s, "
+            f"got {pos_s:.6g} positions/s",
+            upper if whole > upper else lowest,
+            whole > upper,
+        )
+    return whole
 
 
 def step_counter(position: float, velocity: float) -> int:

@@ -32,8 +32,14 @@ def test_ptu_speed_levels_in_degrees_per_second():
     assert slow.pan_base_speed == slow.pan_speed  # start speed capped to the level
     assert p.pan_accel == pytest.approx(p.pan_speed / 0.05)  # full speed within 50 ms
     assert ptu_for_speed(0.0) == PTUParams()
-    with pytest.raises(ValueError, match=r"camera_speeds_deg_s must be in \[0, 74.6\]"):
-        DetectionConfig(camera_speeds_deg_s=(80.0,))
+    # 0 (still), or what the PTU can slew: PL 31 to PU 2902 positions/s
+    for bad in (80.0, 0.5):
+        message = (
+            r"^camera_speeds_deg_s must be 0 \(still\) or in \[0\.80, 74\.6\] \(the PTU's PL, "
+            rf"PU\), got \[{bad}\]$"
+        )
+        with pytest.raises(ValueError, match=message):
+            DetectionConfig(camera_speeds_deg_s=(bad,))
 
 
 @pytest.mark.parametrize(

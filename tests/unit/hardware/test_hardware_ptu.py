@@ -32,8 +32,10 @@ from hardware.ptu_driver import (
     reply_number,
 )
 from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
-from wander_env.ptu.axis import move_duration
+from hardware.ptu_firmware import PTUFirmware
+from wander_env.ptu.axis import AxisState, move_duration
 from wander_env.ptu.params import PTUParams
+from wander_env.ptu.unit import PanTiltUnit
 from wander_env.ptu.units import degrees_to_positions, round_position
 
 PAN_RES, TILT_RES = 46.2857, 92.5714  # a non-default pan resolution: must be queried
@@ -261,6 +263,70 @@ def test_out_of_limit_moves_are_refused_before_sending(emu, ptu):
     assert emu.positions == (0, 0)
 
 
+# One speed rule (wander_env.ptu.units.whole_speed) in the simulator, the driver and the
+# firmware: (pan °/s asked, the whole pos/s set, or the refusal of the simulator and the
+# driver and the firmware's reply to the rounded PS), at the FLIR defaults (PL 31, PU 2902).
+SPEED_CASES = [
+    (10.0, 389, None, None),  # 388.889 pos/s
+    (30.6 * 92.5714 / 3600, 31, None, None),
+    (74.6, 2901, None, None),  # 2901.11 pos/s
+    (
+        0.5,  # 19.4445 pos/s
+        None,
+        "pan speed must round to 31…2902 positions/s, got 19.4445 positions/s",
+        "! Pan speed cannot be less than 31 positions/sec",
+    ),
+    (
+        0.01,  # 0.389 pos/s: rounds to 0
+        None,
+        "pan speed must round to 31…2902 positions/s, got 0.388889 positions/s",
+        "! Pan speed cannot be less than 31 positions/sec",
+    ),
+    (
+        74.7,  # 2905.0009 pos/s
+        None,
+        "pan speed must round to 31…2902 positions/s, got 2905 positions/s",
+        "! Pan speed cannot exceed 2902 positions/sec",
+    ),
+]
+
+
+def test_a_speed_request_is_the_same_in_the_sim_the_driver_and_the_firmware():
+    with (
+        PTUEmulator(PTUEmulatorParams(banner="")) as emu,
+        FlirPTU(emu.port, DRIVER) as rig,
+    ):
+        for deg_s, whole, refusal, reply in SPEED_CASES:
+            sim = PanTiltUnit(PTUParams())
+            firmware = PTUFirmware(PTUParams(), now=0.0)
+            ps = f"PS{round_position(degrees_to_positions(deg_s))}"
+            emu.clear_commands()
+            if refusal is None:
+                sim.set_speed(pan_deg_s=deg_s)
+                rig.set_speed(pan_deg_s=deg_s)
+                assert firmware.execute(ps, now=0.0) == "*"
+                assert (sim.speeds[0], emu.speeds[0], firmware.axes["P"].speed) == (whole,) * 3
+                assert emu.commands == [f"PS{whole}"]
+                continue
+            with pytest.raises(ValueError) as sim_err:
+                sim.set_speed(pan_deg_s=deg_s)
+            with pytest.raises(ValueError) as rig_err:
+                rig.set_speed(pan_deg_s=deg_s)
+            assert (str(sim_err.value), str(rig_err.value)) == (refusal, refusal)
+            assert emu.commands == []  # the driver refused before sending
+            assert firmware.execute(ps, now=0.0) == reply
+            assert (sim.speeds[0], firmware.axes["P"].speed) == (2000.0, 2000.0)
+
+
+def test_firmware_rounds_speeds_as_the_link_rounds_positions():
+    # round_position (halves away from zero), not Python's round (halves to even).
+    firmware = PTUFirmware(PTUParams(pan_speed=100.5), now=0.0)
+    firmware.axes["P"].state = AxisState(0.0, -2.5)
+    assert firmware.execute("PD", now=0.0) == "* Current Pan speed is -3 positions/sec"
+    assert firmware.execute("PD10", now=0.0) == "*"  # offsets the rounded speed, 101
+    assert firmware.axes["P"].speed == 111.0
+
+
 def test_error_replies_raise_with_the_units_message(emu, ptu):
     emu.inject_error("Illegal argument", command="PS")
     with pytest.raises(PTUError) as info:
@@ -477,8 +543,6 @@ def test_emulator_goes_silent_after_n_commands():
 def test_emulator_params_are_checked():
     with pytest.raises(ValueError, match="eol"):
         PTUEmulatorParams(eol=";")
-    with pytest.raises(ValueError, match="lower_speed"):
-        PTUEmulatorParams(lower_speed=3000.0)
     with pytest.raises(ValueError, match="timeout_s"):
         FlirPTUParams(timeout_s=0.0)
 

@@ -19,7 +19,14 @@ from wander_env.ptu.axis import (
 from wander_env.ptu.mechanics import backlash, camera_position
 from wander_env.ptu.params import PTUParams
 from wander_env.ptu.unit import PanTiltUnit
-from wander_env.ptu.units import degrees_to_positions, positions_to_degrees, round_position
+from wander_env.ptu.units import (
+    SpeedOutOfRange,
+    degrees_to_positions,
+    positions_to_degrees,
+    round_position,
+    whole_position,
+    whole_speed,
+)
 
 DEG_PER_POS = 92.5714 / 3600.0
 
@@ -78,6 +85,64 @@ def test_round_position_is_symmetric_half_away_from_zero():
     ]
 
 
+def test_whole_position_rounds_halves_away_from_zero_and_refuses_non_finite():
+    # 0.5 and -0.5 positions, as degrees: round_position's halves, not Python's round.
+    assert whole_position("pan", 0.5 * DEG_PER_POS, 92.5714) == 1
+    assert whole_position("pan", -0.5 * DEG_PER_POS, 92.5714) == -1
+    assert whole_position("tilt", -23.32, 92.5714) == -907
+    with pytest.raises(ValueError, match=r"^pan value must be a finite number, got inf$"):
+        whole_position("pan", math.inf, 92.5714)
+
+
+@pytest.mark.parametrize(
+    ("pos_s", "expected"),
+    [(30.5, 31), (31.0, 31), (500.4, 500), (500.5, 501), (2902.4, 2902), (2902.0, 2902)],
+)
+def test_whole_speed_rounds_into_the_bounds(pos_s, expected):
+    assert whole_speed("pan", pos_s, 31.0, 2902.0) == expected
+
+
+@pytest.mark.parametrize(
+    ("pos_s", "lower", "message", "limit", "above"),
+    [
+        (
+            30.49,
+            31.0,
+            "pan speed must round to 31…2902 positions/s, got 30.49 positions/s",
+            31,
+            False,
+        ),
+        (
+            2902.5,
+            31.0,
+            "pan speed must round to 31…2902 positions/s, got 2902.5 positions/s",
+            2902,
+            True,
+        ),
+        # Whatever PL says, a speed is at least one whole position/s.
+        (0.49, 0.0, "pan speed must round to 1…2902 positions/s, got 0.49 positions/s", 1, False),
+        (
+            -40.0,
+            31.0,
+            "pan speed must round to 31…2902 positions/s, got -40 positions/s",
+            31,
+            False,
+        ),
+    ],
+)
+def test_whole_speed_refuses_a_speed_outside_the_bounds(pos_s, lower, message, limit, above):
+    with pytest.raises(SpeedOutOfRange) as err:
+        whole_speed("pan", pos_s, lower, 2902.0)
+    assert (str(err.value), err.value.limit, err.value.above) == (message, limit, above)
+
+
+def test_whole_speed_refuses_non_finite():
+    with pytest.raises(
+        ValueError, match=r"^tilt speed must be a finite number, got nan positions/s$"
+    ):
+        whole_speed("tilt", math.nan, 31.0, 2902.0)
+
+
 # ----------------------------------------------------------------------------------------
 # Parameters
 
@@ -105,6 +170,8 @@ def test_default_limits_are_flir_factory_limits():
         ("tilt_accel", float("inf")),
         ("pan_base_speed", -5.0),
         ("tilt_upper_speed", 0.0),
+        ("pan_lower_speed", -1.0),
+        ("tilt_lower_speed", float("nan")),
         ("pan_backlash_pos", -1.0),
         ("tilt_backlash_pos", float("nan")),
         ("camera_forward_m", float("inf")),
@@ -127,6 +194,21 @@ def test_params_reject_inverted_limits_and_speeds_above_upper():
         PTUParams(pan_speed=3000.0)
     with pytest.raises(ValueError, match="tilt_base_speed must be <= tilt_upper_speed"):
         PTUParams(tilt_base_speed=3000.0)
+    with pytest.raises(ValueError) as err:
+        PTUParams(pan_lower_speed=3000.0)
+    assert (
+        str(err.value)
+        == "PTUParams.pan_lower_speed must be <= pan_upper_speed (2902.0), got 3000.0"
+    )
+    with pytest.raises(ValueError) as err:
+        PTUParams(tilt_speed=30.0)
+    assert str(err.value) == "PTUParams.tilt_speed must be >= tilt_lower_speed (31.0), got 30.0"
+
+
+def test_default_speed_bounds_are_the_flir_manuals():
+    p = PTUParams()
+    assert (p.pan_lower_speed, p.pan_upper_speed) == (31.0, 2902.0)
+    assert (p.tilt_lower_speed, p.tilt_upper_speed) == (31.0, 2902.0)
 
 
 def test_camera_offsets_may_be_negative():
@@ -374,10 +456,27 @@ def test_set_speed_on_the_fly():
     ptu.set_speed(pan_deg_s=500 * DEG_PER_POS)
     ptu.step(0.25)  # ramps down at 2000 pos/s²
     assert ptu.pan_velocity_deg_s == pytest.approx(500 * DEG_PER_POS)
-    with pytest.raises(ValueError, match="pan_upper_speed"):
+    assert ptu.speeds == (500.0, 1000.0)
+    with pytest.raises(ValueError) as err:
         ptu.set_speed(pan_deg_s=3000 * DEG_PER_POS)
-    with pytest.raises(ValueError, match="tilt speed"):
+    assert str(err.value) == "pan speed must round to 31…2902 positions/s, got 3000 positions/s"
+    with pytest.raises(ValueError) as err:
         ptu.set_speed(tilt_deg_s=0.0)
+    assert str(err.value) == "tilt speed must round to 31…2902 positions/s, got 0 positions/s"
+    assert ptu.speeds == (500.0, 1000.0)
+
+
+def test_set_speed_takes_whole_positions_per_second_and_refuses_all_or_nothing():
+    ptu = PanTiltUnit()
+    ptu.set_speed(pan_deg_s=10.0, tilt_deg_s=30.6 * DEG_PER_POS)  # 388.89 and 30.6 pos/s
+    assert ptu.speeds == (389.0, 31.0)
+    with pytest.raises(ValueError) as err:  # the pan half is good: neither changes
+        ptu.set_speed(pan_deg_s=1000 * DEG_PER_POS, tilt_deg_s=0.5)
+    assert str(err.value) == "tilt speed must round to 31…2902 positions/s, got 19.4445 positions/s"
+    assert ptu.speeds == (389.0, 31.0)
+    with pytest.raises(ValueError) as err:
+        ptu.set_speed(pan_deg_s=math.nan)
+    assert str(err.value) == "pan speed must be a finite number, got nan positions/s"
 
 
 def test_step_rejects_negative_dt():
@@ -487,7 +586,7 @@ def test_unit_camera_position_uses_camera_angles():
 
 @pytest.mark.parametrize(
     ("module", "examples"),
-    [("units", 4), ("link", 13), ("params", 4), ("axis", 7), ("mechanics", 3), ("unit", 14)],
+    [("units", 8), ("link", 13), ("params", 4), ("axis", 7), ("mechanics", 3), ("unit", 17)],
 )
 def test_docstring_examples_run(module, examples):
     import doctest
