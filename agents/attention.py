@@ -56,8 +56,13 @@ from typing import Annotated, Any
 import numpy as np
 import pydantic
 
-from agents.control import AttentionController, ControlParams
-from agents.fixation import FIXATION_WINDOW_S, FixationalMovements, FixationParams
+from agents.control import AttentionController, ControlParams, steps_for
+from agents.fixation import (
+    FIXATION_WINDOW_S,
+    FixationalMovements,
+    FixationParams,
+    check_resolution_arcsec,
+)
 from agents.pipeline import PipelineBase, SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
@@ -65,12 +70,14 @@ from agents.speck_front import SpeckFrontParams, SpeckPipeline
 from agents.suppression import kept_events, suppressed_fraction
 from agents.torch_fork import set_torch_threads
 from wander_env.actions import gaze_degrees_to_action
-from wander_env.camera import SPECK_HFOV_DEG, pixel_to_rotation
+from wander_env.camera import SPECK_HFOV_DEG, check_hfov_deg, pixel_to_rotation
 from wander_env.config import check_fields, to_plain
+from wander_env.ptu.units import FLIR_RESOLUTION_ARCSEC
 
 __all__ = [
     "AGENT_SOMS",
     "AGENT_SOMS_ALPHA",
+    "ENV_FIELDS",
     "AgentParams",
     "AttentionAgent",
     "Fixation",
@@ -162,6 +169,11 @@ FrontEnd = Annotated[
 ]
 
 
+#: The agent's fields an env sets (:meth:`AgentParams.for_env`): its sensor, control
+#: period, lens and PTU resolution.
+ENV_FIELDS = ("width_px", "height_px", "step_s", "hfov_deg", "ptu_resolution_arcsec")
+
+
 @dataclass(frozen=True)
 class AgentParams:
     """Parameters of the composed agent; the paper's values as defaults.
@@ -200,9 +212,13 @@ class AgentParams:
       :class:`agents.speck_front.SpeckPipeline`; ``proto`` is then unused): the names
       ``"agent"``, ``"paper"`` and ``"speck"`` give the three blocks
       (:func:`soms_block`);
-    - sensor geometry (128×128 Speck, HFOV 112.83°) and one parameter block per
-      component. The components' ``dt``, sizes and fixation interval are set from
-      these fields by :meth:`resolved` (so they cannot disagree).
+    - the env's geometry (128×128 Speck, HFOV 112.83° in (0, 180),
+      :func:`wander_env.camera.check_hfov_deg`; the PTU's ``ptu_resolution_arcsec``
+      (pan, tilt), the FLIR's 92.5714″ on both axes), which :meth:`for_env` reads from
+      the env, and one parameter block per component. The components' ``dt``, sizes,
+      field of view, PTU resolution and fixation interval are set from these fields by
+      :meth:`resolved` (so they cannot disagree); ``step_s`` must be a whole number of
+      the controller's steps (``control.dt``).
     """
 
     window_s: float = FIXATION_WINDOW_S
@@ -216,6 +232,7 @@ class AgentParams:
     width_px: int = 128
     height_px: int = 128
     hfov_deg: float = SPECK_HFOV_DEG
+    ptu_resolution_arcsec: tuple[float, float] = (FLIR_RESOLUTION_ARCSEC, FLIR_RESOLUTION_ARCSEC)
     soms: FrontEnd = field(default_factory=lambda: AGENT_SOMS)
     proto: ProtoObjectParams = field(default_factory=ProtoObjectParams)
     control: ControlParams = field(default_factory=ControlParams)
@@ -224,13 +241,16 @@ class AgentParams:
     def __post_init__(self) -> None:
         if isinstance(self.soms, str):  # a name: its block
             object.__setattr__(self, "soms", soms_block(self.soms))
-        names = ("window_s", "step_s", "saccade_settle_s", "max_saccade_s", "hfov_deg")
+        names = ("window_s", "step_s", "saccade_settle_s", "max_saccade_s")
         check_fields(self, names, positive=True)
         if self.window_s + _EPS < self.step_s:
             raise ValueError(
                 f"AgentParams.window_s={self.window_s} is shorter than step_s={self.step_s}"
             )
+        steps_for(self.step_s, self.control.dt, "AgentParams.step_s")  # the sAC's lockstep
         check_fields(self, ("width_px", "height_px"), integer=True, minimum=1)
+        check_hfov_deg(self.hfov_deg, "AgentParams.hfov_deg")
+        check_resolution_arcsec(self.ptu_resolution_arcsec, "AgentParams.ptu_resolution_arcsec")
 
     @property
     def window_steps(self) -> int:
@@ -253,26 +273,56 @@ class AgentParams:
                 width_px=self.width_px,
                 height_px=self.height_px,
                 hfov_deg=self.hfov_deg,
+                resolution_arcsec=self.ptu_resolution_arcsec,
                 interval_s=self.window_s / n,
             ),
         )
 
     def on_env(self, env: Any, **overrides: Any) -> AgentParams:
-        """These parameters with ``env``'s sensor size and step (:meth:`for_env`: a config's
-        ``agent`` block on the env it runs in), then ``overrides`` (a study's condition)."""
-        env_set = ("width_px", "height_px", "step_s")
+        """These parameters with ``env``'s sensor, lens, PTU resolution and step
+        (:meth:`for_env`: a config's ``agent`` block on the env it runs in), then
+        ``overrides`` (a study's condition)."""
         own = {f.name: getattr(self, f.name) for f in fields(self) if f.init}
-        kept = {k: v for k, v in own.items() if k not in env_set}
+        kept = {k: v for k, v in own.items() if k not in ENV_FIELDS}
         return type(self).for_env(env, **{**kept, **overrides})
+
+    def check_env_fields(self) -> None:
+        """Refuse a change to a field the env sets (:data:`ENV_FIELDS`): a config whose
+        agent runs on an env (:meth:`on_env`) would drop it. ValueError ``agent.FIELD: ...``.
+
+        >>> AgentParams(width_px=64).check_env_fields()
+        Traceback (most recent call last):
+        ...
+        ValueError: agent.width_px: 64 is the env's to set (its camera, PTU and control \
+period), not the agent block's; leave it at its default, 128
+        """
+        default = AgentParams()
+        for name in ENV_FIELDS:
+            value, default_value = getattr(self, name), getattr(default, name)
+            if value != default_value:
+                raise ValueError(
+                    f"agent.{name}: {value!r} is the env's to set (its camera, PTU and control "
+                    f"period), not the agent block's; leave it at its default, {default_value!r}"
+                )
 
     @classmethod
     def for_env(cls, env: Any, **overrides: Any) -> AgentParams:
-        """Parameters matched to an env: sensor size from its observation space, step
-        length from its ``config.control_period_s`` (``WanderEnv`` and ``RigEnv``)."""
+        """Parameters matched to an env (``WanderEnv`` and ``RigEnv`` alike): sensor size
+        from its observation space, step length from its ``config.control_period_s``, the
+        lens's ``hfov_deg`` and the PTU's ``ptu_resolution_arcsec`` (pan, tilt) from the
+        env's attributes of those names."""
         h, w = env.observation_space["events"].shape[1:]
-        cfg = getattr(env.unwrapped, "config", None)
+        base = env.unwrapped
+        cfg = getattr(base, "config", None)
         step = getattr(cfg, "control_period_s", cls.step_s)
-        return cls(**{"width_px": int(w), "height_px": int(h), "step_s": step, **overrides})
+        matched = {
+            "width_px": int(w),
+            "height_px": int(h),
+            "step_s": step,
+            "hfov_deg": base.hfov_deg,
+            "ptu_resolution_arcsec": base.ptu_resolution_arcsec,
+        }
+        return cls(**{**matched, **overrides})
 
     def check_reads(self, *blocks: str, speck: bool = True) -> None:
         """Refuse a setting that a study of the agent's components would ignore: a config
@@ -361,7 +411,7 @@ class AttentionAgent:
 
     ``observation`` is the env's ``{"events": (2, H, W), "gaze": (pan, tilt)}``; from
     ``info`` the agent reads ``moving`` (whether the PTU is still moving), and ``t`` and
-    ``ptu_target_positions``/``ptu_resolution_deg`` when present. The same code drives the
+    ``ptu_target_deg`` (where the PTU is heading) when present. The same code drives the
     simulated env and the rig. ``pipeline`` replaces the one the parameters choose (the
     front end running on a real Speck: :class:`hardware.speck_network.ChipPipeline`).
     """

@@ -83,18 +83,23 @@ def normalised_error(
     return (p - c) / np.array([width_px / 2.0, height_px / 2.0])
 
 
-def steps_for(duration_s: float, dt: float) -> int:
+def steps_for(duration_s: float, dt: float, name: str = "duration_s") -> int:
     """Number of ``dt`` steps in ``duration_s``; it must be a whole multiple (±1e-6 steps).
+    ValueError naming ``name`` (what ``duration_s`` is) and the value otherwise.
 
     >>> steps_for(0.01, 0.001), steps_for(0.0, 0.001)
     (10, 0)
+    >>> steps_for(0.0125, 0.001, "AgentParams.step_s")
+    Traceback (most recent call last):
+    ...
+    ValueError: AgentParams.step_s=0.0125 is not a whole multiple of dt=0.001
     """
     if not (math.isfinite(duration_s) and duration_s >= 0):
-        raise ValueError(f"duration_s must be a finite number >= 0, got {duration_s!r}")
+        raise ValueError(f"{name} must be a finite number >= 0, got {duration_s!r}")
     n = duration_s / dt
     k = round(n)
     if abs(n - k) > 1e-6:
-        raise ValueError(f"duration_s={duration_s!r} is not a whole multiple of dt={dt!r}")
+        raise ValueError(f"{name}={duration_s!r} is not a whole multiple of dt={dt!r}")
     return int(k)
 
 

@@ -34,12 +34,13 @@ Examples:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from wander_env.actions import gaze_degrees_to_action
-from wander_env.camera import SPECK_HFOV_DEG
+from wander_env.camera import SPECK_HFOV_DEG, check_hfov_deg
 from wander_env.config import check_fields
 from wander_env.ptu.units import FLIR_RESOLUTION_ARCSEC, positions_to_degrees
 
@@ -48,6 +49,7 @@ __all__ = [
     "FixationParams",
     "FixationStep",
     "FixationalMovements",
+    "check_resolution_arcsec",
     "draw_perturbations",
     "fold_into_bound",
     "positions_to_action",
@@ -65,12 +67,13 @@ FIXATION_WINDOW_S = 0.124
 
 def positions_to_action(
     delta_pos: np.ndarray | tuple[float, float],
-    resolution_arcsec: float = FLIR_RESOLUTION_ARCSEC,
+    resolution_arcsec: tuple[float, float] = (FLIR_RESOLUTION_ARCSEC, FLIR_RESOLUTION_ARCSEC),
     width_px: int = 128,
     height_px: int = 128,
     hfov_deg: float = SPECK_HFOV_DEG,
 ) -> np.ndarray:
-    """Relative PTU positions ``(pan, tilt)`` -> env action units (positions -> ° -> action).
+    """Relative PTU positions ``(pan, tilt)`` -> env action units (positions -> ° -> action),
+    each axis at its own ``resolution_arcsec`` (pan, tilt).
 
     Examples:
         >>> a = positions_to_action((-60, 60))  # 60 positions (≈ 1.54°) right and up
@@ -79,12 +82,35 @@ def positions_to_action(
     """
     p, t = (float(v) for v in np.asarray(delta_pos, dtype=np.float64).reshape(2))
     return gaze_degrees_to_action(
-        positions_to_degrees(p, resolution_arcsec),
-        positions_to_degrees(t, resolution_arcsec),
+        positions_to_degrees(p, resolution_arcsec[0]),
+        positions_to_degrees(t, resolution_arcsec[1]),
         width_px,
         height_px,
         hfov_deg,
     )
+
+
+def check_resolution_arcsec(
+    resolution_arcsec: tuple[float, float], name: str = "resolution_arcsec"
+) -> tuple[float, float]:
+    """``resolution_arcsec`` when it is a PTU's (pan, tilt) arc-seconds per position: a
+    tuple of two finite numbers > 0 (not bools); ValueError naming ``name`` and the value
+    otherwise.
+
+    >>> check_resolution_arcsec((92.5714, 46.2857))
+    (92.5714, 46.2857)
+    >>> check_resolution_arcsec(92.5714)
+    Traceback (most recent call last):
+    ...
+    ValueError: resolution_arcsec: must be (pan, tilt) arc-seconds > 0, got 92.5714
+    """
+    pair = isinstance(resolution_arcsec, tuple) and len(resolution_arcsec) == 2
+    if not pair or not all(
+        isinstance(r, (int, float)) and not isinstance(r, bool) and 0 < r < math.inf
+        for r in resolution_arcsec
+    ):
+        raise ValueError(f"{name}: must be (pan, tilt) arc-seconds > 0, got {resolution_arcsec!r}")
+    return resolution_arcsec
 
 
 def fold_into_bound(pos: np.ndarray, bound: float) -> np.ndarray:
@@ -140,7 +166,8 @@ class FixationParams:
 
     - ``n_steps`` N = 8 perturbations per fixation;
     - ``max_step_pos`` 60: each perturbation uniform in ``[−60, 60]`` PTU positions;
-    - ``resolution_arcsec`` 92.5714″ per position (0.025714°; 60 positions ≈ 1.543°);
+    - ``resolution_arcsec`` (pan, tilt) 92.5714″ per position on both axes (0.025714°;
+      60 positions ≈ 1.543°): the PTU's (the attention agent sets it from the env's);
     - ``interval_s``: dwell of each perturbation; 0.0155 s so that the 8 steps fill the
       saliency window St_w = 124 ms of the paper's demonstrator (an assumption: the
       paper gives only the window);
@@ -148,12 +175,13 @@ class FixationParams:
       (reflecting wall, see :func:`fold_into_bound`); ``None`` = free walk (paper);
     - ``integer_positions``: draw whole positions; ``shared_axes``: same ``r_i`` on both
       axes (the paper's formula read literally; default independent axes);
-    - sensor geometry for the action conversion: 128×128 Speck, HFOV 112.83°.
+    - sensor geometry for the action conversion: 128×128 Speck, HFOV 112.83°
+      (:func:`wander_env.camera.check_hfov_deg`).
     """
 
     n_steps: int = 8
     max_step_pos: int = 60
-    resolution_arcsec: float = FLIR_RESOLUTION_ARCSEC
+    resolution_arcsec: tuple[float, float] = (FLIR_RESOLUTION_ARCSEC, FLIR_RESOLUTION_ARCSEC)
     interval_s: float = FIXATION_WINDOW_S / 8
     max_excursion_pos: int | None = None
     integer_positions: bool = True
@@ -165,13 +193,16 @@ class FixationParams:
     def __post_init__(self) -> None:
         check_fields(self, ("n_steps", "max_step_pos"), integer=True, minimum=0)
         check_fields(self, ("width_px", "height_px"), integer=True, minimum=1)
-        check_fields(self, ("resolution_arcsec", "interval_s", "hfov_deg"), positive=True)
+        check_fields(self, ("interval_s",), positive=True)
         check_fields(self, ("max_excursion_pos",), integer=True, minimum=0, allow_none=True)
+        check_resolution_arcsec(self.resolution_arcsec, "FixationParams.resolution_arcsec")
+        check_hfov_deg(self.hfov_deg, "FixationParams.hfov_deg")
 
     @property
-    def deg_per_pos(self) -> float:
-        """Degrees per PTU position (0.025714 by default)."""
-        return positions_to_degrees(1.0, self.resolution_arcsec)
+    def deg_per_pos(self) -> tuple[float, float]:
+        """Degrees per PTU position, (pan, tilt) (0.025714 each by default)."""
+        pan, tilt = self.resolution_arcsec
+        return positions_to_degrees(1.0, pan), positions_to_degrees(1.0, tilt)
 
     @property
     def duration_s(self) -> float:
@@ -233,7 +264,7 @@ class FixationalMovements:
     @property
     def cumulative_deg(self) -> np.ndarray:
         """Walk position relative to the fixation point, degrees (PTU signs)."""
-        return self._cum * self.params.deg_per_pos
+        return self._cum * np.array(self.params.deg_per_pos)
 
     @property
     def index(self) -> int:
@@ -281,8 +312,8 @@ class FixationalMovements:
             index=idx,
             delta_pos=(dp, dt),
             delta_deg=(
-                positions_to_degrees(dp, p.resolution_arcsec),
-                positions_to_degrees(dt, p.resolution_arcsec),
+                positions_to_degrees(dp, p.resolution_arcsec[0]),
+                positions_to_degrees(dt, p.resolution_arcsec[1]),
             ),
             action=positions_to_action(
                 delta, p.resolution_arcsec, p.width_px, p.height_px, p.hfov_deg

@@ -20,7 +20,8 @@
   step window trails the camera's clock; 0 for a fast replay).
 
 Nothing about the devices is a constant here: the sensor size comes from the
-source, the PTU's resolution and limits from the driver's queries.
+source, the PTU's resolution (``ptu_resolution_arcsec``, pan and tilt, as the sim's) and
+limits from the driver's queries; ``hfov_deg`` (the lens) from the config.
 
 One step is one window of ``control_period_s`` of the camera's clock. The PTU command is
 handed to a background thread that owns the serial line
@@ -82,10 +83,11 @@ from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from hardware.ptu_link_thread import PTULinkThread
 from hardware.replay import ReplaySource
 from hardware.speck import SpeckParams, SpeckSource
-from wander_env.camera import SPECK_HFOV_DEG
+from wander_env.camera import SPECK_HFOV_DEG, check_hfov_deg
 from wander_env.config import FieldsMapping, check_fields
 from wander_env.config_messages import shown
 from wander_env.env_base import CameraEnv, StepInfo
+from wander_env.env_config import control_period_us
 from wander_env.events import empty_events
 from wander_env.events.packet import EventPacket
 from wander_env.viz import event_image, labelled_frame
@@ -105,11 +107,13 @@ class RigConfig(FieldsMapping):
     ``replay``: ``"realtime"`` (paced by the wall clock), ``"fast"`` (windows advance
     in stream time) or ``"stepped"`` (windows and the PTU link's polls in stream time:
     see the module docstring); ``replay_loop`` repeats the file.
-    ``control_period_s``: the step window; ``episode_seconds``: truncation;
+    ``control_period_s``: the step window (whole µs, at most 1 s: the sim's rule,
+    :func:`wander_env.env_config.control_period_us`); ``episode_seconds``: truncation;
     ``start_gaze_deg``: where :meth:`RigEnv.reset` points the PTU (``None``: leave it);
     ``hfov_deg``: the lens's horizontal field of view (not queryable; Speck's by
-    default); ``ptu_poll_s``: position polling period; ``driver``, ``emulator``,
-    ``speck``: the parameters of those parts.
+    default; in (0, 180), :func:`wander_env.camera.check_hfov_deg`); ``ptu_poll_s``:
+    position polling period; ``driver``, ``emulator``, ``speck``: the parameters of those
+    parts.
 
     >>> RigConfig(ptu_port="emulate", camera="replay:walk.npz").control_period_us
     10000
@@ -139,15 +143,9 @@ class RigConfig(FieldsMapping):
             raise ValueError(
                 f"RigConfig.replay must be one of {_REPLAY_MODES}, got {self.replay!r}"
             )
-        names = ("control_period_s", "episode_seconds", "ptu_poll_s", "hfov_deg")
-        check_fields(self, names, positive=True)
-        if not self.hfov_deg < 180:
-            raise ValueError(f"RigConfig.hfov_deg must be < 180, got {self.hfov_deg!r}")
-        if abs(self.control_period_s * 1e6 - self.control_period_us) > 1e-6:
-            raise ValueError(
-                f"RigConfig.control_period_s must be a whole number of µs, got "
-                f"{self.control_period_s!r}"
-            )
+        check_fields(self, ("episode_seconds", "ptu_poll_s"), positive=True)
+        check_hfov_deg(self.hfov_deg, "RigConfig.hfov_deg")
+        control_period_us(self.control_period_s, "RigConfig.control_period_s")
         if self.start_gaze_deg is not None:
             gaze = tuple(float(v) for v in self.start_gaze_deg)
             if len(gaze) != 2 or not all(math.isfinite(v) for v in gaze):
@@ -159,8 +157,9 @@ class RigConfig(FieldsMapping):
 
     @property
     def control_period_us(self) -> int:
-        """The step window in µs."""
-        return round(self.control_period_s * 1e6)
+        """The step window in whole µs (:func:`wander_env.env_config.control_period_us`,
+        the sim's rule)."""
+        return control_period_us(self.control_period_s)
 
     def camera_kind(self) -> tuple[str, str]:
         """``("speck", serial or "")`` or ``("replay", path)``, from ``camera``.
@@ -218,6 +217,7 @@ class RigEnv(CameraEnv):
             raise
         atexit.register(self.close)  # an env left open still halts the PTU at exit
         self.hfov_deg = c.hfov_deg
+        self.ptu_resolution_arcsec: tuple[float, float] = self.ptu.resolution_arcsec
         self.init_spaces(
             self.sensor_size[0],
             self.sensor_size[1],

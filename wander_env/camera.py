@@ -7,6 +7,7 @@ MuJoCo's camera frame (x right, y up, z backward) converts with
 :func:`rotation_from_mujoco`. A rotation ``R`` is world-from-camera (columns: the
 camera's axes in world coordinates) and ``c`` the camera centre in world coordinates.
 
+- :func:`check_hfov_deg`: the one rule of a horizontal field of view, (0, 180) degrees;
 - :func:`focal_length_px`, :func:`field_of_view_deg`, :func:`vertical_fov_deg`,
   :func:`pixels_to_degrees`, :func:`degrees_to_pixels`: the focal length from the field of
   view and back, and the angle of a pixel offset;
@@ -50,6 +51,25 @@ CAMERA_NAME = "event_camera"
 _MJ_TO_CV = np.diag([1.0, -1.0, -1.0])
 
 
+def check_hfov_deg(hfov_deg: float, name: str = "hfov_deg") -> float:
+    """``hfov_deg`` when a pinhole can have it as its horizontal field of view: a number
+    (not a bool) in the open interval (0, 180) degrees; ValueError naming ``name`` and the
+    value otherwise. The one rule of every ``hfov_deg`` (the scene's camera, the rig, the
+    agent, :func:`focal_length_px`).
+
+    >>> check_hfov_deg(90.0)
+    90.0
+    >>> check_hfov_deg(180, "RigConfig.hfov_deg")
+    Traceback (most recent call last):
+    ...
+    ValueError: RigConfig.hfov_deg: must be in (0, 180) degrees, got 180
+    """
+    number = isinstance(hfov_deg, (int, float)) and not isinstance(hfov_deg, bool)
+    if not (number and 0 < hfov_deg < 180):
+        raise ValueError(f"{name}: must be in (0, 180) degrees, got {hfov_deg!r}")
+    return hfov_deg
+
+
 def focal_length_px(width_px: int, hfov_deg: float = SPECK_HFOV_DEG) -> float:
     """Pinhole focal length in pixels, ``(W / 2) / tan(HFOV / 2)``.
 
@@ -58,8 +78,7 @@ def focal_length_px(width_px: int, hfov_deg: float = SPECK_HFOV_DEG) -> float:
     """
     if width_px <= 0:
         raise ValueError(f"width_px must be > 0, got {width_px!r}")
-    if not 0 < hfov_deg < 180:
-        raise ValueError(f"hfov_deg must be in (0, 180), got {hfov_deg!r}")
+    check_hfov_deg(hfov_deg)
     return (width_px / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
 
 
@@ -336,6 +355,7 @@ def cast_pixel(
 __all__ = [
     "SPECK_HFOV_DEG",
     "cast_pixel",
+    "check_hfov_deg",
     "degrees_to_pixels",
     "field_of_view_deg",
     "focal_length_px",

@@ -64,6 +64,19 @@ def srgb_to_linear(v: np.ndarray) -> np.ndarray:
     return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
 
 
+def luminance_tables() -> tuple[np.ndarray, np.ndarray]:
+    """Per 8-bit sRGB code: its linear light (256,) and each channel's Rec. 709 weighted
+    share of the linear luminance (3, 256), both float32 and weighted in float32 (the
+    one table the DVS emulator and the panorama's cube map sum).
+
+    >>> lut, wlut = luminance_tables()
+    >>> lut.dtype, wlut.shape, float(lut[255]), float(wlut[:, 255].sum())
+    (dtype('float32'), (3, 256), 1.0, 1.0)
+    """
+    lut = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
+    return lut, LUMA.astype(np.float32)[:, None] * lut[None, :]
+
+
 def linlog(intensity: np.ndarray, linlog_intensity: float) -> np.ndarray:
     """``ln(I)`` above ``linlog_intensity``; below it the tangent line (finite at 0)."""
     i = np.asarray(intensity, dtype=np.float64)
@@ -388,8 +401,7 @@ class DVSEmulator:
         # and (for grey frames) ln(max(light, linlog_intensity)), all float32 and
         # computed by the same operations the per-pixel path used, so events are
         # bit-for-bit those of converting every pixel.
-        self._lut = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
-        self._wlut = LUMA.astype(np.float32)[:, None] * self._lut[None, :]
+        self._lut, self._wlut = luminance_tables()
         self._log_lut = np.log(np.maximum(self._lut, np.float32(self.params.linlog_intensity)))
         n = self.width * self.height
         self._lum = np.empty(n, np.float32)

@@ -35,10 +35,13 @@ camera's rotation and renders keys only for the moving objects
 ``renders_in_step`` counts the RGB renders of the last step.
 
 Action, observation and ``info``: :class:`~wander_env.env_base.CameraEnv` (shared with
-the rig). The sim's ``info`` adds ``frames`` and ``extra_frames`` (frames handed to the DVS
-in the step, and how many of them were adaptive sub-frames) and, with ground truth on,
-``object_mask`` ((H, W) int32 object ids, 0 = background) and ``objects`` (per moving
-object: id, name, pixel centre of its projection, mask pixels, visible).
+the rig). Like the rig, the env exposes its lens's ``hfov_deg`` (the scene's camera) and
+the PTU's ``ptu_resolution_arcsec`` (pan, tilt) for an agent to match
+(:meth:`agents.attention.AgentParams.for_env`). The sim's ``info`` adds ``frames`` and
+``extra_frames`` (frames handed to the DVS in the step, and how many of them were
+adaptive sub-frames) and, with ground truth on, ``object_mask`` ((H, W) int32 object
+ids, 0 = background) and ``objects`` (per moving object: id, name, pixel centre of its
+projection, mask pixels, visible).
 
 Processes and threads: the renderer (an OpenGL context) is created at the first
 ``reset``, in the process that renders, and with ``render_thread`` (the default) on a
@@ -78,6 +81,7 @@ from wander_env.frames.source import FrameParams
 from wander_env.frames.stage import Stage
 from wander_env.mjcf import SceneAnimator, build_mjcf
 from wander_env.ptu.unit import PanTiltUnit, Trajectory
+from wander_env.ptu.units import round_position
 from wander_env.readout import SpeckReadout
 from wander_env.renderer import RenderParams
 from wander_env.scene_config import SceneConfig
@@ -98,6 +102,10 @@ class WanderEnv(CameraEnv):
             scene = replace(scene, camera=camera)
         self.scene: SceneConfig = scene
         self.hfov_deg = scene.camera.hfov_deg
+        self.ptu_resolution_arcsec: tuple[float, float] = (
+            c.ptu.pan_resolution_arcsec,
+            c.ptu.tilt_resolution_arcsec,
+        )
         self.stage = Stage(
             build_mjcf(scene, c.ptu).compile(),
             scene,
@@ -155,7 +163,7 @@ class WanderEnv(CameraEnv):
         a frame whose largest log change passes ``adaptive_log_change`` is preceded by
         sub-frames splitting the span since the previous frame."""
         c = self.config
-        t1 = self._t_us + c.ticks_per_step * c.tick_us
+        t1 = self._t_us + c.control_period_us
         trajectory = self.ptu.trajectory(self._t_us, t1, c.tick_us)
         self.stage.begin_step()
         self.source.plan(trajectory)
@@ -190,7 +198,7 @@ class WanderEnv(CameraEnv):
         c = self.config
         twin = self.ptu.copy()
         twin.set_target(*twin.clip_target(*twin.target_deg))
-        return twin.trajectory(t_us, t_us + c.ticks_per_step * c.tick_us, c.tick_us)
+        return twin.trajectory(t_us, t_us + c.control_period_us, c.tick_us)
 
     def _ends_at(self, t_us: int) -> bool:
         return t_us * 1e-6 >= self.config.episode_seconds - 1e-9
@@ -241,7 +249,7 @@ class WanderEnv(CameraEnv):
             events=EventPacket(events),
             t=self._t_us * 1e-6,
             ptu_positions=self.ptu.positions,
-            ptu_target_positions=tuple(round(p) for p in self.ptu.target_positions),
+            ptu_target_positions=tuple(round_position(p) for p in self.ptu.target_positions),
             ptu_target_deg=tuple(float(d) for d in self.ptu.target_deg),
             moving=self.ptu.moving,
             target_clipped=clipped,

@@ -74,7 +74,8 @@ class StepInfo(_StepInfoBase, total=False):
 class CameraEnv(gym.Env):
     """A gymnasium env of the event camera on the pan-tilt unit (the two backends' base).
 
-    A subclass sets ``width``, ``height``, ``hfov_deg`` and the spaces
+    A subclass sets ``width``, ``height``, ``hfov_deg``, ``ptu_resolution_arcsec`` (pan,
+    tilt: what :meth:`agents.attention.AgentParams.for_env` reads) and the spaces
     (:meth:`init_spaces`) and implements :attr:`target_deg`, :meth:`clip_target`,
     :meth:`set_target`, :meth:`gaze`, :meth:`check_ready`, :meth:`collect` and
     :meth:`truncated`.
@@ -84,6 +85,7 @@ class CameraEnv(gym.Env):
     width: int
     height: int
     hfov_deg: float
+    ptu_resolution_arcsec: tuple[float, float]
 
     def init_render(self, render_mode: str | None, control_period_s: float) -> None:
         """Check and keep ``render_mode``; ``render_fps`` = one frame per control period."""

@@ -8,7 +8,9 @@ line), and the env is made from that block alone: ``gymnasium.make("wander/Wande
 
 Fields are checked as the scene's are (:func:`wander_env.config.check_annotated`: the
 constraints live on the ``Annotated`` type), plus the checks that tie fields together
-(a control period of whole render ticks, key intervals of whole ticks).
+(a control period of whole render ticks of whole µs, key intervals of whole ticks).
+:func:`control_period_us` is the one rule and conversion of a control period, the
+sim's and the rig's (:class:`hardware.rig_env.RigConfig`).
 
 Examples:
     >>> cfg = WanderConfig(scene="shelf", frames="exact")
@@ -39,6 +41,7 @@ from wander_env.scenes import available_scenes, load_scene_config
 
 __all__ = [
     "FRAME_MODES",
+    "MAX_CONTROL_PERIOD_S",
     "QUALITIES",
     "DvsPreset",
     "FrameMode",
@@ -49,7 +52,34 @@ __all__ = [
     "WanderConfig",
     "check_dvs_preset",
     "check_scene_name",
+    "control_period_us",
 ]
+
+#: The longest control period (one env step) the sim and the rig take, seconds.
+MAX_CONTROL_PERIOD_S = 1.0
+
+
+def control_period_us(control_period_s: float, name: str = "control_period_s") -> int:
+    """A control period (one env step) in whole µs: ``control_period_s`` must be a number
+    of seconds in (0, :data:`MAX_CONTROL_PERIOD_S`] that is a whole number of µs (within
+    1e-6 µs); ValueError naming ``name`` and the value otherwise.
+
+    >>> control_period_us(0.01), control_period_us(0.0125)
+    (10000, 12500)
+    >>> control_period_us(1.5e-7)
+    Traceback (most recent call last):
+    ...
+    ValueError: control_period_s: must be a whole number of µs in (0, 1] s, got 1.5e-07
+    """
+    number = isinstance(control_period_s, (int, float)) and not isinstance(control_period_s, bool)
+    valid = number and 0 < control_period_s <= MAX_CONTROL_PERIOD_S
+    us = control_period_s * 1e6 if valid else 0.0
+    if not valid or abs(us - round(us)) > 1e-6:
+        raise ValueError(
+            f"{name}: must be a whole number of µs in (0, {MAX_CONTROL_PERIOD_S:g}] s, "
+            f"got {control_period_s!r}"
+        )
+    return round(us)
 
 
 def check_scene_name(name: str) -> str:
@@ -108,10 +138,20 @@ class WanderConfig(FieldsMapping):
         field_doc("A scene name (assets/scenes), a scene YAML file, or a scene config"),
     ] = "office"
     control_period_s: Annotated[
-        float, field_doc("One env step (a control period)", unit="s", gt=0, le=1.0)
+        float,
+        field_doc(
+            "One env step (a control period): whole µs, at most 1 s (control_period_us)",
+            unit="s",
+        ),
     ] = 0.01
     render_rate_hz: Annotated[
-        float, field_doc("Frames a second handed to the DVS", unit="Hz", gt=0, le=1e6)
+        float,
+        field_doc(
+            "Frames a second handed to the DVS: whole render ticks a step, each of whole µs",
+            unit="Hz",
+            gt=0,
+            le=1e6,
+        ),
     ] = 1000.0
     dvs: Annotated[DvsPreset, field_doc("DVS preset: ideal, paper or speck")] = "ideal"
     adaptive_log_change: Annotated[
@@ -216,11 +256,18 @@ class WanderConfig(FieldsMapping):
 
     def __post_init__(self) -> None:
         check_annotated(self)
+        period_us = self.control_period_us
         ticks = self.control_period_s * self.render_rate_hz
         if abs(ticks - round(ticks)) > 1e-9 or round(ticks) < 1:
             raise ValueError(
                 f"control_period_s: {self.control_period_s} must be a whole number (>= 1) "
                 f"of render periods (render_rate_hz={self.render_rate_hz})"
+            )
+        if period_us % self.ticks_per_step:  # the ticks must add up to the period exactly
+            raise ValueError(
+                f"render_rate_hz: {self.render_rate_hz} must give render periods of whole µs "
+                f"({period_us} µs / {self.ticks_per_step} ticks = "
+                f"{period_us / self.ticks_per_step:g} µs)"
             )
         if round(1e6 / self.render_rate_hz / self.max_subframes) < 1:
             raise ValueError(f"max_subframes: {self.max_subframes} splits a tick below 1 µs")
@@ -248,12 +295,18 @@ class WanderConfig(FieldsMapping):
         return self.readout
 
     @property
+    def control_period_us(self) -> int:
+        """One step in whole µs (:func:`control_period_us`): ``ticks_per_step`` ticks of
+        ``tick_us``, exactly."""
+        return control_period_us(self.control_period_s)
+
+    @property
     def ticks_per_step(self) -> int:
         return round(self.control_period_s * self.render_rate_hz)
 
     @property
     def tick_us(self) -> int:
-        return round(1e6 / self.render_rate_hz)
+        return self.control_period_us // self.ticks_per_step
 
     @property
     def keyframe_us(self) -> int:

@@ -45,7 +45,7 @@ from typing import Annotated, Literal, TypeVar
 
 import pydantic
 
-from wander_env.camera import SPECK_HFOV_DEG
+from wander_env.camera import SPECK_HFOV_DEG, check_hfov_deg
 from wander_env.config import check_annotated
 from wander_env.field_doc import field_doc
 from wander_env.scene_parts import (
@@ -97,7 +97,7 @@ class CameraConfig:
     height: Annotated[int, field_doc("Image height", unit="px", ge=1, le=MAX_CAMERA_SIDE)] = 128
     hfov_deg: Annotated[
         float,
-        field_doc("Horizontal field of view (the Speck's by default)", unit="deg", gt=0, le=179),
+        field_doc("Horizontal field of view, in (0, 180) (the Speck's by default)", unit="deg"),
     ] = SPECK_HFOV_DEG
     antialias_samples: Annotated[
         int,
@@ -112,6 +112,7 @@ class CameraConfig:
 
     def __post_init__(self) -> None:
         check_annotated(self)
+        check_hfov_deg(self.hfov_deg)
         if self.width * self.height > MAX_CAMERA_PIXELS:
             raise ValueError(
                 f"width: width x height must be <= {MAX_CAMERA_PIXELS} pixels (2048 x 2048; "

@@ -106,7 +106,11 @@ class FileLimits:
         "A JSON document: config.json, run.json (a few kB); a sweep's trial files have "
         "their own cap, 16 MiB (experiments.runs.trials).",
     )
-    json_depth: int = _cap(64, "Lists and objects nested in a JSON document (ours nest 4-6 deep).")
+    json_depth: int = _cap(
+        64,
+        "Lists and objects nested in a JSON document, an event file's `metadata` too (ours "
+        "nest 4-6 deep).",
+    )
     mjcf_bytes: int = _cap(8 * MiB, "An MJCF file, and all the MJCF files one include brings.")
     include_depth: int = _cap(8, "`<include>` files within files.")
     mjcf_files: int = _cap(1000, "Files one MJCF include may name (MJCF, meshes, textures).")
@@ -152,7 +156,8 @@ def limits_table(limits: FileLimits = LIMITS) -> str:
     """The caps as a Markdown table: name, value, why.
 
     >>> limits_table().splitlines()[3]
-    '| `json_depth` | 64 | Lists and objects nested in a JSON document (ours nest 4-6 deep). |'
+    "| `json_depth` | 64 | Lists and objects nested in a JSON document, an event file's \
+`metadata` too (ours nest 4-6 deep). |"
     """
     rows = [
         f"| `{f.name}` | {_amount(f.name, getattr(limits, f.name))} | {f.metadata['why']} |"

@@ -38,10 +38,14 @@ Each file adds columns of its own after these four:
   fovea during the fixation, named as in the scene file (static and moving objects
   alike; ``-`` for none: walls, floor, furniture), as in the row's ``aois_json``.
 
+The statistics (:func:`scanpath_summary`, ``wander run``'s ``metrics.json`` ``scanpath``
+and the experiment's rows alike) are those of the merged fixations: the windows between
+two saccades are one fixation.
+
 Examples:
     >>> import numpy as np
     >>> fx = np.array([[0, 0, 0.0, 0.1], [10, 0, 0.5, 0.1], [0.5, 0, 1.0, 0.1]])
-    >>> saccade_amplitudes(fx).round(2).tolist(), revisits(fx, radius_deg=2.0)
+    >>> angular_distance(fx[:-1, :2], fx[1:, :2]).round(2).tolist(), revisits(fx, radius_deg=2.0)
     ([10.0, 9.5], 1)
     >>> fixation_times(-0.01, 0.13)
     (0.0, 0.12)
@@ -51,11 +55,9 @@ Examples:
 
 from __future__ import annotations
 
-import csv
 import itertools
 import math
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 
 import numpy as np
 
@@ -85,26 +87,31 @@ def normalise_fixations(fixations: np.ndarray) -> np.ndarray:
     return out
 
 
-def write_fixations(
-    path: Path, fixations: np.ndarray, extra: Mapping[str, Sequence[object]] | None = None
-) -> Path:
-    """Write ``fixations`` (``(n, 4)``, put through :func:`normalise_fixations`) as CSV:
-    the columns :data:`FIXATION_COLUMNS`, then each ``extra`` column (one value per
-    fixation; ``None`` is written empty)."""
+def fixation_rows(
+    fixations: np.ndarray, extra: Mapping[str, Sequence[object]] | None = None
+) -> tuple[list[str], list[dict[str, object]]]:
+    """The columns and rows of a fixation file, for
+    :func:`experiments.runs.tables.write_csv`: ``fixations`` (``(n, 4)``, put through
+    :func:`normalise_fixations`) under :data:`FIXATION_COLUMNS`, then each ``extra``
+    column (one value per fixation; a ``None`` is left out of its row: an empty cell).
+
+    >>> columns, rows = fixation_rows(np.array([[1, 2, 0.5, 0.1]]), {"aoi": ["-"], "hit": [None]})
+    >>> columns[4:], list(rows[0].values())
+    (['aoi', 'hit'], [1.0, 2.0, 0.5, 0.1, '-'])
+    """
     table = normalise_fixations(fixations)
     extra = dict(extra or {})
     for name, values in extra.items():
         if len(values) != len(table):
             raise ValueError(f"column {name!r} has {len(values)} values for {len(table)} rows")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as fh:
-        w = csv.writer(fh, lineterminator="\n")
-        w.writerow([*FIXATION_COLUMNS, *extra])
-        for k, row in enumerate(table):
-            cells = [repr(float(v)) for v in row]
-            cells += ["" if v[k] is None else str(v[k]) for v in extra.values()]
-            w.writerow(cells)
-    return path
+    rows = [
+        {
+            **dict(zip(FIXATION_COLUMNS, map(float, row), strict=True)),
+            **{name: values[k] for name, values in extra.items() if values[k] is not None},
+        }
+        for k, row in enumerate(table)
+    ]
+    return [*FIXATION_COLUMNS, *extra], rows
 
 
 def _table(fixations: np.ndarray) -> np.ndarray:
@@ -112,15 +119,6 @@ def _table(fixations: np.ndarray) -> np.ndarray:
     if f.ndim != 2 or f.shape[1] != 4:
         raise ValueError(f"fixations must be (n, 4) {FIXATION_COLUMNS}, got shape {f.shape}")
     return f
-
-
-def saccade_amplitudes(fixations: np.ndarray) -> np.ndarray:
-    """Angular distance (degrees) between consecutive fixations (great circle of the
-    pan-tilt directions)."""
-    f = _table(fixations)
-    if len(f) < 2:
-        return np.zeros(0)
-    return angular_distance(f[:-1, :2], f[1:, :2])
 
 
 def angular_distance(a_deg: np.ndarray, b_deg: np.ndarray) -> np.ndarray:
@@ -164,24 +162,82 @@ def coverage(fixations: np.ndarray, radius_deg: float = 5.0, cell_deg: float = 1
     return float(near.sum() * cell_deg**2)
 
 
-def summary(fixations: np.ndarray, hits: list[bool] | None = None) -> dict[str, float]:
-    """Count, mean ± std duration, mean ± std saccade amplitude, revisits, coverage and
-    (given per-fixation object hits) the object hit rate."""
-    f = _table(fixations)
-    duration = mean_std(f[:, 3])
-    amplitude = mean_std(saccade_amplitudes(f))
-    out = {
-        "fixations": float(len(f)),
-        "fixation_duration_mean_s": duration[0],
-        "fixation_duration_std_s": duration[1],
+def merge_windows(windows: np.ndarray, ends_fixation: Sequence[bool]) -> np.ndarray:
+    """Fixation windows ``(n, 4)`` (pan, tilt, start, duration) -> fixations: each run of
+    consecutive windows up to one that ends it (its ``P`` started a saccade) becomes one
+    fixation, at the first window's gaze, lasting from its start to the last one's end.
+
+    >>> w = np.array([[0, 0, 0.0, 0.1], [0, 0, 0.1, 0.1], [5, 1, 0.5, 0.1]])
+    >>> merge_windows(w, [False, True, True]).tolist()
+    [[0.0, 0.0, 0.0, 0.2], [5.0, 1.0, 0.5, 0.1]]
+    """
+    w = np.asarray(windows, dtype=np.float64).reshape(-1, 4)
+    if len(ends_fixation) != len(w):
+        raise ValueError(f"{len(w)} windows but {len(ends_fixation)} flags")
+    out: list[list[float]] = []
+    cur: list[float] | None = None
+    for row, end in zip(w, ends_fixation, strict=True):
+        if cur is None:
+            cur = [row[0], row[1], row[2], row[3]]
+        else:
+            cur[3] = row[2] + row[3] - cur[2]
+        if end:
+            out.append(cur)
+            cur = None
+    if cur is not None:
+        out.append(cur)
+    return np.array(out, dtype=np.float64).reshape(-1, 4)
+
+
+def merged_fixations(windows: np.ndarray, ends_fixation: Sequence[bool]) -> np.ndarray:
+    """The fixation table of decision windows: :func:`merge_windows`, then
+    :func:`normalise_fixations` (what the scanpath experiment's files hold)."""
+    return normalise_fixations(merge_windows(windows, ends_fixation))
+
+
+def _us(seconds: float) -> float:
+    """A time in seconds rounded to the microsecond (NaN kept)."""
+    return round(seconds, TIME_DECIMALS) + 0.0 if math.isfinite(seconds) else seconds
+
+
+def scanpath_summary(
+    windows: np.ndarray,
+    ends_fixation: Sequence[bool],
+    saccades_deg: np.ndarray,
+    radius_deg: float = 5.0,
+) -> dict[str, float]:
+    """The scanpath statistics of ``wander run``'s ``metrics.json`` and of the scanpath
+    experiment, from the agent's decision windows ``(n, 4)`` (pan, tilt, start, duration),
+    whether each ended its fixation (its ``P`` started a saccade) and its saccades
+    ``(m, 4)`` (pan, tilt where each started — the PTU's target — then the gaze it
+    reached): the windows merged into fixations (:func:`merged_fixations`: a fixation
+    that goes on over several windows without a saccade is one fixation), their count and
+    mean ± std duration (to the microsecond), the mean ± std saccade amplitude (great
+    circle, :func:`angular_distance`), and the fixations' :func:`revisits` and
+    :func:`coverage` within ``radius_deg``.
+
+    >>> w = [[0, 0, 0.0, 0.1], [0, 0, 0.1, 0.1], [5, 1, 0.5, 0.1]]
+    >>> s = scanpath_summary(w, [False, True, True], np.array([[0, 0, 5, 1]]))
+    >>> s["fixations"], s["fixation_duration_mean_s"], round(s["saccade_amplitude_mean_deg"], 2)
+    (2, 0.15, 5.1)
+    """
+    table = merged_fixations(windows, ends_fixation)
+    saccades = np.asarray(saccades_deg, dtype=np.float64)
+    if saccades.size == 0:
+        saccades = saccades.reshape(0, 4)
+    if saccades.ndim != 2 or saccades.shape[1] != 4:
+        raise ValueError(f"saccades_deg must be (m, 4) (from, to pan-tilt), got {saccades.shape}")
+    duration = mean_std(table[:, 3])
+    amplitude = mean_std(angular_distance(saccades[:, :2], saccades[:, 2:]))
+    return {
+        "fixations": len(table),
+        "fixation_duration_mean_s": _us(duration[0]),
+        "fixation_duration_std_s": _us(duration[1]),
         "saccade_amplitude_mean_deg": amplitude[0],
         "saccade_amplitude_std_deg": amplitude[1],
-        "revisits": float(revisits(f)),
-        "coverage_deg2": coverage(f),
+        "revisits": revisits(table, radius_deg),
+        "coverage_deg2": coverage(table, radius_deg),
     }
-    if hits is not None:
-        out["object_hit_rate"] = float(np.mean(hits)) if hits else math.nan
-    return out
 
 
 # ----------------------------------------------------------------------------------------
@@ -192,9 +248,9 @@ BACKGROUND = "-"  # the AOI of a fixation on no object (walls, floor, furniture)
 
 
 def fixation_aois(window_aois: list[str], ends_fixation: list[bool]) -> list[str]:
-    """The AOI of each merged fixation (windows grouped as :func:`experiments.paper.scanpath.
-    merge_windows` does): the most frequent AOI of its windows, the earliest on a tie;
-    ``""`` (no object) becomes :data:`BACKGROUND`.
+    """The AOI of each merged fixation (windows grouped as :func:`merge_windows` does):
+    the most frequent AOI of its windows, the earliest on a tie; ``""`` (no object) becomes
+    :data:`BACKGROUND`.
 
     >>> fixation_aois(["cup", "", "", "box"], [False, False, True, True])
     ['-', 'box']

@@ -15,7 +15,6 @@ Examples:
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import functools
 from collections.abc import Callable, Iterable, Iterator, Sequence
@@ -24,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
+from experiments.runs.tables import write_csv
 
 if TYPE_CHECKING:  # the protocol (numpy, scipy) is imported when a run starts
     from experiments.benchmark.protocol import ProgressEvent, ProgressFn
@@ -124,18 +124,6 @@ def run_sequences(
     return rows, notes, dts
 
 
-def _write_summary_csv(summaries: Sequence[Any], path: Path) -> Path:
-    from experiments.benchmark.summary import summary_dicts
-
-    dicts = summary_dicts(summaries)
-    with path.open("w", newline="") as f:
-        if dicts:
-            w = csv.DictWriter(f, fieldnames=list(dicts[0]))
-            w.writeheader()
-            w.writerows(dicts)
-    return path
-
-
 def _notes_markdown(notes: dict[str, list[str]]) -> str:
     lines = [f"- `{k}`: {'; '.join(v)}" for k, v in notes.items() if v]
     return "\n".join(["## Loader notes", "", *lines, ""]) if lines else ""
@@ -169,13 +157,14 @@ def write_benchmark_outputs(
         summarize,
         summary_dicts,
         write_rows_csv,
+        write_summary_csv,
     )
 
     folder = RunFolder(out)
     folder.create()
     write_rows_csv(rows, out / "results.csv")
     summaries = summarize(rows, std_over) if rows else []
-    _write_summary_csv(summaries, out / "summary.csv")
+    write_summary_csv(summaries, out / "summary.csv")
     md = render_markdown(summaries, dataset, title)
     md += "\n" + _config_markdown(config)
     notes_md = _notes_markdown(notes)
@@ -197,10 +186,11 @@ def write_benchmark_outputs(
     return md
 
 
-def _suppression_rows(name: str, result: Any, t0: int) -> Iterator[list[Any]]:
+def _suppression_rows(name: str, result: Any, t0: int) -> Iterator[dict[str, Any]]:
     for k, (n_in, n_out) in enumerate(zip(result.events_in, result.events_out, strict=True)):
         a = t0 + k * result.window_us
-        yield [name, k, a, a + result.window_us, int(n_in), int(n_out)]
+        cells = (name, k, a, a + result.window_us, int(n_in), int(n_out))
+        yield dict(zip(SUPPRESSION_COLUMNS, cells, strict=True))
 
 
 def run_suppression(
@@ -256,14 +246,10 @@ def suppression_record(names: Sequence[str], results: Sequence[Any]) -> dict[str
 
 
 def write_suppression_csv(path: Path, items: Sequence[tuple[str, Any, int]]) -> Path:
-    """Per-window events in / out of each ``(name, result, t_first_us)``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(SUPPRESSION_COLUMNS)
-        for name, result, t0 in items:
-            w.writerows(_suppression_rows(name, result, t0))
-    return path
+    """Per-window events in / out of each ``(name, result, t_first_us)``, columns
+    :data:`SUPPRESSION_COLUMNS` (:func:`experiments.runs.tables.write_csv`)."""
+    rows = [row for name, result, t0 in items for row in _suppression_rows(name, result, t0)]
+    return write_csv(rows, path, columns=SUPPRESSION_COLUMNS)
 
 
 def write_suppression_outputs(

@@ -9,17 +9,17 @@ its 6 sequences) and its LLE-VOS figure (53.3 % ± 25.56 over sub-datasets) are 
 across sequences — or pooled over windows (``std_over="windows"``). Population standard
 deviations (``ddof=0``, NumPy's default) unless asked otherwise.
 
-Output: one tidy row per window (:func:`write_rows_csv`) and a Markdown summary with the
-paper's figures beside ours (:func:`render_markdown`).
+Output: one tidy row per window (:func:`write_rows_csv`), one per summary
+(:func:`write_summary_csv`) and a Markdown summary with the paper's figures beside ours
+(:func:`render_markdown`).
 """
 
 from __future__ import annotations
 
-import csv
 import math
 import os
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
 from experiments.analysis.stats import mean_std
@@ -33,6 +33,7 @@ from experiments.benchmark.protocol import (
     ROW_COLUMNS,
     WindowRow,
 )
+from experiments.runs.tables import write_csv
 
 METRICS = ("iou", "precision", "ssim", "accuracy")
 
@@ -68,6 +69,9 @@ class Summary:
     ssim_std: float = math.nan
     accuracy_mean: float = math.nan
     accuracy_std: float = math.nan
+
+
+SUMMARY_COLUMNS = tuple(f.name for f in fields(Summary))
 
 
 def _metric(row: WindowRow, name: str) -> float:
@@ -193,24 +197,17 @@ def paper_reference(dataset: str) -> dict[str, PaperFigure]:
     return {}
 
 
-def _fmt(v: object) -> str:
-    if isinstance(v, float):
-        if math.isnan(v):
-            return ""
-        return repr(v)
-    return str(v)
-
-
 def write_rows_csv(rows: Sequence[WindowRow], path: str | os.PathLike) -> Path:
-    """The tidy per-window table (columns :data:`ROW_COLUMNS`; NaN as empty cells)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(ROW_COLUMNS)
-        for r in rows:
-            w.writerow([_fmt(getattr(r, c)) for c in ROW_COLUMNS])
-    return path
+    """The tidy per-window table, columns :data:`ROW_COLUMNS`
+    (:func:`experiments.runs.tables.write_csv`: NaN as empty cells)."""
+    return write_csv([asdict(r) for r in rows], Path(path), columns=ROW_COLUMNS)
+
+
+def write_summary_csv(summaries: Sequence[Summary], path: str | os.PathLike) -> Path:
+    """The summaries, one row each, columns :data:`SUMMARY_COLUMNS`
+    (:func:`experiments.runs.tables.write_csv`: NaN as empty cells; the header without
+    summaries)."""
+    return write_csv(summary_dicts(summaries), Path(path), columns=SUMMARY_COLUMNS)
 
 
 def _pct(mean: float, std: float | None = None) -> str:

@@ -8,8 +8,10 @@ writes the run folder:
 - ``metrics.json``: fixations, saccades, detection accuracy (the 8×8 box around each
   ``P`` touches a moving object's mask, the mask being the union over the fixation
   window — with ground truth only), sOMS event suppression, foveation error of the
-  saccades (reached minus intended gaze, in pixels at the fovea), scanpath statistics,
-  wall time and real-time factor;
+  saccades (reached minus intended gaze, in pixels at the fovea), scanpath statistics
+  (``scanpath``: the scanpath experiment's, of the windows merged into fixations,
+  :func:`~experiments.analysis.scanpath_stats.scanpath_summary`), wall time and real-time
+  factor;
 - ``fixations.csv``: the fixation table (:mod:`experiments.analysis.scanpath_stats`: ``pan_deg``,
   ``tilt_deg`` (+ = left, up), ``t_start_s``, ``duration_s``) plus each window's ``P``,
   hit and the moving object hit (named as in the scene file);
@@ -49,6 +51,7 @@ import pydantic
 
 from agents.attention import AgentParams, AttentionAgent
 from experiments.analysis import scanpath_stats
+from experiments.analysis.stats import mean_std
 from experiments.jobs.scanpath_figure import plot_scanpath
 from experiments.runs.episode import OneEpisode, Recorder, run_episode
 from experiments.runs.folder import RunFolder
@@ -64,6 +67,7 @@ from experiments.runs.recorders import (
     open_recorders,
 )
 from experiments.runs.signals import DeferredSignals, SignalExit
+from experiments.runs.tables import write_csv
 from experiments.studies.framework import MAX_SEED
 from wander_env.camera import degrees_to_pixels, focal_length_px, pixel_to_world_angles
 from wander_env.env_config import WanderConfig
@@ -81,6 +85,7 @@ __all__ = [
     "run",
     "run_closed_loop",
     "run_for_config",
+    "scanpath_tables",
     "video_frame",
 ]
 
@@ -96,13 +101,16 @@ class OneEpisodeRun(OneEpisode):
     :class:`~experiments.runs.episode.OneEpisode`: the agent of their ``agent`` block
     matched to the env."""
 
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self.agent.check_env_fields()  # the env sets them: a change would be dropped
+
     def agent_params(self, env: Any) -> AgentParams:
-        """The ``agent`` block with the env's sensor (``width_px``, ``height_px``) and
-        control period (``step_s``) (:meth:`agents.attention.AgentParams.for_env`); the
-        rig's lens ``hfov_deg`` too (``env.hfov_deg``). run.json's ``agent`` records the
+        """The ``agent`` block with the env's sensor (``width_px``, ``height_px``), control
+        period (``step_s``), lens (``hfov_deg``) and PTU resolution
+        (:meth:`agents.attention.AgentParams.on_env`). run.json's ``agent`` records the
         values used."""
-        lens = getattr(self.env, "hfov_deg", None)  # the rig's; the sim's is the agent's
-        return self.agent.on_env(env, **({"hfov_deg": lens} if lens else {}))
+        return self.agent.on_env(env)
 
 
 @dataclass(frozen=True)
@@ -276,7 +284,7 @@ def _saccade_metrics(agent: AttentionAgent, clipped: list[bool]) -> dict[str, An
     out: dict[str, Any] = {
         "saccades": len(agent.saccades),
         "saccades_clipped_by_ptu_limits": int(sum(clipped)),
-        "saccade_duration_mean_s": _mean([s.t_end - s.t_start for s in agent.saccades]),
+        "saccade_duration_mean_s": mean_std(s.t_end - s.t_start for s in agent.saccades)[0],
         "focal_length_px": f,
     }
     if errs:
@@ -311,8 +319,20 @@ def _ptu_limits(env: Any) -> tuple[tuple[float, float], tuple[float, float]] | N
     return None
 
 
-def _mean(values: list[float]) -> float:
-    return float(np.mean(values)) if values else math.nan
+def scanpath_tables(agent: AttentionAgent) -> tuple[np.ndarray, list[bool], np.ndarray]:
+    """What :func:`experiments.analysis.scanpath_stats.scanpath_summary` takes, from the
+    agent: its decision windows ``(n, 4)`` (pan, tilt, start, duration), whether each
+    ended its fixation (its ``P`` started a saccade) and its saccades ``(m, 4)`` (the PTU
+    target each started from, the gaze it reached)."""
+    windows = np.array(
+        [[*w.gaze_deg, w.t_start, w.t_end - w.t_start] for w in agent.fixations],
+        dtype=np.float64,
+    ).reshape(-1, 4)
+    ends = [w.target_px is not None for w in agent.fixations]
+    saccades = np.array(
+        [[*s.from_target_deg, *s.to_gaze_deg] for s in agent.saccades], dtype=np.float64
+    ).reshape(-1, 4)
+    return windows, ends, saccades
 
 
 class AgentMetrics(Recorder):
@@ -341,15 +361,12 @@ class AgentMetrics(Recorder):
 
     def table(self) -> np.ndarray:
         """The fixation table (:mod:`experiments.analysis.scanpath_stats`) of the agent's
-        windows."""
-        return scanpath_stats.normalise_fixations(
-            [[*fx.gaze_deg, fx.t_start, fx.t_end - fx.t_start] for fx in self.agent.fixations]
-        )
+        windows, one row each (``fixations.csv``)."""
+        return scanpath_stats.normalise_fixations(scanpath_tables(self.agent)[0])
 
     def figures(self) -> dict[str, Any]:
         agent, hits = self.agent, self.detection.hits
         wall = self.wall_s if self.wall_s is not None else time.perf_counter() - self._t0
-        table = self.table()
         scored = [h for h in hits if h is not None]
         sim_s = self.steps * self.dt
         return {
@@ -366,7 +383,9 @@ class AgentMetrics(Recorder):
             "events_kept_by_soms": agent.events_oms,
             "soms_suppression": agent.suppression,
             **_saccade_metrics(agent, self.detection.clipped),
-            "scanpath": scanpath_stats.summary(table) if len(table) else {},
+            "scanpath": (
+                scanpath_stats.scanpath_summary(*scanpath_tables(agent)) if agent.fixations else {}
+            ),
         }
 
 
@@ -404,11 +423,10 @@ class AgentRunFolder(FolderRecorder):
             for fx in agent.fixations
         ]
         if agent.fixations:
-            scanpath_stats.write_fixations(
-                out_dir / "fixations.csv",
-                self.run.table(),
-                _fixation_columns(agent, detection, targets_deg),
+            columns, rows = scanpath_stats.fixation_rows(
+                self.run.table(), _fixation_columns(agent, detection, targets_deg)
             )
+            write_csv(rows, out_dir / "fixations.csv", columns=columns)
         if agent.fixations and detection.maps:
             n = min(len(detection.maps), len(agent.fixations))
             moves = f"{len(agent.fixations)} fixations, {len(agent.saccades)} saccades"

@@ -104,6 +104,7 @@ class SacAccuracyConfig:
 
     def __post_init__(self) -> None:
         check_env_block(self.env, ENV_SET_PER_TRIAL)
+        self.agent.check_env_fields()  # the env's camera, PTU and step are the agent's
         if self.repeats < 1:
             raise ValueError(f"repeats must be >= 1, got {self.repeats}")
         if not self.agent.max_saccade_s + 1.0 <= study.MAX_TRIAL_S:  # a trial's length

@@ -123,6 +123,7 @@ class SaccadeSpeedConfig:
 
     def __post_init__(self) -> None:
         check_env_block(self.env, ENV_SET_PER_TRIAL)
+        self.agent.check_env_fields()  # the env's camera, PTU and step are the agent's
         if not self.duration_s > 0:
             raise ValueError(f"duration_s must be > 0, got {self.duration_s}")
         # each factor's values (the baseline's value alone leaves the factor unvaried)

@@ -18,11 +18,12 @@ fixational movement — in a static scene that camera never sees an event and ne
 moves). Per trial:
 
 - the scanpath: the agent's fixation windows merged into fixations (the windows between
-  two saccades, :func:`merge_windows`), its saccades, and the saliency maps of its
-  decisions put together on the pan-tilt sphere
+  two saccades, :func:`~experiments.analysis.scanpath_stats.merge_windows`), its
+  saccades, and the saliency maps of its decisions put together on the pan-tilt sphere
   (:func:`experiments.jobs.scanpath_figure.saliency_mosaic`);
-- statistics (:mod:`experiments.analysis.scanpath_stats`): fixation count and duration, saccade
-  amplitude (reached minus start gaze), revisits and coverage (within
+- statistics (:func:`experiments.analysis.scanpath_stats.scanpath_summary`, as in
+  ``wander run``'s ``metrics.json``): fixation count and duration, saccade amplitude
+  (reached minus start gaze), revisits and coverage (within
   ``radius_deg``), and the **object hit rate**: the fraction of the salient points
   ``P`` that lie on an object of the scene — static or moving, not walls, floor or
   furniture — found by casting ``P``'s pixel ray into the scene at the decision
@@ -63,7 +64,7 @@ from agents.attention import AgentParams, AttentionAgent
 from agents.fixation import FIXATION_WINDOW_S
 from experiments.analysis import scanpath_stats
 from experiments.analysis.stats import ci_text, mean_std
-from experiments.jobs.run_agent import closed_loop_metrics
+from experiments.jobs.run_agent import closed_loop_metrics, scanpath_tables
 from experiments.jobs.scanpath_figure import (
     limits_box,
     saliency_mosaic,
@@ -71,6 +72,7 @@ from experiments.jobs.scanpath_figure import (
 )
 from experiments.paper.env_block import check_env_block, trial_env
 from experiments.paper.scanpath_recorder import ScanpathRecorder
+from experiments.runs.tables import write_csv
 from experiments.studies import framework as study
 from wander_env.camera import SPECK_HFOV_DEG, focal_length_px, pixel_to_world_angles
 from wander_env.env_config import SceneName, WanderConfig
@@ -80,7 +82,6 @@ __all__ = [
     "EXPERIMENT",
     "ScanpathConfig",
     "agent_params",
-    "merge_windows",
 ]
 
 Condition = Literal["saccades", "fixational"]
@@ -114,6 +115,7 @@ class ScanpathConfig:
 
     def __post_init__(self) -> None:
         check_env_block(self.env, ENV_SET_PER_TRIAL)
+        self.agent.check_env_fields()  # the env's camera, PTU and step are the agent's
         if not self.duration_s > 0:
             raise ValueError(f"duration_s must be > 0, got {self.duration_s}")
         study.check_lists(self, ("scenes", "conditions"))
@@ -138,33 +140,6 @@ class ScanpathConfig:
 
 # ----------------------------------------------------------------------------------------
 # Pure helpers
-
-
-def merge_windows(windows: np.ndarray, ends_fixation: Sequence[bool]) -> np.ndarray:
-    """Fixation windows ``(n, 4)`` (pan, tilt, start, duration) -> fixations: each run of
-    consecutive windows up to one that ends it (its ``P`` started a saccade) becomes one
-    fixation, at the first window's gaze, lasting from its start to the last one's end.
-
-    >>> w = np.array([[0, 0, 0.0, 0.1], [0, 0, 0.1, 0.1], [5, 1, 0.5, 0.1]])
-    >>> merge_windows(w, [False, True, True]).tolist()
-    [[0.0, 0.0, 0.0, 0.2], [5.0, 1.0, 0.5, 0.1]]
-    """
-    w = np.asarray(windows, dtype=np.float64).reshape(-1, 4)
-    if len(ends_fixation) != len(w):
-        raise ValueError(f"{len(w)} windows but {len(ends_fixation)} flags")
-    out: list[list[float]] = []
-    cur: list[float] | None = None
-    for row, end in zip(w, ends_fixation, strict=True):
-        if cur is None:
-            cur = [row[0], row[1], row[2], row[3]]
-        else:
-            cur[3] = row[2] + row[3] - cur[2]
-        if end:
-            out.append(cur)
-            cur = None
-    if cur is not None:
-        out.append(cur)
-    return np.array(out, dtype=np.float64).reshape(-1, 4)
 
 
 def _export_name(row: study.Row) -> str:
@@ -206,20 +181,11 @@ def run_trial(cfg: ScanpathConfig, spec: study.TrialSpec) -> dict[str, Any]:
     f = focal_length_px(p.width_px, p.hfov_deg)
     centre = ((p.width_px - 1) / 2.0, (p.height_px - 1) / 2.0)
     fx = agent.fixations
-    windows = np.array(
-        [[*w.gaze_deg, w.t_start, w.t_end - w.t_start] for w in fx], dtype=np.float64
-    ).reshape(-1, 4)
-    ends = [w.target_px is not None for w in fx]
-    table = scanpath_stats.normalise_fixations(merge_windows(windows, ends))
+    windows, ends, saccades = scanpath_tables(agent)
+    table = scanpath_stats.merged_fixations(windows, ends)
     aois = scanpath_stats.fixation_aois(watch.fovea_labels, ends)
     hits = [bool(centre) for centre, _ in watch.labels]
     box_hits = [bool(box) for _, box in watch.labels]
-    amps = np.array(
-        [
-            scanpath_stats.angular_distance(np.array(s.from_target_deg), np.array(s.to_gaze_deg))[0]
-            for s in agent.saccades
-        ]
-    )
     targets = np.array(
         [
             pixel_to_world_angles(w.target_px, g, f, centre)
@@ -231,17 +197,11 @@ def run_trial(cfg: ScanpathConfig, spec: study.TrialSpec) -> dict[str, Any]:
     out: dict[str, Any] = {
         "decisions": len(fx),
         "decisions_with_target": len(watch.labels),
-        "fixations": len(table),
-        "fixation_duration_mean_s": _us(mean_std(table[:, 3])[0]),
-        "fixation_duration_std_s": _us(mean_std(table[:, 3])[1]),
+        **scanpath_stats.scanpath_summary(windows, ends, saccades, cfg.radius_deg),
         "saccades": len(agent.saccades),
-        "saccade_amplitude_mean_deg": mean_std(amps)[0],
-        "saccade_amplitude_std_deg": mean_std(amps)[1],
         "object_hit_rate": float(np.mean(hits)) if hits else math.nan,
         "object_hit_rate_box": float(np.mean(box_hits)) if box_hits else math.nan,
         "objects_visited": len({name for name, _ in watch.labels if name}),
-        "revisits": scanpath_stats.revisits(table, cfg.radius_deg),
-        "coverage_deg2": scanpath_stats.coverage(table, cfg.radius_deg),
         "aois_visited": len(set(aois) - {scanpath_stats.BACKGROUND}),
         "aoi_stationary_entropy": scanpath_stats.stationary_entropy(aois),
         "aoi_transition_entropy": scanpath_stats.transition_entropy(aois),
@@ -264,11 +224,6 @@ def run_trial(cfg: ScanpathConfig, spec: study.TrialSpec) -> dict[str, Any]:
             "_mosaic": grid_.values.astype(np.float32),
         }
     return out
-
-
-def _us(seconds: float) -> float:
-    """A time in seconds rounded to the microsecond (NaN kept)."""
-    return round(seconds, 6) + 0.0 if math.isfinite(seconds) else seconds
 
 
 def grid(cfg: ScanpathConfig) -> list[dict[str, Any]]:
@@ -371,7 +326,7 @@ def plot(
     """The scanpath figure (a panel per scene and condition: the saliency mosaic, the
     fixations sized by duration, the saccade lines, the salient points green on an
     object, red off), a bar chart of the statistics, and the fixation tables
-    ``results_dir/fixations/*.csv`` (:func:`experiments.analysis.scanpath_stats.write_fixations`,
+    ``results_dir/fixations/*.csv`` (:func:`experiments.analysis.scanpath_stats.fixation_rows`,
     with each fixation's ``aoi``)."""
     plt = pyplot()
 
@@ -383,9 +338,8 @@ def plot(
         arts = study.load_artifacts(results_dir, r)
         if "fixations" in arts:
             aois = {"aoi": json.loads(str(r["aois_json"]))}
-            scanpath_stats.write_fixations(
-                results_dir / "fixations" / _export_name(r), arts["fixations"], aois
-            )
+            columns, table = scanpath_stats.fixation_rows(arts["fixations"], aois)
+            write_csv(table, results_dir / "fixations" / _export_name(r), columns=columns)
     from wander_env.ptu.params import PTUParams  # the env's unit (the trials use its default)
 
     unit = PTUParams()

@@ -24,8 +24,8 @@ Row = dict[str, Scalar]
 def _cell(v: Any) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
-    if isinstance(v, float):
-        return "" if math.isnan(v) else repr(v)
+    if isinstance(v, float):  # NumPy's float64 too, written as the float it is
+        return "" if math.isnan(v) else repr(float(v))
     return str(v)
 
 
@@ -47,9 +47,19 @@ def columns_of(rows: Sequence[Mapping[str, Any]]) -> list[str]:
     return list(dict.fromkeys(k for r in rows for k in r if not k.startswith("_")))
 
 
-def write_csv(rows: Sequence[Mapping[str, Any]], path: Path) -> Path:
-    """Tidy CSV; floats as ``repr`` (exact), NaN as an empty cell, bools as true/false."""
-    cols = columns_of(rows)
+def write_csv(
+    rows: Sequence[Mapping[str, Any]], path: Path, columns: Sequence[str] | None = None
+) -> Path:
+    """Tidy CSV; floats as ``repr`` (exact), NaN as an empty cell, bools as true/false.
+
+    The columns are ``columns`` in that order (the header even without rows; a row's
+    missing key is an empty cell, a key outside them a ValueError), else
+    :func:`columns_of` the rows.
+    """
+    cols = columns_of(rows) if columns is None else list(columns)
+    extra = [k for k in columns_of(rows) if k not in cols]
+    if extra:
+        raise ValueError(f"row keys {extra} are not among the columns {cols}")
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(cols)

@@ -62,6 +62,7 @@ from experiments.studies.registry import EXPERIMENT_NAMES
 from wander_env.config import ConfigError, coerce, load_yaml, parse_sets, validate
 from wander_env.config_messages import shown
 from wander_env.env_config import DvsPreset, FrameMode, PtuPreset, SceneName
+from wander_env.untrusted import UntrustedFileError
 
 __all__ = [
     "EXPERIMENT_NAMES",
@@ -498,9 +499,13 @@ def is_unfinished_run(path: Path, name: str, config: Any, seed: int) -> bool:
     except OSError:  # a name too long, a loop: no run there (making it says why, in one line)
         return False
     folder = RunFolder(path)
-    if folder.read_json("config.json") != {"experiment": name, **config_to_dict(config)}:
-        return False
-    return folder.read_json(RUN_JSON).get("seed") == seed and not _held(path)
+    try:
+        if folder.read_json("config.json") != {"experiment": name, **config_to_dict(config)}:
+            return False
+        ran = folder.read_json(RUN_JSON)
+    except UntrustedFileError:  # damaged: not resumed (a new run goes elsewhere; --out
+        return False  # on it is refused as a folder that is not empty)
+    return ran.get("seed") == seed and not _held(path)
 
 
 def unfinished_folder(

@@ -35,7 +35,7 @@ import numba
 import numpy as np
 
 from wander_env.camera import CAMERA_NAME
-from wander_env.dvs import LUMA, srgb_to_linear
+from wander_env.dvs import luminance_tables
 from wander_env.renderer import CameraRenderer, RenderParams
 
 __all__ = [
@@ -292,8 +292,7 @@ def render_cube(
         raise ValueError(f"headlight must be 'camera', 'face' or 'off', got {headlight!r}")
     cam = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, CAMERA_NAME)
     renderer = cube_renderer(model, n, renderer)
-    lut = srgb_to_linear(np.arange(256) / 255.0)
-    wlut = (LUMA[:, None] * lut[None, :]).astype(np.float32)
+    _, wlut = luminance_tables()
     lum = np.empty((6, n, n), np.float32)
     srgb = np.empty((6, n, n, 3), np.uint8)
     dist = np.empty((6, n, n), np.float32)

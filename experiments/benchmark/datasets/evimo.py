@@ -75,6 +75,7 @@ from experiments.benchmark.datasets.base import (
     seconds_to_us,
 )
 from wander_env.events.checks import json_depth
+from wander_env.events.evimo2 import EVIMO2_MASK_SCALE
 from wander_env.untrusted import (
     LIMITS,
     UntrustedFileError,
@@ -276,13 +277,14 @@ def _frames(meta: dict[str, Any], where: Path) -> list[dict[str, Any]]:
 
 
 def mask_labels(raw: np.ndarray) -> np.ndarray:
-    """Object ids from an EVIMO mask (id × 1000): ``round(raw / 1000)``, ≥ 1 where raw > 0.
+    """Object ids from an EVIMO mask (id × :data:`~wander_env.events.evimo2.EVIMO2_MASK_SCALE`,
+    1000): ``round(raw / 1000)``, ≥ 1 where raw > 0.
 
     >>> mask_labels(np.array([[0, 1000, 3000, 7]])).tolist()
     [[0, 1, 3, 1]]
     """
     raw = np.asarray(raw)
-    ids = np.rint(raw.astype(np.float64) / 1000.0).astype(np.int64)
+    ids = np.rint(raw.astype(np.float64) / EVIMO2_MASK_SCALE).astype(np.int64)
     ids = np.where(raw > 0, np.maximum(ids, 1), 0)
     return ids.astype(np.min_scalar_type(int(ids.max(initial=0))))
 

@@ -6,7 +6,9 @@ import numpy as np
 from test_benchmark_protocol import OMS, SENSOR, FakeModel
 
 from experiments.benchmark.protocol import Maps
+from experiments.benchmark.runner import SUPPRESSION_COLUMNS, write_suppression_csv
 from experiments.benchmark.suppression import event_suppression, render_suppression_markdown
+from experiments.runs.tables import read_csv
 from wander_env.events import make_events
 
 
@@ -29,6 +31,27 @@ def test_event_suppression_counts():
     assert [c[1] for c in model.calls] == [0.002] * 3
     md = render_suppression_markdown(res, "poster")
     assert "37.50 %" in md and "85.16 %" in md
+
+
+def test_suppression_csv_is_the_house_table(tmp_path):
+    events = make_events(x=[5, 20, 5], y=[5, 5, 6], t=[0, 500, 2500], p=[1, 1, 0])
+    res = event_suppression(events, SENSOR, FakeModel(OMS, None), window_us=2000)
+    path = write_suppression_csv(tmp_path / "s.csv", [("poster", res, 100)])
+    assert path.read_text() == (
+        "recording,window,t_start_us,t_end_us,events_in,events_out\n"
+        "poster,0,100,2100,2,1\n"
+        "poster,1,2100,4100,1,1\n"
+    )
+    assert read_csv(path)[1] == {
+        "recording": "poster",
+        "window": 1,
+        "t_start_us": 2100,
+        "t_end_us": 4100,
+        "events_in": 1,
+        "events_out": 1,
+    }
+    empty = write_suppression_csv(tmp_path / "e.csv", [])
+    assert empty.read_text() == ",".join(SUPPRESSION_COLUMNS) + "\n"
 
 
 class _OffOnly:

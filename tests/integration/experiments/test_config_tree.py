@@ -178,6 +178,33 @@ def test_a_component_study_refuses_an_agent_setting_it_ignores(name: str) -> Non
     )
 
 
+@pytest.mark.parametrize(
+    ("args", "field", "value", "default"),
+    [
+        (["run", "--seconds", "0.1"], "width_px", "64", "128"),
+        (["evaluate", "--seconds", "0.1"], "step_s", "0.02", "0.01"),
+        (["experiment", "scanpath"], "hfov_deg", "90", "112.82670869275442"),
+        (["experiment", "saccade_speed"], "height_px", "64", "128"),
+        (
+            ["experiment", "sac_accuracy"],
+            "ptu_resolution_arcsec",
+            "[46.3, 46.3]",
+            "(92.5714, 92.5714)",
+        ),
+    ],
+)
+def test_an_agent_runs_with_the_envs_sensor_step_lens_and_ptu(args, field, value, default):
+    """What the env sets (agents.attention.ENV_FIELDS) is refused in an agent block whose
+    agent runs on an env (on_env would drop it): one line, exit 2, nothing run."""
+    bad = RUNNER.invoke(app, [*args, "--set", f"agent.{field}={value}"], prog_name="wander")
+    assert bad.exit_code == 2, bad.output
+    shown = bad.output.strip().split(f"agent.{field}: ", 1)[1]
+    assert shown.endswith(
+        "is the env's to set (its camera, PTU and control period), not the agent block's; "
+        f"leave it at its default, {default}"
+    )
+
+
 @pytest.mark.parametrize("name", EXPERIMENT_NAMES)
 def test_set_agent_soms_alpha_reaches_every_experiment(name: str) -> None:
     result = RUNNER.invoke(

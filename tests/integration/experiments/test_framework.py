@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 from dataclasses import dataclass
 from typing import Literal
 
+import numpy as np
 import pytest
 import typer
 from typer.testing import CliRunner
@@ -180,6 +182,15 @@ def test_csv_round_trip_keeps_types_and_exact_floats(tmp_path):
     assert back[0]["b"] == 0.1 + 0.2 and math.isnan(back[0]["e"]) and back[0]["d"] is True
 
 
+def test_csv_columns_fix_order_and_header_and_refuse_other_keys(tmp_path):
+    rows = [{"b": np.float64(0.1), "a": 1}, {"a": 2, "_art": [1]}]
+    path = write_csv(rows, tmp_path / "t.csv", columns=["a", "b", "c"])
+    assert path.read_text() == "a,b,c\n1,0.1,\n2,,\n"  # NumPy's float64 as the float
+    assert write_csv([], tmp_path / "e.csv", columns=["a", "b"]).read_text() == "a,b\n"
+    with pytest.raises(ValueError, match=r"row keys \['b'\] are not among the columns \['a'\]"):
+        write_csv(rows, tmp_path / "x.csv", columns=["a"])
+
+
 def test_trial_ids_that_look_like_numbers_read_back_as_text(tmp_path):
     """A trial id is 16 hex digits: all digits, or digits around one ``e``, it read back
     as an int or a float (``inf``), and the report refused the sweep's table."""
@@ -279,6 +290,13 @@ def test_a_stopped_experiment_reruns_to_completion_keeping_its_finished_trials(
     assert unfinished_folder("toy", other, 7, None, root=root) is None  # another config
     with hold_folder(out):  # a run still writing there is not resumed
         assert unfinished_folder("toy", cfg, 7, out) is None
+    # a damaged folder beside it is not resumed, and does not stop the search
+    damaged = root / "toy" / "20260102-000000-seed7"
+    damaged.mkdir()
+    (damaged / "config.json").write_text('{"experiment": "toy", "n": ')
+    assert not is_unfinished_run(damaged, "toy", cfg, 7)
+    assert unfinished_folder("toy", cfg, 7, None, root=root) == out
+    shutil.rmtree(damaged)
     rerun = StoppingRunner()
     rows, _ = _run(cfg, out, rerun)
     assert rerun.calls == ids[2:]  # the two finished trials were not run again

@@ -60,6 +60,11 @@ def test_run_folder_contents(run_dir: Path) -> None:
     assert len(rows) == m["decisions"]
     # the first window starts at the reset (t = 0) and lasts 12 steps of the run
     assert (rows[0]["t_start_s"], rows[0]["duration_s"]) == ("0.0", "0.12")
+    # metrics.json's scanpath: the windows merged up to each that has a P (a saccade)
+    windows = [[float(r[k]) for k in scanpath_stats.FIXATION_COLUMNS] for r in rows]
+    merged = scanpath_stats.merged_fixations(windows, [r["target_x_px"] != "" for r in rows])
+    assert m["scanpath"]["fixations"] == len(merged)
+    assert m["scanpath"]["coverage_deg2"] == scanpath_stats.coverage(merged)
 
 
 def test_alpha_is_checked_and_reaches_the_agent() -> None:
@@ -158,16 +163,15 @@ def test_scanpath_statistics_exact() -> None:
             [1.0, 0.0, 3.0, 0.13],
         ]
     )
-    amp = scanpath_stats.saccade_amplitudes(fx)
+    amp = scanpath_stats.angular_distance(fx[:-1, :2], fx[1:, :2])
     assert amp[0] == pytest.approx(10.0) and amp[1] == pytest.approx(10.0)
     assert scanpath_stats.revisits(fx, radius_deg=2.0) == 1  # the 4th returns near the 1st
-    s = scanpath_stats.summary(fx, hits=[True, False, True])
-    assert s["fixations"] == 4 and s["object_hit_rate"] == pytest.approx(2 / 3)
-    assert s["fixation_duration_mean_s"] == pytest.approx(0.1625)
+    s = scanpath_stats.scanpath_summary(fx, [True] * 4, np.zeros((0, 4)))
+    assert s["fixations"] == 4 and s["fixation_duration_mean_s"] == 0.1625
     one = scanpath_stats.coverage(fx[:1], radius_deg=5.0, cell_deg=0.1)
     assert one == pytest.approx(np.pi * 25, rel=0.02)
     with pytest.raises(ValueError, match=r"\(n, 4\)"):
-        scanpath_stats.summary(np.zeros((3, 3)))
+        scanpath_stats.revisits(np.zeros((3, 3)))
 
 
 def test_saliency_mosaic_places_maps_by_gaze() -> None:

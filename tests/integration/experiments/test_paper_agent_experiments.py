@@ -17,6 +17,7 @@ import wander_env  # noqa: F401
 from experiments.analysis import scanpath_stats
 from experiments.cli.main import app
 from experiments.paper import ptu_main_sequence, sac_accuracy, saccade_speed, scanpath
+from experiments.runs.tables import read_csv
 from experiments.studies.framework import make_trials, resolve_config, run_experiment, run_spec
 from wander_env.camera import cast_pixel
 from wander_env.ptu.params import PTUParams
@@ -105,18 +106,6 @@ def test_same_seed_gives_the_same_table_bytes(tmp_path):
 
 # ----------------------------------------------------------------------------------------
 # scanpath
-
-
-def test_merge_windows_joins_the_windows_between_saccades():
-    w = np.array(
-        [[0, 0, 0.0, 0.1], [0, 0, 0.1, 0.1], [9, 2, 0.6, 0.1], [3, 3, 1.0, 0.1], [3, 3, 1.1, 0.1]]
-    )
-    got = scanpath.merge_windows(w, [False, True, True, False, False])
-    want = [[0, 0, 0.0, 0.2], [9, 2, 0.6, 0.1], [3, 3, 1.0, 0.2]]
-    np.testing.assert_allclose(got, want, atol=1e-12)
-    assert scanpath.merge_windows(np.zeros((0, 4)), []).shape == (0, 4)
-    with pytest.raises(ValueError, match="3 windows but 2 flags"):
-        scanpath.merge_windows(w[:3], [True, True])
 
 
 @pytest.mark.slow
@@ -221,6 +210,15 @@ def test_factorial_grid_is_the_product_of_the_five_factors():
     }
     assert len(keys) == 243
     assert sum(r["main_sequence"] for r in rows) == 9  # speed × acceleration
+
+
+@pytest.mark.parametrize("speed", [20.0, 3000.0])
+def test_speeds_are_what_the_ptu_can_slew(speed):
+    """PL 31 to PU 2902 positions/s: a trial at 20 would fail when its PTU is built."""
+    with pytest.raises(
+        ValueError, match=rf"^speeds_pos_s must be in \[31, 2902\] \(PL, PU\), got \({speed},\)$"
+    ):
+        saccade_speed.SaccadeSpeedConfig(speeds_pos_s=(speed,))
 
 
 def test_theory_main_sequence_saturates_at_the_slew_speed():
@@ -342,3 +340,17 @@ def test_run_and_experiment_share_names_signs_and_units(folders: tuple[Path, Pat
         "0.125",
         "0.005",
     )
+    # wander run's metrics.json "scanpath" holds the experiment's statistics: one rule
+    stats = json.loads((run / "metrics.json").read_text())["scanpath"]
+    assert list(stats) == [
+        "fixations",
+        "fixation_duration_mean_s",
+        "fixation_duration_std_s",
+        "saccade_amplitude_mean_deg",
+        "saccade_amplitude_std_deg",
+        "revisits",
+        "coverage_deg2",
+    ]
+    (typed,) = read_csv(exp / "results.csv")
+    assert stats == {k: typed[k] for k in stats}
+    assert (stats["fixations"], stats["fixation_duration_mean_s"]) == (2, 0.125)

@@ -269,7 +269,7 @@ def test_hfov_option_reaches_the_env_the_agent_and_run_json(app, square, tmp_pat
     )
     assert run["rig"]["hfov_from"] == "--hfov" and run["fixed_view"].endswith("64.0° (--hfov)")
     bad = invoke(app, "--ptu", "emulate", "--camera", camera, "--hfov", "200")
-    assert bad.exit_code == 2 and "'--hfov'" in bad.output and "must be < 180" in bad.output
+    assert bad.exit_code == 2 and "'--hfov'" in bad.output and "must be in (0, 180)" in bad.output
 
 
 def test_a_real_time_replay_records_the_files_windows(app, square, emu, tmp_path, patient_driver):

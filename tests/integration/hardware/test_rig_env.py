@@ -19,6 +19,7 @@ from polling import wait_until
 
 import hardware.rig_env as rig_env
 import wander_env  # noqa: F401  (registers the environments)
+from agents.attention import AgentParams
 from hardware.ptu_driver import FlirPTU, FlirPTUParams, PTUError, PTUPortError, PTUTimeout
 from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from hardware.rig_env import RigConfig, RigEnv
@@ -142,6 +143,11 @@ def test_sensor_size_and_ptu_limits_come_from_the_devices(tmp_path):
         )
         assert env.emulator.commands[:4] == ["FT", "ED", "CI", "I"]
         assert {"PR", "TR", "PN", "PX", "TN", "TX"} <= set(env.emulator.commands)
+        # The agent reads the unit's resolution and the lens from the env, as in the sim.
+        assert env.ptu_resolution_arcsec == (46.2857, RES) and env.hfov_deg == SPECK_HFOV_DEG
+        params = AgentParams.for_env(env)
+        assert (params.width_px, params.height_px, params.step_s) == (64, 48, 0.01)
+        assert (params.hfov_deg, params.ptu_resolution_arcsec) == (SPECK_HFOV_DEG, (46.2857, RES))
     finally:
         env.close()
 
@@ -153,8 +159,22 @@ def test_config_is_checked():
         RigConfig(ptu_port="emulate", camera="davis")
     with pytest.raises(ValueError, match="replay must be one of"):
         RigConfig(ptu_port="emulate", camera="speck", replay="slow")
-    with pytest.raises(ValueError, match="whole number of µs"):
-        RigConfig(ptu_port="emulate", camera="speck", control_period_s=1.5e-7)
+    for period in (1.5e-7, 0.0, -0.01, 1.5, math.nan, True):
+        with pytest.raises(ValueError) as info:
+            RigConfig(ptu_port="emulate", camera="speck", control_period_s=period)
+        assert str(info.value) == (
+            f"RigConfig.control_period_s: must be a whole number of µs in (0, 1] s, got {period!r}"
+        )
+    assert RigConfig(
+        ptu_port="emulate", camera="speck", control_period_s=1.0
+    ).control_period_us == (1_000_000)
+    assert RigConfig(
+        ptu_port="emulate", camera="speck", control_period_s=0.0125
+    ).control_period_us == (12_500)
+    for hfov in (0.0, 180.0, math.inf):
+        with pytest.raises(ValueError) as info:
+            RigConfig(ptu_port="emulate", camera="speck", hfov_deg=hfov)
+        assert str(info.value) == f"RigConfig.hfov_deg: must be in (0, 180) degrees, got {hfov!r}"
     with pytest.raises(ValueError, match="start_gaze_deg"):
         RigConfig(ptu_port="emulate", camera="speck", start_gaze_deg=(math.nan, 0.0))
     assert RigConfig(ptu_port="emulate", camera="speck:sf-2").camera_kind() == ("speck", "sf-2")

@@ -14,6 +14,7 @@ from gymnasium.utils.env_checker import check_env
 import wander_env  # noqa: F401  (registers the environments)
 from wander_env.events import concatenate
 from wander_env.events.packet import EventPacket
+from wander_env.ptu.params import PTUParams
 
 F_PX = 64 / math.tan(math.atan(5.12 / 3.4))  # focal length in pixels of the Speck optics
 
@@ -98,6 +99,26 @@ def test_a_step_is_one_control_period_of_renders():
     assert info["t"] == pytest.approx(0.02)
     assert info["frames"] == 20 + info["extra_frames"]
     assert env.metadata["render_fps"] == 50
+    env.close()
+
+
+def test_a_step_ends_on_the_control_period_in_whole_us():
+    """12.5 ms at 2 kHz: 25 ticks of 500 µs, the step ends at 12 500 µs, as the agent's
+    step_s (0.0125 s) would, were it a whole number of the controller's 1 ms."""
+    env = make(control_period_s=0.0125, render_rate_hz=2000.0, ground_truth=False)
+    env.reset(seed=0)
+    assert env.step(np.zeros(2, np.float32))[4]["t"] == 12_500 * 1e-6
+    assert env.step(np.zeros(2, np.float32))[4]["t"] == 25_000 * 1e-6
+    env.close()
+
+
+def test_target_positions_in_info_round_halves_away_from_zero_as_the_link_does():
+    env = make(ptu=PTUParams(quantise=False), ground_truth=False)
+    env.reset(seed=0)
+    env.unwrapped.ptu.set_target_positions(2.5, -2.5)
+    info = env.step(np.zeros(2, np.float32))[4]
+    assert env.unwrapped.ptu.target_positions == (2.5, -2.5)
+    assert info["ptu_target_positions"] == (3, -3)
     env.close()
 
 

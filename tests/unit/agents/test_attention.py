@@ -4,6 +4,7 @@ fixational movements inside a window, determinism, and foveation in the simulato
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import gymnasium as gym
 import mujoco
@@ -12,10 +13,13 @@ import pytest
 
 import wander_env  # noqa: F401
 from agents.attention import AGENT_SOMS_ALPHA, AgentParams, AttentionAgent, Phase
+from agents.control import ControlParams
 from agents.soms import SOMSParams
 from wander_env.actions import action_to_gaze_degrees
 from wander_env.camera import focal_length_px, pixel_to_rotation
+from wander_env.ptu.params import PTUParams
 from wander_env.renderer import project_points
+from wander_env.scenes import available_scenes, load_scene_config
 
 H = W = 128
 BLOB = (slice(30, 42), slice(90, 102))  # rows (y), cols (x): a 12×12 square at x 90–101
@@ -77,6 +81,72 @@ def test_params_reject_bad_values(kwargs: dict, field: str) -> None:
         AgentParams(**kwargs)
 
 
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        (
+            {"step_s": 0.0125},
+            "AgentParams.step_s=0.0125 is not a whole multiple of dt=0.001",
+        ),
+        (
+            {"step_s": 0.01, "control": ControlParams(dt=0.003)},
+            "AgentParams.step_s=0.01 is not a whole multiple of dt=0.003",
+        ),
+        ({"hfov_deg": 180.0}, "AgentParams.hfov_deg: must be in (0, 180) degrees, got 180.0"),
+        (
+            {"ptu_resolution_arcsec": (92.5714, -1.0)},
+            "AgentParams.ptu_resolution_arcsec: must be (pan, tilt) arc-seconds > 0, "
+            "got (92.5714, -1.0)",
+        ),
+    ],
+)
+def test_params_refuse_what_the_components_cannot_run_when_built(
+    kwargs: dict, message: str
+) -> None:
+    """A step that is no whole number of the controller's steps is refused when the
+    parameters are built, not at the first act."""
+    with pytest.raises(ValueError) as info:
+        AgentParams(**kwargs)
+    assert str(info.value) == message
+
+
+def test_resolved_hands_the_lens_and_the_ptu_resolution_to_the_walk() -> None:
+    p = AgentParams(hfov_deg=90.0, ptu_resolution_arcsec=(46.2857, 92.5714)).resolved()
+    assert (p.fixation.hfov_deg, p.fixation.resolution_arcsec) == (90.0, (46.2857, 92.5714))
+
+
+@pytest.mark.parametrize("scene", available_scenes())
+def test_for_env_gives_the_default_lens_and_resolution_on_every_scene(scene: str) -> None:
+    """The scenes have the Speck's lens and the FLIR unit: for_env reads them from the
+    env and gets the parameters it gave when it read only the sensor and the step."""
+    env = gym.make("wander/Wander-v0", scene=scene)
+    try:
+        expected = AgentParams(width_px=128, height_px=128, step_s=0.01)
+        assert AgentParams.for_env(env) == expected
+        assert AgentParams.for_env(env).resolved() == expected.resolved()
+    finally:
+        env.close()
+
+
+def test_for_env_reads_the_lens_the_resolution_and_the_step_of_the_env() -> None:
+    shelf = load_scene_config("shelf")
+    scene = replace(shelf, camera=replace(shelf.camera, hfov_deg=90.0))
+    ptu = PTUParams(pan_resolution_arcsec=46.2857)
+    env = gym.make(
+        "wander/Wander-v0", scene=scene, ptu=ptu, control_period_s=0.02, render_rate_hz=100.0
+    )
+    try:
+        assert (env.unwrapped.hfov_deg, env.unwrapped.ptu_resolution_arcsec) == (
+            90.0,
+            (46.2857, 92.5714),
+        )
+        p = AgentParams(window_s=0.05).on_env(env)
+        assert (p.step_s, p.hfov_deg, p.ptu_resolution_arcsec) == (0.02, 90.0, (46.2857, 92.5714))
+        assert p.window_s == 0.05
+    finally:
+        env.close()
+
+
 def test_wrong_observation_shape_is_refused(agent: AttentionAgent) -> None:
     agent.reset()
     with pytest.raises(ValueError, match=r"\(2, 64, 64\).*\(2, 128, 128\)"):
@@ -97,10 +167,10 @@ def test_window_fixational_steps_decision_and_saccade(agent: AttentionAgent) -> 
             walk.append(decision_action)
     nonzero = [a for a in walk if np.any(a != 0)]
     assert len(nonzero) == 8
-    pos_per_deg = 1 / agent.params.fixation.deg_per_pos
+    pan_per_deg, tilt_per_deg = (1 / d for d in agent.params.fixation.deg_per_pos)
     for step in nonzero:
         pan, tilt = action_to_gaze_degrees(step)
-        assert abs(pan) * pos_per_deg <= 60.5 and abs(tilt) * pos_per_deg <= 60.5
+        assert abs(pan) * pan_per_deg <= 60.5 and abs(tilt) * tilt_per_deg <= 60.5
     # The decision: P inside the square (± 2 px), then the saccade.
     x, y = agent.target
     assert 88 <= x <= 103 and 28 <= y <= 43, agent.target

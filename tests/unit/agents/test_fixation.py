@@ -34,7 +34,7 @@ def _fixation(fix: FixationalMovements, after_saccade: bool = True) -> list:
 
 def test_degrees_conversion_exact() -> None:
     fix = FixationalMovements(FixationParams(), np.random.default_rng(0))
-    assert fix.params.deg_per_pos == 92.5714 / 3600
+    assert fix.params.deg_per_pos == (92.5714 / 3600, 92.5714 / 3600)
     steps = [s for _ in range(200) for s in _fixation(fix)]
     for s in steps:
         assert s.delta_deg == (s.delta_pos[0] * RES / 3600, s.delta_pos[1] * RES / 3600)
@@ -184,4 +184,48 @@ def test_params_validate() -> None:
     with pytest.raises(ValueError, match="n_steps"):
         FixationParams(n_steps=-1)
     p = FixationParams()
-    assert (p.n_steps, p.max_step_pos, p.resolution_arcsec) == (8, 60, 92.5714)
+    assert (p.n_steps, p.max_step_pos, p.resolution_arcsec) == (8, 60, (92.5714, 92.5714))
+
+
+def test_each_axis_moves_at_its_own_resolution() -> None:
+    """A unit of finer pan steps (46.2857″) turns each pan position by half the angle."""
+    params = FixationParams(resolution_arcsec=(46.2857, 92.5714))
+    fix = FixationalMovements(params, np.random.default_rng(0))
+    steps = _fixation(fix)
+    assert params.deg_per_pos == (46.2857 / 3600, 92.5714 / 3600)
+    for s in steps:
+        assert s.delta_deg == (s.delta_pos[0] * 46.2857 / 3600, s.delta_pos[1] * 92.5714 / 3600)
+        assert s.action.tolist() == gaze_degrees_to_action(*s.delta_deg).tolist()
+    assert (
+        fix.cumulative_deg.tolist()
+        == (fix.cumulative_pos * [46.2857 / 3600, 92.5714 / 3600]).tolist()
+    )
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        (
+            {"resolution_arcsec": 92.5714},
+            "FixationParams.resolution_arcsec: must be (pan, tilt) arc-seconds > 0, got 92.5714",
+        ),
+        (
+            {"resolution_arcsec": (92.5714, 0.0)},
+            "FixationParams.resolution_arcsec: must be (pan, tilt) arc-seconds > 0, "
+            "got (92.5714, 0.0)",
+        ),
+        (
+            {"resolution_arcsec": [92.5714, 92.5714]},
+            "FixationParams.resolution_arcsec: must be (pan, tilt) arc-seconds > 0, "
+            "got [92.5714, 92.5714]",
+        ),
+        (
+            {"hfov_deg": 180.0},
+            "FixationParams.hfov_deg: must be in (0, 180) degrees, got 180.0",
+        ),
+    ],
+)
+def test_params_refuse_a_bad_resolution_or_lens(kwargs: dict, message: str) -> None:
+    with pytest.raises(ValueError) as info:
+        FixationParams(**kwargs)
+    assert str(info.value) == message

@@ -184,7 +184,11 @@ def test_wander_run_and_evaluate_pick_the_front_end_by_soms():
 
     space = {"events": SimpleNamespace(shape=(2, 128, 128))}
     env = SimpleNamespace(observation_space=space)
-    env.unwrapped = SimpleNamespace(config=SimpleNamespace(control_period_s=0.01))
+    env.unwrapped = SimpleNamespace(
+        config=SimpleNamespace(control_period_s=0.01),
+        hfov_deg=AgentParams.hfov_deg,
+        ptu_resolution_arcsec=AgentParams.ptu_resolution_arcsec,
+    )
     from wander_env.config import parse_sets, validate
 
     def agent(*sets: str) -> object:

@@ -10,7 +10,14 @@ import pytest
 from test_benchmark_protocol import OMS, FakeModel, evaluate_sequence, sequence, standard_windows
 
 from experiments.benchmark.protocol import ROW_COLUMNS, WindowRow
-from experiments.benchmark.summary import render_markdown, summarize, write_rows_csv
+from experiments.benchmark.summary import (
+    SUMMARY_COLUMNS,
+    render_markdown,
+    summarize,
+    write_rows_csv,
+    write_summary_csv,
+)
+from experiments.runs.tables import read_csv
 
 
 def row(seq, subset, hit, iou=0.5, prec=0.5, s=0.9, notes="", dataset="evimo"):
@@ -97,4 +104,26 @@ def test_csv_and_markdown_written(tmp_path):
 
 def test_write_rows_csv_nan_cells(tmp_path):
     path = write_rows_csv([row("a", "box", math.nan, iou=math.nan)], tmp_path / "r.csv")
-    assert path.read_text().splitlines()[1].split(",")[8] == ""
+    assert path.read_text() == (
+        "dataset,subset,sequence,window,t_start_us,t_end_us,n_events,mask_pixels,iou,"
+        "precision,ssim,hit,notes\nevimo,box,a,0,0,1,1,1,,0.5,0.9,,\n"
+    )
+    (back,) = read_csv(path)
+    assert list(back) == list(ROW_COLUMNS) and back["window"] == 0 and back["ssim"] == 0.9
+    assert math.isnan(back["iou"]) and math.isnan(back["hit"])
+
+
+def test_summary_csv_is_the_house_table(tmp_path):
+    summaries = summarize(hand_rows())
+    back = read_csv(write_summary_csv(summaries, tmp_path / "summary.csv"))
+    assert len(back) == len(summaries) and list(back[0]) == list(SUMMARY_COLUMNS)
+    by = {(r["level"], r["subset"], r["sequence"]): r for r in back if r["level"] == "sequence"}
+    a = by[("sequence", "box", "a")]
+    assert (a["n_windows"], a["n_scored"], a["accuracy_mean"]) == (5, 4, 0.75)
+    assert a["accuracy_std"] == math.sqrt(0.1875)
+    (wall,) = [r for r in back if r["level"] == "subset" and r["subset"] == "wall"]
+    assert math.isnan(wall["precision_mean"])  # NaN: an empty cell, read back as NaN
+    assert math.isnan(wall["sequence"])  # "" too: the house table reads an empty cell as NaN
+    # no summaries: the header alone
+    empty = write_summary_csv([], tmp_path / "empty.csv")
+    assert empty.read_text() == ",".join(SUMMARY_COLUMNS) + "\n"

@@ -13,6 +13,7 @@ import pytest
 
 from experiments.analysis import scanpath_stats
 from experiments.paper import scanpath, scanpath_analysis
+from experiments.runs.tables import write_csv
 
 DATA = locations.DATA / "multimatch"
 # multimatch-gaze's test_compare2matlab: the MATLAB toolbox's results on these two files
@@ -190,15 +191,75 @@ def test_times_start_at_zero_and_are_rounded_to_the_microsecond() -> None:
     assert got.tolist() == [[1.234568, -0.5, 0.0, 0.12], [-2.0, 3.0, 0.5, 0.2]]
 
 
-def test_write_fixations_writes_the_four_columns_then_the_extra_ones(tmp_path: Path) -> None:
+def test_fixation_rows_write_the_four_columns_then_the_extra_ones(tmp_path: Path) -> None:
     fx = np.array([[10.0, 5.0, -0.01, 0.26], [-3.0, 0.0, 0.25, 0.5]])
-    path = scanpath_stats.write_fixations(
-        tmp_path / "f.csv", fx, {"aoi": ["mug", "-"], "hit": [1, None]}
-    )
+    columns, rows = scanpath_stats.fixation_rows(fx, {"aoi": ["mug", "-"], "hit": [1, None]})
+    path = write_csv(rows, tmp_path / "f.csv", columns=columns)
     assert path.read_text() == (
         "pan_deg,tilt_deg,t_start_s,duration_s,aoi,hit\n"
         "10.0,5.0,0.0,0.25,mug,1\n"
         "-3.0,0.0,0.25,0.5,-,\n"
     )
+    # no fixation: the header alone
+    columns, rows = scanpath_stats.fixation_rows(np.zeros((0, 4)), {"aoi": []})
+    path = write_csv(rows, tmp_path / "empty.csv", columns=columns)
+    assert path.read_text() == "pan_deg,tilt_deg,t_start_s,duration_s,aoi\n"
     with pytest.raises(ValueError, match="column 'aoi' has 1 values for 2 rows"):
-        scanpath_stats.write_fixations(tmp_path / "g.csv", fx, {"aoi": ["mug"]})
+        scanpath_stats.fixation_rows(fx, {"aoi": ["mug"]})
+
+
+# ----------------------------------------------------------------------------------------
+# Windows merged into fixations, and the statistics of wander run and the experiment
+
+
+def test_merge_windows_joins_the_windows_between_saccades() -> None:
+    w = np.array(
+        [[0, 0, 0.0, 0.1], [0, 0, 0.1, 0.1], [9, 2, 0.6, 0.1], [3, 3, 1.0, 0.1], [3, 3, 1.1, 0.1]]
+    )
+    got = scanpath_stats.merge_windows(w, [False, True, True, False, False])
+    want = [[0, 0, 0.0, 0.2], [9, 2, 0.6, 0.1], [3, 3, 1.0, 0.2]]
+    np.testing.assert_allclose(got, want, atol=1e-12)
+    assert scanpath_stats.merge_windows(np.zeros((0, 4)), []).shape == (0, 4)
+    with pytest.raises(ValueError, match="3 windows but 2 flags"):
+        scanpath_stats.merge_windows(w[:3], [True, True])
+
+
+def test_scanpath_summary_counts_a_fixation_over_windows_once() -> None:
+    """Two windows without a saccade between them are one fixation of 0.2 s; the one
+    saccade, (0, 0) → (5°, 1°), is the amplitude (per window it was 3 fixations of
+    0.1 s and amplitudes 0 and 5.10°, mean 2.55°)."""
+    windows = np.array([[0, 0, 0.0, 0.1], [0, 0, 0.1, 0.1], [5, 1, 0.5, 0.1]])
+    s = scanpath_stats.scanpath_summary(windows, [False, True, True], np.array([[0, 0, 5, 1]]))
+    # the great circle from (0, 0) to pan 5°, tilt 1°: cos d = cos 1° cos 5°
+    amplitude = math.degrees(math.acos(math.cos(math.radians(1)) * math.cos(math.radians(5))))
+    assert list(s) == [
+        "fixations",
+        "fixation_duration_mean_s",
+        "fixation_duration_std_s",
+        "saccade_amplitude_mean_deg",
+        "saccade_amplitude_std_deg",
+        "revisits",
+        "coverage_deg2",
+    ]
+    assert (s["fixations"], s["fixation_duration_mean_s"], s["fixation_duration_std_s"]) == (
+        2,
+        0.15,
+        0.05,
+    )
+    assert s["saccade_amplitude_mean_deg"] == pytest.approx(amplitude, abs=1e-9)
+    assert round(s["saccade_amplitude_mean_deg"], 2) == 5.10
+    assert (s["saccade_amplitude_std_deg"], s["revisits"]) == (0.0, 0)
+    # coverage: the 1° grid points within 5° of (0, 0) or (5, 1)
+    near = {
+        (p, t)
+        for p in range(-5, 11)
+        for t in range(-5, 7)
+        if math.hypot(p, t) <= 5 or math.hypot(p - 5, t - 1) <= 5
+    }
+    assert s["coverage_deg2"] == float(len(near)) == 130.0
+    # every window ending its fixation: three fixations of 0.1 s
+    each = scanpath_stats.scanpath_summary(windows, [True, True, True], np.zeros((0, 4)))
+    assert (each["fixations"], each["fixation_duration_mean_s"]) == (3, 0.1)
+    assert math.isnan(each["saccade_amplitude_mean_deg"])
+    with pytest.raises(ValueError, match=r"saccades_deg must be \(m, 4\)"):
+        scanpath_stats.scanpath_summary(windows, [True] * 3, np.zeros((1, 2)))

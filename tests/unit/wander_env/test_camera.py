@@ -10,6 +10,7 @@ import pytest
 
 from wander_env.camera import (
     SPECK_HFOV_DEG,
+    check_hfov_deg,
     degrees_to_pixels,
     focal_length_px,
     pixel_to_rotation,
@@ -41,7 +42,7 @@ def test_pixels_degrees_round_trip_on_arrays():
 
 
 def test_angle_conversions_reject_bad_geometry():
-    with pytest.raises(ValueError, match="hfov_deg"):
+    with pytest.raises(ValueError, match=r"^hfov_deg: must be in \(0, 180\) degrees, got 180.0$"):
         pixels_to_degrees(1, 128, hfov_deg=180.0)
     with pytest.raises(ValueError, match="width_px"):
         degrees_to_pixels(1.0, 0)
@@ -73,3 +74,15 @@ def test_pixel_to_rotation_puts_the_pixels_ray_on_the_optical_axis():
         (-np.degrees(np.arctan(1 / f)), -np.degrees(np.arctan(1 / f))), abs=1e-3
     )
     assert abs(pixel_to_rotation(64.0, 64.0, 0.0)[1] + np.degrees(np.arctan(64 / f))) > 10
+
+
+@pytest.mark.parametrize("value", [1e-9, 90, 179.999])
+def test_check_hfov_deg_takes_the_open_interval(value):
+    assert check_hfov_deg(value) == value
+
+
+@pytest.mark.parametrize("value", [0, 0.0, -1.0, 180, 180.0, 200.0, math.nan, math.inf, True, "90"])
+def test_check_hfov_deg_names_the_field_and_the_value(value):
+    with pytest.raises(ValueError) as info:
+        check_hfov_deg(value, "RigConfig.hfov_deg")
+    assert str(info.value) == f"RigConfig.hfov_deg: must be in (0, 180) degrees, got {value!r}"

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from wander_env.dvs import DVSEmulator, DVSParams, linlog, srgb_to_linear
+from wander_env.dvs import DVSEmulator, DVSParams, linlog, luminance_tables, srgb_to_linear
 from wander_env.events import check_sorted
 
 
@@ -113,6 +113,17 @@ def test_srgb_curve_is_undone():
     assert srgb_to_linear(np.array([0.0, 0.5, 1.0])) == pytest.approx(
         [0.0, 0.214041, 1.0], abs=1e-6
     )
+
+
+def test_one_luminance_table_float32_weighted_in_float32():
+    """The emulator's table (and the panorama cube map's, wander_env.frames.cube): each
+    code's linear light in float32, times the float32 Rec. 709 weights."""
+    lut, wlut = luminance_tables()
+    expected_lut = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
+    assert lut.dtype == wlut.dtype == np.float32 and wlut.shape == (3, 256)
+    assert np.array_equal(lut, expected_lut)
+    assert np.array_equal(wlut, np.float32([0.2126, 0.7152, 0.0722])[:, None] * expected_lut)
+    assert np.array_equal(DVSEmulator(2, 2).channel_luminance, wlut)
 
 
 def test_linlog_is_finite_at_black_and_continuous_at_the_knee():

@@ -271,9 +271,14 @@ def _bad_mode(d):
             ("got 'wood'", "room.wall_texture.seed: ", "greater than or equal to 0", "got -1"),
         ),
         (
-            lambda d: d.__setitem__("camera", {"width": True, "hfov_deg": 200}),
+            lambda d: d.__setitem__("camera", {"width": True, "height": 0}),
             "camera.width: ",
-            ("camera.width: expected int, got True", "camera.hfov_deg: ", "179, got 200"),
+            ("camera.width: expected int, got True", "camera.height: ", "1, got 0"),
+        ),
+        (
+            lambda d: d.__setitem__("camera", {"hfov_deg": 180}),
+            "camera.hfov_deg: must be in (0, 180) degrees, got 180.0",
+            (),
         ),
         (
             lambda d: d.update(moving_objects=[], gratings={"object_size_deg": 150}),
