@@ -54,7 +54,7 @@ from wander_env.actions import action_to_gaze_degrees
 from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.closing import Closing
 from wander_env.config import check_fields
-from wander_env.ptu.units import FLIR_RESOLUTION_ARCSEC, positions_to_degrees
+from wander_env.ptu.units import FLIR_RESOLUTION_ARCSEC, degrees_to_positions
 
 __all__ = [
     "AttentionController",
@@ -119,8 +119,8 @@ def command_positions(
     (-1439, 0)
     """
     pan_deg, tilt_deg = action_to_gaze_degrees(u, width_px, height_px, hfov_deg)
-    per = positions_to_degrees(1.0, resolution_arcsec)
-    return math.floor(pan_deg / per), math.floor(tilt_deg / per)
+    pan, tilt = (degrees_to_positions(d, resolution_arcsec) for d in (pan_deg, tilt_deg))
+    return math.floor(pan), math.floor(tilt)
 
 
 def paper_command_positions(
@@ -137,8 +137,9 @@ def paper_command_positions(
     >>> paper_command_positions((1.0, -1.0))
     (38, -39)
     """
-    per = positions_to_degrees(1.0, resolution_arcsec)
-    return math.floor(k_pan * error_px[0] / per), math.floor(k_tilt * error_px[1] / per)
+    pan = degrees_to_positions(k_pan * error_px[0], resolution_arcsec)
+    tilt = degrees_to_positions(k_tilt * error_px[1], resolution_arcsec)
+    return math.floor(pan), math.floor(tilt)
 
 
 # ----------------------------------------------------------------------------------------

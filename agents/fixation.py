@@ -43,6 +43,7 @@ from wander_env.actions import gaze_degrees_to_action
 from wander_env.camera import SPECK_HFOV_DEG, check_hfov_deg
 from wander_env.config import check_fields
 from wander_env.ptu.units import FLIR_RESOLUTION_ARCSEC, positions_to_degrees
+from wander_env.trajectories import fold
 
 __all__ = [
     "FIXATION_WINDOW_S",
@@ -51,7 +52,6 @@ __all__ = [
     "FixationalMovements",
     "check_resolution_arcsec",
     "draw_perturbations",
-    "fold_into_bound",
     "positions_to_action",
 ]
 
@@ -113,25 +113,6 @@ def check_resolution_arcsec(
     return resolution_arcsec
 
 
-def fold_into_bound(pos: np.ndarray, bound: float) -> np.ndarray:
-    """Reflect positions into ``[−bound, bound]`` (a reflecting wall, folded repeatedly).
-
-    A value past a wall is mirrored back by the amount it overshot; values inside are
-    unchanged. ``bound = 0`` maps everything to 0.
-
-    >>> fold_into_bound(np.array([50, 130, -130, 250, 10]), 100).tolist()
-    [50, 70, -70, -50, 10]
-    """
-    x = np.asarray(pos)
-    if bound < 0:
-        raise ValueError(f"bound must be >= 0, got {bound!r}")
-    if bound == 0:
-        return np.zeros_like(x)
-    period = 4 * bound
-    y = np.mod(x + bound, period)  # in [0, 4B): [0, 2B] rising, (2B, 4B) falling
-    return np.where(y <= 2 * bound, y, period - y) - bound
-
-
 def draw_perturbations(
     rng: np.random.Generator,
     n_steps: int,
@@ -172,7 +153,7 @@ class FixationParams:
       saliency window St_w = 124 ms of the paper's demonstrator (an assumption: the
       paper gives only the window);
     - ``max_excursion_pos``: optional bound on the walk relative to the fixation point
-      (reflecting wall, see :func:`fold_into_bound`); ``None`` = free walk (paper);
+      (a reflecting wall: :func:`wander_env.trajectories.fold`); ``None`` = free walk (paper);
     - ``integer_positions``: draw whole positions; ``shared_axes``: same ``r_i`` on both
       axes (the paper's formula read literally; default independent axes);
     - sensor geometry for the action conversion: 128×128 Speck, HFOV 112.83°
@@ -302,7 +283,7 @@ class FixationalMovements:
         p = self.params
         new = self._cum + self._seq[self._i]
         if p.max_excursion_pos is not None:
-            new = fold_into_bound(new, p.max_excursion_pos).astype(np.float64)
+            new = fold(new, -p.max_excursion_pos, p.max_excursion_pos)
         delta = new - self._cum
         self._cum = new
         idx = self._i

@@ -11,7 +11,6 @@ from agents.fixation import (
     FixationalMovements,
     FixationParams,
     draw_perturbations,
-    fold_into_bound,
     positions_to_action,
 )
 from wander_env.actions import action_to_gaze_degrees, gaze_degrees_to_action
@@ -58,15 +57,6 @@ def test_action_degrees_roundtrip_and_pinhole() -> None:
     a = positions_to_action((60, 0))
     assert a[0] == pytest.approx(-f * math.tan(math.radians(60 * RES / 3600)) / 64)
     assert a[0] < 0 and a[1] == 0.0
-
-
-def test_fold_into_bound() -> None:
-    x = np.arange(-500, 501)
-    y = fold_into_bound(x, 100)
-    assert np.all(np.abs(y) <= 100)
-    assert np.array_equal(y[400:601], x[400:601])  # inside: unchanged
-    assert fold_into_bound(np.array([130, -130, 300, 401]), 100).tolist() == [70, -70, -100, 1]
-    assert fold_into_bound(np.array([5, -7]), 0).tolist() == [0, 0]
 
 
 def test_draw_perturbations_options() -> None:
@@ -160,6 +150,7 @@ def test_bounded_walk_stays_within_bound() -> None:
         assert np.abs(cum).max() <= 90
         assert np.array_equal(np.cumsum([s.delta_pos for s in steps], axis=0), cum)
         assert np.abs([s.delta_pos for s in steps]).max() <= 60  # folding never lengthens
+        assert all(float(v).is_integer() for s in steps for v in s.cumulative_pos)
 
 
 def test_due_schedule() -> None:
