@@ -45,6 +45,7 @@ __all__ = [
     "cube_renderer",
     "cube_warp",
     "cube_warp_srgb",
+    "face_px",
     "pixel_rays",
     "render_cube",
 ]
@@ -254,6 +255,16 @@ def _hidden_groups(model: mujoco.MjModel, hide: np.ndarray, group: int):
             model.geom_group[:] = saved
 
     return ctx()
+
+
+def face_px(k: np.ndarray, samples: int) -> int:
+    """The face side ``n = 2·f·s`` that gives ``samples`` face pixels a sensor pixel along
+    each axis (``f``: the sensor's focal length in pixels, ``k[0, 0]``).
+
+    >>> face_px(np.diag([42.5, 42.5, 1.0]), 4)
+    340
+    """
+    return round(2 * float(k[0, 0]) * samples)
 
 
 def cube_renderer(

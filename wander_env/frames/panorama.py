@@ -162,10 +162,10 @@ class PanoramaFrames(FrameSource):
 
     def build(self, t_us: int, angles: Angles) -> None:
         """Render the panorama from the camera centre at ``t_us`` and ``angles``."""
-        from wander_env.frames.cube import box_filter, pixel_rays, render_cube
+        from wander_env.frames.cube import box_filter, face_px, pixel_rays, render_cube
 
         stage, pp = self.stage, self.panorama
-        n = round(2 * float(stage.k[0, 0]) * pp.samples)
+        n = face_px(stage.k, pp.samples)
 
         def draw() -> tuple[np.ndarray, np.ndarray, np.ndarray, CameraRenderer]:
             stage.pose(t_us, *angles)

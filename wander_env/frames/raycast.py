@@ -360,11 +360,11 @@ class PrimitiveCaster:
         """(Where it renders.) The static cube's renderer, created on first use (a GL
         context of its own: about 0.1 s the first time in a process); a caller may make
         it ahead of the first cast (:meth:`wander_env.frames.Stage.warm_up`)."""
-        from wander_env.frames.cube import cube_renderer
+        from wander_env.frames.cube import cube_renderer, face_px
 
         if self._renderer is not None and self._renderer_pid != os.getpid():
             raise ForkedGLError(fork_error_message(self._renderer_pid, os.getpid()))
-        n = round(2 * float(self.k[0, 0]) * self.params.cube_samples)
+        n = face_px(self.k, self.params.cube_samples)
         self._renderer = cube_renderer(self.model, n, self._renderer)
         self._renderer_pid = os.getpid()
         return self._renderer
