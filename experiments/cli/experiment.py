@@ -24,7 +24,7 @@ from experiments.cli.options import (
     folder_problem,
     own_folder,
 )
-from experiments.runs.folder import RunFolder
+from experiments.runs.folder import RESULTS, SWEEPS, RunFolder
 from experiments.studies.registry import EXPERIMENT_NAMES
 
 __all__ = ["register"]
@@ -211,7 +211,7 @@ def sweep(
         n = len(expand(sw))
     except ConfigError as e:
         raise fail(e, ctx) from None
-    path = out or Path("results") / "sweeps" / sw.name
+    path = out or RESULTS / SWEEPS / sw.name
     run = own_folder(ctx, lambda now: RunFolder.for_sweep(path, now))
     folder = run.path
     with progress_bars() as bar:
@@ -247,7 +247,7 @@ def sweep(
 
 def report(
     ctx: typer.Context,
-    results: Annotated[Path, typer.Option(help="Folder of result folders.")] = Path("results"),
+    results: Annotated[Path, typer.Option(help="Folder of result folders.")] = RESULTS,
     out: Annotated[
         str,
         typer.Option(

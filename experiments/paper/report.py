@@ -41,6 +41,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 from urllib.parse import quote
 
+from experiments.runs.folder import RESULTS, SWEEPS
 from experiments.runs.tables import parse_csv
 from experiments.studies.framework import EXPERIMENT_NAMES, config_from_dict, get_experiment
 from wander_env import untrusted
@@ -300,7 +301,7 @@ def _row(*cells: object) -> str:
 
 def _sweep_folders(root: Path) -> list[tuple[Path, dict[str, Any]]]:
     """The sweeps under ``root/sweeps`` with their ``sweep.json`` (checked)."""
-    base = root / "sweeps"
+    base = root / SWEEPS
     found = (
         sorted(d for d in base.iterdir() if os.path.lexists(d / "sweep.json"))
         if base.is_dir()
@@ -313,7 +314,7 @@ def _sweep_tables(root: Path) -> list[tuple[Path, list[dict[str, Any]]]]:
     """The finished sweeps under ``root/sweeps`` (a ``results.csv`` or the ``sweep.json``
     written after it) with their rows (checked: a missing table is a
     :class:`ReportInputError`)."""
-    sweeps = root / "sweeps"
+    sweeps = root / SWEEPS
     found = sorted(sweeps.iterdir()) if sweeps.is_dir() else []
     done = [
         d for d in found if os.path.lexists(d / "results.csv") or os.path.lexists(d / "sweep.json")
@@ -462,7 +463,7 @@ def studies_section(root: Path, report_dir: Path, figures: Path | None = None) -
 
 
 def render_report(
-    root: Path = Path("results"), report_dir: Path = Path("."), figures: Path | None = None
+    root: Path = RESULTS, report_dir: Path = Path("."), figures: Path | None = None
 ) -> str:
     """The Markdown text of a report in ``report_dir``; its figures are written under
     ``figures`` (default ``report_dir/report_figures``) and linked as ``report_figures/``.
@@ -510,7 +511,7 @@ def report_path(out: str | os.PathLike) -> Path:
     return Path(text) / "REPORT.md" if folder else Path(text)
 
 
-def build_report(root: Path = Path("results"), out: str | os.PathLike = "REPORT.md") -> Path:
+def build_report(root: Path = RESULTS, out: str | os.PathLike = "REPORT.md") -> Path:
     """Write ``out`` (a file, or a folder: :func:`report_path`) and its figures in
     ``report_figures/`` beside it; returns the report's path.
 

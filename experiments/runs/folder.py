@@ -78,6 +78,10 @@ from wander_env.strict_json import dumps_strict
 from wander_env.untrusted import UntrustedFileError
 
 RUN_JSON = "run.json"
+#: Where experiments put their result folders (``RESULTS/NAME/...``) and sweeps theirs
+#: (``RESULTS/SWEEPS/NAME``), by default: ``wander experiment``, ``sweep`` and ``report``.
+RESULTS = Path("results")
+SWEEPS = "sweeps"
 METRICS_JSON = "metrics.json"
 INCOMPLETE = "INCOMPLETE"
 #: The most suffixes (``-2`` … ``-N``) tried for a default folder name.
@@ -85,7 +89,15 @@ MAX_SUFFIX = 10_000
 #: The time in a default folder name.
 _STAMP = "%Y%m%d-%H%M%S"
 
-__all__ = ["INCOMPLETE", "METRICS_JSON", "RUN_JSON", "CurrentRun", "RunFolder"]
+__all__ = [
+    "INCOMPLETE",
+    "METRICS_JSON",
+    "RESULTS",
+    "RUN_JSON",
+    "SWEEPS",
+    "CurrentRun",
+    "RunFolder",
+]
 
 
 class CurrentRun:
@@ -134,7 +146,7 @@ class RunFolder:
         seed: int,
         out: str | os.PathLike | None = None,
         force: bool = False,
-        root: Path = Path("results"),
+        root: Path = RESULTS,
         current: CurrentRun | None = None,
     ) -> RunFolder:
         """An experiment's folder, created: ``out`` (:meth:`claim`), or a new

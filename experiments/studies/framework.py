@@ -54,7 +54,7 @@ from typing import Annotated, Any
 
 import pydantic
 
-from experiments.runs.folder import RUN_JSON, RunFolder
+from experiments.runs.folder import RESULTS, RUN_JSON, RunFolder
 from experiments.runs.provenance import run_record
 from experiments.runs.tables import Row, Scalar, write_csv
 from experiments.runs.trials import TrialStore, save_artifacts, split_artifacts
@@ -509,7 +509,7 @@ def is_unfinished_run(path: Path, name: str, config: Any, seed: int) -> bool:
 
 
 def unfinished_folder(
-    name: str, config: Any, seed: int, out: Path | None, root: Path = Path("results")
+    name: str, config: Any, seed: int, out: Path | None, root: Path = RESULTS
 ) -> Path | None:
     """The folder a rerun of ``wander experiment NAME`` continues: ``out`` when it holds an
     unfinished run of the same experiment, config and seed (:func:`is_unfinished_run`);
