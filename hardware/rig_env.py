@@ -90,6 +90,7 @@ from wander_env.env_base import CameraEnv, StepInfo
 from wander_env.env_config import control_period_us
 from wander_env.events import empty_events
 from wander_env.events.packet import EventPacket
+from wander_env.ptu.units import clip_to_limits
 from wander_env.viz import event_image, labelled_frame
 
 _REPLAY_MODES = ("realtime", "fast", "stepped")
@@ -443,8 +444,7 @@ class RigEnv(CameraEnv):
         return self._link.to_degrees(self._target)
 
     def clip_target(self, pan_deg: float, tilt_deg: float) -> tuple[float, float]:
-        (plo, phi), (tlo, thi) = self.ptu.pan_limits_deg, self.ptu.tilt_limits_deg
-        return min(max(pan_deg, plo), phi), min(max(tilt_deg, tlo), thi)
+        return clip_to_limits(pan_deg, tilt_deg, self.ptu.pan_limits_deg, self.ptu.tilt_limits_deg)
 
     def set_target(self, pan_deg: float, tilt_deg: float) -> None:
         """Hand the target (as whole positions) to the PTU thread when it changed."""

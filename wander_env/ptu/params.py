@@ -9,7 +9,7 @@ from dataclasses import dataclass, fields, replace
 
 from wander_env.config import check_fields
 from wander_env.ptu.link import PTULinkParams
-from wander_env.ptu.units import FLIR_RESOLUTION_ARCSEC, positions_to_degrees
+from wander_env.ptu.units import FLIR_RESOLUTION_ARCSEC, clip_to_limits, positions_to_degrees
 
 
 @dataclass(frozen=True)
@@ -149,9 +149,7 @@ class PTUParams:
         >>> PTUParams().clip_deg(100.0, -5.0)[0] == PTUParams().pan_limits_deg[1]
         True
         """
-        plo, phi = self.pan_limits_deg
-        tlo, thi = self.tilt_limits_deg
-        return min(max(pan_deg, plo), phi), min(max(tilt_deg, tlo), thi)
+        return clip_to_limits(pan_deg, tilt_deg, self.pan_limits_deg, self.tilt_limits_deg)
 
     def with_slew(self, speed_pos_s: float, accel_pos_s2: float) -> PTUParams:
         """These parameters with both axes' slew speed and acceleration set (positions/s,

@@ -31,6 +31,24 @@ def positions_to_degrees(pos: float, resolution_arcsec: float = FLIR_RESOLUTION_
     return pos * resolution_arcsec / ARCSEC_PER_DEG
 
 
+def clip_to_limits(
+    pan_deg: float,
+    tilt_deg: float,
+    pan_limits: tuple[float, float],
+    tilt_limits: tuple[float, float],
+) -> tuple[float, float]:
+    """A (pan, tilt) target in degrees clipped into the axes' (low, high) limits: the sim's
+    (:meth:`~wander_env.ptu.params.PTUParams.clip_deg`) and the rig's, read from the unit.
+
+    >>> clip_to_limits(100.0, -5.0, (-159.0, 159.0), (-31.0, 31.0))
+    (100.0, -5.0)
+    >>> clip_to_limits(200.0, -40.0, (-159.0, 159.0), (-31.0, 31.0))
+    (159.0, -31.0)
+    """
+    (plo, phi), (tlo, thi) = pan_limits, tilt_limits
+    return min(max(pan_deg, plo), phi), min(max(tilt_deg, tlo), thi)
+
+
 def round_position(pos: float) -> int:
     """Nearest integer position, halves away from zero (symmetric about home).
 
