@@ -15,26 +15,48 @@ Each returns ``nan`` when its denominator is empty (nothing to score), so that
 averages over trials can skip such trials explicitly (``np.nanmean``) instead of
 counting them as perfect or as failures.
 
+Events through a filter (the sOMS), counted on a ground-truth object mask:
+:class:`EventCounts` (from maps: :func:`event_counts`) — events in and kept, the
+object's and the background's; the suppressed fraction, the *event* precision (object
+events kept / events kept) and the shares kept, each ``nan`` when its denominator is
+empty, as above (a precision when nothing was kept is undefined, not 0).
+
+A figure is held against a pass/fail bar by :func:`reaches`: ``nan`` never reaches a
+bar, so an undefined figure fails it (it is no evidence for the claim); averages skip
+``nan`` first, so one stimulus or trial with nothing to score does not fail a mean.
+
 Examples:
     >>> import numpy as np
     >>> pred = np.zeros((4, 4), bool); pred[0, :2] = True
     >>> mask = np.zeros((4, 4), bool); mask[0, 1:4] = True
     >>> iou(pred, mask), precision(pred, mask), recall(pred, mask)
     (0.25, 0.5, 0.3333333333333333)
+    >>> c = EventCounts(events_in=10, kept=4, object_in=5, object_kept=3)
+    >>> c.suppressed, c.precision, c.object_kept_share, c.background_kept_share
+    (0.6, 0.75, 0.6, 0.2)
+    >>> EventCounts(10, 0, 5, 0).precision, reaches(math.nan, 0.9)
+    (nan, False)
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import Self
 
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
+from agents.suppression import suppressed_fraction
+
 __all__ = [
+    "EventCounts",
     "detection_hit",
+    "event_counts",
     "foveation_error_px",
     "iou",
     "precision",
+    "reaches",
     "recall",
     "ssim",
     "ssim_map",
@@ -85,6 +107,79 @@ def recall(pred: np.ndarray, mask: np.ndarray) -> float:
     """
     p, m = _pair(pred, mask)
     return _ratio(np.count_nonzero(p & m), np.count_nonzero(m))
+
+
+@dataclass(frozen=True)
+class EventCounts:
+    """Events into a filter and kept by it, all and the object's (its ground-truth mask);
+    the background's are the rest. Counts add up (``a + b``: pooled over steps, trials
+    or stimuli); each share is ``nan`` when its denominator is empty."""
+
+    events_in: int
+    kept: int
+    object_in: int
+    object_kept: int
+
+    def __add__(self, other: EventCounts) -> Self:
+        return type(self)(
+            self.events_in + other.events_in,
+            self.kept + other.kept,
+            self.object_in + other.object_in,
+            self.object_kept + other.object_kept,
+        )
+
+    @property
+    def background_in(self) -> int:
+        return self.events_in - self.object_in
+
+    @property
+    def background_kept(self) -> int:
+        return self.kept - self.object_kept
+
+    @property
+    def suppressed(self) -> float:
+        """``1 − kept / in`` (:func:`agents.suppression.suppressed_fraction`)."""
+        return suppressed_fraction(self.events_in, self.kept)
+
+    @property
+    def precision(self) -> float:
+        """The object's share of the events kept; ``nan`` when nothing was kept."""
+        return _ratio(self.object_kept, self.kept)
+
+    @property
+    def object_kept_share(self) -> float:
+        return _ratio(self.object_kept, self.object_in)
+
+    @property
+    def background_kept_share(self) -> float:
+        return _ratio(self.background_kept, self.background_in)
+
+
+def event_counts(counts: np.ndarray, kept: np.ndarray, mask: np.ndarray) -> EventCounts:
+    """The :class:`EventCounts` of event counts ``(..., 2, H, W)`` (polarity on axis −3)
+    and those kept (same shape), the object's on ``mask`` ``(..., H, W)`` (broadcast over
+    the polarities); sums exact for integer counts.
+
+    >>> c = np.ones((2, 1, 3)); m = np.array([[True, False, False]])
+    >>> event_counts(c, c * [[[0, 1, 1]], [[1, 0, 0]]], m)
+    EventCounts(events_in=6, kept=3, object_in=2, object_kept=1)
+    """
+    c, k = np.asarray(counts), np.asarray(kept)
+    m = np.expand_dims(np.asarray(mask, bool), -3)
+
+    def total(a: np.ndarray) -> int:
+        return int(np.sum(a, dtype=np.float64))
+
+    return EventCounts(total(c), total(k), total(c * m), total(k * m))
+
+
+def reaches(value: float, bar: float) -> bool:
+    """``value >= bar``; ``nan`` (nothing to score) never reaches a bar: it fails.
+
+    >>> reaches(0.9, 0.9), reaches(0.5, 0.9), reaches(float("nan"), 0.0)
+    (True, False, False)
+    """
+    return not math.isnan(value) and value >= bar
 
 
 def ssim_map(a: np.ndarray, b: np.ndarray, data_range: float = 1.0) -> np.ndarray:

@@ -5,8 +5,8 @@ Runs :func:`experiments.jobs.run_agent.run` once per seed (each a full run folde
 
 - detection accuracy: the 8×8 box around each decision's ``P`` touches a moving
   object's mask (union of the masks over the fixation window); pooled over all
-  scored decisions of all seeds (the paper: 68–89 % on EVIMO; our aim ≥ 90 %), with
-  its 95 % Wilson interval (:func:`detection_interval`);
+  scored decisions of all seeds (the paper: 68–89 % on EVIMO; our aim
+  :data:`DETECTION_BAR`, ≥ 90 %), with its 95 % Wilson interval (:func:`detection_interval`);
 - sOMS event suppression (the paper: ≈ 85 %);
 - foveation error after a saccade, x and y, pixels at the fovea (reached minus intended
   gaze; the paper's real PTU: 4.64 ± 1.49 px and 11.76 ± 2.58 px);
@@ -14,7 +14,8 @@ Runs :func:`experiments.jobs.run_agent.run` once per seed (each a full run folde
 
 One row per seed and the pooled row, whose ``seed`` is ``all``, go to ``quality.csv`` (one
 line a row, the columns of :class:`QualityRow`; floats exact, an undefined figure empty)
-and ``quality.json`` (with the run record: config, seeds, git revision, versions).
+and ``quality.json`` (with the run record: config, seeds, git revision, versions), which
+:func:`read_quality` reads back.
 """
 
 from __future__ import annotations
@@ -23,20 +24,30 @@ import math
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
+from agents.suppression import suppressed_fraction
 from experiments.analysis.stats import wilson_interval
 from experiments.jobs.run_agent import RunConfig, run
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
 from experiments.runs.tables import write_csv
+from wander_env.config import to_plain
 from wander_env.env_config import WanderConfig
+from wander_env.untrusted import UntrustedFileError, read_json
+
+if TYPE_CHECKING:
+    from agents.soms import SOMSParams
+    from agents.speck_front import SpeckFrontParams
 
 #: The simulated seconds of each seed's run (:class:`EvaluateConfig`'s
 #: ``env.episode_seconds``).
 EVALUATE_SECONDS = 20.0
+#: The detection accuracy the agent aims at, pooled over a run's scored decisions (the
+#: office bar of :mod:`experiments.paper.oms_scorecard`).
+DETECTION_BAR = 0.90
 
 
 def _evaluate_env() -> WanderConfig:
@@ -134,7 +145,7 @@ def pooled(rows: list[QualityRow], kept: list[int], seen: list[int]) -> QualityR
         scored=scored,
         hits=hits,
         detection_accuracy=hits / scored if scored else math.nan,
-        soms_suppression=1.0 - sum(kept) / sum(seen) if sum(seen) else math.nan,
+        soms_suppression=suppressed_fraction(sum(seen), sum(kept)),
         foveation_error_x_px=wmean([r.foveation_error_x_px for r in sac]),
         foveation_error_y_px=wmean([r.foveation_error_y_px for r in sac]),
         saccades=sum(r.saccades for r in rows),
@@ -168,3 +179,41 @@ def evaluate(
     )
     write_csv([asdict(r) for r in (*rows, total)], out_dir / "quality.csv")
     return [*rows, total]
+
+
+def read_quality(
+    path: str | Path, key: str, soms: SOMSParams | SpeckFrontParams | None = None
+) -> dict[str, Any]:
+    """The ``quality.json`` :func:`evaluate` wrote, named in a config's or a caller's
+    ``key`` (a bounded, regular file: :func:`wander_env.untrusted.read_json`), its
+    ``rows`` (one a seed) and ``pooled`` with every undefined figure (``null``) as NaN;
+    with ``soms``, its run's ``agent.soms`` must be that block (the step aside).
+    ValueError naming the key and the file otherwise."""
+    try:
+        data = read_json(path)
+    except UntrustedFileError as err:
+        raise ValueError(f"{key}: {err}") from None
+    if not (
+        isinstance(data, dict)
+        and isinstance(data.get("pooled"), dict)
+        and isinstance(data.get("rows"), list)
+        and all(isinstance(r, dict) for r in data["rows"])
+    ):
+        raise ValueError(f"{key}: {path}: not the quality.json of a wander evaluate run")
+    if soms is not None:
+        config = data.get("config")
+        run = config.get("run") if isinstance(config, dict) else None
+        agent = run.get("agent") if isinstance(run, dict) else None
+        ran = agent.get("soms") if isinstance(agent, dict) else None
+        if not isinstance(ran, dict):
+            raise ValueError(f"{key}: {path}: its run records no agent.soms")
+        mine = {k: v for k, v in to_plain(soms).items() if k != "dt"}
+        if {k: v for k, v in ran.items() if k != "dt"} != mine:
+            raise ValueError(
+                f"{key}: {path}: its run's agent.soms is not this scorecard's (agent.soms)"
+            )
+
+    def figures(row: dict[str, Any]) -> dict[str, Any]:
+        return {k: math.nan if v is None else v for k, v in row.items()}
+
+    return data | {"rows": [figures(r) for r in data["rows"]], "pooled": figures(data["pooled"])}

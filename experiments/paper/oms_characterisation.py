@@ -23,9 +23,10 @@ Measures per trial (a neuron is a pixel of the OMS map, both polarities summed, 
 paper's "OMS map"): mean firing rate (spikes per second, mean and std over all neurons,
 and over the object patch and the background), mean inter-spike interval (per neuron
 with ≥ 2 spikes, then mean and std over those), events in and out (an event is *out*
-when the OMS map fires at its pixel in its step), the fraction of the patch's and of the
-background's events kept, and the pixel precision / IoU of the OMS map against the patch
-mask (means over steps).
+when the OMS map of its polarity fires at its pixel in its step:
+:func:`agents.suppression.kept_events`), the fraction of the patch's and of the
+background's events kept, the patch's share of the events out (NaN when none is out),
+and the pixel precision / IoU of the OMS map against the patch mask (means over steps).
 """
 
 from __future__ import annotations
@@ -43,7 +44,8 @@ import yaml
 import wander_env  # noqa: F401  (registers the environments)
 from agents.attention import AgentParams
 from agents.soms import SOMS, SOMSParams
-from experiments.analysis.metrics import iou, precision
+from agents.suppression import kept_events
+from experiments.analysis.metrics import EventCounts, event_counts, iou, precision
 from experiments.analysis.stats import number_text
 from experiments.paper.env_block import check_env_block, trial_env
 from experiments.runs.episode import Recorder, run_episode
@@ -288,7 +290,8 @@ class _Firing(Recorder):
 
     def __init__(self, soms: SOMS, n: int) -> None:
         self.soms, self.n = soms, n
-        self.k = self.ev_in = self.ev_out = self.obj_in = self.obj_out = 0
+        self.k = 0
+        self.events = EventCounts(0, 0, 0, 0)
         self.precs: list[float] = []
         self.ious: list[float] = []
         self.spikes = np.zeros((0, 0), np.int8)
@@ -302,11 +305,7 @@ class _Firing(Recorder):
         self.counts = counts = obs["events"]
         self.oms = oms = self.soms.step(counts).oms.numpy() > 0
         self.mask = mask = info["object_mask"] > 0
-        kept = counts * oms
-        self.ev_in += int(counts.sum())
-        self.ev_out += int(kept.sum())
-        self.obj_in += int(counts[:, mask].sum())
-        self.obj_out += int(kept[:, mask].sum())
+        self.events += event_counts(counts, kept_events(counts, oms), mask)
         self.spikes[self.k] = oms.sum(axis=0).ravel()
         self.k += 1
         self.precs.append(precision(oms.any(axis=0), mask))
@@ -340,16 +339,11 @@ def run_trial(cfg: OMSCharacterisationConfig, spec: study.TrialSpec) -> dict[str
         finally:
             env.close()
     spikes, counts, oms, mask = firing.spikes, firing.counts, firing.oms, firing.mask
-    ev_in, ev_out, obj_in, obj_out = firing.ev_in, firing.ev_out, firing.obj_in, firing.obj_out
-    precs, ious = firing.precs, firing.ious
+    ev, precs, ious = firing.events, firing.precs, firing.ious
     total = spikes.sum(axis=0, dtype=np.int64)
     flat_mask = mask.ravel()
     mfr_mean, mfr_std = mfr_stats(total, cfg.duration_s)
     isi_mean, isi_std, n_isi = isi_stats(spikes, cfg.step_s)
-    bg_in, bg_out = ev_in - obj_in, ev_out - obj_out
-
-    def pct(a: int, b: int) -> float:
-        return 100.0 * a / b if b else math.nan
 
     def nanmean(v: list[float]) -> float:
         a = np.asarray(v, float)
@@ -357,13 +351,13 @@ def run_trial(cfg: OMSCharacterisationConfig, spec: study.TrialSpec) -> dict[str
 
     return {
         "simulated_s": n * cfg.step_s,
-        "events_in": ev_in,
-        "events_out": ev_out,
-        "suppressed_pct": 100.0 - pct(ev_out, ev_in) if ev_in else math.nan,
-        "object_events_in": obj_in,
-        "object_kept_pct": pct(obj_out, obj_in),
-        "background_kept_pct": pct(bg_out, bg_in),
-        "object_share_of_out_pct": pct(obj_out, ev_out),
+        "events_in": ev.events_in,
+        "events_out": ev.kept,
+        "suppressed_pct": 100.0 * ev.suppressed,
+        "object_events_in": ev.object_in,
+        "object_kept_pct": 100.0 * ev.object_kept_share,
+        "background_kept_pct": 100.0 * ev.background_kept_share,
+        "object_share_of_out_pct": 100.0 * ev.precision,
         "object_area_pct": 100.0 * float(flat_mask.mean()),
         "oms_precision": nanmean(precs),
         "oms_iou": nanmean(ious),

@@ -30,6 +30,13 @@ Parts (``parts``), one trial each (both variants in the same trial):
   ``office_results_paper`` (paper-literal, ``--alpha``-style runs with ``norm=minmax``);
   ≥ 90 % on each file's pooled decisions, with the 95 % interval.
 
+The bars are :data:`experiments.paper.oms_family.SUPPRESS_BAR` (family eye-only and real),
+``PRECISION_BAR``, ``OBJECT_KEPT_BAR`` and ``ENHANCED_BAR`` (family),
+:data:`experiments.paper.event_suppression_scoring.HAND_BARS` (hand) and
+:data:`experiments.jobs.evaluate_agent.DETECTION_BAR` (office); the scorecard's text is
+made from them. A figure that is undefined (NaN: nothing to score) fails its bar
+(:func:`experiments.analysis.metrics.reaches`).
+
 ``reuse`` names earlier ``oms_scorecard`` result folders: a part found there (same
 family, bins and hand settings, same seed) is copied from its ``results.csv`` instead of
 being run again, so the parts can run as separate processes and be gathered into one
@@ -51,6 +58,10 @@ import numpy as np
 from agents.attention import AGENT_SOMS, AgentParams, same_but_step
 from agents.soms import SOMSParams
 from agents.speck_front import SpeckFrontParams
+from experiments.analysis.metrics import reaches
+from experiments.analysis.stats import number_text
+from experiments.jobs.evaluate_agent import DETECTION_BAR, read_quality
+from experiments.paper.event_suppression_scoring import HAND_BARS, trial_figures
 from experiments.paper.oms_family import (
     OBJECT_KEPT_BAR,
     PRECISION_BAR,
@@ -70,14 +81,12 @@ from experiments.paper.oms_stimuli import (
 )
 from experiments.studies import framework as study
 from wander_env.config import to_plain
-from wander_env.untrusted import UntrustedFileError, read_json
+from wander_env.untrusted import read_json
 from wander_env.viz import pyplot, save_figure
 
 __all__ = ["EXPERIMENT", "OMSScorecardConfig", "variants"]
 
 PARTS = ("family-train", "family-test", "real", "hand", "office")
-#: The hand part's bars (%, issue 25): hit, suppression over a trial, shake-only, hand kept.
-HAND_BARS = {"hit": 90.0, "suppressed": 75.0, "shake_suppressed": 90.0, "hand_kept": 50.0}
 #: What the first column can hold (``compare``): the paper-literal sOMS or the front end
 #: on Speck's cores (:class:`agents.speck_front.SpeckFrontParams`).
 COMPARED = ("paper", "speck")
@@ -249,7 +258,6 @@ def _hand_row(cfg: OMSScorecardConfig, seed: int) -> dict[str, Any]:
         record,
     )
     from experiments.paper.event_suppression_protocol import HAND_PHASES, PHASES
-    from experiments.paper.event_suppression_scoring import trial_figures
 
     hc = EventSuppressionConfig(repeats=cfg.hand_repeats)
     # the hand trials' own paper-literal block (direct convolution), at their sOMS step
@@ -270,35 +278,6 @@ def _hand_row(cfg: OMSScorecardConfig, seed: int) -> dict[str, Any]:
             row[f"{k}:hand:{name}"] = float(np.mean([f[name] for f in figs.values()])) / 100
         row[f"{k}:hand:hit_steps"] = sum(int(m["hit_steps"]) for m in moving)
     return row
-
-
-def read_quality(
-    path: str, key: str, soms: SOMSParams | SpeckFrontParams | None = None
-) -> dict[str, Any]:
-    """The ``quality.json`` of a ``wander evaluate`` run named in the config's ``key``
-    (a bounded, regular file); with ``soms``, its run's ``agent.soms`` must be that block
-    (the step aside). ValueError naming the key and the file otherwise."""
-    try:
-        data = read_json(path)
-    except UntrustedFileError as err:
-        raise ValueError(f"{key}: {err}") from None
-    if not (
-        isinstance(data, dict)
-        and isinstance(data.get("pooled"), dict)
-        and isinstance(data.get("rows"), list)
-    ):
-        raise ValueError(f"{key}: {path}: not the quality.json of a wander evaluate run")
-    if soms is not None:
-        run = data.get("config", {}).get("run", {}) if isinstance(data.get("config"), dict) else {}
-        ran = run.get("agent", {}).get("soms") if isinstance(run.get("agent"), dict) else None
-        if not isinstance(ran, dict):
-            raise ValueError(f"{key}: {path}: its run records no agent.soms")
-        mine = {k: v for k, v in to_plain(soms).items() if k != "dt"}
-        if {k: v for k, v in ran.items() if k != "dt"} != mine:
-            raise ValueError(
-                f"{key}: {path}: its run's agent.soms is not this scorecard's (agent.soms)"
-            )
-    return data
 
 
 def _office_row(cfg: OMSScorecardConfig) -> dict[str, Any]:
@@ -421,6 +400,11 @@ def _pct(v: Any) -> str:
     return "—" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{100 * v:.1f} %"
 
 
+def _at_least(bar: float) -> str:
+    """A bar on a fraction as text: ``≥ 90 %``."""
+    return f"≥ {100 * bar:g} %"
+
+
 def _ok(flag: bool) -> str:
     return "**pass**" if flag else "FAIL"
 
@@ -436,18 +420,19 @@ def _family_lines(
         g = lambda grp, name, k=k: row.get(f"{k}:{grp}:{name}")  # noqa: E731
         cells.setdefault("eye-only", {})[k] = (
             f"{_ok(bool(g('eye-only', 'pass')))} {_pct(g('eye-only', 'suppressed'))} suppressed "
-            f"({_pct(g('eye-only', 'stimuli_passing'))} of {g('eye-only', 'n')} stimuli ≥ 90 %)"
+            f"({_pct(g('eye-only', 'stimuli_passing'))} of {g('eye-only', 'n')} stimuli "
+            f"{_at_least(SUPPRESS_BAR)})"
         )
         for grp in ("eye+object", "object-only"):
             cells.setdefault(grp, {})[k] = (
-                f"{_ok(bool(g(grp, 'pass')))} precision {float(g(grp, 'precision')):.2f}, "
+                f"{_ok(bool(g(grp, 'pass')))} precision {number_text(g(grp, 'precision'), '.2f')}, "
                 f"object kept {_pct(g(grp, 'object_kept'))} "
                 f"({_pct(g(grp, 'stimuli_passing'))} of {g(grp, 'n')} pass)"
             )
         cells.setdefault("background-faster", {})[k] = (
             f"object enhanced in {_pct(g('background-faster', 'enhanced'))} of "
             f"{g('background-faster', 'n')} (precision "
-            f"{float(g('background-faster', 'precision')):.2f}, object kept "
+            f"{number_text(g('background-faster', 'precision'), '.2f')}, object kept "
             f"{_pct(g('background-faster', 'object_kept'))})"
             + (" — fails as the paper" if g("background-faster", "pass") else "")
         )
@@ -482,23 +467,26 @@ def scorecard(
                     v = r.get(f"{k}:{clip}:{ms}ms:suppressed")
                     parts.append(f"{ms} ms {_pct(v)}")
                 v10 = r.get(f"{k}:{clip}:10ms:suppressed")
-                ok = v10 is not None and float(v10) >= SUPPRESS_BAR
+                ok = v10 is not None and reaches(float(v10), SUPPRESS_BAR)
                 cells[k] = f"{_ok(ok)} " + ", ".join(parts)
-            out.append((f"real eye-only `{clip}`", "≥ 90 % suppressed at 10 ms", cells))
+            bar = f"{_at_least(SUPPRESS_BAR)} suppressed at 10 ms"
+            out.append((f"real eye-only `{clip}`", bar, cells))
     if "hand" in by:
         r = by["hand"]
         cells = {}
         for k in keys:
             f = {n: float(r[f"{k}:hand:{n}"]) for n in HAND_BARS}
-            ok = all(f[n] >= bar / 100 for n, bar in HAND_BARS.items())
+            ok = all(reaches(f[n], bar / 100) for n, bar in HAND_BARS.items())
             cells[k] = (
                 f"{_ok(ok)} hand hit in {_pct(f['hit'])} of {r[f'{k}:hand:hit_steps']} steps; "
                 f"{_pct(f['suppressed'])} suppressed (paper 85.16 %); shake-only "
                 f"{_pct(f['shake_suppressed'])}; hand's events kept {_pct(f['hand_kept'])}"
             )
+        b = {n: _at_least(v / 100) for n, v in HAND_BARS.items()}
         bar = (
-            "hand hit ≥ 90 % of the hand-moving steps, ≥ 75 % suppressed, shake-only ≥ 90 %, "
-            "hand's events kept ≥ 50 % (means over trials)"
+            f"hand hit {b['hit']} of the hand-moving steps, {b['suppressed']} suppressed, "
+            f"shake-only {b['shake_suppressed']}, hand's events kept {b['hand_kept']} "
+            "(means over trials)"
         )
         out.append(("hand scene (suppression protocol, 4 phases)", bar, cells))
     if "office" in by:
@@ -509,7 +497,7 @@ def scorecard(
             i = 0
             while f"{k}:office{i}:accuracy" in r:
                 acc = float(r[f"{k}:office{i}:accuracy"])
-                ok &= acc >= 0.9
+                ok &= reaches(acc, DETECTION_BAR)
                 parts.append(
                     f"seeds {r[f'{k}:office{i}:seeds']}: {_pct(acc)} "
                     f"({_pct(r[f'{k}:office{i}:ci_low'])}–{_pct(r[f'{k}:office{i}:ci_high'])}, "
@@ -517,7 +505,7 @@ def scorecard(
                 )
                 i += 1
             cells[k] = f"{_ok(ok)} " + "; ".join(parts) if parts else "not run"
-        out.append(("office detection (`wander evaluate`)", "≥ 90 %", cells))
+        out.append(("office detection (`wander evaluate`)", _at_least(DETECTION_BAR), cells))
     return out
 
 
@@ -577,21 +565,21 @@ def plot(
     row = next((r for r in rows if r["part"] == "family-test"), None)
     if row is None:
         return []
-    figs = [
-        ("eye-only", "suppressed", "eye-only:\nsuppressed"),
-        ("eye+object", "precision", "eye+object:\nprecision"),
-        ("eye+object", "object_kept", "eye+object:\nobject kept"),
-        ("object-only", "precision", "object-only:\nprecision"),
-        ("object-only", "object_kept", "object-only:\nobject kept"),
-        ("background-faster", "enhanced", "bg faster:\nobject enhanced"),
+    figs = [  # (group, figure, label, bar)
+        ("eye-only", "suppressed", "eye-only:\nsuppressed", SUPPRESS_BAR),
+        ("eye+object", "precision", "eye+object:\nprecision", PRECISION_BAR),
+        ("eye+object", "object_kept", "eye+object:\nobject kept", OBJECT_KEPT_BAR),
+        ("object-only", "precision", "object-only:\nprecision", PRECISION_BAR),
+        ("object-only", "object_kept", "object-only:\nobject kept", OBJECT_KEPT_BAR),
+        ("background-faster", "enhanced", "bg faster:\nobject enhanced", None),
     ]
     x = np.arange(len(figs))
     fig, ax = plt.subplots(figsize=(9, 3.8))
     for j, k in enumerate((cfg.compare, "agent")):
         label = _LABELS[k] if k != "agent" else agent_label(cfg.agent.soms)
-        vals = [float(row[f"{k}:{g}:{n}"]) for g, n, _ in figs]
+        vals = [float(row[f"{k}:{g}:{n}"]) for g, n, _, _ in figs]
         ax.bar(x + (j - 0.5) * 0.38, vals, 0.38, label=label)
-    for xi, bar in zip(x, (0.9, 0.9, 0.3, 0.9, 0.3, None), strict=True):
+    for xi, (*_, bar) in zip(x, figs, strict=True):
         if bar is not None:
             ax.hlines(bar, xi - 0.45, xi + 0.45, colors="k", linestyles="--", lw=1)
     ax.set_xticks(x, [f[2] for f in figs], fontsize=8)

@@ -31,6 +31,7 @@ Run: ``python -m experiments.paper.readout_effect --seeds 5 --steps 100 --saccad
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -42,7 +43,7 @@ import numpy as np
 from experiments.analysis.stats import ci_text, mean_ci
 from experiments.paper.event_suppression_protocol import Shake
 from wander_env.readout import LOST
-from wander_env.viz import pyplot
+from wander_env.viz import pyplot, save_figure
 
 __all__ = [
     "CASES",
@@ -53,6 +54,7 @@ __all__ = [
     "figure",
     "identity_gap",
     "run_case",
+    "shares",
     "table",
 ]
 
@@ -161,11 +163,25 @@ def run_case(case: Case, preset: str, seed: int, steps: int, saccade_step: int) 
     return CaseResult(case.name, preset, seed, totals, peaks["in"], peaks["pending"], policy.period)
 
 
+def shares(results: Sequence[CaseResult], keys: tuple[str, ...]) -> list[float]:
+    """Per episode, the counters ``keys`` together as a share of its events in; NaN for an
+    episode with none in (skipped by :func:`experiments.analysis.stats.mean_ci`).
+
+    >>> r = CaseResult("c", "p", 0, {"in": 8, "out": 6, "pending": 1}, 8, 1, 0.01)
+    >>> shares([r, CaseResult("c", "p", 1, {"in": 0, "out": 0, "pending": 0}, 0, 0, 0.01)],
+    ...        ("out", "pending"))
+    [0.875, nan]
+    """
+    return [
+        sum(r.totals[k] for k in keys) / r.totals["in"] if r.totals["in"] else math.nan
+        for r in results
+    ]
+
+
 def _share(results: Sequence[CaseResult], key: str) -> str:
     """``key``'s mean count per episode and its share of in, mean [95 % interval]."""
     count = np.mean([r.totals[key] for r in results])
-    shares = [r.totals[key] / r.totals["in"] if r.totals["in"] else np.nan for r in results]
-    return f"{count:,.0f}: {ci_text(mean_ci(shares), '.2%')}"
+    return f"{count:,.0f}: {ci_text(mean_ci(shares(results, (key,))), '.2%')}"
 
 
 def table(results: Sequence[CaseResult]) -> str:
@@ -216,24 +232,20 @@ PARTS: tuple[tuple[str, tuple[str, ...], str], ...] = (
 )
 
 
-def figure(results: Sequence[CaseResult], path: Path, seeds: int, seconds: float) -> None:
+def figure(results: Sequence[CaseResult], path: Path, seeds: int, seconds: float) -> Path:
     """A stacked bar per case and preset: the share of the events in that the readout
-    delivered, dropped, filtered and held at the episode's end (means over seeds)."""
+    delivered, dropped, filtered and held at the episode's end (means over the seeds with
+    events in, :func:`shares`; none: an empty bar); returns ``path``."""
     plt = pyplot()
 
     groups: dict[tuple[str, str], list[CaseResult]] = {}
     for r in results:
         groups.setdefault((r.case, r.preset), []).append(r)
     labels = [f"{case}\n{preset}" for case, preset in groups]
-    fig, ax = plt.subplots(figsize=(9.0, 4.8), layout="constrained")
+    fig, ax = plt.subplots(figsize=(9.0, 4.8))
     left = np.zeros(len(groups))
     for name, keys, colour in PARTS:
-        share = np.array(
-            [
-                100.0 * np.mean([sum(r.totals[k] for k in keys) / r.totals["in"] for r in rs])
-                for rs in groups.values()
-            ]
-        )
+        share = np.nan_to_num([100.0 * mean_ci(shares(rs, keys))[0] for rs in groups.values()])
         ax.barh(labels, share, left=left, color=colour, label=name)
         left += share
     ax.invert_yaxis()
@@ -246,8 +258,7 @@ def figure(results: Sequence[CaseResult], path: Path, seeds: int, seconds: float
         fontsize=10,
     )
     ax.legend(loc="lower left", bbox_to_anchor=(1.01, 0.0), fontsize=8, frameon=False)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return save_figure(fig, path)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

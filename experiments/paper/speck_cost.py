@@ -26,18 +26,19 @@ Three sources, each from the command that measures it (docs/speck.md lists them)
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
 from experiments.analysis.stats import mean_ci
+from experiments.jobs.evaluate_agent import read_quality
 from experiments.paper.oms_family import Measure, group_of, measure
 from experiments.paper.oms_stimuli import Stimulus
 from experiments.runs.tables import Row
+from wander_env.strict_json import dumps_strict
 from wander_env.untrusted import read_json
 from wander_env.viz import legend_below, pyplot, save_figure
 
@@ -141,9 +142,13 @@ def family_costs(stimuli: Sequence[Stimulus]) -> list[Cost]:
 
 def detection_costs(speck_quality: Path, host_quality: Path) -> list[Cost]:
     """Detection accuracy and sOMS suppression from two ``wander evaluate`` folders'
-    ``quality.json`` (``--set agent.soms=speck`` and the default), which must name the same
-    seeds (ValueError otherwise)."""
-    data = [read_json(p) for p in (speck_quality, host_quality)]  # bounded, regular files
+    ``quality.json`` (``--set agent.soms=speck`` and the default; read by
+    :func:`experiments.jobs.evaluate_agent.read_quality`, a null figure as NaN), which must
+    name the same seeds (ValueError otherwise)."""
+    data = [
+        read_quality(p, key)
+        for p, key in ((speck_quality, "speck_quality"), (host_quality, "host_quality"))
+    ]
     seeds = [[r["seed"] for r in d["rows"]] for d in data]
     if seeds[0] != seeds[1]:
         raise ValueError(f"the evaluate runs have different seeds: {seeds[0]} and {seeds[1]}")
@@ -157,7 +162,7 @@ def detection_costs(speck_quality: Path, host_quality: Path) -> list[Cost]:
             int(p["scored"]),
         )
 
-    def suppression(d: Mapping) -> Figure:
+    def suppression(d: Mapping) -> Figure:  # a seed whose sOMS saw no event: NaN, skipped
         return mean_ci(100 * float(r["soms_suppression"]) for r in d["rows"])
 
     return [
@@ -173,13 +178,8 @@ def detection_costs(speck_quality: Path, host_quality: Path) -> list[Cost]:
 
 
 def write_costs(costs: Sequence[Cost], path: Path) -> Path:
-    """``costs`` as a JSON list (NaN as null)."""
-
-    def fig(f: Figure) -> list[float | int | None]:
-        return [None if isinstance(v, float) and math.isnan(v) else v for v in f]
-
-    data = [{**c.__dict__, "speck": fig(c.speck), "host": fig(c.host)} for c in costs]
-    path.write_text(json.dumps(data, indent=1))
+    """``costs`` as a strict JSON list (NaN as null)."""
+    path.write_text(dumps_strict([asdict(c) for c in costs], indent=1))
     return path
 
 

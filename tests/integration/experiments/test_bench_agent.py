@@ -11,7 +11,12 @@ import pytest
 from typer.testing import CliRunner
 
 from experiments.cli.main import app
-from experiments.jobs.evaluate_agent import QualityRow, detection_interval, pooled
+from experiments.jobs.evaluate_agent import (
+    QualityRow,
+    detection_interval,
+    pooled,
+    read_quality,
+)
 from experiments.perf.agent import LOOP_COLUMNS, AgentBenchConfig, bench_agent, latency_row
 from experiments.runs.tables import read_csv
 from wander_env.config import validate
@@ -62,6 +67,24 @@ def test_pooled_quality() -> None:
     # 95 % Wilson interval of 8 / 10: (0.490, 0.943); none without scored decisions.
     assert (p.detection_ci_low, p.detection_ci_high) == pytest.approx((0.4902, 0.9433), abs=1e-4)
     assert all(math.isnan(v) for v in detection_interval(0, 0))
+
+
+def test_quality_json_reads_back_with_undefined_figures_as_nan(tmp_path: Path) -> None:
+    """What ``wander evaluate`` writes (strict JSON: NaN as null) reads back through
+    :func:`read_quality` with NaN where it wrote null: a seed whose sOMS saw no event."""
+    from dataclasses import asdict
+
+    from experiments.runs.folder import RunFolder
+
+    a = QualityRow(0, 0, 0, 0, math.nan, math.nan, math.nan, math.nan, 0, 1.0, 2.0)
+    p = pooled([a], kept=[0], seen=[0])
+    assert math.isnan(p.soms_suppression)
+    rec = {"rows": [asdict(a)], "pooled": asdict(p)}
+    path = RunFolder(tmp_path).write_json("quality.json", rec)
+    assert json.loads(path.read_text())["rows"][0]["soms_suppression"] is None
+    q = read_quality(path, "quality")
+    assert math.isnan(q["rows"][0]["soms_suppression"]) and q["rows"][0]["seed"] == 0
+    assert math.isnan(q["pooled"]["detection_accuracy"]) and q["pooled"]["seed"] == "all"
 
 
 @pytest.mark.slow

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 
 import numpy as np
@@ -112,6 +113,58 @@ def test_family_claims_arithmetic():
     assert c["eye+object"]["n"] == 0 and not c["eye+object"]["pass"]
 
 
+def test_a_stimulus_that_keeps_nothing_has_no_precision():
+    """Nothing kept: the precision is NaN (not 0), left out of the group's mean precision;
+    the stimulus still fails (none of the object's events kept), and a group whose
+    precision is undefined throughout fails its bar."""
+    from experiments.paper.oms_family import Measure
+
+    oo = Stimulus("sine", "patch", 16, "object-only", "ideal", seed=0)
+    assert math.isnan(Measure(10, 0, 5, 0).precision)
+    c = family_claims([(oo, Measure(50, 20, 50, 20)), (oo, Measure(50, 0, 50, 0))])
+    assert c["object-only"]["precision"] == 1.0  # the mean of the stimuli with a precision
+    assert c["object-only"]["object_kept"] == 0.2 and c["object-only"]["stimuli_passing"] == 0.5
+    c = family_claims([(oo, Measure(50, 0, 50, 0))])
+    assert math.isnan(c["object-only"]["precision"]) and not c["object-only"]["pass"]
+
+
+def test_oms_maps_are_each_variants_own_soms_step_bit_for_bit():
+    """The family steps the variants sharing a LIF stage once and pools once per pooling:
+    every variant's kept events still equal its own ``SOMS.step``'s, exactly, on random
+    maps (where a re-implemented quantile differs from the sOMS's in the last bits)."""
+    from dataclasses import replace
+
+    from agents.attention import AGENT_SOMS
+    from agents.soms import SOMS
+    from agents.suppression import kept_events
+    from experiments.paper.oms_family import oms_maps
+
+    torch.set_num_threads(1)
+    rng = np.random.default_rng(7)
+    rate = np.full((8, 2, 64, 64), 0.2)  # sparse noise and a dense patch moving 2 px a bin
+    for t in range(8):
+        rate[t, :, 20:36, 10 + 2 * t : 26 + 2 * t] = 3.0
+    counts = rng.poisson(rate).astype(np.float32)
+    vs = {
+        "paper": SOMSParams(conv="separable"),
+        "agent": AGENT_SOMS,
+        "plain": replace(AGENT_SOMS, peak_ratio=None, gain=2.5),
+        "q95": replace(AGENT_SOMS, quantile=0.95, alpha=0.6),
+        "pool4": replace(AGENT_SOMS, pool_sigma=4.0),
+        "direct": replace(AGENT_SOMS, conv="direct"),
+        "direct-paper": SOMSParams(),
+    }
+    own = {k: SOMS(replace(p, dt=0.01)) for k, p in vs.items()}
+    kept_total = dict.fromkeys(vs, 0.0)
+    for c, maps in zip(counts, oms_maps(counts, 0.01, vs), strict=True):
+        assert maps.keys() == vs.keys()
+        for k, oms in maps.items():
+            expected = kept_events(c, own[k].step(c).oms.numpy())
+            assert np.array_equal(kept_events(c, oms), expected), k
+            kept_total[k] += float(expected.sum())
+    assert all(v > 0 for v in kept_total.values()), kept_total
+
+
 def test_variants_are_paper_literal_and_agent_default():
     from agents.attention import AgentParams
 
@@ -181,7 +234,7 @@ def test_hand_line_passes_only_when_every_hand_bar_holds():
     assert cells["paper"].startswith("FAIL hand hit in 100.0 %")  # keeps 17 % of the hand
 
 
-def _quality(path, soms: dict | None, accuracy: float = 0.9) -> str:
+def _quality(path, soms: dict | None, accuracy: float | None = 0.9) -> str:
     """A ``wander evaluate`` quality.json whose run had the agent sOMS ``soms``."""
     import json
 
@@ -200,7 +253,8 @@ def test_office_results_must_be_runs_of_the_agent_block(tmp_path):
     from dataclasses import replace
 
     from agents.attention import AGENT_SOMS
-    from experiments.paper.oms_scorecard import read_quality, run_trial
+    from experiments.jobs.evaluate_agent import read_quality
+    from experiments.paper.oms_scorecard import run_trial, scorecard
     from experiments.studies.framework import TrialSpec
     from wander_env.config import to_plain
 
@@ -230,6 +284,14 @@ def test_office_results_must_be_runs_of_the_agent_block(tmp_path):
     assert str(e.value) == (
         "office_results: /dev/zero: not a regular file (a character device): refused"
     )
+    # a run with no scored decision: its accuracy null, read as NaN, fails the bar
+    none = _quality(tmp_path / "none.json", plain, accuracy=None)
+    row = run_trial(
+        replace(cfg, office_results=(none,)), TrialSpec("oms_scorecard", {}, {"part": "office"}, 0)
+    )
+    assert math.isnan(row["agent:office0:accuracy"])
+    ((_, bar, cells),) = scorecard(cfg, [{"part": "office", **row}])
+    assert bar == "≥ 90 %" and cells["agent"].startswith("FAIL seeds 0,1: — (")
 
 
 @pytest.mark.parametrize(

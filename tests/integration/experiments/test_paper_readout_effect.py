@@ -2,14 +2,19 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from experiments.paper.readout_effect import (
     CASES,
     PRESETS,
+    CaseResult,
+    figure,
     identity_gap,
     main,
     run_case,
+    shares,
     table,
 )
 from wander_env.readout import LOST
@@ -58,3 +63,16 @@ def test_bad_arguments_exit_2_with_one_line(capsys) -> None:
 def test_saccade_step_outside_the_episode_is_refused() -> None:
     with pytest.raises(ValueError, match=r"saccade_step: 4 must be in \[0, steps=4\)"):
         run_case(CASES[0], "ideal", 0, 4, 4)
+
+
+def test_an_episode_with_no_events_in_has_no_share_in_the_table_or_the_figure(tmp_path) -> None:
+    """One rule for the shares (NaN with no events in, left out of the mean over seeds)
+    in the table and the figure; the figure goes through save_figure."""
+    keys = ("in", "out", "pending", *LOST)
+    full = CaseResult("hand", "speck", 0, dict.fromkeys(keys, 0) | {"in": 8, "out": 6}, 8, 0, 0.01)
+    empty = CaseResult("hand", "speck", 1, dict.fromkeys(keys, 0), 0, 0, 0.01)
+    assert shares([full, empty], ("out",))[0] == 0.75
+    assert math.isnan(shares([full, empty], ("out",))[1])
+    assert "| 3: 75.00% (n = 1: n too small for an interval) |" in table([full, empty])
+    out = figure([full, empty], tmp_path / "fig" / "readout.png", 2, 1.0)
+    assert out == tmp_path / "fig" / "readout.png" and out.stat().st_size > 1000

@@ -78,6 +78,22 @@ def test_detection_costs_need_the_same_seeds(tmp_path):
         detection_costs(a, c)
 
 
+def test_detection_costs_read_quality_files_as_wander_evaluate_writes_them(tmp_path):
+    """A seed whose sOMS saw no event has its suppression null (strict JSON): read as NaN
+    and left out of the mean; a file that is not a quality.json is refused by name."""
+    a = quality(tmp_path / "a.json", [0, 1], 0.5, 0.3, 0.7, 20, [0.4, None])
+    b = quality(tmp_path / "b.json", [0, 1], 0.9, 0.7, 0.97, 21, [0.9, 0.8])
+    _, sup = detection_costs(a, b)
+    assert sup.speck[0] == pytest.approx(40.0) and sup.speck[3] == 1
+    assert sup.host[0] == pytest.approx(85.0) and sup.host[3] == 2
+    (tmp_path / "list.json").write_text("[1, 2]")
+    with pytest.raises(ValueError) as e:
+        detection_costs(a, tmp_path / "list.json")
+    assert str(e.value) == (
+        f"host_quality: {tmp_path / 'list.json'}: not the quality.json of a wander evaluate run"
+    )
+
+
 def test_table_and_plot(tmp_path):
     costs = [
         Cost("x", "a", "%", (50.0, 40.0, 60.0, 3), (90.0, math.nan, math.nan, 1), "trials"),
@@ -88,5 +104,9 @@ def test_table_and_plot(tmp_path):
     assert lines[3] == "| x | b (%) | — | 1.0 [0.5, 1.5] (n 2) | trials |"
     back = read_costs(write_costs(costs, tmp_path / "c.json"))
     assert table(back) == table(costs) and back[0].speck == costs[0].speck
+    # strict JSON: an infinite bound is written as null, never as Infinity
+    inf = [Cost("x", "c", "%", (1.0, math.inf, 2.0, 2), (1.0, 1.0, 1.0, 1), "trials")]
+    text = write_costs(inf, tmp_path / "inf.json").read_text()
+    assert json.loads(text)[0]["speck"] == [1.0, None, 2.0, 2] and "Infinity" not in text
     out = plot(costs, tmp_path / "p.png")
     assert out.is_file() and out.stat().st_size > 1000

@@ -9,10 +9,13 @@ import pytest
 from numpy.lib.stride_tricks import sliding_window_view
 
 from experiments.analysis.metrics import (
+    EventCounts,
     detection_hit,
+    event_counts,
     foveation_error_px,
     iou,
     precision,
+    reaches,
     recall,
     ssim,
     ssim_map,
@@ -262,10 +265,46 @@ def test_foveation_error():
         foveation_error_px((0, 0), (0, 128))
 
 
+# ----------------------------------------------------------------------------------------
+# Event counts and bars
+
+
+def test_event_counts_per_polarity_and_window_on_the_mask():
+    """Counts (windows, 2, H, W) and the kept ones, the object's on a mask per window
+    (broadcast over the polarities): exact integer sums; the background is the rest."""
+    counts = np.zeros((2, 2, 1, 3), np.float32)
+    counts[0, 1] = (3, 2, 1)  # window 0: ON events
+    counts[1, 0] = (4, 0, 5)  # window 1: OFF events
+    kept = counts.copy()
+    kept[0, 1, 0, 2] = kept[1, 0, 0, 0] = 0
+    mask = np.array([[[True, False, False]], [[False, False, True]]])
+    c = event_counts(counts, kept, mask)
+    assert c == EventCounts(events_in=15, kept=10, object_in=8, object_kept=8)
+    assert (c.background_in, c.background_kept) == (7, 2)
+    assert (c.suppressed, c.precision, c.object_kept_share) == (1 - 10 / 15, 0.8, 1.0)
+    assert c.background_kept_share == 2 / 7
+    assert c + c == EventCounts(30, 20, 16, 16)
+
+
+def test_event_shares_are_nan_when_their_denominator_is_empty():
+    """Nothing kept: the precision is undefined (NaN), not 0; nothing in: every share."""
+    nothing_kept = EventCounts(10, 0, 5, 0)
+    assert math.isnan(nothing_kept.precision)
+    assert (nothing_kept.suppressed, nothing_kept.object_kept_share) == (1.0, 0.0)
+    empty = EventCounts(0, 0, 0, 0)
+    shares = (empty.suppressed, empty.precision, empty.object_kept_share)
+    assert all(math.isnan(v) for v in (*shares, empty.background_kept_share))
+
+
+def test_nan_never_reaches_a_bar():
+    assert reaches(0.9, 0.9) and not reaches(0.899, 0.9)
+    assert not reaches(math.nan, 0.0) and not reaches(math.nan, -math.inf)
+
+
 def test_docstring_examples_run():
     import doctest
 
     import experiments.analysis.metrics
 
     result = doctest.testmod(experiments.analysis.metrics)
-    assert (result.failed, result.attempted) == (0, 14)  # all ran, none failed
+    assert (result.failed, result.attempted) == (0, 20)  # all ran, none failed
