@@ -86,6 +86,7 @@ __all__ = [
     "centre_surround_factors",
     "lif_layer",
     "lif_step",
+    "oms_map",
     "oms_score",
     "peak_scale",
     "peak_score",
@@ -328,6 +329,20 @@ def centre_surround_weights(params: SOMSParams) -> torch.Tensor:
     return torch.from_numpy(np.stack([kc, ks])[:, None]).float()
 
 
+def oms_map(counts: np.ndarray, score: np.ndarray, alpha: float) -> np.ndarray:
+    """The OMS map (bool, the shape of ``counts`` ``(2, H, W)``): the pixels and
+    polarities where events came in and the score ``1 - norm(OMS)`` reaches ``alpha``
+    (compared in float32, the score's own precision), the paper's
+    ``Events_map [1 - norm(OMS_map) >= alpha]``.
+
+    Examples:
+        >>> counts = np.array([[[1.0, 0.0, 2.0]], [[0.0, 0.0, 0.0]]], np.float32)
+        >>> oms_map(counts, np.array([[[0.9, 0.9, 0.5]]], np.float32), 0.8).tolist()
+        [[[True, False, False]], [[False, False, False]]]
+    """
+    return (np.asarray(counts) > 0) & (np.asarray(score) >= np.float32(alpha))
+
+
 def oms_score(diff: torch.Tensor) -> torch.Tensor:
     """``1 - norm(diff)`` with min-max ``norm`` over the whole map; zeros if it is flat."""
     lo, hi = torch.aminmax(diff)
@@ -523,5 +538,5 @@ class SOMS(MapLayer[SOMSParams]):
         spikes = lif_step(self.lif, self.filter(x).numpy())[0]  # (2, 2, H, W)
         diff = torch.from_numpy(spikes[:, 0] - spikes[:, 1])
         score = self.score(diff)
-        oms = (x.numpy() > 0) & (score.numpy() >= np.float32(self.params.alpha))
+        oms = oms_map(x.numpy(), score.numpy(), self.params.alpha)
         return SOMSOutput(oms=torch.from_numpy(oms.astype(np.float32)), diff=diff, score=score)

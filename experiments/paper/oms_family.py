@@ -29,7 +29,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import torch
 
-from agents.soms import SOMS, SOMSParams, quantile_score
+from agents.soms import SOMS, SOMSParams, oms_map, quantile_score
 from agents.speck_front import SpeckFront, SpeckFrontParams
 from agents.suppression import kept_events
 from experiments.analysis.metrics import EventCounts, event_counts, reaches
@@ -136,7 +136,7 @@ def oms_maps(
                         )
                     else:
                         score = somses[k].score(first.diff)
-                    maps[k] = (c > 0) & (score.numpy() >= np.float32(p.alpha))  # = SOMS.step
+                    maps[k] = oms_map(c, score.numpy(), p.alpha)  # = SOMS.step
             yield maps
 
 
