@@ -433,8 +433,7 @@ class RigEnv(CameraEnv):
         return events, self._info(events, clipped, lag_s)  # one snapshot: gaze and `moving`
 
     def truncated(self, info: StepInfo) -> bool:
-        end = info["t"] >= self.config.episode_seconds - 1e-9
-        return end or bool(getattr(self.camera, "finished", False))
+        return self.episode_over(info["t"]) or bool(getattr(self.camera, "finished", False))
 
     # -- the target -------------------------------------------------------------------------
 

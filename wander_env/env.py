@@ -167,7 +167,7 @@ class WanderEnv(CameraEnv):
         trajectory = self.ptu.trajectory(self._t_us, t1, c.tick_us)
         self.stage.begin_step()
         self.source.plan(trajectory)
-        if not self._ends_at(t1):  # the next step's keys drawn on a guess meanwhile
+        if not self.episode_over(t1 * 1e-6):  # the next step's keys, drawn on a guess
             self.source.plan_ahead(self._left_alone(t1))
         chunks: list[np.ndarray] = []
         frames = extra = 0
@@ -200,11 +200,8 @@ class WanderEnv(CameraEnv):
         twin.set_target(*twin.clip_target(*twin.target_deg))
         return twin.trajectory(t_us, t_us + c.control_period_us, c.tick_us)
 
-    def _ends_at(self, t_us: int) -> bool:
-        return t_us * 1e-6 >= self.config.episode_seconds - 1e-9
-
     def truncated(self, info: StepInfo) -> bool:
-        return self._ends_at(self._t_us)
+        return self.episode_over(self._t_us * 1e-6)
 
     def check_ready(self) -> None:
         if self.animator is None:

@@ -74,14 +74,16 @@ class StepInfo(_StepInfoBase, total=False):
 class CameraEnv(gym.Env):
     """A gymnasium env of the event camera on the pan-tilt unit (the two backends' base).
 
-    A subclass sets ``width``, ``height``, ``hfov_deg``, ``ptu_resolution_arcsec`` (pan,
-    tilt: what :meth:`agents.attention.AgentParams.for_env` reads) and the spaces
+    A subclass sets ``config``, ``width``, ``height``, ``hfov_deg``,
+    ``ptu_resolution_arcsec`` (pan, tilt: what :meth:`agents.attention.AgentParams.for_env`
+    reads) and the spaces
     (:meth:`init_spaces`) and implements :attr:`target_deg`, :meth:`clip_target`,
     :meth:`set_target`, :meth:`gaze`, :meth:`check_ready`, :meth:`collect` and
     :meth:`truncated`.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 100}
+    config: Any  # the backend's config: episode_seconds, control_period_s, ...
     width: int
     height: int
     hfov_deg: float
@@ -147,6 +149,11 @@ class CameraEnv(gym.Env):
         raise NotImplementedError
 
     # -- shared ------------------------------------------------------------------------
+    def episode_over(self, t_s: float) -> bool:
+        """Whether ``t_s`` seconds of the episode reach its ``config.episode_seconds`` (to
+        a nanosecond: a sum of steps may fall short by rounding)."""
+        return t_s >= self.config.episode_seconds - 1e-9
+
     def command(self, action: np.ndarray) -> bool:
         """Turn a relative gaze action into a PTU target; True when the limits clipped it.
 
