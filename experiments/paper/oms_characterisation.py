@@ -50,6 +50,7 @@ from experiments.analysis.stats import number_text
 from experiments.paper.env_block import check_env_block, trial_env
 from experiments.runs.episode import Recorder, run_episode
 from experiments.studies import framework as study
+from wander_env.config import load_yaml
 from wander_env.env_config import WanderConfig
 from wander_env.scene_config import GRATING_MODES
 from wander_env.scenes import assets_dir
@@ -214,7 +215,7 @@ def grating_scene(
     mode: str, bg_cpd: float, obj_cpd: float, bg_speed: float, obj_speed: float
 ) -> dict[str, Any]:
     """The ``gratings`` scene's YAML mapping with these stimulus values."""
-    data = yaml.safe_load((assets_dir() / "scenes" / "gratings.yaml").read_text())
+    data = load_yaml(assets_dir() / "scenes" / "gratings.yaml", "scene file")
     data["name"] = "gratings_variant"
     data["gratings"].update(
         mode=mode,
