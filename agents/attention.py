@@ -70,7 +70,7 @@ from agents.speck_front import SpeckFrontParams, SpeckPipeline
 from agents.suppression import kept_events, suppressed_fraction
 from agents.torch_fork import set_torch_threads
 from wander_env.actions import gaze_degrees_to_action
-from wander_env.camera import SPECK_HFOV_DEG, check_hfov_deg, pixel_to_rotation
+from wander_env.camera import SPECK_HFOV_DEG, check_hfov_deg, pixel_to_rotation, principal_point
 from wander_env.config import check_fields, to_plain
 from wander_env.ptu.units import FLIR_RESOLUTION_ARCSEC
 
@@ -632,7 +632,8 @@ class AttentionAgent:
     def _ideal_deg(self) -> tuple[float, float]:
         p = self.params
         x, y = self.target
-        dx, dy = x - (p.width_px - 1) / 2, y - (p.height_px - 1) / 2
+        cx, cy = principal_point(p.width_px, p.height_px)
+        dx, dy = x - cx, y - cy
         return pixel_to_rotation(dx, dy, self._from_target[1], p.width_px, p.hfov_deg)
 
     def _fixate_first_step(self) -> np.ndarray:

@@ -51,7 +51,7 @@ import numpy as np
 
 from agents.control_fused import FusedSteps
 from wander_env.actions import action_to_gaze_degrees
-from wander_env.camera import SPECK_HFOV_DEG
+from wander_env.camera import SPECK_HFOV_DEG, principal_point
 from wander_env.closing import Closing
 from wander_env.config import check_fields
 from wander_env.ptu.units import FLIR_RESOLUTION_ARCSEC, degrees_to_positions
@@ -79,7 +79,7 @@ def normalised_error(
     [0.9921875, -0.9921875]
     """
     p = np.asarray(target_xy_px, dtype=np.float64).reshape(2)
-    c = np.array([(width_px - 1) / 2.0, (height_px - 1) / 2.0])
+    c = np.array(principal_point(width_px, height_px))
     return (p - c) / np.array([width_px / 2.0, height_px / 2.0])
 
 
@@ -203,7 +203,7 @@ class ControlParams:
     @property
     def centre_px(self) -> tuple[float, float]:
         """The fovea ``((W−1)/2, (H−1)/2)``."""
-        return (self.width_px - 1) / 2.0, (self.height_px - 1) / 2.0
+        return principal_point(self.width_px, self.height_px)
 
 
 # ----------------------------------------------------------------------------------------

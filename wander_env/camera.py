@@ -217,6 +217,16 @@ def world_angles_to_pixels(
     return np.where(behind, np.nan, x), np.where(behind, np.nan, y)
 
 
+def principal_point(width: int, height: int) -> tuple[float, float]:
+    """The principal point ``((W - 1) / 2, (H - 1) / 2)``: the sensor's centre in pixel
+    coordinates (pixel ``i`` centred on ``i``), the fovea.
+
+    >>> principal_point(128, 128), principal_point(4, 3)
+    ((63.5, 63.5), (1.5, 1.0))
+    """
+    return (width - 1) / 2.0, (height - 1) / 2.0
+
+
 def intrinsics(width: int, height: int, fovy_deg: float) -> np.ndarray:
     """``K`` (3 × 3) of a MuJoCo camera: ``f = (H / 2) / tan(fovy / 2)`` on both axes.
 
@@ -228,7 +238,8 @@ def intrinsics(width: int, height: int, fovy_deg: float) -> np.ndarray:
     if not 0 < fovy_deg < 180:
         raise ValueError(f"fovy_deg must be in (0, 180), got {fovy_deg!r}")
     f = (height / 2.0) / math.tan(math.radians(fovy_deg) / 2.0)
-    return np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0], [0.0, 0.0, 1.0]])
+    cx, cy = principal_point(width, height)
+    return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
 
 
 def rotation_from_mujoco(cam_xmat: np.ndarray) -> np.ndarray:
@@ -365,6 +376,7 @@ __all__ = [
     "pixel_to_rotation",
     "pixel_to_world_angles",
     "pixels_to_degrees",
+    "principal_point",
     "project",
     "relative_pose",
     "rotation_from_mujoco",

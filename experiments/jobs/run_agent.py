@@ -69,7 +69,12 @@ from experiments.runs.recorders import (
 from experiments.runs.signals import DeferredSignals, SignalExit
 from experiments.runs.tables import write_csv
 from experiments.studies.framework import MAX_SEED
-from wander_env.camera import degrees_to_pixels, focal_length_px, pixel_to_world_angles
+from wander_env.camera import (
+    degrees_to_pixels,
+    focal_length_px,
+    pixel_to_world_angles,
+    principal_point,
+)
 from wander_env.env_config import WanderConfig
 from wander_env.events.stream import EventStreamWriter
 from wander_env.viz import event_image, labelled_frame, saliency_rgb
@@ -417,7 +422,7 @@ class AgentRunFolder(FolderRecorder):
         agent, detection = self.run.agent, self.run.detection
         p = agent.params
         f = focal_length_px(p.width_px, p.hfov_deg)
-        centre = ((p.width_px - 1) / 2.0, (p.height_px - 1) / 2.0)
+        centre = principal_point(p.width_px, p.height_px)
         targets_deg = [
             pixel_to_world_angles(fx.target_px, fx.gaze_deg, f, centre) if fx.target_px else None
             for fx in agent.fixations

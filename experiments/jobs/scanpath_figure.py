@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from wander_env.camera import field_of_view_deg, world_angles_to_pixels
+from wander_env.camera import field_of_view_deg, principal_point, world_angles_to_pixels
 from wander_env.viz import pyplot, save_figure
 
 
@@ -79,7 +79,7 @@ def saliency_mosaic(
     if not maps:
         raise ValueError("no saliency maps")
     h, w = maps[0].shape
-    centre = ((w - 1) / 2.0, (h - 1) / 2.0)
+    centre = principal_point(w, h)
     half_w = field_of_view_deg(w, focal_px) / 2.0
     half_h = field_of_view_deg(h, focal_px) / 2.0
     g = np.asarray(gazes_deg, dtype=np.float64)
@@ -213,8 +213,7 @@ def draw_sensor_frame(
         bar = ax.figure.colorbar(image, ax=ax, fraction=0.046, pad=0.02)
         bar.set_label("saliency (max over decisions, each map / its peak)", fontsize=8)
         ax.plot(
-            (w - 1) / 2,
-            (h - 1) / 2,
+            *principal_point(w, h),
             "+",
             color="cyan",
             ms=12,

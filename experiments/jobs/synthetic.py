@@ -12,6 +12,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from wander_env.camera import principal_point
+
 
 def smooth_texture(width: int, height: int, scale_px: int, seed: int) -> np.ndarray:
     """Random blobs of about ``scale_px`` pixels, grey levels in [0.2, 0.8] (float32)."""
@@ -64,10 +66,10 @@ def disc_over_texture(
     frames = drifting_texture(width, height, n_frames, background_speed_px, seed=seed)
     disc_tex = _to_rgb8(0.5 + 0.5 * smooth_texture(width, height, 6, seed + 1))
     yy, xx = np.mgrid[0:height, 0:width]
+    x0, y0 = principal_point(width, height)  # the disc orbits the sensor's centre
     for i in range(n_frames):
         a = 2 * np.pi * i / orbit_frames
-        cx = (width - 1) / 2 + orbit_px * np.cos(a)
-        cy = (height - 1) / 2 + orbit_px * np.sin(a)
+        cx, cy = x0 + orbit_px * np.cos(a), y0 + orbit_px * np.sin(a)
         inside = (xx - cx) ** 2 + (yy - cy) ** 2 <= disc_radius_px**2
         frames[i][inside] = disc_tex[inside]
     return frames

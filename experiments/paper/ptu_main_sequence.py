@@ -30,7 +30,7 @@ from experiments.paper.env_block import trial_env
 from experiments.paper.forced_saccades import ForcedSaccades, run_forced
 from experiments.runs.episode import Recorder
 from experiments.runs.tables import Row
-from wander_env.camera import SPECK_HFOV_DEG, degrees_to_pixels
+from wander_env.camera import SPECK_HFOV_DEG, degrees_to_pixels, principal_point
 from wander_env.env_config import WanderConfig
 from wander_env.ptu.axis import move_duration, peak_speed
 from wander_env.ptu.params import PTUParams
@@ -86,7 +86,7 @@ def main_sequence_targets(
     >>> main_sequence_targets((10.0, 10.0))
     [(71, 63), (56, 64)]
     """
-    cx = (width - 1) / 2.0
+    cx = principal_point(width, height)[0]
     out = []
     for k, a in enumerate(amplitudes_deg):
         sign = 1.0 if k % 2 == 0 else -1.0

@@ -53,7 +53,7 @@ from experiments.paper.env_block import check_env_block, trial_env
 from experiments.paper.forced_saccades import ForcedSaccades, run_forced
 from experiments.runs.episode import Recorder
 from experiments.studies import framework as study
-from wander_env.camera import cast_pixel, degrees_to_pixels
+from wander_env.camera import cast_pixel, degrees_to_pixels, principal_point
 from wander_env.env_config import WanderConfig
 from wander_env.ptu.params import PTUParams
 from wander_env.renderer import project_points
@@ -157,7 +157,7 @@ def draw_target(
     >>> draw_target(np.random.default_rng(0), 0.5, 0.5)
     (64, 64)
     """
-    cx, cy = (width - 1) / 2.0, (height - 1) / 2.0
+    cx, cy = principal_point(width, height)
     x = int(rng.integers(math.ceil(cx - range_x_px), math.floor(cx + range_x_px) + 1))
     y = int(rng.integers(math.ceil(cy - range_y_px), math.floor(cy + range_y_px) + 1))
     return x, y

@@ -74,7 +74,12 @@ from experiments.paper.env_block import check_env_block, trial_env
 from experiments.paper.scanpath_recorder import ScanpathRecorder
 from experiments.runs.tables import write_csv
 from experiments.studies import framework as study
-from wander_env.camera import SPECK_HFOV_DEG, focal_length_px, pixel_to_world_angles
+from wander_env.camera import (
+    SPECK_HFOV_DEG,
+    focal_length_px,
+    pixel_to_world_angles,
+    principal_point,
+)
 from wander_env.env_config import SceneName, WanderConfig
 from wander_env.viz import pyplot, save_figure
 
@@ -179,7 +184,7 @@ def run_trial(cfg: ScanpathConfig, spec: study.TrialSpec) -> dict[str, Any]:
         env.close()
     p = agent.params
     f = focal_length_px(p.width_px, p.hfov_deg)
-    centre = ((p.width_px - 1) / 2.0, (p.height_px - 1) / 2.0)
+    centre = principal_point(p.width_px, p.height_px)
     fx = agent.fixations
     windows, ends, saccades = scanpath_tables(agent)
     table = scanpath_stats.merged_fixations(windows, ends)
