@@ -20,7 +20,6 @@ from __future__ import annotations
 import math
 import queue
 import threading
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -464,8 +463,7 @@ class FolderRecorder(Recorder):
     stopped by a signal, ``run.json`` (``record`` with the run's ``summary``).
     :meth:`write_files` writes what a subclass adds (a figure, a table).
 
-    ``steps``: the steps taken of ``asked``; ``wall_s``: from its creation (just before
-    the loop) to its close (the other recorders closed).
+    ``steps``: the steps taken of ``asked``.
     """
 
     def __init__(
@@ -483,8 +481,6 @@ class FolderRecorder(Recorder):
         self.metrics_on_success = metrics_on_success
         self.steps = 0
         self.written: dict[str, Any] | None = None  # metrics.json as written
-        self._t0 = time.perf_counter()
-        self.wall_s = 0.0
 
     def on_step(self, env: Any, policy: Any, obs: Any, info: dict) -> None:
         self.steps += 1
@@ -501,7 +497,6 @@ class FolderRecorder(Recorder):
         """Write the folder's other files (subclasses)."""
 
     def close(self, error: BaseException | None) -> BaseException | None:
-        self.wall_s = time.perf_counter() - self._t0
         try:
             self._write(error)
         except Exception as write_error:
