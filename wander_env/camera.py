@@ -337,8 +337,9 @@ def pixel_ray(
     >>> d.tolist()
     [0.0, 0.0, -1.0]
     """
-    f = (height / 2.0) / math.tan(math.radians(fovy_deg) / 2.0)
-    local = np.array([(xy[0] - (width - 1) / 2.0) / f, -(xy[1] - (height - 1) / 2.0) / f, -1.0])
+    k = intrinsics(width, height, fovy_deg)
+    f, (cx, cy) = k[0, 0], (k[0, 2], k[1, 2])
+    local = np.array([(xy[0] - cx) / f, -(xy[1] - cy) / f, -1.0])
     d = np.asarray(cam_mat, float).reshape(3, 3) @ local
     return np.asarray(cam_pos, float).copy(), d / np.linalg.norm(d)
 
