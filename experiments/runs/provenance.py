@@ -8,7 +8,7 @@ recording). :func:`check_inputs` refuses a rerun whose files changed since.
 Examples:
     >>> r = run_record("wander demo", {"seconds": 1.0}, seed=0)
     >>> sorted(r)
-    ['command', 'config', 'created', 'git_revision', 'platform', 'python', 'seed', 'versions']
+    ['command', 'config', 'created', 'git_revision', 'platform', 'seed', 'versions']
     >>> r = run_record("wander run", {"env": {"scene": "shelf"}}, seed=0)
     >>> r["inputs"]["scenes"]["shelf"]["name"], [Path(f).name for f in r["inputs"]["files"]]
     ('shelf', ['shelf.yaml'])
@@ -19,7 +19,6 @@ from __future__ import annotations
 import os
 import platform
 import subprocess
-import sys
 from collections.abc import Callable, Iterator, Mapping
 from datetime import datetime, timezone
 from importlib import metadata
@@ -82,7 +81,6 @@ def run_record(command: str, config: dict[str, Any], seed: int | None) -> dict[s
         "seed": seed,
         "git_revision": git_revision(),
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-        "python": sys.version.split()[0],
         "platform": platform.platform(),
         "versions": package_versions(),
     }
