@@ -56,7 +56,7 @@ try:  # the serial layer's own errors: termios.error (EIO of an unplugged adapte
     )
 except ImportError:  # pragma: no cover - not POSIX
     SERIAL_ERRORS = (serial.SerialException, OSError)
-from wander_env.ptu.link import DELIMITERS, PTULinkParams
+from wander_env.ptu.link import PTULinkParams, check_delimiter
 from wander_env.ptu.units import (
     degrees_to_positions,
     positions_to_degrees,
@@ -169,8 +169,7 @@ class PTUProtocol:
     """
 
     def __init__(self, port: serial.SerialBase, delimiter: str = PTULinkParams.delimiter) -> None:
-        if delimiter not in DELIMITERS:
-            raise ValueError(f"delimiter must be a space, CR or LF, got {delimiter!r}")
+        check_delimiter(delimiter, "PTUProtocol delimiter")
         self.port = port
         self.delimiter = delimiter
         self.last_latency_s = float("nan")
@@ -269,7 +268,8 @@ class FlirPTUParams:
     power-up banner is drained until the line is quiet for ``banner_quiet_s`` (at most
     ``banner_timeout_s``). ``exclusive`` locks a device port against other processes;
     ``home_on_close`` returns the unit to (0°, 0°) after the halt on close.
-    ``read_poll_s`` is the serial read granularity; ``delimiter`` ends each command.
+    ``read_poll_s`` is the serial read granularity; ``delimiter`` ends each command
+    (a space, CR or LF).
     ``write_timeout_s`` bounds each write (a stuck link: flow control, a hung adapter):
     past it the command fails with :class:`PTUPortError`, the device-fault path.
     """
@@ -299,6 +299,7 @@ class FlirPTUParams:
         )
         check_fields(self, timeouts, positive=True)
         check_fields(self, ("banner_quiet_s",), minimum=0)
+        check_delimiter(self.delimiter, "FlirPTUParams.delimiter")
 
 
 def open_port(url: str, params: FlirPTUParams | None = None) -> serial.SerialBase:

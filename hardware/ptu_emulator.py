@@ -49,9 +49,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from hardware.ptu_firmware import DEFAULT_FIRMWARE, HALTS, PTUFirmware, command_letters
+from wander_env.config import check_fields
+from wander_env.ptu.link import DELIMITERS, PTULinkParams
 from wander_env.ptu.params import PTUParams
-
-_DELIMITERS = " \r\n"
 
 
 @dataclass(frozen=True)
@@ -60,15 +60,18 @@ class PTUEmulatorParams:
 
     ``ptu`` (the unit's :class:`~wander_env.ptu.params.PTUParams`) holds resolution
     (``PR``/``TR``), limits (``PN``/``PX``/``TN``/``TX``), speeds (``PS``), accelerations
-    (``PA``), base (``PB``), upper (``PU``) and lower (``PL``) speeds. ``echo`` and
-    ``verbose`` are the power-up modes (on, as a factory unit). ``banner`` (``None``: the
-    firmware line and ``Initializing...``) is printed ``banner_delay_s`` after start.
-    ``eol`` ends every reply. ``reset_s`` is how long ``R`` takes. ``silent_after``: stop
-    answering after that many commands (fault injection for timeouts). ``poll_s`` is the
-    thread's poll period while a reply waits on motion. ``baudrate`` (``None``: instant, as
-    a pty is) paces the line as a UART at that rate would: each byte in either direction
-    takes ``bits_per_byte / baudrate`` seconds (8N1: 10 bits), a command is executed once
-    its last byte has arrived, and a reply is readable once its last byte has been sent.
+    (``PA``), base (``PB``), upper (``PU``) and lower (``PL``) speeds, and the serial line
+    (``ptu.link``, a :class:`~wander_env.ptu.link.PTULinkParams`, as the simulated unit's):
+    with one (the ``flir`` preset) the line is paced as a UART at its ``baudrate`` would
+    be: each byte in either direction takes its ``byte_s``, a command is executed once its
+    last byte has arrived, its echo and reply leave ``turnaround_s`` later and are
+    readable once their last byte has been sent; without one (``ideal``, the default) it
+    is instant, as a pty is. Replies end with the link's ``eol`` (:attr:`eol`). ``echo``
+    and ``verbose`` are the power-up modes (on, as a factory unit). ``banner`` (``None``:
+    the firmware line and ``Initializing...``) is printed ``banner_delay_s`` after start.
+    ``reset_s`` is how long ``R`` takes. ``silent_after``: stop answering after that many
+    commands (fault injection for timeouts). ``poll_s`` is the thread's poll period while
+    a reply waits on motion.
     """
 
     ptu: PTUParams = field(default_factory=PTUParams)
@@ -77,36 +80,23 @@ class PTUEmulatorParams:
     banner_delay_s: float = 0.0
     echo: bool = True
     verbose: bool = True
-    eol: str = "\r\n"
     reset_s: float = 0.05
     silent_after: int | None = None
     poll_s: float = 0.001
-    baudrate: int | None = None
-    bits_per_byte: int = 10
 
     def __post_init__(self) -> None:
-        if self.baudrate is not None and not (
-            isinstance(self.baudrate, int)
-            and not isinstance(self.baudrate, bool)
-            and self.baudrate > 0
-        ):
-            raise ValueError(f"baudrate must be an int > 0 or None, got {self.baudrate!r}")
-        if not (isinstance(self.bits_per_byte, int) and self.bits_per_byte > 0):
-            raise ValueError(f"bits_per_byte must be an int > 0, got {self.bits_per_byte!r}")
-        for name in ("banner_delay_s", "reset_s"):
-            if not getattr(self, name) >= 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
-        if not self.poll_s > 0:
-            raise ValueError(f"poll_s must be > 0, got {self.poll_s!r}")
-        if self.eol not in ("\r\n", "\n", "\r"):
-            raise ValueError(f"eol must be CR LF, LF or CR, got {self.eol!r}")
-        if self.silent_after is not None and self.silent_after < 0:
-            raise ValueError(f"silent_after must be >= 0, got {self.silent_after!r}")
+        check_fields(self, ("banner_delay_s", "reset_s"), minimum=0)
+        check_fields(self, ("poll_s",), positive=True)
+        check_fields(self, ("silent_after",), integer=True, minimum=0, allow_none=True)
 
     @property
-    def byte_s(self) -> float:
-        """Seconds per byte on the line (0 without a baud rate)."""
-        return self.bits_per_byte / self.baudrate if self.baudrate else 0.0
+    def eol(self) -> str:
+        """What ends every reply: ``ptu.link``'s ``eol`` (without a link, its default: CR LF).
+
+        >>> PTUEmulatorParams(ptu=PTUParams(link=PTULinkParams(eol="\\r"))).eol
+        '\\r'
+        """
+        return self.ptu.link.eol if self.ptu.link is not None else PTULinkParams.eol
 
     @property
     def banner_text(self) -> str:
@@ -358,10 +348,10 @@ class PTUEmulator:
 
     def _receive(self, text: str) -> None:
         """Bytes read from the pty: usable now, or once the line has carried them."""
-        byte_s = self.params.byte_s
+        link = self.params.ptu.link
         now = time.monotonic()
-        if text and byte_s:
-            self._rx_free = max(now, self._rx_free) + len(text) * byte_s
+        if text and link is not None:
+            self._rx_free = max(now, self._rx_free) + len(text) * link.byte_s
             self._rx_line.append((self._rx_free, text))
         elif text:
             self._rx += text
@@ -379,10 +369,13 @@ class PTUEmulator:
 
     def _write(self, text: str) -> None:
         data = text.encode("ascii", errors="replace")
-        byte_s = self.params.byte_s
-        if byte_s:
-            now = self._clock if self._clock is not None else time.monotonic()
-            self._tx_free = max(now, self._tx_free) + len(data) * byte_s
+        link = self.params.ptu.link
+        if link is not None:
+            if self._clock is not None:  # an answer: after the unit's turnaround
+                now = self._clock + link.turnaround_s
+            else:
+                now = time.monotonic()
+            self._tx_free = max(now, self._tx_free) + len(data) * link.byte_s
             self._tx_line.append((self._tx_free, data))
             return
         self._write_now(data)
@@ -424,8 +417,8 @@ class PTUEmulator:
             self._handle(token)
 
     def _next_token(self, peek: bool = False) -> str | None:
-        rx = self._rx.lstrip(_DELIMITERS)
-        ends = [i for i in (rx.find(c) for c in _DELIMITERS) if i >= 0]
+        rx = self._rx.lstrip("".join(DELIMITERS))
+        ends = [i for i in (rx.find(c) for c in DELIMITERS) if i >= 0]
         if not ends:
             self._rx = rx
             return None

@@ -90,6 +90,7 @@ from wander_env.env_base import CameraEnv, StepInfo
 from wander_env.env_config import control_period_us
 from wander_env.events import empty_events
 from wander_env.events.packet import EventPacket
+from wander_env.ptu.link import PTULinkParams
 from wander_env.ptu.units import clip_to_limits
 from wander_env.viz import event_image, labelled_frame
 
@@ -113,8 +114,9 @@ class RigConfig(FieldsMapping):
     ``start_gaze_deg``: where :meth:`RigEnv.reset` points the PTU (``None``: leave it);
     ``hfov_deg``: the lens's horizontal field of view (not queryable; Speck's by
     default; in (0, 180), :func:`wander_env.camera.check_hfov_deg`); ``ptu_poll_s``:
-    position polling period; ``driver``, ``emulator``, ``speck``: the parameters of those
-    parts.
+    position polling period (by default the sim link's, ``PTULinkParams.poll_s``);
+    ``driver``, ``emulator``, ``speck``: the parameters of those parts
+    (``emulator.ptu.link`` paces the emulator's line).
 
     >>> RigConfig(ptu_port="emulate", camera="replay:walk.npz").control_period_us
     10000
@@ -128,7 +130,7 @@ class RigConfig(FieldsMapping):
     episode_seconds: float = 10.0
     start_gaze_deg: tuple[float, float] | None = (0.0, 0.0)
     hfov_deg: float = SPECK_HFOV_DEG
-    ptu_poll_s: float = 0.01
+    ptu_poll_s: float = PTULinkParams.poll_s
     driver: FlirPTUParams = field(default_factory=FlirPTUParams)
     emulator: PTUEmulatorParams = field(default_factory=PTUEmulatorParams)
     speck: SpeckParams = field(default_factory=SpeckParams)

@@ -29,17 +29,33 @@ from wander_env.config import check_fields
 DELIMITERS = (" ", "\r", "\n")
 
 
+def check_delimiter(delimiter: str, name: str) -> None:
+    """ValueError unless ``delimiter`` (the field ``name``) is one of :data:`DELIMITERS`.
+
+    >>> check_delimiter(";", "FlirPTUParams.delimiter")
+    Traceback (most recent call last):
+    ...
+    ValueError: FlirPTUParams.delimiter must be a space, CR or LF, got ';'
+    """
+    if delimiter not in DELIMITERS:
+        raise ValueError(f"{name} must be a space, CR or LF, got {delimiter!r}")
+
+
 @dataclass(frozen=True)
 class PTULinkParams:
     """The host-PTU serial link as the rig drives it (``hardware/ptu_driver.py``: terse
     feedback, echo off, commands ended by a space; replies ended by CR LF as the
-    emulator and the PTU-D48E write them).
+    PTU-D48E writes them). The one home of the line's settings: the simulated unit's
+    link (``PTUParams.link``), the emulator's
+    line (``PTUEmulatorParams.ptu.link``: its eol, baud rate and turnaround), and the
+    defaults of the driver's ``FlirPTUParams`` (``baudrate``, ``delimiter``) and of
+    ``RigConfig.ptu_poll_s``.
 
-    ``baudrate`` 9600 (the FLIR factory setting; the driver's ``FlirPTUParams`` takes its
-    ``baudrate`` and ``delimiter`` defaults from here), 8N1 =
-    ``bits_per_byte`` 10; ``poll_s`` the rig's position polling period
-    (``RigConfig.ptu_poll_s``); ``turnaround_s`` the unit's time between a command's
-    last byte and its reply (not documented by FLIR: 0).
+    ``baudrate`` 9600 (the FLIR factory setting), 8N1 = ``bits_per_byte`` 10;
+    ``poll_s`` the position polling period; ``delimiter`` what ends a command
+    (:data:`DELIMITERS`), ``eol`` what ends a reply (CR LF, LF or CR); ``turnaround_s``
+    the unit's time between a command's last byte and its reply (not documented by
+    FLIR: 0).
 
     >>> round(PTULinkParams().byte_s * 1e3, 4)
     1.0417
@@ -55,10 +71,7 @@ class PTULinkParams:
     def __post_init__(self) -> None:
         check_fields(self, ("baudrate", "bits_per_byte"), integer=True, positive=True)
         check_fields(self, ("poll_s", "turnaround_s"), minimum=0)
-        if self.delimiter not in DELIMITERS:
-            raise ValueError(
-                f"PTULinkParams.delimiter must be a space, CR or LF, got {self.delimiter!r}"
-            )
+        check_delimiter(self.delimiter, "PTULinkParams.delimiter")
         if self.eol not in ("\r\n", "\n", "\r"):
             raise ValueError(f"PTULinkParams.eol must be CR LF, LF or CR, got {self.eol!r}")
 

@@ -28,6 +28,7 @@ from hardware.speck import SpeckParams
 from wander_env.camera import SPECK_HFOV_DEG
 from wander_env.events import EVENT_DTYPE, make_events
 from wander_env.events.io import EventRecording, write_events
+from wander_env.ptu.link import PTULinkParams
 from wander_env.ptu.params import PTUParams
 
 WALK = REALDATA / "dvs128_people" / "alex_walking_for_10secs_txyp.npy"
@@ -153,6 +154,9 @@ def test_sensor_size_and_ptu_limits_come_from_the_devices(tmp_path):
 
 
 def test_config_is_checked():
+    # The rig polls at the sim link's default period: one value, PTULinkParams.poll_s.
+    assert RigConfig(ptu_port="emulate", camera="speck").ptu_poll_s == PTULinkParams().poll_s
+    assert PTULinkParams().poll_s == 0.01
     with pytest.raises(ValueError, match="ptu_port is required"):
         RigConfig(camera="speck")
     with pytest.raises(ValueError, match="'speck', 'speck:<serial number>' or 'replay:"):

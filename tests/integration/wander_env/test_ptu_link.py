@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import pickle
 import time
-from dataclasses import asdict
+from dataclasses import asdict, replace
 
 import gymnasium as gym
 import numpy as np
@@ -120,17 +120,32 @@ def test_presets_round_trip_through_asdict_and_pickle() -> None:
         PTULinkParams(baudrate=0)
 
 
-def test_emulator_paces_its_replies_at_the_baud_rate() -> None:
-    params = PTUEmulatorParams(banner="", echo=False, verbose=False, baudrate=9600)
+def test_link_params_check_their_line_ends() -> None:
+    for kwargs, message in [
+        ({"delimiter": ";"}, "PTULinkParams.delimiter must be a space, CR or LF, got ';'"),
+        ({"eol": ";"}, "PTULinkParams.eol must be CR LF, LF or CR, got ';'"),
+    ]:
+        with pytest.raises(ValueError) as info:
+            PTULinkParams(**kwargs)
+        assert str(info.value) == message
+
+
+@pytest.mark.parametrize("turnaround_s", [0.0, 0.05])
+def test_emulator_paces_its_replies_at_the_units_link(turnaround_s: float) -> None:
+    """The emulated unit's line is its ``ptu.link``, the simulated unit's settings."""
+    flir = PTUParams.preset("flir")
+    ptu = replace(flir, link=replace(flir.link, turnaround_s=turnaround_s))
+    params = PTUEmulatorParams(ptu=ptu, banner="", echo=False, verbose=False)
     with PTUEmulator(params) as emu, serial.Serial(emu.port, timeout=10) as port:
         t0 = time.monotonic()
         port.write(b"PP ")
         line = port.readline()
         dt = time.monotonic() - t0
     assert line == b"* 0\r\n"
-    # 3 bytes in, 5 out: 8.3 ms on the line before the reply can be read (a lower bound the
-    # pacing guarantees; how much later a loaded host delivers it is not the emulator's).
-    assert dt >= 8 * BYTE - 1e-4
+    # 3 bytes in, the turnaround, 5 out: 8.3 ms on the line (+ 50 ms) before the reply can
+    # be read (a lower bound the pacing guarantees; how much later a loaded host delivers
+    # it is not the emulator's).
+    assert dt >= 8 * BYTE + turnaround_s - 1e-4
 
 
 @pytest.mark.slow
@@ -146,7 +161,8 @@ def test_simulated_latency_matches_the_rig_env_on_the_emulator_at_9600_baud(tmp_
     ev = make_events(t % 128, (t // 128) % 128, t, t % 2)
     path = tmp_path / "tick.npz"
     write_events(path, EventRecording(ev, (128, 128, 2)))
-    emulator = PTUEmulatorParams(banner="", baudrate=9600)
+    flir = PTUParams.preset("flir")  # the sim's unit and the emulator's: one link
+    emulator = PTUEmulatorParams(ptu=flir, banner="")
     env = gym.make(
         "wander/Rig-v0",
         ptu_port="emulate",
@@ -173,7 +189,7 @@ def test_simulated_latency_matches_the_rig_env_on_the_emulator_at_9600_baud(tmp_
                 last = lat
     finally:
         env.close()
-    sim = PanTiltUnit(PTUParams.preset("flir"))
+    sim = PanTiltUnit(flir)
     for target in targets:  # the sim env commands at each step's start, as the rig env
         sim.set_target_positions(*target)
         sim.step(0.01)

@@ -13,6 +13,7 @@ import doctest
 import math
 import threading
 import time
+from dataclasses import replace
 
 import pytest
 import serial
@@ -34,6 +35,7 @@ from hardware.ptu_driver import (
 from hardware.ptu_emulator import PTUEmulator, PTUEmulatorParams
 from hardware.ptu_firmware import PTUFirmware
 from wander_env.ptu.axis import AxisState, move_duration
+from wander_env.ptu.link import PTULinkParams
 from wander_env.ptu.params import PTUParams
 from wander_env.ptu.unit import PanTiltUnit
 from wander_env.ptu.units import degrees_to_positions, round_position
@@ -128,8 +130,12 @@ def test_banner_arriving_after_open_is_drained():
 
 @pytest.mark.parametrize("eol", ["\n", "\r"])
 def test_lf_or_cr_line_endings(eol):
+    # The line end is the unit's link's (a fast line: its pacing costs the test little).
+    link = PTULinkParams(baudrate=115200, eol=eol)
+    params = PTUEmulatorParams(ptu=replace(MOTION, link=link))
+    assert params.eol == eol
     with (
-        PTUEmulator(PTUEmulatorParams(ptu=MOTION, eol=eol)) as emu,
+        PTUEmulator(params) as emu,
         FlirPTU(emu.port, DRIVER) as ptu,
     ):
         ptu.goto(pan_deg=40 * DP, tilt_deg=-20 * DT)
@@ -459,8 +465,9 @@ def test_reply_parser_over_loop_url():
         assert proto.last_latency_s >= 0.0
     finally:
         port.close()
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError) as info:
         PTUProtocol(port, delimiter=";")
+    assert str(info.value) == "PTUProtocol delimiter must be a space, CR or LF, got ';'"
     assert parse_reply("", "PP") is None
     with pytest.raises(PTUError, match="no number"):
         reply_number("ASCII terse mode")
@@ -540,11 +547,36 @@ def test_emulator_goes_silent_after_n_commands():
         assert exchange(port, b"PP ") == b"* Current Pan position is 0\r\n"
 
 
-def test_emulator_params_are_checked():
-    with pytest.raises(ValueError, match="eol"):
-        PTUEmulatorParams(eol=";")
-    with pytest.raises(ValueError, match="timeout_s"):
-        FlirPTUParams(timeout_s=0.0)
+def test_emulator_and_driver_params_are_checked():
+    bad = [
+        (
+            lambda: PTUEmulatorParams(reset_s=-1.0),
+            "PTUEmulatorParams.reset_s must be a finite number >= 0, got -1.0",
+        ),
+        (
+            lambda: PTUEmulatorParams(poll_s=0.0),
+            "PTUEmulatorParams.poll_s must be a finite number > 0, got 0.0",
+        ),
+        (
+            lambda: PTUEmulatorParams(silent_after=-1),
+            "PTUEmulatorParams.silent_after must be an int >= 0, got -1",
+        ),
+        (
+            lambda: FlirPTUParams(timeout_s=0.0),
+            "FlirPTUParams.timeout_s must be a finite number > 0, got 0.0",
+        ),
+        (
+            lambda: FlirPTUParams(delimiter=";"),
+            "FlirPTUParams.delimiter must be a space, CR or LF, got ';'",
+        ),
+    ]
+    for make, message in bad:
+        with pytest.raises(ValueError) as info:
+            make()
+        assert str(info.value) == message
+    # The line's settings have one home, the unit's link: none here but the defaults.
+    assert PTUEmulatorParams().eol == PTULinkParams().eol == "\r\n"
+    assert (FlirPTUParams().baudrate, FlirPTUParams().delimiter) == (9600, " ")
 
 
 def test_doctests():
@@ -552,4 +584,4 @@ def test_doctests():
     result = doctest.testmod(ptu_driver, optionflags=flags)
     assert (result.failed, result.attempted) == (0, 15)  # all ran, none failed
     result = doctest.testmod(ptu_emulator, optionflags=flags)
-    assert (result.failed, result.attempted) == (0, 4)
+    assert (result.failed, result.attempted) == (0, 5)

@@ -586,7 +586,7 @@ def test_unit_camera_position_uses_camera_angles():
 
 @pytest.mark.parametrize(
     ("module", "examples"),
-    [("units", 10), ("link", 13), ("params", 4), ("axis", 7), ("mechanics", 3), ("unit", 17)],
+    [("units", 10), ("link", 14), ("params", 4), ("axis", 7), ("mechanics", 3), ("unit", 17)],
 )
 def test_docstring_examples_run(module, examples):
     import doctest
