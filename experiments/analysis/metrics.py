@@ -54,6 +54,7 @@ __all__ = [
     "detection_hit",
     "event_counts",
     "foveation_error_px",
+    "hit_box",
     "iou",
     "precision",
     "reaches",
@@ -233,13 +234,36 @@ def ssim(a: np.ndarray, b: np.ndarray, data_range: float = 1.0) -> float:
     return float(np.mean(ssim_map(a, b, data_range)))
 
 
-def detection_hit(point_xy: tuple[float, float], mask: np.ndarray, box: int = 8) -> bool:
-    """Whether a ``box``×``box`` square around a point touches the mask.
+def hit_box(
+    point_xy: tuple[float, float], shape: tuple[int, int], box: int = 8
+) -> tuple[int, int, int, int]:
+    """The pixels ``[x0, x1) × [y0, y1)`` of the ``box``×``box`` square around a point in
+    an image of ``shape`` ``(H, W)``: the box that decides a detection hit.
 
     The point is taken to its pixel (nearest integer coordinates, halves up) and the
     box covers ``x`` in ``[px − box//2, px + box//2 − 1]`` and ``y`` likewise, so for
-    ``box = 8`` it is ``[px − 4, px + 3] × [py − 4, py + 3]``, clipped to the image.
-    This is the paper's detection criterion (the 8×8 box around the saliency argmax).
+    ``box = 8`` it is ``[px − 4, px + 3] × [py − 4, py + 3]``, clipped to the image
+    (empty, ``x0 >= x1`` or ``y0 >= y1``, when the point lies that far outside).
+
+    >>> hit_box((7, 7), (16, 16)), hit_box((14.5, 1.4), (16, 16))
+    ((3, 11, 3, 11), (11, 16, 0, 5))
+    """
+    if isinstance(box, bool) or not isinstance(box, (int, np.integer)) or box < 1:
+        raise ValueError(f"box must be an int >= 1, got {box!r}")
+    h, w = shape
+    px, py = (math.floor(float(c) + 0.5) for c in point_xy)
+    half = int(box) // 2
+    return (
+        max(px - half, 0),
+        min(px - half + int(box), w),
+        max(py - half, 0),
+        min(py - half + int(box), h),
+    )
+
+
+def detection_hit(point_xy: tuple[float, float], mask: np.ndarray, box: int = 8) -> bool:
+    """Whether the :func:`hit_box` around a point touches the mask: the paper's detection
+    criterion (the 8×8 box around the saliency argmax).
 
     >>> m = np.zeros((16, 16), bool); m[10, 10] = True
     >>> detection_hit((7, 7), m), detection_hit((6, 6), m), detection_hit((14, 14), m)
@@ -248,13 +272,7 @@ def detection_hit(point_xy: tuple[float, float], mask: np.ndarray, box: int = 8)
     m = np.asarray(mask)
     if m.ndim != 2:
         raise ValueError(f"mask must be 2-D (H, W), got shape {m.shape}")
-    if isinstance(box, bool) or not isinstance(box, (int, np.integer)) or box < 1:
-        raise ValueError(f"box must be an int >= 1, got {box!r}")
-    h, w = m.shape
-    px, py = (math.floor(float(c) + 0.5) for c in point_xy)
-    half = int(box) // 2
-    x0, x1 = max(px - half, 0), min(px - half + int(box), w)
-    y0, y1 = max(py - half, 0), min(py - half + int(box), h)
+    x0, x1, y0, y1 = hit_box(point_xy, m.shape, box)
     if x0 >= x1 or y0 >= y1:
         return False
     return bool(np.any(m[y0:y1, x0:x1]))

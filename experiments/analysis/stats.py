@@ -57,7 +57,9 @@ __all__ = [
     "mean_std",
     "number_text",
     "paired_comparison",
+    "percent_text",
     "rank_biserial_paired",
+    "real_time_factor",
     "wilson_interval",
 ]
 
@@ -163,31 +165,57 @@ def mean_ci(
     return (float(v.mean()) if v.size else math.nan), lo, hi, int(v.size)
 
 
-def ci_text(summary: tuple[float, float, float, int], spec: str) -> str:
-    """A :func:`mean_ci` result as text, the numbers formatted by ``spec``: ``m [lo, hi]
-    (n = k)``; ``—`` without values; below :data:`MIN_N` the mean and ``n too small``
-    for an interval.
+def ci_text(summary: tuple[float, float, float, int], spec: str, unit: str = "") -> str:
+    """A :func:`mean_ci` result as text, the numbers formatted by ``spec`` and ``unit``
+    after the mean: ``m [lo, hi] (n = k)``; ``—`` without values; below :data:`MIN_N`
+    the mean and ``n too small`` for an interval.
 
     >>> ci_text((0.5, 0.25, 0.75, 10), ".2f"), ci_text((0.5, math.nan, math.nan, 1), ".0%")
     ('0.50 [0.25, 0.75] (n = 10)', '50% (n = 1: n too small for an interval)')
+    >>> ci_text((82.3, 81.4, 83.2, 10), ".1f", " %")
+    '82.3 % [81.4, 83.2] (n = 10)'
     """
     m, lo, hi, n = summary
     if math.isnan(m):
         return "—"
     if n < MIN_N or math.isnan(lo) or math.isnan(hi):
-        return f"{m:{spec}} (n = {n}: n too small for an interval)"
-    return f"{m:{spec}} [{lo:{spec}}, {hi:{spec}}] (n = {n})"
+        return f"{m:{spec}}{unit} (n = {n}: n too small for an interval)"
+    return f"{m:{spec}}{unit} [{lo:{spec}}, {hi:{spec}}] (n = {n})"
 
 
-def number_text(value: float | None, spec: str) -> str:
-    """``value`` formatted by ``spec``; ``—`` where it is None or NaN.
+def number_text(value: float | None, spec: str, unit: str = "") -> str:
+    """``value`` formatted by ``spec``, then ``unit``; ``—`` where it is None or NaN.
 
     >>> number_text(0.25, ".2f"), number_text(math.nan, ".2f"), number_text(None, "g")
     ('0.25', '—', '—')
+    >>> number_text(3.0, "g", " ms")
+    '3 ms'
     """
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return "—"
-    return format(value, spec)
+    return format(value, spec) + unit
+
+
+def percent_text(fraction: float | None) -> str:
+    """A fraction as a percentage with one decimal, ``12.5 %``; ``—`` where it is None or
+    NaN.
+
+    >>> percent_text(0.125), percent_text(math.nan), percent_text(None)
+    ('12.5 %', '—', '—')
+    """
+    return number_text(None if fraction is None else 100 * fraction, ".1f", " %")
+
+
+def real_time_factor(simulated_s: float, wall_s: float) -> float:
+    """Simulated seconds per wall second (1.0 = real time); NaN when ``wall_s`` is not
+    positive or ``simulated_s`` not finite.
+
+    >>> real_time_factor(3.0, 6.0), real_time_factor(3.0, 0.0), real_time_factor(math.nan, 1.0)
+    (0.5, nan, nan)
+    """
+    if not (wall_s > 0 and math.isfinite(simulated_s)):
+        return math.nan
+    return simulated_s / wall_s
 
 
 # ----------------------------------------------------------------------------------------

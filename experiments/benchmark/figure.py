@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from experiments.analysis.metrics import hit_box
 from wander_env.viz import event_image, legend_below, polarity_patches, pyplot, save_figure
 
 __all__ = ["WindowSampler", "WindowView", "plot_maps_vs_masks"]
@@ -83,16 +84,18 @@ class WindowSampler:
         )
 
 
-def _box(ax: Any, point: tuple[float, float] | None, box: int, colour: str) -> None:
+def _box(
+    ax: Any, point: tuple[float, float] | None, shape: tuple[int, int], box: int, colour: str
+) -> None:
+    """P and the pixels of its :func:`~experiments.analysis.metrics.hit_box` (pixel
+    ``i`` spans ``[i − 0.5, i + 0.5]``)."""
     from matplotlib.patches import Rectangle
 
     if point is None:
         return
-    x, y = point
-    ax.add_patch(
-        Rectangle((x - box / 2 - 0.5, y - box / 2 - 0.5), box, box, fill=False, ec=colour, lw=1.2)
-    )
-    ax.plot(x, y, "+", color=colour, ms=6)
+    x0, x1, y0, y1 = hit_box(point, shape, box)
+    ax.add_patch(Rectangle((x0 - 0.5, y0 - 0.5), x1 - x0, y1 - y0, fill=False, ec=colour, lw=1.2))
+    ax.plot(*point, "+", color=colour, ms=6)
 
 
 def plot_maps_vs_masks(path: Path, views: list[WindowView], title: str, box: int = 8) -> Path:
@@ -118,7 +121,7 @@ def plot_maps_vs_masks(path: Path, views: list[WindowView], title: str, box: int
         bar = fig.colorbar(im, ax=a2, fraction=0.046, pad=0.02)
         bar.ax.tick_params(labelsize=6)
         bar.set_label("saliency", fontsize=7)
-        _box(a2, v.point_xy, box, "lime")
+        _box(a2, v.point_xy, v.mask.shape, box, "lime")
         a2.set_title("saliency, P and its 8×8 box", fontsize=8)
         a3.imshow(v.mask, cmap="Greens", extent=ext, interpolation="nearest", vmin=0, vmax=1.6)
         a3.imshow(
@@ -128,7 +131,7 @@ def plot_maps_vs_masks(path: Path, views: list[WindowView], title: str, box: int
             alpha=0.6,
             interpolation="nearest",
         )
-        _box(a3, v.point_xy, box, "magenta")
+        _box(a3, v.point_xy, v.mask.shape, box, "magenta")
         verdict = "hit" if v.hit == 1.0 else "miss" if v.hit == 0.0 else "not scored"
         a3.set_title(f"mask: {verdict}, IoU {v.iou:.1%}, precision {v.precision:.1%}", fontsize=8)
         for a in (a0, a1, a2, a3):

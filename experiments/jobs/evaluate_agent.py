@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from agents.suppression import suppressed_fraction
-from experiments.analysis.stats import wilson_interval
+from experiments.analysis.stats import real_time_factor, wilson_interval
 from experiments.jobs.run_agent import RunConfig, run
 from experiments.runs.folder import RunFolder
 from experiments.runs.provenance import run_record
@@ -105,7 +105,7 @@ class QualityRow:
         low, high = detection_interval(self.hits, self.scored)
         object.__setattr__(self, "detection_ci_low", low)
         object.__setattr__(self, "detection_ci_high", high)
-        rtf = self.simulated_s / self.wall_s if self.wall_s > 0 else math.nan
+        rtf = real_time_factor(self.simulated_s, self.wall_s)
         object.__setattr__(self, "real_time_factor", rtf)
 
 

@@ -51,7 +51,7 @@ import pydantic
 
 from agents.attention import AgentParams, AttentionAgent
 from experiments.analysis import scanpath_stats
-from experiments.analysis.stats import mean_std
+from experiments.analysis.stats import mean_std, real_time_factor
 from experiments.jobs.scanpath_figure import plot_scanpath
 from experiments.runs.episode import OneEpisode, Recorder, run_episode
 from experiments.runs.folder import RunFolder
@@ -378,7 +378,7 @@ class AgentMetrics(Recorder):
             "steps": self.steps,
             "simulated_s": sim_s,
             "wall_s": wall,
-            "real_time_factor": sim_s / wall if wall > 0 else math.nan,
+            "real_time_factor": real_time_factor(sim_s, wall),
             "decisions": len(agent.fixations),
             "decisions_with_target": sum(fx.target_px is not None for fx in agent.fixations),
             "decisions_scored": len(scored),

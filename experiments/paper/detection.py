@@ -18,7 +18,6 @@ not scored. One row per trial: means over the scored windows.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -30,7 +29,7 @@ from agents.attention import AgentParams
 from agents.pipeline import SaliencyPipeline
 from agents.proto_object import ProtoObjectParams
 from agents.soms import SOMSParams
-from experiments.analysis.stats import mean_std
+from experiments.analysis.stats import mean_std, percent_text
 from experiments.benchmark.datasets.base import MaskWindow, SequenceData
 from experiments.benchmark.protocol import (
     NOTE_OMS_EMPTY,
@@ -294,10 +293,6 @@ def group_means(rows: list[study.Row], metric: str) -> dict[tuple[str, float], f
     return {k: mean_std(v)[0] for k, v in acc.items()}
 
 
-def _pct(v: float) -> str:
-    return "—" if math.isnan(v) else f"{100 * v:.1f} %"
-
-
 def compare(cfg: DetectionConfig, rows: list[study.Row]) -> list[study.Comparison]:
     """Per scene and camera speed: our accuracy with / without proto-objects, IoU,
     precision and SSIM beside the paper's EVIMO figures."""
@@ -325,8 +320,9 @@ def compare(cfg: DetectionConfig, rows: list[study.Row]) -> list[study.Compariso
             study.Comparison(
                 f"{s}, camera {v:g}°/s (measured {speed[k]:.0f})",
                 paper if i == 0 else "″",
-                f"accuracy {_pct(a_p[k])} with / {_pct(a_o[k])} without proto-objects; "
-                f"IoU {_pct(iou[k])}, precision {_pct(prec[k])}, SSIM {_pct(ss[k])}",
+                f"accuracy {percent_text(a_p[k])} with / {percent_text(a_o[k])} without "
+                f"proto-objects; IoU {percent_text(iou[k])}, precision {percent_text(prec[k])}, "
+                f"SSIM {percent_text(ss[k])}",
             )
         )
     return out

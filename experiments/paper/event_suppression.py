@@ -56,7 +56,7 @@ import wander_env  # noqa: F401  (registers the environments)
 from agents.attention import AGENT_SOMS, AgentParams, same_but_step
 from agents.soms import SOMSParams
 from agents.speck_front import SpeckFrontParams
-from experiments.analysis.stats import mean_ci, wilson_interval
+from experiments.analysis.stats import ci_text, mean_ci, wilson_interval
 from experiments.benchmark.suppression import PAPER_SUPPRESSION
 from experiments.paper.env_block import check_env_block, trial_env
 from experiments.paper.event_suppression_protocol import (
@@ -329,14 +329,9 @@ def grid(cfg: EventSuppressionConfig) -> list[dict[str, Any]]:
 # The table and the figure
 
 
-def _ci(values: Sequence[float], unit: str = " %") -> str:
-    """``mean [low, high]`` over trials (95 % bootstrap interval), ``—`` when none."""
-    m, lo, hi, n = mean_ci(values)
-    if n == 0:
-        return "—"
-    if n < 2:
-        return f"{m:.1f}{unit} (1 trial)"
-    return f"{m:.1f}{unit} [{lo:.1f}, {hi:.1f}]"
+def _ci(values: Sequence[float]) -> str:
+    """A percentage over trials with its 95 % bootstrap interval (:func:`ci_text`)."""
+    return ci_text(mean_ci(values), ".1f", " %")
 
 
 def _windows(rows: Sequence[study.Row], what: str) -> tuple[float, float]:

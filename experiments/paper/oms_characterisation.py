@@ -46,7 +46,7 @@ from agents.attention import AgentParams
 from agents.soms import SOMS, SOMSParams
 from agents.suppression import kept_events
 from experiments.analysis.metrics import EventCounts, event_counts, iou, precision
-from experiments.analysis.stats import number_text
+from experiments.analysis.stats import mean_std, number_text
 from experiments.paper.env_block import check_env_block, trial_env
 from experiments.runs.episode import Recorder, run_episode
 from experiments.studies import framework as study
@@ -54,7 +54,7 @@ from wander_env.config import load_yaml
 from wander_env.env_config import WanderConfig
 from wander_env.scene_config import GRATING_MODES
 from wander_env.scenes import assets_dir
-from wander_env.viz import pyplot, save_figure
+from wander_env.viz import event_image, legend_below, polarity_patches, pyplot, save_figure
 
 __all__ = [
     "EXPERIMENT",
@@ -346,10 +346,6 @@ def run_trial(cfg: OMSCharacterisationConfig, spec: study.TrialSpec) -> dict[str
     mfr_mean, mfr_std = mfr_stats(total, cfg.duration_s)
     isi_mean, isi_std, n_isi = isi_stats(spikes, cfg.step_s)
 
-    def nanmean(v: list[float]) -> float:
-        a = np.asarray(v, float)
-        return float(np.nanmean(a)) if np.isfinite(a).any() else math.nan
-
     return {
         "simulated_s": n * cfg.step_s,
         "events_in": ev.events_in,
@@ -360,8 +356,8 @@ def run_trial(cfg: OMSCharacterisationConfig, spec: study.TrialSpec) -> dict[str
         "background_kept_pct": 100.0 * ev.background_kept_share,
         "object_share_of_out_pct": 100.0 * ev.precision,
         "object_area_pct": 100.0 * float(flat_mask.mean()),
-        "oms_precision": nanmean(precs),
-        "oms_iou": nanmean(ious),
+        "oms_precision": mean_std(precs)[0],
+        "oms_iou": mean_std(ious)[0],
         "mfr_mean_hz": mfr_mean,
         "mfr_std_hz": mfr_std,
         "mfr_object_hz": mfr_stats(total[flat_mask], cfg.duration_s)[0],
@@ -505,13 +501,9 @@ def plot(
         fig, axes = plt.subplots(2, len(examples), figsize=(2.2 * len(examples), 4.6))
         axes = np.asarray(axes).reshape(2, -1)
         for j, (r, a) in enumerate(zip(examples, arts, strict=True)):
-            ev = a["event_map"].astype(float)
-            img = np.full((*ev.shape[1:], 3), 0.5)
-            img[ev[1] > 0] = 1.0
-            img[ev[0] > 0] = 0.0
-            axes[0, j].imshow(img)
+            axes[0, j].imshow(event_image(a["event_map"]), interpolation="nearest")
             axes[1, j].imshow(a["oms_map"].sum(axis=0) > 0, cmap="gray")
-            axes[1, j].contour(a["mask"], levels=[0.5], colors="tab:red", linewidths=0.6)
+            axes[1, j].contour(a["mask"], levels=[0.5], colors="gold", linewidths=0.6)
             axes[0, j].set_title(str(r["condition"]), fontsize=8)
             for ax in axes[:, j]:
                 ax.set_xticks([])
@@ -519,11 +511,16 @@ def plot(
         axes[0, 0].set_ylabel("events")
         axes[1, 0].set_ylabel("OMS map")
         fig.suptitle(
-            "Event maps (white ON, black OFF, grey none) and OMS maps (white: kept; red "
-            "contour: the object patch), modes and speed pairs",
+            "Event maps (white: no event) and OMS maps (white: kept; gold contour: the object "
+            "patch), modes and speed pairs",
             fontsize=9,
         )
-        paths.append(save_figure(fig, fig_dir / "oms_characterisation_maps.png", dpi=100))
+        legend_below(fig, polarity_patches("ON event", "OFF event"), fontsize=8)
+        paths.append(
+            save_figure(
+                fig, fig_dir / "oms_characterisation_maps.png", dpi=100, rect=(0, 0.05, 1, 1)
+            )
+        )
     return paths
 
 

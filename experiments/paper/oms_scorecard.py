@@ -48,7 +48,6 @@ stay the halves); the same seed gives the same scorecard.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
@@ -59,7 +58,7 @@ from agents.attention import AGENT_SOMS, AgentParams, same_but_step
 from agents.soms import SOMSParams
 from agents.speck_front import SpeckFrontParams
 from experiments.analysis.metrics import reaches
-from experiments.analysis.stats import number_text
+from experiments.analysis.stats import number_text, percent_text
 from experiments.jobs.evaluate_agent import DETECTION_BAR, read_quality
 from experiments.paper.event_suppression_scoring import HAND_BARS, trial_figures
 from experiments.paper.oms_family import (
@@ -396,10 +395,6 @@ def grid(cfg: OMSScorecardConfig) -> list[dict[str, Any]]:
 # The scorecard
 
 
-def _pct(v: Any) -> str:
-    return "—" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{100 * v:.1f} %"
-
-
 def _at_least(bar: float) -> str:
     """A bar on a fraction as text: ``≥ 90 %``."""
     return f"≥ {100 * bar:g} %"
@@ -419,21 +414,21 @@ def _family_lines(
     for k in keys:
         g = lambda grp, name, k=k: row.get(f"{k}:{grp}:{name}")  # noqa: E731
         cells.setdefault("eye-only", {})[k] = (
-            f"{_ok(bool(g('eye-only', 'pass')))} {_pct(g('eye-only', 'suppressed'))} suppressed "
-            f"({_pct(g('eye-only', 'stimuli_passing'))} of {g('eye-only', 'n')} stimuli "
-            f"{_at_least(SUPPRESS_BAR)})"
+            f"{_ok(bool(g('eye-only', 'pass')))} {percent_text(g('eye-only', 'suppressed'))} "
+            f"suppressed ({percent_text(g('eye-only', 'stimuli_passing'))} of "
+            f"{g('eye-only', 'n')} stimuli {_at_least(SUPPRESS_BAR)})"
         )
         for grp in ("eye+object", "object-only"):
             cells.setdefault(grp, {})[k] = (
                 f"{_ok(bool(g(grp, 'pass')))} precision {number_text(g(grp, 'precision'), '.2f')}, "
-                f"object kept {_pct(g(grp, 'object_kept'))} "
-                f"({_pct(g(grp, 'stimuli_passing'))} of {g(grp, 'n')} pass)"
+                f"object kept {percent_text(g(grp, 'object_kept'))} "
+                f"({percent_text(g(grp, 'stimuli_passing'))} of {g(grp, 'n')} pass)"
             )
         cells.setdefault("background-faster", {})[k] = (
-            f"object enhanced in {_pct(g('background-faster', 'enhanced'))} of "
+            f"object enhanced in {percent_text(g('background-faster', 'enhanced'))} of "
             f"{g('background-faster', 'n')} (precision "
             f"{number_text(g('background-faster', 'precision'), '.2f')}, object kept "
-            f"{_pct(g('background-faster', 'object_kept'))})"
+            f"{percent_text(g('background-faster', 'object_kept'))})"
             + (" — fails as the paper" if g("background-faster", "pass") else "")
         )
     bars = {
@@ -465,7 +460,7 @@ def scorecard(
                 parts = []
                 for ms in cfg.real_bins_ms:
                     v = r.get(f"{k}:{clip}:{ms}ms:suppressed")
-                    parts.append(f"{ms} ms {_pct(v)}")
+                    parts.append(f"{ms} ms {percent_text(v)}")
                 v10 = r.get(f"{k}:{clip}:10ms:suppressed")
                 ok = v10 is not None and reaches(float(v10), SUPPRESS_BAR)
                 cells[k] = f"{_ok(ok)} " + ", ".join(parts)
@@ -478,9 +473,10 @@ def scorecard(
             f = {n: float(r[f"{k}:hand:{n}"]) for n in HAND_BARS}
             ok = all(reaches(f[n], bar / 100) for n, bar in HAND_BARS.items())
             cells[k] = (
-                f"{_ok(ok)} hand hit in {_pct(f['hit'])} of {r[f'{k}:hand:hit_steps']} steps; "
-                f"{_pct(f['suppressed'])} suppressed (paper 85.16 %); shake-only "
-                f"{_pct(f['shake_suppressed'])}; hand's events kept {_pct(f['hand_kept'])}"
+                f"{_ok(ok)} hand hit in {percent_text(f['hit'])} of "
+                f"{r[f'{k}:hand:hit_steps']} steps; {percent_text(f['suppressed'])} suppressed "
+                f"(paper 85.16 %); shake-only {percent_text(f['shake_suppressed'])}; hand's "
+                f"events kept {percent_text(f['hand_kept'])}"
             )
         b = {n: _at_least(v / 100) for n, v in HAND_BARS.items()}
         bar = (
@@ -499,8 +495,9 @@ def scorecard(
                 acc = float(r[f"{k}:office{i}:accuracy"])
                 ok &= reaches(acc, DETECTION_BAR)
                 parts.append(
-                    f"seeds {r[f'{k}:office{i}:seeds']}: {_pct(acc)} "
-                    f"({_pct(r[f'{k}:office{i}:ci_low'])}–{_pct(r[f'{k}:office{i}:ci_high'])}, "
+                    f"seeds {r[f'{k}:office{i}:seeds']}: {percent_text(acc)} "
+                    f"({percent_text(r[f'{k}:office{i}:ci_low'])}–"
+                    f"{percent_text(r[f'{k}:office{i}:ci_high'])}, "
                     f"{r[f'{k}:office{i}:scored']} decisions)"
                 )
                 i += 1

@@ -34,7 +34,7 @@ from experiments.analysis.scanpath_stats import (
     levenshtein_similarity,
     multimatch,
 )
-from experiments.analysis.stats import Comparison2, mean_ci, paired_comparison
+from experiments.analysis.stats import Comparison2, mean_ci, mean_std, paired_comparison
 
 __all__ = [
     "SIMILARITY_MEASURES",
@@ -182,12 +182,7 @@ def stability_tests(
             per[c] = {}
             for i, r in enumerate(rs):
                 mine = [v for (p, q), v in sims.items() if i in (p, q)]
-                per[c][int(r["seed"])] = {
-                    k: float(np.nanmean([v[k] for v in mine]))
-                    if any(math.isfinite(v[k]) for v in mine)
-                    else math.nan
-                    for k in measures
-                }
+                per[c][int(r["seed"])] = {k: mean_std(v[k] for v in mine)[0] for k in measures}
         common = sorted(set(per[a]) & set(per[b]))
         for k in measures:
             out[(s, k)] = paired_comparison(

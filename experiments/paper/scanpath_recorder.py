@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from agents.attention import AgentParams, AttentionAgent
+from experiments.analysis.metrics import hit_box
 from experiments.runs.episode import Recorder
 from wander_env.camera import cast_pixel
 from wander_env.entities import object_body_name
@@ -79,10 +80,10 @@ class ScanpathRecorder(Recorder):
 
     def _objects_at(self, p: AgentParams, xy: tuple[int, int]) -> tuple[str, str]:
         """(the object under ``xy``, the object most of the box's pixels see)."""
-        half = self._box // 2
+        x0, x1, y0, y1 = hit_box(xy, (p.height_px, p.width_px), self._box)
         seen: Counter[str] = Counter()
-        for y in range(max(xy[1] - half, 0), min(xy[1] - half + self._box, p.height_px)):
-            for x in range(max(xy[0] - half, 0), min(xy[0] - half + self._box, p.width_px)):
+        for y in range(y0, y1):
+            for x in range(x0, x1):
                 seen[self._object(p, (x, y))] += 1
         seen.pop("", None)
         return self._object(p, xy), seen.most_common(1)[0][0] if seen else ""

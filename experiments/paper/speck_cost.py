@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from experiments.analysis.stats import mean_ci
+from experiments.analysis.stats import ci_text, mean_ci
 from experiments.jobs.evaluate_agent import read_quality
 from experiments.paper.oms_family import Measure, group_of, measure
 from experiments.paper.oms_stimuli import Stimulus
@@ -195,15 +195,6 @@ def read_costs(path: Path) -> list[Cost]:
     ]
 
 
-def _cell(f: Figure) -> str:
-    m, lo, hi, n = f
-    if n == 0 or math.isnan(m):
-        return "—"
-    if n < 2 or math.isnan(lo):
-        return f"{m:.1f} (n {n})"
-    return f"{m:.1f} [{lo:.1f}, {hi:.1f}] (n {n})"
-
-
 def table(costs: Sequence[Cost]) -> str:
     """The costs as a markdown table: mean [95 % interval] (n) per front end."""
     lines = [
@@ -212,8 +203,8 @@ def table(costs: Sequence[Cost]) -> str:
     ]
     for c in costs:
         lines.append(
-            f"| {c.source} | {c.measure} ({c.unit}) | {_cell(c.speck)} | {_cell(c.host)} | "
-            f"{c.over} |"
+            f"| {c.source} | {c.measure} ({c.unit}) | {ci_text(c.speck, '.1f')} | "
+            f"{ci_text(c.host, '.1f')} | {c.over} |"
         )
     return "\n".join(lines)
 

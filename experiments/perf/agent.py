@@ -33,6 +33,7 @@ import pydantic
 
 from agents.attention import AgentParams, AttentionAgent
 from agents.proto_object import ProtoObjectSaliency
+from experiments.analysis.stats import real_time_factor
 from experiments.jobs.run_agent import OneEpisodeRun
 from experiments.perf.clock import LOAD_COLUMN, Clock, Measured, Timings, timed
 from experiments.perf.dvs import CALIBRATION_COLUMN, calibration_fps
@@ -216,7 +217,7 @@ def bench_agent(config: AgentBenchConfig) -> tuple[list[LatencyRow], LoopRow]:
         wall_s=clock.wall_s,
         env_ms_per_step=1e3 * float(np.mean(acc.wall["env"])),
         agent_ms_per_step=1e3 * float(np.mean(acc.wall["act"])),
-        realtime_factor=n * agent.params.step_s / clock.wall_s,
+        realtime_factor=real_time_factor(n * agent.params.step_s, clock.wall_s),
         cpu_s=clock.cpu_s,
         keys_ahead_adopted=ahead,
         dvs_fps=dvs_fps,
@@ -288,7 +289,7 @@ def loop_modes(config: AgentBenchConfig) -> ModesRow:
     ex, kf = loops["exact"], loops["keyframes"]
 
     def rtf(lp: dict) -> float:
-        return lp["steps"] * step_s / (lp["t_env"] + lp["t_agent"])
+        return real_time_factor(lp["steps"] * step_s, lp["t_env"] + lp["t_agent"])
 
     return ModesRow(
         scene=scene,

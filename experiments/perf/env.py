@@ -33,6 +33,7 @@ import gymnasium as gym
 import numpy as np
 
 import wander_env  # noqa: F401  (registers the environments)
+from experiments.analysis.stats import real_time_factor
 from experiments.perf.clock import LOAD_COLUMN, Clock, Measured, Timings, timed
 from experiments.perf.dvs import CALIBRATION_COLUMN, calibration_fps
 from experiments.studies.framework import MAX_SEED
@@ -233,6 +234,7 @@ def bench_env(
                 for env in envs.values():
                     env.close()
             wall = {m: c.wall_s for m, c in clocks.items()}
+            sim_s = n * steps * period  # of all the envs
             ms = {m: 1e3 * wall[m] / steps for m in modes}
             cpu = {m: c.ms_per(steps)[1] if n == 1 else float("nan") for m, c in clocks.items()}
 
@@ -246,8 +248,8 @@ def bench_env(
                     envs=n,
                     ground_truth=ground_truth,
                     keyframe_ms=km,
-                    exact_rtf=n * steps * period / wall["exact"],
-                    keyframes_rtf=n * steps * period / wall["keyframes"],
+                    exact_rtf=real_time_factor(sim_s, wall["exact"]),
+                    keyframes_rtf=real_time_factor(sim_s, wall["keyframes"]),
                     speedup=ms["exact"] / ms["keyframes"],
                     exact_ms_per_step=ms["exact"],
                     keyframes_ms_per_step=ms["keyframes"],
@@ -255,7 +257,7 @@ def bench_env(
                     keyframes_frames_per_step=frames["keyframes"] / (n * steps),
                     events_diff_pct=diff_pct(events["keyframes"], events["exact"]),
                     keyframe_px=keyframe_px,
-                    adaptive_rtf=n * steps * period / wall["adaptive"],
+                    adaptive_rtf=real_time_factor(sim_s, wall["adaptive"]),
                     adaptive_speedup=ms["exact"] / ms["adaptive"],
                     adaptive_ms_per_step=ms["adaptive"],
                     adaptive_events_diff_pct=diff_pct(events["adaptive"], events["exact"]),
@@ -265,13 +267,13 @@ def bench_env(
                     exact_cpu_ms_per_step=cpu["exact"],
                     keyframes_cpu_ms_per_step=cpu["keyframes"],
                     adaptive_cpu_ms_per_step=cpu["adaptive"],
-                    adaptive_alone_rtf=n * steps * period / alone["adaptive"].wall_s,
+                    adaptive_alone_rtf=real_time_factor(sim_s, alone["adaptive"].wall_s),
                     adaptive_alone_ms_per_step=alone["adaptive"].ms_per(steps)[0],
                     adaptive_alone_cpu_ms_per_step=alone["adaptive"].ms_per(steps)[1]
                     if n == 1
                     else float("nan"),
                     adaptive_alone_events_diff_pct=diff_pct(alone_events, events["adaptive"]),
-                    exact_alone_rtf=n * steps * period / alone["exact"].wall_s,
+                    exact_alone_rtf=real_time_factor(sim_s, alone["exact"].wall_s),
                     exact_alone_ms_per_step=alone["exact"].ms_per(steps)[0],
                     alone_speedup=alone["exact"].wall_s / alone["adaptive"].wall_s,
                     dvs_fps=dvs_fps,

@@ -44,6 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from agents.scripted import GazePolicy
+from experiments.analysis.stats import number_text
 from wander_env.actions import gaze_degrees_to_action
 
 SCENES = ("office", "hand", "shelf", "gratings")
@@ -434,17 +435,13 @@ class BarCells:
     fine_l1: str
 
 
-def _num(x: float | None, fmt: str) -> str:
-    return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else format(x, fmt)
-
-
 def mode_cells(row: FidelityRow) -> ModeCells:
     """The modes table's cells of one row."""
 
     def cell(s: ModeStats) -> str:
         return (
-            f"{_num(s.events_dev_pct, '+.1f')} % / {_num(s.l1_per_event, '.3f')} / "
-            f"{_num(s.matched_pct, '.0f')} % / {_num(s.max_gap_ms, '.1f')} / "
+            f"{number_text(s.events_dev_pct, '+.1f')} % / {number_text(s.l1_per_event, '.3f')} / "
+            f"{number_text(s.matched_pct, '.0f')} % / {number_text(s.max_gap_ms, '.1f')} / "
             f"{s.renders_per_step:.1f}"
         )
 
@@ -467,14 +464,14 @@ def bar_cells(row: FidelityRow) -> BarCells:
     return BarCells(
         row.scene,
         row.motion,
-        f"|{_num(d.events_dev_pct, '+.1f')}| ≤ {abs(e.events_dev_pct) + BAR_EVENTS_PTS:.1f}"
+        f"|{number_text(d.events_dev_pct, '+.1f')}| ≤ {abs(e.events_dev_pct) + BAR_EVENTS_PTS:.1f}"
         + mark(b.events),
         f"{d.l1_per_event:.3f} ≤ {BAR_L1_FACTOR * e.l1_per_event:.3f}" + mark(b.l1),
-        f"{_num(d.matched_pct, '.1f')} ≥ {_num(e.matched_pct - BAR_MATCHED_PTS, '.1f')}"
-        + mark(b.matched),
-        f"{_num(d.max_gap_ms, '.1f')} ≤ {BAR_GAP_MS:g}" + mark(b.gap)
+        f"{number_text(d.matched_pct, '.1f')} ≥ "
+        f"{number_text(e.matched_pct - BAR_MATCHED_PTS, '.1f')}" + mark(b.matched),
+        f"{number_text(d.max_gap_ms, '.1f')} ≤ {BAR_GAP_MS:g}" + mark(b.gap)
         if d.max_gap_ms is not None
-        else "–",
+        else "—",
         row.default_vs_exact_pct,
         "pass" if b.ok else "FAIL",
         f"{f.l1_per_event:.3f} ≤ {BAR_FINE_L1_FACTOR * e.l1_per_event:.3f}"

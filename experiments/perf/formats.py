@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from wander_env.events import empty_events
 from wander_env.events.io import read_events
 
 Decoder = Callable[[Path], np.ndarray]
@@ -41,7 +42,10 @@ COLUMNS: dict[str, str] = {
 
 
 def _txyp(t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray) -> np.ndarray:
-    out = np.empty(len(t), dtype=[("t", "<i8"), ("x", "<i4"), ("y", "<i4"), ("p", "i1")])
+    """A decoder's columns as wander's events (:data:`~wander_env.events.EVENT_DTYPE`),
+    polarity 1 where ``p > 0``; unlike :func:`~wander_env.events.make_events` it takes
+    the events in any time order, so that an unsorted decode counts as differing events."""
+    out = empty_events(len(t))
     out["t"], out["x"], out["y"], out["p"] = t, x, y, np.asarray(p) > 0
     return out
 

@@ -54,6 +54,7 @@ from typing import Annotated, Any
 
 import pydantic
 
+from experiments.analysis.stats import real_time_factor as real_time_factor_of
 from experiments.runs.folder import RESULTS, RUN_JSON, RunFolder
 from experiments.runs.provenance import run_record
 from experiments.runs.tables import Row, Scalar, write_csv
@@ -366,9 +367,11 @@ def run_spec(spec: TrialSpec) -> Row:
 
 
 def real_time_factor(rows: Sequence[Mapping[str, Any]], wall_s: float) -> float | None:
-    """Simulated seconds per wall second: the sum of the rows' ``simulated_s`` column
-    (a trial that simulates time reports it among its metrics) over ``wall_s``; None when
-    no row has one (the work simulated no time, or does not say).
+    """Simulated seconds per wall second (:func:`experiments.analysis.stats.real_time_factor`)
+    of the sum of the rows' ``simulated_s`` column (a trial that simulates time reports it
+    among its metrics) over ``wall_s``; None when no row has a finite one (the work
+    simulated no time, or does not say) or ``wall_s`` is not positive: JSON's null, which
+    the CLI leaves unprinted.
 
     >>> real_time_factor([{"simulated_s": 2.0}, {"simulated_s": 1.0}], 6.0)
     0.5
@@ -378,9 +381,8 @@ def real_time_factor(rows: Sequence[Mapping[str, Any]], wall_s: float) -> float 
     sims = [r.get("simulated_s") for r in rows]
     sims = [float(v) for v in sims if isinstance(v, (int, float)) and not isinstance(v, bool)]
     sims = [v for v in sims if math.isfinite(v)]
-    if not sims or not wall_s > 0:
-        return None
-    return round(sum(sims) / wall_s, 4)
+    rtf = real_time_factor_of(sum(sims), wall_s)
+    return None if not sims or math.isnan(rtf) else rtf
 
 
 Executor = Callable[[Sequence[TrialSpec]], Iterator[tuple[TrialSpec, Row, float]]]

@@ -134,7 +134,7 @@ def test_row_pools_seeds_against_the_reference() -> None:
     row = row_of("shelf", "still", [quiet])
     assert row.reference_events == 0 and row.modes["default"].events_dev_pct == 0.0
     assert np.isnan(row.modes["default"].matched_pct) and row.bar.ok
-    assert bar_cells(row).matched == "– ≥ –" and bar_cells(row).verdict == "pass"
+    assert bar_cells(row).matched == "— ≥ —" and bar_cells(row).verdict == "pass"
 
 
 @pytest.mark.slow

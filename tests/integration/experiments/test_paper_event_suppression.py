@@ -211,8 +211,10 @@ def test_trial_figures_and_the_comparison_pool_the_phase_rows():
     assert comps["trials"].ours == "2"
     assert comps["events suppressed"].paper == "85.16 %"
     hit = comps["hand hit, hand-moving phases (8×8 box around the OMS map's densest point)"]
-    assert hit.ours.startswith("92.5 % [90.0, 95.0]; pooled 92.5 % of 40 sOMS steps")
-    assert comps["shake-only events suppressed"].ours == "97.0 % [96.0, 98.0]"
+    assert hit.ours == (
+        "92.5 % [90.0, 95.0] (n = 2); pooled 92.5 % of 40 sOMS steps (Wilson 80.1–97.4 %)"
+    )
+    assert comps["shake-only events suppressed"].ours == "97.0 % [96.0, 98.0] (n = 2)"
     assert comps["events in per 2 ms"].ours.startswith("52.5 ± ")
 
 

@@ -100,8 +100,11 @@ def test_table_and_plot(tmp_path):
         Cost("x", "b", "%", (math.nan, math.nan, math.nan, 0), (1.0, 0.5, 1.5, 2), "trials"),
     ]
     lines = table(costs).splitlines()
-    assert lines[2] == "| x | a (%) | 50.0 [40.0, 60.0] (n 3) | 90.0 (n 1) | trials |"
-    assert lines[3] == "| x | b (%) | — | 1.0 [0.5, 1.5] (n 2) | trials |"
+    assert lines[2] == (
+        "| x | a (%) | 50.0 [40.0, 60.0] (n = 3) | 90.0 (n = 1: n too small for an interval) "
+        "| trials |"
+    )
+    assert lines[3] == "| x | b (%) | — | 1.0 [0.5, 1.5] (n = 2) | trials |"
     back = read_costs(write_costs(costs, tmp_path / "c.json"))
     assert table(back) == table(costs) and back[0].speck == costs[0].speck
     # strict JSON: an infinite bound is written as null, never as Infinity

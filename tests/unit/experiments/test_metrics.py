@@ -13,6 +13,7 @@ from experiments.analysis.metrics import (
     detection_hit,
     event_counts,
     foveation_error_px,
+    hit_box,
     iou,
     precision,
     reaches,
@@ -233,6 +234,16 @@ def test_detection_box_is_clipped_to_the_image():
     assert not detection_hit((20, 20), corner)
 
 
+def test_hit_box_is_the_clipped_pixel_range_detection_scores():
+    assert hit_box((10, 10), (32, 32)) == (6, 14, 6, 14)
+    assert hit_box((14.5, 9.49), (32, 32)) == (11, 19, 5, 13)  # (15, 9): halves up
+    assert hit_box((1, 30), (32, 40)) == (0, 5, 26, 32)  # (H, W): y clipped at 32
+    assert hit_box((11, 10), (32, 32), box=3) == (10, 13, 9, 12)
+    assert hit_box((-20, 5), (16, 16)) == (0, -16, 1, 9)  # entirely outside: x0 >= x1
+    with pytest.raises(ValueError, match="box"):
+        hit_box((1, 1), (4, 4), box=0)
+
+
 def test_detection_other_box_sizes():
     m = single_pixel(10, 10)
     assert detection_hit((10, 10), m, box=1)
@@ -307,4 +318,4 @@ def test_docstring_examples_run():
     import experiments.analysis.metrics
 
     result = doctest.testmod(experiments.analysis.metrics)
-    assert (result.failed, result.attempted) == (0, 20)  # all ran, none failed
+    assert (result.failed, result.attempted) == (0, 21)  # all ran, none failed

@@ -17,8 +17,11 @@ from experiments.analysis.stats import (
     independent_comparison,
     mean_ci,
     mean_std,
+    number_text,
     paired_comparison,
+    percent_text,
     rank_biserial_paired,
+    real_time_factor,
     wilson_interval,
 )
 
@@ -100,6 +103,29 @@ def test_ci_text_says_when_n_is_too_small() -> None:
     assert ci_text(mean_ci([0.25]), ".0%") == "25% (n = 1: n too small for an interval)"
     assert ci_text(mean_ci([float("nan")]), ".1f") == "—"
     assert mean_std([0.13, 0.13, 0.13]) == (0.13, 0.0)  # no 9e-17 spread of equal values
+
+
+def test_ci_text_puts_the_unit_after_the_mean() -> None:
+    assert ci_text((82.3, 81.4, 83.2, 10), ".1f", " %") == "82.3 % [81.4, 83.2] (n = 10)"
+    assert ci_text((82.3, math.nan, math.nan, 1), ".1f", " %") == (
+        "82.3 % (n = 1: n too small for an interval)"
+    )
+    assert ci_text((math.nan, math.nan, math.nan, 0), ".1f", " %") == "—"
+
+
+def test_number_and_percent_text_mark_a_missing_number_with_one_dash() -> None:
+    assert number_text(1.25, ".1f", " ms") == "1.2 ms"
+    assert number_text(None, ".1f", " ms") == number_text(np.float64("nan"), ".1f") == "—"
+    assert percent_text(0.8516) == "85.2 %"
+    assert percent_text(None) == percent_text(math.nan) == "—"
+
+
+def test_real_time_factor_is_nan_without_a_positive_wall_time() -> None:
+    assert real_time_factor(4.0, 10.0) == 0.4
+    assert math.isnan(real_time_factor(4.0, 0.0))
+    assert math.isnan(real_time_factor(4.0, -1.0))
+    assert math.isnan(real_time_factor(math.inf, 1.0))
+    assert math.isnan(real_time_factor(1.0, math.nan))
 
 
 def test_independent_permutation_test_matches_a_t_test_on_separated_samples() -> None:
