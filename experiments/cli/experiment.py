@@ -67,7 +67,6 @@ def experiment(
 
     from experiments.studies.framework import (
         ConfigError,
-        config_to_dict,
         default_config_file,
         get_experiment,
         make_trials,
@@ -75,6 +74,7 @@ def experiment(
         unfinished_folder,
     )
     from experiments.studies.sweep import TrialCrashed, local_executor
+    from wander_env.config import to_plain
     from wander_env.strict_json import dumps_strict
 
     try:
@@ -88,7 +88,7 @@ def experiment(
     except ConfigError as e:
         raise fail(e, ctx) from None
     if show_config:
-        console.print_json(dumps_strict(config_to_dict(cfg)))
+        console.print_json(dumps_strict(to_plain(cfg)))
         return
     if resume is not None:  # the same command stopped there: its finished trials are kept
         run = RunFolder(resume, current_run(ctx))

@@ -48,7 +48,7 @@ import math
 import os
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -60,7 +60,7 @@ from experiments.runs.provenance import run_record
 from experiments.runs.tables import Row, Scalar, write_csv
 from experiments.runs.trials import TrialStore, save_artifacts, split_artifacts
 from experiments.studies.registry import EXPERIMENT_NAMES
-from wander_env.config import ConfigError, coerce, load_yaml, parse_sets, validate
+from wander_env.config import ConfigError, coerce, load_yaml, parse_sets, to_plain, validate
 from wander_env.config_messages import shown
 from wander_env.env_config import DvsPreset, FrameMode, PtuPreset, SceneName
 from wander_env.untrusted import UntrustedFileError
@@ -86,7 +86,6 @@ __all__ = [
     "check_lists",
     "coerce",
     "config_from_dict",
-    "config_to_dict",
     "configs_dir",
     "default_config_file",
     "get_experiment",
@@ -261,11 +260,6 @@ def config_from_dict(
     return validate(cls, values, base, where)
 
 
-def config_to_dict(config: Any) -> dict[str, Any]:
-    """JSON-able dict of a config (tuples become lists)."""
-    return json.loads(json.dumps(asdict(config)))
-
-
 def load_yaml_mapping(path: Path, what: str = "config file") -> dict[str, Any]:
     """A YAML file holding a mapping (empty file -> {}), read by
     :func:`wander_env.config.load_yaml` (bounded; ConfigError on one line)."""
@@ -327,7 +321,7 @@ def make_trials(
     experiment: Experiment, config: Any, seed: int, extra: Mapping[str, Scalar] | None = None
 ) -> list[TrialSpec]:
     """The grid times ``config.repeats`` (seed + r), in grid order."""
-    cfg = config_to_dict(config)
+    cfg = to_plain(config)
     repeats = int(getattr(config, "repeats", 1))
     grid = experiment.grid(config)
     if len(grid) * repeats > MAX_TRIALS:
@@ -450,9 +444,9 @@ def write_result_folder(
     rows = plain
     files = [write_csv(rows, out_dir / "results.csv")]
     files.append(
-        folder.write_json("config.json", {"experiment": experiment.name, **config_to_dict(config)})
+        folder.write_json("config.json", {"experiment": experiment.name, **to_plain(config)})
     )
-    rec = {"experiment": experiment.name, **run_record(command, config_to_dict(config), seed)}
+    rec = {"experiment": experiment.name, **run_record(command, to_plain(config), seed)}
     stops = folder.read_json(RUN_JSON).get("stops")  # of a resumed run: kept
     rec.update(timing=timings, **({"stops": stops} if stops else {}))
     files.append(folder.write_run(rec))
@@ -502,7 +496,7 @@ def is_unfinished_run(path: Path, name: str, config: Any, seed: int) -> bool:
         return False
     folder = RunFolder(path)
     try:
-        if folder.read_json("config.json") != {"experiment": name, **config_to_dict(config)}:
+        if folder.read_json("config.json") != {"experiment": name, **to_plain(config)}:
             return False
         ran = folder.read_json(RUN_JSON)
     except UntrustedFileError:  # damaged: not resumed (a new run goes elsewhere; --out
@@ -547,10 +541,10 @@ def run_experiment(
     with hold_folder(folder.path):
         folder.take_stop()
         stops = folder.read_json(RUN_JSON).get("stops")
-        start = {"experiment": name, **run_record(cmd, config_to_dict(config), seed)}
+        start = {"experiment": name, **run_record(cmd, to_plain(config), seed)}
         if stops:
             start["stops"] = stops
-        folder.write_json("config.json", {"experiment": exp.name, **config_to_dict(config)})
+        folder.write_json("config.json", {"experiment": exp.name, **to_plain(config)})
         folder.write_run(start)  # says which run this folder holds (a rerun resumes it)
         store = TrialStore(out_dir, keep_artifacts=True)
         todo = [s for s in specs if not store.has(s)]

@@ -381,13 +381,13 @@ def test_a_part_is_reused_only_from_a_run_of_the_same_config_and_seed(tmp_path):
 
     from experiments.paper.oms_scorecard import reused_row
     from experiments.runs.tables import write_csv
-    from experiments.studies.framework import config_to_dict
+    from wander_env.config import to_plain
 
     exp = get_experiment("oms_scorecard")
     cfg = resolve_config(exp, sets=SMALL)
     old = tmp_path / "old"
     old.mkdir()
-    (old / "config.json").write_text(json.dumps({"experiment": exp.name, **config_to_dict(cfg)}))
+    (old / "config.json").write_text(json.dumps({"experiment": exp.name, **to_plain(cfg)}))
     (old / "run.json").write_text(json.dumps({"seed": 3}))
     ids = {"trial": 0, "trial_id": "t0", "repeat": 0, "seed": 3}
     write_csv([{**ids, "part": "real", "agent:real:x": 0.25}], old / "results.csv")

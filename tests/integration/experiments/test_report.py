@@ -15,7 +15,7 @@ from experiments.cli.main import app
 from experiments.paper import scanpath
 from experiments.paper.report import studies_section
 from experiments.runs.tables import write_csv
-from experiments.studies.framework import config_to_dict
+from wander_env.config import to_plain
 
 
 def test_studies_section_shows_the_tested_statements_beside_the_papers(tmp_path) -> None:
@@ -72,7 +72,7 @@ def test_studies_section_shows_the_flir_main_sequence_and_the_links_cost(tmp_pat
             )
     write_csv(rows, folder / "results.csv")
     (folder / "config.json").write_text(
-        json.dumps({"experiment": "saccade_speed", **config_to_dict(cfg)})
+        json.dumps({"experiment": "saccade_speed", **to_plain(cfg)})
     )
     (folder / "run.json").write_text(json.dumps({"created": "2026-01-01T00:00:00"}))
     lines = studies_section(tmp_path / "results", tmp_path)
@@ -97,9 +97,7 @@ def _scanpath_folder(root: Path) -> Path:
         extra = {k: 1.0 for _, k, _ in scanpath._metrics(cfg) if k != "object_hit_rate"}
         rows.append({"trial": i, "trial_id": f"t{i}", "repeat": r["seed"], **r, **extra})
     write_csv(rows, folder / "results.csv")
-    (folder / "config.json").write_text(
-        json.dumps({"experiment": "scanpath", **config_to_dict(cfg)})
-    )
+    (folder / "config.json").write_text(json.dumps({"experiment": "scanpath", **to_plain(cfg)}))
     (folder / "run.json").write_text(json.dumps({"created": "2026-01-01T00:00:00"}))
     return folder
 
