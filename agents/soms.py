@@ -526,17 +526,21 @@ class SOMS(MapLayer[SOMSParams]):
         p = self.params
         if p.norm == "minmax":
             return oms_score(diff)
-        pooled = self.pool(-diff).numpy()
-        return torch.from_numpy(
-            _quantile_score(pooled, p.quantile, p.gain, p.floor_spikes, p.peak_ratio)
-        )
+        return quantile_score(self.pool(-diff), p.quantile, p.gain, p.floor_spikes, p.peak_ratio)
+
+    @torch.no_grad()
+    def excess(self, x: torch.Tensor) -> torch.Tensor:
+        """Advance the LIF one step with the event counts ``x`` ``(2, H, W)`` (float32,
+        checked: :meth:`step`'s input); the centre's spikes less the surround's ``(2, H,
+        W)``: what :meth:`score` normalises."""
+        spikes = lif_step(self.lif, self.filter(x).numpy())[0]  # (2, 2, H, W)
+        return torch.from_numpy(spikes[:, 0] - spikes[:, 1])
 
     @torch.no_grad()
     def step(self, event_map: np.ndarray | torch.Tensor) -> SOMSOutput:
         """Advance one step with the event counts ``(2, H, W)``; returns the OMS map."""
         x = self._input(event_map, "event_map")
-        spikes = lif_step(self.lif, self.filter(x).numpy())[0]  # (2, 2, H, W)
-        diff = torch.from_numpy(spikes[:, 0] - spikes[:, 1])
+        diff = self.excess(x)
         score = self.score(diff)
         oms = oms_map(x.numpy(), score.numpy(), self.params.alpha)
         return SOMSOutput(oms=torch.from_numpy(oms.astype(np.float32)), diff=diff, score=score)

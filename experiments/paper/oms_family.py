@@ -123,20 +123,19 @@ def oms_maps(
             x = torch.from_numpy(c.astype(np.float32))
             maps = {k: front.step(x).oms > 0 for k, front in fronts.items()}
             for names in groups.values():
-                first = somses[names[0]].step(x)  # the LIF state advances once per bin
-                maps[names[0]] = first.oms.numpy() > 0
+                diff = somses[names[0]].excess(x)  # the LIF state advances once per bin
                 pooled: dict[tuple[float, str], torch.Tensor] = {}
-                for k in names[1:]:
+                for k in names:
                     p = params[k]
                     if p.norm == "quantile":  # = SOMS.score(diff), the pooling shared
                         key = (p.pool_sigma, p.conv)
                         if key not in pooled:
-                            pooled[key] = somses[k].pool(-first.diff)
+                            pooled[key] = somses[k].pool(-diff)
                         score = quantile_score(
                             pooled[key], p.quantile, p.gain, p.floor_spikes, p.peak_ratio
                         )
                     else:
-                        score = somses[k].score(first.diff)
+                        score = somses[k].score(diff)
                     maps[k] = oms_map(c, score.numpy(), p.alpha)  # = SOMS.step
             yield maps
 
