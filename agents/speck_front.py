@@ -78,6 +78,7 @@ from agents.pipeline import PipelineBase
 from agents.proto_object import saliency_argmax
 from agents.speck_limits import SpeckLimits, conv_out, signed_range
 from wander_env.config import check_fields
+from wander_env.readout import SPECK_DVS_SIZE
 
 __all__ = [
     "INT8_RANGE",
@@ -137,8 +138,8 @@ class SpeckFrontParams:
     - ``dt`` 0.01 s: one step (the env's control period); sets the leak per step.
     """
 
-    width_px: int = 128
-    height_px: int = 128
+    width_px: int = SPECK_DVS_SIZE[0]
+    height_px: int = SPECK_DVS_SIZE[1]
     dog_kernel_px: int = 9
     dog_stride: int = 2
     sigma_c: float = 1.0

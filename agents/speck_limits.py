@@ -39,6 +39,8 @@ import numpy as np
 import sinabs.layers as sl
 from torch import nn
 
+from wander_env.readout import SPECK_DVS_SIZE
+
 __all__ = [
     "CoreLayer",
     "NetworkReport",
@@ -77,7 +79,7 @@ class SpeckLimits:
     """
 
     cores: int = 9
-    max_input_px: int = 128
+    max_input_px: int = SPECK_DVS_SIZE[0]
     max_output_px: int = 64
     max_kernel_px: int = 16
     max_padding: int = 7

@@ -73,11 +73,7 @@ from hardware.speck_config import (
     silence_cores,
 )
 from wander_env.events import EVENT_DTYPE, empty_events
-from wander_env.readout import ReadoutParams, SpeckReadout
-
-#: Resolution of the Speck DVS (sinabs ``play_with_speck_dvs.ipynb``, datasheet §2.2);
-#: used only when the configuration does not give the DVS region.
-SPECK_DVS_SIZE = (128, 128)
+from wander_env.readout import SPECK_DVS_SIZE, ReadoutParams, SpeckReadout
 
 _TS_WRAP = 1 << 32  # Speck timestamps are 32-bit µs counters (wrap after ~71.6 min)
 

@@ -106,6 +106,11 @@ __all__ = [
     "packet_delivery_us",
 ]
 
+#: Speck's DVS pixel array, (width, height) (sinabs ``play_with_speck_dvs.ipynb``,
+#: datasheet §2.2): the chip front end's largest input and the rig's sensor size where
+#: the chip's configuration gives no DVS region.
+SPECK_DVS_SIZE = (128, 128)
+
 #: The counters of events that leave the stream (each its own share of ``in``).
 LOST: tuple[str, ...] = (
     "killed",

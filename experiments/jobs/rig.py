@@ -66,8 +66,8 @@ from experiments.runs.provenance import run_record
 from experiments.studies.framework import MAX_SEED
 from hardware.ptu_driver import PTUError, PTUFlood, PTUPortError, PTUTimeout
 from hardware.rig_env import RigConfig
-from hardware.speck import SPECK_DVS_SIZE
 from wander_env.camera import SPECK_HFOV_DEG
+from wander_env.readout import SPECK_DVS_SIZE
 from wander_env.strict_json import to_strict_json
 from wander_env.untrusted import UntrustedFileError
 
