@@ -70,7 +70,6 @@ FACTORS = {
 NUMERIC_FACTORS = {k: v for k, v in FACTORS.items() if k != "ptu_link"}
 # The factorial design's factors (object speed and the link stay at the baseline).
 FACTORIAL = ("ptu_speed", "ptu_accel", "fixational_amplitude", "fixational_count", "window")
-PTU_FACTORS = ("baseline", "ptu_speed", "ptu_accel", "ptu_link")
 
 
 #: The env fields each trial sets (what sets them): the block leaves them at defaults.

@@ -54,14 +54,6 @@ REFERENCE_HZ = 4000.0
 REFERENCE_SUPERSAMPLE = 4
 #: The modes compared against the reference, in the tables' order.
 MODES = ("exact", "aa16", "default", "fine", "one_key", "panorama")
-MODE_TITLES = {
-    "exact": "exact (4 samples, 1 kHz)",
-    "aa16": "16 samples, 1 kHz",
-    "default": "default frames",
-    "fine": "default frames, quality fine",
-    "one_key": "one key a step",
-    "panorama": "panorama",
-}
 # The bar's margins: events (points), L1 (factor), matched (points), gap (ms).
 BAR_EVENTS_PTS = 2.0
 BAR_L1_FACTOR = 1.1
