@@ -9,12 +9,19 @@ Examples:
     {'a': None, 'b': 0.5, 'c': [None, 1]}
     >>> dumps_strict({"x": float("nan")})
     '{"x": null}'
+    >>> import pathlib, tempfile
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     path = write_strict(pathlib.Path(d) / "a.json", {"x": math.inf})
+    ...     path.read_text(), sorted(p.name for p in path.parent.iterdir())
+    ('{"x": null}\\n', ['a.json'])
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -41,3 +48,18 @@ def dumps_strict(data: Any, **kwargs: Any) -> str:
     """``json.dumps`` of :func:`to_strict_json` ``(data)``; never writes NaN/Infinity."""
     kwargs.setdefault("default", str)
     return json.dumps(to_strict_json(data), allow_nan=False, **kwargs)
+
+
+def write_strict(path: Path, data: Any, **kwargs: Any) -> Path:
+    """Write :func:`dumps_strict` ``(data, **kwargs)`` and a newline to ``path``, whole or
+    not at all: written beside it (``.NAME.tmp``), then renamed over it, so a full disk or
+    a signal leaves the earlier file, or none, never a damaged one (the partial file is
+    removed). Returns ``path``."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        tmp.write_text(dumps_strict(data, **kwargs) + "\n")
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path

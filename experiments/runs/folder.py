@@ -74,7 +74,7 @@ from typing import Any
 from experiments.runs.failure import describe, write_failure
 from experiments.runs.signals import SignalExit
 from wander_env import untrusted
-from wander_env.strict_json import dumps_strict
+from wander_env.strict_json import write_strict
 from wander_env.untrusted import UntrustedFileError
 
 RUN_JSON = "run.json"
@@ -268,17 +268,9 @@ class RunFolder:
 
     def write_json(self, name: str, data: Any) -> Path:
         """Write ``data`` as strict, indented JSON (NaN and ±inf as ``null``) to ``name``,
-        whole or not at all: written beside it, then renamed over it (a full disk leaves
+        whole or not at all (:func:`wander_env.strict_json.write_strict`: a full disk leaves
         the earlier file, or none, never a damaged one that :meth:`read_json` refuses)."""
-        path = self.create() / name
-        tmp = path.with_name(f".{name}.tmp")
-        try:
-            tmp.write_text(dumps_strict(data, indent=2) + "\n")
-            os.replace(tmp, path)
-        except BaseException:
-            tmp.unlink(missing_ok=True)
-            raise
-        return path
+        return write_strict(self.create() / name, data, indent=2)
 
     def read_json(self, name: str) -> dict[str, Any]:
         """The JSON object in ``name``, read as an untrusted file (bounded:

@@ -32,7 +32,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any, Protocol
 
-from wander_env.strict_json import dumps_strict
+from wander_env.strict_json import write_strict
 from wander_env.untrusted import FileLimits, read_json
 
 __all__ = ["MAX_TRIAL_FILE_BYTES", "TrialStore", "save_artifacts", "split_artifacts"]
@@ -94,10 +94,8 @@ class TrialStore:
             os.replace(tmp, tmp.with_name(f"{spec.id}.npz"))
         path = self.path(spec)
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp")
         rec = {"spec": asdict(spec), "row": plain, "seconds": round(seconds, 3)}
-        tmp.write_text(dumps_strict(rec) + "\n")
-        os.replace(tmp, path)
+        write_strict(path, rec)
 
     def put_all(
         self,
